@@ -1,0 +1,287 @@
+"""Scenes as data: planar layers with radiance textures, and the effects each scene needs.
+
+The one place that defines the paper's two scenes (multi-shape, Fig. 5; flame, Fig. 6)
+and the point source (the camera's PSF). Every sample is drawn from a seeded
+``numpy.random.Generator``; how and why each parameter varies is in the docstrings
+and ``docs/scenes.md``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .camera import PlenopticCamera
+
+#: Depth offsets (mm) of the paper's four planes, in the order of its tables.
+PAPER_DEPTHS_MM = (20.0, 10.0, 0.0, -10.0)
+#: The shape at each depth (paper Sec. III-A).
+SHAPE_AT_DEPTH = ("rectangle", "triangle", "circle", "square")
+#: Paper Sec. III-B: mean flame heights range 14.47–29.48 mm across depths and the
+#: standard deviations 1.41–1.48 mm; the paper does not say which depth has which, so
+#: the means and deviations are spread linearly, tallest at the farthest plane.
+FLAME_HEIGHT_MEAN_MM = (29.48, 24.48, 19.47, 14.47)
+FLAME_HEIGHT_SD_MM = (1.48, 1.457, 1.433, 1.41)
+
+
+@dataclass(frozen=True)
+class Effects:
+    """Physical effects a scene asks the simulator for. Off costs nothing.
+
+    Attributes
+    ----------
+    aperture : bool
+        Main-lens aperture function A(u, v) of the paper's Eq. 1: rays outside the
+        circular clear aperture are lost, which vignettes the corners of each
+        lenslet image. Off: an unbounded lens.
+    cos4 : bool
+        The cos⁴θ fall-off of Eq. 1, θ the angle of the ray between main lens and MLA.
+    occlusion : bool
+        Opaque layers hide what lies behind them (front-to-back alpha compositing);
+        off: optically thin layers whose emission adds up (flames).
+    read_noise_e, full_well_e : float or None
+        Sensor noise: Poisson shot noise for a full well of ``full_well_e`` electrons at
+        radiance 1 and Gaussian read noise of ``read_noise_e`` electrons. None: noise-free.
+    bit_depth : int or None
+        Quantise the raw image to this many bits; None keeps float32.
+    """
+
+    aperture: bool = True
+    cos4: bool = True
+    occlusion: bool = True
+    full_well_e: float | None = None
+    read_noise_e: float | None = None
+    bit_depth: int | None = None
+
+
+@dataclass(frozen=True)
+class Layer:
+    """A planar layer of a scene.
+
+    Attributes
+    ----------
+    radiance : ndarray of shape (rows, cols), float32
+        Emitted radiance, >= 0, in units where 1 saturates the sensor. Row 0 is the top.
+    alpha : ndarray of shape (rows, cols), float32, or None
+        Opacity in [0, 1] (used when the scene's effects ask for occlusion); None: 0.
+    depth_offset_mm : float
+        Distance beyond the focal plane (mm), positive = farther from the camera.
+    centre_mm : (float, float)
+        Object-space centre (y up, x right) of the texture, mm.
+    size_mm : (float, float)
+        Height and width covered by the texture, mm.
+    """
+
+    radiance: np.ndarray
+    alpha: np.ndarray | None
+    depth_offset_mm: float
+    centre_mm: tuple[float, float]
+    size_mm: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Layers, the effects they need, and a record of each object for search and provenance.
+
+    ``objects`` holds one dict per object: name, depth_offset_mm, the parameters drawn,
+    and ``roi`` = (row0, row1, col0, col1) in lenslets, its box in the refocused image.
+    """
+
+    name: str
+    layers: tuple[Layer, ...]
+    effects: Effects
+    objects: tuple[dict, ...] = field(default_factory=tuple)
+
+
+# ---------------------------------------------------------------------------------
+def _layer_grid(camera: PlenopticCamera, dz: float, texels_per_lenslet: float, margin: float):
+    """Texture grid covering the field at depth ``dz`` (mm), enlarged by ``margin``."""
+    h, w = camera.field_of_view_mm(dz)
+    h, w = h * margin, w * margin
+    rows = int(math.ceil(camera.n_rows * margin * texels_per_lenslet))
+    cols = int(math.ceil(camera.n_cols * margin * texels_per_lenslet))
+    y = (0.5 - (np.arange(rows) + 0.5) / rows) * h      # texel centres, y up
+    x = ((np.arange(cols) + 0.5) / cols - 0.5) * w
+    return y[:, None], x[None, :], (h, w), h / rows
+
+
+def _polygon_coverage(y, x, verts, texel):
+    """Anti-aliased coverage of a convex polygon (vertices counter-clockwise in (x, y))."""
+    d = np.full(np.broadcast(y, x).shape, -np.inf)
+    n = len(verts)
+    for k in range(n):
+        (x0, y0), (x1, y1) = verts[k], verts[(k + 1) % n]
+        ex, ey = x1 - x0, y1 - y0
+        L = math.hypot(ex, ey)
+        # outward normal of a counter-clockwise edge is (ey, -ex)
+        d = np.maximum(d, ((x - x0) * ey - (y - y0) * ex) / L)
+    return np.clip(0.5 - d / texel, 0.0, 1.0)
+
+
+def _shape_vertices(kind, cy, cx, size, angle):
+    if kind == "rectangle":
+        hw, hh = 0.5 * size / 1.6, 0.5 * size            # portrait rectangle, aspect 1.6
+        pts = [(-hw, -hh), (hw, -hh), (hw, hh), (-hw, hh)]
+    elif kind == "square":
+        s = 0.5 * size * 0.8
+        pts = [(-s, -s), (s, -s), (s, s), (-s, s)]
+    elif kind == "triangle":
+        r = 0.55 * size
+        pts = [(r * math.cos(math.radians(a)), r * math.sin(math.radians(a))) for a in (210.0, 330.0, 90.0)]
+    else:
+        raise ValueError(f"unknown polygon shape {kind!r}")
+    ca, sa = math.cos(angle), math.sin(angle)
+    return [(cx + px * ca - py * sa, cy + px * sa + py * ca) for px, py in pts]
+
+
+def _roi(camera, dz, y0, y1, x0, x1, margin_lenslets=3.0):
+    """Box (row0, row1, col0, col1) in lenslets of an object-space box at depth dz."""
+    ra, ca = camera.object_to_lenslet(y1, x0, dz)
+    rb, cb = camera.object_to_lenslet(y0, x1, dz)
+    r0 = max(0, int(math.floor(min(ra, rb) - margin_lenslets)))
+    r1 = min(camera.n_rows, int(math.ceil(max(ra, rb) + margin_lenslets)))
+    c0 = max(0, int(math.floor(min(ca, cb) - margin_lenslets)))
+    c1 = min(camera.n_cols, int(math.ceil(max(ca, cb) + margin_lenslets)))
+    return (r0, r1, c0, c1)
+
+
+def shapes_scene(camera: PlenopticCamera, rng: np.random.Generator, *,
+                 texels_per_lenslet: float = 3.0, vary: bool = True) -> Scene:
+    """The paper's multi-shape scene (Fig. 5): rectangle +20, triangle +10, circle 0, square −10 mm.
+
+    Layout: the field at the focal plane is split 2 × 2 (rectangle top-left, triangle
+    top-right, circle bottom-left, square bottom-right), each cell scaled with its
+    depth so every shape is seen in its own cell and the slope search has a region of
+    interest per object. Variation per sample (``vary``): centre jitter ±12 % of the
+    cell, size 45–75 % of the cell's width, rotation ±20° (polygons), radiance
+    0.5–1.0, all uniform. Why: the network must learn refocusing, not one template.
+    ``vary=False`` gives the nominal scene (centred, 60 %, upright, radiance 1) used
+    for the slope search.
+
+    Effects: opaque objects (occlusion), aperture and cos⁴ of the paper's Eq. 1;
+    noise-free like the paper's simulation.
+
+    Returns
+    -------
+    Scene with four layers ordered as :data:`PAPER_DEPTHS_MM`.
+    """
+    h0, w0 = camera.field_of_view_mm(0.0)
+    cells = {"rectangle": (h0 / 4, -w0 / 4), "triangle": (h0 / 4, w0 / 4),
+             "circle": (-h0 / 4, -w0 / 4), "square": (-h0 / 4, w0 / 4)}
+    ch, cw = h0 / 2, w0 / 2
+    layers, objects = [], []
+    for dz, kind in zip(PAPER_DEPTHS_MM, SHAPE_AT_DEPTH):
+        scale = camera.object_distance_mm(dz) / camera.focus_distance_mm
+        cy, cx = cells[kind]
+        if vary:
+            cy += rng.uniform(-0.12, 0.12) * ch
+            cx += rng.uniform(-0.12, 0.12) * cw
+            size = rng.uniform(0.45, 0.75) * min(ch, cw)
+            angle = 0.0 if kind == "circle" else math.radians(rng.uniform(-20, 20))
+            level = rng.uniform(0.5, 1.0)
+        else:
+            size, angle, level = 0.6 * min(ch, cw), 0.0, 1.0
+        cy, cx, size = cy * scale, cx * scale, size * scale
+        y, x, (h, w), texel = _layer_grid(camera, dz, texels_per_lenslet, 1.2)
+        if kind == "circle":
+            cov = np.clip(0.5 - (np.hypot(y - cy, x - cx) - 0.5 * size) / texel, 0.0, 1.0)
+        else:
+            cov = _polygon_coverage(y, x, _shape_vertices(kind, cy, cx, size, angle), texel)
+        cov = cov.astype(np.float32)
+        layers.append(Layer(radiance=(level * cov).astype(np.float32), alpha=cov, depth_offset_mm=dz,
+                            centre_mm=(0.0, 0.0), size_mm=(h, w)))
+        half = 0.6 * size
+        objects.append(dict(name=kind, depth_offset_mm=dz, centre_y_mm=cy, centre_x_mm=cx, size_mm=size,
+                            angle_deg=math.degrees(angle), radiance=level,
+                            roi=_roi(camera, dz, cy - half, cy + half, cx - half, cx + half)))
+    return Scene("shapes", tuple(layers), Effects(aperture=True, cos4=True, occlusion=True), tuple(objects))
+
+
+def flame_luminosity(eta, xi):
+    """Projected luminosity of a laminar jet diffusion flame, normalised coordinates.
+
+    ``eta`` = height / flame height in [0, 1], ``xi`` = lateral offset / local flame
+    half-width. The flame is a thin luminous sheath of relative thickness 0.35 around a
+    dark core (a Burke–Schumann flame sheet, Burke & Schumann 1928, thickened by soot);
+    its line-of-sight projection is ``sqrt(1 - xi²) - sqrt((0.65)² - xi²)``. Axial
+    luminosity rises from the dim blue base, peaks near 40 % of the height, and fades
+    at the tip where soot burns out: ``sin(pi eta^0.75)``. Peak normalised to 1.
+
+    Returns
+    -------
+    ndarray broadcast from ``eta`` and ``xi``, values in [0, 1].
+    """
+    eta = np.asarray(eta, dtype=np.float64)
+    xi = np.abs(np.asarray(xi, dtype=np.float64))
+    inner = 0.65
+    proj = np.sqrt(np.clip(1.0 - xi ** 2, 0, None)) - np.sqrt(np.clip(inner ** 2 - xi ** 2, 0, None))
+    proj /= math.sqrt(1 - inner ** 2)  # its maximum, at xi = inner
+    axial = np.where((eta >= 0) & (eta <= 1), np.sin(np.pi * np.clip(eta, 0, 1) ** 0.75), 0.0)
+    return np.clip(proj * axial, 0.0, 1.0)
+
+
+def flame_scene(camera: PlenopticCamera, rng: np.random.Generator, *, template_scale: float = 0.64,
+                texels_per_lenslet: float = 3.0, vary: bool = True) -> Scene:
+    """The paper's flame scene (Fig. 6): four flames, one at each of the four depths.
+
+    Height of the flame at depth k ~ Normal(:data:`FLAME_HEIGHT_MEAN_MM` [k],
+    :data:`FLAME_HEIGHT_SD_MM` [k]) (paper Sec. III-B), in template millimetres. The
+    paper's 180 × 90-lenslet grid sees only about 23.7 × 11.8 mm at the focal plane
+    (SPEC.md), smaller than its 30 mm flames, so templates are scaled by
+    ``template_scale`` (0.64: the tallest flame, mean + 3 sd, fills 90 % of the field at
+    +20 mm) — the paper's optics are kept. Flames stand side by side (farthest left),
+    bases near the bottom of the field. Per sample: height, lateral jitter ±4 % of the
+    field, peak radiance 0.6–1.0, and flicker: a sway of the centreline
+    ``a eta² sin(2 pi eta / 0.6 + phi)``, ``a`` up to 6 % of the height, random phase.
+    Half-width at the base 7 % of the height, narrowing as ``sqrt(1 - eta)``.
+
+    Effects: optically thin flames add their emission (no occlusion); aperture and
+    cos⁴ of Eq. 1; noise-free.
+    """
+    h0, w0 = camera.field_of_view_mm(0.0)
+    layers, objects = [], []
+    for k, dz in enumerate(PAPER_DEPTHS_MM):
+        scale = camera.object_distance_mm(dz) / camera.focus_distance_mm
+        if vary:
+            height = rng.normal(FLAME_HEIGHT_MEAN_MM[k], FLAME_HEIGHT_SD_MM[k])
+            jitter = rng.uniform(-0.04, 0.04) * w0
+            level = rng.uniform(0.6, 1.0)
+            sway, phase = rng.uniform(0.0, 0.06), rng.uniform(0.0, 2 * math.pi)
+        else:
+            height, jitter, level, sway, phase = FLAME_HEIGHT_MEAN_MM[k], 0.0, 1.0, 0.0, 0.0
+        H = max(height, 1.0) * template_scale * scale
+        cx = ((k + 0.5) / 4 - 0.5) * w0 * 0.9 * scale + jitter * scale
+        base_y = -0.45 * h0 * scale
+        y, x, (h, w), texel = _layer_grid(camera, dz, texels_per_lenslet, 1.2)
+        eta = (y - base_y) / H
+        half_w = 0.07 * H * np.sqrt(np.clip(1.0 - eta, 0.0, 1.0)) + 1e-9
+        centre = cx + sway * H * eta ** 2 * np.sin(2 * math.pi * eta / 0.6 + phase)
+        lum = (level * flame_luminosity(eta, (x - centre) / half_w)).astype(np.float32)
+        layers.append(Layer(radiance=lum, alpha=None, depth_offset_mm=dz, centre_mm=(0.0, 0.0), size_mm=(h, w)))
+        hw = 0.07 * H + sway * H
+        objects.append(dict(name=f"flame_{dz:+.0f}mm", depth_offset_mm=dz, height_template_mm=height,
+                            height_mm=H, centre_x_mm=cx, base_y_mm=base_y, radiance=level,
+                            sway=sway, phase=phase,
+                            roi=_roi(camera, dz, base_y, base_y + H, cx - hw, cx + hw)))
+    return Scene("flame", tuple(layers), Effects(aperture=True, cos4=True, occlusion=False), tuple(objects))
+
+
+def point_scene(camera: PlenopticCamera, depth_offset_mm: float = 0.0, y_mm: float = 0.0, x_mm: float = 0.0,
+                size_mm: float | None = None, radiance: float = 1.0) -> Scene:
+    """A point source (the camera's PSF): one small square emitter at ``(y, x)`` mm, depth ``dz``.
+
+    ``size_mm`` defaults to a quarter of a lenslet's footprint at that depth, so the
+    in-focus point stays inside one lenslet. Effects: aperture only (a PSF of the optics).
+    """
+    if size_mm is None:
+        size_mm = 0.25 * camera.mla_pitch_mm * camera.object_distance_mm(depth_offset_mm) / camera.mla_distance_mm
+    tex = np.full((1, 1), radiance, dtype=np.float32)
+    layer = Layer(radiance=tex, alpha=None, depth_offset_mm=float(depth_offset_mm), centre_mm=(y_mm, x_mm),
+                  size_mm=(size_mm, size_mm))
+    obj = dict(name="point", depth_offset_mm=float(depth_offset_mm), centre_y_mm=y_mm, centre_x_mm=x_mm,
+               size_mm=size_mm, roi=_roi(camera, depth_offset_mm, y_mm, y_mm, x_mm, x_mm))
+    return Scene("point", (layer,), Effects(aperture=True, cos4=False, occlusion=False), (obj,))
+
+
+SCENES = {"shapes": shapes_scene, "flame": flame_scene}
