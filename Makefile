@@ -1,0 +1,55 @@
+# lf_flame: `make tables` reproduces the paper's Tables I and II; `make test` runs the tests.
+# PRESET=paper (default) or PRESET=quick (same code, tiny sizes, minutes).
+PRESET ?= paper
+PYTHON ?= python3
+VENV := .venv
+STAMP := $(VENV)/.installed
+LF := $(VENV)/bin/lf-flame
+DATA := data/$(PRESET)
+MODELS := models/$(PRESET)
+RES := results/$(PRESET)
+DCFG := data_gen/$(PRESET).toml
+ECFG := experiments/$(PRESET).toml
+
+.PHONY: help install dataset train-shapes train-flame tables test clean-quick
+.DEFAULT_GOAL := help
+
+help: ## list the targets
+	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  %-14s %s\n", $$1, $$2}'
+	@echo "  PRESET=paper|quick (now: $(PRESET))"
+
+$(STAMP): setup.cfg pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(VENV)/bin/pip install --upgrade pip
+	$(VENV)/bin/pip install -e ".[test]"
+	touch $@
+
+install: $(STAMP) ## create .venv and install the package (once)
+
+$(DATA)/slopes.json: $(STAMP) $(DCFG)
+	$(LF) slopes --data-config $(DCFG) --out $@ --results $(RES)
+
+$(DATA)/%.h5: $(DATA)/slopes.json $(DCFG)
+	$(LF) dataset --data-config $(DCFG) --scene $* --slopes $< --out $@
+
+dataset: $(DATA)/shapes.h5 $(DATA)/flame.h5 ## render both datasets (resumable)
+
+$(MODELS)/%/train_info.json: $(DATA)/%.h5 $(ECFG)
+	$(LF) train --dataset $< --experiment-config $(ECFG) --out $(@D)
+
+train-shapes: $(MODELS)/shapes/train_info.json ## train the model on the shapes
+train-flame: $(MODELS)/flame/train_info.json ## train the model on the flames
+
+$(RES)/table_%.md: $(MODELS)/%/train_info.json
+	$(LF) evaluate --dataset $(DATA)/$*.h5 --model-dir $(MODELS)/$* --results $(RES)
+
+$(RES)/tables.md: $(RES)/table_shapes.md $(RES)/table_flame.md
+	$(LF) tables --results $(RES) --data-dir $(DATA) --model-dir $(MODELS)
+
+tables: $(RES)/tables.md ## Tables I and II, slopes and figures in results/$(PRESET)
+
+test: $(STAMP) ## run the test suite (includes an end-to-end run of the quick pipeline)
+	$(VENV)/bin/python -m pytest -q
+
+clean-quick: ## remove the quick preset's data, models and results
+	rm -rf data/quick models/quick results/quick

@@ -1,0 +1,207 @@
+"""``lf-flame``: the command line that the Make targets call. ``lf-flame --help``."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def _load_raw(path):
+    """A raw image from .npz (key 'raw'), .npy, or a dataset sample 'file.h5:INDEX'."""
+    s = str(path)
+    if ".h5:" in s:
+        from .dataset import LightFieldDataset
+        f, i = s.rsplit(":", 1)
+        ds = LightFieldDataset(f)
+        return ds.raw(int(i)), ds.camera
+    p = Path(s)
+    if not p.is_file():
+        raise SystemExit(f"error: raw image file not found: {p}")
+    if p.suffix == ".npz":
+        with np.load(p) as z:
+            from .camera import PlenopticCamera
+            cam = PlenopticCamera.from_dict(json.loads(str(z["camera"]))) if "camera" in z else None
+            return z["raw"], cam
+    return np.load(p), None
+
+
+def _save_image(path, img):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    plt.imsave(path, np.clip(img, 0, 1), cmap="gray", vmin=0, vmax=1)
+
+
+def cmd_simulate(a):
+    from . import scenes, simulate
+    from .camera import PAPER_CAMERA
+    from .config import load_data_config
+    cam = load_data_config(a.data_config)[0] if a.data_config else PAPER_CAMERA
+    if a.scene == "point":
+        sc = scenes.point_scene(cam, a.depth, a.y, a.x)
+    else:
+        sc = scenes.SCENES[a.scene](cam, np.random.default_rng(a.seed), vary=not a.nominal)
+    t = time.perf_counter()
+    raw = simulate.render(cam, sc, a.rays_per_pixel, a.seed)
+    dt = time.perf_counter() - t
+    out = Path(a.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if out.suffix == ".png":
+        _save_image(out, raw)
+    else:
+        extra = {}
+        if a.views:
+            from .refocus import raw_to_views
+            extra["views"] = raw_to_views(raw, cam.pixels_per_lenslet)
+        np.savez_compressed(out, raw=raw, camera=cam.to_json(), objects=json.dumps(sc.objects, default=float),
+                            **extra)
+    print(f"rendered {sc.name} {raw.shape} at {a.rays_per_pixel} rays/pixel in {dt:.2f} s -> {out}")
+
+
+def cmd_refocus(a):
+    from .camera import PAPER_CAMERA
+    from .refocus import aperture_mask, focal_stack, raw_to_views
+    raw, cam = _load_raw(a.raw)
+    cam = cam or PAPER_CAMERA
+    views = raw_to_views(raw, cam.pixels_per_lenslet)
+    t = time.perf_counter()
+    stack = focal_stack(views, a.slope, aperture_mask(cam.pixels_per_lenslet, a.aperture))
+    print(f"refocused {len(a.slope)} planes in {1e3 * (time.perf_counter() - t):.2f} ms")
+    out = Path(a.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if out.suffix == ".png":
+        _save_image(out, np.concatenate(list(stack), axis=1))
+    else:
+        np.savez_compressed(out, stack=stack, slopes=np.asarray(a.slope))
+    print(f"-> {out}")
+
+
+def cmd_slopes(a):
+    from .config import atomic_write_text, load_data_config
+    from .dataset import calibrate_slopes
+    from .evaluate import write_slopes
+    cam, cfg = load_data_config(a.data_config)
+    t = time.perf_counter()
+    slopes, searches, objects = calibrate_slopes(cam, cfg.calibration_rays_per_pixel)
+    df = write_slopes(cam, slopes, searches, objects, a.results)
+    print(df.to_string(index=False))
+    atomic_write_text(a.out, json.dumps({"slopes": slopes, "wall_time_s": time.perf_counter() - t}))
+
+
+def cmd_dataset(a):
+    from .config import load_data_config
+    from .dataset import generate
+    cam, cfg = load_data_config(a.data_config)
+    slopes = json.loads(Path(a.slopes).read_text())["slopes"]
+    p = generate(a.out, cam, cfg, a.scene, slopes, progress=not a.quiet)
+    print(f"dataset -> {p}")
+
+
+def cmd_train(a):
+    from .config import load_experiment_config
+    from .train import train
+    mcfg, tcfg = load_experiment_config(a.experiment_config)
+    info = train(a.dataset, a.out, mcfg, tcfg, progress=not a.quiet)
+    print(f"trained {info['epochs_run']} epochs in {info['training_wall_time_s']:.0f} s "
+          f"(best val_loss {info['best_val_loss']:.5f}, backbone {info['backbone_weights']}) -> {a.out}")
+
+
+def cmd_evaluate(a):
+    from .evaluate import evaluate
+    table = evaluate(a.dataset, a.model_dir, a.results)
+    print(table.to_string(index=False))
+
+
+def cmd_tables(a):
+    import h5py
+    from .evaluate import write_tables
+    times = {}
+    sl = Path(a.data_dir) / "slopes.json"
+    if sl.exists():
+        times["slope search"] = json.loads(sl.read_text())["wall_time_s"]
+    for scene in ("shapes", "flame"):
+        d = Path(a.data_dir) / f"{scene}.h5"
+        if d.exists():
+            with h5py.File(d, "r") as f:
+                times[f"dataset {scene}"] = float(f.attrs.get("wall_time_s_last_run", float("nan")))
+        info = Path(a.model_dir) / scene / "train_info.json"
+        if info.exists():
+            i = json.loads(info.read_text())
+            times[f"backbone features {scene}"] = i["feature_wall_time_s"]
+            times[f"training {scene} ({i['epochs_run']} epochs)"] = i["training_wall_time_s"]
+    print(write_tables(a.results, times))
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(prog="lf-flame", description="Light-field refocusing of burner flames: "
+                                "simulate, refocus, build datasets, train and evaluate the paper's model.")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    s = sub.add_parser("simulate", help="render a raw light-field image of a scene")
+    s.add_argument("--scene", choices=["shapes", "flame", "point"], required=True)
+    s.add_argument("--out", required=True, help=".npz (raw, camera, objects[, views]) or .png")
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--rays-per-pixel", type=int, default=16)
+    s.add_argument("--data-config", help="TOML with a [camera] table (default: the paper's camera)")
+    s.add_argument("--nominal", action="store_true", help="the nominal scene (no random variation)")
+    s.add_argument("--views", action="store_true", help="also store sub-aperture views (N, N, R, C)")
+    s.add_argument("--depth", type=float, default=0.0, help="point scene: depth offset (mm)")
+    s.add_argument("--y", type=float, default=0.0, help="point scene: height (mm)")
+    s.add_argument("--x", type=float, default=0.0, help="point scene: lateral position (mm)")
+    s.set_defaults(func=cmd_simulate)
+
+    s = sub.add_parser("refocus", help="shift-and-sum refocus a raw image at one or more slopes")
+    s.add_argument("raw", help=".npz from simulate, .npy, or DATASET.h5:INDEX")
+    s.add_argument("--slope", type=float, action="append", required=True)
+    s.add_argument("--aperture", choices=["square", "circular"], default="circular")
+    s.add_argument("--out", required=True, help=".npz (stack) or .png (planes side by side)")
+    s.set_defaults(func=cmd_refocus)
+
+    s = sub.add_parser("slopes", help="slope search for the four shapes of the nominal scene")
+    s.add_argument("--data-config", required=True)
+    s.add_argument("--out", required=True, help="JSON of the slopes used for ground truth")
+    s.add_argument("--results", required=True, help="folder for slopes.csv and slopes.png")
+    s.set_defaults(func=cmd_slopes)
+
+    s = sub.add_parser("dataset", help="generate (or resume) a dataset in HDF5")
+    s.add_argument("--data-config", required=True)
+    s.add_argument("--scene", choices=["shapes", "flame"], required=True)
+    s.add_argument("--slopes", required=True, help="JSON written by 'lf-flame slopes'")
+    s.add_argument("--out", required=True)
+    s.add_argument("--quiet", action="store_true")
+    s.set_defaults(func=cmd_dataset)
+
+    s = sub.add_parser("train", help="train the decoder on cached backbone features (resumable)")
+    s.add_argument("--dataset", required=True)
+    s.add_argument("--experiment-config", required=True)
+    s.add_argument("--out", required=True, help="model folder")
+    s.add_argument("--quiet", action="store_true")
+    s.set_defaults(func=cmd_train)
+
+    s = sub.add_parser("evaluate", help="SSIM/PSNR per plane on the test split, table and figure")
+    s.add_argument("--dataset", required=True)
+    s.add_argument("--model-dir", required=True)
+    s.add_argument("--results", required=True)
+    s.set_defaults(func=cmd_evaluate)
+
+    s = sub.add_parser("tables", help="collect Tables I and II, slopes and stage times into tables.md")
+    s.add_argument("--results", required=True)
+    s.add_argument("--data-dir", required=True)
+    s.add_argument("--model-dir", required=True)
+    s.set_defaults(func=cmd_tables)
+
+    a = p.parse_args(argv)
+    try:
+        a.func(a)
+    except (ValueError, FileNotFoundError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,151 @@
+"""Configuration: frozen dataclasses read from small TOML files, and provenance.
+
+``data_gen/<preset>.toml`` holds the camera and dataset settings, ``experiments/<preset>.toml``
+the model and training settings. Every output records the resolved config beside it.
+"""
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import json
+import os
+import platform
+import subprocess
+import tomllib
+from dataclasses import dataclass
+from importlib import metadata
+from pathlib import Path
+
+from .camera import PlenopticCamera
+
+
+@dataclass(frozen=True)
+class DatasetConfig:
+    """Dataset generation settings.
+
+    Attributes
+    ----------
+    n_samples : dict scene name -> int
+        Samples per scene (paper: 1,600 shapes, 200 flames).
+    rays_per_pixel : int
+        Monte-Carlo rays per sensor pixel for the training data.
+    calibration_rays_per_pixel : int
+        Rays per pixel of the nominal scene used by the slope search.
+    seed : int
+        Base seed; sample ``i`` of scene ``s`` uses ``(seed, s, i)``.
+    split : (float, float, float)
+        Train/validation/test fractions (paper: 80/10/10).
+    """
+
+    n_samples: dict
+    rays_per_pixel: int = 16
+    calibration_rays_per_pixel: int = 64
+    seed: int = 2025
+    split: tuple = (0.8, 0.1, 0.1)
+
+    def __post_init__(self):
+        if any(int(v) < 3 for v in self.n_samples.values()):
+            raise ValueError(f"each scene needs >= 3 samples for a 3-way split. Received: {self.n_samples}")
+        if abs(sum(self.split) - 1) > 1e-9 or min(self.split) <= 0:
+            raise ValueError(f"split fractions must be positive and sum to 1. Received: {self.split}")
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Model settings: backbone input size (rows, cols) and backbone weights.
+
+    ``weights``: 'imagenet', 'auto' (ImageNet if obtainable, else random init with a
+    warning), 'none', or a path to a ``.h5`` weights file.
+    """
+
+    input_rows: int = 448
+    input_cols: int = 224
+    weights: str = "auto"
+    dropout: float = 0.3
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Training settings (paper: batch 2, Adam 1e-4, MSE; 5,000 / 1,000 epochs).
+
+    ``max_epochs`` and ``time_budget_s`` are per scene; training stops at whichever
+    comes first, or when the validation loss has not improved for ``patience`` epochs.
+    """
+
+    batch_size: int = 2
+    learning_rate: float = 1e-4
+    max_epochs: dict = dataclasses.field(default_factory=lambda: {"shapes": 5000, "flame": 1000})
+    time_budget_s: dict = dataclasses.field(default_factory=lambda: {"shapes": 3000, "flame": 900})
+    patience: int = 20
+    seed: int = 7
+
+
+def _build(cls, d: dict, where: str):
+    names = {f.name for f in dataclasses.fields(cls)}
+    unknown = set(d) - names
+    if unknown:
+        raise ValueError(f"{where}: unknown keys {sorted(unknown)} (allowed: {sorted(names)})")
+    d = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
+    return cls(**d)
+
+
+def load_toml(path) -> dict:
+    """Read a TOML file; a clear error if it is missing or malformed."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"config file not found: {path}")
+    try:
+        return tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as e:
+        raise ValueError(f"config file {path} is not valid TOML: {e}") from None
+
+
+def load_data_config(path) -> tuple[PlenopticCamera, DatasetConfig]:
+    """Camera and dataset settings from ``data_gen/<preset>.toml``."""
+    d = load_toml(path)
+    return (_build(PlenopticCamera, d.get("camera", {}), f"{path} [camera]"),
+            _build(DatasetConfig, d.get("dataset", {}), f"{path} [dataset]"))
+
+
+def load_experiment_config(path) -> tuple[ModelConfig, TrainConfig]:
+    """Model and training settings from ``experiments/<preset>.toml``."""
+    d = load_toml(path)
+    return (_build(ModelConfig, d.get("model", {}), f"{path} [model]"),
+            _build(TrainConfig, d.get("train", {}), f"{path} [train]"))
+
+
+def to_json(obj) -> str:
+    """JSON of a (nest of) dataclass(es) or dict."""
+    if dataclasses.is_dataclass(obj):
+        obj = dataclasses.asdict(obj)
+    return json.dumps(obj, sort_keys=True, default=str)
+
+
+def provenance() -> dict:
+    """Package versions, machine, threads, git commit and date, for every result."""
+    pkgs = {}
+    for name in ("lf_flame", "numpy", "numba", "scipy", "scikit-image", "h5py", "keras", "tensorflow-cpu",
+                 "tensorflow", "jax", "pandas"):
+        try:
+            pkgs[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            pass
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                                cwd=Path(__file__).parent, timeout=10).stdout.strip() or None
+    except (OSError, subprocess.SubprocessError):
+        commit = None
+    import numba
+    return dict(versions=pkgs, python=platform.python_version(), machine=platform.machine(),
+                processor=platform.processor() or platform.machine(), cpu_count=os.cpu_count(),
+                numba_threads=numba.get_num_threads(), git_commit=commit,
+                date=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"))
+
+
+def atomic_write_text(path, text: str) -> None:
+    """Write a text file via a temporary file and rename, so it is never half-written."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".partial")
+    tmp.write_text(text)
+    os.replace(tmp, path)

@@ -1,0 +1,239 @@
+"""Datasets of raw light fields with their four refocused ground-truth images, in HDF5.
+
+File layout (one file per scene)::
+
+    raw     (n, R*N, C*N) uint16   raw sensor image, value / 65535 = radiance in [0, 1]
+    gt      (n, 4, R, C)  float32  shift-and-sum refocused images at the 4 slopes, [0, 1]
+    params  (n,)          str      JSON of each sample's scene objects
+    done    (n,)          uint8    1 once the sample is completely written
+    split/train, split/val, split/test   int64 sample indices (seeded permutation)
+    attrs: camera, dataset_config, scene, slopes, depths_mm, provenance (JSON strings)
+
+A file is written as ``<name>.partial`` and renamed when every sample is done, so a
+finished name is never half-written; re-running resumes the partial file, skipping
+finished samples (a sample is marked done only after its data were flushed).
+"""
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+from tqdm import tqdm
+
+from .camera import PlenopticCamera
+from .config import DatasetConfig, provenance, to_json
+from .refocus import aperture_mask, refocus
+from .scenes import PAPER_DEPTHS_MM, SCENES
+from .simulate import render
+
+RAW_SCALE = 65535
+SCENE_IDS = {"shapes": 1, "flame": 2}
+#: Views used for ground truth: those inside the main lens's circular aperture (views
+#: outside carry no light and would only dim every refocused image).
+GT_MASK = "circular"
+
+
+def sample_rng(cfg: DatasetConfig, scene: str, index: int) -> np.random.Generator:
+    """The generator that draws sample ``index`` of ``scene`` (independent of order and sharding)."""
+    return np.random.default_rng([cfg.seed, SCENE_IDS[scene], index])
+
+
+def make_sample(camera: PlenopticCamera, cfg: DatasetConfig, scene: str, index: int, slopes,
+                rays_per_pixel: int | None = None):
+    """Render one sample: raw image (float32, (R·N, C·N)), ground truth ((4, R, C)), and objects."""
+    sc = SCENES[scene](camera, sample_rng(cfg, scene, index))
+    raw = render(camera, sc, rays_per_pixel or cfg.rays_per_pixel,
+                 seed=(cfg.seed * 1_000_003 + SCENE_IDS[scene] * 100_003 + index) % 2**63)
+    raw = np.round(raw * RAW_SCALE) / RAW_SCALE  # what is stored is what is refocused
+    gt = refocus(raw, slopes, camera.pixels_per_lenslet, aperture_mask(camera.pixels_per_lenslet, GT_MASK))
+    return raw, np.clip(gt, 0.0, 1.0), sc.objects
+
+
+def split_indices(n: int, fractions, seed: int) -> dict:
+    """Seeded permutation of ``range(n)`` cut into train/val/test by ``fractions``."""
+    perm = np.random.default_rng([seed, 0x5B117]).permutation(n)
+    n_train = int(round(fractions[0] * n))
+    n_val = max(1, int(round(fractions[1] * n)))
+    n_train = min(n_train, n - n_val - 1)
+    return {"train": np.sort(perm[:n_train]), "val": np.sort(perm[n_train:n_train + n_val]),
+            "test": np.sort(perm[n_train + n_val:])}
+
+
+def _expected_attrs(camera, cfg, scene, slopes):
+    return {"camera": camera.to_json(), "dataset_config": to_json(cfg), "scene": scene,
+            "slopes": json.dumps([float(s) for s in slopes]), "depths_mm": json.dumps(list(PAPER_DEPTHS_MM))}
+
+
+def generate(path, camera: PlenopticCamera, cfg: DatasetConfig, scene: str, slopes, progress: bool = True) -> Path:
+    """Generate (or resume) the dataset of ``scene`` at ``path``.
+
+    Parameters
+    ----------
+    path : path-like
+        Final file name; work goes to ``path + '.partial'`` until complete.
+    camera, cfg : the camera and dataset settings (written as attributes).
+    scene : {'shapes', 'flame'}
+    slopes : sequence of 4 float
+        Ground-truth slopes, one per depth of :data:`PAPER_DEPTHS_MM`.
+
+    Returns
+    -------
+    Path of the finished file.
+
+    Raises
+    ------
+    ValueError
+        Unknown scene, wrong number of slopes, or a partial file made with other settings.
+    """
+    if scene not in SCENES:
+        raise ValueError(f"scene must be one of {sorted(SCENES)}. Received: {scene!r}")
+    if len(slopes) != len(PAPER_DEPTHS_MM):
+        raise ValueError(f"need {len(PAPER_DEPTHS_MM)} slopes. Received: {slopes}")
+    path = Path(path)
+    if path.exists():
+        check_dataset(path, camera=camera)
+        return path
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".partial")
+    n = int(cfg.n_samples[scene])
+    expected = _expected_attrs(camera, cfg, scene, slopes)
+    H, W = camera.sensor_shape
+    t0 = time.perf_counter()
+    try:
+        f = h5py.File(tmp, "a")
+    except OSError as e:
+        raise ValueError(f"partial dataset {tmp} is corrupt ({e}); delete it to start again") from None
+    with f:
+        if "done" in f:
+            for k, v in expected.items():
+                if f.attrs.get(k) != v:
+                    raise ValueError(f"partial dataset {tmp} was made with a different {k}; delete it to start again")
+        else:
+            for k, v in expected.items():
+                f.attrs[k] = v
+            f.create_dataset("raw", (n, H, W), np.uint16, chunks=(1, H, W), compression="lzf")
+            f.create_dataset("gt", (n, 4, camera.n_rows, camera.n_cols), np.float32,
+                             chunks=(1, 4, camera.n_rows, camera.n_cols), compression="lzf")
+            f.create_dataset("params", (n,), h5py.string_dtype())
+            f.create_dataset("done", (n,), np.uint8, fillvalue=0)
+            for k, idx in split_indices(n, cfg.split, cfg.seed).items():
+                f.create_dataset(f"split/{k}", data=idx)
+        todo = np.flatnonzero(f["done"][:] == 0)
+        for i in tqdm(todo, desc=f"{scene} dataset", disable=not progress, initial=n - len(todo), total=n):
+            raw, gt, objects = make_sample(camera, cfg, scene, int(i), slopes)
+            f["raw"][i] = np.round(raw * RAW_SCALE).astype(np.uint16)
+            f["gt"][i] = gt
+            f["params"][i] = json.dumps(objects, default=float)
+            f.flush()
+            f["done"][i] = 1
+            f.flush()
+        f.attrs["provenance"] = json.dumps(provenance())
+        f.attrs["wall_time_s_last_run"] = time.perf_counter() - t0
+    os.replace(tmp, path)
+    return path
+
+
+def check_dataset(path, camera: PlenopticCamera | None = None) -> dict:
+    """Open a dataset and check it is complete and consistent; return its attributes.
+
+    Raises
+    ------
+    ValueError
+        Missing, truncated or corrupt file, missing arrays, unfinished samples, or a
+        camera different from ``camera``.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"dataset file not found: {path}")
+    try:
+        with h5py.File(path, "r") as f:
+            missing = [k for k in ("raw", "gt", "done", "params", "split/train", "split/val", "split/test")
+                       if k not in f]
+            if missing:
+                raise ValueError(f"dataset {path} lacks {missing}")
+            if not np.all(f["done"][:] == 1):
+                raise ValueError(f"dataset {path} has unfinished samples")
+            attrs = {k: f.attrs[k] for k in f.attrs}
+            n = f["raw"].shape[0]
+            if f["gt"].shape[0] != n:
+                raise ValueError(f"dataset {path}: {n} raw images but {f['gt'].shape[0]} ground truths")
+    except OSError as e:
+        raise ValueError(f"dataset {path} is truncated or corrupt: {e}") from None
+    if camera is not None and attrs.get("camera") != camera.to_json():
+        raise ValueError(f"dataset {path} was rendered with another camera: {attrs.get('camera')} "
+                         f"!= {camera.to_json()}")
+    return attrs
+
+
+class LightFieldDataset:
+    """Read access to a finished dataset file (opened lazily, safe to pickle).
+
+    Parameters
+    ----------
+    path : path-like
+
+    Attributes
+    ----------
+    camera : PlenopticCamera
+    slopes : list of float
+    n : int
+    """
+
+    def __init__(self, path):
+        self.path = Path(path)
+        attrs = check_dataset(self.path)
+        self.camera = PlenopticCamera.from_dict(json.loads(attrs["camera"]))
+        self.slopes = json.loads(attrs["slopes"])
+        self.scene = attrs["scene"]
+        self.attrs = attrs
+        with h5py.File(self.path, "r") as f:
+            self.n = f["raw"].shape[0]
+            self.splits = {k: f[f"split/{k}"][:] for k in ("train", "val", "test")}
+        self._f = None
+
+    def _file(self):
+        if self._f is None:
+            self._f = h5py.File(self.path, "r")
+        return self._f
+
+    def raw(self, index) -> np.ndarray:
+        """Raw image(s) as float32 in [0, 1]: (R·N, C·N) or (k, R·N, C·N) for a sorted index list."""
+        return self._file()["raw"][index].astype(np.float32) / RAW_SCALE
+
+    def gt(self, index) -> np.ndarray:
+        """Ground truth (4, R, C) or (k, 4, R, C), float32 in [0, 1]."""
+        return self._file()["gt"][index]
+
+    def params(self, index) -> list:
+        return json.loads(self._file()["params"][index])
+
+    def close(self):
+        if self._f is not None:
+            self._f.close()
+            self._f = None
+
+    def __getstate__(self):
+        d = dict(self.__dict__)
+        d["_f"] = None
+        return d
+
+
+def calibrate_slopes(camera: PlenopticCamera, rays_per_pixel: int = 64, metric: str = "tenengrad"):
+    """Search the sharpest slope of each shape in the nominal multi-shape scene (paper Sec. III-A).
+
+    Returns
+    -------
+    (slopes, searches) : list of 4 floats in the order of :data:`PAPER_DEPTHS_MM`, and
+        the :class:`~lf_flame.refocus.SlopeSearch` of each object (metric curves).
+    """
+    from .refocus import find_sharpest_slope, raw_to_views
+    from .scenes import shapes_scene
+    sc = shapes_scene(camera, np.random.default_rng(0), vary=False)
+    views = raw_to_views(render(camera, sc, rays_per_pixel, seed=0), camera.pixels_per_lenslet)
+    mask = aperture_mask(camera.pixels_per_lenslet, GT_MASK)
+    searches = [find_sharpest_slope(views, o["roi"], metric=metric, mask=mask) for o in sc.objects]
+    return [s.slope for s in searches], searches, sc.objects

@@ -1,0 +1,51 @@
+"""Image-quality metrics per depth plane (paper Sec. III-D), from scikit-image.
+
+Images are in [0, 1], so ``data_range = 1`` (the paper's MAX_I of Eq. 7).
+"""
+from __future__ import annotations
+
+import numpy as np
+from skimage.metrics import peak_signal_noise_ratio, structural_similarity
+
+
+def _pair(ref, pred):
+    ref = np.asarray(ref, np.float64)
+    pred = np.asarray(pred, np.float64)
+    if ref.shape != pred.shape:
+        raise ValueError(f"reference {ref.shape} and prediction {pred.shape} differ in shape")
+    if not (np.all(np.isfinite(ref)) and np.all(np.isfinite(pred))):
+        raise ValueError("images contain NaN or inf")
+    return ref, pred
+
+
+def ssim_per_plane(ref, pred) -> np.ndarray:
+    """SSIM (Wang et al. 2004, skimage defaults, 7×7 window) of each plane.
+
+    Parameters
+    ----------
+    ref, pred : ndarray of shape (P, rows, cols), values in [0, 1]
+
+    Returns
+    -------
+    ndarray of shape (P,)
+    """
+    ref, pred = _pair(ref, pred)
+    return np.array([structural_similarity(r, p, data_range=1.0) for r, p in zip(ref, pred)])
+
+
+def psnr_per_plane(ref, pred) -> np.ndarray:
+    """PSNR in dB (paper Eq. 7, MAX = 1) of each plane; ``inf`` for identical planes.
+
+    Parameters
+    ----------
+    ref, pred : ndarray of shape (P, rows, cols), values in [0, 1]
+
+    Returns
+    -------
+    ndarray of shape (P,)
+    """
+    ref, pred = _pair(ref, pred)
+    out = []
+    for r, p in zip(ref, pred):
+        out.append(np.inf if np.array_equal(r, p) else peak_signal_noise_ratio(r, p, data_range=1.0))
+    return np.array(out)

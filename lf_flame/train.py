@@ -1,0 +1,193 @@
+"""Training: backbone feature cache, then the decoder at the paper's settings.
+
+The backbone is frozen and inputs are not augmented, so its features are computed once
+per dataset, input size and weights, cached as float16 in HDF5, and the decoder is
+trained on them (batch 2, Adam 1e-4, MSE). Decoder + backbone compose into the full
+model for inference (:func:`lf_flame.model.build_model`).
+
+Keras callbacks do the bookkeeping: ModelCheckpoint (best weights, last full decoder for
+resume), CSVLogger (learning curves, appended on resume), EarlyStopping on the
+validation loss, plus a wall-time budget and a validation-SSIM callback.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from pathlib import Path
+
+import h5py
+import keras
+import numpy as np
+from tqdm import tqdm
+
+from .config import ModelConfig, TrainConfig, atomic_write_text, provenance, to_json
+from .dataset import LightFieldDataset
+from .metrics import ssim_per_plane
+from .model import build_decoder, build_feature_extractor, resolve_weights
+
+
+def feature_cache_path(dataset_path, cfg: ModelConfig, weights_label: str) -> Path:
+    """Where the features of a dataset for an input size and weights are cached."""
+    p = Path(dataset_path)
+    tag = weights_label.replace(":", "-").replace("/", "_")
+    return p.with_name(f"{p.stem}.features_{cfg.input_rows}x{cfg.input_cols}_{tag}.h5")
+
+
+def compute_features(ds: LightFieldDataset, cfg: ModelConfig, weights_spec: str, batch: int = 4,
+                     progress: bool = True, seed: int = 0) -> tuple[Path, str]:
+    """Compute (or reuse) the frozen backbone features of every sample of ``ds``.
+
+    Returns
+    -------
+    (path, weights_label) : the cache file, holding ``features`` (n, h, w, 2048) float16
+        and attributes naming the dataset, input size and weights; and the weights used.
+    """
+    keras.utils.set_random_seed(seed)  # a random-init backbone is then reproducible
+    weights, label = resolve_weights(weights_spec)
+    path = feature_cache_path(ds.path, cfg, label)
+    if path.exists():
+        with h5py.File(path, "r") as f:
+            if f.attrs.get("dataset_camera") == ds.attrs["camera"] and f["features"].shape[0] == ds.n:
+                return path, label
+        path.unlink()
+    fx = build_feature_extractor(ds.camera.sensor_shape, cfg, weights)
+    tmp = path.with_name(path.name + ".partial")
+    t0 = time.perf_counter()
+    with h5py.File(tmp, "w") as f:
+        shape = tuple(fx.output.shape[1:])
+        d = f.create_dataset("features", (ds.n, *shape), np.float16, chunks=(1, *shape))
+        for s in tqdm(range(0, ds.n, batch), desc="backbone features", disable=not progress):
+            idx = list(range(s, min(ds.n, s + batch)))
+            feats = np.asarray(fx.predict_on_batch(ds.raw(idx)[..., None]))
+            if not np.all(np.isfinite(feats)) or np.abs(feats).max() > 6e4:
+                raise FloatingPointError("backbone features are not finite in float16")
+            d[s:s + len(idx)] = feats.astype(np.float16)
+        f.attrs.update(dataset=str(ds.path), dataset_camera=ds.attrs["camera"], weights=label,
+                       model_config=to_json(cfg), wall_time_s=time.perf_counter() - t0)
+    os.replace(tmp, path)
+    return path, label
+
+
+class FeatureBatches(keras.utils.PyDataset):
+    """Batches of (cached features, ground truth (R, C, 4)) read from disk, never all in memory.
+
+    Shuffled each epoch by a generator seeded with (seed, epoch) when ``shuffle``.
+    """
+
+    def __init__(self, features_path, ds: LightFieldDataset, indices, batch_size: int, shuffle: bool, seed: int):
+        super().__init__()
+        self.features_path, self.ds = str(features_path), ds
+        self.indices = np.asarray(indices)
+        self.batch_size, self.shuffle, self.seed = batch_size, shuffle, seed
+        self.epoch = 0
+        self._order = self.indices.copy()
+        self._f = None
+        self.on_epoch_end()
+
+    def __len__(self):
+        return math.ceil(len(self.indices) / self.batch_size)
+
+    def on_epoch_end(self):
+        if self.shuffle:
+            self._order = np.random.default_rng([self.seed, self.epoch]).permutation(self.indices)
+        self.epoch += 1
+
+    def __getitem__(self, k):
+        if self._f is None:
+            self._f = h5py.File(self.features_path, "r")
+        idx = np.sort(self._order[k * self.batch_size:(k + 1) * self.batch_size])
+        x = self._f["features"][idx].astype(np.float32)
+        y = np.transpose(self.ds.gt(idx), (0, 2, 3, 1))
+        return x, y
+
+
+def predict_features(decoder, features_path, indices, batch: int = 8) -> np.ndarray:
+    """Decoder predictions (k, 4, R, C) for cached features of ``indices``."""
+    out = []
+    with h5py.File(features_path, "r") as f:
+        for s in range(0, len(indices), batch):
+            idx = np.sort(np.asarray(indices[s:s + batch]))
+            out.append(np.asarray(decoder.predict_on_batch(f["features"][idx].astype(np.float32))))
+    return np.transpose(np.concatenate(out), (0, 3, 1, 2))
+
+
+class _WallClock(keras.callbacks.Callback):
+    """Adds validation SSIM and cumulative wall time to the epoch logs; stops at the time budget."""
+
+    def __init__(self, val_data, budget_s: float, start_offset_s: float = 0.0):
+        super().__init__()
+        self.val_data, self.budget_s, self.offset = val_data, budget_s, start_offset_s
+        self.t0 = time.perf_counter()
+
+    def on_epoch_end(self, epoch, logs=None):
+        feats_path, ds, idx = self.val_data
+        pred = predict_features(self.model, feats_path, idx)
+        logs["val_ssim"] = float(np.mean([ssim_per_plane(ds.gt(int(i)), p) for i, p in zip(np.sort(idx), pred)]))
+        logs["wall_time_s"] = self.offset + time.perf_counter() - self.t0
+        if logs["wall_time_s"] >= self.budget_s:
+            print(f"time budget of {self.budget_s:.0f} s reached after epoch {epoch + 1}; stopping")
+            self.model.stop_training = True
+
+
+def train(dataset_path, out_dir, model_cfg: ModelConfig, train_cfg: TrainConfig, progress: bool = True) -> dict:
+    """Train the decoder on a dataset's cached features; resumable.
+
+    Writes to ``out_dir``: ``decoder_best.weights.h5``, ``decoder_last.keras`` (for
+    resume), ``history.csv`` (loss, val_loss, val_ssim, wall_time_s per epoch) and, last,
+    ``train_info.json`` (configs, weights used, epochs, wall time, provenance).
+
+    Returns
+    -------
+    dict : the content of ``train_info.json``.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    ds = LightFieldDataset(dataset_path)
+    t_start = time.perf_counter()
+    feats_path, label = compute_features(ds, model_cfg, model_cfg.weights, progress=progress, seed=train_cfg.seed)
+    t_feat = time.perf_counter() - t_start
+    keras.utils.set_random_seed(train_cfg.seed)
+    hist_path, last_path = out / "history.csv", out / "decoder_last.keras"
+    initial_epoch, offset = 0, 0.0
+    if last_path.exists() and hist_path.exists():
+        import pandas as pd
+        h = pd.read_csv(hist_path)
+        if len(h):
+            initial_epoch, offset = int(h["epoch"].iloc[-1]) + 1, float(h["wall_time_s"].iloc[-1])
+        decoder = keras.models.load_model(last_path)
+        print(f"resuming from epoch {initial_epoch} ({offset:.0f} s already trained)")
+    else:
+        with h5py.File(feats_path, "r") as f:
+            fshape = f["features"].shape[1:]
+        decoder = build_decoder(fshape, ds.camera.n_rows, ds.camera.n_cols, model_cfg)
+        decoder.compile(optimizer=keras.optimizers.Adam(train_cfg.learning_rate), loss="mse")
+    scene = ds.scene
+    max_epochs = int(train_cfg.max_epochs[scene])
+    budget = float(train_cfg.time_budget_s[scene])
+    bs = train_cfg.batch_size
+    train_data = FeatureBatches(feats_path, ds, ds.splits["train"], bs, True, train_cfg.seed)
+    train_data.epoch = initial_epoch
+    val_data = FeatureBatches(feats_path, ds, ds.splits["val"], bs, False, train_cfg.seed)
+    callbacks = [
+        _WallClock((feats_path, ds, ds.splits["val"]), budget, offset),
+        keras.callbacks.ModelCheckpoint(str(out / "decoder_best.weights.h5"), monitor="val_loss",
+                                        save_best_only=True, save_weights_only=True),
+        keras.callbacks.ModelCheckpoint(str(last_path)),
+        keras.callbacks.CSVLogger(str(hist_path), append=initial_epoch > 0),
+        keras.callbacks.EarlyStopping(monitor="val_loss", patience=train_cfg.patience),
+    ]
+    if initial_epoch < max_epochs and offset < budget:
+        decoder.fit(train_data, validation_data=val_data, epochs=max_epochs, initial_epoch=initial_epoch,
+                    callbacks=callbacks, verbose=2 if progress else 0)
+    import pandas as pd
+    h = pd.read_csv(hist_path)
+    info = dict(dataset=str(dataset_path), scene=scene, backbone_weights=label,
+                model_config=json.loads(to_json(model_cfg)), train_config=json.loads(to_json(train_cfg)),
+                epochs_run=int(len(h)), paper_epochs=int({"shapes": 5000, "flame": 1000}[scene]),
+                best_epoch=int(h["epoch"].iloc[int(h["val_loss"].idxmin())]) + 1,
+                best_val_loss=float(h["val_loss"].min()), training_wall_time_s=float(h["wall_time_s"].iloc[-1]),
+                feature_cache=str(feats_path), feature_wall_time_s=t_feat, provenance=provenance())
+    atomic_write_text(out / "train_info.json", json.dumps(info, indent=2))
+    return info
