@@ -1,0 +1,140 @@
+import dataclasses
+
+import numba
+import numpy as np
+import pytest
+
+from lf_flame import scenes, simulate
+from lf_flame.refocus import raw_to_views
+
+
+def _render(cam, scene, rpp=16, seed=0, **effects):
+    if effects:
+        scene = dataclasses.replace(scene, effects=dataclasses.replace(scene.effects, **effects))
+    return simulate.render(cam, scene, rpp, seed)
+
+
+def _uniform_scene(cam, level=0.5):
+    h, w = cam.field_of_view_mm(0.0)
+    layer = scenes.Layer(np.full((4, 4), level, np.float32), None, 0.0, (0.0, 0.0), (10 * h, 10 * w))
+    return scenes.Scene("uniform", (layer,), scenes.Effects(aperture=False, cos4=False, occlusion=False))
+
+
+def test_in_focus_point_lights_exactly_one_lenslet(small_camera):
+    cam, n = small_camera, small_camera.pixels_per_lenslet
+    raw = _render(cam, scenes.point_scene(cam, 0.0))
+    blocks = raw.reshape(cam.n_rows, n, cam.n_cols, n).sum(axis=(1, 3))
+    assert blocks[20, 20] > 0
+    assert np.count_nonzero(blocks) == 1
+
+
+@pytest.mark.parametrize("dz", [20.0, -10.0, 12.0])
+def test_defocused_point_disc_matches_geometric_optics(small_camera, dz):
+    cam, n = small_camera, small_camera.pixels_per_lenslet
+    raw = _render(cam, scenes.point_scene(cam, dz), rpp=100)
+    blocks = raw.reshape(cam.n_rows, n, cam.n_cols, n).sum(axis=(1, 3))
+    # blur disc on the MLA: D |d - z_i| / z_i, in lenslets
+    zi = cam.image_distance_mm(cam.object_distance_mm(dz))
+    expected = cam.aperture_diameter_mm * abs(cam.mla_distance_mm - zi) / zi / cam.mla_pitch_mm
+    # a chord of length L lights ceil(L) or ceil(L) + 1 lenslets: the widest row's count
+    # minus one estimates the diameter to within one lenslet
+    widest = np.count_nonzero(blocks, axis=1).max()
+    assert abs(widest - 1 - expected) <= 1.0, (widest, expected)
+
+
+@pytest.mark.parametrize("dz", [-10.0, -4.0, 6.0, 15.0, 20.0])
+def test_parallax_across_views_matches_analytic_slope(small_camera, dz):
+    cam = small_camera
+    size = 2 * cam.mla_pitch_mm * cam.object_distance_mm(dz) / cam.mla_distance_mm  # more hits, same centroid
+    views = raw_to_views(_render(cam, scenes.point_scene(cam, dz, size_mm=size), rpp=64), cam.pixels_per_lenslet)
+    us = np.arange(3, 12)  # views well inside the aperture
+    rows = np.arange(cam.n_rows) + 0.5
+    cent = [np.sum(views[u, 7].sum(axis=1) * rows) / views[u, 7].sum() for u in us]
+    slope = np.polyfit(us - 7, cent, 1)[0]
+    assert abs(slope - cam.slope_for_depth(dz)) < 0.02, (slope, cam.slope_for_depth(dz))
+
+
+def test_uniform_plane_flux_is_exact_without_aperture(small_camera):
+    raw = _render(small_camera, _uniform_scene(small_camera, 0.5), rpp=4)
+    assert np.allclose(raw, 0.5, atol=1e-6)
+
+
+def test_uniform_plane_flux_with_aperture(small_camera):
+    cam = small_camera
+    raw = _render(cam, _uniform_scene(cam, 1.0), rpp=16, aperture=True)
+    # the aperture's image through each lenslet is a disc of diameter D g / d inside a
+    # block of side N * pixel pitch: the expected mean signal is their area ratio
+    disc = cam.aperture_diameter_mm * cam.sensor_distance_mm / cam.mla_distance_mm
+    expected = np.pi / 4 * (disc / cam.lenslet_image_pitch_mm) ** 2
+    assert abs(raw.mean() / expected - 1) < 0.01
+
+
+def test_cos4_falloff_profile(small_camera):
+    cam, n = small_camera, small_camera.pixels_per_lenslet
+    raw = _render(cam, _uniform_scene(cam, 1.0), rpp=16, cos4=True)
+    block = raw[20 * n:21 * n, 20 * n:21 * n]  # the central lenslet
+    delta = (np.arange(n) - (n - 1) / 2) * cam.pixel_pitch_mm
+    tan2 = (delta[:, None] ** 2 + delta[None, :] ** 2) / cam.sensor_distance_mm ** 2
+    expected = 1.0 / (1.0 + tan2) ** 2
+    assert np.allclose(block, expected, rtol=0.01)
+    assert block[0, 0] < 0.97 * block[7, 7]  # the fall-off is there
+
+
+def test_occlusion_hides_farther_layer(small_camera):
+    cam = small_camera
+    h, w = cam.field_of_view_mm(0.0)
+    near = scenes.Layer(np.zeros((2, 2), np.float32), np.ones((2, 2), np.float32), -10.0, (0, 0), (5 * h, 5 * w))
+    far = scenes.Layer(np.ones((2, 2), np.float32), None, 10.0, (0, 0), (5 * h, 5 * w))
+    opaque = scenes.Scene("o", (far, near), scenes.Effects(aperture=False, cos4=False, occlusion=True))
+    thin = dataclasses.replace(opaque, effects=scenes.Effects(aperture=False, cos4=False, occlusion=False))
+    assert simulate.render(cam, opaque, 1).max() == 0.0
+    assert np.allclose(simulate.render(cam, thin, 1), 1.0)
+
+
+def test_same_seed_bit_identical_across_thread_counts(small_camera):
+    cam = small_camera
+    sc = scenes.shapes_scene(cam, np.random.default_rng(3))
+    a = simulate.render(cam, sc, 4, seed=11)
+    old = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        b = simulate.render(cam, sc, 4, seed=11)
+    finally:
+        numba.set_num_threads(old)
+    assert np.array_equal(a, b)
+    assert not np.array_equal(a, simulate.render(cam, sc, 4, seed=12))
+
+
+def test_sensor_noise_and_bit_depth(small_camera):
+    cam = small_camera
+    sc = _uniform_scene(cam, 0.5)
+    noisy = _render(cam, sc, rpp=1, full_well_e=1000.0, read_noise_e=2.0, bit_depth=8)
+    assert np.isclose(noisy.mean(), 0.5, atol=0.01)
+    assert np.isclose(noisy.std(), np.sqrt(0.5 * 1000 + 4) / 1000, rtol=0.1)  # shot + read noise
+    assert len(np.unique(noisy)) <= 256 and np.allclose(noisy * 255, np.round(noisy * 255), atol=1e-4)
+
+
+def test_layer_behind_camera_rejected(small_camera):
+    layer = scenes.Layer(np.ones((2, 2), np.float32), None, -400.0, (0, 0), (1, 1))
+    with pytest.raises(ValueError, match="behind the camera"):
+        simulate.render(small_camera, scenes.Scene("bad", (layer,), scenes.Effects()), 1)
+
+
+def test_nan_radiance_rejected(small_camera):
+    layer = scenes.Layer(np.full((2, 2), np.nan, np.float32), None, 0.0, (0, 0), (1, 1))
+    with pytest.raises(ValueError, match="NaN"):
+        simulate.render(small_camera, scenes.Scene("bad", (layer,), scenes.Effects()), 1)
+
+
+def test_scenes_declare_their_effects(small_camera):
+    rng = np.random.default_rng(0)
+    assert scenes.shapes_scene(small_camera, rng).effects.occlusion is True
+    assert scenes.flame_scene(small_camera, rng).effects.occlusion is False
+
+
+def test_flame_heights_follow_the_paper(small_camera):
+    rng = np.random.default_rng(1)
+    heights = np.array([[o["height_template_mm"] for o in scenes.flame_scene(small_camera, rng).objects]
+                        for _ in range(300)])
+    assert np.allclose(heights.mean(axis=0), scenes.FLAME_HEIGHT_MEAN_MM, atol=0.3)
+    assert np.allclose(heights.std(axis=0), scenes.FLAME_HEIGHT_SD_MM, atol=0.2)
