@@ -1,0 +1,73 @@
+import h5py
+import numpy as np
+import pytest
+
+from lf_flame import dataset as D
+from lf_flame.camera import PlenopticCamera
+from lf_flame.config import DatasetConfig
+from lf_flame.refocus import aperture_mask, refocus
+
+CAM = PlenopticCamera(n_rows=20, n_cols=10)
+CFG = DatasetConfig(n_samples={"shapes": 6, "flame": 4}, rays_per_pixel=1, seed=3)
+SLOPES = [CAM.slope_for_depth(d) for d in (20.0, 10.0, 0.0, -10.0)]
+
+
+def test_generate_writes_consistent_file(tmp_path):
+    p = D.generate(tmp_path / "shapes.h5", CAM, CFG, "shapes", SLOPES, progress=False)
+    ds = D.LightFieldDataset(p)
+    assert ds.n == 6 and ds.camera == CAM and np.allclose(ds.slopes, SLOPES)
+    raw, gt = ds.raw(2), ds.gt(2)
+    assert raw.shape == CAM.sensor_shape and gt.shape == (4, 20, 10)
+    assert 0 <= gt.min() and gt.max() <= 1 and raw.max() > 0
+    # ground truth is the shift-and-sum of the stored raw image at the stored slopes
+    assert np.allclose(gt, np.clip(refocus(raw, SLOPES, 15, aperture_mask(15, "circular")), 0, 1), atol=1e-6)
+    idx = np.concatenate([ds.splits[k] for k in ("train", "val", "test")])
+    assert sorted(idx) == list(range(6)) and all(len(v) for v in ds.splits.values())
+    assert [o["name"] for o in ds.params(0)] == ["rectangle", "triangle", "circle", "square"]
+
+
+def test_killed_run_resumes_to_identical_file(tmp_path, monkeypatch):
+    full = D.generate(tmp_path / "a" / "flame.h5", CAM, CFG, "flame", SLOPES, progress=False)
+    real = D.make_sample
+    calls = {"n": 0}
+
+    def dying(*a, **k):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise KeyboardInterrupt("killed")
+        return real(*a, **k)
+
+    monkeypatch.setattr(D, "make_sample", dying)
+    target = tmp_path / "b" / "flame.h5"
+    with pytest.raises(KeyboardInterrupt):
+        D.generate(target, CAM, CFG, "flame", SLOPES, progress=False)
+    assert not target.exists()  # never a half-written final file
+    with h5py.File(str(target) + ".partial", "r") as f:
+        assert f["done"][:].sum() == 2
+    monkeypatch.setattr(D, "make_sample", real)
+    D.generate(target, CAM, CFG, "flame", SLOPES, progress=False)
+    with h5py.File(full, "r") as a, h5py.File(target, "r") as b:
+        assert np.array_equal(a["raw"][:], b["raw"][:]) and np.array_equal(a["gt"][:], b["gt"][:])
+
+
+def test_corrupt_and_mismatched_files(tmp_path):
+    bad = tmp_path / "bad.h5"
+    bad.write_bytes(b"not an hdf5 file at all")
+    with pytest.raises(ValueError, match="corrupt"):
+        D.LightFieldDataset(bad)
+    p = D.generate(tmp_path / "shapes.h5", CAM, CFG, "shapes", SLOPES, progress=False)
+    with pytest.raises(ValueError, match="another camera"):
+        D.check_dataset(p, camera=PlenopticCamera(n_rows=20, n_cols=12))
+    trunc = tmp_path / "trunc.h5"
+    trunc.write_bytes(p.read_bytes()[:5000])
+    with pytest.raises(ValueError, match="corrupt"):
+        D.LightFieldDataset(trunc)
+
+
+def test_partial_with_other_settings_refused(tmp_path, monkeypatch):
+    target = tmp_path / "shapes.h5"
+    monkeypatch.setattr(D, "make_sample", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt()))
+    with pytest.raises(KeyboardInterrupt):
+        D.generate(target, CAM, CFG, "shapes", SLOPES, progress=False)
+    with pytest.raises(ValueError, match="different"):
+        D.generate(target, CAM, CFG, "shapes", [0.0, 0.0, 0.0, 0.0], progress=False)
