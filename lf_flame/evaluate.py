@@ -75,6 +75,7 @@ def evaluate(dataset_path, model_dir, results_dir) -> pd.DataFrame:
     md = table_markdown(table, ds.scene, info)
     atomic_write_text(results_dir / f"table_{ds.scene}.md", md)
     figure(ds, test[0], pred[0], results_dir / f"fig_{ds.scene}.png")
+    learning_curves(model_dir / "history.csv", results_dir, ds.scene)
     atomic_write_text(results_dir / f"eval_{ds.scene}.json", json.dumps(
         dict(train_info=info, n_test=len(test), dataset_attrs={k: str(v) for k, v in ds.attrs.items()},
              provenance=provenance()), indent=2))
@@ -124,6 +125,28 @@ def figure(ds: LightFieldDataset, index: int, pred: np.ndarray, path) -> None:
     tmp.replace(path)
 
 
+def learning_curves(history_csv, results_dir, scene: str) -> None:
+    """Copy the training history to ``results_dir`` and plot loss and validation SSIM
+    against epoch and wall time (``learning_<scene>.csv`` / ``.png``)."""
+    h = pd.read_csv(history_csv)
+    h.to_csv(Path(results_dir) / f"learning_{scene}.csv", index=False)
+    fig, ax = plt.subplots(1, 2, figsize=(10, 3.6))
+    for a, x, label in ((ax[0], h["epoch"] + 1, "epoch"), (ax[1], h["wall_time_s"] / 60, "wall time (min)")):
+        a.semilogy(x, h["loss"], label="train MSE")
+        a.semilogy(x, h["val_loss"], label="validation MSE")
+        a.set_xlabel(label)
+        a.set_ylabel("MSE")
+        b = a.twinx()
+        b.plot(x, h["val_ssim"], "g.-", label="validation SSIM")
+        b.set_ylabel("SSIM")
+        a.legend(loc="upper center", fontsize=8)
+        b.legend(loc="center right", fontsize=8)
+    fig.suptitle(f"{scene}: learning curves")
+    fig.tight_layout()
+    fig.savefig(Path(results_dir) / f"learning_{scene}.png", dpi=100)
+    plt.close(fig)
+
+
 def write_slopes(camera, slopes, searches, objects, results_dir) -> pd.DataFrame:
     """Write the slope search results beside the paper's and the analytic slopes, with a plot."""
     results_dir = Path(results_dir)
@@ -157,7 +180,7 @@ def write_tables(results_dir, stage_times: dict | None = None) -> str:
     for scene in ("shapes", "flame"):
         p = results_dir / f"table_{scene}.md"
         if p.exists():
-            parts += [p.read_text(), f"![{scene}](fig_{scene}.png)", ""]
+            parts += [p.read_text(), f"![{scene}](fig_{scene}.png)", f"![{scene} learning](learning_{scene}.png)", ""]
     sp = results_dir / "slopes.csv"
     if sp.exists():
         parts += ["### Sharpest slopes (slope search on the nominal scene)", "",

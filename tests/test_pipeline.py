@@ -31,6 +31,7 @@ def test_quick_pipeline_end_to_end(tmp_path):
         table = pd.read_csv(res / f"table_{scene}.csv")
         assert table[["ssim_mean", "psnr_db_mean"]].notna().all().all() and len(table) == 4
         assert (res / f"fig_{scene}.png").stat().st_size > 10_000
+        assert len(pd.read_csv(res / f"learning_{scene}.csv")) == len(hist)
     # a second train call resumes from the saved state and runs no further epochs
     n_before = len(pd.read_csv(models / "flame" / "history.csv"))
     assert main(["train", "--dataset", str(data / "flame.h5"), "--experiment-config", ecfg,
