@@ -94,13 +94,16 @@ def generate(path, camera: PlenopticCamera, cfg: DatasetConfig, scene: str, slop
     if len(slopes) != len(PAPER_DEPTHS_MM):
         raise ValueError(f"need {len(PAPER_DEPTHS_MM)} slopes. Received: {slopes}")
     path = Path(path)
+    expected = _expected_attrs(camera, cfg, scene, slopes)
     if path.exists():
-        check_dataset(path, camera=camera)
-        return path
+        attrs = check_dataset(path)
+        if all(attrs.get(k) == v for k, v in expected.items()):
+            os.utime(path)  # up to date: tell make so
+            return path
+        # other settings: build the new file beside it; the old one is replaced only when done
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".partial")
     n = int(cfg.n_samples[scene])
-    expected = _expected_attrs(camera, cfg, scene, slopes)
     H, W = camera.sensor_shape
     t0 = time.perf_counter()
     try:

@@ -8,14 +8,15 @@ import numpy as np
 from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
 
-def _pair(ref, pred):
+def _per_plane(metric, ref, pred) -> np.ndarray:
+    """Apply ``metric(ref_plane, pred_plane)`` to each plane after checking the inputs."""
     ref = np.asarray(ref, np.float64)
     pred = np.asarray(pred, np.float64)
     if ref.shape != pred.shape:
         raise ValueError(f"reference {ref.shape} and prediction {pred.shape} differ in shape")
     if not (np.all(np.isfinite(ref)) and np.all(np.isfinite(pred))):
         raise ValueError("images contain NaN or inf")
-    return ref, pred
+    return np.array([metric(r, p) for r, p in zip(ref, pred)])
 
 
 def ssim_per_plane(ref, pred) -> np.ndarray:
@@ -29,8 +30,7 @@ def ssim_per_plane(ref, pred) -> np.ndarray:
     -------
     ndarray of shape (P,)
     """
-    ref, pred = _pair(ref, pred)
-    return np.array([structural_similarity(r, p, data_range=1.0) for r, p in zip(ref, pred)])
+    return _per_plane(lambda r, p: structural_similarity(r, p, data_range=1.0), ref, pred)
 
 
 def psnr_per_plane(ref, pred) -> np.ndarray:
@@ -44,8 +44,5 @@ def psnr_per_plane(ref, pred) -> np.ndarray:
     -------
     ndarray of shape (P,)
     """
-    ref, pred = _pair(ref, pred)
-    out = []
-    for r, p in zip(ref, pred):
-        out.append(np.inf if np.array_equal(r, p) else peak_signal_noise_ratio(r, p, data_range=1.0))
-    return np.array(out)
+    return _per_plane(lambda r, p: np.inf if np.array_equal(r, p) else peak_signal_noise_ratio(r, p, data_range=1.0),
+                      ref, pred)

@@ -71,3 +71,13 @@ def test_partial_with_other_settings_refused(tmp_path, monkeypatch):
         D.generate(target, CAM, CFG, "shapes", SLOPES, progress=False)
     with pytest.raises(ValueError, match="different"):
         D.generate(target, CAM, CFG, "shapes", [0.0, 0.0, 0.0, 0.0], progress=False)
+
+
+def test_existing_file_kept_until_new_settings_are_done(tmp_path, monkeypatch):
+    p = D.generate(tmp_path / "flame.h5", CAM, CFG, "flame", SLOPES, progress=False)
+    before = p.read_bytes()
+    assert D.generate(p, CAM, CFG, "flame", SLOPES, progress=False) == p and p.read_bytes() == before
+    monkeypatch.setattr(D, "make_sample", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt()))
+    with pytest.raises(KeyboardInterrupt):
+        D.generate(p, CAM, CFG, "flame", [0.0, 0.0, 0.0, 0.0], progress=False)
+    assert p.read_bytes() == before  # the finished file is untouched by the interrupted rebuild
