@@ -44,13 +44,15 @@ def sample_rng(cfg: DatasetConfig, scene: str, index: int) -> np.random.Generato
 
 def make_sample(camera: PlenopticCamera, cfg: DatasetConfig, scene: str, index: int, slopes,
                 rays_per_pixel: int | None = None):
-    """Render one sample: raw image (float32, (R·N, C·N)), ground truth ((4, R, C)), and objects."""
+    """Render one sample: raw image as stored (uint16 counts, (R·N, C·N)), ground truth
+    ((4, R, C) float32, refocused from exactly the stored counts), and the scene objects."""
     sc = SCENES[scene](camera, sample_rng(cfg, scene, index))
     raw = render(camera, sc, rays_per_pixel or cfg.rays_per_pixel,
                  seed=(cfg.seed * 1_000_003 + SCENE_IDS[scene] * 100_003 + index) % 2**63)
-    raw = np.round(raw * RAW_SCALE) / RAW_SCALE  # what is stored is what is refocused
-    gt = refocus(raw, slopes, camera.pixels_per_lenslet, aperture_mask(camera.pixels_per_lenslet, GT_MASK))
-    return raw, np.clip(gt, 0.0, 1.0), sc.objects
+    counts = np.round(raw * RAW_SCALE).astype(np.uint16)
+    gt = refocus(counts / np.float32(RAW_SCALE), slopes, camera.pixels_per_lenslet,
+                 aperture_mask(camera.pixels_per_lenslet, GT_MASK))
+    return counts, np.clip(gt, 0.0, 1.0), sc.objects
 
 
 def split_indices(n: int, fractions, seed: int) -> dict:
@@ -127,8 +129,8 @@ def generate(path, camera: PlenopticCamera, cfg: DatasetConfig, scene: str, slop
                 f.create_dataset(f"split/{k}", data=idx)
         todo = np.flatnonzero(f["done"][:] == 0)
         for i in tqdm(todo, desc=f"{scene} dataset", disable=not progress, initial=n - len(todo), total=n):
-            raw, gt, objects = make_sample(camera, cfg, scene, int(i), slopes)
-            f["raw"][i] = np.round(raw * RAW_SCALE).astype(np.uint16)
+            counts, gt, objects = make_sample(camera, cfg, scene, int(i), slopes)
+            f["raw"][i] = counts
             f["gt"][i] = gt
             f["params"][i] = json.dumps(objects, default=float)
             f.flush()

@@ -20,6 +20,7 @@ from pathlib import Path
 import h5py
 import keras
 import numpy as np
+import pandas as pd
 from tqdm import tqdm
 
 from .config import ModelConfig, TrainConfig, atomic_write_text, provenance, to_json
@@ -152,7 +153,6 @@ def train(dataset_path, out_dir, model_cfg: ModelConfig, train_cfg: TrainConfig,
     hist_path, last_path = out / "history.csv", out / "decoder_last.keras"
     initial_epoch, offset = 0, 0.0
     if last_path.exists() and hist_path.exists():
-        import pandas as pd
         h = pd.read_csv(hist_path)
         if len(h):
             initial_epoch, offset = int(h["epoch"].iloc[-1]) + 1, float(h["wall_time_s"].iloc[-1])
@@ -181,7 +181,6 @@ def train(dataset_path, out_dir, model_cfg: ModelConfig, train_cfg: TrainConfig,
     if initial_epoch < max_epochs and offset < budget:
         decoder.fit(train_data, validation_data=val_data, epochs=max_epochs, initial_epoch=initial_epoch,
                     callbacks=callbacks, verbose=2 if progress else 0)
-    import pandas as pd
     h = pd.read_csv(hist_path)
     info = dict(dataset=str(dataset_path), scene=scene, backbone_weights=label,
                 model_config=json.loads(to_json(model_cfg)), train_config=json.loads(to_json(train_cfg)),
