@@ -1,9 +1,9 @@
 """Numba kernels. Private: they take only arrays and scalars and trust their inputs;
 the public, validating API is in :mod:`lf_flame.simulate` and :mod:`lf_flame.refocus`.
 
-Randomness is a counter-based hash (SplitMix64) of (seed, pixel, sample, dimension), so
-every pixel's samples are fixed by the seed alone: results are bit-identical whatever
-the number of threads, and threads never share state.
+Randomness is a counter-based hash (SplitMix64) of (seed, pixel, dimension), so every
+pixel's samples are fixed by the seed alone: results are bit-identical whatever the
+number of threads, and threads never share state.
 """
 from __future__ import annotations
 
@@ -26,101 +26,247 @@ def _uniform(key):
     return np.float64(z >> np.uint64(11)) * _INV53
 
 
+# R_d low-discrepancy sequence in 4-D (Roberts 2018, "The unreasonable effectiveness
+# of quasirandom sequences"): alpha_k = phi_4^-k, phi_4 the real root of x^5 = x + 1.
+_PHI4 = 1.1673039782614187
+_R4 = np.array([_PHI4 ** -1, _PHI4 ** -2, _PHI4 ** -3, _PHI4 ** -4])
+
+
 @njit(inline="always", cache=True)
-def _back(m, y, t):
-    """Apply a 2x2 ray transfer matrix ``m`` to ``(y, t)``."""
-    return m[0, 0] * y + m[0, 1] * t, m[1, 0] * y + m[1, 1] * t
+def _chain(y_s, y_l, y_c, gap, lenslet_inv, mla_to_lens, lens_inv):
+    """Trace one axis of one ray backwards, sensor -> object space.
 
-
-@njit(parallel=True, cache=True)
-def render_backward(n_rows, n_cols, n_pix, mla_pitch, pixel_pitch, gap, lenslet_inv, mla_to_lens, lens_inv,
-                    aperture_radius, use_cos4, layer_z, layer_top, layer_left, layer_h, layer_w,
-                    radiance, alpha, occlusion, rays_per_pixel, seed, out):
-    """Backward-trace ``rays_per_pixel`` rays per sensor pixel into a layered scene.
-
-    Each ray starts at a random point of its pixel, passes through a random point of
-    the pixel's own lenslet (stratified on an m x m grid when rays_per_pixel = m^2),
-    is traced back through the lenslet, to the main lens (aperture test, cos^4
-    weight of the ray between lens and MLA), through it, and to each layer plane,
-    nearest first, compositing ``sum_k T_k L_k`` with ``T_{k+1} = T_k (1 - alpha_k)``
-    when ``occlusion`` (else ``T = 1``: additive emission).
-
-    Matrices (2x2, float64) trace backwards: ``gap`` sensor -> MLA (its B is -g),
-    ``lenslet_inv`` the inverse lenslet lens, ``mla_to_lens`` MLA -> main lens,
-    ``lens_inv`` the inverse main lens. ``out`` (n_rows*n_pix, n_cols*n_pix) float32
-    receives the mean radiance per pixel. Pixel pitch ``pixel_pitch`` (mm) may exceed
-    ``mla_pitch / n_pix``: lenslet images are centred on the chief rays from the
-    main-lens centre, so pixel block r is centred at y_c (1 + g / d). Read-out rotated by 180 degrees: pixel
-    row i sits at sensor height (i + 1/2 - H/2) * pitch/N, column j at
-    (W/2 - j - 1/2) * pitch/N, so the scene appears upright.
+    The ray joins sensor height ``y_s`` to MLA height ``y_l`` (mm) and is refracted by the
+    lenslet centred at ``y_c``. ``gap`` (sensor -> MLA, B = -g), ``lenslet_inv`` (inverse
+    lenslet), ``mla_to_lens`` (MLA -> main lens) and ``lens_inv`` (inverse main lens) are
+    2x2 ray transfer matrices. Returns ``(y_m, t_m, y_o, t_o)``: height (mm) and angle
+    (rad, paraxial: tan) between MLA and main lens, then height and angle leaving the
+    main lens into object space.
+    Linear and homogeneous in ``(y_s, y_l, y_c)``.
     """
-    H = n_rows * n_pix
-    W = n_cols * n_pix
-    pp = pixel_pitch
+    t = (y_l - gap[0, 0] * y_s) / gap[0, 1]
+    t = gap[1, 0] * y_s + gap[1, 1] * t
+    t = lenslet_inv[1, 0] * (y_l - y_c) + lenslet_inv[1, 1] * t
+    y_m = mla_to_lens[0, 0] * y_l + mla_to_lens[0, 1] * t
+    t_m = mla_to_lens[1, 0] * y_l + mla_to_lens[1, 1] * t
+    y_o = lens_inv[0, 0] * y_m + lens_inv[0, 1] * t_m
+    t_o = lens_inv[1, 0] * y_m + lens_inv[1, 1] * t_m
+    return y_m, t_m, y_o, t_o
+
+
+@njit(cache=True)
+def trace_rays(y_s, y_l, y_c, gap, lenslet_inv, mla_to_lens, lens_inv):
+    """:func:`_chain` over arrays of rays (1-D, float64): returns its four arrays."""
+    n = y_s.shape[0]
+    out = np.empty((4, n))
+    for k in range(n):
+        out[0, k], out[1, k], out[2, k], out[3, k] = _chain(y_s[k], y_l[k], y_c[k], gap, lenslet_inv, mla_to_lens, lens_inv)
+    return out
+
+
+@njit(cache=True)
+def axis_coefficients(n_lenslets, n_pix, mla_pitch, pixel_pitch, sign, gap, lenslet_inv, mla_to_lens,
+                      lens_inv, layer_z, tex_offset, tex_scale):
+    """Affine coefficients of every traced quantity, per pixel along one sensor axis.
+
+    The backward chain is linear, so for pixel ``i`` (lenslet ``i // N``) every quantity
+    is ``K[q, 0, i] + K[q, 1, i] du + K[q, 2, i] da + K[q, 3, i] o`` in the ray's
+    sample coordinates: ``du`` in [-1/2, 1/2) across the pixel, ``da`` across the
+    lenslet (pitches from its centre) and ``o`` the lenslet step (crosstalk, else 0).
+    Quantities ``q``: 0 height at the main lens (mm), 1 angle between MLA and main lens,
+    ``2 + l`` texture coordinate of layer ``l`` (texels: ``tex_offset[l] +
+    tex_scale[l] * y_object``; object distance ``layer_z[l]`` mm). ``sign`` is +1 for
+    rows (y up) and -1 for columns (read-out rotated by 180°). Returns K, float64,
+    shape (2 + n_layers, 4, n_lenslets * n_pix).
+    """
+    n = n_lenslets * n_pix
     n_layers = layer_z.shape[0]
-    tr_n = radiance.shape[1]
-    tc_n = radiance.shape[2]
-    m = int(np.sqrt(rays_per_pixel) + 0.5)
-    stratified = m * m == rays_per_pixel
-    r2 = aperture_radius * aperture_radius
+    K = np.zeros((2 + n_layers, 4, n))
+    unit = np.zeros((4, 3))          # (y_s, y_l, y_c) of the constant term and of du, da, o
+    unit[1, 0] = pixel_pitch
+    unit[2, 1] = mla_pitch
+    unit[3, 2] = mla_pitch
+    for i in range(n):
+        unit[0, 0] = sign * (i + 0.5 - n * 0.5) * pixel_pitch
+        unit[0, 1] = sign * (i // n_pix + 0.5 - n_lenslets * 0.5) * mla_pitch
+        unit[0, 2] = unit[0, 1]
+        for c in range(4):
+            y_m, t_m, y_o, t_o = _chain(unit[c, 0], unit[c, 1], unit[c, 2], gap, lenslet_inv, mla_to_lens,
+                                        lens_inv)
+            K[0, c, i] = y_m
+            K[1, c, i] = t_m
+            for li in range(n_layers):
+                K[2 + li, c, i] = tex_scale[li] * (y_o - layer_z[li] * t_o) + (tex_offset[li] if c == 0 else 0.0)
+    return K
+
+
+@njit(parallel=True, cache=True, fastmath={'contract'})
+def render_backward(ky, kx, n_pix, radiance, alpha, layer_box, occlusion, aperture_radius, use_cos4, lenslet_span,
+                    rays_per_pixel, seed, out):
+    """Backward-trace ``rays_per_pixel`` rays per sensor pixel into a stack of layers.
+
+    Every ray of pixel (i, j) has four sample coordinates: its start in the pixel
+    (``du`` per axis) and its point on the lenslet plane (``da`` per axis, spanning
+    ``lenslet_span`` pitches: 1 = the pixel's own lenslet, 3 = crosstalk through the
+    neighbours, whose lenslet step ``o`` is ``floor(da + 1/2)``, higher y / lower
+    column on a border). Samples are a 4-D R_d sequence rotated by a per-pixel random
+    shift (randomised quasi-Monte Carlo, unbiased; Cranley & Patterson 1976), the shift
+    a SplitMix64 hash of (seed, pixel): bit-identical at any thread count.
+    Every traced quantity is affine in the samples, with coefficients ``ky`` (rows) and
+    ``kx`` (columns) from :func:`axis_coefficients`. A ray is lost outside the main-lens
+    aperture (``aperture_radius`` mm; <= 0: none) or through a lenslet beyond the array;
+    it is weighted by cos^4 of its angle between MLA and main lens when ``use_cos4``;
+    then the layers (nearest first, nearest-texel lookup in ``radiance`` and ``alpha``,
+    shape (n_layers, rows, cols) float32) are composited front to back
+    (``sum_k T_k L_k``, ``T_{k+1} = T_k (1 - alpha_k)``) when ``occlusion``, else summed
+    (optically thin emitters). ``out`` (H, W) float32 receives the mean over the rays.
+    """
+    ky = ky.astype(np.float32)
+    kx = kx.astype(np.float32)
+    H = ky.shape[2]
+    W = kx.shape[2]
+    n_rows = H // n_pix
+    n_cols = W // n_pix
+    n_layers = radiance.shape[0]
+    tr = radiance.shape[1]
+    tc = np.int32(radiance.shape[2])
+    tr_max = np.float32(tr - 1.0)
+    tc_max = np.float32(tc - 1.0)
+    trf = np.float32(tr)
+    tcf = np.float32(tc)
+    one = np.float32(1.0)
+    zero = np.float32(0.0)
+    half = np.float32(0.5)
+    rad = radiance.reshape(n_layers * tr * tc)
+    alp = alpha.reshape(alpha.size)
+    r2 = np.float32(aperture_radius * aperture_radius)
+    span = np.float32(lenslet_span)
+    half_span = np.float32(0.5 * lenslet_span)
+    crosstalk = lenslet_span > 1
     base = np.uint64(seed) * np.uint64(0x632BE59BD9B4E019)
-    for i in prange(H):
-        r = i // n_pix
-        yc_l = (r + 0.5 - n_rows * 0.5) * mla_pitch
-        yc_p = (i + 0.5 - H * 0.5) * pp
+    # bounding-box culling: columns whose rays can reach layer li's content (texels
+    # layer_box[li] = row0, row1, col0, col1) are col_lo[li] <= j < col_hi[li]
+    col_lo = np.zeros(n_layers, np.int64)
+    col_hi = np.zeros(n_layers, np.int64)
+    for li in range(n_layers):
+        first, last = W, -1
         for j in range(W):
-            c = j // n_pix
-            xc_l = (n_cols * 0.5 - c - 0.5) * mla_pitch
-            xc_p = (W * 0.5 - j - 0.5) * pp
-            key0 = base + np.uint64((i * W + j) * rays_per_pixel * 4)
-            acc = 0.0
+            reach = abs(kx[2 + li, 1, j]) * half + abs(kx[2 + li, 2, j]) * half_span
+            if crosstalk:
+                reach += abs(kx[2 + li, 3, j])
+            if kx[2 + li, 0, j] + reach >= layer_box[li, 2] and kx[2 + li, 0, j] - reach < layer_box[li, 3]:
+                first = min(first, j)
+                last = j
+        col_lo[li] = first
+        col_hi[li] = last + 1
+    n_blocks = min(H, 64)
+    for b in prange(n_blocks):
+        rot = np.empty((4, W), np.float32)
+        du_y = np.empty(W, np.float32)
+        du_x = np.empty(W, np.float32)
+        da_y = np.empty(W, np.float32)
+        da_x = np.empty(W, np.float32)
+        o_y = np.zeros(W, np.float32)
+        o_x = np.zeros(W, np.float32)
+        wgt = np.empty(W, np.float32)
+        val = np.empty(W, np.float32)
+        trans = np.empty(W, np.float32)
+        acc = np.empty(W)
+        inside = np.empty(W, np.float32)
+        texv = np.empty(W, np.float32)
+        texa = np.empty(W, np.float32)
+        texel = np.empty(W, np.int32)
+        for i in range(b * H // n_blocks, (b + 1) * H // n_blocks):
+            row_lenslet = i // n_pix
+            for j in range(W):
+                key = base + np.uint64((i * W + j) * 4)
+                rot[0, j] = np.float32(_uniform(key))
+                rot[1, j] = np.float32(_uniform(key + np.uint64(1)))
+                rot[2, j] = np.float32(_uniform(key + np.uint64(2)))
+                rot[3, j] = np.float32(_uniform(key + np.uint64(3)))
+                acc[j] = 0.0
             for k in range(rays_per_pixel):
-                key = key0 + np.uint64(4 * k)
-                ys = yc_p + (_uniform(key) - 0.5) * pp
-                xs = xc_p + (0.5 - _uniform(key + np.uint64(1))) * pp
-                if stratified:
-                    a = ((k // m) + _uniform(key + np.uint64(2))) / m
-                    b = ((k % m) + _uniform(key + np.uint64(3))) / m
-                else:
-                    a = _uniform(key + np.uint64(2))
-                    b = _uniform(key + np.uint64(3))
-                yl = yc_l + (a - 0.5) * mla_pitch
-                xl = xc_l + (0.5 - b) * mla_pitch
-                # sensor -> MLA: the angle that joins the two points, then the lenslet
-                ty = (yl - gap[0, 0] * ys) / gap[0, 1]
-                tx = (xl - gap[0, 0] * xs) / gap[0, 1]
-                _, ty = _back(gap, ys, ty)
-                _, tx = _back(gap, xs, tx)
-                _, ty = _back(lenslet_inv, yl - yc_l, ty)
-                _, tx = _back(lenslet_inv, xl - xc_l, tx)
-                ym, ty = _back(mla_to_lens, yl, ty)
-                xm, tx = _back(mla_to_lens, xl, tx)
-                if aperture_radius > 0.0 and ym * ym + xm * xm > r2:
-                    continue
-                w = 1.0
+                q0 = np.float32((0.5 + (k + 1) * _R4[0]) % 1.0)
+                q1 = np.float32((0.5 + (k + 1) * _R4[1]) % 1.0)
+                q2 = np.float32((0.5 + (k + 1) * _R4[2]) % 1.0)
+                q3 = np.float32((0.5 + (k + 1) * _R4[3]) % 1.0)
+                for j in range(W):
+                    u = q0 + rot[0, j]
+                    du_y[j] = (u - one if u >= one else u) - half
+                    u = q1 + rot[1, j]
+                    du_x[j] = (u - one if u >= one else u) - half
+                    u = q2 + rot[2, j]
+                    da_y[j] = (u - one if u >= one else u) * span - half_span
+                    u = q3 + rot[3, j]
+                    da_x[j] = (u - one if u >= one else u) * span - half_span
+                    wgt[j] = one
+                    val[j] = zero
+                    trans[j] = one
+                if crosstalk:
+                    for j in range(W):
+                        o_y[j] = np.floor(da_y[j] + half)
+                        o_x[j] = np.floor(da_x[j] + half)
+                        r_l = row_lenslet + o_y[j]
+                        c_l = j // n_pix - o_x[j]
+                        if r_l < 0 or r_l >= n_rows or c_l < 0 or c_l >= n_cols:
+                            wgt[j] = zero
+                if aperture_radius > 0.0:
+                    a0, a1, a2, a3 = ky[0, 0, i], ky[0, 1, i], ky[0, 2, i], ky[0, 3, i]
+                    for j in range(W):
+                        ym = a0 + a1 * du_y[j] + a2 * da_y[j] + a3 * o_y[j]
+                        xm = kx[0, 0, j] + kx[0, 1, j] * du_x[j] + kx[0, 2, j] * da_x[j] + kx[0, 3, j] * o_x[j]
+                        if ym * ym + xm * xm > r2:
+                            wgt[j] = zero
                 if use_cos4:
-                    t2 = 1.0 + ty * ty + tx * tx
-                    w = 1.0 / (t2 * t2)
-                ym, ty = _back(lens_inv, ym, ty)
-                xm, tx = _back(lens_inv, xm, tx)
-                trans = 1.0
-                val = 0.0
+                    a0, a1, a2, a3 = ky[1, 0, i], ky[1, 1, i], ky[1, 2, i], ky[1, 3, i]
+                    for j in range(W):
+                        ty = a0 + a1 * du_y[j] + a2 * da_y[j] + a3 * o_y[j]
+                        tx = kx[1, 0, j] + kx[1, 1, j] * du_x[j] + kx[1, 2, j] * da_x[j] + kx[1, 3, j] * o_x[j]
+                        t2 = one + ty * ty + tx * tx
+                        wgt[j] *= one / (t2 * t2)
                 for li in range(n_layers):
-                    yo = ym - layer_z[li] * ty
-                    xo = xm - layer_z[li] * tx
-                    fr = (layer_top[li] - yo) / layer_h[li] * tr_n
-                    fc = (xo - layer_left[li]) / layer_w[li] * tc_n
-                    if fr < 0.0 or fc < 0.0 or fr >= tr_n or fc >= tc_n:
-                        continue
-                    ir = int(fr)
-                    ic = int(fc)
-                    val += trans * radiance[li, ir, ic]
+                    q = 2 + li
+                    a0, a1, a2, a3 = ky[q, 0, i], ky[q, 1, i], ky[q, 2, i], ky[q, 3, i]
+                    reach = abs(a1) * half + abs(a2) * half_span + (abs(a3) if crosstalk else zero)
+                    j0, j1 = col_lo[li], col_hi[li]
+                    if a0 + reach < layer_box[li, 0] or a0 - reach >= layer_box[li, 1] or j1 <= j0:
+                        continue                     # no ray of this row meets the layer's content
+                    off = np.int32(li * tr * tc)
+                    # 0-based loops over slices vectorise (offset indices do not)
+                    n = j1 - j0
+                    dyy, dxx, ayy, axx = du_y[j0:j1], du_x[j0:j1], da_y[j0:j1], da_x[j0:j1]
+                    c0, c1, c2 = kx[q, 0, j0:j1], kx[q, 1, j0:j1], kx[q, 2, j0:j1]
+                    if crosstalk:
+                        oyy, oxx, c3 = o_y[j0:j1], o_x[j0:j1], kx[q, 3, j0:j1]
+                        for j in range(n):
+                            fr = a0 + a1 * dyy[j] + a2 * ayy[j] + a3 * oyy[j]
+                            fc = c0[j] + c1[j] * dxx[j] + c2[j] * axx[j] + c3[j] * oxx[j]
+                            inside[j] = one if (fr >= zero) & (fr < trf) & (fc >= zero) & (fc < tcf) else zero
+                            texel[j] = off + np.int32(min(max(fr, zero), tr_max)) * tc + np.int32(min(max(fc, zero), tc_max))
+                    else:
+                        for j in range(n):
+                            fr = a0 + a1 * dyy[j] + a2 * ayy[j]
+                            fc = c0[j] + c1[j] * dxx[j] + c2[j] * axx[j]
+                            inside[j] = one if (fr >= zero) & (fr < trf) & (fc >= zero) & (fc < tcf) else zero
+                            texel[j] = off + np.int32(min(max(fr, zero), tr_max)) * tc + np.int32(min(max(fc, zero), tc_max))
+                    vv = val[j0:j1]
+                    for j in range(n):
+                        texv[j] = rad[texel[j]]
                     if occlusion:
-                        trans *= 1.0 - alpha[li, ir, ic]
-                        if trans <= 0.0:
-                            break
-                acc += w * val
-            out[i, j] = acc / rays_per_pixel
+                        tt = trans[j0:j1]
+                        for j in range(n):
+                            texa[j] = alp[texel[j]]
+                        for j in range(n):
+                            t = tt[j] * inside[j]
+                            vv[j] += t * texv[j]
+                            tt[j] -= t * texa[j]
+                    else:
+                        for j in range(n):
+                            vv[j] += inside[j] * texv[j]
+                for j in range(W):
+                    acc[j] += wgt[j] * val[j]
+            for j in range(W):
+                out[i, j] = acc[j] / rays_per_pixel
 
 
 @njit(parallel=True, cache=True)

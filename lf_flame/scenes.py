@@ -40,6 +40,12 @@ class Effects:
     occlusion : bool
         Opaque layers hide what lies behind them (front-to-back alpha compositing);
         off: optically thin layers whose emission adds up (flames).
+    crosstalk : bool
+        Light may reach a pixel through the neighbouring lenslets as well as its own
+        (rays sampled over the 3 × 3 lenslets around the pixel's own; the main-lens
+        aperture decides which pass). Zero for an f-number-matched camera, whose
+        lenslet images just tile the sensor; on when the main lens is faster than the
+        lenslets and their images overlap. Off: each pixel sees its own lenslet only.
     read_noise_e, full_well_e : float or None
         Sensor noise: Poisson shot noise for a full well of ``full_well_e`` electrons at
         radiance 1 and Gaussian read noise of ``read_noise_e`` electrons. None: noise-free.
@@ -50,6 +56,7 @@ class Effects:
     aperture: bool = True
     cos4: bool = True
     occlusion: bool = True
+    crosstalk: bool = False
     full_well_e: float | None = None
     read_noise_e: float | None = None
     bit_depth: int | None = None

@@ -38,19 +38,51 @@ def _stack_layers(camera: PlenopticCamera, scene: Scene):
             raise ValueError(f"layer at {L.depth_offset_mm} mm has alpha outside [0, 1] or of the wrong shape")
         if min(L.size_mm) <= 0:
             raise ValueError(f"layer size must be positive. Received: size_mm={L.size_mm}")
-    f64 = lambda v: np.array(v, dtype=np.float64)  # noqa: E731
-    z = f64([camera.object_distance_mm(L.depth_offset_mm) for L in layers])
-    top = f64([L.centre_mm[0] + L.size_mm[0] / 2 for L in layers])
-    left = f64([L.centre_mm[1] - L.size_mm[1] / 2 for L in layers])
-    h = f64([L.size_mm[0] for L in layers])
-    w = f64([L.size_mm[1] for L in layers])
+    z = np.array([camera.object_distance_mm(L.depth_offset_mm) for L in layers])
     rad = np.ascontiguousarray(np.stack([L.radiance for L in layers]), dtype=np.float32)
     if scene.effects.occlusion:
         alpha = np.ascontiguousarray(np.stack([np.zeros(shape, np.float32) if L.alpha is None else L.alpha
                                                for L in layers]), dtype=np.float32)
     else:
         alpha = np.zeros((1, 1, 1), np.float32)  # never read
-    return z, top, left, h, w, rad, alpha
+    return layers, z, rad, alpha
+
+
+def content_box(radiance: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """Per-layer bounding box (row0, row1, col0, col1), in texels, of non-zero radiance or alpha.
+
+    ``radiance`` (n_layers, rows, cols); ``alpha`` the same shape, or (1, 1, 1) when
+    unused. A layer with no content gets an empty box (row1 = row0). The kernel skips
+    rays that cannot reach a layer's box: exact, since those rays would add 0.
+    """
+    box = np.zeros((radiance.shape[0], 4), np.int64)
+    for li in range(radiance.shape[0]):
+        mask = radiance[li] > 0
+        if alpha.shape == radiance.shape:
+            mask |= alpha[li] > 0
+        rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+        if rows.size:
+            box[li] = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+    return box
+
+
+def trace_coefficients(camera: PlenopticCamera, layers, z) -> tuple[np.ndarray, np.ndarray]:
+    """Per-row and per-column affine coefficients of the backward ABCD chain.
+
+    See :func:`lf_flame._kernels.axis_coefficients`; returns ``(ky, kx)`` of shapes
+    (2 + n_layers, 4, n_rows * N) and (2 + n_layers, 4, n_cols * N), float64.
+    """
+    tr, tc = layers[0].radiance.shape
+    top = np.array([L.centre_mm[0] + L.size_mm[0] / 2 for L in layers])
+    left = np.array([L.centre_mm[1] - L.size_mm[1] / 2 for L in layers])
+    h = np.array([L.size_mm[0] for L in layers])
+    w = np.array([L.size_mm[1] for L in layers])
+    chain = (free_space(-camera.sensor_distance_mm).matrix, camera.microlens_array.lens.inverse().matrix,
+             free_space(-camera.mla_distance_mm).matrix, camera.main_lens.inverse().matrix)
+    n, p, pp = camera.pixels_per_lenslet, camera.mla_pitch_mm, camera.pixel_pitch_mm
+    ky = _kernels.axis_coefficients(camera.n_rows, n, p, pp, 1.0, *chain, z, top * tr / h, -tr / h)
+    kx = _kernels.axis_coefficients(camera.n_cols, n, p, pp, -1.0, *chain, z, -left * tc / w, tc / w)
+    return ky, kx
 
 
 def render(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16, seed: int = 0) -> np.ndarray:
@@ -84,15 +116,12 @@ def render(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16, seed
     if int(seed) != seed or seed < 0:
         raise ValueError(f"seed must be a non-negative integer. Received: seed={seed!r}")
     fx = scene.effects
-    z, top, left, h, w, rad, alpha = _stack_layers(camera, scene)
-    g = camera.sensor_distance_mm
+    layers, z, rad, alpha = _stack_layers(camera, scene)
+    ky, kx = trace_coefficients(camera, layers, z)
     out = np.empty(camera.sensor_shape, dtype=np.float32)
-    _kernels.render_backward(
-        camera.n_rows, camera.n_cols, camera.pixels_per_lenslet, camera.mla_pitch_mm, camera.pixel_pitch_mm,
-        free_space(-g).matrix, camera.microlens_array.lens.inverse().matrix,
-        free_space(-camera.mla_distance_mm).matrix, camera.main_lens.inverse().matrix,
-        camera.aperture_diameter_mm / 2 if fx.aperture else -1.0, bool(fx.cos4),
-        z, top, left, h, w, rad, alpha, bool(fx.occlusion), int(rays_per_pixel), int(seed), out)
+    _kernels.render_backward(ky, kx, camera.pixels_per_lenslet, rad, alpha, content_box(rad, alpha), bool(fx.occlusion),
+                             camera.aperture_diameter_mm / 2 if fx.aperture else -1.0, bool(fx.cos4),
+                             3 if fx.crosstalk else 1, int(rays_per_pixel), int(seed), out)
     return apply_sensor(out, fx, seed)
 
 
