@@ -119,7 +119,8 @@ def render_backward(ky, kx, n_pix, radiance, alpha, layer_box, occlusion, apertu
     then the layers (nearest first, nearest-texel lookup in ``radiance`` and ``alpha``,
     shape (n_layers, rows, cols) float32) are composited front to back
     (``sum_k T_k L_k``, ``T_{k+1} = T_k (1 - alpha_k)``) when ``occlusion``, else summed
-    (optically thin emitters). ``out`` (H, W) float32 receives the mean over the rays.
+    (optically thin emitters). ``out`` (H, W) float32 receives the irradiance estimate:
+    the mean over the rays times ``lenslet_span**2`` (the sampled area in lenslets).
     """
     ky = ky.astype(np.float32)
     kx = kx.astype(np.float32)
@@ -143,6 +144,7 @@ def render_backward(ky, kx, n_pix, radiance, alpha, layer_box, occlusion, apertu
     span = np.float32(lenslet_span)
     half_span = np.float32(0.5 * lenslet_span)
     crosstalk = lenslet_span > 1
+    scale = lenslet_span * lenslet_span / rays_per_pixel    # each ray stands for span^2 / rpp of the area
     base = np.uint64(seed) * np.uint64(0x632BE59BD9B4E019)
     # bounding-box culling: columns whose rays can reach layer li's content (texels
     # layer_box[li] = row0, row1, col0, col1) are col_lo[li] <= j < col_hi[li]
@@ -266,7 +268,7 @@ def render_backward(ky, kx, n_pix, radiance, alpha, layer_box, occlusion, apertu
                 for j in range(W):
                     acc[j] += wgt[j] * val[j]
             for j in range(W):
-                out[i, j] = acc[j] / rays_per_pixel
+                out[i, j] = acc[j] * scale
 
 
 @njit(parallel=True, cache=True)

@@ -19,7 +19,7 @@ import math
 import warnings
 from dataclasses import dataclass
 
-from .optics import MicrolensArray, RayTransferMatrix, free_space, thin_lens
+from .optics import ApertureStop, MicrolensArray, RayTransferMatrix, free_space, thin_lens
 
 
 @dataclass(frozen=True)
@@ -138,6 +138,11 @@ class PlenopticCamera:
         return MicrolensArray(self.mla_pitch_mm, self.mla_focal_mm, self.n_rows, self.n_cols)
 
     # ---- ray transfer matrices --------------------------------------------------
+    @property
+    def aperture_stop(self) -> ApertureStop:
+        """The main lens's clear aperture (:attr:`aperture_diameter_mm`), at the lens."""
+        return ApertureStop(self.aperture_diameter_mm)
+
     @property
     def main_lens(self) -> RayTransferMatrix:
         return thin_lens(self.main_focal_mm)

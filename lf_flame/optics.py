@@ -125,6 +125,38 @@ def thin_lens(focal_length_mm: float) -> RayTransferMatrix:
 
 
 @dataclass(frozen=True)
+class ApertureStop:
+    """A circular aperture stop (clear diameter ``diameter_mm``), centred on the axis.
+
+    It passes rays unchanged (its ray transfer matrix is the identity) and blocks
+    those outside the clear aperture: the aperture function A(u, v) of the paper's
+    Eq. 1. A ray exactly on the rim passes (``y² + x² <= r²``).
+
+    Raises
+    ------
+    ValueError
+        If the diameter is not finite and positive.
+    """
+
+    diameter_mm: float
+
+    def __post_init__(self):
+        v = _finite("diameter_mm", self.diameter_mm)
+        if v <= 0:
+            raise ValueError(f"aperture stop diameter must be > 0 (mm). Received: diameter_mm={v!r}")
+
+    @property
+    def matrix(self) -> RayTransferMatrix:
+        """Identity: a stop changes no ray, it only removes some."""
+        return RayTransferMatrix(1.0, 0.0, 0.0, 1.0)
+
+    def passes(self, y_mm, x_mm) -> np.ndarray:
+        """True where rays at ``(y, x)`` mm on the stop's plane pass (arrays, any equal shape)."""
+        r = self.diameter_mm / 2
+        return np.asarray(y_mm) ** 2 + np.asarray(x_mm) ** 2 <= r * r
+
+
+@dataclass(frozen=True)
 class MicrolensArray:
     """A square grid of identical thin lenslets, each acting about its own centre.
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from . import _kernels
 from .camera import PlenopticCamera
-from .optics import free_space
+from .optics import RayTransferMatrix, free_space
 from .scenes import Scene
 
 
@@ -66,6 +66,17 @@ def content_box(radiance: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     return box
 
 
+def backward_chain(camera: PlenopticCamera) -> tuple[RayTransferMatrix, ...]:
+    """The camera's ray transfer matrices in backward order (sensor -> object space).
+
+    ``(gap, lenslet_inv, mla_to_lens, lens_inv)``: free space ``-g`` (sensor -> MLA),
+    the inverse lenslet (in its own frame), free space ``-d`` (MLA -> main lens) and
+    the inverse main lens. Each object layer then adds free space ``-z``.
+    """
+    return (free_space(-camera.sensor_distance_mm), camera.microlens_array.lens.inverse(),
+            free_space(-camera.mla_distance_mm), camera.main_lens.inverse())
+
+
 def trace_coefficients(camera: PlenopticCamera, layers, z) -> tuple[np.ndarray, np.ndarray]:
     """Per-row and per-column affine coefficients of the backward ABCD chain.
 
@@ -77,8 +88,7 @@ def trace_coefficients(camera: PlenopticCamera, layers, z) -> tuple[np.ndarray, 
     left = np.array([L.centre_mm[1] - L.size_mm[1] / 2 for L in layers])
     h = np.array([L.size_mm[0] for L in layers])
     w = np.array([L.size_mm[1] for L in layers])
-    chain = (free_space(-camera.sensor_distance_mm).matrix, camera.microlens_array.lens.inverse().matrix,
-             free_space(-camera.mla_distance_mm).matrix, camera.main_lens.inverse().matrix)
+    chain = tuple(m.matrix for m in backward_chain(camera))
     n, p, pp = camera.pixels_per_lenslet, camera.mla_pitch_mm, camera.pixel_pitch_mm
     ky = _kernels.axis_coefficients(camera.n_rows, n, p, pp, 1.0, *chain, z, top * tr / h, -tr / h)
     kx = _kernels.axis_coefficients(camera.n_cols, n, p, pp, -1.0, *chain, z, -left * tc / w, tc / w)
@@ -94,8 +104,9 @@ def render(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16, seed
     scene : Scene
         Layers (any order; traced nearest first) and the effects to simulate.
     rays_per_pixel : int
-        Monte-Carlo rays per sensor pixel (>= 1); a perfect square stratifies the
-        lenslet aperture. Error against ray count: ``make bench-sim``.
+        Rays per sensor pixel (>= 1): a 4-D low-discrepancy (R_d) sequence over the
+        pixel area and the lenslet aperture, randomly shifted per pixel (unbiased
+        randomised quasi-Monte Carlo). Error against ray count: ``make bench-sim``.
     seed : int
         Seeds the ray samples and the sensor noise; same seed, bit-identical image.
 
@@ -111,18 +122,109 @@ def render(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16, seed
     ValueError
         Bad ray count or seed, layers behind the camera, NaN/negative radiance.
     """
-    if int(rays_per_pixel) != rays_per_pixel or rays_per_pixel < 1:
-        raise ValueError(f"rays_per_pixel must be a positive integer. Received: rays_per_pixel={rays_per_pixel!r}")
-    if int(seed) != seed or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer. Received: seed={seed!r}")
+    _validate_sampling(rays_per_pixel, seed)
     fx = scene.effects
     layers, z, rad, alpha = _stack_layers(camera, scene)
     ky, kx = trace_coefficients(camera, layers, z)
     out = np.empty(camera.sensor_shape, dtype=np.float32)
-    _kernels.render_backward(ky, kx, camera.pixels_per_lenslet, rad, alpha, content_box(rad, alpha), bool(fx.occlusion),
-                             camera.aperture_diameter_mm / 2 if fx.aperture else -1.0, bool(fx.cos4),
-                             3 if fx.crosstalk else 1, int(rays_per_pixel), int(seed), out)
+    _kernels.render_backward(ky, kx, camera.pixels_per_lenslet, rad, alpha, content_box(rad, alpha),
+                             bool(fx.occlusion), camera.aperture_diameter_mm / 2 if fx.aperture else -1.0,
+                             bool(fx.cos4), 3 if fx.crosstalk else 1, int(rays_per_pixel), int(seed), out)
     return apply_sensor(out, fx, seed)
+
+
+def _validate_sampling(rays_per_pixel, seed):
+    if int(rays_per_pixel) != rays_per_pixel or rays_per_pixel < 1:
+        raise ValueError(f"rays_per_pixel must be a positive integer. Received: rays_per_pixel={rays_per_pixel!r}")
+    if int(seed) != seed or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer. Received: seed={seed!r}")
+
+
+def _uniform_np(key: np.ndarray) -> np.ndarray:
+    """NumPy twin of the kernel's SplitMix64 hash: uint64 keys -> float64 in [0, 1)."""
+    g, m1, m2 = np.uint64(0x9E3779B97F4A7C15), np.uint64(0xBF58476D1CE4E5B9), np.uint64(0x94D049BB133111EB)
+    z = key * g + g
+    z = (z ^ (z >> np.uint64(30))) * m1
+    z = (z ^ (z >> np.uint64(27))) * m2
+    z = z ^ (z >> np.uint64(31))
+    return (z >> np.uint64(11)).astype(np.float64) / 9007199254740992.0
+
+
+def render_reference(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16, seed: int = 0,
+                     rows_per_chunk: int = 45) -> np.ndarray:
+    """Plain NumPy rendering of the same backward ABCD chain as :func:`render` (slow).
+
+    Every ray is traced explicitly through :func:`backward_chain` with
+    :meth:`RayTransferMatrix.apply` in float64, with the same samples as the kernel
+    (same hash, same low-discrepancy sequence), vectorised over ``rows_per_chunk``
+    sensor rows at a time. It is the kernel's reference in the tests and the NumPy
+    baseline of ``make bench-sim``; it has no content culling and no sensor model
+    (returns the noise-free mean radiance, float32, shape of :attr:`sensor_shape`).
+    """
+    _validate_sampling(rays_per_pixel, seed)
+    fx = scene.effects
+    layers, z, rad, alpha = _stack_layers(camera, scene)
+    gap, lenslet_inv, mla_to_lens, lens_inv = backward_chain(camera)
+    n, p, pp = camera.pixels_per_lenslet, camera.mla_pitch_mm, camera.pixel_pitch_mm
+    H, W = camera.sensor_shape
+    tr, tc = rad.shape[1:]
+    top = np.array([L.centre_mm[0] + L.size_mm[0] / 2 for L in layers])
+    left = np.array([L.centre_mm[1] - L.size_mm[1] / 2 for L in layers])
+    span = 3 if fx.crosstalk else 1
+    r4 = _kernels._R4
+    out = np.empty((H, W), np.float32)
+    j = np.arange(W)
+    x_pix = -(j + 0.5 - W / 2) * pp
+    x_len = -(j // n + 0.5 - camera.n_cols / 2) * p
+    for i0 in range(0, H, rows_per_chunk):
+        i = np.arange(i0, min(H, i0 + rows_per_chunk))[:, None]
+        y_pix = (i + 0.5 - H / 2) * pp
+        y_len = (i // n + 0.5 - camera.n_rows / 2) * p
+        with np.errstate(over="ignore"):
+            key = np.uint64(seed) * np.uint64(0x632BE59BD9B4E019) + ((i * W + j) * 4).astype(np.uint64)
+        rot = [_uniform_np(key + np.uint64(d)).astype(np.float32) for d in range(4)]
+        acc = np.zeros((len(i), W))
+        for k in range(rays_per_pixel):
+            u = []
+            for d in range(4):
+                v = np.float32((0.5 + (k + 1) * r4[d]) % 1.0) + rot[d]
+                u.append(np.where(v >= 1, v - np.float32(1), v))
+            du_y, du_x = u[0] - np.float32(0.5), u[1] - np.float32(0.5)
+            da_y = u[2] * np.float32(span) - np.float32(span / 2)
+            da_x = u[3] * np.float32(span) - np.float32(span / 2)
+            o_y, o_x = np.floor(da_y + np.float32(0.5)), np.floor(da_x + np.float32(0.5))
+            weight = np.ones_like(acc)
+            if fx.crosstalk:
+                r_l, c_l = i // n + o_y, j // n - o_x
+                weight[(r_l < 0) | (r_l >= camera.n_rows) | (c_l < 0) | (c_l >= camera.n_cols)] = 0.0
+            rays = []
+            for s_pix, s_len, du, da, o in ((y_pix, y_len, du_y, da_y, o_y), (x_pix, x_len, du_x, da_x, o_x)):
+                y_s, y_l, y_c = s_pix + du * pp, s_len + da * p, s_len + o * p
+                _, t = gap.apply(y_s, (y_l - gap.A * y_s) / gap.B)
+                _, t = lenslet_inv.apply(y_l - y_c, t)
+                y_m, t_m = mla_to_lens.apply(y_l, t)
+                y_o, t_o = lens_inv.apply(y_m, t_m)
+                rays.append((y_m, t_m, y_o, t_o))
+            (ym, tmy, yo, toy), (xm, tmx, xo, tox) = rays
+            if fx.aperture:
+                weight[~camera.aperture_stop.passes(ym, xm)] = 0.0
+            if fx.cos4:
+                weight /= (1.0 + tmy ** 2 + tmx ** 2) ** 2
+            val = np.zeros_like(acc)
+            trans = np.ones_like(acc)
+            for li, L in enumerate(layers):
+                fr = (top[li] - (yo - z[li] * toy)) / L.size_mm[0] * tr
+                fc = ((xo - z[li] * tox) - left[li]) / L.size_mm[1] * tc
+                inside = (fr >= 0) & (fr < tr) & (fc >= 0) & (fc < tc)
+                ir = np.clip(fr, 0, tr - 1).astype(np.int64)
+                ic = np.clip(fc, 0, tc - 1).astype(np.int64)
+                t = trans * inside
+                val += t * rad[li, ir, ic]
+                if fx.occlusion:
+                    trans = trans - t * alpha[li, ir, ic]
+            acc += weight * val
+        out[i0:i0 + len(i)] = acc * (span * span / rays_per_pixel)
+    return out
 
 
 def apply_sensor(raw: np.ndarray, effects, seed: int) -> np.ndarray:

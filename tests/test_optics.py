@@ -3,7 +3,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from lf_flame.camera import PAPER_CAMERA, PlenopticCamera
-from lf_flame.optics import MicrolensArray, RayTransferMatrix, free_space, thin_lens
+from lf_flame.optics import ApertureStop, MicrolensArray, RayTransferMatrix, free_space, thin_lens
 
 
 def test_composition_order_matches_matrix_product():
@@ -101,3 +101,16 @@ def test_sensor_off_focus_warns():
 def test_object_inside_focal_length_has_no_real_image():
     with pytest.raises(ValueError, match="infinity or virtual"):
         PAPER_CAMERA.image_distance_mm(100.0)
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, float("nan")])
+def test_aperture_stop_rejects_bad_diameter(bad):
+    with pytest.raises(ValueError, match="diameter"):
+        ApertureStop(bad)
+
+
+def test_aperture_stop_passes_its_rim_and_no_further():
+    stop = ApertureStop(2.0)
+    assert stop.passes(1.0, 0.0) and stop.passes(0.0, -1.0)
+    assert not stop.passes(1.0 + 1e-12, 0.0)
+    assert stop.matrix.det == 1.0

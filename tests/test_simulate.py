@@ -138,3 +138,95 @@ def test_flame_heights_follow_the_paper(small_camera):
                         for _ in range(300)])
     assert np.allclose(heights.mean(axis=0), scenes.FLAME_HEIGHT_MEAN_MM, atol=0.3)
     assert np.allclose(heights.std(axis=0), scenes.FLAME_HEIGHT_SD_MM, atol=0.2)
+
+
+def test_kernel_chain_matches_numpy_abcd_chain_to_1e12(small_camera):
+    """The kernel's per-ray chain against explicit RayTransferMatrix products, random rays."""
+    from lf_flame import _kernels
+    cam = small_camera
+    rng = np.random.default_rng(0)
+    n = 10_000
+    y_s = rng.uniform(-2, 2, n)
+    y_c = rng.uniform(-2, 2, n)
+    y_l = y_c + rng.uniform(-0.06, 0.06, n)
+    chain = simulate.backward_chain(cam)
+    got = _kernels.trace_rays(y_s, y_l, y_c, *(m.matrix for m in chain))
+    gap, lenslet_inv, mla_to_lens, lens_inv = chain
+    t0 = (y_l - gap.A * y_s) / gap.B
+    y1, t1 = gap.apply(y_s, t0)
+    _, t2 = lenslet_inv.apply(y1 - y_c, t1)
+    y_m, t_m = mla_to_lens.apply(y1, t2)
+    y_o, t_o = lens_inv.apply(y_m, t_m)
+    assert np.allclose(y1, y_l, rtol=0, atol=1e-12)
+    for a, b in zip(got, (y_m, t_m, y_o, t_o)):
+        assert np.max(np.abs(a - b)) <= 1e-12 * max(1.0, np.max(np.abs(b)))
+
+
+def test_affine_coefficients_reproduce_the_chain(small_camera):
+    """K[q, 0] + K[q, 1] du + K[q, 2] da + K[q, 3] o equals the traced ray (float64)."""
+    from lf_flame import _kernels
+    cam, n = small_camera, small_camera.pixels_per_lenslet
+    chain = [m.matrix for m in simulate.backward_chain(cam)]
+    z = np.array([cam.object_distance_mm(10.0)])
+    K = _kernels.axis_coefficients(cam.n_rows, n, cam.mla_pitch_mm, cam.pixel_pitch_mm, 1.0, *chain, z,
+                                   np.array([3.0]), np.array([-2.0]))
+    rng = np.random.default_rng(1)
+    i = rng.integers(0, cam.n_rows * n, 1000)
+    du, da = rng.uniform(-0.5, 0.5, 1000), rng.uniform(-1.5, 1.5, 1000)
+    o = np.floor(da + 0.5)
+    y_s = (i + 0.5 - cam.n_rows * n / 2) * cam.pixel_pitch_mm + du * cam.pixel_pitch_mm
+    y_c = (i // n + 0.5 - cam.n_rows / 2) * cam.mla_pitch_mm
+    y_m, t_m, y_o, t_o = _kernels.trace_rays(y_s, y_c + da * cam.mla_pitch_mm, y_c + o * cam.mla_pitch_mm, *chain)
+    affine = lambda q: K[q, 0, i] + K[q, 1, i] * du + K[q, 2, i] * da + K[q, 3, i] * o  # noqa: E731
+    assert np.allclose(affine(0), y_m, rtol=0, atol=1e-12)
+    assert np.allclose(affine(1), t_m, rtol=0, atol=1e-12)
+    assert np.allclose(affine(2), 3.0 - 2.0 * (y_o - z[0] * t_o), rtol=0, atol=1e-11)
+
+
+@pytest.mark.parametrize("name,crosstalk", [("shapes", False), ("flame", False), ("shapes", True)])
+def test_kernel_render_matches_numpy_reference(small_camera, name, crosstalk):
+    cam = small_camera
+    sc = scenes.SCENES[name](cam, np.random.default_rng(5))
+    sc = dataclasses.replace(sc, effects=dataclasses.replace(sc.effects, crosstalk=crosstalk))
+    fast = simulate.render(cam, sc, 4, seed=2)
+    ref = np.clip(simulate.render_reference(cam, sc, 4, seed=2), 0, 1)
+    diff = np.abs(fast - ref)
+    # float32 affine maps vs the float64 chain: only rays within ~1e-4 texel of a texel
+    # border may pick the other texel
+    assert np.mean(diff > 1e-5) < 1e-3
+    assert abs(fast.mean() - ref.mean()) < 1e-4
+
+
+def test_content_culling_is_exact(small_camera):
+    """Skipping rays that cannot reach a layer's content changes no pixel."""
+    from lf_flame import _kernels
+    cam = small_camera
+    sc = scenes.shapes_scene(cam, np.random.default_rng(2))
+    layers, z, rad, alpha = simulate._stack_layers(cam, sc)
+    ky, kx = simulate.trace_coefficients(cam, layers, z)
+    box = simulate.content_box(rad, alpha)
+    full = np.array([[0, rad.shape[1], 0, rad.shape[2]]] * len(layers))
+    assert np.all(box[:, 1] - box[:, 0] < rad.shape[1])  # culling has something to skip
+    outs = []
+    for b in (box, full):
+        out = np.empty(cam.sensor_shape, np.float32)
+        _kernels.render_backward(ky, kx, cam.pixels_per_lenslet, rad, alpha, b, True, 38.9, True, 1, 4, 0, out)
+        outs.append(out)
+    assert np.array_equal(*outs)
+
+
+def test_crosstalk_needs_a_faster_main_lens(small_camera):
+    """f-number matched: the aperture stops all light through neighbouring lenslets;
+    a main lens 1.5x wider lets an in-focus point's light into the neighbours' blocks."""
+    n = small_camera.pixels_per_lenslet
+    for aperture_scale, leaks in ((1.0, False), (1.5, True)):
+        cam = dataclasses.replace(small_camera, aperture_mm=small_camera.aperture_diameter_mm * aperture_scale)
+        pt = scenes.point_scene(cam, 0.0)
+        blocks = {}
+        for xt in (False, True):
+            raw = _render(cam, pt, rpp=64, crosstalk=xt)
+            blocks[xt] = raw.reshape(cam.n_rows, n, cam.n_cols, n).sum(axis=(1, 3))
+        assert np.count_nonzero(blocks[False]) == 1
+        assert (np.count_nonzero(blocks[True]) > 1) == leaks
+        if not leaks:  # same light, other samples: equal within Monte-Carlo noise
+            assert abs(blocks[True].sum() / blocks[False].sum() - 1) < 0.15
