@@ -11,7 +11,7 @@ RES := results/$(PRESET)
 DCFG := data_gen/$(PRESET).toml
 ECFG := experiments/$(PRESET).toml
 
-.PHONY: help install dataset train-shapes train-flame tables test clean-quick
+.PHONY: help install dataset bench-sim train-shapes train-flame tables test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -32,7 +32,16 @@ $(DATA)/slopes.json: $(STAMP) $(DCFG)
 $(DATA)/%.h5: $(DATA)/slopes.json $(DCFG)
 	$(LF) dataset --data-config $(DCFG) --scene $* --slopes $< --out $@
 
-dataset: $(DATA)/shapes.h5 $(DATA)/flame.h5 ## render both datasets (resumable)
+ifdef SHARD
+dataset: $(DATA)/slopes.json ## render both datasets (resumable; SHARD=i/N renders shard i of N)
+	$(LF) dataset --data-config $(DCFG) --scene shapes --slopes $< --out $(DATA)/shapes.h5 --shard $(SHARD)
+	$(LF) dataset --data-config $(DCFG) --scene flame --slopes $< --out $(DATA)/flame.h5 --shard $(SHARD)
+else
+dataset: $(DATA)/shapes.h5 $(DATA)/flame.h5 ## render both datasets (resumable; SHARD=i/N renders shard i of N)
+endif
+
+bench-sim: $(STAMP) ## simulator benchmark -> results/bench_sim.{csv,md,json}
+	$(VENV)/bin/python experiments/bench_sim.py --out results
 
 $(MODELS)/%/train_info.json: $(DATA)/%.h5 $(ECFG)
 	$(LF) train --dataset $< --experiment-config $(ECFG) --out $(@D)

@@ -97,7 +97,13 @@ def cmd_dataset(a):
     from .dataset import generate
     cam, cfg = load_data_config(a.data_config)
     slopes = json.loads(Path(a.slopes).read_text())["slopes"]
-    p = generate(a.out, cam, cfg, a.scene, slopes, progress=not a.quiet)
+    shard = None
+    if a.shard:
+        try:
+            shard = tuple(int(v) for v in a.shard.split("/"))
+        except ValueError:
+            raise SystemExit(f"--shard must look like i/N (e.g. 2/4). Received: {a.shard!r}") from None
+    p = generate(a.out, cam, cfg, a.scene, slopes, progress=not a.quiet, shard=shard)
     print(f"dataset -> {p}")
 
 
@@ -172,6 +178,8 @@ def main(argv=None):
     s.add_argument("--scene", choices=["shapes", "flame"], required=True)
     s.add_argument("--slopes", required=True, help="JSON written by 'lf-flame slopes'")
     s.add_argument("--out", required=True)
+    s.add_argument("--shard", help="i/N: render only shard i of N (1 <= i <= N) beside --out; an unsharded "
+                                   "run imports finished shards and renders the rest")
     s.add_argument("--quiet", action="store_true")
     s.set_defaults(func=cmd_dataset)
 

@@ -12,6 +12,11 @@ File layout (one file per scene)::
 A file is written as ``<name>.partial`` and renamed when every sample is done, so a
 finished name is never half-written; re-running resumes the partial file, skipping
 finished samples (a sample is marked done only after its data were flushed).
+
+Sharding: ``generate(..., shard=(i, n))`` renders only samples ``k`` with ``k % n == i - 1``
+into ``<stem>.shard-i-of-n.h5`` (same layout, its own samples marked done), on any
+process or machine. An unsharded run first imports the finished samples of every
+matching shard file beside it, then renders whatever is still missing.
 """
 from __future__ import annotations
 
@@ -70,7 +75,36 @@ def _expected_attrs(camera, cfg, scene, slopes):
             "slopes": json.dumps([float(s) for s in slopes]), "depths_mm": json.dumps(list(PAPER_DEPTHS_MM))}
 
 
-def generate(path, camera: PlenopticCamera, cfg: DatasetConfig, scene: str, slopes, progress: bool = True) -> Path:
+def shard_path(path, shard: tuple[int, int]) -> Path:
+    """File of shard ``(i, n)`` (1 <= i <= n) of the dataset at ``path``."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}.shard-{shard[0]}-of-{shard[1]}{path.suffix}")
+
+
+def _import_shards(f, path: Path, expected: dict) -> int:
+    """Copy finished samples from the shard files beside ``path`` into the open file ``f``."""
+    copied = 0
+    for sp in sorted(path.parent.glob(f"{path.stem}.shard-*-of-*{path.suffix}")):
+        try:
+            with h5py.File(sp, "r") as g:
+                if any(g.attrs.get(k) != v for k, v in expected.items()):
+                    print(f"skipping shard {sp}: made with other settings")
+                    continue
+                new = np.flatnonzero((g["done"][:] == 1) & (f["done"][:] == 0))
+                for i in new:
+                    for key in ("raw", "gt", "params"):
+                        f[key][i] = g[key][i]
+                    f.flush()
+                    f["done"][i] = 1
+                copied += len(new)
+        except (OSError, KeyError) as e:
+            raise ValueError(f"shard file {sp} is truncated or corrupt ({e}); delete it or render it again") from None
+    f.flush()
+    return copied
+
+
+def generate(path, camera: PlenopticCamera, cfg: DatasetConfig, scene: str, slopes, progress: bool = True,
+             shard: tuple[int, int] | None = None) -> Path:
     """Generate (or resume) the dataset of ``scene`` at ``path``.
 
     Parameters
@@ -81,20 +115,25 @@ def generate(path, camera: PlenopticCamera, cfg: DatasetConfig, scene: str, slop
     scene : {'shapes', 'flame'}
     slopes : sequence of 4 float
         Ground-truth slopes, one per depth of :data:`PAPER_DEPTHS_MM`.
+    shard : (i, n) or None
+        Render only shard ``i`` of ``n`` (1 <= i <= n) into :func:`shard_path`.
 
     Returns
     -------
-    Path of the finished file.
+    Path of the finished file (the shard's file when sharded).
 
     Raises
     ------
     ValueError
-        Unknown scene, wrong number of slopes, or a partial file made with other settings.
+        Unknown scene, wrong number of slopes, a bad shard, or a partial or shard
+        file made with other settings or corrupt.
     """
     if scene not in SCENES:
         raise ValueError(f"scene must be one of {sorted(SCENES)}. Received: {scene!r}")
     if len(slopes) != len(PAPER_DEPTHS_MM):
         raise ValueError(f"need {len(PAPER_DEPTHS_MM)} slopes. Received: {slopes}")
+    if shard is not None and not (len(shard) == 2 and 1 <= int(shard[0]) <= int(shard[1])):
+        raise ValueError(f"shard must be (i, n) with 1 <= i <= n. Received: shard={shard!r}")
     path = Path(path)
     expected = _expected_attrs(camera, cfg, scene, slopes)
     if path.exists():
@@ -103,8 +142,9 @@ def generate(path, camera: PlenopticCamera, cfg: DatasetConfig, scene: str, slop
             os.utime(path)  # up to date: tell make so
             return path
         # other settings: build the new file beside it; the old one is replaced only when done
+    final = path if shard is None else shard_path(path, shard)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".partial")
+    tmp = final.with_name(final.name + ".partial")
     n = int(cfg.n_samples[scene])
     H, W = camera.sensor_shape
     t0 = time.perf_counter()
@@ -127,8 +167,18 @@ def generate(path, camera: PlenopticCamera, cfg: DatasetConfig, scene: str, slop
             f.create_dataset("done", (n,), np.uint8, fillvalue=0)
             for k, idx in split_indices(n, cfg.split, cfg.seed).items():
                 f.create_dataset(f"split/{k}", data=idx)
-        todo = np.flatnonzero(f["done"][:] == 0)
-        for i in tqdm(todo, desc=f"{scene} dataset", disable=not progress, initial=n - len(todo), total=n):
+        if shard is None:
+            copied = _import_shards(f, path, expected)
+            if copied:
+                print(f"{scene}: {copied} samples taken from shard files")
+            todo = np.flatnonzero(f["done"][:] == 0)
+            total = n
+        else:
+            mine = np.arange(n) % int(shard[1]) == int(shard[0]) - 1
+            todo = np.flatnonzero((f["done"][:] == 0) & mine)
+            total = int(mine.sum())
+        label = f"{scene} dataset" + ("" if shard is None else f" shard {shard[0]}/{shard[1]}")
+        for i in tqdm(todo, desc=label, disable=not progress, initial=total - len(todo), total=total):
             counts, gt, objects = make_sample(camera, cfg, scene, int(i), slopes)
             f["raw"][i] = counts
             f["gt"][i] = gt
@@ -138,8 +188,8 @@ def generate(path, camera: PlenopticCamera, cfg: DatasetConfig, scene: str, slop
             f.flush()
         f.attrs["provenance"] = json.dumps(provenance())
         f.attrs["wall_time_s_last_run"] = time.perf_counter() - t0
-    os.replace(tmp, path)
-    return path
+    os.replace(tmp, final)
+    return final
 
 
 def check_dataset(path, camera: PlenopticCamera | None = None) -> dict:

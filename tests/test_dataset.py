@@ -81,3 +81,26 @@ def test_existing_file_kept_until_new_settings_are_done(tmp_path, monkeypatch):
     with pytest.raises(KeyboardInterrupt):
         D.generate(p, CAM, CFG, "flame", [0.0, 0.0, 0.0, 0.0], progress=False)
     assert p.read_bytes() == before  # the finished file is untouched by the interrupted rebuild
+
+
+def test_shards_merge_into_the_unsharded_file(tmp_path, monkeypatch):
+    full = D.generate(tmp_path / "a" / "shapes.h5", CAM, CFG, "shapes", SLOPES, progress=False)
+    target = tmp_path / "b" / "shapes.h5"
+    s1 = D.generate(target, CAM, CFG, "shapes", SLOPES, progress=False, shard=(1, 2))
+    s2 = D.generate(target, CAM, CFG, "shapes", SLOPES, progress=False, shard=(2, 2))
+    assert s1.name == "shapes.shard-1-of-2.h5" and not target.exists()
+    with h5py.File(s1, "r") as f:
+        assert list(f["done"][:]) == [1, 0, 1, 0, 1, 0]
+    # the merge renders nothing: every sample comes from a shard
+    monkeypatch.setattr(D, "make_sample", lambda *a, **k: pytest.fail("rendered a sample shards had"))
+    D.generate(target, CAM, CFG, "shapes", SLOPES, progress=False)
+    with h5py.File(full, "r") as a, h5py.File(target, "r") as b:
+        for key in ("raw", "gt", "params", "split/train"):
+            assert np.array_equal(a[key][:], b[key][:])
+    assert s2.exists()  # shards are left for the user to delete
+
+
+@pytest.mark.parametrize("bad", [(0, 2), (3, 2), (1,)])
+def test_bad_shard_rejected(tmp_path, bad):
+    with pytest.raises(ValueError, match="shard"):
+        D.generate(tmp_path / "x.h5", CAM, CFG, "shapes", SLOPES, progress=False, shard=bad)
