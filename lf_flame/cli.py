@@ -45,6 +45,10 @@ def cmd_simulate(a):
         sc = scenes.point_scene(cam, a.depth, a.y, a.x)
     else:
         sc = scenes.SCENES[a.scene](cam, np.random.default_rng(a.seed), vary=not a.nominal)
+    if a.crosstalk or a.bit_depth:
+        import dataclasses
+        sc = dataclasses.replace(sc, effects=dataclasses.replace(sc.effects, crosstalk=a.crosstalk or
+                                                                 sc.effects.crosstalk, bit_depth=a.bit_depth))
     t = time.perf_counter()
     raw = simulate.render(cam, sc, a.rays_per_pixel, a.seed)
     dt = time.perf_counter() - t
@@ -155,6 +159,8 @@ def main(argv=None):
     s.add_argument("--data-config", help="TOML with a [camera] table (default: the paper's camera)")
     s.add_argument("--nominal", action="store_true", help="the nominal scene (no random variation)")
     s.add_argument("--views", action="store_true", help="also store sub-aperture views (N, N, R, C)")
+    s.add_argument("--crosstalk", action="store_true", help="add crosstalk through neighbouring lenslets")
+    s.add_argument("--bit-depth", type=int, help="quantise the raw image to this many bits")
     s.add_argument("--depth", type=float, default=0.0, help="point scene: depth offset (mm)")
     s.add_argument("--y", type=float, default=0.0, help="point scene: height (mm)")
     s.add_argument("--x", type=float, default=0.0, help="point scene: lateral position (mm)")

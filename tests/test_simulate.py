@@ -230,3 +230,23 @@ def test_crosstalk_needs_a_faster_main_lens(small_camera):
         assert (np.count_nonzero(blocks[True]) > 1) == leaks
         if not leaks:  # same light, other samples: equal within Monte-Carlo noise
             assert abs(blocks[True].sum() / blocks[False].sum() - 1) < 0.15
+
+
+def test_bench_sim_quick_writes_results(tmp_path):
+    """`make bench-sim` in miniature: every section present, error falls with rays per pixel."""
+    import importlib.util
+    import pathlib
+
+    import pandas as pd
+    path = pathlib.Path(__file__).parents[1] / "experiments" / "bench_sim.py"
+    spec = importlib.util.spec_from_file_location("bench_sim", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    mod.main(["--quick", "--out", str(tmp_path)])
+    df = pd.read_csv(tmp_path / "bench_sim.csv")
+    assert set(df.section) == {"throughput", "effects", "sampling", "forward vs backward"}
+    for scene in ("shapes", "flame"):
+        rmse = df[(df.section == "sampling") & (df.scene == scene)].sort_values("rays_per_pixel").rmse.to_numpy()
+        assert np.all(np.diff(rmse) < 0)
+    fb = df[df.section == "forward vs backward"]
+    assert fb.rmse.notna().all() and (tmp_path / "bench_sim.md").exists() and (tmp_path / "bench_sim.json").exists()
