@@ -21,6 +21,7 @@ import dataclasses
 import json
 import sys
 import time
+from pathlib import Path
 
 import numba
 import numpy as np
@@ -144,7 +145,6 @@ def main(argv=None):
     ap.add_argument("--out", default="results")
     ap.add_argument("--quick", action="store_true", help="41 x 41 lenslets, fewer repeats (for tests)")
     args = ap.parse_args(argv)
-    from pathlib import Path
     out = Path(args.out)
     t0 = time.perf_counter()
     df = run(args.quick)

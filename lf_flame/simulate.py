@@ -35,11 +35,11 @@ def _stack_layers(camera: PlenopticCamera, scene: Scene):
     order = sorted(range(len(scene.layers)), key=lambda k: scene.layers[k].depth_offset_mm)
     layers = [scene.layers[k] for k in order]
     shape = layers[0].radiance.shape
-    for L in layers:
-        z = camera.object_distance_mm(L.depth_offset_mm)
-        if not math.isfinite(z) or z <= 0:
+    z = np.array([camera.object_distance_mm(L.depth_offset_mm) for L in layers])
+    for L, z_l in zip(layers, z):
+        if not math.isfinite(z_l) or z_l <= 0:
             raise ValueError(f"layer at depth offset {L.depth_offset_mm} mm lies behind the camera "
-                             f"(object distance {z} mm <= 0)")
+                             f"(object distance {z_l} mm <= 0)")
         if L.radiance.shape != shape or L.radiance.ndim != 2:
             raise ValueError(f"all layer textures must share one 2-D shape; got {L.radiance.shape} and {shape}")
         if not np.all(np.isfinite(L.radiance)) or np.any(L.radiance < 0):
@@ -48,7 +48,6 @@ def _stack_layers(camera: PlenopticCamera, scene: Scene):
             raise ValueError(f"layer at {L.depth_offset_mm} mm has alpha outside [0, 1] or of the wrong shape")
         if min(L.size_mm) <= 0:
             raise ValueError(f"layer size must be positive. Received: size_mm={L.size_mm}")
-    z = np.array([camera.object_distance_mm(L.depth_offset_mm) for L in layers])
     rad = np.ascontiguousarray(np.stack([L.radiance for L in layers]), dtype=np.float32)
     if scene.effects.occlusion:
         alpha = np.ascontiguousarray(np.stack([np.zeros(shape, np.float32) if L.alpha is None else L.alpha
@@ -76,6 +75,15 @@ def content_box(radiance: np.ndarray, alpha: np.ndarray) -> np.ndarray:
     return box
 
 
+def _layer_frames(layers):
+    """Top edge, left edge, height and width (mm) of each layer's texture, as arrays."""
+    top = np.array([L.centre_mm[0] + L.size_mm[0] / 2 for L in layers])
+    left = np.array([L.centre_mm[1] - L.size_mm[1] / 2 for L in layers])
+    h = np.array([L.size_mm[0] for L in layers])
+    w = np.array([L.size_mm[1] for L in layers])
+    return top, left, h, w
+
+
 def backward_chain(camera: PlenopticCamera) -> tuple[RayTransferMatrix, ...]:
     """The camera's ray transfer matrices in backward order (sensor -> object space).
 
@@ -94,10 +102,7 @@ def trace_coefficients(camera: PlenopticCamera, layers, z) -> tuple[np.ndarray, 
     (2 + n_layers, 4, n_rows * N) and (2 + n_layers, 4, n_cols * N), float64.
     """
     tr, tc = layers[0].radiance.shape
-    top = np.array([L.centre_mm[0] + L.size_mm[0] / 2 for L in layers])
-    left = np.array([L.centre_mm[1] - L.size_mm[1] / 2 for L in layers])
-    h = np.array([L.size_mm[0] for L in layers])
-    w = np.array([L.size_mm[1] for L in layers])
+    top, left, h, w = _layer_frames(layers)
     chain = tuple(m.matrix for m in backward_chain(camera))
     n, p, pp = camera.pixels_per_lenslet, camera.mla_pitch_mm, camera.pixel_pitch_mm
     ky = _kernels.axis_coefficients(camera.n_rows, n, p, pp, 1.0, *chain, z, top * tr / h, -tr / h)
@@ -178,8 +183,7 @@ def render_reference(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int 
     n, p, pp = camera.pixels_per_lenslet, camera.mla_pitch_mm, camera.pixel_pitch_mm
     H, W = camera.sensor_shape
     tr, tc = rad.shape[1:]
-    top = np.array([L.centre_mm[0] + L.size_mm[0] / 2 for L in layers])
-    left = np.array([L.centre_mm[1] - L.size_mm[1] / 2 for L in layers])
+    top, left, h, w = _layer_frames(layers)
     span = 3 if fx.crosstalk else 1
     r4 = _kernels._R4
     out = np.empty((H, W), np.float32)
@@ -222,9 +226,9 @@ def render_reference(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int 
                 weight /= (1.0 + tmy ** 2 + tmx ** 2) ** 2
             val = np.zeros_like(acc)
             trans = np.ones_like(acc)
-            for li, L in enumerate(layers):
-                fr = (top[li] - (yo - z[li] * toy)) / L.size_mm[0] * tr
-                fc = ((xo - z[li] * tox) - left[li]) / L.size_mm[1] * tc
+            for li in range(len(layers)):
+                fr = (top[li] - (yo - z[li] * toy)) / h[li] * tr
+                fc = ((xo - z[li] * tox) - left[li]) / w[li] * tc
                 inside = (fr >= 0) & (fr < tr) & (fc >= 0) & (fc < tc)
                 ir = np.clip(fr, 0, tr - 1).astype(np.int64)
                 ic = np.clip(fc, 0, tc - 1).astype(np.int64)
