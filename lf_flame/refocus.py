@@ -10,7 +10,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
+import scipy.fft
 from scipy import ndimage
 from skimage import filters
 
@@ -74,49 +76,206 @@ def aperture_mask(n: int, shape: str = "square") -> np.ndarray:
     raise ValueError(f"aperture shape must be 'square' or 'circular'. Received: {shape!r}")
 
 
-def focal_stack(views: np.ndarray, slopes, mask: np.ndarray | None = None) -> np.ndarray:
-    """Shift-and-sum refocusing at several slopes in one pass (paper Eq. 2).
+INTERPOLATIONS = ("bilinear", "nearest")
+METHODS = ("shift-sum", "fourier")
 
-    Parameters
-    ----------
-    views : ndarray of shape (N, N, R, C)
-        Sub-aperture views (:func:`raw_to_views`).
-    slopes : sequence of float, length S
-        Slopes in lenslets per view step (paper's sign: near planes negative).
-    mask : ndarray of shape (N, N), bool, optional
-        Views to use (:func:`aperture_mask`); default all.
 
-    Returns
-    -------
-    stack : ndarray of shape (S, R, C), float32
-        Mean of the bilinearly shifted views that cover each pixel (borders are not
-        darkened by views that shift out of the image; a pixel no view covers is 0).
+def _view_offsets(n: int) -> np.ndarray:
+    """``u - (N - 1) / 2`` for u = 0 .. N - 1: view positions about the central view."""
+    return np.arange(n) - (n - 1) / 2
 
-    Raises
-    ------
-    ValueError
-        NaN/inf in views or slopes, or a mask of the wrong shape.
-    """
+
+def _check_stack_args(views, slopes, mask, check_finite):
     views = np.ascontiguousarray(views, dtype=np.float32)
     if views.ndim != 4 or views.shape[0] != views.shape[1]:
         raise ValueError(f"views must have shape (N, N, R, C). Received: {views.shape}")
     slopes = np.atleast_1d(np.asarray(slopes, dtype=np.float64))
+    if slopes.ndim != 1 or slopes.size == 0:
+        raise ValueError(f"slopes must be a non-empty 1-D sequence. Received shape {slopes.shape}")
     _check_finite("slopes", slopes)
-    _check_finite("views", views)
+    if check_finite:
+        _check_finite("views", views)
     n = views.shape[0]
     mask = aperture_mask(n) if mask is None else np.asarray(mask, bool)
     if mask.shape != (n, n):
         raise ValueError(f"mask must have shape {(n, n)}. Received: {mask.shape}")
-    offs = np.arange(n) - (n - 1) / 2
-    shifts = slopes[:, None] * offs[None, :]
-    out = np.empty((len(slopes),) + views.shape[2:], np.float32)
-    _kernels.shift_sum_stack(views, shifts, shifts, mask, out)
+    return views, slopes, mask
+
+
+def focal_stack(views: np.ndarray, slopes, mask: np.ndarray | None = None, *, interpolation: str = "bilinear",
+                check_finite: bool = True) -> np.ndarray:
+    """Shift-and-sum refocusing at several slopes in one pass over the light field (paper Eq. 2).
+
+    Parameters
+    ----------
+    views : ndarray of shape (N, N, R, C)
+        Sub-aperture views (:func:`raw_to_views`), float32 (other types are converted).
+    slopes : sequence of float, length S
+        Slopes in lenslets per view step (paper's sign: near planes negative).
+    mask : ndarray of shape (N, N), bool, optional
+        Views to use (:func:`aperture_mask`); default all.
+    interpolation : {'bilinear', 'nearest'}
+        ``bilinear`` samples each view at ``slope * (u - c)`` exactly; ``nearest`` rounds
+        every shift to whole lenslets (the integer path: no interpolation, faster, and
+        identical to ``bilinear`` where the shifts are whole, e.g. integer slopes).
+    check_finite : bool
+        Check that ``views`` holds no NaN or inf (one extra read of the light field;
+        pass False for views already checked, as :func:`raw_to_views` does).
+
+    Returns
+    -------
+    stack : ndarray of shape (S, R, C), float32
+        Mean of the shifted views that cover each pixel (borders are not darkened by
+        views that shift out of the image; a pixel no view covers is 0).
+
+    Raises
+    ------
+    ValueError
+        NaN/inf in views or slopes, a bad shape, or an unknown interpolation.
+    """
+    views, slopes, mask = _check_stack_args(views, slopes, mask, check_finite)
+    if interpolation not in INTERPOLATIONS:
+        raise ValueError(f"interpolation must be one of {INTERPOLATIONS}. Received: {interpolation!r}")
+    n, _, R, C = views.shape
+    shifts = slopes[:, None] * _view_offsets(n)[None, :]
+    if interpolation == "nearest":
+        shifts = np.floor(shifts + 0.5)
+    out = np.empty((len(slopes), R, C), np.float32)
+    rows_per_task = -(-R // numba.get_num_threads())
+    _kernels.shift_sum_stack(views.reshape(n, n, R * C), R, shifts, shifts, mask, out, rows_per_task)
+    if not np.all(np.isfinite(out)):
+        raise ValueError("views contain NaN or inf")
     return out
 
 
-def refocus(raw: np.ndarray, slopes, pixels_per_lenslet: int, mask=None) -> np.ndarray:
-    """Refocus a raw image at ``slopes``: (R·N, C·N) -> (S, R, C) float32. See :func:`focal_stack`."""
-    return focal_stack(raw_to_views(raw, pixels_per_lenslet), slopes, mask)
+def _band_limited_box(shifts: np.ndarray, length: int, padded: int) -> np.ndarray:
+    """(S, N, length): the image support (1 on ``0..length-1``, 0 to ``padded``) shifted by
+    ``shifts`` (S, N) with the periodic band-limited interpolation of the Fourier method.
+
+    Its sum over the views is the Fourier method's count of views reaching a pixel, so
+    a constant light field stays constant up to the border, as with shift-and-sum.
+    """
+    box = np.zeros(padded)
+    box[:length] = 1.0
+    k = np.fft.rfftfreq(padded)
+    phase = np.exp(2j * np.pi * k[None, None, :] * shifts[:, :, None])
+    return np.fft.irfft(np.fft.rfft(box)[None, None, :] * phase, n=padded, axis=-1)[..., :length]
+
+
+class FourierSlice:
+    """Fourier-slice refocusing (Ng 2005, "Fourier slice photography"): the 2-D spectrum
+    of the image refocused at slope ``s`` is the slice of the light field's 4-D
+    spectrum at angular frequency ``-s`` x spatial frequency.
+
+    The 4-D FFT is computed once (views zero-padded 2x along u and v, and along r and c
+    by the largest shift so that no shifted view wraps round); each plane then costs a
+    resampling of the spectrum on its slice and one inverse 2-D FFT. The resampling
+    kernel is a separable Kaiser-Bessel of 4 taps per angular axis at 2x oversampling
+    (Jackson et al. 1991; beta from Beatty et al. 2005), with the views divided
+    beforehand by the kernel's Fourier transform (roll-off correction). Each pixel is
+    then divided by the number of views that reach it, as in :func:`focal_stack`.
+    Interpolation along r and c is therefore band-limited (sinc), not bilinear.
+
+    Parameters
+    ----------
+    views : ndarray of shape (N, N, R, C)
+    max_slope : float
+        Largest |slope| this object will refocus at (sets the spatial padding), > 0.
+    mask : ndarray of shape (N, N), bool, optional
+
+    Raises
+    ------
+    ValueError
+        NaN/inf in views, bad shapes, or ``max_slope`` not positive and finite.
+    """
+
+    KERNEL_WIDTH = 4
+    OVERSAMPLE = 2
+
+    def __init__(self, views: np.ndarray, max_slope: float, mask: np.ndarray | None = None):
+        views, _, mask = _check_stack_args(views, [0.0], mask, True)
+        if not (np.isfinite(max_slope) and max_slope > 0):
+            raise ValueError(f"max_slope must be positive and finite. Received: {max_slope}")
+        n, _, R, C = views.shape
+        if n % 2 == 0:
+            raise ValueError(f"Fourier-slice refocusing needs an odd number of views per axis. Received: {n}")
+        self.n, self.shape, self.mask, self.max_slope = n, (R, C), mask, float(max_slope)
+        W, alpha = self.KERNEL_WIDTH, self.OVERSAMPLE
+        self.M = M = int(2 * np.ceil(alpha * n / 2))
+        self.beta = np.pi * np.sqrt((W / alpha) ** 2 * (alpha - 0.5) ** 2 - 0.8)
+        pad = int(np.ceil(max_slope * (n - 1) / 2)) + 2
+        self.R2, self.C2 = scipy.fft.next_fast_len(R + pad), scipy.fft.next_fast_len(C + pad, real=True)
+        off = _view_offsets(n)
+        roll = self._kernel_ft(off)
+        x = np.zeros((M, M, self.R2, self.C2), np.float32)
+        idx = off.astype(int) % M  # view offset u' at index u' mod M
+        weight = (mask / (roll[:, None] * roll[None, :])).astype(np.float32)
+        x[idx[:, None], idx[None, :], :R, :C] = views * weight[:, :, None, None]
+        spec = scipy.fft.rfftn(x, axes=(2, 3), workers=-1)
+        spec = scipy.fft.fftn(spec, axes=(0, 1), workers=-1)
+        self.spectrum = np.ascontiguousarray(spec.transpose(2, 3, 0, 1), dtype=np.complex64)
+
+    def _kernel(self, t):
+        """Kaiser-Bessel kernel at offsets ``t`` (grid units), zero outside ``|t| <= W/2``."""
+        x = 2.0 * np.asarray(t, np.float64) / self.KERNEL_WIDTH
+        inside = np.abs(x) <= 1
+        return np.where(inside, np.i0(self.beta * np.sqrt(np.clip(1 - x * x, 0, None))), 0.0)
+
+    def _kernel_ft(self, u):
+        """Fourier transform of the kernel at view offset ``u`` (cycles ``u / M``), by quadrature."""
+        t = np.linspace(-self.KERNEL_WIDTH / 2, self.KERNEL_WIDTH / 2, 4001)
+        k = self._kernel(t)
+        return np.trapezoid(k[None, :] * np.cos(2 * np.pi * np.outer(u, t) / self.M), t, axis=1)
+
+    def _taps(self, theta):
+        """First tap and kernel weights for angular frequencies ``theta`` (cycles per view)."""
+        p = theta * self.M
+        j0 = np.floor(p - self.KERNEL_WIDTH / 2).astype(np.int64) + 1
+        w = self._kernel(p[..., None] - (j0[..., None] + np.arange(self.KERNEL_WIDTH)))
+        return j0, w
+
+    def stack(self, slopes) -> np.ndarray:
+        """Refocus at ``slopes`` (length S): (S, R, C) float32, as :func:`focal_stack`.
+
+        Raises
+        ------
+        ValueError
+            A slope that is not finite or exceeds ``max_slope``.
+        """
+        slopes = np.atleast_1d(np.asarray(slopes, np.float64))
+        _check_finite("slopes", slopes)
+        if np.any(np.abs(slopes) > self.max_slope + 1e-12):
+            raise ValueError(f"slopes {slopes} exceed max_slope={self.max_slope} of this FourierSlice")
+        R, C = self.shape
+        fr = np.fft.fftfreq(self.R2)
+        fc = np.fft.rfftfreq(self.C2)
+        j_r, w_r = self._taps(-slopes[:, None] * fr[None, :])
+        j_c, w_c = self._taps(-slopes[:, None] * fc[None, :])
+        spec = np.empty((len(slopes), self.R2, len(fc)), np.complex64)
+        _kernels.fourier_slice(self.spectrum, j_r, w_r, j_c, w_c, spec)
+        img = scipy.fft.irfft2(spec, s=(self.R2, self.C2), workers=-1)[:, :R, :C]
+        shifts = slopes[:, None] * _view_offsets(self.n)[None, :]
+        count = np.einsum("sur,uv,svc->src", _band_limited_box(shifts, R, self.R2), self.mask.astype(np.float64),
+                          _band_limited_box(shifts, C, self.C2), optimize=True)
+        return np.where(count >= 0.5, img / np.maximum(count, 0.5), 0.0).astype(np.float32)
+
+
+def refocus(raw: np.ndarray, slopes, pixels_per_lenslet: int, mask=None, *, method: str = "shift-sum",
+            interpolation: str = "bilinear") -> np.ndarray:
+    """Refocus a raw image at ``slopes``: (R·N, C·N) -> (S, R, C) float32.
+
+    ``method`` is ``shift-sum`` (:func:`focal_stack`, with ``interpolation``) or
+    ``fourier`` (:class:`FourierSlice`). Raises ValueError for an unknown method and as
+    :func:`raw_to_views` and the method do.
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}. Received: {method!r}")
+    views = raw_to_views(raw, pixels_per_lenslet)
+    if method == "fourier":
+        slopes = np.atleast_1d(np.asarray(slopes, np.float64))
+        _check_finite("slopes", slopes)
+        return FourierSlice(views, max(float(np.max(np.abs(slopes))), 1e-3), mask).stack(slopes)
+    return focal_stack(views, slopes, mask, interpolation=interpolation, check_finite=False)
 
 
 # ---- sharpness -------------------------------------------------------------------
@@ -182,9 +341,10 @@ def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", lo
     if r1 - r0 < 3 or c1 - c0 < 3:
         raise ValueError(f"region of interest {roi} is smaller than 3x3 lenslets")
     fn = SHARPNESS[metric]
+    _check_finite("views", views)
 
     def scores(slopes):
-        stack = focal_stack(views, slopes, mask)[:, r0:r1, c0:c1]
+        stack = focal_stack(views, slopes, mask, check_finite=False)[:, r0:r1, c0:c1]
         return np.array([fn(im) for im in stack])
 
     coarse = np.arange(lo, hi + coarse_step / 2, coarse_step)
