@@ -316,11 +316,16 @@ def _cover(mask, lo, hi, n):
 
 
 @njit(inline="always", cache=True)
-def _add_shifted_rows(t, views, u, v, src, n, f, row):
-    """``t[p] += (1 - f) views[u, v, src + p] + f views[u, v, src + row + p]``, p < n."""
+def _add_shifted_rows(ys, sa, views, u, v, k, f, r0, r1, C):
+    """Rows r0 .. r1 of the sum ``ys`` (row sa first) += view (u, v) shifted by k + f rows."""
+    if r0 >= r1:
+        return
+    n = (r1 - r0) * C
+    t = ys[(r0 - sa) * C:(r0 - sa) * C + n]
+    src = (r0 + k) * C
     a = views[u, v, src:src + n]
     if f > 0.0:
-        b = views[u, v, src + row:src + row + n]
+        b = views[u, v, src + C:src + C + n]
         f0 = np.float32(1.0) - f
         for p in range(n):
             t[p] += f0 * a[p] + f * b[p]
@@ -390,7 +395,6 @@ def _stack_rows(views, mask, kr, fr, rlo, rhi, kc, fc, clo, chi, cover, ra, nb, 
     S, R, C = out.shape
     acc = np.zeros((S, nb, C), np.float32)
     y = np.empty((S, _SUB_ROWS * C), np.float32)
-    views_u = np.empty(U, np.int64)
     for v in range(V):
         for sa in range(ra, ra + nb, _SUB_ROWS):
             sb = min(ra + nb, sa + _SUB_ROWS)
@@ -399,54 +403,42 @@ def _stack_rows(views, mask, kr, fr, rlo, rhi, kc, fc, clo, chi, cover, ra, nb, 
                 hi = chi[s, v]
                 if lo >= hi:
                     continue
-                m = 0  # views of column v whose rows reach rows sa..sb of plane s
-                for u in range(U):
-                    if mask[u, v] and max(sa, rlo[s, u]) < min(sb, rhi[s, u]):
-                        views_u[m] = u
-                        m += 1
-                if m == 0:
-                    continue
                 ys = y[s]
                 ys[:(sb - sa) * C] = 0.0
                 r_any0 = sb
                 r_any1 = sa
-                i = 0
-                while i < m:
-                    u = views_u[i]
-                    r0 = max(sa, rlo[s, u])
-                    r1 = min(sb, rhi[s, u])
-                    r_any0 = min(r_any0, r0)
-                    r_any1 = max(r_any1, r1)
-                    n = (r1 - r0) * C
-                    t = ys[(r0 - sa) * C:(r0 - sa) * C + n]
-                    src = (r0 + kr[s, u]) * C
-                    w = views_u[i + 1] if i + 1 < m else u
-                    if (w != u and fr[s, u] > 0.0 and fr[s, w] > 0.0
-                            and max(sa, rlo[s, w]) == r0 and min(sb, rhi[s, w]) == r1):
-                        src2 = (r0 + kr[s, w]) * C
-                        a1 = views[u, v, src:src + n]
-                        b1 = views[u, v, src + C:src + C + n]
-                        a2 = views[w, v, src2:src2 + n]
-                        b2 = views[w, v, src2 + C:src2 + C + n]
+                for u in range(0, U, 2):  # fixed pairs (u, u + 1): the sums do not depend on the blocks
+                    w = min(u + 1, U - 1)
+                    u0, u1 = max(sa, rlo[s, u]), min(sb, rhi[s, u])
+                    w0, w1 = max(sa, rlo[s, w]), min(sb, rhi[s, w])
+                    use_u = mask[u, v] and u0 < u1
+                    use_w = w != u and mask[w, v] and w0 < w1
+                    r_any0 = min(r_any0, u0 if use_u else sb, w0 if use_w else sb)
+                    r_any1 = max(r_any1, u1 if use_u else sa, w1 if use_w else sa)
+                    if use_u and use_w and fr[s, u] > 0.0 and fr[s, w] > 0.0 and max(u0, w0) < min(u1, w1):
+                        b0, b1 = max(u0, w0), min(u1, w1)  # rows both reach: one loop for the two views
+                        n = (b1 - b0) * C
+                        t = ys[(b0 - sa) * C:(b0 - sa) * C + n]
+                        p1 = (b0 + kr[s, u]) * C
+                        p2 = (b0 + kr[s, w]) * C
+                        a1 = views[u, v, p1:p1 + n]
+                        c1 = views[u, v, p1 + C:p1 + C + n]
+                        a2 = views[w, v, p2:p2 + n]
+                        c2 = views[w, v, p2 + C:p2 + C + n]
                         f1 = fr[s, u]
                         f2 = fr[s, w]
                         g1 = np.float32(1.0) - f1
                         g2 = np.float32(1.0) - f2
                         for p in range(n):
-                            t[p] += (g1 * a1[p] + f1 * b1[p]) + (g2 * a2[p] + f2 * b2[p])
-                        i += 2
+                            t[p] += (g1 * a1[p] + f1 * c1[p]) + (g2 * a2[p] + f2 * c2[p])
+                        for x, x0, x1 in ((u, u0, u1), (w, w0, w1)):
+                            _add_shifted_rows(ys, sa, views, x, v, kr[s, x], fr[s, x], x0, b0, C)
+                            _add_shifted_rows(ys, sa, views, x, v, kr[s, x], fr[s, x], b1, x1, C)
                     else:
-                        a = views[u, v, src:src + n]
-                        f = fr[s, u]
-                        if f > 0.0:
-                            b = views[u, v, src + C:src + C + n]
-                            f0 = np.float32(1.0) - f
-                            for p in range(n):
-                                t[p] += f0 * a[p] + f * b[p]
-                        else:
-                            for p in range(n):
-                                t[p] += a[p]
-                        i += 1
+                        if use_u:
+                            _add_shifted_rows(ys, sa, views, u, v, kr[s, u], fr[s, u], u0, u1, C)
+                        if use_w:
+                            _add_shifted_rows(ys, sa, views, w, v, kr[s, w], fr[s, w], w0, w1, C)
                 k = kc[s, v]
                 g = fc[s, v]
                 g0 = np.float32(1.0) - g

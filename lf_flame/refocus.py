@@ -308,8 +308,8 @@ class SlopeSearch:
     scores: np.ndarray
 
 
-def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", lo: float = -3.0,
-                        hi: float = 3.0, coarse_step: float = 0.05, fine_step: float = 0.005,
+def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", method: str = "fourier",
+                        lo: float = -3.0, hi: float = 3.0, coarse_step: float = 0.05, fine_step: float = 0.005,
                         mask=None) -> SlopeSearch:
     """Slope at which the region ``roi`` is sharpest: coarse grid, then a finer grid.
 
@@ -319,6 +319,14 @@ def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", lo
     roi : (row0, row1, col0, col1)
         Region of interest in lenslets (half-open).
     metric : {'laplacian', 'tenengrad', 'normvar'}
+    method : {'fourier', 'shift-sum'}
+        Refocusing used to score each slope. ``fourier`` (default) interpolates the
+        views band-limited, so every slope is equally sharp but for focus. Bilinear
+        ``shift-sum`` blurs a view by an amount that depends on the fraction of its
+        shift, so the metrics favour slopes whose shifts are whole lenslets: at -15 mm
+        it picks -2.00 for an analytic -1.90 (``results/slopes_depths.csv``).
+        ``fourier`` works on the ROI with a margin of the largest shift, so its cost
+        does not grow with the image.
     lo, hi, coarse_step, fine_step : float
         Coarse grid ``lo..hi`` by ``coarse_step``; the fine grid spans ± one coarse
         step around the coarse maximum by ``fine_step``.
@@ -331,21 +339,34 @@ def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", lo
     Raises
     ------
     ValueError
-        Unknown metric, an empty ROI, or a bad grid.
+        Unknown metric or method, an empty ROI, a bad grid, or NaN/inf in the views.
     """
     if metric not in SHARPNESS:
         raise ValueError(f"metric must be one of {sorted(SHARPNESS)}. Received: metric={metric!r}")
-    if not (hi > lo and coarse_step > 0 and fine_step > 0):
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}. Received: {method!r}")
+    if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo and coarse_step > 0 and fine_step > 0):
         raise ValueError(f"bad slope grid lo={lo}, hi={hi}, coarse_step={coarse_step}, fine_step={fine_step}")
     r0, r1, c0, c1 = (int(v) for v in roi)
     if r1 - r0 < 3 or c1 - c0 < 3:
         raise ValueError(f"region of interest {roi} is smaller than 3x3 lenslets")
     fn = SHARPNESS[metric]
+    views = np.asarray(views)
     _check_finite("views", views)
+    n, _, R, C = views.shape
+    max_slope = max(abs(lo), abs(hi)) + coarse_step
+    if method == "fourier":
+        pad = int(np.ceil(max_slope * (n - 1) / 2)) + 2
+        a0, b0 = max(0, r0 - pad), max(0, c0 - pad)
+        fourier = FourierSlice(views[:, :, a0:min(R, r1 + pad), b0:min(C, c1 + pad)], max_slope, mask)
+        r0, r1, c0, c1 = r0 - a0, r1 - a0, c0 - b0, c1 - b0
 
     def scores(slopes):
-        stack = focal_stack(views, slopes, mask, check_finite=False)[:, r0:r1, c0:c1]
-        return np.array([fn(im) for im in stack])
+        if method == "fourier":
+            stack = fourier.stack(slopes)
+        else:
+            stack = focal_stack(views, slopes, mask, check_finite=False)
+        return np.array([fn(im) for im in stack[:, r0:r1, c0:c1]])
 
     coarse = np.arange(lo, hi + coarse_step / 2, coarse_step)
     sc = scores(coarse)

@@ -154,7 +154,7 @@ def _roi(camera, dz, y0, y1, x0, x1, margin_lenslets=3.0):
 
 
 def shapes_scene(camera: PlenopticCamera, rng: np.random.Generator, *,
-                 texels_per_lenslet: float = 3.0, vary: bool = True) -> Scene:
+                 texels_per_lenslet: float = 3.0, vary: bool = True, depths_mm=PAPER_DEPTHS_MM) -> Scene:
     """The paper's multi-shape scene (Fig. 5): rectangle +20, triangle +10, circle 0, square −10 mm.
 
     Layout: the field at the focal plane is split 2 × 2 (rectangle top-left, triangle
@@ -169,16 +169,26 @@ def shapes_scene(camera: PlenopticCamera, rng: np.random.Generator, *,
     Effects: opaque objects (occlusion), aperture and cos⁴ of the paper's Eq. 1;
     noise-free like the paper's simulation.
 
+    ``depths_mm`` moves the four shapes to other depth offsets (mm, same order), e.g.
+    to check the slope search away from the paper's planes.
+
     Returns
     -------
-    Scene with four layers ordered as :data:`PAPER_DEPTHS_MM`.
+    Scene with four layers ordered as ``depths_mm``.
+
+    Raises
+    ------
+    ValueError
+        If ``depths_mm`` does not hold four depths.
     """
+    if len(depths_mm) != len(SHAPE_AT_DEPTH):
+        raise ValueError(f"depths_mm must hold {len(SHAPE_AT_DEPTH)} depths. Received: {depths_mm}")
     h0, w0 = camera.field_of_view_mm(0.0)
     cells = {"rectangle": (h0 / 4, -w0 / 4), "triangle": (h0 / 4, w0 / 4),
              "circle": (-h0 / 4, -w0 / 4), "square": (-h0 / 4, w0 / 4)}
     ch, cw = h0 / 2, w0 / 2
     layers, objects = [], []
-    for dz, kind in zip(PAPER_DEPTHS_MM, SHAPE_AT_DEPTH):
+    for dz, kind in zip(depths_mm, SHAPE_AT_DEPTH):
         scale = camera.object_distance_mm(dz) / camera.focus_distance_mm
         cy, cx = cells[kind]
         if vary:
