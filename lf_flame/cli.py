@@ -68,13 +68,13 @@ def cmd_simulate(a):
 
 def cmd_refocus(a):
     from .camera import PAPER_CAMERA
-    from .refocus import aperture_mask, focal_stack, raw_to_views
+    from .refocus import aperture_mask, refocus
     raw, cam = _load_raw(a.raw)
     cam = cam or PAPER_CAMERA
-    views = raw_to_views(raw, cam.pixels_per_lenslet)
     t = time.perf_counter()
-    stack = focal_stack(views, a.slope, aperture_mask(cam.pixels_per_lenslet, a.aperture))
-    print(f"refocused {len(a.slope)} planes in {1e3 * (time.perf_counter() - t):.2f} ms")
+    stack = refocus(raw, a.slope, cam.pixels_per_lenslet, aperture_mask(cam.pixels_per_lenslet, a.aperture),
+                    method=a.method, interpolation=a.interpolation)
+    print(f"refocused {len(a.slope)} planes ({a.method}) in {1e3 * (time.perf_counter() - t):.2f} ms")
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     if out.suffix == ".png":
@@ -85,9 +85,58 @@ def cmd_refocus(a):
 
 
 def cmd_slopes(a):
+    if a.raw is None:
+        return _calibrate_slopes(a)
+    import pandas as pd
+    from .camera import PAPER_CAMERA
+    from .evaluate import plot_slope_curves
+    from .refocus import aperture_mask, find_sharpest_slope, raw_to_views
+    raw, cam = _load_raw(a.raw)
+    cam = cam or PAPER_CAMERA
+    views = raw_to_views(raw, cam.pixels_per_lenslet)
+    if a.roi:
+        objects = [dict(name=f"roi{i}", roi=tuple(r)) for i, r in enumerate(a.roi)]
+    else:
+        objects = _raw_objects(a.raw) or [dict(name="image", roi=(0, views.shape[2], 0, views.shape[3]))]
+    mask = aperture_mask(cam.pixels_per_lenslet, a.aperture)
+    t = time.perf_counter()
+    searches = [find_sharpest_slope(views, o["roi"], metric=a.metric, method=a.method, lo=a.lo, hi=a.hi, mask=mask)
+                for o in objects]
+    rows = []
+    for o, s in zip(objects, searches):
+        row = dict(object=o["name"], roi=" ".join(str(int(x)) for x in o["roi"]), slope=round(s.slope, 4))
+        try:
+            row["depth_mm"] = round(cam.depth_for_slope(s.slope), 2)
+        except ValueError:
+            row["depth_mm"] = float("nan")
+        if "depth_offset_mm" in o:
+            row["true_depth_mm"] = o["depth_offset_mm"]
+            row["analytic_slope"] = round(cam.slope_for_depth(o["depth_offset_mm"]), 4)
+        rows.append(row)
+    df = pd.DataFrame(rows)
+    print(df.to_string(index=False))
+    print(f"searched {len(objects)} regions ({a.method}, {a.metric}) in {time.perf_counter() - t:.2f} s")
+    out = Path(a.out_prefix or Path(a.raw.split(".h5:")[0]).with_suffix(""))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    df.to_csv(f"{out}.slopes.csv", index=False)
+    plot_slope_curves([o["name"] for o in objects], searches, f"{out}.slopes.png", a.metric)
+    print(f"-> {out}.slopes.csv, {out}.slopes.png")
+
+
+def _raw_objects(path):
+    """The objects (with ``roi``) that ``lf-flame simulate`` stored beside the raw image, if any."""
+    if not str(path).endswith(".npz"):
+        return None
+    with np.load(path) as z:
+        return json.loads(str(z["objects"])) if "objects" in z else None
+
+
+def _calibrate_slopes(a):
     from .config import atomic_write_text, load_data_config
     from .dataset import calibrate_slopes
     from .evaluate import write_slopes
+    if not (a.data_config and a.out and a.results):
+        raise SystemExit("error: give RAW, or --data-config, --out and --results to calibrate the nominal scene")
     cam, cfg = load_data_config(a.data_config)
     t = time.perf_counter()
     slopes, searches, objects = calibrate_slopes(cam, cfg.calibration_rays_per_pixel)
@@ -166,17 +215,30 @@ def main(argv=None):
     s.add_argument("--x", type=float, default=0.0, help="point scene: lateral position (mm)")
     s.set_defaults(func=cmd_simulate)
 
-    s = sub.add_parser("refocus", help="shift-and-sum refocus a raw image at one or more slopes")
+    s = sub.add_parser("refocus", help="refocus a raw image at one or more slopes")
     s.add_argument("raw", help=".npz from simulate, .npy, or DATASET.h5:INDEX")
-    s.add_argument("--slope", type=float, action="append", required=True)
+    s.add_argument("--slope", type=float, action="append", required=True, help="lenslets per view (repeatable)")
+    s.add_argument("--method", choices=["shift-sum", "fourier"], default="shift-sum")
+    s.add_argument("--interpolation", choices=["bilinear", "nearest"], default="bilinear",
+                   help="shift-sum only: bilinear, or whole-lenslet shifts")
     s.add_argument("--aperture", choices=["square", "circular"], default="circular")
     s.add_argument("--out", required=True, help=".npz (stack) or .png (planes side by side)")
     s.set_defaults(func=cmd_refocus)
 
-    s = sub.add_parser("slopes", help="slope search for the four shapes of the nominal scene")
-    s.add_argument("--data-config", required=True)
-    s.add_argument("--out", required=True, help="JSON of the slopes used for ground truth")
-    s.add_argument("--results", required=True, help="folder for slopes.csv and slopes.png")
+    s = sub.add_parser("slopes", help="sharpest slope of each object of a raw image (table and plot of the "
+                       "sharpness curves); without RAW, calibrate the nominal scene of a data config")
+    s.add_argument("raw", nargs="?", help=".npz from simulate (its objects' ROIs are used), .npy, or DATASET.h5:INDEX")
+    s.add_argument("--roi", type=int, nargs=4, action="append", metavar=("ROW0", "ROW1", "COL0", "COL1"),
+                   help="region in lenslets (repeatable; default: the stored objects, else the whole image)")
+    s.add_argument("--metric", choices=["tenengrad", "laplacian", "normvar"], default="tenengrad")
+    s.add_argument("--method", choices=["fourier", "shift-sum"], default="fourier")
+    s.add_argument("--lo", type=float, default=-3.0)
+    s.add_argument("--hi", type=float, default=3.0)
+    s.add_argument("--aperture", choices=["square", "circular"], default="circular")
+    s.add_argument("--out-prefix", help="write PREFIX.slopes.csv and PREFIX.slopes.png (default: beside RAW)")
+    s.add_argument("--data-config", help="calibration mode: data config TOML")
+    s.add_argument("--out", help="calibration mode: JSON of the slopes used for ground truth")
+    s.add_argument("--results", help="calibration mode: folder for slopes.csv and slopes.png")
     s.set_defaults(func=cmd_slopes)
 
     s = sub.add_parser("dataset", help="generate (or resume) a dataset in HDF5")

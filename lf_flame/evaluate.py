@@ -160,17 +160,23 @@ def write_slopes(camera, slopes, searches, objects, results_dir) -> pd.DataFrame
     })
     df["found_minus_analytic"] = (df.slope_found - df.slope_analytic).round(4)
     df.to_csv(results_dir / "slopes.csv", index=False)
+    plot_slope_curves([f"{o['name']} ({o['depth_offset_mm']:+.0f} mm)" for o in objects], searches,
+                      results_dir / "slopes.png")
+    return df
+
+
+def plot_slope_curves(labels, searches, path, metric: str = "tenengrad") -> None:
+    """Plot each object's sharpness against slope (normalised to its peak) into ``path`` (PNG)."""
     fig, ax = plt.subplots(figsize=(7, 4))
-    for o, s in zip(objects, searches):
-        y = s.scores / s.scores.max()
-        ax.plot(s.slopes, y, label=f"{o['name']} ({o['depth_offset_mm']:+.0f} mm): {s.slope:.3f}")
+    for label, s in zip(labels, searches):
+        peak = s.scores.max()
+        ax.plot(s.slopes, s.scores / peak if peak > 0 else s.scores, label=f"{label}: {s.slope:.3f}")
     ax.set_xlabel("slope (lenslets per view)")
-    ax.set_ylabel("sharpness (Tenengrad, normalised)")
+    ax.set_ylabel(f"sharpness ({metric}, normalised)")
     ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(results_dir / "slopes.png", dpi=110)
+    fig.savefig(path, dpi=110)
     plt.close(fig)
-    return df
 
 
 def write_tables(results_dir, stage_times: dict | None = None) -> str:

@@ -184,3 +184,23 @@ def test_slope_search_finds_each_plane(depths):
         res = find_sharpest_slope(views, obj["roi"], mask=aperture_mask(15, "circular"))
         assert abs(res.slope - cam.slope_for_depth(obj["depth_offset_mm"])) <= 0.05, obj["name"]
         assert res.scores.max() > 1.2 * np.median(res.scores)  # a peaked curve
+
+
+def test_cli_refocus_and_slopes(tmp_path, small_camera, capsys):
+    import pandas as pd
+    from lf_flame.cli import main
+    cam = small_camera
+    sc = scenes.point_scene(cam, 10.0, size_mm=0.2)
+    raw = simulate.render(cam, sc, 16, 0)
+    np.savez(tmp_path / "p.npz", raw=raw, camera=cam.to_json())
+    s = cam.slope_for_depth(10.0)
+    for method in ("shift-sum", "fourier"):
+        assert main(["refocus", str(tmp_path / "p.npz"), "--slope", str(s), "--method", method,
+                     "--out", str(tmp_path / f"{method}.npz")]) == 0
+        stack = np.load(tmp_path / f"{method}.npz")["stack"]
+        assert stack.shape == (1, cam.n_rows, cam.n_cols) and np.unravel_index(stack[0].argmax(), stack[0].shape) == (20, 20)
+    assert main(["slopes", str(tmp_path / "p.npz"), "--roi", "10", "31", "10", "31", "--lo", "-2", "--hi", "2"]) == 0
+    df = pd.read_csv(tmp_path / "p.slopes.csv")
+    assert abs(df.slope[0] - s) <= 0.05 and abs(df.depth_mm[0] - 10.0) < 1.0
+    assert (tmp_path / "p.slopes.png").stat().st_size > 0
+    assert "p.slopes.csv" in capsys.readouterr().out
