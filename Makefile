@@ -11,7 +11,7 @@ RES := results/$(PRESET)
 DCFG := data_gen/$(PRESET).toml
 ECFG := experiments/$(PRESET).toml
 
-.PHONY: help install dataset bench-sim train-shapes train-flame tables test clean-quick
+.PHONY: help install dataset bench-sim bench-refocus train-shapes train-flame tables test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -42,6 +42,17 @@ endif
 
 bench-sim: $(STAMP) ## simulator benchmark -> results/bench_sim.{csv,md,json}
 	$(VENV)/bin/python experiments/bench_sim.py --out results
+
+PCAM := .bench/plenopticam
+$(PCAM)/.installed: $(STAMP)
+	@# PlenoptiCam is a benchmark baseline only; its registry dependencies would downgrade
+	@# scikit-image and matplotlib, so it goes into its own folder without them (NOTES.md)
+	$(VENV)/bin/pip install -q --no-deps --target $(PCAM) plenopticam==0.9.3 color-space-converter==0.1.4 \
+		color-matcher==0.6.0 depthy==0.4.0 || echo "PlenoptiCam not installed: the benchmark runs without it"
+	mkdir -p $(PCAM) && touch $@
+
+bench-refocus: $(STAMP) $(PCAM)/.installed ## refocusing benchmark -> results/bench_refocus.{csv,md,json}
+	$(VENV)/bin/python experiments/bench_refocus.py --out results --plenopticam $(PCAM)
 
 $(MODELS)/%/train_info.json: $(DATA)/%.h5 $(ECFG)
 	$(LF) train --dataset $< --experiment-config $(ECFG) --out $(@D)

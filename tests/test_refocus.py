@@ -204,3 +204,18 @@ def test_cli_refocus_and_slopes(tmp_path, small_camera, capsys):
     assert abs(df.slope[0] - s) <= 0.05 and abs(df.depth_mm[0] - 10.0) < 1.0
     assert (tmp_path / "p.slopes.png").stat().st_size > 0
     assert "p.slopes.csv" in capsys.readouterr().out
+
+
+def test_bench_refocus_quick(tmp_path):
+    import importlib.util
+    import pandas as pd
+    spec = importlib.util.spec_from_file_location("bench_refocus", "experiments/bench_refocus.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    bench.main(["--quick", "--out", str(tmp_path)])
+    df = pd.read_csv(tmp_path / "bench_refocus.csv")
+    assert {"shift-sum bilinear", "shift-sum nearest", "fourier", "lf-read"} <= set(df.method)
+    agree = df[df.method == "agreement"].set_index("what")
+    assert agree.loc["fourier vs shift-sum bilinear, integer slopes", "rmse_interior"] < 1e-3
+    slopes = pd.read_csv(tmp_path / "slopes_depths.csv")
+    assert slopes.error_fourier.abs().max() <= 0.05
