@@ -1,10 +1,11 @@
-"""Sub-aperture views, shift-and-sum refocusing, sharpness metrics and the slope search.
+"""Sub-aperture views, refocusing (shift-and-sum, Fourier slice), sharpness metrics, slope search.
 
 Convention (the paper's): a point of the plane at slope ``s`` appears at lenslet
 ``x0 + s (u - c)`` in sub-aperture view ``u``, ``c = (N - 1) / 2``; refocusing at ``s``
 samples view ``(u, v)`` at ``(r + s (u - c), col + s (v - c))`` and averages (the
 paper's Eq. 2, Ng 2005 Eq. 4.1, with the 1/α magnification dropped as is usual for
-sub-aperture shift-and-sum). Slopes are in lenslets per view step.
+sub-aperture shift-and-sum). Slopes are in lenslets per view step; slope <-> depth (mm)
+is :meth:`lf_flame.camera.PlenopticCamera.slope_for_depth` and ``depth_for_slope``.
 """
 from __future__ import annotations
 
