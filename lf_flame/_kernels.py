@@ -370,23 +370,6 @@ def shift_sum_stack(views, n_rows, shifts_r, shifts_c, mask, out, rows_per_task)
         _stack_rows(views, mask, kr, fr, rlo, rhi, kc, fc, clo, chi, cover, ra, min(R, ra + rows_per_task) - ra, out)
 
 
-@njit(cache=True)
-def _cover(mask, lo, hi, n):
-    """``cover[s, u, c]``: views of view row u whose column sample is inside at column c.
-
-    Serial on purpose: array statements in a ``parallel=True`` function become parallel
-    loops, each one a dispatch to the thread pool."""
-    S, V = lo.shape
-    U = mask.shape[0]
-    cover = np.zeros((S, U, n), np.float32)
-    for s in range(S):
-        for u in range(U):
-            for v in range(V):
-                if mask[u, v]:
-                    cover[s, u, lo[s, v]:hi[s, v]] += 1.0
-    return cover
-
-
 @njit(cache=True, fastmath={'contract'})
 def _stack_rows(views, mask, kr, fr, rlo, rhi, kc, fc, clo, chi, cover, ra, nb, out):
     """Rows ``ra .. ra + nb`` of every plane of :func:`shift_sum_stack` (one task; serial,
@@ -453,19 +436,14 @@ def _stack_rows(views, mask, kr, fr, rlo, rhi, kc, fc, clo, chi, cover, ra, nb, 
                         for c in range(hi - lo):
                             dst[c] += a[c]
     # normalise by the number of views that reach each pixel; the count of a row only
-    # changes where the set of view rows u whose sample is inside changes
+    # changes at a row where some view row u starts or stops reaching the image
     cnt = np.zeros(C, np.float32)
     for s in range(S):
-        key = -1
         for r in range(ra, ra + nb):
-            new_key = 0
+            changed = r == ra
             for u in range(U):
-                if rlo[s, u] <= r < rhi[s, u]:
-                    new_key = new_key * 2 + 1
-                else:
-                    new_key = new_key * 2
-            if new_key != key:
-                key = new_key
+                changed = changed or r == rlo[s, u] or r == rhi[s, u]
+            if changed:
                 cnt[:] = 0.0
                 for u in range(U):
                     if rlo[s, u] <= r < rhi[s, u]:

@@ -86,6 +86,11 @@ def _view_offsets(n: int) -> np.ndarray:
     return np.arange(n) - (n - 1) / 2
 
 
+def _margin(max_slope: float, n: int) -> int:
+    """Lenslets of padding that cover the largest view shift ``max_slope (N - 1) / 2``, plus 2."""
+    return int(np.ceil(max_slope * (n - 1) / 2)) + 2
+
+
 def _check_stack_args(views, slopes, mask, check_finite):
     views = np.ascontiguousarray(views, dtype=np.float32)
     if views.ndim != 4 or views.shape[0] != views.shape[1]:
@@ -204,7 +209,7 @@ class FourierSlice:
         W, alpha = self.KERNEL_WIDTH, self.OVERSAMPLE
         self.M = M = int(2 * np.ceil(alpha * n / 2))
         self.beta = np.pi * np.sqrt((W / alpha) ** 2 * (alpha - 0.5) ** 2 - 0.8)
-        pad = int(np.ceil(max_slope * (n - 1) / 2)) + 2
+        pad = _margin(max_slope, n)
         self.R2, self.C2 = scipy.fft.next_fast_len(R + pad), scipy.fft.next_fast_len(C + pad, real=True)
         off = _view_offsets(n)
         roll = self._kernel_ft(off)
@@ -357,7 +362,7 @@ def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", me
     n, _, R, C = views.shape
     max_slope = max(abs(lo), abs(hi)) + coarse_step
     if method == "fourier":
-        pad = int(np.ceil(max_slope * (n - 1) / 2)) + 2
+        pad = _margin(max_slope, n)
         a0, b0 = max(0, r0 - pad), max(0, c0 - pad)
         fourier = FourierSlice(views[:, :, a0:min(R, r1 + pad), b0:min(C, c1 + pad)], max_slope, mask)
         r0, r1, c0, c1 = r0 - a0, r1 - a0, c0 - b0, c1 - b0
