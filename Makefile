@@ -26,7 +26,8 @@ $(STAMP): setup.cfg pyproject.toml
 
 install: $(STAMP) ## create .venv and install the package (once)
 
-$(DATA)/slopes.json: $(STAMP) $(DCFG)
+# The installed package is an order-only prerequisite: reinstalling it does not invalidate data.
+$(DATA)/slopes.json: $(DCFG) | $(STAMP)
 	$(LF) slopes --data-config $(DCFG) --out $@ --results $(RES)
 
 $(DATA)/%.h5: $(DATA)/slopes.json $(DCFG)
@@ -54,8 +55,12 @@ $(PCAM)/.installed: $(STAMP)
 bench-refocus: $(STAMP) $(PCAM)/.installed ## refocusing benchmark -> results/bench_refocus.{csv,md,json}
 	$(VENV)/bin/python experiments/bench_refocus.py --out results --plenopticam $(PCAM)
 
+# Wall time and peak memory of each training target, from GNU time where the machine has it.
+TIMEV = $(if $(wildcard /usr/bin/time),/usr/bin/time -v -o $(@D)/time_v.txt,)
+
 $(MODELS)/%/train_info.json: $(DATA)/%.h5 $(ECFG)
-	$(LF) train --dataset $< --experiment-config $(ECFG) --out $(@D)
+	mkdir -p $(@D)
+	$(TIMEV) $(LF) train --dataset $< --experiment-config $(ECFG) --out $(@D)
 
 train-shapes: $(MODELS)/shapes/train_info.json ## train the model on the shapes
 train-flame: $(MODELS)/flame/train_info.json ## train the model on the flames

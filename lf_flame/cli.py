@@ -169,6 +169,37 @@ def cmd_train(a):
           f"(best val_loss {info['best_val_loss']:.5f}, backbone {info['backbone_weights']}) -> {a.out}")
 
 
+def cmd_predict(a):
+    from .camera import PlenopticCamera
+    from .train import load_full_model
+    raw, cam = _load_raw(a.raw)
+    model, info = load_full_model(a.model_dir)
+    if tuple(raw.shape) != tuple(info["raw_shape"]):
+        raise ValueError(f"raw image {raw.shape} does not match the model's sensor {tuple(info['raw_shape'])}")
+    if cam is not None and cam != PlenopticCamera.from_dict(json.loads(info["dataset_camera"])):
+        raise ValueError(f"{a.raw} was rendered with another camera than the model was trained on")
+    if not np.all(np.isfinite(raw)):
+        raise ValueError(f"{a.raw} contains NaN or inf")
+    x = raw.astype(np.float32)[None, ..., None]
+    model.predict_on_batch(x)  # warm-up: graph tracing
+    times = []
+    for _ in range(max(1, a.repeat)):
+        t = time.perf_counter()
+        stack = np.transpose(np.asarray(model.predict_on_batch(x))[0], (2, 0, 1))
+        times.append(time.perf_counter() - t)
+    print(f"predicted 4 planes {stack.shape[1:]} in {1e3 * np.median(times):.1f} ms per light field "
+          f"(median of {len(times)} after a warm-up; backbone input {info['model_config']['input_rows']}x"
+          f"{info['model_config']['input_cols']}, weights {info['backbone_weights']}, "
+          f"keras backend {__import__('keras').backend.backend()})")
+    out = Path(a.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if out.suffix == ".png":
+        _save_image(out, np.concatenate(list(stack), axis=1))
+    else:
+        np.savez_compressed(out, stack=stack, latency_s=np.asarray(times))
+    print(f"-> {out}")
+
+
 def cmd_evaluate(a):
     from .evaluate import evaluate
     table = evaluate(a.dataset, a.model_dir, a.results)
@@ -177,8 +208,8 @@ def cmd_evaluate(a):
 
 def cmd_tables(a):
     import h5py
-    from .evaluate import write_tables
-    times = {}
+    from .evaluate import read_gnu_time, write_tables
+    times, targets = {}, {}
     sl = Path(a.data_dir) / "slopes.json"
     if sl.exists():
         times["slope search"] = json.loads(sl.read_text())["wall_time_s"]
@@ -192,7 +223,10 @@ def cmd_tables(a):
             i = json.loads(info.read_text())
             times[f"backbone features {scene}"] = i["feature_wall_time_s"]
             times[f"training {scene} ({i['epochs_run']} epochs)"] = i["training_wall_time_s"]
-    print(write_tables(a.results, times))
+        tv = Path(a.model_dir) / scene / "time_v.txt"
+        if tv.exists():
+            targets[f"train-{scene}"] = read_gnu_time(tv)
+    print(write_tables(a.results, times, targets))
 
 
 def main(argv=None):
@@ -257,6 +291,13 @@ def main(argv=None):
     s.add_argument("--out", required=True, help="model folder")
     s.add_argument("--quiet", action="store_true")
     s.set_defaults(func=cmd_train)
+
+    s = sub.add_parser("predict", help="the trained model's 4 refocused planes of a raw image, with its latency")
+    s.add_argument("raw", help=".npz from simulate, .npy, or DATASET.h5:INDEX")
+    s.add_argument("--model-dir", required=True, help="folder written by 'lf-flame train'")
+    s.add_argument("--out", required=True, help=".npz (stack (4, R, C), latency_s) or .png (planes side by side)")
+    s.add_argument("--repeat", type=int, default=5, help="timed calls after the warm-up")
+    s.set_defaults(func=cmd_predict)
 
     s = sub.add_parser("evaluate", help="SSIM/PSNR per plane on the test split, table and figure")
     s.add_argument("--dataset", required=True)

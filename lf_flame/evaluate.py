@@ -38,19 +38,14 @@ def evaluate(dataset_path, model_dir, results_dir) -> pd.DataFrame:
     -------
     DataFrame of the table.
     """
-    from .model import build_decoder
-    from .train import predict_features
-    from .config import ModelConfig
+    from .train import load_decoder, predict_features
 
     ds = LightFieldDataset(dataset_path)
     model_dir, results_dir = Path(model_dir), Path(results_dir)
-    info = json.loads((model_dir / "train_info.json").read_text())
-    cfg = ModelConfig(**info["model_config"])
-    import h5py
-    with h5py.File(info["feature_cache"], "r") as f:
-        fshape = f["features"].shape[1:]
-    dec = build_decoder(fshape, ds.camera.n_rows, ds.camera.n_cols, cfg)
-    dec.load_weights(model_dir / "decoder_best.weights.h5")
+    dec, info = load_decoder(model_dir)
+    if info["dataset_camera"] != ds.attrs["camera"]:
+        raise ValueError(f"{dataset_path} was rendered with another camera than the model in {model_dir} "
+                         "was trained on")
     test = np.sort(ds.splits["test"])
     pred = predict_features(dec, info["feature_cache"], test)
     rows = []
@@ -179,8 +174,31 @@ def plot_slope_curves(labels, searches, path, metric: str = "tenengrad") -> None
     plt.close(fig)
 
 
-def write_tables(results_dir, stage_times: dict | None = None) -> str:
-    """Collect both tables, slopes and stage wall times into ``tables.md``; return its text."""
+def read_gnu_time(path) -> dict:
+    """Wall time (s) and peak resident memory (GiB) from a ``/usr/bin/time -v`` report.
+
+    Raises
+    ------
+    ValueError
+        The file lacks either line (not a GNU time ``-v`` report).
+    """
+    text = Path(path).read_text()
+    out = {}
+    for line in text.splitlines():
+        key, _, val = line.strip().rpartition(": ")
+        if key == "Maximum resident set size (kbytes)":
+            out["peak_rss_gib"] = int(val) / 2**20
+        elif key.startswith("Elapsed (wall clock) time"):
+            parts = [float(v) for v in val.split(":")]
+            out["wall_s"] = sum(v * 60 ** k for k, v in enumerate(reversed(parts)))
+    if len(out) != 2:
+        raise ValueError(f"{path} is not a '/usr/bin/time -v' report")
+    return out
+
+
+def write_tables(results_dir, stage_times: dict | None = None, make_targets: dict | None = None) -> str:
+    """Collect both tables, slopes, stage wall times and, per make target, wall time and
+    peak memory (:func:`read_gnu_time`) into ``tables.md``; return its text."""
     results_dir = Path(results_dir)
     parts = ["# Results", ""]
     for scene in ("shapes", "flame"):
@@ -194,6 +212,11 @@ def write_tables(results_dir, stage_times: dict | None = None) -> str:
     if stage_times:
         parts += ["### Wall time per stage", "", "| stage | seconds |", "|---|---:|"]
         parts += [f"| {k} | {v:.0f} |" for k, v in stage_times.items()] + [""]
+    if make_targets:
+        parts += ["### Training targets, measured with `/usr/bin/time -v`", "",
+                  "| make target | wall time (min) | peak memory (GiB) |", "|---|---:|---:|"]
+        parts += [f"| {k} | {v['wall_s'] / 60:.1f} | {v['peak_rss_gib']:.2f} |" for k, v in make_targets.items()]
+        parts += [""]
     text = "\n".join(parts)
     atomic_write_text(results_dir / "tables.md", text)
     return text

@@ -125,6 +125,20 @@ def build_model(raw_shape, out_shape, cfg: ModelConfig, weights=None):
     """
     fx = build_feature_extractor(raw_shape, cfg, weights)
     dec = build_decoder(fx.output.shape[1:], *out_shape, cfg)
-    inp = keras.Input((*raw_shape, 1), name="raw_light_field")
-    model = keras.Model(inp, dec(fx(inp)), name="lf_refocus")
-    return model, fx, dec
+    return compose(fx, dec), fx, dec
+
+
+def compose(feature_extractor: keras.Model, decoder: keras.Model) -> keras.Model:
+    """The full model ``decoder(feature_extractor(raw))``, sharing both parts' layers.
+
+    Raises
+    ------
+    ValueError
+        The decoder expects features of another shape than the extractor gives.
+    """
+    got, want = tuple(feature_extractor.output.shape[1:]), tuple(decoder.input_shape[1:])
+    if got != want:
+        raise ValueError(f"the decoder expects backbone features {want} but the feature extractor gives {got} "
+                         "(another backbone input size or camera)")
+    inp = keras.Input(feature_extractor.input_shape[1:], name="raw_light_field")
+    return keras.Model(inp, decoder(feature_extractor(inp)), name="lf_refocus")

@@ -50,7 +50,8 @@ def compute_features(ds: LightFieldDataset, cfg: ModelConfig, weights_spec: str,
     path = feature_cache_path(ds.path, cfg, label)
     if path.exists():
         with h5py.File(path, "r") as f:
-            if f.attrs.get("dataset_camera") == ds.attrs["camera"] and f["features"].shape[0] == ds.n:
+            if (f.attrs.get("dataset_camera") == ds.attrs["camera"] and f["features"].shape[0] == ds.n
+                    and int(f.attrs.get("seed", -1)) == seed):
                 return path, label
         path.unlink()
     fx = build_feature_extractor(ds.camera.sensor_shape, cfg, weights)
@@ -65,7 +66,7 @@ def compute_features(ds: LightFieldDataset, cfg: ModelConfig, weights_spec: str,
             if not np.all(np.isfinite(feats)) or np.abs(feats).max() > 6e4:
                 raise FloatingPointError("backbone features are not finite in float16")
             d[s:s + len(idx)] = feats.astype(np.float16)
-        f.attrs.update(dataset=str(ds.path), dataset_camera=ds.attrs["camera"], weights=label,
+        f.attrs.update(dataset=str(ds.path), dataset_camera=ds.attrs["camera"], weights=label, seed=seed,
                        model_config=to_json(cfg), wall_time_s=time.perf_counter() - t0)
     os.replace(tmp, path)
     return path, label
@@ -74,15 +75,17 @@ def compute_features(ds: LightFieldDataset, cfg: ModelConfig, weights_spec: str,
 class FeatureBatches(keras.utils.PyDataset):
     """Batches of (cached features, ground truth (R, C, 4)) read from disk, never all in memory.
 
-    Shuffled each epoch by a generator seeded with (seed, epoch) when ``shuffle``.
+    Shuffled each epoch by a generator seeded with (seed, epoch) when ``shuffle``, so a run
+    resumed at ``start_epoch`` sees the same order as one never stopped.
     """
 
-    def __init__(self, features_path, ds: LightFieldDataset, indices, batch_size: int, shuffle: bool, seed: int):
+    def __init__(self, features_path, ds: LightFieldDataset, indices, batch_size: int, shuffle: bool, seed: int,
+                 start_epoch: int = 0):
         super().__init__()
         self.features_path, self.ds = str(features_path), ds
         self.indices = np.asarray(indices)
         self.batch_size, self.shuffle, self.seed = batch_size, shuffle, seed
-        self.epoch = 0
+        self.epoch = start_epoch
         self._order = self.indices.copy()
         self._f = None
         self.on_epoch_end()
@@ -115,33 +118,163 @@ def predict_features(decoder, features_path, indices, batch: int = 8) -> np.ndar
 
 
 class _WallClock(keras.callbacks.Callback):
-    """Adds validation SSIM and cumulative wall time to the epoch logs; stops at the time budget."""
+    """Adds validation SSIM and cumulative wall time to the epoch logs, and stops before the
+    time budget: after an epoch, training stops when one more epoch as long as the longest
+    so far would end past ``budget_s``."""
 
     def __init__(self, val_data, budget_s: float, start_offset_s: float = 0.0):
         super().__init__()
         self.val_data, self.budget_s, self.offset = val_data, budget_s, start_offset_s
-        self.t0 = time.perf_counter()
+        self.t0 = self.t_epoch = time.perf_counter()
+        self.longest = 0.0
+
+    def on_epoch_begin(self, epoch, logs=None):
+        self.t_epoch = time.perf_counter()
 
     def on_epoch_end(self, epoch, logs=None):
         feats_path, ds, idx = self.val_data
         pred = predict_features(self.model, feats_path, idx)
         logs["val_ssim"] = float(np.mean([ssim_per_plane(ds.gt(int(i)), p) for i, p in zip(np.sort(idx), pred)]))
-        logs["wall_time_s"] = self.offset + time.perf_counter() - self.t0
-        if logs["wall_time_s"] >= self.budget_s:
-            print(f"time budget of {self.budget_s:.0f} s reached after epoch {epoch + 1}; stopping")
+        now = time.perf_counter()
+        logs["wall_time_s"] = self.offset + now - self.t0
+        self.longest = max(self.longest, now - self.t_epoch)
+        if logs["wall_time_s"] + self.longest > self.budget_s:
+            print(f"time budget of {self.budget_s:.0f} s: stopping after epoch {epoch + 1} "
+                  f"({logs['wall_time_s']:.0f} s trained, epochs take up to {self.longest:.0f} s)")
             self.model.stop_training = True
+
+
+class _ResumeCheckpoint(keras.callbacks.Callback):
+    """Saves the whole decoder (weights and optimizer state) atomically after every epoch,
+    then ``train_state.json`` naming the epoch it holds; a killed run resumes from it."""
+
+    def __init__(self, model_path: Path, state_path: Path, weights_label: str):
+        super().__init__()
+        self.model_path, self.state_path, self.label = model_path, state_path, weights_label
+
+    def on_epoch_end(self, epoch, logs=None):
+        tmp = self.model_path.with_name("partial." + self.model_path.name)
+        self.model.save(tmp)
+        os.replace(tmp, self.model_path)
+        atomic_write_text(self.state_path, json.dumps(dict(epoch=epoch, wall_time_s=logs["wall_time_s"],
+                                                           backbone_weights=self.label)))
+
+
+class _LabelWeightsFile(keras.callbacks.Callback):
+    """Writes the backbone weights label into the best-weights HDF5 checkpoint's attributes."""
+
+    def __init__(self, path: Path, weights_label: str):
+        super().__init__()
+        self.path, self.label = path, weights_label
+
+    def on_epoch_end(self, epoch, logs=None):
+        if self.path.exists():
+            with h5py.File(self.path, "a") as f:
+                if f.attrs.get("backbone_weights") != self.label:
+                    f.attrs["backbone_weights"] = self.label
+
+
+class _ResumableEarlyStopping(keras.callbacks.EarlyStopping):
+    """EarlyStopping that, on resume, counts the epochs without improvement already run."""
+
+    def __init__(self, past_losses, **kw):
+        super().__init__(**kw)
+        self.past = list(past_losses)
+
+    def on_train_begin(self, logs=None):
+        super().on_train_begin(logs)
+        if self.past:
+            self.best = float(np.min(self.past))
+            self.wait = len(self.past) - 1 - int(np.argmin(self.past))
+
+
+def _resume_state(out: Path):
+    """(initial_epoch, wall time already trained, past val losses) from a previous run in ``out``.
+
+    The history is cut back to the epoch that the last complete checkpoint holds, so an
+    epoch logged by a run killed before its checkpoint was written is trained again.
+    """
+    state_path, hist_path = out / "train_state.json", out / "history.csv"
+    if not (state_path.exists() and (out / "decoder_last.keras").exists() and hist_path.exists()):
+        for p in (hist_path, state_path):
+            p.unlink(missing_ok=True)
+        return 0, 0.0, []
+    state = json.loads(state_path.read_text())
+    h = pd.read_csv(hist_path)
+    h = h[h["epoch"] <= state["epoch"]]
+    if len(h) != state["epoch"] + 1:
+        raise ValueError(f"{hist_path} lacks epochs that {state_path} says were trained; "
+                         f"delete {out} to train from scratch")
+    atomic_write_text(hist_path, h.to_csv(index=False))
+    return state["epoch"] + 1, float(state["wall_time_s"]), h["val_loss"].tolist()
+
+
+def load_decoder(model_dir, best: bool = True):
+    """The trained decoder of ``model_dir`` and its ``train_info`` dict.
+
+    Raises
+    ------
+    FileNotFoundError
+        ``train_info.json`` or the weights file is missing.
+    """
+    model_dir = Path(model_dir)
+    info_path, weights_path = model_dir / "train_info.json", model_dir / "decoder_best.weights.h5"
+    for p in (info_path, weights_path):
+        if not p.is_file():
+            raise FileNotFoundError(f"trained model file not found: {p} (run 'lf-flame train' first)")
+    info = json.loads(info_path.read_text())
+    cfg = ModelConfig(**info["model_config"])
+    dec = build_decoder(info["feature_shape"], *info["output_shape"], cfg)
+    dec.load_weights(weights_path)
+    return dec, info
+
+
+def load_full_model(model_dir):
+    """Backbone + trained decoder as one model: raw (batch, rows, cols, 1) -> (batch, R, C, 4).
+
+    The backbone is rebuilt with the weights recorded at training (a random-init backbone
+    from the recorded seed, which reproduces the cached features).
+
+    Returns
+    -------
+    (model, info)
+
+    Raises
+    ------
+    FileNotFoundError
+        A missing model file, or backbone weights file recorded at training.
+    """
+    from .model import compose
+    dec, info = load_decoder(model_dir)
+    cfg = ModelConfig(**info["model_config"])
+    label = info["backbone_weights"]
+    spec = {"random-init": "none", "imagenet": "imagenet"}.get(label, cfg.weights)
+    weights, got = resolve_weights(spec)
+    if got != label:
+        raise ValueError(f"the model was trained on backbone weights {label!r} but {got!r} were found")
+    keras.utils.set_random_seed(info["train_config"]["seed"])
+    fx = build_feature_extractor(info["raw_shape"], cfg, weights)
+    return compose(fx, dec), info
 
 
 def train(dataset_path, out_dir, model_cfg: ModelConfig, train_cfg: TrainConfig, progress: bool = True) -> dict:
     """Train the decoder on a dataset's cached features; resumable.
 
-    Writes to ``out_dir``: ``decoder_best.weights.h5``, ``decoder_last.keras`` (for
-    resume), ``history.csv`` (loss, val_loss, val_ssim, wall_time_s per epoch) and, last,
-    ``train_info.json`` (configs, weights used, epochs, wall time, provenance).
+    Writes to ``out_dir``: ``decoder_best.weights.h5`` (lowest validation loss; its HDF5
+    attribute ``backbone_weights`` names the backbone), ``decoder_last.keras`` and
+    ``train_state.json`` (for resume), ``history.csv`` (loss, val_loss, val_ssim,
+    wall_time_s per epoch) and, last, ``train_info.json`` (configs, weights used, epochs,
+    wall time, provenance). A run started again in the same folder continues from the last
+    complete epoch with the same split, data order and optimizer state.
 
     Returns
     -------
     dict : the content of ``train_info.json``.
+
+    Raises
+    ------
+    ValueError
+        A resume state that does not match the history in ``out_dir``.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -150,12 +283,9 @@ def train(dataset_path, out_dir, model_cfg: ModelConfig, train_cfg: TrainConfig,
     feats_path, label = compute_features(ds, model_cfg, model_cfg.weights, progress=progress, seed=train_cfg.seed)
     t_feat = time.perf_counter() - t_start
     keras.utils.set_random_seed(train_cfg.seed)
-    hist_path, last_path = out / "history.csv", out / "decoder_last.keras"
-    initial_epoch, offset = 0, 0.0
-    if last_path.exists() and hist_path.exists():
-        h = pd.read_csv(hist_path)
-        if len(h):
-            initial_epoch, offset = int(h["epoch"].iloc[-1]) + 1, float(h["wall_time_s"].iloc[-1])
+    hist_path, last_path, best_path = out / "history.csv", out / "decoder_last.keras", out / "decoder_best.weights.h5"
+    initial_epoch, offset, past = _resume_state(out)
+    if initial_epoch:
         decoder = keras.models.load_model(last_path)
         print(f"resuming from epoch {initial_epoch} ({offset:.0f} s already trained)")
     else:
@@ -167,23 +297,26 @@ def train(dataset_path, out_dir, model_cfg: ModelConfig, train_cfg: TrainConfig,
     max_epochs = int(train_cfg.max_epochs[scene])
     budget = float(train_cfg.time_budget_s[scene])
     bs = train_cfg.batch_size
-    train_data = FeatureBatches(feats_path, ds, ds.splits["train"], bs, True, train_cfg.seed)
-    train_data.epoch = initial_epoch
+    train_data = FeatureBatches(feats_path, ds, ds.splits["train"], bs, True, train_cfg.seed, initial_epoch)
     val_data = FeatureBatches(feats_path, ds, ds.splits["val"], bs, False, train_cfg.seed)
     callbacks = [
         _WallClock((feats_path, ds, ds.splits["val"]), budget, offset),
-        keras.callbacks.ModelCheckpoint(str(out / "decoder_best.weights.h5"), monitor="val_loss",
-                                        save_best_only=True, save_weights_only=True),
-        keras.callbacks.ModelCheckpoint(str(last_path)),
+        keras.callbacks.ModelCheckpoint(str(best_path), monitor="val_loss", save_best_only=True,
+                                        save_weights_only=True, initial_value_threshold=min(past, default=None)),
+        _LabelWeightsFile(best_path, label),
         keras.callbacks.CSVLogger(str(hist_path), append=initial_epoch > 0),
-        keras.callbacks.EarlyStopping(monitor="val_loss", patience=train_cfg.patience),
+        _ResumeCheckpoint(last_path, out / "train_state.json", label),
+        _ResumableEarlyStopping(past, monitor="val_loss", patience=train_cfg.patience),
     ]
-    if initial_epoch < max_epochs and offset < budget:
+    stopped_early = len(past) - 1 - int(np.argmin(past)) >= train_cfg.patience if past else False
+    if initial_epoch < max_epochs and offset < budget and not stopped_early:
         decoder.fit(train_data, validation_data=val_data, epochs=max_epochs, initial_epoch=initial_epoch,
                     callbacks=callbacks, verbose=2 if progress else 0)
     h = pd.read_csv(hist_path)
     info = dict(dataset=str(dataset_path), scene=scene, backbone_weights=label,
                 model_config=json.loads(to_json(model_cfg)), train_config=json.loads(to_json(train_cfg)),
+                raw_shape=list(ds.camera.sensor_shape), output_shape=[ds.camera.n_rows, ds.camera.n_cols],
+                feature_shape=list(decoder.input_shape[1:]), dataset_camera=ds.attrs["camera"],
                 epochs_run=int(len(h)), paper_epochs=int({"shapes": 5000, "flame": 1000}[scene]),
                 best_epoch=int(h["epoch"].iloc[int(h["val_loss"].idxmin())]) + 1,
                 best_val_loss=float(h["val_loss"].min()), training_wall_time_s=float(h["wall_time_s"].iloc[-1]),

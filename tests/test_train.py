@@ -1,0 +1,168 @@
+"""Training: resume after a real kill, time budget, cached features vs the full model,
+predict, and a tiny fit on each Keras backend."""
+import importlib.util
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pandas as pd
+import pytest
+
+from lf_flame.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+LF = [sys.executable, "-m", "lf_flame.cli"]
+
+EXPERIMENT = """
+[model]
+input_rows = 64
+input_cols = 32
+weights = "none"
+[train]
+batch_size = 2
+learning_rate = 1e-4
+max_epochs = {{ shapes = {epochs}, flame = {epochs} }}
+time_budget_s = {{ shapes = {budget}, flame = {budget} }}
+patience = 50
+seed = 7
+"""
+
+
+def _experiment(path, epochs=6, budget=600):
+    path.write_text(EXPERIMENT.format(epochs=epochs, budget=budget))
+    return str(path)
+
+
+@pytest.fixture(scope="module")
+def flame_h5(tmp_path_factory):
+    d = tmp_path_factory.mktemp("data")
+    (d / "slopes.json").write_text(json.dumps({"slopes": [2.28, 1.17, 0.0, -1.25]}))
+    h5 = d / "flame.h5"
+    assert main(["dataset", "--data-config", str(ROOT / "data_gen/quick.toml"), "--scene", "flame",
+                 "--slopes", str(d / "slopes.json"), "--out", str(h5), "--quiet"]) == 0
+    return h5
+
+
+def _epochs(model_dir):
+    return pd.read_csv(model_dir / "history.csv")["epoch"].tolist()
+
+
+def test_killed_training_resumes_from_last_checkpoint(flame_h5, tmp_path):
+    cfg, out = _experiment(tmp_path / "exp.toml", epochs=6), tmp_path / "model"
+    env = dict(os.environ, TF_CPP_MIN_LOG_LEVEL="3")
+    proc = subprocess.Popen(LF + ["train", "--dataset", str(flame_h5), "--experiment-config", cfg,
+                                  "--out", str(out), "--quiet"], env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    hist, t0 = out / "history.csv", time.monotonic()
+    while proc.poll() is None and time.monotonic() - t0 < 300:  # kill once two epochs are logged
+        if hist.exists() and len(hist.read_text().splitlines()) >= 3:
+            proc.send_signal(signal.SIGKILL)
+            break
+        time.sleep(0.01)
+    assert proc.wait() == -signal.SIGKILL, "training ended before it could be killed"
+    killed_at = json.loads((out / "train_state.json").read_text())["epoch"]
+    assert killed_at < 5 and not (out / "train_info.json").exists()
+
+    r = subprocess.run(LF + ["train", "--dataset", str(flame_h5), "--experiment-config", cfg, "--out", str(out),
+                             "--quiet"], env=env, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert f"resuming from epoch {killed_at + 1}" in r.stdout
+    info = json.loads((out / "train_info.json").read_text())
+    assert _epochs(out) == list(range(6))  # each epoch once, none lost, none repeated
+    assert info["epochs_run"] == 6
+    import keras
+    last = keras.models.load_model(out / "decoder_last.keras")
+    steps = int(np.ceil(len(h5py.File(flame_h5)["split/train"]) / 2))
+    assert int(last.optimizer.iterations) == 6 * steps  # the optimizer state was resumed, not restarted
+    with h5py.File(out / "decoder_best.weights.h5") as f:
+        assert f.attrs["backbone_weights"] == "random-init"
+
+
+def test_time_budget_stops_training(flame_h5, tmp_path):
+    out = tmp_path / "model"
+    assert main(["train", "--dataset", str(flame_h5), "--experiment-config",
+                 _experiment(tmp_path / "exp.toml", epochs=50, budget=0.01), "--out", str(out), "--quiet"]) == 0
+    assert _epochs(out) == [0]
+    # started again, it trains no further: the budget is spent
+    assert main(["train", "--dataset", str(flame_h5), "--experiment-config", str(tmp_path / "exp.toml"),
+                 "--out", str(out), "--quiet"]) == 0
+    assert _epochs(out) == [0]
+
+
+def test_predict_full_model_equals_cached_feature_path(flame_h5, tmp_path, capsys):
+    from lf_flame.train import load_decoder, predict_features
+    out = tmp_path / "model"
+    assert main(["train", "--dataset", str(flame_h5), "--experiment-config",
+                 _experiment(tmp_path / "exp.toml", epochs=2), "--out", str(out), "--quiet"]) == 0
+    i = 3
+    assert main(["predict", f"{flame_h5}:{i}", "--model-dir", str(out), "--out", str(tmp_path / "p.npz"),
+                 "--repeat", "2"]) == 0
+    assert "ms per light field" in capsys.readouterr().out
+    full = np.load(tmp_path / "p.npz")["stack"]
+    dec, info = load_decoder(out)
+    cached = predict_features(dec, info["feature_cache"], [i])[0]
+    assert full.shape == cached.shape == (4, 180, 90)
+    # the full model rebuilds the random-init backbone from the recorded seed; the cache is
+    # float16, so the two agree to float16 rounding, far below the spread of the outputs
+    assert np.abs(full - cached).max() < 2e-3 < full.std()
+
+
+def test_predict_rejects_mismatched_input(flame_h5, tmp_path, capsys):
+    out = tmp_path / "model"
+    assert main(["train", "--dataset", str(flame_h5), "--experiment-config",
+                 _experiment(tmp_path / "exp.toml", epochs=1), "--out", str(out), "--quiet"]) == 0
+    np.save(tmp_path / "small.npy", np.zeros((30, 45), np.float32))
+    assert main(["predict", str(tmp_path / "small.npy"), "--model-dir", str(out), "--out",
+                 str(tmp_path / "p.npz")]) == 2
+    assert "does not match the model's sensor" in capsys.readouterr().err
+    assert main(["predict", f"{flame_h5}:0", "--model-dir", str(tmp_path / "nothing"), "--out",
+                 str(tmp_path / "p.npz")]) == 2
+    assert "not found" in capsys.readouterr().err
+
+
+FIT = """
+import numpy as np, keras
+from lf_flame.config import ModelConfig
+from lf_flame.model import build_model
+keras.utils.set_random_seed(0)
+model, fx, dec = build_model((90, 60), (6, 4), ModelConfig(input_rows=64, input_cols=64), weights=None)
+model.compile(optimizer=keras.optimizers.Adam(1e-3), loss="mse")
+x = np.random.default_rng(0).random((4, 90, 60, 1)).astype("float32")
+y = np.full((4, 6, 4, 4), 0.25, "float32")
+h = model.fit(x, y, batch_size=2, epochs=3, verbose=0).history["loss"]
+assert all(np.isfinite(h)) and h[-1] < h[0], h
+assert not any(w.trainable for w in fx.weights)
+print(keras.backend.backend(), h)
+"""
+
+
+@pytest.mark.parametrize("backend", [
+    "tensorflow",
+    pytest.param("jax", marks=[pytest.mark.jax, pytest.mark.skipif(importlib.util.find_spec("jax") is None,
+                                                                    reason="jax is not installed")]),
+])
+def test_tiny_fit_on_each_keras_backend(backend):
+    r = subprocess.run([sys.executable, "-c", FIT], env=dict(os.environ, KERAS_BACKEND=backend,
+                                                             TF_CPP_MIN_LOG_LEVEL="3"),
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.stdout.startswith(backend)
+
+
+@pytest.mark.skipif(not Path("/usr/bin/time").exists(), reason="GNU time is not installed")
+def test_gnu_time_report_parsed(tmp_path):
+    from lf_flame.evaluate import read_gnu_time
+    report = tmp_path / "time_v.txt"
+    subprocess.run(["/usr/bin/time", "-v", "-o", str(report), sys.executable, "-c",
+                    "import numpy, time; a = numpy.ones(50 * 2**20, numpy.uint8); time.sleep(0.2)"], check=True)
+    got = read_gnu_time(report)
+    assert 0.2 <= got["wall_s"] < 30 and 0.045 < got["peak_rss_gib"] < 2  # 50 MiB array held
+    (tmp_path / "bad.txt").write_text("Command being timed: x\n")
+    with pytest.raises(ValueError, match="not a '/usr/bin/time -v' report"):
+        read_gnu_time(tmp_path / "bad.txt")
