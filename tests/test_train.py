@@ -166,3 +166,17 @@ def test_gnu_time_report_parsed(tmp_path):
     (tmp_path / "bad.txt").write_text("Command being timed: x\n")
     with pytest.raises(ValueError, match="not a '/usr/bin/time -v' report"):
         read_gnu_time(tmp_path / "bad.txt")
+
+
+def test_model_refuses_a_dataset_from_another_camera(flame_h5, tmp_path, capsys):
+    out = tmp_path / "model"
+    assert main(["train", "--dataset", str(flame_h5), "--experiment-config",
+                 _experiment(tmp_path / "exp.toml", epochs=1), "--out", str(out), "--quiet"]) == 0
+    info = json.loads((out / "train_info.json").read_text())
+    from lf_flame.camera import PlenopticCamera
+    info["dataset_camera"] = PlenopticCamera(mla_pitch_mm=0.1).to_json()  # as if trained on another camera
+    (out / "train_info.json").write_text(json.dumps(info))
+    assert main(["evaluate", "--dataset", str(flame_h5), "--model-dir", str(out), "--results", str(tmp_path)]) == 2
+    assert "another camera" in capsys.readouterr().err
+    assert main(["predict", f"{flame_h5}:0", "--model-dir", str(out), "--out", str(tmp_path / "p.npz")]) == 2
+    assert "another camera" in capsys.readouterr().err
