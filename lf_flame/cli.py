@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 import time
@@ -164,6 +165,14 @@ def cmd_train(a):
     from .config import load_experiment_config
     from .train import train
     mcfg, tcfg = load_experiment_config(a.experiment_config)
+    if a.input_size:
+        try:
+            rows, cols = (int(v) for v in a.input_size.lower().split("x"))
+        except ValueError:
+            raise SystemExit(f"--input-size must look like ROWSxCOLS (e.g. 224x112). Received: {a.input_size!r}")
+        mcfg = dataclasses.replace(mcfg, input_rows=rows, input_cols=cols)
+    if a.time_budget_s is not None:
+        tcfg = dataclasses.replace(tcfg, time_budget_s={k: a.time_budget_s for k in tcfg.time_budget_s})
     info = train(a.dataset, a.out, mcfg, tcfg, progress=not a.quiet)
     print(f"trained {info['epochs_run']} epochs in {info['training_wall_time_s']:.0f} s "
           f"(best val_loss {info['best_val_loss']:.5f}, backbone {info['backbone_weights']}) -> {a.out}")
@@ -289,6 +298,8 @@ def main(argv=None):
     s.add_argument("--dataset", required=True)
     s.add_argument("--experiment-config", required=True)
     s.add_argument("--out", required=True, help="model folder")
+    s.add_argument("--input-size", help="ROWSxCOLS: backbone input size instead of the config's")
+    s.add_argument("--time-budget-s", type=float, help="training time budget (s) instead of the config's")
     s.add_argument("--quiet", action="store_true")
     s.set_defaults(func=cmd_train)
 

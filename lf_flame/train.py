@@ -232,8 +232,9 @@ def load_decoder(model_dir, best: bool = True):
 def load_full_model(model_dir):
     """Backbone + trained decoder as one model: raw (batch, rows, cols, 1) -> (batch, R, C, 4).
 
-    The backbone is rebuilt with the weights recorded at training (a random-init backbone
-    from the recorded seed, which reproduces the cached features).
+    The backbone is rebuilt with the weights recorded at training: ImageNet or the weights
+    file, or for a random-init backbone the draw saved in ``backbone.weights.h5`` (the one
+    that made the cached features), so any Keras backend gives the same model.
 
     Returns
     -------
@@ -248,20 +249,40 @@ def load_full_model(model_dir):
     dec, info = load_decoder(model_dir)
     cfg = ModelConfig(**info["model_config"])
     label = info["backbone_weights"]
-    spec = {"random-init": "none", "imagenet": "imagenet"}.get(label, cfg.weights)
-    weights, got = resolve_weights(spec)
-    if got != label:
-        raise ValueError(f"the model was trained on backbone weights {label!r} but {got!r} were found")
-    keras.utils.set_random_seed(info["train_config"]["seed"])
-    fx = build_feature_extractor(info["raw_shape"], cfg, weights)
+    if label == "random-init":  # the saved draw: Keras backends draw different random weights
+        fx = build_feature_extractor(info["raw_shape"], cfg, None)
+        fx.load_weights(_backbone_file(model_dir))
+    else:
+        weights, got = resolve_weights("imagenet" if label == "imagenet" else cfg.weights)
+        if got != label:
+            raise ValueError(f"the model was trained on backbone weights {label!r} but {got!r} were found")
+        fx = build_feature_extractor(info["raw_shape"], cfg, weights)
     return compose(fx, dec), info
+
+
+def _backbone_file(model_dir) -> Path:
+    p = Path(model_dir) / "backbone.weights.h5"
+    if not p.is_file():
+        raise FileNotFoundError(f"random-init backbone weights not found: {p} (written by 'lf-flame train')")
+    return p
+
+
+def _save_random_backbone(ds: LightFieldDataset, cfg: ModelConfig, seed: int, out: Path) -> None:
+    """Save the random-init backbone that made the feature cache (same seed, same draw)."""
+    path = out / "backbone.weights.h5"
+    if not path.exists():
+        keras.utils.set_random_seed(seed)
+        tmp = out / "partial.backbone.weights.h5"
+        build_feature_extractor(ds.camera.sensor_shape, cfg, None).save_weights(tmp)
+        os.replace(tmp, path)
 
 
 def train(dataset_path, out_dir, model_cfg: ModelConfig, train_cfg: TrainConfig, progress: bool = True) -> dict:
     """Train the decoder on a dataset's cached features; resumable.
 
     Writes to ``out_dir``: ``decoder_best.weights.h5`` (lowest validation loss; its HDF5
-    attribute ``backbone_weights`` names the backbone), ``decoder_last.keras`` and
+    attribute ``backbone_weights`` names the backbone), ``backbone.weights.h5`` (only for a
+    random-init backbone), ``decoder_last.keras`` and
     ``train_state.json`` (for resume), ``history.csv`` (loss, val_loss, val_ssim,
     wall_time_s per epoch) and, last, ``train_info.json`` (configs, weights used, epochs,
     wall time, provenance). A run started again in the same folder continues from the last
@@ -281,6 +302,8 @@ def train(dataset_path, out_dir, model_cfg: ModelConfig, train_cfg: TrainConfig,
     ds = LightFieldDataset(dataset_path)
     t_start = time.perf_counter()
     feats_path, label = compute_features(ds, model_cfg, model_cfg.weights, progress=progress, seed=train_cfg.seed)
+    if label == "random-init":
+        _save_random_backbone(ds, model_cfg, train_cfg.seed, out)
     t_feat = time.perf_counter() - t_start
     keras.utils.set_random_seed(train_cfg.seed)
     hist_path, last_path, best_path = out / "history.csv", out / "decoder_last.keras", out / "decoder_best.weights.h5"
