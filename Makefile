@@ -11,7 +11,7 @@ RES := results/$(PRESET)
 DCFG := data_gen/$(PRESET).toml
 ECFG := experiments/$(PRESET).toml
 
-.PHONY: help install dataset bench-sim bench-refocus train-shapes train-flame tables test clean-quick
+.PHONY: help install dataset bench-sim bench-refocus train-shapes train-flame tables tradeoff test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -64,6 +64,12 @@ $(MODELS)/%/train_info.json: $(DATA)/%.h5 $(ECFG)
 
 train-shapes: $(MODELS)/shapes/train_info.json ## train the model on the shapes
 train-flame: $(MODELS)/flame/train_info.json ## train the model on the flames
+
+# the paper preset's map is committed in results/, the quick one stays in results/quick
+TRADEOFF_OUT := $(if $(filter paper,$(PRESET)),results,$(RES))
+tradeoff: $(MODELS)/flame/train_info.json ## speed-accuracy map of every route and knob -> results/tradeoff.{csv,md,png}
+	$(VENV)/bin/python experiments/tradeoff.py --preset $(PRESET) --data-dir $(DATA) --model-dir $(MODELS) \
+		--out $(TRADEOFF_OUT)
 
 $(RES)/table_%.md: $(MODELS)/%/train_info.json
 	$(LF) evaluate --dataset $(DATA)/$*.h5 --model-dir $(MODELS)/$* --results $(RES)

@@ -1,0 +1,354 @@
+"""What accuracy costs in time (``make tradeoff``): one run, side by side, on this machine.
+
+Writes ``<out>/tradeoff.csv`` (one row per route or knob setting), ``tradeoff_pareto.png``
+(latency against SSIM of the refocusing routes, Pareto front marked), ``tradeoff_knobs.png``
+(rays per pixel, slope-search grid, training time), ``tradeoff.md`` (tables and the
+statements drawn from them) and ``tradeoff.json`` (provenance).
+
+Sections (column ``section``):
+
+- ``refocusing``: raw flame light field (the dataset's, as the model sees it) -> 4 planes
+  at the dataset's slopes, for each route: shift-and-sum with whole-lenslet (nearest) and
+  bilinear shifts, Fourier slice (4-D FFT included: it is paid per light field), and the
+  trained model (backbone + decoder) at two backbone input sizes, with TensorFlow and, in
+  a subprocess, JAX. Latency: median, 10th and 90th percentile of ``repeats`` calls after a
+  warm-up, on one light field. Accuracy: SSIM/PSNR per plane (scikit-image), mean over the
+  test split, against the **reference**: bilinear shift-and-sum at the same slopes of the
+  same scene rendered noise-free at ``ref_rays_per_pixel``.
+- ``simulator: rays per pixel`` and ``simulator: effects``: rows of
+  ``experiments/bench_sim.py`` (image RMSE against a high-sample render, and time).
+- ``slope search``: grid steps against the largest slope error (analytic slopes of the
+  nominal shapes scene) and time per object.
+- ``training``: validation SSIM against epochs and wall time, from the learning curves.
+
+Usage: ``python experiments/tradeoff.py --preset paper|quick --data-dir D --model-dir M --out O``.
+The second, smaller backbone input size is trained here if its model folder is missing
+(settings in the ``[tradeoff]`` table of ``experiments/<preset>.toml``).
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import bench_sim  # noqa: E402
+from bench_refocus import _times  # noqa: E402
+
+from lf_flame import scenes, simulate  # noqa: E402
+from lf_flame.camera import PAPER_CAMERA  # noqa: E402
+from lf_flame.config import atomic_write_text, load_experiment_config, load_toml, provenance  # noqa: E402
+from lf_flame.dataset import GT_MASK, LightFieldDataset, SCENES, sample_rng  # noqa: E402
+from lf_flame.metrics import psnr_per_plane, ssim_per_plane  # noqa: E402
+from lf_flame.refocus import aperture_mask, find_sharpest_slope, focal_stack, raw_to_views, refocus  # noqa: E402
+from lf_flame.scenes import PAPER_DEPTHS_MM  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+PLANES = [f"{d:+.0f}mm" for d in PAPER_DEPTHS_MM]
+
+
+def reference_stacks(ds: LightFieldDataset, indices, rays_per_pixel: int) -> np.ndarray:
+    """Reference 4-plane stacks (k, 4, R, C): each sample's scene rendered noise-free at
+    ``rays_per_pixel``, refocused bilinearly at the dataset's slopes (ground-truth views)."""
+    cfg = json.loads(ds.attrs["dataset_config"])
+    from lf_flame.config import DatasetConfig
+    cfg = DatasetConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in cfg.items()})
+    cam, n = ds.camera, ds.camera.pixels_per_lenslet
+    out = []
+    for i in indices:
+        sc = SCENES[ds.scene](cam, sample_rng(cfg, ds.scene, int(i)))
+        sc = dataclasses.replace(sc, effects=dataclasses.replace(sc.effects, full_well_e=None, read_noise_e=None,
+                                                                 bit_depth=None))
+        raw = simulate.render(cam, sc, rays_per_pixel, seed=99)
+        out.append(np.clip(refocus(raw, ds.slopes, n, aperture_mask(n, GT_MASK)), 0, 1))
+    return np.stack(out)
+
+
+def _accuracy(preds, refs) -> dict:
+    ssim = np.mean([ssim_per_plane(r, np.clip(p, 0, 1)) for p, r in zip(preds, refs)], axis=0)
+    psnr = np.mean([psnr_per_plane(r, np.clip(p, 0, 1)) for p, r in zip(preds, refs)], axis=0)
+    row = {f"ssim_{k}": float(v) for k, v in zip(PLANES, ssim)}
+    row.update({f"psnr_db_{k}": float(v) for k, v in zip(PLANES, psnr)})
+    row.update(ssim_mean=float(ssim.mean()), psnr_db_mean=float(psnr.mean()))
+    return row
+
+
+def _route_row(route, setting, fn, raws, refs, repeats, backend="numpy/numba") -> dict:
+    t = _times(lambda: fn(raws[0]), repeats)
+    row = dict(section="refocusing", route=route, setting=setting, backend=backend,
+               latency_ms_median=t[0], latency_ms_p10=t[1], latency_ms_p90=t[2],
+               throughput_lf_per_s=1e3 / t[0], n_samples=len(refs))
+    row.update(_accuracy([fn(r) for r in raws], refs))
+    return row
+
+
+def classical_rows(ds, raws, refs, repeats) -> list[dict]:
+    n, slopes = ds.camera.pixels_per_lenslet, ds.slopes
+    mask = aperture_mask(n, GT_MASK)
+    routes = [("shift-sum", "nearest (whole lenslets)", dict(interpolation="nearest")),
+              ("shift-sum", "bilinear", {}),
+              ("Fourier slice", "4-D FFT + 4 slices", dict(method="fourier"))]
+    return [_route_row(r, s, lambda raw, kw=kw: refocus(raw, slopes, n, mask, **kw), raws, refs, repeats)
+            for r, s, kw in routes]
+
+
+def model_rows(model_dirs, raws, refs, repeats) -> list[dict]:
+    """The trained models (full: backbone + decoder) on the current Keras backend."""
+    import keras
+    from lf_flame.train import load_full_model
+    rows = []
+    for d in model_dirs:
+        model, info = load_full_model(d)
+        size = f"{info['model_config']['input_rows']}x{info['model_config']['input_cols']}"
+
+        def fn(raw, model=model):
+            return np.transpose(np.asarray(model.predict_on_batch(raw[None, ..., None]))[0], (2, 0, 1))
+        row = _route_row("model", f"backbone input {size}, {info['epochs_run']} epochs, {info['backbone_weights']}",
+                         fn, raws, refs, repeats, backend=keras.backend.backend())
+        rows.append(row)
+    return rows
+
+
+def jax_model_rows(model_dirs, raws, refs, repeats, tmp: Path) -> list[dict]:
+    """:func:`model_rows` with ``KERAS_BACKEND=jax`` in a subprocess (a backend is fixed at import)."""
+    np.savez(tmp / "tradeoff_inputs.npz", raws=np.stack(raws), refs=refs)
+    r = subprocess.run([sys.executable, __file__, "--models-only", str(tmp / "tradeoff_inputs.npz"),
+                        "--repeats", str(repeats), *map(str, model_dirs)],
+                       env=dict(os.environ, KERAS_BACKEND="jax", TF_CPP_MIN_LOG_LEVEL="3"),
+                       capture_output=True, text=True)
+    (tmp / "tradeoff_inputs.npz").unlink()
+    if r.returncode != 0:
+        print(f"JAX rows skipped: {r.stderr.strip().splitlines()[-1] if r.stderr.strip() else r.returncode}")
+        return []
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def simulator_rows(quick: bool) -> list[dict]:
+    df = bench_sim.run(quick)
+    rows = []
+    for r in df[df.section.isin(["sampling", "effects"])].itertuples():
+        sampling = r.section == "sampling"
+        rows.append(dict(section=f"simulator: {'rays per pixel' if sampling else 'effects'}",
+                         route=r.scene, setting=f"{r.rays_per_pixel} rays/pixel" if sampling else r.setting,
+                         rays_per_pixel=r.rays_per_pixel, latency_ms_median=r.ms_median,
+                         image_rmse=r.rmse if sampling else np.nan))
+    return rows
+
+
+def slope_search_rows(rays_per_pixel: int, grids, camera=PAPER_CAMERA) -> list[dict]:
+    sc = scenes.shapes_scene(camera, np.random.default_rng(0), vary=False)
+    views = raw_to_views(simulate.render(camera, sc, rays_per_pixel, seed=0), camera.pixels_per_lenslet)
+    mask = aperture_mask(camera.pixels_per_lenslet, GT_MASK)
+    rows = []
+    for coarse, fine in grids:
+        errs, ts = [], []
+        for o in sc.objects:
+            t = time.perf_counter()
+            s = find_sharpest_slope(views, o["roi"], mask=mask, coarse_step=coarse, fine_step=fine)
+            ts.append(time.perf_counter() - t)
+            errs.append(abs(s.slope - camera.slope_for_depth(o["depth_offset_mm"])))
+        rows.append(dict(section="slope search", route="Fourier-scored, tenengrad",
+                         setting=f"coarse {coarse}, fine {fine}", coarse_step=coarse, fine_step=fine,
+                         latency_ms_median=1e3 * float(np.median(ts)), slope_error_max=float(max(errs)),
+                         slope_error_mean=float(np.mean(errs))))
+    return rows
+
+
+def training_rows(model_dirs) -> list[dict]:
+    rows = []
+    for d in model_dirs:
+        info = json.loads((Path(d) / "train_info.json").read_text())
+        size = f"{info['model_config']['input_rows']}x{info['model_config']['input_cols']}"
+        for r in pd.read_csv(Path(d) / "history.csv").itertuples():
+            rows.append(dict(section="training", route=f"{info['scene']} model, input {size}",
+                             setting=f"epoch {r.epoch + 1}", epochs=r.epoch + 1, train_wall_s=r.wall_time_s,
+                             val_ssim=r.val_ssim, val_loss=r.val_loss))
+    return rows
+
+
+def pareto(df: pd.DataFrame) -> pd.Series:
+    """True for the routes that no other route beats in both latency and mean SSIM."""
+    lat, acc = df.latency_ms_median.values, df.ssim_mean.values
+    return pd.Series([not np.any((lat <= lat[i]) & (acc >= acc[i]) & ((lat < lat[i]) | (acc > acc[i])))
+                      for i in range(len(df))], index=df.index)
+
+
+def _label(r) -> str:
+    return f"{r.route} {r.setting.split(',')[0]}" + ("" if r.backend == "numpy/numba" else f" [{r.backend}]")
+
+
+def plot(df: pd.DataFrame, out: Path) -> None:
+    ref = df[df.section == "refocusing"].copy()
+    ref["pareto"] = pareto(ref)
+    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    for r in ref.itertuples():
+        ax.errorbar(r.latency_ms_median, r.ssim_mean, xerr=[[r.latency_ms_median - r.latency_ms_p10],
+                                                             [r.latency_ms_p90 - r.latency_ms_median]],
+                    fmt="o" if r.pareto else "s", color="C0" if r.pareto else "C7", capsize=3)
+        ax.annotate(_label(r), (r.latency_ms_median, r.ssim_mean), fontsize=7, xytext=(4, 4),
+                    textcoords="offset points")
+    front = ref[ref.pareto].sort_values("latency_ms_median")
+    ax.plot(front.latency_ms_median, front.ssim_mean, "C0--", lw=1, label="Pareto front")
+    ax.set_xscale("log")
+    ax.set_xlabel("latency per light field, 4 planes (ms, median and p10-p90)")
+    ax.set_ylabel("SSIM vs reference (mean of 4 planes)")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "tradeoff_pareto.png", dpi=110)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(1, 3, figsize=(13, 3.8))
+    sim = df[df.section == "simulator: rays per pixel"]
+    for scene, g in sim.groupby("route"):
+        ax[0].loglog(g.latency_ms_median, g.image_rmse, "o-", label=scene)
+        for r in g.itertuples():
+            ax[0].annotate(f"{r.rays_per_pixel:.0f}", (r.latency_ms_median, r.image_rmse), fontsize=7)
+    ax[0].set_xlabel("render time (ms)")
+    ax[0].set_ylabel("image RMSE vs high-sample render")
+    ax[0].set_title("simulator: rays per pixel")
+    ax[0].legend(fontsize=8)
+    ss = df[df.section == "slope search"]
+    ax[1].loglog(ss.latency_ms_median, ss.slope_error_max, "o-", label="largest error")
+    ax[1].loglog(ss.latency_ms_median, ss.slope_error_mean, "s--", label="mean error")
+    for r in ss.itertuples():
+        ax[1].annotate(f"{r.coarse_step:g}/{r.fine_step:g}", (r.latency_ms_median, r.slope_error_max), fontsize=7)
+    ax[1].set_xlabel("time per object (ms)")
+    ax[1].set_ylabel("slope error (lenslets per view)")
+    ax[1].set_title("slope search: coarse/fine grid step")
+    ax[1].legend(fontsize=8)
+    tr = df[df.section == "training"]
+    for route, g in tr.groupby("route"):
+        ax[2].plot(g.train_wall_s / 60, g.val_ssim, ".-", label=route)
+    ax[2].set_xlabel("training wall time (min)")
+    ax[2].set_ylabel("validation SSIM (vs dataset GT)")
+    ax[2].set_title("training")
+    ax[2].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / "tradeoff_knobs.png", dpi=100)
+    plt.close(fig)
+
+
+def summary(df: pd.DataFrame, prov: dict, n_test: int, ref_rpp: int) -> str:
+    ref = df[df.section == "refocusing"].copy()
+    ref["pareto"] = pareto(ref)
+    cols = ["route", "setting", "backend", "latency_ms_median", "latency_ms_p10", "latency_ms_p90",
+            "throughput_lf_per_s", *[f"ssim_{p}" for p in PLANES], "ssim_mean", "psnr_db_mean", "pareto"]
+    fastest = ref.loc[ref.latency_ms_median.idxmin()]
+    best = ref.loc[ref.ssim_mean.idxmax()]
+    models = ref[ref.route == "model"]
+    lines = ["# What accuracy costs: speed-accuracy map", "",
+             f"Generated by `make tradeoff` (`experiments/tradeoff.py`) on {prov['cpu_count']} CPU cores "
+             f"({prov['processor']}), {prov['date']}, commit {prov['git_commit']}; Keras "
+             f"{prov['versions'].get('keras')}, TensorFlow {prov['versions'].get('tensorflow-cpu') or prov['versions'].get('tensorflow')}, "
+             f"JAX {prov['versions'].get('jax', 'not installed')}. No GPU.", "",
+             f"## Refocusing routes: raw flame light field -> 4 planes ({n_test} test light fields)", "",
+             f"Reference: bilinear shift-and-sum at the same slopes of the same scenes rendered noise-free at "
+             f"{ref_rpp} rays/pixel. Latency: median (p10-p90) of repeated calls after a warm-up.", "",
+             ref[cols].to_markdown(index=False, floatfmt=".4g"), "",
+             "![Pareto](tradeoff_pareto.png)", "",
+             f"- Fastest: **{_label(fastest)}**, {fastest.latency_ms_median:.3g} ms, SSIM {fastest.ssim_mean:.3f}.",
+             f"- Most accurate: **{_label(best)}**, SSIM {best.ssim_mean:.3f} at {best.latency_ms_median:.3g} ms.",
+             f"- Pareto front: {', '.join(_label(r) for r in ref[ref.pareto].itertuples())}."]
+    if len(models):
+        m = models.loc[models.latency_ms_median.idxmin()]
+        bil = ref[(ref.route == "shift-sum") & (ref.setting == "bilinear")].iloc[0]
+        lines.append(f"- Real time (30 light fields/s, 33 ms): the fastest model ({_label(m)}) takes "
+                     f"{m.latency_ms_median:.3g} ms ({m.throughput_lf_per_s:.3g} light fields/s), "
+                     f"{'within' if m.latency_ms_median <= 33.3 else 'outside'} it; bilinear shift-and-sum "
+                     f"takes {bil.latency_ms_median:.3g} ms ({bil.throughput_lf_per_s:.3g}/s), "
+                     f"{m.latency_ms_median / bil.latency_ms_median:.3g}x faster than the model, "
+                     f"at SSIM {bil.ssim_mean:.3f} against the model's {m.ssim_mean:.3f}.")
+    for sec, cols in (("simulator: rays per pixel", ["route", "rays_per_pixel", "latency_ms_median", "image_rmse"]),
+                      ("simulator: effects", ["setting", "latency_ms_median"]),
+                      ("slope search", ["setting", "latency_ms_median", "slope_error_max", "slope_error_mean"])):
+        lines += ["", f"## {sec[0].upper() + sec[1:]}", "", df[df.section == sec][cols].to_markdown(
+            index=False, floatfmt=".4g")]
+    tr = df[df.section == "training"]
+    lines += ["", "## Training: validation SSIM against time", ""]
+    for route, g in tr.groupby("route"):
+        b = g.loc[g.val_ssim.idxmax()]
+        lines.append(f"- {route}: best validation SSIM {b.val_ssim:.3f} at epoch {b.epochs:.0f} "
+                     f"({b.train_wall_s / 60:.1f} min); last {g.val_ssim.iloc[-1]:.3f} at epoch "
+                     f"{g.epochs.iloc[-1]:.0f} ({g.train_wall_s.iloc[-1] / 60:.1f} min).")
+    lines += ["", "![knobs](tradeoff_knobs.png)", ""]
+    return "\n".join(lines)
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--preset", choices=["paper", "quick"], default="paper")
+    p.add_argument("--data-dir")
+    p.add_argument("--model-dir")
+    p.add_argument("--out")
+    p.add_argument("--models-only", help=argparse.SUPPRESS)  # JAX subprocess: inputs .npz
+    p.add_argument("--repeats", type=int, default=20)
+    p.add_argument("dirs", nargs="*", help=argparse.SUPPRESS)
+    a = p.parse_args(argv)
+    if a.models_only:
+        z = np.load(a.models_only)
+        print(json.dumps(model_rows(a.dirs, list(z["raws"]), z["refs"], a.repeats)))
+        return 0
+
+    t0 = time.perf_counter()
+    ecfg = ROOT / "experiments" / f"{a.preset}.toml"
+    tcfg = load_toml(ecfg)["tradeoff"]
+    quick = a.preset == "quick"
+    out, models = Path(a.out), Path(a.model_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    flame = Path(a.data_dir) / "flame.h5"
+    ds = LightFieldDataset(flame)
+
+    # the second backbone input size, trained here under the same settings and its own budget
+    small = models / f"flame-{tcfg['small_input']}"
+    if not (small / "train_info.json").exists():
+        from lf_flame.train import train
+        mcfg, trc = load_experiment_config(ecfg)
+        rows_, cols_ = (int(v) for v in tcfg["small_input"].split("x"))
+        train(flame, small, dataclasses.replace(mcfg, input_rows=rows_, input_cols=cols_),
+              dataclasses.replace(trc, time_budget_s={"flame": tcfg["small_budget_s"]}), progress=not quick)
+    model_dirs = [models / "flame", small]
+
+    test = np.sort(ds.splits["test"])[: tcfg["n_test"]]
+    print(f"reference stacks of {len(test)} test light fields at {tcfg['ref_rays_per_pixel']} rays/pixel")
+    refs = reference_stacks(ds, test, tcfg["ref_rays_per_pixel"])
+    raws = [ds.raw(int(i)) for i in test]
+    rows = classical_rows(ds, raws, refs, a.repeats)
+    rows += model_rows(model_dirs, raws, refs, a.repeats)
+    import importlib.util
+    if importlib.util.find_spec("jax") is not None:
+        rows += jax_model_rows(model_dirs, raws, refs, a.repeats, out)
+    print("simulator knobs")
+    rows += simulator_rows(quick)
+    print("slope search grids")
+    rows += slope_search_rows(tcfg["calibration_rays_per_pixel"], [tuple(g) for g in tcfg["slope_grids"]],
+                              ds.camera if quick else PAPER_CAMERA)
+    shapes = [models / "shapes"] if (models / "shapes" / "train_info.json").exists() else []
+    rows += training_rows(model_dirs + shapes)
+    df = pd.DataFrame(rows)
+    prov = provenance()
+    tmp = out / "tradeoff.csv.partial"
+    df.to_csv(tmp, index=False)
+    os.replace(tmp, out / "tradeoff.csv")
+    plot(df, out)
+    atomic_write_text(out / "tradeoff.md", summary(df, prov, len(test), tcfg["ref_rays_per_pixel"]))
+    atomic_write_text(out / "tradeoff.json", json.dumps(dict(
+        preset=a.preset, tradeoff_config=tcfg, repeats=a.repeats, dataset=str(flame), test_indices=test.tolist(),
+        models=[str(d) for d in model_dirs], wall_time_s=time.perf_counter() - t0, provenance=prov), indent=2))
+    print((out / "tradeoff.md").read_text())
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

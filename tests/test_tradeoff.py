@@ -1,0 +1,40 @@
+"""`make tradeoff PRESET=quick`: the speed-accuracy map of the real pipeline at tiny sizes."""
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(shutil.which("make") is None or not (ROOT / ".venv/bin/lf-flame").exists(),
+                    reason="needs make and the project's .venv (make install)")
+def test_make_tradeoff_quick():
+    r = subprocess.run(["make", "tradeoff", "PRESET=quick"], cwd=ROOT, capture_output=True, text=True, timeout=1200)
+    assert r.returncode == 0, (r.stdout + r.stderr)[-3000:]
+    out = ROOT / "results/quick"
+    df = pd.read_csv(out / "tradeoff.csv")
+    assert {"refocusing", "simulator: rays per pixel", "simulator: effects", "slope search",
+            "training"} <= set(df.section)
+    ref = df[df.section == "refocusing"]
+    routes = set(zip(ref.route, ref.setting.str.split(",").str[0]))
+    assert {("shift-sum", "nearest (whole lenslets)"), ("shift-sum", "bilinear"),
+            ("Fourier slice", "4-D FFT + 4 slices")} <= routes
+    assert len(ref[ref.route == "model"].setting.str.split(",").str[0].unique()) >= 2  # two input sizes
+    cols = ["latency_ms_median", "latency_ms_p10", "latency_ms_p90", "ssim_mean", "psnr_db_mean"]
+    assert np.isfinite(ref[cols].values).all() and (ref.latency_ms_p10 <= ref.latency_ms_p90).all()
+    # the reference is bilinear shift-and-sum of a cleaner render: that route must score best
+    assert ref.loc[ref.ssim_mean.idxmax(), "setting"] == "bilinear"
+    sim = df[df.section == "simulator: rays per pixel"]
+    for _, g in sim.groupby("route"):
+        assert g.sort_values("rays_per_pixel").image_rmse.is_monotonic_decreasing
+    for png in ("tradeoff_pareto.png", "tradeoff_knobs.png"):
+        assert (out / png).stat().st_size > 10_000
+    prov = json.loads((out / "tradeoff.json").read_text())["provenance"]
+    assert {"versions", "cpu_count", "date", "numba_threads"} <= set(prov)
+    assert "Pareto front" in (out / "tradeoff.md").read_text()
