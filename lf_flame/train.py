@@ -209,7 +209,7 @@ def _resume_state(out: Path):
     return state["epoch"] + 1, float(state["wall_time_s"]), h["val_loss"].tolist()
 
 
-def load_decoder(model_dir, best: bool = True):
+def load_decoder(model_dir):
     """The trained decoder of ``model_dir`` and its ``train_info`` dict.
 
     Raises
@@ -244,6 +244,8 @@ def load_full_model(model_dir):
     ------
     FileNotFoundError
         A missing model file, or backbone weights file recorded at training.
+    ValueError
+        The backbone weights found are not those the model was trained with.
     """
     from .model import compose
     dec, info = load_decoder(model_dir)
