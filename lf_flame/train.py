@@ -45,8 +45,7 @@ def compute_features(ds: LightFieldDataset, cfg: ModelConfig, weights_spec: str,
     (path, weights_label) : the cache file, holding ``features`` (n, h, w, 2048) float16
         and attributes naming the dataset, input size and weights; and the weights used.
     """
-    keras.utils.set_random_seed(seed)  # a random-init backbone is then reproducible
-    weights, label = resolve_weights(weights_spec)
+    weights, label = resolve_weights(weights_spec)  # may build (and fail to load) a model
     path = feature_cache_path(ds.path, cfg, label)
     if path.exists():
         with h5py.File(path, "r") as f:
@@ -54,6 +53,8 @@ def compute_features(ds: LightFieldDataset, cfg: ModelConfig, weights_spec: str,
                     and int(f.attrs.get("seed", -1)) == seed):
                 return path, label
         path.unlink()
+    # seeded right before the build, as _save_random_backbone does: the same random draw
+    keras.utils.set_random_seed(seed)
     fx = build_feature_extractor(ds.camera.sensor_shape, cfg, weights)
     tmp = path.with_name(path.name + ".partial")
     t0 = time.perf_counter()

@@ -198,3 +198,28 @@ def test_jax_backend_predicts_what_tensorflow_predicts(flame_h5, tmp_path):
         stacks[backend] = np.load(tmp_path / f"{backend}.npz")["stack"]
     # the random-init backbone is loaded from the saved draw, not re-drawn by each backend
     assert np.abs(stacks["tensorflow"] - stacks["jax"]).max() < 1e-4
+
+
+def test_saved_random_backbone_is_the_one_that_made_the_features(flame_h5, tmp_path, monkeypatch):
+    # offline, weights "auto" first tries to build ResNet-50 with ImageNet weights, which
+    # draws random numbers before failing; the backbone saved with the model must still be
+    # the draw that computed the cached features
+    import keras
+    import lf_flame.train as T
+    real = T.resolve_weights
+
+    def auto_offline(spec):
+        keras.layers.Dense(64).build((None, 64))  # a draw, as the failed ImageNet build makes
+        return real("none")
+
+    monkeypatch.setattr(T, "resolve_weights", auto_offline)
+    out = tmp_path / "model"
+    T.train(flame_h5, out, T.ModelConfig(input_rows=64, input_cols=32, weights="auto"),
+            T.TrainConfig(max_epochs={"flame": 1}, time_budget_s={"flame": 600}, seed=11), progress=False)
+    model, info = T.load_full_model(out)
+    fx = model.get_layer("feature_extractor")
+    with h5py.File(info["feature_cache"]) as f:
+        cached = f["features"][0].astype(np.float32)
+    from lf_flame.dataset import LightFieldDataset
+    got = np.asarray(fx.predict_on_batch(LightFieldDataset(flame_h5).raw([0])[..., None]))[0]
+    assert np.abs(got - cached).max() <= 2e-3 * np.abs(cached).max()
