@@ -185,13 +185,19 @@ def pareto(df: pd.DataFrame) -> pd.Series:
                       for i in range(len(df))], index=df.index)
 
 
+def _routes(df: pd.DataFrame) -> pd.DataFrame:
+    """The refocusing rows, with a ``pareto`` column."""
+    ref = df[df.section == "refocusing"].copy()
+    ref["pareto"] = pareto(ref)
+    return ref
+
+
 def _label(r) -> str:
     return f"{r.route} {r.setting.split(',')[0]}" + ("" if r.backend == "numpy/numba" else f" [{r.backend}]")
 
 
 def plot(df: pd.DataFrame, out: Path) -> None:
-    ref = df[df.section == "refocusing"].copy()
-    ref["pareto"] = pareto(ref)
+    ref = _routes(df)
     fig, ax = plt.subplots(figsize=(7.5, 4.5))
     for r in ref.itertuples():
         ax.errorbar(r.latency_ms_median, r.ssim_mean, xerr=[[r.latency_ms_median - r.latency_ms_p10],
@@ -241,8 +247,7 @@ def plot(df: pd.DataFrame, out: Path) -> None:
 
 
 def summary(df: pd.DataFrame, prov: dict, n_test: int, ref_rpp: int) -> str:
-    ref = df[df.section == "refocusing"].copy()
-    ref["pareto"] = pareto(ref)
+    ref = _routes(df)
     cols = ["route", "setting", "backend", "latency_ms_median", "latency_ms_p10", "latency_ms_p90",
             "throughput_lf_per_s", *[f"ssim_{p}" for p in PLANES], "ssim_mean", "psnr_db_mean", "pareto"]
     fastest = ref.loc[ref.latency_ms_median.idxmin()]

@@ -37,6 +37,17 @@ def _save_image(path, img):
     plt.imsave(path, np.clip(img, 0, 1), cmap="gray", vmin=0, vmax=1)
 
 
+def _write_stack(path, stack, **extra):
+    """Write a focal stack (S, R, C): planes side by side as .png, else .npz with ``extra``."""
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if out.suffix == ".png":
+        _save_image(out, np.concatenate(list(stack), axis=1))
+    else:
+        np.savez_compressed(out, stack=stack, **extra)
+    print(f"-> {out}")
+
+
 def cmd_simulate(a):
     from . import scenes, simulate
     from .camera import PAPER_CAMERA
@@ -76,13 +87,7 @@ def cmd_refocus(a):
     stack = refocus(raw, a.slope, cam.pixels_per_lenslet, aperture_mask(cam.pixels_per_lenslet, a.aperture),
                     method=a.method, interpolation=a.interpolation)
     print(f"refocused {len(a.slope)} planes ({a.method}) in {1e3 * (time.perf_counter() - t):.2f} ms")
-    out = Path(a.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if out.suffix == ".png":
-        _save_image(out, np.concatenate(list(stack), axis=1))
-    else:
-        np.savez_compressed(out, stack=stack, slopes=np.asarray(a.slope))
-    print(f"-> {out}")
+    _write_stack(a.out, stack, slopes=np.asarray(a.slope))
 
 
 def cmd_slopes(a):
@@ -200,13 +205,7 @@ def cmd_predict(a):
           f"(median of {len(times)} after a warm-up; backbone input {info['model_config']['input_rows']}x"
           f"{info['model_config']['input_cols']}, weights {info['backbone_weights']}, "
           f"keras backend {__import__('keras').backend.backend()})")
-    out = Path(a.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    if out.suffix == ".png":
-        _save_image(out, np.concatenate(list(stack), axis=1))
-    else:
-        np.savez_compressed(out, stack=stack, latency_s=np.asarray(times))
-    print(f"-> {out}")
+    _write_stack(a.out, stack, latency_s=np.asarray(times))
 
 
 def cmd_evaluate(a):

@@ -175,6 +175,11 @@ class _LabelWeightsFile(keras.callbacks.Callback):
                     f.attrs["backbone_weights"] = self.label
 
 
+def _epochs_since_best(val_losses) -> int:
+    """Epochs run after the one with the lowest validation loss (0 if the last was best)."""
+    return len(val_losses) - 1 - int(np.argmin(val_losses))
+
+
 class _ResumableEarlyStopping(keras.callbacks.EarlyStopping):
     """EarlyStopping that, on resume, counts the epochs without improvement already run."""
 
@@ -186,7 +191,7 @@ class _ResumableEarlyStopping(keras.callbacks.EarlyStopping):
         super().on_train_begin(logs)
         if self.past:
             self.best = float(np.min(self.past))
-            self.wait = len(self.past) - 1 - int(np.argmin(self.past))
+            self.wait = _epochs_since_best(self.past)
 
 
 def _resume_state(out: Path):
@@ -334,7 +339,7 @@ def train(dataset_path, out_dir, model_cfg: ModelConfig, train_cfg: TrainConfig,
         _ResumeCheckpoint(last_path, out / "train_state.json", label),
         _ResumableEarlyStopping(past, monitor="val_loss", patience=train_cfg.patience),
     ]
-    stopped_early = len(past) - 1 - int(np.argmin(past)) >= train_cfg.patience if past else False
+    stopped_early = bool(past) and _epochs_since_best(past) >= train_cfg.patience
     if initial_epoch < max_epochs and offset < budget and not stopped_early:
         decoder.fit(train_data, validation_data=val_data, epochs=max_epochs, initial_epoch=initial_epoch,
                     callbacks=callbacks, verbose=2 if progress else 0)

@@ -2,8 +2,10 @@ import os
 
 os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "2")
 
+import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
+from lf_flame import scenes  # noqa: E402
 from lf_flame.camera import PlenopticCamera  # noqa: E402
 
 
@@ -11,3 +13,17 @@ from lf_flame.camera import PlenopticCamera  # noqa: E402
 def small_camera():
     """The paper's optics with a 41 x 41 lenslet grid: same slopes, fast to render."""
     return PlenopticCamera(n_rows=41, n_cols=41)
+
+
+def _uniform_scene(cam, level=0.5):
+    """One additive plane of constant radiance ``level`` filling 10x the field of view at
+    depth 0, no aperture, cos^4 or occlusion: every pixel sees exactly ``level``."""
+    h, w = cam.field_of_view_mm(0.0)
+    layer = scenes.Layer(np.full((4, 4), level, np.float32), None, 0.0, (0.0, 0.0), (10 * h, 10 * w))
+    return scenes.Scene("uniform", (layer,), scenes.Effects(aperture=False, cos4=False, occlusion=False))
+
+
+@pytest.fixture(scope="session")
+def uniform_scene():
+    """Factory ``uniform_scene(camera, level)`` of a uniform-plane scene."""
+    return _uniform_scene

@@ -14,32 +14,26 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from lf_flame import dataset as D
-from lf_flame import scenes, simulate
+from lf_flame import simulate
 from lf_flame.camera import PAPER_CAMERA, PARAXIAL_LIMIT, PlenopticCamera
 from lf_flame.config import DatasetConfig, atomic_write_text
 from lf_flame.refocus import (FourierSlice, aperture_mask, find_sharpest_slope, focal_stack, normalized_variance,
                               raw_to_views, tenengrad, variance_of_laplacian)
 
 
-def _uniform(cam, level):
-    h, w = cam.field_of_view_mm(0.0)
-    layer = scenes.Layer(np.full((4, 4), level, np.float32), None, 0.0, (0.0, 0.0), (10 * h, 10 * w))
-    return scenes.Scene("uniform", (layer,), scenes.Effects(aperture=False, cos4=False, occlusion=False))
-
-
 # ---- accumulation -------------------------------------------------------------------
 
-def test_1e8_rays_into_one_pixel_lose_no_counts():
+def test_1e8_rays_into_one_pixel_lose_no_counts(uniform_scene):
     # a float32 running sum of 0.5s stalls at 2**24 (and would read ~0.08 here); the
     # kernel sums each pixel's rays in float64, exact for integers up to 2**53
     cam = PlenopticCamera(n_rows=1, n_cols=1, pixels_per_lenslet=1)
-    raw = simulate.render(cam, _uniform(cam, 0.5), rays_per_pixel=100_000_000)
+    raw = simulate.render(cam, uniform_scene(cam, 0.5), rays_per_pixel=100_000_000)
     assert raw.shape == (1, 1) and raw[0, 0] == 0.5
 
 
-def test_full_sensor_at_high_ray_count_is_exact():
+def test_full_sensor_at_high_ray_count_is_exact(uniform_scene):
     cam = PlenopticCamera(n_rows=20, n_cols=10)  # 45,000 pixels x 1,024 rays = 46 M rays
-    raw = simulate.render(cam, _uniform(cam, 0.75), rays_per_pixel=1024)
+    raw = simulate.render(cam, uniform_scene(cam, 0.75), rays_per_pixel=1024)
     assert np.all(raw == 0.75)
 
 

@@ -14,12 +14,6 @@ def _render(cam, scene, rpp=16, seed=0, **effects):
     return simulate.render(cam, scene, rpp, seed)
 
 
-def _uniform_scene(cam, level=0.5):
-    h, w = cam.field_of_view_mm(0.0)
-    layer = scenes.Layer(np.full((4, 4), level, np.float32), None, 0.0, (0.0, 0.0), (10 * h, 10 * w))
-    return scenes.Scene("uniform", (layer,), scenes.Effects(aperture=False, cos4=False, occlusion=False))
-
-
 def test_in_focus_point_lights_exactly_one_lenslet(small_camera):
     cam, n = small_camera, small_camera.pixels_per_lenslet
     raw = _render(cam, scenes.point_scene(cam, 0.0))
@@ -54,14 +48,14 @@ def test_parallax_across_views_matches_analytic_slope(small_camera, dz):
     assert abs(slope - cam.slope_for_depth(dz)) < 0.02, (slope, cam.slope_for_depth(dz))
 
 
-def test_uniform_plane_flux_is_exact_without_aperture(small_camera):
-    raw = _render(small_camera, _uniform_scene(small_camera, 0.5), rpp=4)
+def test_uniform_plane_flux_is_exact_without_aperture(small_camera, uniform_scene):
+    raw = _render(small_camera, uniform_scene(small_camera, 0.5), rpp=4)
     assert np.allclose(raw, 0.5, atol=1e-6)
 
 
-def test_uniform_plane_flux_with_aperture(small_camera):
+def test_uniform_plane_flux_with_aperture(small_camera, uniform_scene):
     cam = small_camera
-    raw = _render(cam, _uniform_scene(cam, 1.0), rpp=16, aperture=True)
+    raw = _render(cam, uniform_scene(cam, 1.0), rpp=16, aperture=True)
     # the aperture's image through each lenslet is a disc of diameter D g / d inside a
     # block of side N * pixel pitch: the expected mean signal is their area ratio
     disc = cam.aperture_diameter_mm * cam.sensor_distance_mm / cam.mla_distance_mm
@@ -69,9 +63,9 @@ def test_uniform_plane_flux_with_aperture(small_camera):
     assert abs(raw.mean() / expected - 1) < 0.01
 
 
-def test_cos4_falloff_profile(small_camera):
+def test_cos4_falloff_profile(small_camera, uniform_scene):
     cam, n = small_camera, small_camera.pixels_per_lenslet
-    raw = _render(cam, _uniform_scene(cam, 1.0), rpp=16, cos4=True)
+    raw = _render(cam, uniform_scene(cam, 1.0), rpp=16, cos4=True)
     block = raw[20 * n:21 * n, 20 * n:21 * n]  # the central lenslet
     delta = (np.arange(n) - (n - 1) / 2) * cam.pixel_pitch_mm
     tan2 = (delta[:, None] ** 2 + delta[None, :] ** 2) / cam.sensor_distance_mm ** 2
@@ -105,9 +99,9 @@ def test_same_seed_bit_identical_across_thread_counts(small_camera):
     assert not np.array_equal(a, simulate.render(cam, sc, 4, seed=12))
 
 
-def test_sensor_noise_and_bit_depth(small_camera):
+def test_sensor_noise_and_bit_depth(small_camera, uniform_scene):
     cam = small_camera
-    sc = _uniform_scene(cam, 0.5)
+    sc = uniform_scene(cam, 0.5)
     noisy = _render(cam, sc, rpp=1, full_well_e=1000.0, read_noise_e=2.0, bit_depth=8)
     assert np.isclose(noisy.mean(), 0.5, atol=0.01)
     assert np.isclose(noisy.std(), np.sqrt(0.5 * 1000 + 4) / 1000, rtol=0.1)  # shot + read noise
