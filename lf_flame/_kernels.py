@@ -324,6 +324,30 @@ def _cover(mask, lo, hi, n):
 
 
 @njit(inline="always", cache=True)
+def _add_shifted_cols(acc, ra, y, y0, col, k, f, lo, hi, r0, r1, C):
+    """Rows r0 .. r1 of the plane's sum ``acc`` (row ra first) += the view-column sum
+    (row r at ``y[y0 + r * C]``) shifted by k + f columns, in one flat loop; a column c
+    whose sample runs off the view (c outside [lo, hi)) is selected out; ``col[p]`` is
+    p % C (at least n of them). ``y`` has a margin of at least C + 1 on each side, so
+    the flat reads never leave it."""
+    n = (r1 - r0) * C
+    p0 = y0 + r0 * C + k
+    a = y[p0:p0 + n]
+    b = y[p0 + 1:p0 + 1 + n]
+    cc = col[:n]  # every row starts at a multiple of C
+    dst = acc[(r0 - ra) * C:(r0 - ra) * C + n]
+    lo32 = np.int32(lo)  # int32 like ``col``: the compare vectorises with the float32 lanes
+    hi32 = np.int32(hi)
+    if f > 0.0:
+        g = np.float32(1.0) - f
+        for p in range(n):
+            dst[p] += g * a[p] + f * b[p] if (cc[p] >= lo32) & (cc[p] < hi32) else np.float32(0.0)
+    else:
+        for p in range(n):
+            dst[p] += a[p] if (cc[p] >= lo32) & (cc[p] < hi32) else np.float32(0.0)
+
+
+@njit(inline="always", cache=True)
 def _add_shifted_rows(ys, sa, views, u, v, k, f, r0, r1, C):
     """Rows r0 .. r1 of the sum ``ys`` (row sa first) += view (u, v) shifted by k + f rows."""
     if r0 >= r1:
@@ -360,20 +384,20 @@ def shift_sum_stack(views, n_rows, shifts_r, shifts_c, mask, out, rows_per_task)
     shift only on v. So for each view column v, the U views are shifted along rows and
     summed first: a shift by whole rows is a shift of the flattened view, one long loop
     per view (two views per loop where their rows agree, to halve the read-modify-write
-    of the sum). That sum is then shifted along columns and added to the plane, again
-    as one flat loop over the sub-block's rows: a sample whose column runs off the view
-    is selected out (its column is outside ``[lo, hi)``). Sums are
-    float32 but two-level, like a pairwise sum: no float32 sum has more than U (then V)
-    terms, so a 15 x 15 light field loses no light (relative error < (U + V) 2^-24).
+    of the sum). That sum is then shifted along columns and added to the plane, again as
+    one flat loop over a block of rows (:func:`_add_shifted_cols`). Sums are float32 but
+    two-level, like a pairwise sum: no float32 sum has more than U (then V) terms, so a
+    15 x 15 light field loses no light (relative error < (U + V) 2^-24).
 
     Tasks are blocks of ``rows_per_task`` output rows (the result does not depend on
     it); a task goes through view column v for all planes while that column's rows are
     in L2 cache, ``_SUB_ROWS`` rows at a time so that the sums stay in L1.
     """
     R = n_rows
+    C = views.shape[2] // R
     kr, fr, rlo, rhi = _shift_taps(shifts_r, R)
-    kc, fc, clo, chi = _shift_taps(shifts_c, views.shape[2] // R)
-    cover = _cover(mask, clo, chi, views.shape[2] // R)
+    kc, fc, clo, chi = _shift_taps(shifts_c, C)
+    cover = _cover(mask, clo, chi, C)
     n_tasks = (R + rows_per_task - 1) // rows_per_task
     for task in prange(n_tasks):
         ra = task * rows_per_task
@@ -396,9 +420,7 @@ def _stack_rows(views, mask, kr, fr, rlo, rhi, kc, fc, clo, chi, cover, ra, nb, 
         for sa in range(ra, ra + nb, _SUB_ROWS):
             sb = min(ra + nb, sa + _SUB_ROWS)
             for s in range(S):
-                lo = np.int32(clo[s, v])
-                hi = np.int32(chi[s, v])
-                if lo >= hi:
+                if clo[s, v] >= chi[s, v]:
                     continue
                 ys = y[s, m:m + _SUB_ROWS * C]
                 ys[:(sb - sa) * C] = 0.0
@@ -436,25 +458,9 @@ def _stack_rows(views, mask, kr, fr, rlo, rhi, kc, fc, clo, chi, cover, ra, nb, 
                             _add_shifted_rows(ys, sa, views, u, v, kr[s, u], fr[s, u], u0, u1, C)
                         if use_w:
                             _add_shifted_rows(ys, sa, views, w, v, kr[s, w], fr[s, w], w0, w1, C)
-                if r_any0 >= r_any1:
-                    continue
-                k = kc[s, v]
-                g = fc[s, v]
-                g0 = np.float32(1.0) - g
-                # one flat loop over the sub-block's rows; columns whose sample falls
-                # outside the view (c < lo or c >= hi) are selected out
-                p0 = (r_any0 - sa) * C
-                n = (r_any1 - r_any0) * C
-                a = y[s, m + p0 + k:m + p0 + k + n]
-                b = y[s, m + p0 + k + 1:m + p0 + k + 1 + n]
-                cc = col[p0:p0 + n]
-                dst = acc[s, (r_any0 - ra) * C:(r_any0 - ra) * C + n]
-                if g > 0.0:
-                    for p in range(n):
-                        dst[p] += g0 * a[p] + g * b[p] if (cc[p] >= lo) & (cc[p] < hi) else np.float32(0.0)
-                else:
-                    for p in range(n):
-                        dst[p] += a[p] if (cc[p] >= lo) & (cc[p] < hi) else np.float32(0.0)
+                if r_any0 < r_any1:
+                    _add_shifted_cols(acc[s], ra, y[s], m - sa * C, col, kc[s, v], fc[s, v], clo[s, v], chi[s, v],
+                                      r_any0, r_any1, C)
     # normalise by the number of views that reach each pixel; the count of a row only
     # changes at a row where some view row u starts or stops reaching the image
     cnt = np.zeros(C, np.float32)
