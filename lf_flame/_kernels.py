@@ -392,6 +392,9 @@ def shift_sum_stack(views, n_rows, shifts_r, shifts_c, mask, out, rows_per_task)
     Tasks are blocks of ``rows_per_task`` output rows (the result does not depend on
     it); a task goes through view column v for all planes while that column's rows are
     in L2 cache, ``_SUB_ROWS`` rows at a time so that the sums stay in L1.
+
+    Returns True if every output pixel is finite (each task checks its own rows while
+    they are in its cache: cheaper than a second pass over ``out`` afterwards).
     """
     R = n_rows
     C = views.shape[2] // R
@@ -399,15 +402,21 @@ def shift_sum_stack(views, n_rows, shifts_r, shifts_c, mask, out, rows_per_task)
     kc, fc, clo, chi = _shift_taps(shifts_c, C)
     cover = _cover(mask, clo, chi, C)
     n_tasks = (R + rows_per_task - 1) // rows_per_task
+    finite = np.empty(n_tasks, np.bool_)
     for task in prange(n_tasks):
         ra = task * rows_per_task
-        _stack_rows(views, mask, kr, fr, rlo, rhi, kc, fc, clo, chi, cover, ra, min(R, ra + rows_per_task) - ra, out)
+        finite[task] = _stack_rows(views, mask, kr, fr, rlo, rhi, kc, fc, clo, chi, cover, ra,
+                                   min(R, ra + rows_per_task) - ra, out)
+    all_finite = True
+    for task in range(n_tasks):
+        all_finite = all_finite and finite[task]
+    return all_finite
 
 
 @njit(cache=True, fastmath={'contract'})
 def _stack_rows(views, mask, kr, fr, rlo, rhi, kc, fc, clo, chi, cover, ra, nb, out):
     """Rows ``ra .. ra + nb`` of every plane of :func:`shift_sum_stack` (one task; serial,
-    see :func:`_cover`)."""
+    see :func:`_cover`); returns True if they are all finite."""
     U, V, RC = views.shape
     S, R, C = out.shape
     acc = np.zeros((S, nb * C), np.float32)
@@ -464,6 +473,7 @@ def _stack_rows(views, mask, kr, fr, rlo, rhi, kc, fc, clo, chi, cover, ra, nb, 
     # normalise by the number of views that reach each pixel; the count of a row only
     # changes at a row where some view row u starts or stops reaching the image
     cnt = np.zeros(C, np.float32)
+    zero = np.zeros(C, np.float32)  # x * 0 is 0 for finite x, NaN for NaN or inf (no fastmath flag folds it)
     for s in range(S):
         for r in range(ra, ra + nb):
             changed = r == ra
@@ -480,6 +490,8 @@ def _stack_rows(views, mask, kr, fr, rlo, rhi, kc, fc, clo, chi, cover, ra, nb, 
             a = acc[s, (r - ra) * C:(r - ra + 1) * C]
             for c in range(C):
                 o[c] = a[c] / cnt[c] if cnt[c] > 0.0 else 0.0
+                zero[c] += o[c] * np.float32(0.0)  # per column: vectorises, unlike one running sum
+    return np.all(zero == 0.0)
 
 
 @njit(parallel=True, cache=True)

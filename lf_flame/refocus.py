@@ -148,8 +148,7 @@ def focal_stack(views: np.ndarray, slopes, mask: np.ndarray | None = None, *, in
         shifts = np.floor(shifts + 0.5)
     out = np.empty((len(slopes), R, C), np.float32)
     rows_per_task = -(-R // numba.get_num_threads())
-    _kernels.shift_sum_stack(views.reshape(n, n, R * C), R, shifts, shifts, mask, out, rows_per_task)
-    if not np.all(np.isfinite(out)):
+    if not _kernels.shift_sum_stack(views.reshape(n, n, R * C), R, shifts, shifts, mask, out, rows_per_task):
         raise ValueError("views contain NaN or inf")
     return out
 

@@ -154,6 +154,15 @@ def test_nan_rejected(views):
         focal_stack(views, [0.0])
 
 
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+@pytest.mark.parametrize("interpolation", ["bilinear", "nearest"])
+def test_non_finite_caught_by_kernel_without_input_check(views, bad, interpolation):
+    """With check_finite=False the kernel's own check of its output still refuses NaN/inf."""
+    views[3, 4, 10, 7] = bad
+    with pytest.raises(ValueError, match="NaN or inf"):
+        focal_stack(views, [-1.25, 0.0, 1.15], interpolation=interpolation, check_finite=False)
+
+
 @pytest.mark.parametrize("method", ["shift-sum", "fourier"])
 def test_refocused_point_concentrates_at_its_slope(small_camera, method):
     cam = small_camera
