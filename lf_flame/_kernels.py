@@ -271,6 +271,35 @@ def render_backward(ky, kx, n_pix, radiance, alpha, layer_box, occlusion, apertu
                 out[i, j] = acc[j] * scale
 
 
+@njit(parallel=True, cache=True)
+def max_exponent(bits, exponent_mask):
+    """Largest ``bits & exponent_mask`` over a flat array of IEEE floats viewed as
+    unsigned integers (uint32 for float32, uint64 for float64): it equals
+    ``exponent_mask`` exactly when some element is NaN or inf. One parallel read that
+    allocates nothing (``np.isfinite(a).all()`` also writes a boolean array)."""
+    chunk = 1 << 16
+    n_chunks = (bits.size + chunk - 1) // chunk
+    best = np.zeros(n_chunks, bits.dtype)
+    for i in prange(n_chunks):
+        best[i] = _max_masked(bits[i * chunk:min(bits.size, (i + 1) * chunk)], exponent_mask)
+    return _max_masked(best, exponent_mask)
+
+
+@njit(cache=True)
+def _max_masked(bits, exponent_mask):
+    """Serial part of :func:`max_exponent`: 64 running maxima, one per lane, so that
+    the loop vectorises (a single running maximum is a chain)."""
+    n = bits.size // 64 * 64
+    lanes = np.zeros(64, bits.dtype)
+    for i in range(0, n, 64):
+        for j in range(64):
+            lanes[j] = max(lanes[j], bits[i + j] & exponent_mask)
+    m = lanes.max()
+    for i in range(n, bits.size):
+        m = max(m, bits[i] & exponent_mask)
+    return m
+
+
 @njit(cache=True)
 def _shift_taps(shifts, n):
     """Split shifts (S, K) into integer part, fraction and the output range they cover.

@@ -20,8 +20,19 @@ from skimage import filters
 from . import _kernels
 
 
+_EXPONENT_BITS = {np.dtype(np.float32): (np.uint32, 0x7F800000), np.dtype(np.float64): (np.uint64, 0x7FF0000000000000)}
+
+
 def _check_finite(name, a):
-    if not np.all(np.isfinite(a)):
+    """Raise ValueError if the array ``a`` holds NaN or inf (float32/float64: one parallel read)."""
+    a = np.asarray(a)
+    if a.dtype in _EXPONENT_BITS:
+        utype, exponent = _EXPONENT_BITS[a.dtype]
+        bits = np.ascontiguousarray(a).reshape(-1).view(utype)
+        finite = _kernels.max_exponent(bits, utype(exponent)) != exponent
+    else:
+        finite = not np.issubdtype(a.dtype, np.inexact) or bool(np.all(np.isfinite(a)))
+    if not finite:
         raise ValueError(f"{name} contains NaN or inf")
 
 

@@ -154,6 +154,27 @@ def test_nan_rejected(views):
         focal_stack(views, [0.0])
 
 
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_finite_check_finds_nan_and_inf_anywhere(dtype):
+    """The bit-level check (lanes of 64, a tail, chunks of 2^16) misses no position."""
+    from lf_flame.refocus import _check_finite
+    small = np.linspace(-3e38 if dtype == np.float32 else -1e308, 1e30, 203).astype(dtype)
+    _check_finite("x", small)  # large but finite values pass
+    for i in range(small.size):
+        for bad in (np.nan, np.inf, -np.inf):
+            a = small.copy()
+            a[i] = bad
+            with pytest.raises(ValueError, match="x contains NaN or inf"):
+                _check_finite("x", a)
+    big = np.ones(3 * 2 ** 16 + 5, dtype)
+    _check_finite("x", big)
+    for i in (0, 2 ** 16 - 1, 2 ** 16, 2 * 2 ** 16 + 7, big.size - 1):
+        a = big.copy()
+        a[i] = np.nan
+        with pytest.raises(ValueError, match="NaN or inf"):
+            _check_finite("x", a.reshape(-1, 1)[::1])
+
+
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
 @pytest.mark.parametrize("interpolation", ["bilinear", "nearest"])
 def test_non_finite_caught_by_kernel_without_input_check(views, bad, interpolation):
