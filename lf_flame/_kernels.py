@@ -502,7 +502,7 @@ def _stack_rows(views, mask, kr, fr, rlo, rhi, kc, fc, clo, chi, cover, ra, nb, 
     # normalise by the number of views that reach each pixel; the count of a row only
     # changes at a row where some view row u starts or stops reaching the image
     cnt = np.zeros(C, np.float32)
-    zero = np.zeros(C, np.float32)  # x * 0 is 0 for finite x, NaN for NaN or inf (no fastmath flag folds it)
+    probe = np.zeros(C, np.float32)  # x * 0 is 0 for finite x, NaN for NaN or inf (no fastmath flag folds it)
     for s in range(S):
         for r in range(ra, ra + nb):
             changed = r == ra
@@ -519,8 +519,8 @@ def _stack_rows(views, mask, kr, fr, rlo, rhi, kc, fc, clo, chi, cover, ra, nb, 
             a = acc[s, (r - ra) * C:(r - ra + 1) * C]
             for c in range(C):
                 o[c] = a[c] / cnt[c] if cnt[c] > 0.0 else 0.0
-                zero[c] += o[c] * np.float32(0.0)  # per column: vectorises, unlike one running sum
-    return np.all(zero == 0.0)
+                probe[c] += o[c] * np.float32(0.0)  # per column: vectorises, unlike one running sum
+    return np.all(probe == 0.0)
 
 
 @njit(parallel=True, cache=True)

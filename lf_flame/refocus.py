@@ -24,9 +24,10 @@ _EXPONENT_BITS = {np.dtype(np.float32): (np.uint32, 0x7F800000), np.dtype(np.flo
 
 
 def _check_finite(name, a):
-    """Raise ValueError if the array ``a`` holds NaN or inf (float32/float64: one parallel read)."""
+    """Raise ValueError if the array ``a`` holds NaN or inf (large float32/float64 arrays:
+    one parallel read; below 2^16 elements NumPy, as a parallel launch costs more)."""
     a = np.asarray(a)
-    if a.dtype in _EXPONENT_BITS:
+    if a.dtype in _EXPONENT_BITS and a.size >= 1 << 16:
         utype, exponent = _EXPONENT_BITS[a.dtype]
         bits = np.ascontiguousarray(a).reshape(-1).view(utype)
         finite = _kernels.max_exponent(bits, utype(exponent)) != exponent
