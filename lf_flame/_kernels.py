@@ -275,8 +275,8 @@ def render_backward(ky, kx, n_pix, radiance, alpha, layer_box, occlusion, apertu
 def max_exponent(bits, exponent_mask):
     """Largest ``bits & exponent_mask`` over a flat array of IEEE floats viewed as
     unsigned integers (uint32 for float32, uint64 for float64): it equals
-    ``exponent_mask`` exactly when some element is NaN or inf. One parallel read that
-    allocates nothing (``np.isfinite(a).all()`` also writes a boolean array)."""
+    ``exponent_mask`` exactly when some element is NaN or inf. One parallel read with no
+    array the size of the input (``np.isfinite(a).all()`` also writes a boolean one)."""
     chunk = 1 << 16
     n_chunks = (bits.size + chunk - 1) // chunk
     best = np.zeros(n_chunks, bits.dtype)

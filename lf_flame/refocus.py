@@ -32,7 +32,7 @@ def _check_finite(name, a):
         bits = np.ascontiguousarray(a).reshape(-1).view(utype)
         finite = _kernels.max_exponent(bits, utype(exponent)) != exponent
     else:
-        finite = not np.issubdtype(a.dtype, np.inexact) or bool(np.all(np.isfinite(a)))
+        finite = bool(np.all(np.isfinite(a)))
     if not finite:
         raise ValueError(f"{name} contains NaN or inf")
 

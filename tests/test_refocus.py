@@ -4,8 +4,9 @@ import pytest
 from lf_flame import scenes, simulate
 from lf_flame.camera import PAPER_CAMERA
 from lf_flame import _kernels
-from lf_flame.refocus import (FourierSlice, aperture_mask, find_sharpest_slope, focal_stack, normalized_variance,
-                              raw_to_views, refocus, tenengrad, variance_of_laplacian, views_to_raw)
+from lf_flame.refocus import (_EXPONENT_BITS, FourierSlice, _check_finite, aperture_mask, find_sharpest_slope,
+                              focal_stack, normalized_variance, raw_to_views, refocus, tenengrad,
+                              variance_of_laplacian, views_to_raw)
 
 
 @pytest.fixture
@@ -157,7 +158,6 @@ def test_nan_rejected(views):
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
 def test_finite_check_finds_nan_and_inf_anywhere(dtype):
     """The bit-level check (lanes of 64, a tail, chunks of 2^16) misses no position."""
-    from lf_flame.refocus import _EXPONENT_BITS, _check_finite
     utype, exponent = _EXPONENT_BITS[np.dtype(dtype)]
     small = np.linspace(-3e38 if dtype == np.float32 else -1e308, 1e30, 203).astype(dtype)
     assert _kernels.max_exponent(small.view(utype), utype(exponent)) != exponent  # large but finite
