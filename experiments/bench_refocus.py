@@ -8,6 +8,9 @@ Every row is measured in this one run: median, 10th and 90th percentile of ``rep
 calls after a warm-up call.
 
 - ``lf-read``: one parallel read of the light field (a Numba sum), the memory floor;
+- ``inner-loop floor``: the focal-stack kernel's inner loop (two views' bilinear samples
+  added to a sum) run on data that stay in L1 cache, as many times as the 4-plane stack
+  needs it: the time its arithmetic takes with no memory traffic, the compute floor;
 - ``shift-sum bilinear`` / ``shift-sum nearest``: :func:`lf_flame.refocus.focal_stack`
   (views already checked, ``check_finite=False``; the check that ``check_finite=True``
   adds is its own row);
@@ -52,6 +55,28 @@ def _read_all(a):
     for i in prange(a.size):
         s += a[i]
     return s
+
+
+@njit(parallel=True, fastmath={'contract'})  # no cache: see _read_all
+def _inner_loop_floor(n_threads, n_pass, n, n_cols):
+    """Run the row pass's inner loop of :func:`lf_flame._kernels.shift_sum_stack` (its
+    two-view form, ``t += (g1 a1 + f1 c1) + (g2 a2 + f2 c2)`` with ``c`` one row of
+    ``n_cols`` below ``a``) ``n_pass`` times over ``n`` samples in each of ``n_threads``
+    threads, on per-thread arrays small enough to stay in L1 cache. Returns a checksum."""
+    out = np.zeros(n_threads, np.float32)
+    g1, f1, g2, f2 = np.float32(0.7), np.float32(0.3), np.float32(0.4), np.float32(0.6)
+    for i in prange(n_threads):
+        src = np.ones((2, n + n_cols + 8), np.float32)  # allocated here: aligned as the kernel's, no false sharing
+        t = np.zeros(n, np.float32)
+        a1 = src[0, 3:3 + n]  # sources not 32-byte aligned, as the kernel's mostly are not
+        c1 = src[0, 3 + n_cols:3 + n_cols + n]
+        a2 = src[1, 5:5 + n]
+        c2 = src[1, 5 + n_cols:5 + n_cols + n]
+        for _ in range(n_pass):
+            for p in range(n):
+                t[p] += (g1 * a1[p] + f1 * c1[p]) + (g2 * a2[p] + f2 * c2[p])
+        out[i] = t.sum()  # every sum is used: no store can be dropped
+    return out
 
 
 def _times(fn, repeats):
@@ -124,6 +149,11 @@ def run(quick: bool, plenopticam_dir) -> pd.DataFrame:
     flat = views.reshape(-1)
     add("lf-read", "one read of the light field", 0, _times(lambda: _read_all(flat), repeats),
         f"{views.nbytes / 1e6:.1f} MB")
+    threads, block = numba.get_num_threads(), 16 * C  # blocks of 16 rows, as the kernel's _SUB_ROWS
+    n_pass = -(-len(PAPER_SLOPES) * views.size // (threads * 2 * block))  # each view sample once per plane, 2 views a pass
+    add("inner-loop floor", "4-plane stack's row-pass arithmetic, data in L1", 4,
+        _times(lambda: _inner_loop_floor(threads, n_pass, block, C), repeats),
+        f"{n_pass * threads * 2 * block} view samples")
     add("shift-sum", "check_finite (NaN/inf scan)", 0, _times(lambda: _check_finite("views", views), repeats))
     for interp in ("bilinear", "nearest"):
         add(f"shift-sum {interp}", "4-plane stack", 4,

@@ -244,7 +244,9 @@ def test_bench_refocus_quick(tmp_path):
     spec.loader.exec_module(bench)
     bench.main(["--quick", "--out", str(tmp_path)])
     df = pd.read_csv(tmp_path / "bench_refocus.csv")
-    assert {"shift-sum bilinear", "shift-sum nearest", "fourier", "lf-read"} <= set(df.method)
+    assert {"shift-sum bilinear", "shift-sum nearest", "fourier", "lf-read", "inner-loop floor"} <= set(df.method)
+    floor = df[df.method == "inner-loop floor"].iloc[0]  # covers every view sample once per plane
+    assert int(floor.note.split()[0]) >= 4 * 15 * 15 * 45 * 40 and floor.ms_median > 0
     agree = df[df.method == "agreement"].set_index("what")
     assert agree.loc["fourier vs shift-sum bilinear, integer slopes", "rmse_interior"] < 1e-3
     slopes = pd.read_csv(tmp_path / "slopes_depths.csv")
