@@ -39,7 +39,7 @@ import numpy as np
 import pandas as pd
 from numba import njit, prange
 
-from lf_flame import scenes, simulate
+from lf_flame import _kernels, scenes, simulate
 from lf_flame.camera import PAPER_CAMERA, PlenopticCamera
 from lf_flame.config import atomic_write_text, provenance
 from lf_flame.refocus import FourierSlice, _check_finite, aperture_mask, focal_stack, raw_to_views
@@ -149,7 +149,7 @@ def run(quick: bool, plenopticam_dir) -> pd.DataFrame:
     flat = views.reshape(-1)
     add("lf-read", "one read of the light field", 0, _times(lambda: _read_all(flat), repeats),
         f"{views.nbytes / 1e6:.1f} MB")
-    threads, block = numba.get_num_threads(), 16 * C  # blocks of 16 rows, as the kernel's _SUB_ROWS
+    threads, block = numba.get_num_threads(), _kernels._SUB_ROWS * C  # the kernel's blocks of rows
     n_pass = -(-len(PAPER_SLOPES) * views.size // (threads * 2 * block))  # each view sample once per plane, 2 views a pass
     add("inner-loop floor", "4-plane stack's row-pass arithmetic, data in L1", 4,
         _times(lambda: _inner_loop_floor(threads, n_pass, block, C), repeats),
