@@ -150,10 +150,10 @@ def run(quick: bool, plenopticam_dir) -> pd.DataFrame:
     add("lf-read", "one read of the light field", 0, _times(lambda: _read_all(flat), repeats),
         f"{views.nbytes / 1e6:.1f} MB")
     threads, block = numba.get_num_threads(), _kernels._SUB_ROWS * C  # the kernel's blocks of rows
-    n_pass = -(-len(PAPER_SLOPES) * views.size // (threads * 2 * block))  # each view sample once per plane, 2 views a pass
+    per_pass = threads * 2 * block  # view samples of one pass: 2 views per thread
+    n_pass = -(-len(PAPER_SLOPES) * views.size // per_pass)  # each view sample once per plane
     add("inner-loop floor", "4-plane stack's row-pass arithmetic, data in L1", 4,
-        _times(lambda: _inner_loop_floor(threads, n_pass, block, C), repeats),
-        f"{n_pass * threads * 2 * block} view samples")
+        _times(lambda: _inner_loop_floor(threads, n_pass, block, C), repeats), f"{n_pass * per_pass} view samples")
     add("shift-sum", "check_finite (NaN/inf scan)", 0, _times(lambda: _check_finite("views", views), repeats))
     for interp in ("bilinear", "nearest"):
         add(f"shift-sum {interp}", "4-plane stack", 4,

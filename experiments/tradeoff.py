@@ -221,25 +221,20 @@ def plot(df: pd.DataFrame, out: Path) -> None:
         ax[0].loglog(g.latency_ms_median, g.image_rmse, "o-", label=scene)
         for r in g.itertuples():
             ax[0].annotate(f"{r.rays_per_pixel:.0f}", (r.latency_ms_median, r.image_rmse), fontsize=7)
-    ax[0].set_xlabel("render time (ms)")
-    ax[0].set_ylabel("image RMSE vs high-sample render")
-    ax[0].set_title("simulator: rays per pixel")
+    ax[0].set(xlabel="render time (ms)", ylabel="image RMSE vs high-sample render", title="simulator: rays per pixel")
     ax[0].legend(fontsize=8)
     ss = df[df.section == "slope search"]
     ax[1].loglog(ss.latency_ms_median, ss.slope_error_max, "o-", label="largest error")
     ax[1].loglog(ss.latency_ms_median, ss.slope_error_mean, "s--", label="mean error")
     for r in ss.itertuples():
         ax[1].annotate(f"{r.coarse_step:g}/{r.fine_step:g}", (r.latency_ms_median, r.slope_error_max), fontsize=7)
-    ax[1].set_xlabel("time per object (ms)")
-    ax[1].set_ylabel("slope error (lenslets per view)")
-    ax[1].set_title("slope search: coarse/fine grid step")
+    ax[1].set(xlabel="time per object (ms)", ylabel="slope error (lenslets per view)",
+              title="slope search: coarse/fine grid step")
     ax[1].legend(fontsize=8)
     tr = df[df.section == "training"]
     for route, g in tr.groupby("route"):
         ax[2].plot(g.train_wall_s / 60, g.val_ssim, ".-", label=route)
-    ax[2].set_xlabel("training wall time (min)")
-    ax[2].set_ylabel("validation SSIM (vs dataset GT)")
-    ax[2].set_title("training")
+    ax[2].set(xlabel="training wall time (min)", ylabel="validation SSIM (vs dataset GT)", title="training")
     ax[2].legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(out / "tradeoff_knobs.png", dpi=100)
