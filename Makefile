@@ -1,6 +1,7 @@
 # lf_flame: `make tables` reproduces the paper's Tables I and II; `make test` runs the tests.
 # PRESET=paper (default) or PRESET=quick (same code, tiny sizes, minutes).
 PRESET ?= paper
+.SECONDEXPANSION:
 PYTHON ?= python3
 VENV := .venv
 STAMP := $(VENV)/.installed
@@ -10,6 +11,13 @@ MODELS := models/$(PRESET)
 RES := results/$(PRESET)
 DCFG := data_gen/$(PRESET).toml
 ECFG := experiments/$(PRESET).toml
+# Scene regimes (docs/scenes.md): 'paper' varies only what the paper states (Tables I and II
+# beside the paper), 'varied' also position, size, rotation, radiance and flicker.
+REGIMES := paper varied
+SCENES := shapes flame
+# fresh samples (never stored, never seen) scored beside the test split
+FRESH_paper := 20
+FRESH_quick := 2
 
 .PHONY: help install dataset bench-sim bench-refocus train-shapes train-flame tables tradeoff test clean-quick
 .DEFAULT_GOAL := help
@@ -30,15 +38,16 @@ install: $(STAMP) ## create .venv and install the package (once)
 $(DATA)/slopes.json: $(DCFG) | $(STAMP)
 	$(LF) slopes --data-config $(DCFG) --out $@ --results $(RES)
 
+# the stem is REGIME/SCENE: $(*D) is the regime, $(*F) the scene
 $(DATA)/%.h5: $(DATA)/slopes.json $(DCFG)
-	$(LF) dataset --data-config $(DCFG) --scene $* --slopes $< --out $@
+	$(LF) dataset --data-config $(DCFG) --regime $(*D) --scene $(*F) --slopes $< --out $@
 
 ifdef SHARD
-dataset: $(DATA)/slopes.json ## render both datasets (resumable; SHARD=i/N renders shard i of N)
-	$(LF) dataset --data-config $(DCFG) --scene shapes --slopes $< --out $(DATA)/shapes.h5 --shard $(SHARD)
-	$(LF) dataset --data-config $(DCFG) --scene flame --slopes $< --out $(DATA)/flame.h5 --shard $(SHARD)
+dataset: $(DATA)/slopes.json ## render the datasets of both regimes (resumable; SHARD=i/N renders shard i of N)
+	$(foreach r,$(REGIMES),$(foreach s,$(SCENES),$(LF) dataset --data-config $(DCFG) --regime $(r) --scene $(s) \
+		--slopes $< --out $(DATA)/$(r)/$(s).h5 --shard $(SHARD) &&)) true
 else
-dataset: $(DATA)/shapes.h5 $(DATA)/flame.h5 ## render both datasets (resumable; SHARD=i/N renders shard i of N)
+dataset: $(foreach r,$(REGIMES),$(foreach s,$(SCENES),$(DATA)/$(r)/$(s).h5)) ## render the datasets of both regimes (resumable; SHARD=i/N renders shard i of N)
 endif
 
 bench-sim: $(STAMP) ## simulator benchmark -> results/bench_sim.{csv,md,json}
@@ -62,19 +71,21 @@ $(MODELS)/%/train_info.json: $(DATA)/%.h5 $(ECFG)
 	mkdir -p $(@D)
 	$(TIMEV) $(LF) train --dataset $< --experiment-config $(ECFG) --out $(@D)
 
-train-shapes: $(MODELS)/shapes/train_info.json ## train the model on the shapes
-train-flame: $(MODELS)/flame/train_info.json ## train the model on the flames
+train-shapes: $(foreach r,$(REGIMES),$(MODELS)/$(r)/shapes/train_info.json) ## train the model (and its baselines) on the shapes
+train-flame: $(foreach r,$(REGIMES),$(MODELS)/$(r)/flame/train_info.json) ## train the model (and its baselines) on the flames
 
 # the paper preset's map is committed in results/, the quick one stays in results/quick
 TRADEOFF_OUT := $(if $(filter paper,$(PRESET)),results,$(RES))
-tradeoff: $(MODELS)/flame/train_info.json ## speed-accuracy map of every route and knob -> results/tradeoff.{csv,md,png}
-	$(VENV)/bin/python experiments/tradeoff.py --preset $(PRESET) --data-dir $(DATA) --model-dir $(MODELS) \
-		--out $(TRADEOFF_OUT)
+tradeoff: $(MODELS)/varied/flame/train_info.json ## speed-accuracy map of every route and knob -> results/tradeoff.{csv,md,png}
+	$(VENV)/bin/python experiments/tradeoff.py --preset $(PRESET) --data-dir $(DATA)/varied \
+		--model-dir $(MODELS)/varied --out $(TRADEOFF_OUT)
 
-$(RES)/table_%.md: $(MODELS)/%/train_info.json
-	$(LF) evaluate --dataset $(DATA)/$*.h5 --model-dir $(MODELS)/$* --results $(RES)
+# the stem is REGIME/table_SCENE
+$(RES)/%.md: $(MODELS)/$$(*D)/$$(subst table_,,$$(*F))/train_info.json
+	$(LF) evaluate --dataset $(DATA)/$(*D)/$(subst table_,,$(*F)).h5 --model-dir $(<D) --results $(RES)/$(*D) \
+		--fresh $(FRESH_$(PRESET))
 
-$(RES)/tables.md: $(RES)/table_shapes.md $(RES)/table_flame.md
+$(RES)/tables.md: $(foreach r,$(REGIMES),$(foreach s,$(SCENES),$(RES)/$(r)/table_$(s).md))
 	$(LF) tables --results $(RES) --data-dir $(DATA) --model-dir $(MODELS)
 
 tables: $(RES)/tables.md ## Tables I and II, slopes and figures in results/$(PRESET)

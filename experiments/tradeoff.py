@@ -49,7 +49,7 @@ from bench_refocus import _times  # noqa: E402
 
 from lf_flame import scenes, simulate  # noqa: E402
 from lf_flame.camera import PAPER_CAMERA  # noqa: E402
-from lf_flame.config import (DatasetConfig, atomic_write_text, load_experiment_config, load_toml,  # noqa: E402
+from lf_flame.config import (atomic_write_text, load_experiment_config, load_toml,  # noqa: E402
                              provenance)
 from lf_flame.dataset import GT_MASK, LightFieldDataset, SCENES, sample_rng  # noqa: E402
 from lf_flame.metrics import psnr_per_plane, ssim_per_plane  # noqa: E402
@@ -63,12 +63,11 @@ PLANES = [f"{d:+.0f}mm" for d in PAPER_DEPTHS_MM]
 def reference_stacks(ds: LightFieldDataset, indices, rays_per_pixel: int) -> np.ndarray:
     """Reference 4-plane stacks (k, 4, R, C): each sample's scene rendered noise-free at
     ``rays_per_pixel``, refocused bilinearly at the dataset's slopes (ground-truth views)."""
-    cfg = DatasetConfig(**{k: tuple(v) if isinstance(v, list) else v
-                           for k, v in json.loads(ds.attrs["dataset_config"]).items()})
+    cfg = ds.config
     cam, n = ds.camera, ds.camera.pixels_per_lenslet
     out = []
     for i in indices:
-        sc = SCENES[ds.scene](cam, sample_rng(cfg, ds.scene, int(i)))
+        sc = SCENES[ds.scene](cam, sample_rng(cfg, ds.scene, int(i)), regime=cfg.regime)
         sc = dataclasses.replace(sc, effects=dataclasses.replace(sc.effects, full_well_e=None, read_noise_e=None,
                                                                  bit_depth=None))
         raw = simulate.render(cam, sc, rays_per_pixel, seed=99)

@@ -155,6 +155,8 @@ def cmd_dataset(a):
     from .config import load_data_config
     from .dataset import generate
     cam, cfg = load_data_config(a.data_config)
+    if a.regime:
+        cfg = dataclasses.replace(cfg, regime=a.regime)
     slopes = json.loads(Path(a.slopes).read_text())["slopes"]
     shard = None
     if a.shard:
@@ -195,13 +197,26 @@ def cmd_predict(a):
     if not np.all(np.isfinite(raw)):
         raise ValueError(f"{a.raw} contains NaN or inf")
     x = raw.astype(np.float32)[None, ..., None]
-    model.predict_on_batch(x)  # warm-up: graph tracing
+    if a.route == "network":
+        def run(x):
+            return np.transpose(np.asarray(model.predict_on_batch(x))[0], (2, 0, 1))
+    else:
+        from .baselines import LinearDecoder, MeanImage
+        from .train import BASELINE_FILES
+        route = {"mean-image": "mean image", "linear-gap": "linear decoder (GAP-pooled)",
+                 "linear-unpooled": "linear decoder (un-pooled)"}[a.route]
+        base = (MeanImage if a.route == "mean-image" else LinearDecoder).load(Path(a.model_dir) / BASELINE_FILES[route])
+        fx = model.get_layer("feature_extractor")
+
+        def run(x):
+            return base.predict(np.asarray(fx.predict_on_batch(x)))[0]
+    run(x)  # warm-up: graph tracing
     times = []
     for _ in range(max(1, a.repeat)):
         t = time.perf_counter()
-        stack = np.transpose(np.asarray(model.predict_on_batch(x))[0], (2, 0, 1))
+        stack = run(x)
         times.append(time.perf_counter() - t)
-    print(f"predicted 4 planes {stack.shape[1:]} in {1e3 * np.median(times):.1f} ms per light field "
+    print(f"{a.route}: predicted 4 planes {stack.shape[1:]} in {1e3 * np.median(times):.1f} ms per light field "
           f"(median of {len(times)} after a warm-up; backbone input {info['model_config']['input_rows']}x"
           f"{info['model_config']['input_cols']}, weights {info['backbone_weights']}, "
           f"keras backend {__import__('keras').backend.backend()})")
@@ -210,30 +225,32 @@ def cmd_predict(a):
 
 def cmd_evaluate(a):
     from .evaluate import evaluate
-    table = evaluate(a.dataset, a.model_dir, a.results)
+    table = evaluate(a.dataset, a.model_dir, a.results, n_fresh=a.fresh)
     print(table.to_string(index=False))
 
 
 def cmd_tables(a):
     import h5py
     from .evaluate import read_gnu_time, write_tables
+    from .scenes import REGIMES
     times, targets = {}, {}
     sl = Path(a.data_dir) / "slopes.json"
     if sl.exists():
         times["slope search"] = json.loads(sl.read_text())["wall_time_s"]
-    for scene in ("shapes", "flame"):
-        d = Path(a.data_dir) / f"{scene}.h5"
-        if d.exists():
-            with h5py.File(d, "r") as f:
-                times[f"dataset {scene}"] = float(f.attrs.get("wall_time_s_last_run", float("nan")))
-        info = Path(a.model_dir) / scene / "train_info.json"
-        if info.exists():
-            i = json.loads(info.read_text())
-            times[f"backbone features {scene}"] = i["feature_wall_time_s"]
-            times[f"training {scene} ({i['epochs_run']} epochs)"] = i["training_wall_time_s"]
-        tv = Path(a.model_dir) / scene / "time_v.txt"
-        if tv.exists():
-            targets[f"train-{scene}"] = read_gnu_time(tv)
+    for regime in REGIMES:
+        for scene in ("shapes", "flame"):
+            d = Path(a.data_dir) / regime / f"{scene}.h5"
+            if d.exists():
+                with h5py.File(d, "r") as f:
+                    times[f"dataset {regime} {scene}"] = float(f.attrs.get("wall_time_s_last_run", float("nan")))
+            info = Path(a.model_dir) / regime / scene / "train_info.json"
+            if info.exists():
+                i = json.loads(info.read_text())
+                times[f"backbone features {regime} {scene}"] = i["feature_wall_time_s"]
+                times[f"training {regime} {scene} (start + {i['epochs_run']} epochs)"] = i["training_wall_time_s"]
+            tv = Path(a.model_dir) / regime / scene / "time_v.txt"
+            if tv.exists():
+                targets[f"train {regime} {scene}"] = read_gnu_time(tv)
     print(write_tables(a.results, times, targets))
 
 
@@ -287,6 +304,8 @@ def main(argv=None):
     s.add_argument("--data-config", required=True)
     s.add_argument("--scene", choices=["shapes", "flame"], required=True)
     s.add_argument("--slopes", required=True, help="JSON written by 'lf-flame slopes'")
+    s.add_argument("--regime", choices=["paper", "varied"],
+                   help="scene variation (docs/scenes.md) instead of the data config's")
     s.add_argument("--out", required=True)
     s.add_argument("--shard", help="i/N: render only shard i of N (1 <= i <= N) beside --out; an unsharded "
                                    "run imports finished shards and renders the rest")
@@ -307,12 +326,15 @@ def main(argv=None):
     s.add_argument("--model-dir", required=True, help="folder written by 'lf-flame train'")
     s.add_argument("--out", required=True, help=".npz (stack (4, R, C), latency_s) or .png (planes side by side)")
     s.add_argument("--repeat", type=int, default=5, help="timed calls after the warm-up")
+    s.add_argument("--route", choices=["network", "mean-image", "linear-gap", "linear-unpooled"], default="network",
+                   help="the trained network, or one of its yardsticks saved beside it")
     s.set_defaults(func=cmd_predict)
 
     s = sub.add_parser("evaluate", help="SSIM/PSNR per plane on the test split, table and figure")
     s.add_argument("--dataset", required=True)
     s.add_argument("--model-dir", required=True)
     s.add_argument("--results", required=True)
+    s.add_argument("--fresh", type=int, default=0, help="also score this many freshly drawn samples")
     s.set_defaults(func=cmd_evaluate)
 
     s = sub.add_parser("tables", help="collect Tables I and II, slopes and stage times into tables.md")

@@ -17,6 +17,7 @@ from importlib import metadata
 from pathlib import Path
 
 from .camera import PlenopticCamera
+from .scenes import REGIMES
 
 
 @dataclass(frozen=True)
@@ -35,6 +36,12 @@ class DatasetConfig:
         Base seed; sample ``i`` of scene ``s`` uses ``(seed, s, i)``.
     split : (float, float, float)
         Train/validation/test fractions (paper: 80/10/10).
+    regime : str
+        Scene regime, one of ``scenes.REGIMES`` (``docs/scenes.md``): ``"paper"`` varies
+        only what the paper states (flame heights; shapes with the same ~7 % relative
+        spread in size and position), ``"varied"`` also position, size, rotation,
+        radiance and flicker (the generalisation test). Default ``"varied"``, the scenes
+        of datasets written before regimes existed.
     """
 
     n_samples: dict
@@ -42,26 +49,32 @@ class DatasetConfig:
     calibration_rays_per_pixel: int = 64
     seed: int = 2025
     split: tuple = (0.8, 0.1, 0.1)
+    regime: str = "varied"
 
     def __post_init__(self):
         if any(int(v) < 3 for v in self.n_samples.values()):
             raise ValueError(f"each scene needs >= 3 samples for a 3-way split. Received: {self.n_samples}")
         if abs(sum(self.split) - 1) > 1e-9 or min(self.split) <= 0:
             raise ValueError(f"split fractions must be positive and sum to 1. Received: {self.split}")
+        if self.regime not in REGIMES:
+            raise ValueError(f"regime must be one of {REGIMES}. Received: regime={self.regime!r}")
 
 
 @dataclass(frozen=True)
 class ModelConfig:
-    """Model settings: backbone input size (rows, cols) and backbone weights.
+    """Model settings: backbone input size (rows, cols), backbone weights, dropout.
 
     ``weights``: 'imagenet', 'auto' (ImageNet if obtainable, else random init with a
-    warning), 'none', or a path to a ``.h5`` weights file.
+    warning), 'none', or a path to a ``.h5`` weights file. ``dropout_at``: where the
+    paper's Dropout(``dropout``) sits, 'gap' (the pooled vector) or 'pixels' (the map
+    before the sigmoid convolution); see :data:`lf_flame.model.DROPOUT_PLACES`.
     """
 
     input_rows: int = 448
     input_cols: int = 224
     weights: str = "auto"
     dropout: float = 0.3
+    dropout_at: str = "gap"
 
 
 @dataclass(frozen=True)
@@ -69,15 +82,25 @@ class TrainConfig:
     """Training settings (paper: batch 2, Adam 1e-4, MSE; 5,000 / 1,000 epochs).
 
     ``max_epochs`` and ``time_budget_s`` are per scene; training stops at whichever
-    comes first, or when the validation loss has not improved for ``patience`` epochs.
+    comes first, or when the validation SSIM has not improved for ``patience`` epochs.
+    ``recipe``: 'closed-form' (batch-norm statistics of the training split, frozen; the
+    Dense layer solved in closed form from the mean image; then the Dense and output
+    layers trained at the paper's settings: :func:`lf_flame.train.closed_form_start`) or
+    'paper' (every decoder layer trained from a random initialisation with batch
+    statistics from batches of 2, as the paper describes; it does not learn here).
     """
 
+    recipe: str = "closed-form"
     batch_size: int = 2
     learning_rate: float = 1e-4
     max_epochs: dict = dataclasses.field(default_factory=lambda: {"shapes": 5000, "flame": 1000})
     time_budget_s: dict = dataclasses.field(default_factory=lambda: {"shapes": 3000, "flame": 900})
     patience: int = 20
     seed: int = 7
+
+    def __post_init__(self):
+        if self.recipe not in ("closed-form", "paper"):
+            raise ValueError(f"recipe must be 'closed-form' or 'paper'. Received: recipe={self.recipe!r}")
 
 
 def _build(cls, d: dict, where: str):

@@ -51,7 +51,7 @@ def make_sample(camera: PlenopticCamera, cfg: DatasetConfig, scene: str, index: 
                 rays_per_pixel: int | None = None):
     """Render one sample: raw image as stored (uint16 counts, (R·N, C·N)), ground truth
     ((4, R, C) float32, refocused from exactly the stored counts), and the scene objects."""
-    sc = SCENES[scene](camera, sample_rng(cfg, scene, index))
+    sc = SCENES[scene](camera, sample_rng(cfg, scene, index), regime=cfg.regime)
     raw = render(camera, sc, rays_per_pixel or cfg.rays_per_pixel,
                  seed=(cfg.seed * 1_000_003 + SCENE_IDS[scene] * 100_003 + index) % 2**63)
     counts = np.round(raw * RAW_SCALE).astype(np.uint16)
@@ -262,6 +262,23 @@ class LightFieldDataset:
     def gt(self, index) -> np.ndarray:
         """Ground truth (4, R, C) or (k, 4, R, C), float32 in [0, 1]."""
         return self._file()["gt"][index]
+
+    @property
+    def config(self) -> DatasetConfig:
+        """The dataset settings it was rendered with (regime included)."""
+        d = json.loads(self.attrs["dataset_config"])
+        return DatasetConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+
+    def fresh_sample(self, j: int):
+        """Sample ``n + j``: drawn and rendered exactly as the dataset's own samples, but never
+        stored in it, so no model has seen it (the models' fresh-sample score).
+
+        Returns
+        -------
+        (raw (R·N, C·N) float32 in [0, 1], gt (4, R, C) float32)
+        """
+        counts, gt, _ = make_sample(self.camera, self.config, self.scene, self.n + int(j), self.slopes)
+        return counts.astype(np.float32) / RAW_SCALE, gt
 
     def params(self, index) -> list:
         return json.loads(self._file()["params"][index])

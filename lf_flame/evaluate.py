@@ -28,17 +28,70 @@ PAPER_SLOPES = dict(zip(SHAPE_AT_DEPTH, (2.10, 1.15, 0.00, -1.25)))
 TABLE_NAMES = {"shapes": "Table I (multi-shape)", "flame": "Table II (flame)"}
 
 
-def evaluate(dataset_path, model_dir, results_dir) -> pd.DataFrame:
-    """Score the trained decoder on the test split and write the table and figure.
+#: Routes scored beside each other, in table order; the network is the paper's model.
+ROUTES = ("network", "mean image", "linear decoder (GAP-pooled)", "linear decoder (un-pooled)")
+_SHORT = {"network": "network", "mean image": "mean image", "linear decoder (GAP-pooled)": "linear GAP",
+          "linear decoder (un-pooled)": "linear un-pooled"}
 
-    Writes ``metrics_<scene>.csv`` (per test sample and plane), ``table_<scene>.csv``
-    and ``.md`` (mean ± sd per plane beside the paper), ``fig_<scene>.png``.
+
+def score(gt: np.ndarray, pred: np.ndarray, **labels) -> list[dict]:
+    """SSIM and PSNR of every plane of every sample: the one scoring function of every route.
+
+    Parameters
+    ----------
+    gt, pred : ndarray of shape (n, 4, R, C), values in [0, 1]
+        Ground truth and prediction (clipped to [0, 1] here, as an image would be).
+    **labels
+        Columns added to every row (route, split, ...); ``sample`` may be a list of n ids.
 
     Returns
     -------
-    DataFrame of the table.
+    list of dict rows: labels, sample, depth_mm, ssim, psnr_db.
     """
-    from .train import load_decoder, predict_features
+    samples = labels.pop("sample", range(len(gt)))
+    rows = []
+    for i, g, p in zip(samples, gt, pred):
+        p = np.clip(p, 0.0, 1.0)
+        for k, (s, q) in enumerate(zip(ssim_per_plane(g, p), psnr_per_plane(g, p))):
+            rows.append(dict(labels, sample=int(i), depth_mm=PAPER_DEPTHS_MM[k], ssim=s, psnr_db=q))
+    return rows
+
+
+def route_predictions(model_dir, features: np.ndarray, decoder) -> dict:
+    """Each route's planes (n, 4, R, C) for backbone features (n, h, w, 2048)."""
+    from .baselines import LinearDecoder, MeanImage
+    from .train import BASELINE_FILES
+    model_dir = Path(model_dir)
+    x = np.asarray(features, np.float32)
+    out = {"network": np.transpose(np.asarray(decoder.predict_on_batch(x)), (0, 3, 1, 2))}
+    for route, name in BASELINE_FILES.items():
+        cls = MeanImage if route == "mean image" else LinearDecoder
+        out[route] = cls.load(model_dir / name).predict(x)
+    return out
+
+
+def evaluate(dataset_path, model_dir, results_dir, n_fresh: int = 0) -> pd.DataFrame:
+    """Score the network and its yardsticks per plane on the test split and on fresh samples.
+
+    Routes (:data:`ROUTES`): the trained network, the training split's mean image, and the
+    GAP-pooled and un-pooled linear decoders, all from the same frozen backbone features
+    and scored by :func:`score`. Fresh samples are ``n_fresh`` samples drawn and rendered
+    like the dataset's but never stored in it (:meth:`LightFieldDataset.fresh_sample`).
+
+    Writes ``metrics_<scene>.csv`` (per route, split, sample and plane), ``table_<scene>.csv``
+    and ``.md`` (mean ± sd per route and plane; the paper's values on the paper regime),
+    ``fig_<scene>.png``, ``learning_<scene>.{csv,png}`` and ``eval_<scene>.json``.
+
+    Returns
+    -------
+    DataFrame of the table (one row per split, route and depth).
+
+    Raises
+    ------
+    ValueError
+        The dataset was rendered with another camera than the model was trained on.
+    """
+    from .train import BASELINE_FILES, load_decoder, load_full_model
 
     ds = LightFieldDataset(dataset_path)
     model_dir, results_dir = Path(model_dir), Path(results_dir)
@@ -46,57 +99,93 @@ def evaluate(dataset_path, model_dir, results_dir) -> pd.DataFrame:
     if info["dataset_camera"] != ds.attrs["camera"]:
         raise ValueError(f"{dataset_path} was rendered with another camera than the model in {model_dir} "
                          "was trained on")
+    for name in BASELINE_FILES.values():
+        if not (model_dir / name).is_file():
+            raise FileNotFoundError(f"baseline file not found: {model_dir / name} (run 'lf-flame train' first)")
     test = np.sort(ds.splits["test"])
-    pred = predict_features(dec, info["feature_cache"], test)
+    import h5py
+    with h5py.File(info["feature_cache"], "r") as f:
+        preds = route_predictions(model_dir, f["features"][test], dec)
+    gt_test = ds.gt(test)
     rows = []
-    for i, p in zip(test, pred):
-        gt = ds.gt(int(i))
-        for k, (s, q) in enumerate(zip(ssim_per_plane(gt, p), psnr_per_plane(gt, p))):
-            rows.append(dict(sample=int(i), depth_mm=PAPER_DEPTHS_MM[k], ssim=s, psnr_db=q))
+    for route in ROUTES:
+        rows += score(gt_test, preds[route], route=route, split="test", sample=test)
+    if n_fresh:
+        fx = load_full_model(model_dir)[0].get_layer("feature_extractor")
+        raws, gts = zip(*(ds.fresh_sample(j) for j in range(n_fresh)))
+        feats = np.concatenate([np.asarray(fx.predict_on_batch(np.stack(raws[s:s + 4])[..., None]))
+                                for s in range(0, n_fresh, 4)])
+        fresh = route_predictions(model_dir, feats, dec)
+        for route in ROUTES:
+            rows += score(np.stack(gts), fresh[route], route=route, split="fresh", sample=ds.n + np.arange(n_fresh))
     per = pd.DataFrame(rows)
     results_dir.mkdir(parents=True, exist_ok=True)
     per.to_csv(results_dir / f"metrics_{ds.scene}.csv", index=False)
-    g = per.groupby("depth_mm", sort=False)
-    paper = PAPER_TABLES[ds.scene]
-    table = pd.DataFrame({
-        "depth_mm": PAPER_DEPTHS_MM,
-        "object": list(SHAPE_AT_DEPTH) if ds.scene == "shapes" else ["flame"] * 4,
-        "ssim_mean": g["ssim"].mean().values, "ssim_sd": g["ssim"].std().values, "ssim_paper": paper["ssim"],
-        "psnr_db_mean": g["psnr_db"].mean().values, "psnr_db_sd": g["psnr_db"].std().values,
-        "psnr_db_paper": paper["psnr"],
-        "n_test": g.size().values,
-    })
+    table = summarise(per, ds.scene, ds.config.regime)
     table.to_csv(results_dir / f"table_{ds.scene}.csv", index=False)
-    md = table_markdown(table, ds.scene, info)
-    atomic_write_text(results_dir / f"table_{ds.scene}.md", md)
-    figure(ds, test[0], pred[0], results_dir / f"fig_{ds.scene}.png")
-    learning_curves(model_dir / "history.csv", results_dir, ds.scene)
+    atomic_write_text(results_dir / f"table_{ds.scene}.md", table_markdown(table, ds.scene, ds.config.regime, info))
+    figure(ds, test[0], preds, results_dir / f"fig_{ds.scene}.png")
+    learning_curves(model_dir / "history.csv", results_dir, ds.scene, info.get("baselines", {}))
     atomic_write_text(results_dir / f"eval_{ds.scene}.json", json.dumps(
-        dict(train_info=info, n_test=len(test), dataset_attrs={k: str(v) for k, v in ds.attrs.items()},
+        dict(train_info=info, n_test=len(test), n_fresh=n_fresh, dataset_attrs={k: str(v) for k, v in ds.attrs.items()},
              provenance=provenance()), indent=2))
     return table
 
 
-def table_markdown(table: pd.DataFrame, scene: str, info: dict) -> str:
-    """Markdown of a table with ours (mean ± sd over the test split) beside the paper."""
-    lines = [f"### {TABLE_NAMES[scene]}: ours vs paper", "",
-             "| depth (mm) | object | SSIM ours | SSIM paper | PSNR ours (dB) | PSNR paper (dB) |",
-             "|---:|---|---:|---:|---:|---:|"]
-    for r in table.itertuples():
-        lines.append(f"| {r.depth_mm:+.0f} | {r.object} | {r.ssim_mean:.3f} ± {r.ssim_sd:.3f} | {r.ssim_paper:.2f} "
-                     f"| {r.psnr_db_mean:.2f} ± {r.psnr_db_sd:.2f} | {r.psnr_db_paper:.2f} |")
-    lines += ["", f"Test samples: {int(table.n_test.iloc[0])}; backbone weights: **{info['backbone_weights']}**; "
-              f"epochs run: {info['epochs_run']} (paper: {info['paper_epochs']}), best epoch {info['best_epoch']}; "
-              f"training wall time {info['training_wall_time_s']:.0f} s on "
-              f"{info['provenance']['cpu_count']} CPU cores.", ""]
+def summarise(per: pd.DataFrame, scene: str, regime: str) -> pd.DataFrame:
+    """Mean and sd per split, route and plane of :func:`score` rows, with the paper's values
+    on the paper regime (NaN on the varied one: the paper has no such table)."""
+    g = per.groupby(["split", "route", "depth_mm"], sort=False)
+    table = g.agg(ssim_mean=("ssim", "mean"), ssim_sd=("ssim", "std"), psnr_db_mean=("psnr_db", "mean"),
+                  psnr_db_sd=("psnr_db", "std"), n=("ssim", "size")).reset_index()
+    objects = dict(zip(PAPER_DEPTHS_MM, SHAPE_AT_DEPTH if scene == "shapes" else ["flame"] * 4))
+    table.insert(3, "object", table.depth_mm.map(objects))
+    paper = PAPER_TABLES[scene]
+    on_paper = regime == "paper"
+    table["ssim_paper"] = table.depth_mm.map(dict(zip(PAPER_DEPTHS_MM, paper["ssim"]))) if on_paper else np.nan
+    table["psnr_db_paper"] = table.depth_mm.map(dict(zip(PAPER_DEPTHS_MM, paper["psnr"]))) if on_paper else np.nan
+    table.insert(0, "regime", regime)
+    return table
+
+
+def table_markdown(table: pd.DataFrame, scene: str, regime: str, info: dict) -> str:
+    """Markdown: per split, SSIM and PSNR of every route per plane (mean ± sd), and the paper's."""
+    on_paper = regime == "paper"
+    routes = [r for r in ROUTES if r in set(table.route)]
+    head = [_SHORT[r] for r in routes] + (["paper"] if on_paper else [])
+    lines = [f"### {TABLE_NAMES[scene]}, {regime} regime" + (": ours vs paper" if on_paper else ""), ""]
+    for split in table.split.unique():
+        t = table[table.split == split]
+        n = int(t.n.iloc[0])
+        for metric, unit, fmt in (("ssim", "SSIM", "{:.3f}"), ("psnr_db", "PSNR (dB)", "{:.2f}")):
+            lines += [f"{unit}, {split} split ({n} samples)" if split == "test" else
+                      f"{unit}, {n} fresh samples (never seen in training or selection)", "",
+                      "| depth (mm) | object | " + " | ".join(head) + " |",
+                      "|---:|---|" + "---:|" * len(head)]
+            for dz in PAPER_DEPTHS_MM:
+                rr = t[t.depth_mm == dz].set_index("route")
+                cells = [(fmt + " ± " + fmt).format(rr.loc[r, f"{metric}_mean"], rr.loc[r, f"{metric}_sd"])
+                         for r in routes]
+                if on_paper:
+                    cells.append(fmt.format(rr[f"{metric}_paper"].iloc[0]))
+                lines.append(f"| {dz:+.0f} | {rr.object.iloc[0]} | " + " | ".join(cells) + " |")
+            lines.append("")
+    lines += [f"Backbone weights: **{info['backbone_weights']}**; recipe {info['train_config']['recipe']}; "
+              f"epochs run: {info['epochs_run']} (paper: {info['paper_epochs']}), best epoch {info['best_epoch']} "
+              f"(validation SSIM {info['start_val_ssim']:.4f} at the start, {info['best_val_ssim']:.4f} at best); "
+              f"training wall time {info['training_wall_time_s']:.0f} s on {info['provenance']['cpu_count']} "
+              "CPU cores.", ""]
     return "\n".join(lines)
 
 
-def figure(ds: LightFieldDataset, index: int, pred: np.ndarray, path) -> None:
-    """Raw light field, ground truth and prediction per plane (like the paper's Figs. 7/8)."""
+def figure(ds: LightFieldDataset, index: int, preds: dict, path) -> None:
+    """Raw light field, ground truth and each route's planes for one test sample (like the
+    paper's Figs. 7/8). ``preds``: route -> (n_test, 4, R, C), the sample being the first."""
     gt = ds.gt(int(index))
     raw = ds.raw(int(index))
-    fig, ax = plt.subplots(2, 5, figsize=(11, 5.4), gridspec_kw=dict(width_ratios=[1.3, 1, 1, 1, 1]))
+    routes = [r for r in ROUTES if r in preds]
+    fig, ax = plt.subplots(1 + len(routes), 5, figsize=(11, 2.7 * (1 + len(routes))),
+                           gridspec_kw=dict(width_ratios=[1.3, 1, 1, 1, 1]), squeeze=False)
     ax[0, 0].imshow(raw, cmap="gray", vmin=0, vmax=1)
     ax[0, 0].set_title("raw light field")
     n = ds.camera.pixels_per_lenslet
@@ -105,37 +194,43 @@ def figure(ds: LightFieldDataset, index: int, pred: np.ndarray, path) -> None:
     ax[1, 0].set_title("raw, 6×6 lenslets")
     for k, dz in enumerate(PAPER_DEPTHS_MM):
         ax[0, k + 1].imshow(gt[k], cmap="gray", vmin=0, vmax=1)
-        ax[0, k + 1].set_title(f"ground truth {dz:+.0f} mm")
-        ax[1, k + 1].imshow(pred[k], cmap="gray", vmin=0, vmax=1)
-        s = ssim_per_plane(gt[k:k + 1], pred[k:k + 1])[0]
-        ax[1, k + 1].set_title(f"model, SSIM {s:.3f}")
+        ax[0, k + 1].set_title(f"ground truth {dz:+.0f} mm", fontsize=9)
+        for j, route in enumerate(routes, start=1):
+            p = np.clip(preds[route][0, k], 0, 1)
+            ax[j, k + 1].imshow(p, cmap="gray", vmin=0, vmax=1)
+            ax[j, k + 1].set_title(f"{_SHORT[route]}, SSIM {ssim_per_plane(gt[k:k + 1], p[None])[0]:.3f}", fontsize=8)
     for a in ax.ravel():
         a.set_xticks([])
         a.set_yticks([])
-    fig.suptitle(f"{ds.scene}: test sample {index}")
+    for a in ax[2:, 0]:
+        a.set_visible(False)
+    fig.suptitle(f"{ds.scene} ({ds.config.regime} regime): test sample {index}")
     fig.tight_layout()
     tmp = Path(str(path) + ".partial.png")
-    fig.savefig(tmp, dpi=110)
+    fig.savefig(tmp, dpi=90)
     plt.close(fig)
     tmp.replace(path)
 
 
-def learning_curves(history_csv, results_dir, scene: str) -> None:
+def learning_curves(history_csv, results_dir, scene: str, baselines: dict | None = None) -> None:
     """Copy the training history to ``results_dir`` and plot loss and validation SSIM
-    against epoch and wall time (``learning_<scene>.csv`` / ``.png``)."""
+    against epoch and wall time (``learning_<scene>.csv`` / ``.png``), with each baseline's
+    validation SSIM (mean of the planes) as a horizontal line. Epoch 0 is the start."""
     h = pd.read_csv(history_csv)
     h.to_csv(Path(results_dir) / f"learning_{scene}.csv", index=False)
-    fig, ax = plt.subplots(1, 2, figsize=(10, 3.6))
-    for a, x, label in ((ax[0], h["epoch"] + 1, "epoch"), (ax[1], h["wall_time_s"] / 60, "wall time (min)")):
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4))
+    for a, x, label in ((ax[0], h["epoch"], "epoch (0 = start)"), (ax[1], h["wall_time_s"] / 60, "wall time (min)")):
         a.semilogy(x, h["loss"], label="train MSE")
         a.semilogy(x, h["val_loss"], label="validation MSE")
-        a.set_xlabel(label)
-        a.set_ylabel("MSE")
+        a.set(xlabel=label, ylabel="MSE")
         b = a.twinx()
-        b.plot(x, h["val_ssim"], "g.-", label="validation SSIM")
-        b.set_ylabel("SSIM")
-        a.legend(loc="upper center", fontsize=8)
-        b.legend(loc="center right", fontsize=8)
+        b.plot(x, h["val_ssim"], "g.-", label="network, validation SSIM")
+        for k, (route, v) in enumerate((baselines or {}).items()):
+            b.axhline(float(np.mean(v["val_ssim"])), color=f"C{k + 3}", ls="--", lw=1,
+                      label=f"{_SHORT.get(route, route)}: {np.mean(v['val_ssim']):.3f}")
+        b.set_ylabel("validation SSIM")
+        a.legend(loc="upper left", fontsize=7)
+        b.legend(loc="lower right", fontsize=7)
     fig.suptitle(f"{scene}: learning curves")
     fig.tight_layout()
     fig.savefig(Path(results_dir) / f"learning_{scene}.png", dpi=100)
@@ -199,12 +294,15 @@ def read_gnu_time(path) -> dict:
 def write_tables(results_dir, stage_times: dict | None = None, make_targets: dict | None = None) -> str:
     """Collect both tables, slopes, stage wall times and, per make target, wall time and
     peak memory (:func:`read_gnu_time`) into ``tables.md``; return its text."""
+    from .scenes import REGIMES
     results_dir = Path(results_dir)
     parts = ["# Results", ""]
-    for scene in ("shapes", "flame"):
-        p = results_dir / f"table_{scene}.md"
-        if p.exists():
-            parts += [p.read_text(), f"![{scene}](fig_{scene}.png)", f"![{scene} learning](learning_{scene}.png)", ""]
+    for regime in REGIMES:
+        for scene in ("shapes", "flame"):
+            p = results_dir / regime / f"table_{scene}.md"
+            if p.exists():
+                parts += [p.read_text(), f"![{scene}]({regime}/fig_{scene}.png)",
+                          f"![{scene} learning]({regime}/learning_{scene}.png)", ""]
     sp = results_dir / "slopes.csv"
     if sp.exists():
         parts += ["### Sharpest slopes (slope search on the nominal scene)", "",

@@ -46,3 +46,13 @@ def psnr_per_plane(ref, pred) -> np.ndarray:
     """
     return _per_plane(lambda r, p: np.inf if np.array_equal(r, p) else peak_signal_noise_ratio(r, p, data_range=1.0),
                       ref, pred)
+
+
+def mean_ssim(ref, pred) -> float:
+    """Mean SSIM over a stack of images: the validation score of one plane.
+
+    Parameters
+    ----------
+    ref, pred : ndarray of shape (n, rows, cols), values in [0, 1]
+    """
+    return float(np.mean(ssim_per_plane(ref, pred)))

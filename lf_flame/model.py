@@ -6,7 +6,8 @@ Raw light field (R·N, C·N, 1) in [0, 1]
   ``keras.applications.resnet50.preprocess_input`` does on 0–255 data), frozen
   ResNet-50 (``include_top=False``, called with ``training=False``)
 → ``decoder``: Conv2D 512 3×3 → BN → LeakyReLU → Conv2D 256 3×3 → BN → LeakyReLU →
-  GAP → Dense(R·C·4) → Reshape (R, C, 4) → Dropout 0.3 → Conv2D 4 3×3, sigmoid.
+  GAP → Dense(R·C·4) → Reshape (R, C, 4) → Conv2D 4 3×3, sigmoid, with Dropout 0.3 on the
+  pooled vector or on the pixel map (``ModelConfig.dropout_at``).
 
 Backend-agnostic Keras 3 (no ``tf.*``), so it runs on TensorFlow or JAX.
 """
@@ -89,8 +90,27 @@ def build_feature_extractor(raw_shape, cfg: ModelConfig, weights=None) -> keras.
     return keras.Model(inp, feats, name="feature_extractor")
 
 
+#: Where the paper's Dropout(0.3) may sit (Sec. II-C lists it without saying where):
+#: 'pixels' on the (R, C, 4) map right before the sigmoid convolution (the layer order as
+#: printed), 'gap' on the 256-d pooled vector before the Dense layer (where Keras heads
+#: put it). docs/deviations.md has the figures of each.
+DROPOUT_PLACES = ("pixels", "gap")
+
+
 def build_decoder(feature_shape, out_rows: int, out_cols: int, cfg: ModelConfig, n_planes: int = 4) -> keras.Model:
-    """The paper's decoder: features (h, w, 2048) -> refocused images (out_rows, out_cols, 4) in [0, 1]."""
+    """The paper's decoder: features (h, w, 2048) -> refocused images (out_rows, out_cols, 4) in [0, 1].
+
+    Conv2D 512 3×3 → BN → LeakyReLU → Conv2D 256 3×3 → BN → LeakyReLU → GAP → Dense(R·C·4)
+    → Reshape (R, C, 4) → Conv2D 4 3×3, sigmoid (Sec. II-C), with Dropout(``cfg.dropout``)
+    where ``cfg.dropout_at`` says (:data:`DROPOUT_PLACES`).
+
+    Raises
+    ------
+    ValueError
+        ``cfg.dropout_at`` is not one of :data:`DROPOUT_PLACES`.
+    """
+    if cfg.dropout_at not in DROPOUT_PLACES:
+        raise ValueError(f"dropout_at must be one of {DROPOUT_PLACES}. Received: dropout_at={cfg.dropout_at!r}")
     inp = keras.Input(tuple(feature_shape), name="backbone_features")
     x = layers.Conv2D(512, 3, padding="same", name="conv1")(inp)
     x = layers.BatchNormalization(name="bn1")(x)
@@ -99,9 +119,12 @@ def build_decoder(feature_shape, out_rows: int, out_cols: int, cfg: ModelConfig,
     x = layers.BatchNormalization(name="bn2")(x)
     x = layers.LeakyReLU(name="lrelu2")(x)
     x = layers.GlobalAveragePooling2D(name="gap")(x)
+    if cfg.dropout_at == "gap":
+        x = layers.Dropout(cfg.dropout, name="dropout")(x)
     x = layers.Dense(out_rows * out_cols * n_planes, name="dense")(x)
     x = layers.Reshape((out_rows, out_cols, n_planes), name="reshape")(x)
-    x = layers.Dropout(cfg.dropout, name="dropout")(x)
+    if cfg.dropout_at == "pixels":
+        x = layers.Dropout(cfg.dropout, name="dropout")(x)
     out = layers.Conv2D(n_planes, 3, padding="same", activation="sigmoid", name="refocused")(x)
     return keras.Model(inp, out, name="decoder")
 

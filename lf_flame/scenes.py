@@ -24,6 +24,16 @@ SHAPE_AT_DEPTH = ("rectangle", "triangle", "circle", "square")
 FLAME_HEIGHT_MEAN_MM = (29.48, 24.48, 19.47, 14.47)
 FLAME_HEIGHT_SD_MM = (1.48, 1.457, 1.433, 1.41)
 
+#: How much a scene varies from sample to sample (issue 20; ``docs/scenes.md``):
+#: ``"paper"`` varies only what the paper states (the flames' heights; the shapes get the
+#: same small relative spread), ``"varied"`` also position, size, rotation, radiance and
+#: flicker (the generalisation test).
+REGIMES = ("paper", "varied")
+#: Relative spread (sd / mean, ~0.068) of the shapes' size and position in the ``"paper"``
+#: regime: the mean over the four depths of the flames' height coefficient of variation
+#: ``FLAME_HEIGHT_SD_MM[k] / FLAME_HEIGHT_MEAN_MM[k]``, so both scenes vary alike.
+PAPER_RELATIVE_SD = sum(sd / m for sd, m in zip(FLAME_HEIGHT_SD_MM, FLAME_HEIGHT_MEAN_MM)) / len(FLAME_HEIGHT_MEAN_MM)
+
 
 @dataclass(frozen=True)
 class Effects:
@@ -153,34 +163,109 @@ def _roi(camera, dz, y0, y1, x0, x1, margin_lenslets=3.0):
     return (r0, r1, c0, c1)
 
 
+def _check_regime(regime) -> None:
+    """Raise ValueError unless ``regime`` is one of :data:`REGIMES`."""
+    if regime not in REGIMES:
+        raise ValueError(f"regime must be one of {REGIMES}. Received: regime={regime!r}")
+
+
+def _shape_params(kind: str, ch: float, cw: float, rng: np.random.Generator, vary: bool, regime: str):
+    """Draw one shape's parameters in focal-plane millimetres (before scaling to its depth).
+
+    Parameters
+    ----------
+    kind : str
+        One of :data:`SHAPE_AT_DEPTH`.
+    ch, cw : float
+        Height and width of the shape's cell at the focal plane, mm.
+    rng : numpy.random.Generator
+        Source of the draws (none is drawn when ``vary`` is False).
+    vary : bool
+        False: the nominal template, whatever ``regime`` says.
+    regime : str
+        One of :data:`REGIMES` (see :func:`shapes_scene`).
+
+    Returns
+    -------
+    dy, dx : float
+        Offset of the centre from the cell's centre (y up, x right), mm.
+    size : float
+        Size of the shape, mm.
+    angle : float
+        Rotation, radians (counter-clockwise).
+    level : float
+        Radiance (1 saturates the sensor).
+    """
+    nominal = 0.6 * min(ch, cw)
+    if not vary:
+        return 0.0, 0.0, nominal, 0.0, 1.0
+    if regime == "paper":
+        size = nominal * rng.normal(1.0, PAPER_RELATIVE_SD)
+        dy = rng.normal(0.0, PAPER_RELATIVE_SD * nominal)
+        dx = rng.normal(0.0, PAPER_RELATIVE_SD * nominal)
+        return dy, dx, size, 0.0, 1.0
+    # "varied": the draws and their order are those of the scenes before regimes existed,
+    # so a seed gives the same sample as it did then.
+    dy = rng.uniform(-0.12, 0.12) * ch
+    dx = rng.uniform(-0.12, 0.12) * cw
+    size = rng.uniform(0.45, 0.75) * min(ch, cw)
+    angle = 0.0 if kind == "circle" else math.radians(rng.uniform(-20, 20))
+    level = rng.uniform(0.5, 1.0)
+    return dy, dx, size, angle, level
+
+
 def shapes_scene(camera: PlenopticCamera, rng: np.random.Generator, *,
-                 texels_per_lenslet: float = 3.0, vary: bool = True, depths_mm=PAPER_DEPTHS_MM) -> Scene:
+                 texels_per_lenslet: float = 3.0, vary: bool = True, depths_mm=PAPER_DEPTHS_MM,
+                 regime: str = "varied") -> Scene:
     """The paper's multi-shape scene (Fig. 5): rectangle +20, triangle +10, circle 0, square −10 mm.
 
     Layout: the field at the focal plane is split 2 × 2 (rectangle top-left, triangle
     top-right, circle bottom-left, square bottom-right), each cell scaled with its
     depth so every shape is seen in its own cell and the slope search has a region of
-    interest per object. Variation per sample (``vary``): centre jitter ±12 % of the
-    cell, size 45–75 % of the cell's width, rotation ±20° (polygons), radiance
-    0.5–1.0, all uniform. Why: the network must learn refocusing, not one template.
-    ``vary=False`` gives the nominal scene (centred, 60 %, upright, radiance 1) used
-    for the slope search.
+    interest per object. The nominal template: centred in its cell, size 60 % of the
+    cell's smaller side, upright, radiance 1. What varies per sample depends on
+    ``regime`` (sizes and offsets below are in focal-plane mm, scaled with the depth):
+
+    - ``"paper"``: the template with the flames' relative spread
+      (:data:`PAPER_RELATIVE_SD`, ~7 %): size × Normal(1, PAPER_RELATIVE_SD), centre
+      offsets in y and x ~ Normal(0, PAPER_RELATIVE_SD × template size). No rotation,
+      radiance 1. The paper states no variation of its shapes.
+    - ``"varied"``: centre jitter ±12 % of the cell, size 45–75 % of the cell's
+      smaller side, rotation ±20° (polygons), radiance 0.5–1.0, all uniform. Why: the
+      network must learn refocusing, not one template (the generalisation test).
 
     Effects: opaque objects (occlusion), aperture and cos⁴ of the paper's Eq. 1;
     noise-free like the paper's simulation.
 
-    ``depths_mm`` moves the four shapes to other depth offsets (mm, same order), e.g.
-    to check the slope search away from the paper's planes.
+    Parameters
+    ----------
+    camera : PlenopticCamera
+        The camera whose field the scene fills.
+    rng : numpy.random.Generator
+        Source of every random draw.
+    texels_per_lenslet : float
+        Texture resolution, texels per lenslet footprint.
+    vary : bool
+        False: the nominal scene (every shape its template), used by the slope search;
+        it wins over ``regime`` and draws nothing from ``rng``.
+    depths_mm : sequence of four float
+        Depth offsets (mm, same order as :data:`SHAPE_AT_DEPTH`), e.g. to check the
+        slope search away from the paper's planes.
+    regime : str
+        One of :data:`REGIMES`: ``"paper"`` or ``"varied"`` (default).
 
     Returns
     -------
-    Scene with four layers ordered as ``depths_mm``.
+    Scene
+        Four layers ordered as ``depths_mm``; each object records its drawn parameters
+        (mm, degrees) and ``regime`` (``"nominal"`` when ``vary`` is False).
 
     Raises
     ------
     ValueError
-        If ``depths_mm`` does not hold four depths.
+        If ``depths_mm`` does not hold four depths or ``regime`` is not in :data:`REGIMES`.
     """
+    _check_regime(regime)
     if len(depths_mm) != len(SHAPE_AT_DEPTH):
         raise ValueError(f"depths_mm must hold {len(SHAPE_AT_DEPTH)} depths. Received: {depths_mm}")
     h0, w0 = camera.field_of_view_mm(0.0)
@@ -190,16 +275,9 @@ def shapes_scene(camera: PlenopticCamera, rng: np.random.Generator, *,
     layers, objects = [], []
     for dz, kind in zip(depths_mm, SHAPE_AT_DEPTH):
         scale = camera.object_distance_mm(dz) / camera.focus_distance_mm
+        dy, dx, size, angle, level = _shape_params(kind, ch, cw, rng, vary, regime)
         cy, cx = cells[kind]
-        if vary:
-            cy += rng.uniform(-0.12, 0.12) * ch
-            cx += rng.uniform(-0.12, 0.12) * cw
-            size = rng.uniform(0.45, 0.75) * min(ch, cw)
-            angle = 0.0 if kind == "circle" else math.radians(rng.uniform(-20, 20))
-            level = rng.uniform(0.5, 1.0)
-        else:
-            size, angle, level = 0.6 * min(ch, cw), 0.0, 1.0
-        cy, cx, size = cy * scale, cx * scale, size * scale
+        cy, cx, size = (cy + dy) * scale, (cx + dx) * scale, size * scale
         y, x, (h, w), texel = _layer_grid(camera, dz, texels_per_lenslet, 1.2)
         if kind == "circle":
             cov = np.clip(0.5 - (np.hypot(y - cy, x - cx) - 0.5 * size) / texel, 0.0, 1.0)
@@ -210,7 +288,7 @@ def shapes_scene(camera: PlenopticCamera, rng: np.random.Generator, *,
                             centre_mm=(0.0, 0.0), size_mm=(h, w)))
         half = 0.6 * size
         objects.append(dict(name=kind, depth_offset_mm=dz, centre_y_mm=cy, centre_x_mm=cx, size_mm=size,
-                            angle_deg=math.degrees(angle), radiance=level,
+                            angle_deg=math.degrees(angle), radiance=level, regime=regime if vary else "nominal",
                             roi=_roi(camera, dz, cy - half, cy + half, cx - half, cx + half)))
     return Scene("shapes", tuple(layers), Effects(aperture=True, cos4=True, occlusion=True), tuple(objects))
 
@@ -238,35 +316,101 @@ def flame_luminosity(eta, xi):
     return np.clip(proj * axial, 0.0, 1.0)
 
 
+def _flame_params(k: int, w0: float, rng: np.random.Generator, vary: bool, regime: str):
+    """Draw the parameters of the flame at depth index ``k``.
+
+    Parameters
+    ----------
+    k : int
+        Index into :data:`PAPER_DEPTHS_MM`.
+    w0 : float
+        Width of the field at the focal plane, mm.
+    rng : numpy.random.Generator
+        Source of the draws (none is drawn when ``vary`` is False).
+    vary : bool
+        False: the nominal flame (mean height, no jitter, radiance 1, no sway).
+    regime : str
+        One of :data:`REGIMES` (see :func:`flame_scene`).
+
+    Returns
+    -------
+    height : float
+        Template height, mm (before ``template_scale``).
+    jitter : float
+        Lateral offset at the focal plane, mm.
+    level : float
+        Peak radiance.
+    sway : float
+        Sway amplitude as a fraction of the height.
+    phase : float
+        Sway phase, radians.
+    """
+    if not vary:
+        return FLAME_HEIGHT_MEAN_MM[k], 0.0, 1.0, 0.0, 0.0
+    height = rng.normal(FLAME_HEIGHT_MEAN_MM[k], FLAME_HEIGHT_SD_MM[k])
+    if regime == "paper":
+        return height, 0.0, 1.0, 0.0, 0.0
+    # "varied": the draws and their order are those of the scenes before regimes existed.
+    return (height, rng.uniform(-0.04, 0.04) * w0, rng.uniform(0.6, 1.0),
+            rng.uniform(0.0, 0.06), rng.uniform(0.0, 2 * math.pi))
+
+
 def flame_scene(camera: PlenopticCamera, rng: np.random.Generator, *, template_scale: float = 0.64,
-                texels_per_lenslet: float = 3.0, vary: bool = True) -> Scene:
+                texels_per_lenslet: float = 3.0, vary: bool = True, regime: str = "varied") -> Scene:
     """The paper's flame scene (Fig. 6): four flames, one at each of the four depths.
 
-    Height of the flame at depth k ~ Normal(:data:`FLAME_HEIGHT_MEAN_MM` [k],
-    :data:`FLAME_HEIGHT_SD_MM` [k]) (paper Sec. III-B), in template millimetres. The
-    paper's 180 × 90-lenslet grid sees only about 23.7 × 11.8 mm at the focal plane
+    The paper's 180 × 90-lenslet grid sees only about 23.7 × 11.8 mm at the focal plane
     (SPEC.md), smaller than its 30 mm flames, so templates are scaled by
     ``template_scale`` (0.64: the tallest flame, mean + 3 sd, fills 90 % of the field at
     +20 mm) — the paper's optics are kept. Flames stand side by side (farthest left),
-    bases near the bottom of the field. Per sample: height, lateral jitter ±4 % of the
-    field, peak radiance 0.6–1.0, and flicker: a sway of the centreline
-    ``a eta² sin(2 pi eta / 0.6 + phi)``, ``a`` up to 6 % of the height, random phase.
-    Half-width at the base 7 % of the height, narrowing as ``sqrt(1 - eta)``.
+    bases near the bottom of the field. Half-width at the base 7 % of the height,
+    narrowing as ``sqrt(1 - eta)``. What varies per sample depends on ``regime``:
+
+    - ``"paper"``: only the height, as the paper states (Sec. III-B): the flame at
+      depth k is Normal(:data:`FLAME_HEIGHT_MEAN_MM` [k], :data:`FLAME_HEIGHT_SD_MM` [k])
+      template mm tall. Fixed lateral position, peak radiance 1, no flicker.
+    - ``"varied"``: the height as above, lateral jitter ±4 % of the field width, peak
+      radiance 0.6–1.0, and flicker: a sway of the centreline
+      ``a eta² sin(2 pi eta / 0.6 + phi)``, ``a`` up to 6 % of the height, random phase
+      (the generalisation test).
 
     Effects: optically thin flames add their emission (no occlusion); aperture and
     cos⁴ of Eq. 1; noise-free.
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+        The camera whose field the scene fills.
+    rng : numpy.random.Generator
+        Source of every random draw.
+    template_scale : float
+        Object-space scale of the paper's flame heights (dimensionless).
+    texels_per_lenslet : float
+        Texture resolution, texels per lenslet footprint.
+    vary : bool
+        False: the nominal scene (mean heights, no jitter, radiance 1, no sway); it wins
+        over ``regime`` and draws nothing from ``rng``.
+    regime : str
+        One of :data:`REGIMES`: ``"paper"`` or ``"varied"`` (default).
+
+    Returns
+    -------
+    Scene
+        Four layers ordered as :data:`PAPER_DEPTHS_MM`; each object records its drawn
+        parameters (template and object-space heights, centre and base in mm, radiance,
+        sway, phase) and ``regime`` (``"nominal"`` when ``vary`` is False).
+
+    Raises
+    ------
+    ValueError
+        If ``regime`` is not in :data:`REGIMES`.
     """
+    _check_regime(regime)
     h0, w0 = camera.field_of_view_mm(0.0)
     layers, objects = [], []
     for k, dz in enumerate(PAPER_DEPTHS_MM):
         scale = camera.object_distance_mm(dz) / camera.focus_distance_mm
-        if vary:
-            height = rng.normal(FLAME_HEIGHT_MEAN_MM[k], FLAME_HEIGHT_SD_MM[k])
-            jitter = rng.uniform(-0.04, 0.04) * w0
-            level = rng.uniform(0.6, 1.0)
-            sway, phase = rng.uniform(0.0, 0.06), rng.uniform(0.0, 2 * math.pi)
-        else:
-            height, jitter, level, sway, phase = FLAME_HEIGHT_MEAN_MM[k], 0.0, 1.0, 0.0, 0.0
+        height, jitter, level, sway, phase = _flame_params(k, w0, rng, vary, regime)
         H = max(height, 1.0) * template_scale * scale
         cx = ((k + 0.5) / 4 - 0.5) * w0 * 0.9 * scale + jitter * scale
         base_y = -0.45 * h0 * scale
@@ -279,7 +423,7 @@ def flame_scene(camera: PlenopticCamera, rng: np.random.Generator, *, template_s
         hw = 0.07 * H + sway * H
         objects.append(dict(name=f"flame_{dz:+.0f}mm", depth_offset_mm=dz, height_template_mm=height,
                             height_mm=H, centre_x_mm=cx, base_y_mm=base_y, radiance=level,
-                            sway=sway, phase=phase,
+                            sway=sway, phase=phase, regime=regime if vary else "nominal",
                             roi=_roi(camera, dz, base_y, base_y + H, cx - hw, cx + hw)))
     return Scene("flame", tuple(layers), Effects(aperture=True, cos4=True, occlusion=False), tuple(objects))
 

@@ -118,6 +118,115 @@ def predict_features(decoder, features_path, indices, batch: int = 8) -> np.ndar
     return np.transpose(np.concatenate(out), (0, 3, 1, 2))
 
 
+def _layer_outputs(decoder, name: str, features_path, indices, batch: int = 16) -> np.ndarray:
+    """Inference-mode output of the decoder's layer ``name`` for cached features of ``indices``."""
+    sub = keras.Model(decoder.input, decoder.get_layer(name).output)
+    out = []
+    with h5py.File(features_path, "r") as f:
+        for s in range(0, len(indices), batch):
+            idx = np.sort(np.asarray(indices[s:s + batch]))
+            out.append(np.asarray(sub(f["features"][idx].astype(np.float32), training=False)))
+    return np.concatenate(out)
+
+
+def set_population_statistics(decoder, features_path, indices, center_pooled: bool = True) -> None:
+    """Set both batch-norm layers' moving mean and variance from the training split.
+
+    bn1 gets the per-channel statistics of conv1's output over every training sample and
+    position; then bn2 those of conv2's output with bn1 so set (inference mode). With the
+    layers frozen (``trainable = False``, which Keras 3 runs in inference mode) a sample's
+    pooled features no longer depend on its batch partner, as they do with batch
+    statistics from batches of 2 (``../shared/NOTES.md``; Detectron2's FrozenBatchNorm).
+
+    ``center_pooled``: also set bn2's shift β per channel (bisection) so that the pooled
+    features ``GAP(LeakyReLU(bn2(·)))`` average to zero over the training split. Dropout
+    on the pooled vector then perturbs only how a sample differs from the others, not a
+    large common offset that every output pixel (the background's −9.2 logits included)
+    depends on.
+    """
+    for bn, conv in (("bn1", "conv1"), ("bn2", "conv2")):
+        a = _layer_outputs(decoder, conv, features_path, indices)
+        layer = decoder.get_layer(bn)
+        a = a.reshape(-1, a.shape[-1])
+        mean, var = a.mean(axis=0, dtype=np.float64), a.var(axis=0, dtype=np.float64)
+        layer.moving_mean.assign(mean.astype(np.float32))
+        layer.moving_variance.assign(var.astype(np.float32))
+    if center_pooled:
+        slope = float(decoder.get_layer("lrelu2").negative_slope)
+        u = ((a - mean) / np.sqrt(var + layer.epsilon)).astype(np.float32) * np.asarray(layer.gamma)
+        lo, hi = np.full(u.shape[1], -20.0, np.float32), np.full(u.shape[1], 20.0, np.float32)
+        for _ in range(40):  # mean of LeakyReLU(u + beta) rises with beta
+            mid = 0.5 * (lo + hi)
+            v = u + mid
+            pos = np.where(v > 0, v, slope * v).mean(axis=0) > 0
+            hi, lo = np.where(pos, mid, hi), np.where(pos, lo, mid)
+        layer.beta.assign(0.5 * (lo + hi))
+
+
+def closed_form_start(decoder, features_path, ds: LightFieldDataset, cfg: ModelConfig, eps: float = 1e-4) -> dict:
+    """The 'closed-form' recipe's initialisation of the decoder, in place; seconds to minutes.
+
+    1. Batch-norm statistics from the training split (:func:`set_population_statistics`).
+    2. The output convolution starts as the identity (centre tap 1 on its own plane, bias 0),
+       so the Dense layer's output is the logit of the prediction.
+    3. The Dense layer is solved by ridge regression (:func:`lf_flame.baselines.ridge_path`)
+       from the network's own pooled 256-d features ``h`` to the targets' logits linearised
+       about the training mean image ȳ (one Gauss–Newton step from it):
+       ``z = logit(ȳ) + (y − ȳ) / (ȳ (1 − ȳ))``, clipped to ``±logit(1 − eps)``, with ȳ
+       clipped to [eps, 1 − eps]. The background, exactly 0 in every target, gets logit
+       −9.2 (prediction 1e-4, which costs SSIM nothing; NOTES.md). λ is chosen per plane on
+       the validation split by SSIM, λ = ∞ (the mean image itself) among the candidates, so
+       the start is never worse than the mean image on the validation planes.
+       With ``cfg.dropout_at == 'gap'``, each pooled feature is scaled by the dropout
+       penalty's ``sqrt(p/(1−p) Σₙ hₙᵢ²)`` before the (isotropic) ridge: dropout on a
+       linear layer's input acts as that diagonal L2 penalty (Wager, Wang & Liang 2013,
+       "Dropout training as adaptive regularization"), so training starts near its own
+       equilibrium.
+
+    Returns
+    -------
+    dict : the λ chosen per plane (relative to the mean Gram eigenvalue, ``inf`` = mean
+        image) and the validation SSIM per plane at the start.
+    """
+    from .baselines import RELATIVE_ALPHAS, choose_alpha_per_plane, ridge_path
+    from .metrics import mean_ssim
+    tr, va = np.sort(ds.splits["train"]), np.sort(ds.splits["val"])
+    set_population_statistics(decoder, features_path, tr)
+    h_tr = _layer_outputs(decoder, "gap", features_path, tr).astype(np.float64)
+    h_va = _layer_outputs(decoder, "gap", features_path, va).astype(np.float64)
+    if cfg.dropout_at == "gap":
+        p = cfg.dropout
+        scale = np.sqrt(p / (1 - p) * (h_tr ** 2).sum(axis=0)) + 1e-12
+    else:
+        scale = np.ones(h_tr.shape[1])
+    y = np.transpose(ds.gt(tr), (0, 2, 3, 1))                    # (n, R, C, P): the Dense layout
+    n_planes = y.shape[-1]
+    ybar = np.clip(y.mean(axis=0), eps, 1 - eps)
+    lim = float(np.log((1 - eps) / eps))
+    z = np.clip(np.log(ybar / (1 - ybar)) + (y - ybar) / (ybar * (1 - ybar)), -lim, lim)
+    path = ridge_path(h_tr / scale, z.reshape(len(z), -1))
+    kq = path.kernel(h_va / scale) @ path.eigvecs
+    rel = np.array([*RELATIVE_ALPHAS, np.inf])
+
+    def predict(alpha):
+        zv = path.predict(kq, alpha).reshape(len(va), *y.shape[1:])
+        return np.transpose(1 / (1 + np.exp(-zv)), (0, 3, 1, 2))
+
+    alphas, scores = choose_alpha_per_plane(predict, path.alpha_scale * rel, ds.gt(va), mean_ssim)
+    coef = path.dual_coef(np.tile(alphas, int(np.prod(y.shape[1:-1]))))  # columns are (r, c, plane)
+    w = (path.x_train.T @ coef) / scale[:, None].astype(np.float32)     # (256, R·C·P)
+    b = path.y_mean - (path.x_mean * scale.astype(np.float32)) @ w
+    decoder.get_layer("dense").set_weights([w.astype(np.float32), b.astype(np.float32)])
+    k = np.zeros(decoder.get_layer("refocused").kernel.shape, np.float32)
+    k[1, 1, np.arange(n_planes), np.arange(n_planes)] = 1.0
+    decoder.get_layer("refocused").set_weights([k, np.zeros(n_planes, np.float32)])
+    return dict(relative_alpha=[float(a / path.alpha_scale) for a in alphas], val_ssim=scores.tolist())
+
+
+#: Layers that the 'closed-form' recipe trains (a linear probe of the decoder's head).
+PROBE_LAYERS = ("dense", "refocused")
+
+
 class _WallClock(keras.callbacks.Callback):
     """Adds validation SSIM and cumulative wall time to the epoch logs, and stops before the
     time budget: after an epoch, training stops when one more epoch as long as the longest
@@ -175,27 +284,27 @@ class _LabelWeightsFile(keras.callbacks.Callback):
                     f.attrs["backbone_weights"] = self.label
 
 
-def _epochs_since_best(val_losses) -> int:
-    """Epochs run after the one with the lowest validation loss (0 if the last was best)."""
-    return len(val_losses) - 1 - int(np.argmin(val_losses))
+def _epochs_since_best(val_ssims) -> int:
+    """Epochs run after the one with the highest validation SSIM (0 if the last was best)."""
+    return len(val_ssims) - 1 - int(np.argmax(val_ssims))
 
 
 class _ResumableEarlyStopping(keras.callbacks.EarlyStopping):
     """EarlyStopping that, on resume, counts the epochs without improvement already run."""
 
-    def __init__(self, past_losses, **kw):
-        super().__init__(**kw)
-        self.past = list(past_losses)
+    def __init__(self, past_ssims, **kw):
+        super().__init__(monitor="val_ssim", mode="max", **kw)
+        self.past = list(past_ssims)
 
     def on_train_begin(self, logs=None):
         super().on_train_begin(logs)
         if self.past:
-            self.best = float(np.min(self.past))
+            self.best = float(np.max(self.past))
             self.wait = _epochs_since_best(self.past)
 
 
 def _resume_state(out: Path):
-    """(initial_epoch, wall time already trained, past val losses) from a previous run in ``out``.
+    """(initial_epoch, wall time already trained, past val SSIMs) from a previous run in ``out``.
 
     The history is cut back to the epoch that the last complete checkpoint holds, so an
     epoch logged by a run killed before its checkpoint was written is trained again.
@@ -212,7 +321,7 @@ def _resume_state(out: Path):
         raise ValueError(f"{hist_path} lacks epochs that {state_path} says were trained; "
                          f"delete {out} to train from scratch")
     atomic_write_text(hist_path, h.to_csv(index=False))
-    return state["epoch"] + 1, float(state["wall_time_s"]), h["val_loss"].tolist()
+    return state["epoch"] + 1, float(state["wall_time_s"]), h["val_ssim"].tolist()
 
 
 def load_decoder(model_dir):
@@ -285,6 +394,81 @@ def _save_random_backbone(ds: LightFieldDataset, cfg: ModelConfig, seed: int, ou
         os.replace(tmp, path)
 
 
+def _features(features_path, indices) -> np.ndarray:
+    with h5py.File(features_path, "r") as f:
+        return f["features"][np.sort(np.asarray(indices))]
+
+
+#: The baselines' files in a model folder, by route.
+BASELINE_FILES = {"mean image": "mean_image.h5", "linear decoder (GAP-pooled)": "linear_gap.h5",
+                  "linear decoder (un-pooled)": "linear_unpooled.h5"}
+
+
+def fit_baselines(features_path, ds: LightFieldDataset, out: Path) -> dict:
+    """Fit the mean image and both linear decoders on the training split (λ per plane chosen
+    on the validation split) and save them in ``out`` (:data:`BASELINE_FILES`), unless done.
+
+    Returns
+    -------
+    dict : route -> validation SSIM per plane (list of 4) and fit time (s).
+    """
+    from .baselines import LinearDecoder, MeanImage
+    from .metrics import mean_ssim
+    info_path = out / "baselines.json"
+    if info_path.exists() and all((out / f).exists() for f in BASELINE_FILES.values()):
+        return json.loads(info_path.read_text())
+    tr, va = np.sort(ds.splits["train"]), np.sort(ds.splits["val"])
+    gt_tr, gt_va = ds.gt(tr), ds.gt(va)
+    info = {}
+    t = time.perf_counter()
+    mean = MeanImage.fit(gt_tr)
+    mean.save(out / BASELINE_FILES[mean.route])
+    info[mean.route] = dict(val_ssim=[mean_ssim(gt_va[:, k], mean.predict(va)[:, k]) for k in range(gt_va.shape[1])],
+                            fit_s=time.perf_counter() - t)
+    for pooling in ("gap", "none"):
+        t = time.perf_counter()
+        f_tr, f_va = _features(features_path, tr), _features(features_path, va)
+        dec = LinearDecoder.fit(pooling, f_tr, gt_tr, f_va, gt_va, mean_ssim)
+        del f_tr
+        dec.save(out / BASELINE_FILES[dec.route])
+        info[dec.route] = dict(val_ssim=dec.val_scores.tolist(), alphas=dec.alphas.tolist(),
+                               fit_s=time.perf_counter() - t)
+        print(f"{dec.route}: validation SSIM {np.round(dec.val_scores, 3).tolist()} "
+              f"({info[dec.route]['fit_s']:.0f} s)")
+    atomic_write_text(info_path, json.dumps(info, indent=2))
+    return info
+
+
+def _start(ds, feats_path, model_cfg: ModelConfig, train_cfg: TrainConfig, label, train_data, val_data, out: Path):
+    """Build and initialise the decoder by the recipe, compile it, and write the start as
+    epoch 0 of the history, the best and the last checkpoint (so a resume begins at epoch 1)."""
+    t0 = time.perf_counter()
+    with h5py.File(feats_path, "r") as f:
+        fshape = f["features"].shape[1:]
+    decoder = build_decoder(fshape, ds.camera.n_rows, ds.camera.n_cols, model_cfg)
+    start = dict(recipe=train_cfg.recipe)
+    if train_cfg.recipe == "closed-form":
+        start.update(closed_form_start(decoder, feats_path, ds, model_cfg))
+        for layer in decoder.layers:
+            layer.trainable = layer.name in PROBE_LAYERS
+    decoder.compile(optimizer=keras.optimizers.Adam(train_cfg.learning_rate), loss="mse")
+    logs = dict(loss=float(decoder.evaluate(train_data, verbose=0)), val_loss=float(decoder.evaluate(val_data, verbose=0)))
+    wall = _WallClock((feats_path, ds, ds.splits["val"]), float("inf"))
+    wall.set_model(decoder)
+    wall.t0 -= time.perf_counter() - t0  # the start's own time counts as training time
+    wall.on_epoch_end(0, logs)
+    start["wall_time_s"] = logs["wall_time_s"]
+    atomic_write_text(out / "start.json", json.dumps(start, indent=2))
+    atomic_write_text(out / "history.csv", pd.DataFrame([dict(epoch=0, **logs)]).to_csv(index=False))
+    decoder.save_weights(out / "decoder_best.weights.h5")
+    _LabelWeightsFile(out / "decoder_best.weights.h5", label).on_epoch_end(0)
+    resume = _ResumeCheckpoint(out / "decoder_last.keras", out / "train_state.json", label)
+    resume.set_model(decoder)
+    resume.on_epoch_end(0, logs)
+    print(f"start ({train_cfg.recipe}): validation SSIM {logs['val_ssim']:.4f} in {logs['wall_time_s']:.0f} s")
+    return start, decoder
+
+
 def train(dataset_path, out_dir, model_cfg: ModelConfig, train_cfg: TrainConfig, progress: bool = True) -> dict:
     """Train the decoder on a dataset's cached features; resumable.
 
@@ -313,44 +497,48 @@ def train(dataset_path, out_dir, model_cfg: ModelConfig, train_cfg: TrainConfig,
     if label == "random-init":
         _save_random_backbone(ds, model_cfg, train_cfg.seed, out)
     t_feat = time.perf_counter() - t_start
+    baselines = fit_baselines(feats_path, ds, out)
     keras.utils.set_random_seed(train_cfg.seed)
     hist_path, last_path, best_path = out / "history.csv", out / "decoder_last.keras", out / "decoder_best.weights.h5"
     initial_epoch, offset, past = _resume_state(out)
+    bs = train_cfg.batch_size
+    val_data = FeatureBatches(feats_path, ds, ds.splits["val"], bs, False, train_cfg.seed)
     if initial_epoch:
         decoder = keras.models.load_model(last_path)
+        start = json.loads((out / "start.json").read_text())
         print(f"resuming from epoch {initial_epoch} ({offset:.0f} s already trained)")
     else:
-        with h5py.File(feats_path, "r") as f:
-            fshape = f["features"].shape[1:]
-        decoder = build_decoder(fshape, ds.camera.n_rows, ds.camera.n_cols, model_cfg)
-        decoder.compile(optimizer=keras.optimizers.Adam(train_cfg.learning_rate), loss="mse")
+        train_eval = FeatureBatches(feats_path, ds, ds.splits["train"], bs, False, train_cfg.seed)
+        start, decoder = _start(ds, feats_path, model_cfg, train_cfg, label, train_eval, val_data, out)
+        initial_epoch, offset, past = _resume_state(out)
+    # epoch 0 of the history is the start; training epoch k (1 .. max_epochs) shuffles with (seed, k - 1)
+    train_data = FeatureBatches(feats_path, ds, ds.splits["train"], bs, True, train_cfg.seed, initial_epoch - 1)
     scene = ds.scene
     max_epochs = int(train_cfg.max_epochs[scene])
     budget = float(train_cfg.time_budget_s[scene])
-    bs = train_cfg.batch_size
-    train_data = FeatureBatches(feats_path, ds, ds.splits["train"], bs, True, train_cfg.seed, initial_epoch)
-    val_data = FeatureBatches(feats_path, ds, ds.splits["val"], bs, False, train_cfg.seed)
     callbacks = [
         _WallClock((feats_path, ds, ds.splits["val"]), budget, offset),
-        keras.callbacks.ModelCheckpoint(str(best_path), monitor="val_loss", save_best_only=True,
-                                        save_weights_only=True, initial_value_threshold=min(past, default=None)),
+        keras.callbacks.ModelCheckpoint(str(best_path), monitor="val_ssim", mode="max", save_best_only=True,
+                                        save_weights_only=True, initial_value_threshold=max(past)),
         _LabelWeightsFile(best_path, label),
-        keras.callbacks.CSVLogger(str(hist_path), append=initial_epoch > 0),
+        keras.callbacks.CSVLogger(str(hist_path), append=True),
         _ResumeCheckpoint(last_path, out / "train_state.json", label),
-        _ResumableEarlyStopping(past, monitor="val_loss", patience=train_cfg.patience),
+        _ResumableEarlyStopping(past, patience=train_cfg.patience),
     ]
-    stopped_early = bool(past) and _epochs_since_best(past) >= train_cfg.patience
-    if initial_epoch < max_epochs and offset < budget and not stopped_early:
-        decoder.fit(train_data, validation_data=val_data, epochs=max_epochs, initial_epoch=initial_epoch,
+    stopped_early = _epochs_since_best(past) >= train_cfg.patience
+    if initial_epoch <= max_epochs and offset < budget and not stopped_early:
+        decoder.fit(train_data, validation_data=val_data, epochs=max_epochs + 1, initial_epoch=initial_epoch,
                     callbacks=callbacks, verbose=2 if progress else 0)
     h = pd.read_csv(hist_path)
     info = dict(dataset=str(dataset_path), scene=scene, backbone_weights=label,
                 model_config=json.loads(to_json(model_cfg)), train_config=json.loads(to_json(train_cfg)),
                 raw_shape=list(ds.camera.sensor_shape), output_shape=[ds.camera.n_rows, ds.camera.n_cols],
                 feature_shape=list(decoder.input_shape[1:]), dataset_camera=ds.attrs["camera"],
-                epochs_run=int(len(h)), paper_epochs=int({"shapes": 5000, "flame": 1000}[scene]),
-                best_epoch=int(h["epoch"].iloc[int(h["val_loss"].idxmin())]) + 1,
+                epochs_run=int(len(h)) - 1, paper_epochs=int({"shapes": 5000, "flame": 1000}[scene]),
+                best_epoch=int(h["epoch"].iloc[int(h["val_ssim"].idxmax())]),
+                best_val_ssim=float(h["val_ssim"].max()), start_val_ssim=float(h["val_ssim"].iloc[0]),
                 best_val_loss=float(h["val_loss"].min()), training_wall_time_s=float(h["wall_time_s"].iloc[-1]),
+                start=start, baselines=baselines,
                 feature_cache=str(feats_path), feature_wall_time_s=t_feat, provenance=provenance())
     atomic_write_text(out / "train_info.json", json.dumps(info, indent=2))
     return info
