@@ -103,20 +103,35 @@ def classical_rows(ds, raws, refs, repeats) -> list[dict]:
             for r, s, kw in routes]
 
 
-def model_rows(model_dirs, raws, refs, repeats) -> list[dict]:
-    """The trained models (full: backbone + decoder) on the current Keras backend."""
+def model_rows(model_dirs, raws, refs, repeats, baselines: bool = True) -> list[dict]:
+    """The trained models (full: backbone + decoder) on the current Keras backend and, with
+    ``baselines``, the yardsticks saved beside each (mean image; linear decoders, which run
+    the same backbone)."""
     import keras
-    from lf_flame.train import load_full_model
+    from lf_flame.baselines import LinearDecoder, MeanImage
+    from lf_flame.train import BASELINE_FILES, load_full_model
     rows = []
     for d in model_dirs:
         model, info = load_full_model(d)
+        fx = model.get_layer("feature_extractor")
         size = f"{info['model_config']['input_rows']}x{info['model_config']['input_cols']}"
 
         def fn(raw, model=model):
             return np.transpose(np.asarray(model.predict_on_batch(raw[None, ..., None]))[0], (2, 0, 1))
-        row = _route_row("model", f"backbone input {size}, {info['epochs_run']} epochs, {info['backbone_weights']}",
-                         fn, raws, refs, repeats, backend=keras.backend.backend())
-        rows.append(row)
+        rows.append(_route_row("model", f"backbone input {size}, {info['epochs_run']} epochs, "
+                               f"{info['backbone_weights']}", fn, raws, refs, repeats, backend=keras.backend.backend()))
+        for route, name in BASELINE_FILES.items() if baselines else ():
+            if route == "mean image":
+                mean = MeanImage.load(Path(d) / name).mean
+                rows.append(_route_row(route, "training split's mean ground truth", lambda raw, m=mean: m, raws, refs,
+                                       repeats))
+                continue
+            lin = LinearDecoder.load(Path(d) / name)
+
+            def lin_fn(raw, lin=lin, fx=fx):
+                return lin.predict(np.asarray(fx.predict_on_batch(raw[None, ..., None])))[0]
+            rows.append(_route_row(route, f"backbone input {size}, {info['backbone_weights']}", lin_fn, raws, refs,
+                                   repeats, backend=keras.backend.backend()))
     return rows
 
 
@@ -172,7 +187,8 @@ def training_rows(model_dirs) -> list[dict]:
         size = f"{info['model_config']['input_rows']}x{info['model_config']['input_cols']}"
         for r in pd.read_csv(Path(d) / "history.csv").itertuples():
             rows.append(dict(section="training", route=f"{info['scene']} model, input {size}",
-                             setting=f"epoch {r.epoch + 1}", epochs=r.epoch + 1, train_wall_s=r.wall_time_s,
+                             setting="start" if r.epoch == 0 else f"epoch {r.epoch}", epochs=r.epoch,
+                             train_wall_s=r.wall_time_s,
                              val_ssim=r.val_ssim, val_loss=r.val_loss))
     return rows
 
@@ -269,6 +285,12 @@ def summary(df: pd.DataFrame, prov: dict, n_test: int, ref_rpp: int) -> str:
                      f"takes {bil.latency_ms_median:.3g} ms ({bil.throughput_lf_per_s:.3g}/s), "
                      f"{m.latency_ms_median / bil.latency_ms_median:.3g}x faster than the model, "
                      f"at SSIM {bil.ssim_mean:.3f} against the model's {m.ssim_mean:.3f}.")
+    learned = ref[ref.route.isin(["model", "mean image", "linear decoder (GAP-pooled)", "linear decoder (un-pooled)"])
+                  & (ref.backend != "jax")]
+    if len(learned):
+        lines.append("- The learned routes beside their yardsticks (same backbone, same light fields): " + "; ".join(
+            f"{_label(r)}: SSIM {r.ssim_mean:.3f}, {r.psnr_db_mean:.1f} dB, {r.latency_ms_median:.3g} ms"
+            for r in learned.itertuples()) + ".")
     for sec, cols in (("simulator: rays per pixel", ["route", "rays_per_pixel", "latency_ms_median", "image_rmse"]),
                       ("simulator: effects", ["setting", "latency_ms_median"]),
                       ("slope search", ["setting", "latency_ms_median", "slope_error_max", "slope_error_mean"])):
@@ -297,7 +319,7 @@ def main(argv=None):
     a = p.parse_args(argv)
     if a.models_only:
         z = np.load(a.models_only)
-        print(json.dumps(model_rows(a.dirs, list(z["raws"]), z["refs"], a.repeats)))
+        print(json.dumps(model_rows(a.dirs, list(z["raws"]), z["refs"], a.repeats, baselines=False)))
         return 0
 
     t0 = time.perf_counter()

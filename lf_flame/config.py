@@ -88,9 +88,12 @@ class TrainConfig:
     layers trained at the paper's settings: :func:`lf_flame.train.closed_form_start`) or
     'paper' (every decoder layer trained from a random initialisation with batch
     statistics from batches of 2, as the paper describes; it does not learn here).
+    ``refine_iterations`` (per scene): L-BFGS iterations of the closed-form start's
+    output-space refinement of the Dense layer (:func:`lf_flame.train.refine_dense`; 0: none).
     """
 
     recipe: str = "closed-form"
+    refine_iterations: dict = dataclasses.field(default_factory=lambda: {"shapes": 40, "flame": 80})
     batch_size: int = 2
     learning_rate: float = 1e-4
     max_epochs: dict = dataclasses.field(default_factory=lambda: {"shapes": 5000, "flame": 1000})

@@ -29,7 +29,7 @@ FLAME_HEIGHT_SD_MM = (1.48, 1.457, 1.433, 1.41)
 #: same small relative spread), ``"varied"`` also position, size, rotation, radiance and
 #: flicker (the generalisation test).
 REGIMES = ("paper", "varied")
-#: Relative spread (sd / mean, ~0.068) of the shapes' size and position in the ``"paper"``
+#: Relative spread (sd / mean, ~0.070) of the shapes' size and position in the ``"paper"``
 #: regime: the mean over the four depths of the flames' height coefficient of variation
 #: ``FLAME_HEIGHT_SD_MM[k] / FLAME_HEIGHT_MEAN_MM[k]``, so both scenes vary alike.
 PAPER_RELATIVE_SD = sum(sd / m for sd, m in zip(FLAME_HEIGHT_SD_MM, FLAME_HEIGHT_MEAN_MM)) / len(FLAME_HEIGHT_MEAN_MM)

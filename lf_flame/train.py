@@ -125,7 +125,7 @@ def _layer_outputs(decoder, name: str, features_path, indices, batch: int = 16) 
     with h5py.File(features_path, "r") as f:
         for s in range(0, len(indices), batch):
             idx = np.sort(np.asarray(indices[s:s + batch]))
-            out.append(np.asarray(sub(f["features"][idx].astype(np.float32), training=False)))
+            out.append(keras.ops.convert_to_numpy(sub(f["features"][idx].astype(np.float32), training=False)))
     return np.concatenate(out)
 
 
@@ -163,9 +163,122 @@ def set_population_statistics(decoder, features_path, indices, center_pooled: bo
         layer.beta.assign(0.5 * (lo + hi))
 
 
-def closed_form_start(decoder, features_path, ds: LightFieldDataset, cfg: ModelConfig, eps: float = 1e-4) -> dict:
+def refine_dense(h_tr, y_tr, h_va, y_va, w, b, max_iter: int):
+    """Refine the Dense layer on the output-space MSE of the training split, from ``(w, b)``.
+
+    The Gauss–Newton start fits linearised logits; this minimises the loss the network
+    trains on, ``mean ||σ(h W + b) − y||²``, over the whole training split at once with
+    L-BFGS (``scipy.optimize.minimize``), the pooled features ``h`` fixed. Every iteration
+    is scored on the validation split, and each plane keeps the columns of the iteration
+    that scored best there (iteration 0 is the start): early stopping per plane is the
+    regularisation, chosen on validation.
+
+    Parameters
+    ----------
+    h_tr, h_va : ndarray (n, 256), (m, 256)
+        Pooled features of the training and validation splits.
+    y_tr : ndarray (n, R·C·P)
+        Training targets in the Dense layer's (r, c, plane) order.
+    y_va : ndarray (m, R, C, P)
+    w, b : ndarray (256, R·C·P), (R·C·P,)
+        The start.
+    max_iter : int
+        L-BFGS iterations (0: return the start).
+
+    Returns
+    -------
+    (w, b, info) : the refined layer; info holds the iteration kept and the validation
+        SSIM per plane.
+    """
+    from scipy.optimize import minimize
+
+    from .metrics import mean_ssim
+    h_tr, h_va = np.asarray(h_tr, np.float32), np.asarray(h_va, np.float32)
+    y_tr = np.asarray(y_tr, np.float32)
+    d, p = w.shape
+    n_planes = y_va.shape[-1]
+    gt_va = np.transpose(y_va, (0, 3, 1, 2))
+
+    def val_scores(wb):
+        z = h_va @ wb[:d * p].reshape(d, p) + wb[d * p:]
+        pred = np.transpose((1 / (1 + np.exp(-z))).reshape(y_va.shape), (0, 3, 1, 2))
+        return np.array([mean_ssim(gt_va[:, k], pred[:, k]) for k in range(n_planes)])
+
+    def loss(wb):
+        wb = wb.astype(np.float32)
+        z = h_tr @ wb[:d * p].reshape(d, p) + wb[d * p:]
+        s = 1 / (1 + np.exp(-z))
+        r = s - y_tr
+        g = (2.0 / len(h_tr)) * r * s * (1 - s)
+        return float((r ** 2).sum() / len(h_tr)), np.concatenate([(h_tr.T @ g).ravel(), g.sum(axis=0)]).astype(np.float64)
+
+    start = np.concatenate([w.ravel(), b]).astype(np.float32)
+    best, best_scores, best_iter = start.copy(), val_scores(start), np.zeros(n_planes, int)
+    plane = np.arange(p) % n_planes  # the plane of each output column
+    it = [0]
+
+    def track(wb):
+        it[0] += 1
+        wb = wb.astype(np.float32)
+        sc = val_scores(wb)
+        for k in np.flatnonzero(sc > best_scores):
+            cols = np.flatnonzero(plane == k)
+            for off in (0, d * p):  # the plane's weight columns, then its biases
+                idx = (np.arange(d)[:, None] * p + cols).ravel() if off == 0 else d * p + cols
+                best[idx] = wb[idx]
+            best_scores[k], best_iter[k] = sc[k], it[0]
+
+    if max_iter:
+        minimize(loss, start.astype(np.float64), jac=True, method="L-BFGS-B", callback=track,
+                 options=dict(maxiter=int(max_iter)))
+    z_va = h_va @ best[:d * p].reshape(d, p) + best[d * p:]
+    val_mse = float(np.mean((1 / (1 + np.exp(-z_va)) - y_va.reshape(len(y_va), -1)) ** 2))
+    return (best[:d * p].reshape(d, p), best[d * p:],
+            dict(refine_iterations=int(it[0]), kept_iteration=best_iter.tolist(), val_ssim=best_scores.tolist(),
+                 loss=loss(best)[0] / p, val_loss=val_mse))
+
+
+def pair_convolutions(decoder, linear) -> None:
+    """Set conv1 and conv2 (centre taps) so that the pooled features keep, linearly, the
+    leading feature directions of the GAP-pooled linear decoder.
+
+    The directions: the GAP-pooled ridge's weights ``W`` (2,048 × R·C·4) mapped through the
+    principal axes of its fitted values on the training split (SVD), i.e. the feature
+    combinations that make its largest output modes (reduced-rank regression, Izenman
+    1975). conv1's 512 filters are 256 such directions and their negatives; conv2's first
+    128 filters take each pair's difference and its last 128 the negated difference.
+    Since LeakyReLU(u) − LeakyReLU(−u) = (1 + slope) u and batch normalisation treats a
+    pair alike, the leading 128 directions reach bn2 unchanged (up to scale); after bn2's
+    LeakyReLU the Dense layer can form them back as differences of pooled features.
+    Random convolutions keep less of them (docs/deviations.md has the figures).
+
+    Parameters
+    ----------
+    decoder : keras.Model from :func:`lf_flame.model.build_decoder` (modified in place)
+    linear : :class:`lf_flame.baselines.LinearDecoder` with ``pooling == 'gap'``
+    """
+    w = linear.x_train.T @ linear.dual_coef                       # primal weights (c, R·C·P)
+    vt = np.linalg.svd(linear.x_train @ w, full_matrices=False)[2]
+    c1, c2 = decoder.get_layer("conv1"), decoder.get_layer("conv2")
+    n1, n2 = c1.filters // 2, c2.filters // 2
+    d = w @ vt[:n1].T
+    d = np.pad(d / (np.linalg.norm(d, axis=0) + 1e-12), ((0, 0), (0, n1 - d.shape[1])))
+    k1 = np.zeros(c1.kernel.shape, np.float32)
+    k1[1, 1, :, :n1], k1[1, 1, :, n1:2 * n1] = d, -d
+    k2 = np.zeros(c2.kernel.shape, np.float32)
+    j = np.arange(n2)
+    k2[1, 1, j, j], k2[1, 1, n1 + j, j], k2[1, 1, j, n2 + j], k2[1, 1, n1 + j, n2 + j] = 1, -1, -1, 1
+    c1.set_weights([k1, np.zeros(c1.filters, np.float32)])
+    c2.set_weights([k2, np.zeros(c2.filters, np.float32)])
+
+
+def closed_form_start(decoder, features_path, ds: LightFieldDataset, cfg: ModelConfig, eps: float = 1e-4,
+                      max_iter: int = 0, linear=None) -> dict:
     """The 'closed-form' recipe's initialisation of the decoder, in place; seconds to minutes.
 
+    0. With ``linear`` (the GAP-pooled :class:`~lf_flame.baselines.LinearDecoder`), the
+       convolutions are set by :func:`pair_convolutions`; without, they keep their
+       random initialisation.
     1. Batch-norm statistics from the training split (:func:`set_population_statistics`).
     2. The output convolution starts as the identity (centre tap 1 on its own plane, bias 0),
        so the Dense layer's output is the logit of the prediction.
@@ -182,6 +295,8 @@ def closed_form_start(decoder, features_path, ds: LightFieldDataset, cfg: ModelC
        linear layer's input acts as that diagonal L2 penalty (Wager, Wang & Liang 2013,
        "Dropout training as adaptive regularization"), so training starts near its own
        equilibrium.
+    4. The Dense layer is refined on the output-space MSE (:func:`refine_dense`,
+       ``max_iter`` L-BFGS iterations, each plane kept at its best validation iteration).
 
     Returns
     -------
@@ -191,6 +306,8 @@ def closed_form_start(decoder, features_path, ds: LightFieldDataset, cfg: ModelC
     from .baselines import RELATIVE_ALPHAS, choose_alpha_per_plane, ridge_path
     from .metrics import mean_ssim
     tr, va = np.sort(ds.splits["train"]), np.sort(ds.splits["val"])
+    if linear is not None:
+        pair_convolutions(decoder, linear)
     set_population_statistics(decoder, features_path, tr)
     h_tr = _layer_outputs(decoder, "gap", features_path, tr).astype(np.float64)
     h_va = _layer_outputs(decoder, "gap", features_path, va).astype(np.float64)
@@ -216,15 +333,26 @@ def closed_form_start(decoder, features_path, ds: LightFieldDataset, cfg: ModelC
     coef = path.dual_coef(np.tile(alphas, int(np.prod(y.shape[1:-1]))))  # columns are (r, c, plane)
     w = (path.x_train.T @ coef) / scale[:, None].astype(np.float32)     # (256, R·C·P)
     b = path.y_mean - (path.x_mean * scale.astype(np.float32)) @ w
+    w, b, refined = refine_dense(h_tr, y.reshape(len(y), -1), h_va, np.transpose(ds.gt(va), (0, 2, 3, 1)),
+                                 w, b, max_iter)
     decoder.get_layer("dense").set_weights([w.astype(np.float32), b.astype(np.float32)])
     k = np.zeros(decoder.get_layer("refocused").kernel.shape, np.float32)
     k[1, 1, np.arange(n_planes), np.arange(n_planes)] = 1.0
     decoder.get_layer("refocused").set_weights([k, np.zeros(n_planes, np.float32)])
-    return dict(relative_alpha=[float(a / path.alpha_scale) for a in alphas], val_ssim=scores.tolist())
+    return dict(relative_alpha=[float(a / path.alpha_scale) for a in alphas], gauss_newton_val_ssim=scores.tolist(),
+                **refined)
 
 
 #: Layers that the 'closed-form' recipe trains (a linear probe of the decoder's head).
 PROBE_LAYERS = ("dense", "refocused")
+
+
+def freeze_for_probe(decoder) -> None:
+    """Freeze every decoder layer but :data:`PROBE_LAYERS`: the convolutions keep their
+    weights, and the batch-norm layers (frozen, so Keras 3 runs them in inference mode)
+    their population statistics, in training as in inference."""
+    for layer in decoder.layers:
+        layer.trainable = layer.name in PROBE_LAYERS
 
 
 class _WallClock(keras.callbacks.Callback):
@@ -448,11 +576,17 @@ def _start(ds, feats_path, model_cfg: ModelConfig, train_cfg: TrainConfig, label
     decoder = build_decoder(fshape, ds.camera.n_rows, ds.camera.n_cols, model_cfg)
     start = dict(recipe=train_cfg.recipe)
     if train_cfg.recipe == "closed-form":
-        start.update(closed_form_start(decoder, feats_path, ds, model_cfg))
-        for layer in decoder.layers:
-            layer.trainable = layer.name in PROBE_LAYERS
+        from .baselines import LinearDecoder
+        gap = LinearDecoder.load(out / BASELINE_FILES["linear decoder (GAP-pooled)"])
+        start.update(closed_form_start(decoder, feats_path, ds, model_cfg,
+                                       max_iter=int(train_cfg.refine_iterations[ds.scene]), linear=gap))
+        freeze_for_probe(decoder)
+        logs = dict(loss=start["loss"], val_loss=start["val_loss"])  # the network's output is σ(dense) here
     decoder.compile(optimizer=keras.optimizers.Adam(train_cfg.learning_rate), loss="mse")
-    logs = dict(loss=float(decoder.evaluate(train_data, verbose=0)), val_loss=float(decoder.evaluate(val_data, verbose=0)))
+    decoder.optimizer.build(decoder.trainable_variables)  # its (empty) state is saved with the start
+    if train_cfg.recipe == "paper":
+        logs = dict(loss=float(decoder.evaluate(train_data, verbose=0)),
+                    val_loss=float(decoder.evaluate(val_data, verbose=0)))
     wall = _WallClock((feats_path, ds, ds.splits["val"]), float("inf"))
     wall.set_model(decoder)
     wall.t0 -= time.perf_counter() - t0  # the start's own time counts as training time

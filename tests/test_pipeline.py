@@ -17,29 +17,57 @@ def test_quick_pipeline_end_to_end(tmp_path):
     assert main(["slopes", "--data-config", dcfg, "--out", str(data / "slopes.json"), "--results", str(res)]) == 0
     slopes = pd.read_csv(res / "slopes.csv")
     assert (slopes.found_minus_analytic.abs() <= 0.05).all()
-    for scene in ("shapes", "flame"):
-        h5 = str(data / f"{scene}.h5")
-        assert main(["dataset", "--data-config", dcfg, "--scene", scene, "--slopes", str(data / "slopes.json"),
-                     "--out", h5, "--quiet"]) == 0
-        assert main(["train", "--dataset", h5, "--experiment-config", ecfg, "--out", str(models / scene),
-                     "--quiet"]) == 0
-        assert main(["evaluate", "--dataset", h5, "--model-dir", str(models / scene), "--results", str(res)]) == 0
-        info = json.loads((models / scene / "train_info.json").read_text())
+    # the shapes on the paper regime, the flames on the varied one (as make lays them out)
+    for regime, scene in (("paper", "shapes"), ("varied", "flame")):
+        h5, m, r = str(data / regime / f"{scene}.h5"), models / regime / scene, res / regime
+        assert main(["dataset", "--data-config", dcfg, "--regime", regime, "--scene", scene, "--slopes",
+                     str(data / "slopes.json"), "--out", h5, "--quiet"]) == 0
+        assert main(["train", "--dataset", h5, "--experiment-config", ecfg, "--out", str(m), "--quiet"]) == 0
+        assert main(["evaluate", "--dataset", h5, "--model-dir", str(m), "--results", str(r), "--fresh", "1"]) == 0
+        info = json.loads((m / "train_info.json").read_text())
         assert info["backbone_weights"] in ("imagenet", "random-init")
-        hist = pd.read_csv(models / scene / "history.csv")
-        assert {"loss", "val_loss", "val_ssim", "wall_time_s"} <= set(hist.columns) and len(hist) >= 1
-        table = pd.read_csv(res / f"table_{scene}.csv")
-        assert table[["ssim_mean", "psnr_db_mean"]].notna().all().all() and len(table) == 4
-        assert (res / f"fig_{scene}.png").stat().st_size > 10_000
-        assert len(pd.read_csv(res / f"learning_{scene}.csv")) == len(hist)
+        hist = pd.read_csv(m / "history.csv")
+        assert {"loss", "val_loss", "val_ssim", "wall_time_s"} <= set(hist.columns) and len(hist) >= 2
+        table = pd.read_csv(r / f"table_{scene}.csv")
+        assert table[["ssim_mean", "psnr_db_mean"]].notna().all().all()
+        assert set(table.route) == {"network", "mean image", "linear decoder (GAP-pooled)",
+                                    "linear decoder (un-pooled)"}
+        assert set(table.split) == {"test", "fresh"} and len(table) == 4 * 4 * 2
+        assert table.ssim_paper.notna().all() == (regime == "paper")
+        assert (r / f"fig_{scene}.png").stat().st_size > 10_000
+        assert len(pd.read_csv(r / f"learning_{scene}.csv")) == len(hist)
+        _network_beats_the_mean_image_on_validation(h5, m)
     # a second train call resumes from the saved state and runs no further epochs
-    n_before = len(pd.read_csv(models / "flame" / "history.csv"))
-    assert main(["train", "--dataset", str(data / "flame.h5"), "--experiment-config", ecfg,
-                 "--out", str(models / "flame"), "--quiet"]) == 0
-    assert len(pd.read_csv(models / "flame" / "history.csv")) == n_before
+    flame = models / "varied" / "flame"
+    n_before = len(pd.read_csv(flame / "history.csv"))
+    assert main(["train", "--dataset", str(data / "varied" / "flame.h5"), "--experiment-config", ecfg,
+                 "--out", str(flame), "--quiet"]) == 0
+    assert len(pd.read_csv(flame / "history.csv")) == n_before
     assert main(["tables", "--results", str(res), "--data-dir", str(data), "--model-dir", str(models)]) == 0
     text = (res / "tables.md").read_text()
     assert "Table I" in text and "Table II" in text and ("random-init" in text or "imagenet" in text)
+    assert "mean image" in text and "linear GAP" in text
+
+
+def _network_beats_the_mean_image_on_validation(dataset, model_dir):
+    """The trained network (its best checkpoint) against the mean image saved beside it, per
+    plane on the validation split: fails for an untrained network and for one that predicts
+    the mean image."""
+    import h5py
+    import numpy as np
+    from lf_flame.baselines import MeanImage
+    from lf_flame.dataset import LightFieldDataset
+    from lf_flame.metrics import mean_ssim
+    from lf_flame.train import load_decoder, predict_features
+    ds = LightFieldDataset(dataset)
+    val = np.sort(ds.splits["val"])
+    dec, info = load_decoder(model_dir)
+    net = predict_features(dec, info["feature_cache"], val)
+    with h5py.File(info["feature_cache"]) as f:
+        mean = MeanImage.load(Path(model_dir) / "mean_image.h5").predict(f["features"][val])
+    gt = ds.gt(val)
+    for k in range(4):
+        assert mean_ssim(gt[:, k], net[:, k]) > mean_ssim(gt[:, k], mean[:, k]), f"plane {k}"
 
 
 def test_cli_errors_are_clear(tmp_path, capsys):

@@ -28,6 +28,7 @@ weights = "none"
 batch_size = 2
 learning_rate = 1e-4
 max_epochs = {{ shapes = {epochs}, flame = {epochs} }}
+refine_iterations = {{ shapes = 5, flame = 5 }}
 time_budget_s = {{ shapes = {budget}, flame = {budget} }}
 patience = 50
 seed = 7
@@ -60,8 +61,8 @@ def test_killed_training_resumes_from_last_checkpoint(flame_h5, tmp_path):
                                   "--out", str(out), "--quiet"], env=env, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
     hist, t0 = out / "history.csv", time.monotonic()
-    while proc.poll() is None and time.monotonic() - t0 < 300:  # kill once two epochs are logged
-        if hist.exists() and len(hist.read_text().splitlines()) >= 3:
+    while proc.poll() is None and time.monotonic() - t0 < 300:  # kill once the start and two epochs are logged
+        if hist.exists() and len(hist.read_text().splitlines()) >= 4:
             proc.send_signal(signal.SIGKILL)
             break
         time.sleep(0.01)
@@ -74,7 +75,7 @@ def test_killed_training_resumes_from_last_checkpoint(flame_h5, tmp_path):
     assert r.returncode == 0, r.stderr[-2000:]
     assert f"resuming from epoch {killed_at + 1}" in r.stdout
     info = json.loads((out / "train_info.json").read_text())
-    assert _epochs(out) == list(range(6))  # each epoch once, none lost, none repeated
+    assert _epochs(out) == list(range(7))  # the start (0), then each epoch once, none lost, none repeated
     assert info["epochs_run"] == 6
     import keras
     last = keras.models.load_model(out / "decoder_last.keras")
@@ -85,6 +86,7 @@ def test_killed_training_resumes_from_last_checkpoint(flame_h5, tmp_path):
 
 
 def test_time_budget_stops_training(flame_h5, tmp_path):
+    # the closed-form start alone spends the budget: the history holds only the start (epoch 0)
     out = tmp_path / "model"
     assert main(["train", "--dataset", str(flame_h5), "--experiment-config",
                  _experiment(tmp_path / "exp.toml", epochs=50, budget=0.01), "--out", str(out), "--quiet"]) == 0
@@ -223,3 +225,84 @@ def test_saved_random_backbone_is_the_one_that_made_the_features(flame_h5, tmp_p
     from lf_flame.dataset import LightFieldDataset
     got = np.asarray(fx.predict_on_batch(LightFieldDataset(flame_h5).raw([0])[..., None]))[0]
     assert np.abs(got - cached).max() <= 2e-3 * np.abs(cached).max()
+
+
+def _pooled_with_partners(decoder, feats):
+    """Sample 0's pooled features (the Dense layer's input) in training mode, batched with
+    sample 1 and with sample 2."""
+    import keras
+    gap = keras.Model(decoder.input, decoder.get_layer("gap").output)
+    return tuple(keras.ops.convert_to_numpy(gap(feats[[0, k]], training=True))[0] for k in (1, 2))
+
+
+def test_pooled_features_do_not_depend_on_the_batch_partner():
+    import keras
+    from lf_flame.config import ModelConfig
+    from lf_flame.model import build_decoder
+    from lf_flame.train import freeze_for_probe
+    feats = np.random.default_rng(0).normal(size=(3, 4, 2, 16)).astype("float32")
+    keras.utils.set_random_seed(0)
+    dec = build_decoder((4, 2, 16), 6, 4, ModelConfig())
+    a, b = _pooled_with_partners(dec, feats)  # the paper's recipe: batch statistics of 2 samples
+    assert np.abs(a - b).max() > 0.1 * np.abs(a).max()
+    freeze_for_probe(dec)  # the closed-form recipe: population statistics
+    a, b = _pooled_with_partners(dec, feats)
+    assert np.allclose(a, b, atol=1e-6)
+    inference = keras.ops.convert_to_numpy(keras.Model(dec.input, dec.get_layer("gap").output)(feats[[0]]))[0]
+    assert np.allclose(a, inference, atol=1e-6)  # and training sees what inference sees
+
+
+def test_paper_recipe_stays_reproducible(flame_h5, tmp_path):
+    exp = tmp_path / "exp.toml"
+    exp.write_text(EXPERIMENT.format(epochs=1, budget=600).replace("[train]", '[train]\nrecipe = "paper"')
+                   .replace("[model]", '[model]\ndropout_at = "pixels"'))
+    out = tmp_path / "model"
+    assert main(["train", "--dataset", str(flame_h5), "--experiment-config", str(exp), "--out", str(out),
+                 "--quiet"]) == 0
+    info = json.loads((out / "train_info.json").read_text())
+    assert info["train_config"]["recipe"] == "paper" and info["model_config"]["dropout_at"] == "pixels"
+    assert info["start"] == {"recipe": "paper", "wall_time_s": pytest.approx(info["start"]["wall_time_s"])}
+    assert _epochs(out) == [0, 1]
+    import keras
+    last = keras.models.load_model(out / "decoder_last.keras")
+    assert last.get_layer("bn1").trainable and last.get_layer("conv1").trainable
+
+
+def test_closed_form_start_beats_the_mean_image_and_training_keeps_it(flame_h5, tmp_path):
+    from lf_flame.dataset import LightFieldDataset
+    from lf_flame.train import load_decoder
+    out = tmp_path / "model"
+    assert main(["train", "--dataset", str(flame_h5), "--experiment-config",
+                 _experiment(tmp_path / "exp.toml", epochs=2), "--out", str(out), "--quiet"]) == 0
+    info = json.loads((out / "train_info.json").read_text())
+    mean_val = np.mean(info["baselines"]["mean image"]["val_ssim"])
+    h = pd.read_csv(out / "history.csv")
+    assert h.val_ssim.iloc[0] == pytest.approx(info["start_val_ssim"]) and h.val_ssim.iloc[0] > mean_val
+    assert info["best_val_ssim"] >= info["start_val_ssim"]
+    # the start was solved on the pooled features in NumPy: the Keras network scores the same
+    assert np.mean(info["start"]["val_ssim"]) == pytest.approx(h.val_ssim.iloc[0], abs=2e-3)
+    assert info["start"]["val_loss"] == pytest.approx(h.val_loss.iloc[0]) and np.isfinite(h.loss.iloc[0])
+    # the output-space refinement keeps, per plane, nothing worse than the Gauss-Newton start
+    assert np.all(np.array(info["start"]["val_ssim"]) >= np.array(info["start"]["gauss_newton_val_ssim"]))
+    dec, _ = load_decoder(out)  # the best checkpoint: what evaluate and predict use
+    assert dec.get_layer("bn1").moving_variance.numpy().mean() != 1.0  # population statistics, not the init
+    ds = LightFieldDataset(flame_h5)
+    assert len(ds.splits["val"]) >= 1
+
+
+def test_refine_dense_fits_the_output_space_loss():
+    from lf_flame.train import refine_dense
+    rng = np.random.default_rng(3)
+    h = rng.normal(size=(120, 8)).astype(np.float32)
+    w_true = rng.normal(scale=2.0, size=(8, 9 * 8 * 4)).astype(np.float32)  # (R, C, P) = (9, 8, 4)
+    y = (1 / (1 + np.exp(-(h @ w_true)))).astype(np.float32)
+    y_va = y[80:].reshape(40, 9, 8, 4)
+    w0, b0 = np.zeros_like(w_true), np.zeros(w_true.shape[1], np.float32)
+    w, b, info = refine_dense(h[:80], y[:80], h[80:], y_va, w0, b0, max_iter=60)
+    assert info["refine_iterations"] > 10 and min(info["kept_iteration"]) > 0
+    z = h[80:] @ w + b
+    err = np.abs(1 / (1 + np.exp(-z)) - y[80:])
+    assert err.mean() < 2e-3 and err.max() < 0.1  # the known sigmoid map, recovered on unseen samples
+    assert info["val_loss"] < 1e-4 < np.mean((0.5 - y[80:]) ** 2)
+    same = refine_dense(h[:80], y[:80], h[80:], y_va, w0, b0, max_iter=0)
+    assert np.array_equal(same[0], w0) and same[2]["kept_iteration"] == [0, 0, 0, 0]
