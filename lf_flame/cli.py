@@ -246,7 +246,8 @@ def cmd_tables(a):
             info = Path(a.model_dir) / regime / scene / "train_info.json"
             if info.exists():
                 i = json.loads(info.read_text())
-                times[f"backbone features {regime} {scene}"] = i["feature_wall_time_s"]
+                with h5py.File(i["feature_cache"], "r") as f:  # when they were computed, maybe by an earlier run
+                    times[f"backbone features {regime} {scene}"] = float(f.attrs["wall_time_s"])
                 times[f"training {regime} {scene} (start + {i['epochs_run']} epochs)"] = i["training_wall_time_s"]
             tv = Path(a.model_dir) / regime / scene / "time_v.txt"
             if tv.exists():

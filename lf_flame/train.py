@@ -163,7 +163,7 @@ def set_population_statistics(decoder, features_path, indices, center_pooled: bo
         layer.beta.assign(0.5 * (lo + hi))
 
 
-def refine_dense(h_tr, y_tr, h_va, y_va, w, b, max_iter: int):
+def refine_dense(h_tr, y_tr, h_va, y_va, w, b, max_iter: int, patience: int = 10):
     """Refine the Dense layer on the output-space MSE of the training split, from ``(w, b)``.
 
     The Gauss–Newton start fits linearised logits; this minimises the loss the network
@@ -171,7 +171,8 @@ def refine_dense(h_tr, y_tr, h_va, y_va, w, b, max_iter: int):
     L-BFGS (``scipy.optimize.minimize``), the pooled features ``h`` fixed. Every iteration
     is scored on the validation split, and each plane keeps the columns of the iteration
     that scored best there (iteration 0 is the start): early stopping per plane is the
-    regularisation, chosen on validation.
+    regularisation, chosen on validation. The search stops after ``max_iter`` iterations,
+    or ``patience`` iterations in which no plane improved.
 
     Parameters
     ----------
@@ -227,6 +228,8 @@ def refine_dense(h_tr, y_tr, h_va, y_va, w, b, max_iter: int):
                 idx = (np.arange(d)[:, None] * p + cols).ravel() if off == 0 else d * p + cols
                 best[idx] = wb[idx]
             best_scores[k], best_iter[k] = sc[k], it[0]
+        if it[0] - best_iter.max() >= patience:
+            raise StopIteration  # SciPy >= 1.11 ends the minimisation here
 
     if max_iter:
         minimize(loss, start.astype(np.float64), jac=True, method="L-BFGS-B", callback=track,
@@ -293,15 +296,17 @@ def closed_form_start(decoder, features_path, ds: LightFieldDataset, cfg: ModelC
        With ``cfg.dropout_at == 'gap'``, each pooled feature is scaled by the dropout
        penalty's ``sqrt(p/(1−p) Σₙ hₙᵢ²)`` before the (isotropic) ridge: dropout on a
        linear layer's input acts as that diagonal L2 penalty (Wager, Wang & Liang 2013,
-       "Dropout training as adaptive regularization"), so training starts near its own
-       equilibrium.
+       "Dropout training as adaptive regularization"), the penalty that training with
+       dropout adds.
     4. The Dense layer is refined on the output-space MSE (:func:`refine_dense`,
        ``max_iter`` L-BFGS iterations, each plane kept at its best validation iteration).
 
     Returns
     -------
-    dict : the λ chosen per plane (relative to the mean Gram eigenvalue, ``inf`` = mean
-        image) and the validation SSIM per plane at the start.
+    dict : ``relative_alpha`` (the λ chosen per plane, relative to the mean Gram
+        eigenvalue; ``inf`` = mean image), ``gauss_newton_val_ssim`` (per plane, before the
+        refinement) and :func:`refine_dense`'s record: ``val_ssim`` per plane at the start,
+        ``kept_iteration``, ``loss`` and ``val_loss`` (MSE).
     """
     from .baselines import RELATIVE_ALPHAS, choose_alpha_per_plane, ridge_path
     from .metrics import mean_ssim
