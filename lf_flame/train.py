@@ -558,11 +558,10 @@ def fit_baselines(features_path, ds: LightFieldDataset, out: Path) -> dict:
     mean.save(out / BASELINE_FILES[mean.route])
     info[mean.route] = dict(val_ssim=[mean_ssim(gt_va[:, k], mean.predict(va)[:, k]) for k in range(gt_va.shape[1])],
                             fit_s=time.perf_counter() - t)
+    f_tr, f_va = _features(features_path, tr), _features(features_path, va)
     for pooling in ("gap", "none"):
         t = time.perf_counter()
-        f_tr, f_va = _features(features_path, tr), _features(features_path, va)
         dec = LinearDecoder.fit(pooling, f_tr, gt_tr, f_va, gt_va, mean_ssim)
-        del f_tr
         dec.save(out / BASELINE_FILES[dec.route])
         info[dec.route] = dict(val_ssim=dec.val_scores.tolist(), alphas=dec.alphas.tolist(),
                                fit_s=time.perf_counter() - t)
