@@ -220,7 +220,7 @@ def learning_curves(history_csv, results_dir, scene: str, baselines: dict | None
     h.to_csv(Path(results_dir) / f"learning_{scene}.csv", index=False)
     fig, ax = plt.subplots(1, 2, figsize=(11, 4))
     for a, x, label in ((ax[0], h["epoch"], "epoch (0 = start)"), (ax[1], h["wall_time_s"] / 60, "wall time (min)")):
-        a.semilogy(x, h["loss"], label="train MSE")
+        a.semilogy(x, h["loss"], label="train MSE (epochs: with dropout; start: without)")
         a.semilogy(x, h["val_loss"], label="validation MSE")
         a.set(xlabel=label, ylabel="MSE")
         b = a.twinx()
