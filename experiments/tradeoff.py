@@ -108,8 +108,7 @@ def model_rows(model_dirs, raws, refs, repeats, baselines: bool = True) -> list[
     ``baselines``, the yardsticks saved beside each (mean image; linear decoders, which run
     the same backbone)."""
     import keras
-    from lf_flame.baselines import LinearDecoder, MeanImage
-    from lf_flame.train import BASELINE_FILES, load_full_model
+    from lf_flame.train import load_baselines, load_full_model
     rows = []
     for d in model_dirs:
         model, info = load_full_model(d)
@@ -120,15 +119,13 @@ def model_rows(model_dirs, raws, refs, repeats, baselines: bool = True) -> list[
             return np.transpose(np.asarray(model.predict_on_batch(raw[None, ..., None]))[0], (2, 0, 1))
         rows.append(_route_row("model", f"backbone input {size}, {info['epochs_run']} epochs, "
                                f"{info['backbone_weights']}", fn, raws, refs, repeats, backend=keras.backend.backend()))
-        for route, name in BASELINE_FILES.items() if baselines else ():
+        for route, base in (load_baselines(d) if baselines else {}).items():
             if route == "mean image":
-                mean = MeanImage.load(Path(d) / name).mean
-                rows.append(_route_row(route, "training split's mean ground truth", lambda raw, m=mean: m, raws, refs,
-                                       repeats))
+                rows.append(_route_row(route, "training split's mean ground truth", lambda raw, m=base.mean: m, raws,
+                                       refs, repeats))
                 continue
-            lin = LinearDecoder.load(Path(d) / name)
 
-            def lin_fn(raw, lin=lin, fx=fx):
+            def lin_fn(raw, lin=base, fx=fx):
                 return lin.predict(np.asarray(fx.predict_on_batch(raw[None, ..., None])))[0]
             rows.append(_route_row(route, f"backbone input {size}, {info['backbone_weights']}", lin_fn, raws, refs,
                                    repeats, backend=keras.backend.backend()))

@@ -201,11 +201,10 @@ def cmd_predict(a):
         def run(x):
             return np.transpose(np.asarray(model.predict_on_batch(x))[0], (2, 0, 1))
     else:
-        from .baselines import LinearDecoder, MeanImage
-        from .train import BASELINE_FILES
+        from .train import load_baselines
         route = {"mean-image": "mean image", "linear-gap": "linear decoder (GAP-pooled)",
                  "linear-unpooled": "linear decoder (un-pooled)"}[a.route]
-        base = (MeanImage if a.route == "mean-image" else LinearDecoder).load(Path(a.model_dir) / BASELINE_FILES[route])
+        base = load_baselines(a.model_dir)[route]
         fx = model.get_layer("feature_extractor")
 
         def run(x):

@@ -57,16 +57,12 @@ def score(gt: np.ndarray, pred: np.ndarray, **labels) -> list[dict]:
     return rows
 
 
-def route_predictions(model_dir, features: np.ndarray, decoder) -> dict:
-    """Each route's planes (n, 4, R, C) for backbone features (n, h, w, 2048)."""
-    from .baselines import LinearDecoder, MeanImage
-    from .train import BASELINE_FILES
-    model_dir = Path(model_dir)
+def route_predictions(baselines: dict, features: np.ndarray, decoder) -> dict:
+    """Each route's planes (n, 4, R, C) for backbone features (n, h, w, 2048): the network
+    and the yardsticks of :func:`lf_flame.train.load_baselines`."""
     x = np.asarray(features, np.float32)
     out = {"network": np.transpose(np.asarray(decoder.predict_on_batch(x)), (0, 3, 1, 2))}
-    for route, name in BASELINE_FILES.items():
-        cls = MeanImage if route == "mean image" else LinearDecoder
-        out[route] = cls.load(model_dir / name).predict(x)
+    out.update({route: base.predict(x) for route, base in baselines.items()})
     return out
 
 
@@ -91,7 +87,7 @@ def evaluate(dataset_path, model_dir, results_dir, n_fresh: int = 0) -> pd.DataF
     ValueError
         The dataset was rendered with another camera than the model was trained on.
     """
-    from .train import BASELINE_FILES, load_decoder, load_full_model
+    from .train import load_baselines, load_decoder, load_full_model
 
     ds = LightFieldDataset(dataset_path)
     model_dir, results_dir = Path(model_dir), Path(results_dir)
@@ -99,13 +95,11 @@ def evaluate(dataset_path, model_dir, results_dir, n_fresh: int = 0) -> pd.DataF
     if info["dataset_camera"] != ds.attrs["camera"]:
         raise ValueError(f"{dataset_path} was rendered with another camera than the model in {model_dir} "
                          "was trained on")
-    for name in BASELINE_FILES.values():
-        if not (model_dir / name).is_file():
-            raise FileNotFoundError(f"baseline file not found: {model_dir / name} (run 'lf-flame train' first)")
+    baselines = load_baselines(model_dir)
     test = np.sort(ds.splits["test"])
     import h5py
     with h5py.File(info["feature_cache"], "r") as f:
-        preds = route_predictions(model_dir, f["features"][test], dec)
+        preds = route_predictions(baselines, f["features"][test], dec)
     gt_test = ds.gt(test)
     rows = []
     for route in ROUTES:
@@ -115,7 +109,7 @@ def evaluate(dataset_path, model_dir, results_dir, n_fresh: int = 0) -> pd.DataF
         raws, gts = zip(*(ds.fresh_sample(j) for j in range(n_fresh)))
         feats = np.concatenate([np.asarray(fx.predict_on_batch(np.stack(raws[s:s + 4])[..., None]))
                                 for s in range(0, n_fresh, 4)])
-        fresh = route_predictions(model_dir, feats, dec)
+        fresh = route_predictions(baselines, feats, dec)
         for route in ROUTES:
             rows += score(np.stack(gts), fresh[route], route=route, split="fresh", sample=ds.n + np.arange(n_fresh))
     per = pd.DataFrame(rows)

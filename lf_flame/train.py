@@ -537,6 +537,19 @@ BASELINE_FILES = {"mean image": "mean_image.h5", "linear decoder (GAP-pooled)": 
                   "linear decoder (un-pooled)": "linear_unpooled.h5"}
 
 
+def load_baselines(model_dir) -> dict:
+    """The yardsticks saved beside a trained network: route -> MeanImage or LinearDecoder.
+
+    Raises
+    ------
+    FileNotFoundError, ValueError
+        A baseline file is missing, corrupt or of another route.
+    """
+    from .baselines import LinearDecoder, MeanImage
+    return {route: (MeanImage if route == "mean image" else LinearDecoder).load(Path(model_dir) / name)
+            for route, name in BASELINE_FILES.items()}
+
+
 def fit_baselines(features_path, ds: LightFieldDataset, out: Path) -> dict:
     """Fit the mean image and both linear decoders on the training split (λ per plane chosen
     on the validation split) and save them in ``out`` (:data:`BASELINE_FILES`), unless done.
