@@ -116,7 +116,7 @@ class RidgePath:
         return (kq.astype(np.float32) * self._weights(alpha)[:, 0]) @ self.qty + self.y_mean
 
 
-def ridge_path(x: np.ndarray, y: np.ndarray) -> RidgePath:
+def ridge_path(x: np.ndarray, y: np.ndarray, overwrite_x: bool = False) -> RidgePath:
     """Prepare dual ridge regression of ``y`` on ``x`` for any λ.
 
     Parameters
@@ -124,7 +124,11 @@ def ridge_path(x: np.ndarray, y: np.ndarray) -> RidgePath:
     x : ndarray of shape (n, d)
         Design rows (e.g. :func:`pool_features`); centred here.
     y : ndarray of shape (n, p)
-        Targets; an intercept (their mean) is fitted, not penalised.
+        Targets; an intercept (their mean) is fitted, not penalised. Float32 (the
+        eigenvectors' projection of them too); means accumulate in float64.
+    overwrite_x : bool
+        Centre a float32 ``x`` in place (no copy of the design matrix, which is 1 GB for
+        the un-pooled features of 1,280 samples); ``x`` is then the path's ``x_train``.
 
     Raises
     ------
@@ -132,17 +136,17 @@ def ridge_path(x: np.ndarray, y: np.ndarray) -> RidgePath:
         Mismatched sample counts, fewer than 2 samples, or NaN/inf.
     """
     x = np.asarray(x, np.float32)
-    y = np.asarray(y, np.float64).reshape(len(y), -1)
+    y = np.asarray(y, np.float32).reshape(len(y), -1)
     if len(x) != len(y) or len(x) < 2:
         raise ValueError(f"need >= 2 samples with one target row each. Received x {x.shape}, y {y.shape}")
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
         raise ValueError("ridge inputs contain NaN or inf")
-    x_mean = x.mean(axis=0)
-    xc = x - x_mean
-    y_mean = y.mean(axis=0)
+    x_mean = x.mean(axis=0, dtype=np.float64).astype(np.float32)
+    xc = np.subtract(x, x_mean, out=x if overwrite_x else None)
+    y_mean = y.mean(axis=0, dtype=np.float64).astype(np.float32)
     lam, q = eigh(_gram(xc, xc))
     lam = np.clip(lam, 0.0, None)
-    return RidgePath(x_mean, y_mean.astype(np.float32), lam, q, (q.T @ (y - y_mean)).astype(np.float32), xc)
+    return RidgePath(x_mean, y_mean, lam, q, q.T.astype(np.float32) @ (y - y_mean), xc)
 
 
 class MeanImage:
@@ -224,7 +228,7 @@ class LinearDecoder:
         """
         gt_train, gt_val = np.asarray(gt_train), np.asarray(gt_val)
         out_shape = gt_train.shape[1:]
-        path = ridge_path(pool_features(feats_train, pooling), gt_train.reshape(len(gt_train), -1))
+        path = ridge_path(pool_features(feats_train, pooling), gt_train.reshape(len(gt_train), -1), overwrite_x=True)
         kq = path.kernel(pool_features(feats_val, pooling)) @ path.eigvecs
         alphas, scores = choose_alpha_per_plane(
             lambda a: np.clip(path.predict(kq, a), 0, 1).reshape(len(kq), *out_shape),

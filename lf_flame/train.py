@@ -168,11 +168,14 @@ def refine_dense(h_tr, y_tr, h_va, y_va, w, b, max_iter: int, patience: int = 10
 
     The Gauss–Newton start fits linearised logits; this minimises the loss the network
     trains on, ``mean ||σ(h W + b) − y||²``, over the whole training split at once with
-    L-BFGS (``scipy.optimize.minimize``), the pooled features ``h`` fixed. Every iteration
-    is scored on the validation split, and each plane keeps the columns of the iteration
+    L-BFGS (``scipy.optimize.minimize``), the pooled features ``h`` fixed. The loss is a
+    sum of independent terms, one per plane (each output column has its own weights), so
+    each plane is refined on its own: a quarter of the variables per L-BFGS run, which
+    bounds the memory of its history (``maxcor`` pairs of vectors), and its own stopping.
+    Every iteration is scored on the validation split, and each plane keeps the iteration
     that scored best there (iteration 0 is the start): early stopping per plane is the
-    regularisation, chosen on validation. The search stops after ``max_iter`` iterations,
-    or ``patience`` iterations in which no plane improved.
+    regularisation, chosen on validation. A plane stops after ``max_iter`` iterations, or
+    ``patience`` iterations without improving.
 
     Parameters
     ----------
@@ -184,61 +187,80 @@ def refine_dense(h_tr, y_tr, h_va, y_va, w, b, max_iter: int, patience: int = 10
     w, b : ndarray (256, R·C·P), (R·C·P,)
         The start.
     max_iter : int
-        L-BFGS iterations (0: return the start).
+        L-BFGS iterations per plane (0: return the start).
 
     Returns
     -------
-    (w, b, info) : the refined layer; info holds the iteration kept and the validation
-        SSIM per plane.
+    (w, b, info) : the refined layer (float32); info holds, per plane, the iterations run,
+        the iteration kept and its validation SSIM, and the training and validation MSE.
     """
+    h_tr, h_va = np.asarray(h_tr, np.float32), np.asarray(h_va, np.float32)
+    w, b = np.array(w, np.float32), np.array(b, np.float32)
+    n_planes = y_va.shape[-1]
+    info = dict(refine_iterations=[], kept_iteration=[], val_ssim=[])
+    sq_err = 0.0
+    for k in range(n_planes):  # the plane's columns are k, k + P, k + 2P, ... of the (r, c, plane) order
+        wk, bk, its, kept, score, sse = _refine_plane(h_tr, y_tr[:, k::n_planes], h_va, y_va[..., k],
+                                                      w[:, k::n_planes], b[k::n_planes], max_iter, patience)
+        w[:, k::n_planes], b[k::n_planes] = wk, bk
+        sq_err += sse
+        for key, v in zip(info, (its, kept, score)):
+            info[key].append(v)
+    z_va = h_va @ w + b
+    info.update(loss=sq_err / np.size(y_tr), val_loss=float(np.mean((_sigmoid(z_va) - y_va.reshape(len(y_va), -1)) ** 2)))
+    return w, b, info
+
+
+def _sigmoid(z):
+    return 1 / (1 + np.exp(-z))
+
+
+def _refine_plane(h_tr, y_tr, h_va, gt_va, w, b, max_iter, patience):
+    """:func:`refine_dense` for one plane: ``w`` (d, q), ``b`` (q,), ``y_tr`` (n, q),
+    ``gt_va`` (m, R, C) with q = R·C. Returns (w, b, iterations, kept iteration, its
+    validation SSIM, its training sum of squared errors)."""
     from scipy.optimize import minimize
 
     from .metrics import mean_ssim
-    h_tr, h_va = np.asarray(h_tr, np.float32), np.asarray(h_va, np.float32)
-    y_tr = np.asarray(y_tr, np.float32)
-    d, p = w.shape
-    n_planes = y_va.shape[-1]
-    gt_va = np.transpose(y_va, (0, 3, 1, 2))
+    d, q = w.shape
+    n = len(h_tr)
 
-    def val_scores(wb):
-        z = h_va @ wb[:d * p].reshape(d, p) + wb[d * p:]
-        pred = np.transpose((1 / (1 + np.exp(-z))).reshape(y_va.shape), (0, 3, 1, 2))
-        return np.array([mean_ssim(gt_va[:, k], pred[:, k]) for k in range(n_planes)])
+    def unpack(x):
+        x = np.asarray(x, np.float32)
+        return x[:d * q].reshape(d, q), x[d * q:]
 
-    def loss(wb):
-        wb = wb.astype(np.float32)
-        z = h_tr @ wb[:d * p].reshape(d, p) + wb[d * p:]
-        s = 1 / (1 + np.exp(-z))
+    def val_score(x):
+        wk, bk = unpack(x)
+        return mean_ssim(gt_va, _sigmoid(h_va @ wk + bk).reshape(gt_va.shape))
+
+    def sse(x):
+        wk, bk = unpack(x)
+        s = _sigmoid(h_tr @ wk + bk)
         r = s - y_tr
-        g = (2.0 / len(h_tr)) * r * s * (1 - s)
-        return float((r ** 2).sum() / len(h_tr)), np.concatenate([(h_tr.T @ g).ravel(), g.sum(axis=0)]).astype(np.float64)
+        return s, r, float((r ** 2).sum())
 
-    start = np.concatenate([w.ravel(), b]).astype(np.float32)
-    best, best_scores, best_iter = start.copy(), val_scores(start), np.zeros(n_planes, int)
-    plane = np.arange(p) % n_planes  # the plane of each output column
+    def loss(x):
+        s, r, e = sse(x)
+        g = (2.0 / n) * r * s * (1 - s)
+        return e / n, np.concatenate([(h_tr.T @ g).ravel(), g.sum(axis=0)]).astype(np.float64)
+
+    x0 = np.concatenate([w.ravel(), b])
+    best = dict(x=x0, score=val_score(x0), it=0)
     it = [0]
 
-    def track(wb):
+    def track(x):
         it[0] += 1
-        wb = wb.astype(np.float32)
-        sc = val_scores(wb)
-        for k in np.flatnonzero(sc > best_scores):
-            cols = np.flatnonzero(plane == k)
-            for off in (0, d * p):  # the plane's weight columns, then its biases
-                idx = (np.arange(d)[:, None] * p + cols).ravel() if off == 0 else d * p + cols
-                best[idx] = wb[idx]
-            best_scores[k], best_iter[k] = sc[k], it[0]
-        if it[0] - best_iter.max() >= patience:
+        score = val_score(x)
+        if score > best["score"]:
+            best.update(x=np.asarray(x, np.float32), score=score, it=it[0])
+        if it[0] - best["it"] >= patience:
             raise StopIteration  # SciPy >= 1.11 ends the minimisation here
 
     if max_iter:
-        minimize(loss, start.astype(np.float64), jac=True, method="L-BFGS-B", callback=track,
+        minimize(loss, x0.astype(np.float64), jac=True, method="L-BFGS-B", callback=track,
                  options=dict(maxiter=int(max_iter)))
-    z_va = h_va @ best[:d * p].reshape(d, p) + best[d * p:]
-    val_mse = float(np.mean((1 / (1 + np.exp(-z_va)) - y_va.reshape(len(y_va), -1)) ** 2))
-    return (best[:d * p].reshape(d, p), best[d * p:],
-            dict(refine_iterations=int(it[0]), kept_iteration=best_iter.tolist(), val_ssim=best_scores.tolist(),
-                 loss=loss(best)[0] / p, val_loss=val_mse))
+    wk, bk = unpack(best["x"])
+    return wk, bk, int(it[0]), int(best["it"]), float(best["score"]), sse(best["x"])[2]
 
 
 def pair_convolutions(decoder, linear) -> None:
@@ -321,12 +343,15 @@ def closed_form_start(decoder, features_path, ds: LightFieldDataset, cfg: ModelC
         scale = np.sqrt(p / (1 - p) * (h_tr ** 2).sum(axis=0)) + 1e-12
     else:
         scale = np.ones(h_tr.shape[1])
-    y = np.transpose(ds.gt(tr), (0, 2, 3, 1))                    # (n, R, C, P): the Dense layout
+    y = np.ascontiguousarray(np.transpose(ds.gt(tr), (0, 2, 3, 1)))  # (n, R, C, P): the Dense layout
     n_planes = y.shape[-1]
-    ybar = np.clip(y.mean(axis=0), eps, 1 - eps)
+    ybar = np.clip(y.mean(axis=0, dtype=np.float64), eps, 1 - eps).astype(np.float32)
     lim = float(np.log((1 - eps) / eps))
-    z = np.clip(np.log(ybar / (1 - ybar)) + (y - ybar) / (ybar * (1 - ybar)), -lim, lim)
-    path = ridge_path(h_tr / scale, z.reshape(len(z), -1))
+    z = y - ybar  # float32 and in place from here: n × R·C·P values (bounds the peak memory)
+    z /= ybar * (1 - ybar)
+    z += np.log(ybar / (1 - ybar))
+    path = ridge_path(h_tr / scale, np.clip(z, -lim, lim, out=z).reshape(len(z), -1))
+    del z
     kq = path.kernel(h_va / scale) @ path.eigvecs
     rel = np.array([*RELATIVE_ALPHAS, np.inf])
 
@@ -338,14 +363,15 @@ def closed_form_start(decoder, features_path, ds: LightFieldDataset, cfg: ModelC
     coef = path.dual_coef(np.tile(alphas, int(np.prod(y.shape[1:-1]))))  # columns are (r, c, plane)
     w = (path.x_train.T @ coef) / scale[:, None].astype(np.float32)     # (256, R·C·P)
     b = path.y_mean - (path.x_mean * scale.astype(np.float32)) @ w
+    relative_alpha = [float(a / path.alpha_scale) for a in alphas]
+    del path, kq, coef
     w, b, refined = refine_dense(h_tr, y.reshape(len(y), -1), h_va, np.transpose(ds.gt(va), (0, 2, 3, 1)),
                                  w, b, max_iter)
-    decoder.get_layer("dense").set_weights([w.astype(np.float32), b.astype(np.float32)])
+    decoder.get_layer("dense").set_weights([w, b])
     k = np.zeros(decoder.get_layer("refocused").kernel.shape, np.float32)
     k[1, 1, np.arange(n_planes), np.arange(n_planes)] = 1.0
     decoder.get_layer("refocused").set_weights([k, np.zeros(n_planes, np.float32)])
-    return dict(relative_alpha=[float(a / path.alpha_scale) for a in alphas], gauss_newton_val_ssim=scores.tolist(),
-                **refined)
+    return dict(relative_alpha=relative_alpha, gauss_newton_val_ssim=scores.tolist(), **refined)
 
 
 #: Layers that the 'closed-form' recipe trains (a linear probe of the decoder's head).

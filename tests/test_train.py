@@ -282,7 +282,8 @@ def test_closed_form_start_beats_the_mean_image_and_training_keeps_it(flame_h5, 
     assert np.mean(info["start"]["val_ssim"]) == pytest.approx(h.val_ssim.iloc[0], abs=2e-3)
     assert info["start"]["val_loss"] == pytest.approx(h.val_loss.iloc[0]) and np.isfinite(h.loss.iloc[0])
     # the output-space refinement keeps, per plane, nothing worse than the Gauss-Newton start
-    assert np.all(np.array(info["start"]["val_ssim"]) >= np.array(info["start"]["gauss_newton_val_ssim"]))
+    # (up to rounding: the start's score is recomputed from its primal float32 weights)
+    assert np.all(np.array(info["start"]["val_ssim"]) >= np.array(info["start"]["gauss_newton_val_ssim"]) - 1e-6)
     dec, _ = load_decoder(out)  # the best checkpoint: what evaluate and predict use
     assert dec.get_layer("bn1").moving_variance.numpy().mean() != 1.0  # population statistics, not the init
 
@@ -296,7 +297,7 @@ def test_refine_dense_fits_the_output_space_loss():
     y_va = y[80:].reshape(40, 9, 8, 4)
     w0, b0 = np.zeros_like(w_true), np.zeros(w_true.shape[1], np.float32)
     w, b, info = refine_dense(h[:80], y[:80], h[80:], y_va, w0, b0, max_iter=60)
-    assert info["refine_iterations"] > 10 and min(info["kept_iteration"]) > 0
+    assert min(info["refine_iterations"]) > 10 and min(info["kept_iteration"]) > 0
     z = h[80:] @ w + b
     err = np.abs(1 / (1 + np.exp(-z)) - y[80:])
     assert err.mean() < 2e-3 and err.max() < 0.1  # the known sigmoid map, recovered on unseen samples
