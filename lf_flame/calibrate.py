@@ -259,11 +259,14 @@ def _dark_subtracted(name, image, dark):
 
 # ---- the lattice from the autocorrelation -------------------------------------------------
 def _autocorrelation(img: np.ndarray, size: int = 1024) -> np.ndarray:
-    """Normalised circular autocorrelation (zero lag = 1, at the centre) of a central crop
-    of at most ``size`` × ``size`` pixels, Hann-windowed against the crop's edges."""
+    """Normalised autocorrelation (zero lag = 1, at the centre) of a central crop of at
+    most ``size`` × ``size`` pixels, high-passed (minus a Gaussian blur of σ = 1/20 of
+    the image's smaller side: the shading across the field, not the lenslet grid) and
+    Hann-windowed against the crop's edges; zero-padded, so not circular."""
     H, W = img.shape
     h, w = min(H, size), min(W, size)
     crop = img[(H - h) // 2:(H - h) // 2 + h, (W - w) // 2:(W - w) // 2 + w]
+    crop = crop - ndimage.gaussian_filter(crop, max(4.0, min(H, W) / 20), mode="nearest")
     crop = (crop - crop.mean()) * np.outer(np.hanning(h), np.hanning(w))
     f = scipy.fft.rfft2(crop, s=(2 * h, 2 * w))          # zero-padded: no wrap-around
     ac = scipy.fft.irfft2(np.abs(f) ** 2, s=(2 * h, 2 * w))
@@ -281,7 +284,8 @@ def _refine_peak(ac, p):
     out = []
     for a, b, m in ((ac[r - 1, c], ac[r + 1, c], ac[r, c]), (ac[r, c - 1], ac[r, c + 1], ac[r, c])):
         den = a - 2 * m + b
-        out.append(0.5 * (a - b) / den if den < 0 else 0.0)
+        off = 0.5 * (a - b) / den if den < 0 else 0.0
+        out.append(off if abs(off) <= 0.5 else 0.0)     # not a maximum there: keep the integer peak
     return np.array([r + out[0], c + out[1]])
 
 
@@ -317,7 +321,7 @@ def lattice_from_autocorrelation(img: np.ndarray, layout: str = "auto") -> tuple
     if len(peaks) < 4:
         raise CalibrationError("no lenslet grid found: the white image's autocorrelation has no periodic peaks")
     strength = ac[peaks[:, 0], peaks[:, 1]]
-    strong = strength >= 0.5 * strength.max()
+    strong = strength >= 0.3 * strength.max()
     lag, dist = lag[strong], dist[strong]
     order = np.argsort(dist)
     lag, dist = lag[order].astype(np.float64), dist[order]
