@@ -21,12 +21,14 @@ For each capture, measured in this run:
   at half maximum (slope units), and whether the peak lies inside the searched range;
 - a figure: the white image with fitted (lattice) and measured centres, the centre
   view, the sharpness curve and a focal stack of 6 planes (shift-and-sum).
-- optionally (``--plenopticam DIR``), PlenoptiCam 0.9.3's own lenslet-centre detection
-  (``CentroidExtractor`` then ``CentroidSorter``) on the same white image: its centres
-  matched to ours (nearest within half a pitch) and both run times.
+- optionally (``--plenopticam DIR``), PlenoptiCam 0.9.3's calibration (``LfpCalibrator``,
+  'area' centroids and 'grid-fit') on the same white image: its centres matched to ours
+  (nearest within half a pitch), the mean offset and spread, and both run times.
 
-Writes ``<out>/<capture>.png``, ``<out>/summary.csv``, ``<out>/summary.md`` and
-``<out>/summary.json`` (with provenance).
+Then both calibrations on the simulator's white images with known centres
+(:data:`SYNTHETIC`). Writes ``<out>/<capture>.png``, ``<out>/summary.csv``,
+``<out>/synthetic_centres.csv``, ``<out>/summary.md`` and ``<out>/summary.json``
+(with provenance).
 
 Usage: ``python experiments/real_captures.py --data .bench/napari-lf/napari_lf/examples --out results/real
 [--plenopticam .bench/plenopticam]``.
@@ -116,35 +118,98 @@ def peak_width(slopes: np.ndarray, scores: np.ndarray) -> float:
 
 
 def _load_plenopticam(path):
-    """PlenoptiCam's centroid modules from a ``pip --target`` folder, or None."""
-    if not path or not Path(path).is_dir():
+    """PlenoptiCam 0.9.3's ``LfpCalibrator`` and its config classes, or None.
+
+    Loaded as ``experiments/bench_refocus.py`` loads PlenoptiCam (same folder, same stubs
+    for its optional dependencies that calibration never calls)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import bench_refocus
+    if bench_refocus._load_plenopticam(path) is None:
         return None
-    sys.path.insert(0, str(path))
     try:
-        from plenopticam.lfp_calibrator import CentroidExtractor, CentroidSorter
         from plenopticam.cfg import PlenopticamConfig
+        from plenopticam.lfp_calibrator import LfpCalibrator
         from plenopticam.misc import PlenopticamStatus
-    except Exception as e:  # an optional baseline: any import failure means "not there"
-        print(f"PlenoptiCam not usable from {path}: {e!r}")
+    except Exception as e:  # noqa: BLE001 - an optional baseline; say why and go on
+        print(f"PlenoptiCam calibration not used: {type(e).__name__}: {e}")
         return None
-    return CentroidExtractor, CentroidSorter, PlenopticamConfig, PlenopticamStatus
+    return LfpCalibrator, PlenopticamConfig, PlenopticamStatus
 
 
-def plenopticam_centres(mod, white: np.ndarray, pitch_hint: float):
-    """PlenoptiCam's lenslet centres (K, 2) (row, column; our pixel coordinates) and seconds."""
-    CentroidExtractor, CentroidSorter, PlenopticamConfig, PlenopticamStatus = mod
-    cfg = PlenopticamConfig()
-    cfg.calibs = {}
-    sta = PlenopticamStatus()
+def plenopticam_centres(mod, white: np.ndarray, method: str = "grid-fit"):
+    """PlenoptiCam's lenslet centres (K, 2) (row, column) in our pixel coordinates, and seconds.
+
+    ``LfpCalibrator`` (pitch estimate, LoG peaks, ``method`` refinement: 'area' centroids
+    or 'grid-fit' lines through them, sorting) on the white image scaled to [0, 1]; its
+    centres are array indices (pixel centres at integers), hence + 0.5. An empty array
+    where it finds no grid (its status flags an error)."""
+    import tempfile
+    cls, cfg_cls, sta_cls = mod
+    cfg = cfg_cls()
+    cfg.params[cfg.opt_prnt] = False
+    cfg.params[cfg.cal_meth] = method
     img = np.clip(white / np.percentile(white, 99.5), 0, 1)
-    t = time.perf_counter()
-    ext = CentroidExtractor(img, cfg, sta, M=int(round(pitch_hint)))
-    ext.main()
-    srt = CentroidSorter(ext.centroids, cfg, sta)
-    srt.main()
-    dt = time.perf_counter() - t
-    c = np.asarray(srt.mla_centroids if getattr(srt, "mla_centroids", None) is not None else ext.centroids)
-    return c[:, :2] + 0.5, dt   # PlenoptiCam: pixel centres at integers
+    with tempfile.TemporaryDirectory() as tmp:
+        cfg.params[cfg.cal_meta] = str(Path(tmp) / "calibration.json")   # it saves its result there
+        sta = sta_cls()
+        t = time.perf_counter()
+        cls(img, cfg, sta).main()
+        dt = time.perf_counter() - t
+    mic = np.asarray(cfg.calibs.get(cfg.mic_list, []), np.float64)
+    if sta.error or mic.ndim != 2 or len(mic) == 0:
+        return np.zeros((0, 2)), dt
+    return mic[:, :2] + 0.5, dt
+
+
+def match(a: np.ndarray, b: np.ndarray, radius: float):
+    """Each point of ``a`` (K, 2) to its nearest in ``b`` within ``radius``: (mask, a - b[nearest])."""
+    if len(a) == 0:
+        return np.zeros(0, bool), np.zeros((0, 2))
+    d = a[:, None, :] - b[None, :, :]
+    dist = np.hypot(d[..., 0], d[..., 1])
+    k = dist.argmin(axis=1)
+    ok = dist[np.arange(len(a)), k] < radius
+    return ok, (a - b[k])[ok]
+
+
+#: synthetic white images with known centres for both calibrations: (rotation °, offset px)
+SYNTHETIC = [(0.0, (0.0, 0.0)), (0.4, (3.2, -5.7)), (-1.3, (-2.5, 4.1)), (1.9, (0.6, 0.3))]
+
+
+def synthetic_rows(pcam) -> list[dict]:
+    """Both calibrations on the simulator's white images (28 x 28 lenslets, pitch 15.43 px,
+    f-number matched, cos⁴): centre errors against the camera's true lenslet image centres."""
+    from lf_flame import scenes, simulate
+    from lf_flame.camera import PlenopticCamera
+    rows = []
+    for rot, off in SYNTHETIC:
+        cam = PlenopticCamera(n_rows=28, n_cols=28, pixels_per_lenslet=15, grid_pitch_px=15.43,
+                              grid_rotation_deg=rot, grid_offset_px=off)
+        white = simulate.render(cam, scenes.white_scene(cam), 16).astype(np.float64)
+        truth = cam.lenslet_image_centres_px().reshape(-1, 2)
+        t = time.perf_counter()
+        cal = calibrate.calibrate(white)
+        t_ours = time.perf_counter() - t
+        _, e = match(cal.centres_px().reshape(-1, 2), truth, 0.5 * cal.pitch_px)
+        _, em = match(cal.lenslets[:, 2:], truth, 0.5 * cal.pitch_px)
+        row = dict(rotation_deg=rot, offset_px=f"{off[0]:+.1f}, {off[1]:+.1f}", lenslets=cam.n_rows * cam.n_cols,
+                   ours_pitch_err_pct=round(100 * (cal.pitch_px / 15.43 - 1), 4),
+                   ours_rotation_err_deg=round(cal.rotation_deg - rot, 4),
+                   ours_lattice_err_max_px=round(float(np.hypot(*e.T).max()), 3),
+                   ours_measured_err_rms_px=round(float(np.sqrt(np.mean(np.sum(em ** 2, 1)))), 3),
+                   ours_s=round(t_ours, 2))
+        if pcam is not None:
+            for meth in ("area", "grid-fit"):
+                pc, dt = plenopticam_centres(pcam, white, meth)
+                ok, e = match(pc, truth, 0.5 * 15.43)
+                found = len(pc) > 0
+                row.update({f"pcam_{meth}_centres": len(pc),
+                            f"pcam_{meth}_err_rms_px": round(float(np.sqrt(np.mean(np.sum(e ** 2, 1)))), 3)
+                            if found and ok.any() else float("nan"),
+                            f"pcam_{meth}_s": round(dt, 2)})
+        rows.append(row)
+        print(json.dumps(row))
+    return rows
 
 
 def figure(path, name, white, cal, views, roi, search, slopes, stack):
@@ -240,24 +305,34 @@ def run(data: Path, out: Path, plenopticam_dir=None) -> pd.DataFrame:
                    peak_over_ends=round(ends, 1), peak_fwhm_slope=round(width, 3), peak_inside_range=inside,
                    search_s=round(t_search, 2))
         if pcam is not None:
-            pc, t_pc = plenopticam_centres(pcam, white - dark, cal.pitch_px)
-            ours = cal.lenslets[:, 2:]
-            d = np.hypot(pc[:, None, 0] - ours[None, :, 0], pc[:, None, 1] - ours[None, :, 1])
-            near = d.min(axis=1)
-            matched = near < 0.5 * cal.pitch_px
-            row.update(plenopticam_centres=len(pc), plenopticam_matched=int(matched.sum()),
-                       plenopticam_vs_ours_rms_px=round(float(np.sqrt(np.mean(near[matched] ** 2))), 3),
-                       plenopticam_vs_ours_median_px=round(float(np.median(near[matched])), 3),
-                       plenopticam_s=round(t_pc, 2))
+            for meth in ("area", "grid-fit"):
+                pc, t_pc = plenopticam_centres(pcam, white - dark, meth)
+                ref = cal.lenslets[:, 2:] if meth == "area" else cal.centres_px().reshape(-1, 2)
+                ok, e = match(pc, ref, 0.5 * cal.pitch_px)
+                row.update({f"pcam_{meth}_centres": len(pc), f"pcam_{meth}_matched": int(ok.sum()),
+                            f"pcam_{meth}_mean_offset_px": f"{e[:, 0].mean():+.3f}, {e[:, 1].mean():+.3f}"
+                            if ok.any() else "", f"pcam_{meth}_std_px": f"{e[:, 0].std():.3f}, {e[:, 1].std():.3f}"
+                            if ok.any() else "", f"pcam_{meth}_s": round(t_pc, 2)})
         rows.append(row)
         print(json.dumps(row))
     df = pd.DataFrame(rows)
     df.to_csv(out / "summary.csv", index=False)
+    syn = pd.DataFrame(synthetic_rows(pcam))
+    syn.to_csv(out / "synthetic_centres.csv", index=False)
+    pc_note = ("PlenoptiCam 0.9.3 (`LfpCalibrator`, methods 'area' and 'grid-fit') ran on the same white images "
+               "(minus dark); its centres are matched to ours (measured for 'area', fitted lattice for 'grid-fit') "
+               "within half a pitch: mean offset and spread (rows, columns; px)." if pcam is not None else
+               "PlenoptiCam was not available in this run (no comparison).")
     atomic_write_text(out / "summary.md", "# Real captures: lenslet-grid calibration and decoding\n\n"
                       "Written by `experiments/real_captures.py` (`make real-data`); every number measured "
-                      "in that run.\n\n" + df.to_markdown(index=False) + "\n")
-    atomic_write_text(out / "summary.json", json.dumps({"rows": rows, "provenance": provenance()}, indent=1,
-                                                      default=str))
+                      "in that run. Pitches in pixels; `vs_*_pct`: our pitch relative to the periodogram's "
+                      "and to the stated optics'. " + pc_note + "\n\n" + df.to_markdown(index=False) +
+                      "\n\n## Synthetic white images with known centres\n\nThe simulator's white images "
+                      "(28 x 28 lenslets, pitch 15.43 px): errors against the true lenslet image centres; "
+                      "PlenoptiCam's centre count is 0 where it reported an error (no grid).\n\n"
+                      + syn.to_markdown(index=False) + "\n")
+    atomic_write_text(out / "summary.json", json.dumps({"rows": rows, "synthetic": syn.to_dict("records"),
+                                                        "provenance": provenance()}, indent=1, default=str))
     return df
 
 
