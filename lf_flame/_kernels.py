@@ -601,3 +601,136 @@ def fourier_slice(spectrum, j_r, w_r, j_c, w_c, out):
                     row += w_c[s, kc, b] * g[ju, (j_c[s, kc] + b) % M]
                 acc += w_r[s, kr, a] * row
             out[s, kr, kc] = acc
+
+
+
+@njit(inline="always", cache=True)
+def _nearest_site(q0, q1, hexagonal, n_rows, n_cols):
+    """Lattice site (row, column) nearest to the lattice offsets ``(q0, q1)`` (pitches,
+    rows and columns about the grid centre; as :meth:`PlenopticCamera.lattice_offsets`);
+    (-1, -1) outside the grid."""
+    if not hexagonal:
+        r = np.rint(q0 + (n_rows - 1) * 0.5)
+        c = np.rint(q1 + (n_cols - 1) * 0.5)
+    else:
+        h = np.sqrt(3.0) / 2.0
+        shift = -0.25 if n_rows > 1 else 0.0
+        rf = np.floor(q0 / h + (n_rows - 1) * 0.5)
+        best = np.inf
+        r = 0.0
+        c = 0.0
+        for cand in (rf, rf + 1.0):
+            odd = cand - 2.0 * np.floor(cand * 0.5)
+            cc = np.rint(q1 + (n_cols - 1) * 0.5 - 0.5 * odd - shift)
+            dy = (cand - (n_rows - 1) * 0.5) * h - q0
+            dx = cc - (n_cols - 1) * 0.5 + 0.5 * odd + shift - q1
+            d2 = dy * dy + dx * dx
+            if d2 < best:
+                best = d2
+                r = cand
+                c = cc
+    if r < 0 or r >= n_rows or c < 0 or c >= n_cols:
+        return -1, -1
+    return int(r), int(c)
+
+
+@njit(parallel=True, cache=True)
+def render_points(pts, keys, height, width, pixel_pitch, grid_centre, grid_inv, lens_mm, lens_mat, hexagonal,
+                  ay, ax, radiance, alpha, occlusion, aperture_radius, use_cos4, rays_per_pixel, seed, out):
+    """Backward-trace pixel-sized sample areas through a lenslet grid of any geometry.
+
+    The general-grid twin of :func:`render_backward` (same ray samples, same chain),
+    for lenslet grids that are rotated, offset, of non-integer pitch or hexagonal: the
+    chain is no longer separable by sensor row and column, so each ray finds its own
+    lenslet. Area ``m`` is a pixel centred at ``pts[m]`` = (row, column) in sensor
+    pixel coordinates (sensor ``height`` x ``width`` pixels of ``pixel_pitch`` mm; y =
+    (row - H/2) pitch, x = -(column - W/2) pitch: the read-out is rotated by 180°). A
+    ray's sensor point lies in the cell (Voronoi region) of the lenslet image whose
+    centre is nearest (:func:`_nearest_site` of ``grid_inv @ (point - grid_centre)``;
+    no crosstalk), and the ray passes through that lenslet, centred at ``lens_mm[r, c]``
+    = (y, x) mm on the MLA, at a uniform point of its cell: local coordinates in
+    [-1/2, 1/2)^2 (a hexagonal cell: a point of the lattice's rhombic fundamental domain
+    moved into the hexagon by a lattice vector, which preserves the uniform measure),
+    mapped to mm by ``lens_mat`` (2, 2; the grid rotation times the lenslet pitch).
+    ``ay``, ``ax`` (2 + n_layers, 4) float64: every traced quantity along y (x) is
+    ``a[q, 0] y_s + a[q, 1] y_l + a[q, 2] y_c + a[q, 3]`` (the backward ABCD chain is
+    linear; q as in :func:`axis_coefficients`). ``keys`` (M,) int64 index the per-area
+    random shift of the R_d sequence exactly as pixel ``i * W + j`` does in
+    :func:`render_backward`, so a perfect grid traces that kernel's rays. ``out`` (M,)
+    float32 receives the irradiance estimate (float64 arithmetic).
+    """
+    M = pts.shape[0]
+    n_rows = lens_mm.shape[0]
+    n_cols = lens_mm.shape[1]
+    n_layers = radiance.shape[0]
+    tr = radiance.shape[1]
+    tc = radiance.shape[2]
+    r2 = aperture_radius * aperture_radius
+    base = np.uint64(seed) * np.uint64(0x632BE59BD9B4E019)
+    one = np.float32(1.0)
+    half = np.float32(0.5)
+    h3 = np.sqrt(3.0) / 2.0
+    n_chunks = min(M, 256)
+    for b in prange(n_chunks):
+        rot = np.empty(4, np.float32)
+        s = np.empty(4, np.float32)
+        for m in range(b * M // n_chunks, (b + 1) * M // n_chunks):
+            key = base + np.uint64(keys[m] * 4)
+            for d in range(4):
+                rot[d] = np.float32(_uniform(key + np.uint64(d)))
+            acc = 0.0
+            for k in range(rays_per_pixel):
+                for d in range(4):
+                    u = np.float32((0.5 + (k + 1) * _R4[d]) % 1.0) + rot[d]
+                    s[d] = (u - one if u >= one else u) - half
+                pr = pts[m, 0] + np.float64(s[0])
+                pc = pts[m, 1] - np.float64(s[1])  # x = -(column - W/2) pitch: x + s pitch is column - s
+                q0 = grid_inv[0, 0] * (pr - grid_centre[0]) + grid_inv[0, 1] * (pc - grid_centre[1])
+                q1 = grid_inv[1, 0] * (pr - grid_centre[0]) + grid_inv[1, 1] * (pc - grid_centre[1])
+                lr, lc = _nearest_site(q0, q1, hexagonal, n_rows, n_cols)
+                if lr < 0:
+                    continue
+                ys = (pts[m, 0] - 0.5 * height) * pixel_pitch + np.float64(s[0]) * pixel_pitch
+                xs = -(pts[m, 1] - 0.5 * width) * pixel_pitch + np.float64(s[1]) * pixel_pitch
+                a_y = np.float64(s[2])
+                a_x = np.float64(s[3])
+                if hexagonal:  # rhombus (1, 0), (1/2, sqrt 3 / 2) in (column, row) -> hexagon
+                    pcol = a_y + 0.5 * a_x
+                    prow = h3 * a_x
+                    bc, br, bd = 0.0, 0.0, pcol * pcol + prow * prow
+                    for vc, vr in ((1.0, 0.0), (-1.0, 0.0), (0.5, h3), (-0.5, -h3), (-0.5, h3), (0.5, -h3)):
+                        dd = (pcol - vc) ** 2 + (prow - vr) ** 2
+                        if dd < bd:
+                            bc, br, bd = vc, vr, dd
+                    a_y = prow - br
+                    a_x = pcol - bc
+                yc = lens_mm[lr, lc, 0]
+                xc = lens_mm[lr, lc, 1]
+                yl = yc + lens_mat[0, 0] * a_y + lens_mat[0, 1] * a_x
+                xl = xc + lens_mat[1, 0] * a_y + lens_mat[1, 1] * a_x
+                w = 1.0
+                if aperture_radius > 0.0:
+                    ym = ay[0, 0] * ys + ay[0, 1] * yl + ay[0, 2] * yc + ay[0, 3]
+                    xm = ax[0, 0] * xs + ax[0, 1] * xl + ax[0, 2] * xc + ax[0, 3]
+                    if ym * ym + xm * xm > r2:
+                        continue
+                if use_cos4:
+                    ty = ay[1, 0] * ys + ay[1, 1] * yl + ay[1, 2] * yc + ay[1, 3]
+                    tx = ax[1, 0] * xs + ax[1, 1] * xl + ax[1, 2] * xc + ax[1, 3]
+                    t2 = 1.0 + ty * ty + tx * tx
+                    w = 1.0 / (t2 * t2)
+                val = 0.0
+                trans = 1.0
+                for li in range(n_layers):
+                    q = 2 + li
+                    fr = ay[q, 0] * ys + ay[q, 1] * yl + ay[q, 2] * yc + ay[q, 3]
+                    fc = ax[q, 0] * xs + ax[q, 1] * xl + ax[q, 2] * xc + ax[q, 3]
+                    if fr < 0.0 or fr >= tr or fc < 0.0 or fc >= tc:
+                        continue
+                    ir = int(fr)
+                    ic = int(fc)
+                    val += trans * radiance[li, ir, ic]
+                    if occlusion:
+                        trans -= trans * alpha[li, ir, ic]
+                acc += w * val
+            out[m] = acc / rays_per_pixel

@@ -30,6 +30,21 @@ def _load_raw(path):
     return np.load(p), None
 
 
+def _load_views(path):
+    """Sub-aperture views (N, N, R, C) and the camera (or None) of RAW: a file of views
+    decoded by ``lf-flame decode`` (.h5 without ':INDEX'), else a raw image of the
+    simulated camera split by :func:`lf_flame.refocus.raw_to_views`."""
+    s = str(path)
+    if s.endswith(".h5") and ".h5:" not in s:
+        from .calibrate import load_views
+        return load_views(s)[0], None
+    from .camera import PAPER_CAMERA
+    from .refocus import raw_to_views
+    raw, cam = _load_raw(path)
+    cam = cam or PAPER_CAMERA
+    return raw_to_views(raw, cam.pixels_per_lenslet), cam
+
+
 def _save_image(path, img):
     import matplotlib
     matplotlib.use("Agg")
@@ -79,13 +94,12 @@ def cmd_simulate(a):
 
 
 def cmd_refocus(a):
-    from .camera import PAPER_CAMERA
-    from .refocus import aperture_mask, refocus
-    raw, cam = _load_raw(a.raw)
-    cam = cam or PAPER_CAMERA
+    from .refocus import aperture_mask, refocus_views
+    views, _ = _load_views(a.raw)
+    n = views.shape[0]
     t = time.perf_counter()
-    stack = refocus(raw, a.slope, cam.pixels_per_lenslet, aperture_mask(cam.pixels_per_lenslet, a.aperture),
-                    method=a.method, interpolation=a.interpolation)
+    stack = refocus_views(views, a.slope, aperture_mask(n, a.aperture), method=a.method,
+                          interpolation=a.interpolation)
     print(f"refocused {len(a.slope)} planes ({a.method}) in {1e3 * (time.perf_counter() - t):.2f} ms")
     _write_stack(a.out, stack, slopes=np.asarray(a.slope))
 
@@ -94,27 +108,25 @@ def cmd_slopes(a):
     if a.raw is None:
         return _calibrate_slopes(a)
     import pandas as pd
-    from .camera import PAPER_CAMERA
     from .evaluate import plot_slope_curves
-    from .refocus import aperture_mask, find_sharpest_slope, raw_to_views
-    raw, cam = _load_raw(a.raw)
-    cam = cam or PAPER_CAMERA
-    views = raw_to_views(raw, cam.pixels_per_lenslet)
+    from .refocus import aperture_mask, find_sharpest_slope
+    views, cam = _load_views(a.raw)
     if a.roi:
         objects = [dict(name=f"roi{i}", roi=tuple(r)) for i, r in enumerate(a.roi)]
     else:
         objects = _raw_objects(a.raw) or [dict(name="image", roi=(0, views.shape[2], 0, views.shape[3]))]
-    mask = aperture_mask(cam.pixels_per_lenslet, a.aperture)
+    mask = aperture_mask(views.shape[0], a.aperture)
     t = time.perf_counter()
     searches = [find_sharpest_slope(views, o["roi"], metric=a.metric, method=a.method, lo=a.lo, hi=a.hi, mask=mask)
                 for o in objects]
     rows = []
     for o, s in zip(objects, searches):
         row = dict(object=o["name"], roi=" ".join(str(int(x)) for x in o["roi"]), slope=round(s.slope, 4))
-        try:
-            row["depth_mm"] = round(cam.depth_for_slope(s.slope), 2)
-        except ValueError:
-            row["depth_mm"] = float("nan")
+        if cam is not None:  # decoded views of a real camera: no optics, no depth
+            try:
+                row["depth_mm"] = round(cam.depth_for_slope(s.slope), 2)
+            except ValueError:
+                row["depth_mm"] = float("nan")
         if "depth_offset_mm" in o:
             row["true_depth_mm"] = o["depth_offset_mm"]
             row["analytic_slope"] = round(cam.slope_for_depth(o["depth_offset_mm"]), 4)
@@ -127,6 +139,50 @@ def cmd_slopes(a):
     df.to_csv(f"{out}.slopes.csv", index=False)
     plot_slope_curves([o["name"] for o in objects], searches, f"{out}.slopes.png", a.metric)
     print(f"-> {out}.slopes.csv, {out}.slopes.png")
+
+
+def cmd_calibrate(a):
+    from .calibrate import calibrate, file_digest, load_image
+    white = load_image(a.white)
+    dark = load_image(a.dark) if a.dark else None
+    t = time.perf_counter()
+    cal = calibrate(white, dark, layout=a.layout, camera_id=a.camera_id or "")
+    dt = time.perf_counter() - t
+    cal = dataclasses.replace(cal, white=file_digest(a.white), dark=file_digest(a.dark) if a.dark else None)
+    cal.save(a.out)
+    print(f"{cal.layout} grid: pitch {cal.pitch_px:.4f} px, rotation {cal.rotation_deg:+.4f}°, offset "
+          f"({cal.offset_px[0]:+.2f}, {cal.offset_px[1]:+.2f}) px, {cal.n_rows} x {cal.n_cols} lenslets decoded; "
+          f"fit residual {cal.residual_rms_px:.3f} px rms, {cal.residual_max_px:.3f} px max over "
+          f"{len(cal.lenslets)} of {cal.n_found} lenslet images; {dt:.2f} s -> {a.out}")
+
+
+def _calibration_file(info, kind, override):
+    """The white or dark image a calibration names, checked against its SHA-256."""
+    from .calibrate import file_digest, load_image
+    if override:
+        return load_image(override)
+    if not info:
+        return None
+    p = Path(info["path"])
+    if not p.is_file():
+        raise FileNotFoundError(f"the calibration's {kind} image {p} is gone; give it with --{kind}")
+    if file_digest(p)["sha256"] != info["sha256"]:
+        raise ValueError(f"the calibration's {kind} image {p} has changed since the calibration")
+    return load_image(p)
+
+
+def cmd_decode(a):
+    from .calibrate import GridCalibration, decode, load_image, save_views
+    cal = GridCalibration.load(a.calibration)
+    raw = load_image(a.raw)
+    white = None if a.no_white else _calibration_file(cal.white, "white", a.white)
+    dark = _calibration_file(cal.dark, "dark", a.dark)
+    t = time.perf_counter()
+    views = decode(raw, cal, white, dark, n_views=a.views, camera_id=a.camera_id)
+    dt = time.perf_counter() - t
+    save_views(a.out, views, cal, raw=str(Path(a.raw).resolve()), white_normalised=white is not None)
+    print(f"decoded {Path(a.raw).name} into {views.shape[0]} x {views.shape[1]} views of {views.shape[2]} x "
+          f"{views.shape[3]} lenslets in {dt:.2f} s -> {a.out}")
 
 
 def _raw_objects(path):
@@ -274,8 +330,27 @@ def main(argv=None):
     s.add_argument("--x", type=float, default=0.0, help="point scene: lateral position (mm)")
     s.set_defaults(func=cmd_simulate)
 
-    s = sub.add_parser("refocus", help="refocus a raw image at one or more slopes")
-    s.add_argument("raw", help=".npz from simulate, .npy, or DATASET.h5:INDEX")
+    s = sub.add_parser("calibrate", help="calibrate a real camera's lenslet grid from a white image")
+    s.add_argument("white", help="white (flat-field) image: PNG, TIFF, .npy or .npz")
+    s.add_argument("--dark", help="dark frame, subtracted first")
+    s.add_argument("--layout", choices=["auto", "square", "hex"], default="auto")
+    s.add_argument("--camera-id", help="name of the camera, stored and checked by decode")
+    s.add_argument("--out", required=True, help="calibration JSON")
+    s.set_defaults(func=cmd_calibrate)
+
+    s = sub.add_parser("decode", help="decode a real raw image into sub-aperture views with a calibration")
+    s.add_argument("raw", help="raw light-field image: PNG, TIFF, .npy or .npz")
+    s.add_argument("--calibration", required=True, help="JSON written by 'lf-flame calibrate'")
+    s.add_argument("--white", help="white image (default: the calibration's, checked by its SHA-256)")
+    s.add_argument("--dark", help="dark frame (default: the calibration's, if any)")
+    s.add_argument("--no-white", action="store_true", help="no white-image normalisation")
+    s.add_argument("--views", type=int, help="views per axis (default: the pitch rounded down)")
+    s.add_argument("--camera-id", help="refuse a calibration of another camera")
+    s.add_argument("--out", required=True, help="HDF5 of the views (N, N, R, C)")
+    s.set_defaults(func=cmd_decode)
+
+    s = sub.add_parser("refocus", help="refocus a raw image (or decoded views) at one or more slopes")
+    s.add_argument("raw", help=".npz from simulate, .npy, DATASET.h5:INDEX, or VIEWS.h5 from decode")
     s.add_argument("--slope", type=float, action="append", required=True, help="lenslets per view (repeatable)")
     s.add_argument("--method", choices=["shift-sum", "fourier"], default="shift-sum")
     s.add_argument("--interpolation", choices=["bilinear", "nearest"], default="bilinear",
@@ -286,7 +361,8 @@ def main(argv=None):
 
     s = sub.add_parser("slopes", help="sharpest slope of each object of a raw image (table and plot of the "
                        "sharpness curves); without RAW, calibrate the nominal scene of a data config")
-    s.add_argument("raw", nargs="?", help=".npz from simulate (its objects' ROIs are used), .npy, or DATASET.h5:INDEX")
+    s.add_argument("raw", nargs="?", help=".npz from simulate (its objects' ROIs are used), .npy, DATASET.h5:INDEX, "
+                   "or VIEWS.h5 from decode")
     s.add_argument("--roi", type=int, nargs=4, action="append", metavar=("ROW0", "ROW1", "COL0", "COL1"),
                    help="region in lenslets (repeatable; default: the stored objects, else the whole image)")
     s.add_argument("--metric", choices=["tenengrad", "laplacian", "normvar"], default="tenengrad")

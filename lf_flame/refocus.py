@@ -287,7 +287,21 @@ def refocus(raw: np.ndarray, slopes, pixels_per_lenslet: int, mask=None, *, meth
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}. Received: {method!r}")
-    views = raw_to_views(raw, pixels_per_lenslet)
+    return refocus_views(raw_to_views(raw, pixels_per_lenslet), slopes, mask, method=method,
+                         interpolation=interpolation, check_finite=False)
+
+
+def refocus_views(views: np.ndarray, slopes, mask=None, *, method: str = "shift-sum",
+                  interpolation: str = "bilinear", check_finite: bool = True) -> np.ndarray:
+    """Refocus sub-aperture views (N, N, R, C) at ``slopes``: -> (S, R, C) float32.
+
+    As :func:`refocus`, for views already split (e.g. decoded from a real camera's raw
+    image by :func:`lf_flame.calibrate.decode`).
+    """
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}. Received: {method!r}")
+    if check_finite:
+        _check_finite("views", views)
     if method == "fourier":
         slopes = np.atleast_1d(np.asarray(slopes, np.float64))
         _check_finite("slopes", slopes)

@@ -447,4 +447,18 @@ def point_scene(camera: PlenopticCamera, depth_offset_mm: float = 0.0, y_mm: flo
     return Scene("point", (layer,), Effects(aperture=True, cos4=False, occlusion=False), (obj,))
 
 
+def white_scene(camera: PlenopticCamera, radiance: float = 1.0, cos4: bool = True) -> Scene:
+    """A white (flat-field) target: one plane of constant ``radiance`` filling three times
+    the field of view at the focal plane, as a diffuser in front of the lens gives.
+
+    Its raw image is the grid of lenslet images of the main-lens aperture (discs, dimmed
+    towards the corners by cos⁴ when ``cos4``), the input of
+    :func:`lf_flame.calibrate.calibrate`. Effects: aperture (and cos⁴), no occlusion.
+    """
+    h, w = camera.field_of_view_mm(0.0)
+    layer = Layer(radiance=np.full((2, 2), radiance, np.float32), alpha=None, depth_offset_mm=0.0,
+                  centre_mm=(0.0, 0.0), size_mm=(3 * h, 3 * w))
+    return Scene("white", (layer,), Effects(aperture=True, cos4=bool(cos4), occlusion=False))
+
+
 SCENES = {"shapes": shapes_scene, "flame": flame_scene}

@@ -135,10 +135,25 @@ def render(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16, seed
     Raises
     ------
     ValueError
-        Bad ray count or seed, layers behind the camera, NaN/negative radiance.
+        Bad ray count or seed, layers behind the camera, NaN/negative radiance,
+        crosstalk asked of a non-perfect grid.
+
+    Notes
+    -----
+    A non-perfect lenslet grid (rotated, offset, non-integer pitch or hexagonal; see
+    :class:`~lf_flame.camera.PlenopticCamera`) is rendered by :func:`render_points`,
+    each pixel through the lenslet whose image centre is nearest (its Voronoi cell,
+    :meth:`~lf_flame.camera.PlenopticCamera.nearest_lenslet`); the raw image then has
+    the camera's :attr:`~lf_flame.camera.PlenopticCamera.sensor_shape`.
     """
     _validate_sampling(rays_per_pixel, seed)
     fx = scene.effects
+    if not camera.perfect_grid:
+        H, W = camera.sensor_shape
+        i, j = np.mgrid[0:H, 0:W]
+        pts = np.stack([i.ravel() + 0.5, j.ravel() + 0.5], axis=-1)
+        out = render_points(camera, scene, pts, (i * W + j).ravel(), rays_per_pixel, seed)
+        return apply_sensor(out.reshape(H, W), fx, seed)
     layers, z, rad, alpha = _stack_layers(camera, scene)
     ky, kx = trace_coefficients(camera, layers, z)
     out = np.empty(camera.sensor_shape, dtype=np.float32)
@@ -146,6 +161,116 @@ def render(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16, seed
                              bool(fx.occlusion), camera.aperture_diameter_mm / 2 if fx.aperture else -1.0,
                              bool(fx.cos4), 3 if fx.crosstalk else 1, int(rays_per_pixel), int(seed), out)
     return apply_sensor(out, fx, seed)
+
+
+def _axis_basis(camera: PlenopticCamera, z, tex_offset, tex_scale) -> np.ndarray:
+    """Coefficients (2 + n_layers, 4) of each traced quantity along one axis as
+    ``a[q, 0] y_s + a[q, 1] y_l + a[q, 2] y_c + a[q, 3]`` (quantities q as in
+    :func:`lf_flame._kernels.axis_coefficients`): the backward chain traced on unit
+    sensor, lenslet-plane and lenslet-centre heights (it is linear and homogeneous)."""
+    chain = tuple(m.matrix for m in backward_chain(camera))
+    e = np.eye(3)
+    y_m, t_m, y_o, t_o = _kernels.trace_rays(e[0], e[1], e[2], *chain)
+    a = np.zeros((2 + len(z), 4))
+    a[0, :3], a[1, :3] = y_m, t_m
+    for li in range(len(z)):
+        a[2 + li, :3] = tex_scale[li] * (y_o - z[li] * t_o)
+        a[2 + li, 3] = tex_offset[li]
+    return a
+
+
+def render_points(camera: PlenopticCamera, scene: Scene, points_px: np.ndarray, keys: np.ndarray,
+                  rays_per_pixel: int = 16, seed: int = 0) -> np.ndarray:
+    """Mean radiance of pixel-sized areas of the sensor, for any lenslet grid.
+
+    The general-grid renderer behind :func:`render` and :func:`render_views`
+    (kernel :func:`lf_flame._kernels.render_points`): the same backward ABCD chain and
+    ray samples as the perfect-grid kernel; each ray passes through the lenslet whose
+    image cell (:meth:`~lf_flame.camera.PlenopticCamera.nearest_lenslet`) holds its
+    point of the sensor.
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+    scene : Scene
+    points_px : ndarray of shape (M, 2)
+        Centres (row, column) of the areas in sensor pixel coordinates (pixel ``(i, j)``
+        covers ``[i, i + 1) x [j, j + 1)``); each area is one pixel, axis-aligned.
+    keys : ndarray of shape (M,), int
+        Index of each area's random shift (pixel ``(i, j)`` of the sensor uses ``i * W + j``).
+
+    Returns
+    -------
+    values : ndarray of shape (M,), float32
+        Noise-free mean radiance, in the units of :func:`render` (before the sensor model).
+
+    Raises
+    ------
+    ValueError
+        Shapes that disagree, non-finite points, crosstalk (not modelled for a general
+        grid), or the errors of :func:`render`.
+    """
+    _validate_sampling(rays_per_pixel, seed)
+    fx = scene.effects
+    if fx.crosstalk:
+        raise ValueError("crosstalk is modelled for the perfect lenslet grid only; turn it off for a rotated, "
+                         "offset, non-integer-pitch or hexagonal grid")
+    pts = np.asarray(points_px, dtype=np.float64)
+    keys = np.asarray(keys).reshape(-1)
+    if pts.ndim != 2 or pts.shape[1] != 2 or len(keys) != len(pts):
+        raise ValueError(f"points_px must have shape (M, 2) and keys shape (M,). Received: {pts.shape}, {keys.shape}")
+    if not np.all(np.isfinite(pts)):
+        raise ValueError("points_px contains NaN or inf")
+    layers, z, rad, alpha = _stack_layers(camera, scene)
+    tr, tc = rad.shape[1:]
+    top, left, h, w = _layer_frames(layers)
+    ay = _axis_basis(camera, z, top * tr / h, -tr / h)
+    ax = _axis_basis(camera, z, -left * tc / w, tc / w)
+    H, W = camera.sensor_shape
+    pp = camera.pixel_pitch_mm
+    to_mla = pp * camera.mla_pitch_mm / camera.lenslet_image_pitch_mm  # chief ray: image centre -> lenslet centre
+    c = camera.lenslet_image_centres_px()
+    lens_mm = np.ascontiguousarray(np.stack([(c[..., 0] - H / 2) * to_mla, -(c[..., 1] - W / 2) * to_mla], -1))
+    t = math.radians(camera.grid_rotation_deg)
+    lens_mat = camera.mla_pitch_mm * np.array([[math.cos(t), -math.sin(t)], [math.sin(t), math.cos(t)]])
+    out = np.empty(len(pts), np.float32)
+    _kernels.render_points(np.ascontiguousarray(pts), keys.astype(np.int64), H, W, pp,
+                           np.asarray(camera.grid_centre_px, np.float64), np.linalg.inv(camera.grid_matrix), lens_mm,
+                           lens_mat, camera.grid_layout == "hex", ay, ax, rad,
+                           alpha if fx.occlusion else np.zeros((1, 1, 1), np.float32), bool(fx.occlusion),
+                           camera.aperture_diameter_mm / 2 if fx.aperture else -1.0, bool(fx.cos4),
+                           int(rays_per_pixel), int(seed), out)
+    return out
+
+
+def render_views(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16, seed: int = 0) -> np.ndarray:
+    """Render the sub-aperture views directly, without a raw image (the decoder's reference).
+
+    View ``(u, v)`` of lenslet ``(r, c)`` is the pixel-sized area centred ``(u - (N-1)/2,
+    v - (N-1)/2)`` pixels from the lenslet's image centre along the grid's (rotated)
+    axes (rays through the lenslet whose cell holds their sensor point, as for
+    :func:`render`): the area that :func:`lf_flame.calibrate.decode`
+    resamples from the raw image. Each area takes the random ray shifts of the sensor
+    pixel it lies on, so for the perfect grid these are the sensor's own pixels:
+    ``raw_to_views(render(...))`` up to float rounding.
+
+    Returns
+    -------
+    views : ndarray of shape (N, N, R, C), float32
+        Noise-free mean radiance (no sensor model), axes as in
+        :func:`lf_flame.refocus.raw_to_views`.
+    """
+    n, R, C = camera.pixels_per_lenslet, camera.n_rows, camera.n_cols
+    off = np.arange(n) - (n - 1) / 2
+    du = np.stack(np.meshgrid(off, off, indexing="ij"), axis=-1)          # (N, N, 2) along the grid axes
+    rot = camera.grid_matrix / camera.grid_pitch
+    pts = camera.lenslet_image_centres_px()[None, None] + (du @ rot.T)[:, :, None, None]   # (N, N, R, C, 2)
+    pts = pts.reshape(-1, 2)
+    H, W = camera.sensor_shape
+    # the random shift of the sensor pixel under each area: the perfect grid's views are its raw pixels
+    keys = np.clip(np.floor(pts[:, 0]), 0, H - 1) * W + np.clip(np.floor(pts[:, 1]), 0, W - 1)
+    out = render_points(camera, scene, pts, keys.astype(np.int64), rays_per_pixel, seed)
+    return out.reshape(n, n, R, C)
 
 
 def _validate_sampling(rays_per_pixel, seed):
