@@ -18,7 +18,9 @@ it (``docs/diagnostics.md`` has the measured figures):
   height, are never used). Within it, of the regions above the segmentation threshold,
   the **sharpest** one (largest mean Sobel gradient, scikit-image ``filters.sobel``) is
   the in-focus flame: blur removes gradients, so a blurred neighbour loses even when it
-  is brighter.
+  is brighter (sharpness = mean gradient / mean value, so brightness does not count).
+  Where the dim in-focus flame and a brighter blur merge into one region above the
+  threshold, there is nothing to choose and the measurement includes the blur.
 - **Segmentation threshold** at :data:`SEGMENT_FRACTION` (30 %) of the brightest pixel in
   the band, ``measure.label`` + ``measure.regionprops``. Blurred light of neighbours
   adds to the flame's own; a low threshold lets the region merge with a neighbour's blur
@@ -30,13 +32,20 @@ it (``docs/diagnostics.md`` has the measured figures):
 - **Height** is not the region's extent: the flame's luminosity fades to zero at both its
   base and its tip (soot burn-out), so any threshold shortens it (by 0.9-1.6 mm at 10 %
   of the peak on the paper preset's ground truth). The base and the tip are each found
-  by extrapolating the flame's edge to zero intensity: along the axial peak profile (the
-  brightest pixel of the region in each row, continued above and below the region in its
-  end rows' columns while it keeps falling), a straight line is fitted to the rows
+  by extrapolating the flame's edge to zero intensity along the axial peak profile (the
+  brightest pixel of the flame in each row): a straight line is fitted to the rows
   between :data:`EDGE_FIT_RANGE` (20 % and 60 %) of the profile's maximum and its zero
-  crossing is the edge. Blurred light below 20 % of the peak does not enter the fit; a
-  neighbour's blur above it, where the region is merged with it, can still lengthen the
-  flame (the cases of ``docs/diagnostics.md``).
+  crossing is the edge. Blurred light below 20 % of the peak does not enter the fit. The
+  walk from the peak row to each end follows the flame's own columns (it cannot jump
+  sideways to blur the region touches elsewhere) and goes on past the region only while
+  the profile keeps falling as fast as the flame's edge does (:data:`TAIL_FALL`), not
+  along the slow tail of a neighbour's blur. Biases that remain (measured,
+  ``docs/diagnostics.md``): the line undershoots the base by 3-4 % of the height (the
+  luminosity rises concavely from the base); at the tip the error depends on the blurred
+  neighbours (about −2 % of the height with the paper's layout, near 0 elsewhere), so
+  on the paper's planes the two partly cancel. Where a short in-focus flame merges, above
+  the threshold, with a brighter blur of a taller neighbour, the tip follows the blur
+  (errors of 1-3 mm seen).
 - **Axial and radial profiles** are samples of the plane, out-of-focus light included:
   they are biased upward wherever a neighbour's blur overlaps, most near the base, where
   all flames stand at the same image row.
@@ -58,6 +67,9 @@ SEGMENT_FRACTION = 0.3
 #: Fractions of the axial peak profile's maximum between which the base and tip edges are
 #: fitted by a straight line and extrapolated to zero.
 EDGE_FIT_RANGE = (0.2, 0.6)
+#: Past the segmented region, the edge walk goes on while the profile falls per row at
+#: least this fraction of its mean fall per row inside the region's part of the fit.
+TAIL_FALL = 0.25
 #: Regions smaller than this many lenslets are noise, not a flame.
 MIN_AREA_LENSLETS = 10
 #: Default heights of the radial profiles, fractions of the measured height above the base.
@@ -215,18 +227,34 @@ def _check_columns(columns, n_cols: int) -> tuple[int, int]:
 
 def _edge(img, mask, y, start, step, lo, hi) -> float:
     """Edge height (y, mm) where the axial peak profile, walked from row ``start`` in
-    direction ``step`` (-1 up, +1 down), extrapolates to zero (see module docstring)."""
-    rows = np.flatnonzero(mask.any(axis=1))
-    end = rows[0] if step < 0 else rows[-1]
-    cols = np.flatnonzero(mask[end])
-    c0, c1 = max(cols[0] - 1, 0), cols[-1] + 2
-    pts, prev, i, last = [], np.inf, start, start
+    direction ``step`` (-1 up, +1 down), extrapolates to zero (see module docstring).
+
+    The walk follows the flame: in each row it looks only at the columns of the previous
+    row's run widened by one lenslet on each side (within the region while the region
+    lasts), so it cannot jump to blurred light that the region touches elsewhere. Past
+    the region's end it goes on only while the profile keeps falling at least
+    :data:`TAIL_FALL` times as fast as it fell inside the region: the flame's own fading
+    edge does, the slowly varying blur of other planes does not. ``lo`` and ``hi`` are
+    fractions of the profile at ``start``.
+    """
+    cols = np.flatnonzero(mask[start])
+    a, b = cols[0], cols[-1]
+    ref = img[start, a:b + 1].max()
+    lo, hi = lo * ref, hi * ref
+    pts, falls, prev, i, last = [], [], np.inf, start, start
     while 0 <= i < img.shape[0]:
-        inside = mask[i].any()
-        v = img[i, mask[i]].max() if inside else img[i, c0:c1].max()
-        if v < lo or (not inside and v > prev):
+        lo_c, hi_c = max(a - 1, 0), min(b + 2, img.shape[1])
+        inside = np.flatnonzero(mask[i, lo_c:hi_c]) + lo_c
+        if inside.size:
+            a, b = inside[0], inside[-1]
+        v = img[i, a:b + 1].max()
+        if v < lo:
+            break
+        if not inside.size and not (falls and prev - v >= TAIL_FALL * np.mean(falls)):
             break
         if v <= hi:
+            if pts and inside.size:
+                falls.append(prev - v)
             pts.append((y[i], v))
         prev, last, i = v, i, i + step
     if len(pts) < 2:  # too steep to fit: the outer edge of the last row above ``lo``
@@ -295,20 +323,21 @@ def measure_flame(plane, camera: PlenopticCamera, depth_offset_mm: float, *, col
         raise EmptyPlaneError(f"plane is empty: no light in columns [{c0}, {c1}) (maximum {peak})")
     threshold = segment_fraction * peak
     labels = measure.label(band >= threshold)
-    regions = [r for r in measure.regionprops(labels, intensity_image=filters.sobel(img))
+    # sharpness of each region: mean Sobel gradient over mean value (brightness-free)
+    regions = [r for r in measure.regionprops(labels, intensity_image=np.dstack([filters.sobel(img), img]))
                if r.area >= MIN_AREA_LENSLETS]
     if not regions:
         raise EmptyPlaneError(f"plane is empty: no region of {MIN_AREA_LENSLETS} lenslets or more above "
                          f"{segment_fraction:.0%} of the peak {peak:.4g} in columns [{c0}, {c1})")
-    mask = labels == max(regions, key=lambda r: r.intensity_mean).label
+    mask = labels == max(regions, key=lambda r: r.intensity_mean[0] / r.intensity_mean[1]).label
 
     rows_idx = np.arange(img.shape[0])
     y, _ = lenslet_to_object_mm(camera, rows_idx, 0, depth_offset_mm)
     profile = np.where(mask, img, 0.0).max(axis=1)
     start = int(np.argmax(profile))
     pmax = float(profile[start])
-    tip = _edge(img, mask, y, start, -1, lo * pmax, hi * pmax)
-    base = _edge(img, mask, y, start, +1, lo * pmax, hi * pmax)
+    tip = _edge(img, mask, y, start, -1, lo, hi)
+    base = _edge(img, mask, y, start, +1, lo, hi)
     height = tip - base
 
     props = measure.regionprops(mask.astype(np.uint8), intensity_image=img)[0]
