@@ -257,10 +257,16 @@ def _edge(img, mask, y, start, step, lo, hi) -> float:
                 falls.append(prev - v)
             pts.append((y[i], v))
         prev, last, i = v, i, i + step
-    if len(pts) < 2:  # too steep to fit: the outer edge of the last row above ``lo``
-        return float(y[last] - step * 0.5 * (y[0] - y[1]))
+    half = 0.5 * (y[0] - y[1])
+    outer = float(y[last] - step * half)  # the outer edge of the last row above ``lo``
+    if len(pts) < 2:  # too steep to fit
+        return outer
     slope, intercept = np.polyfit(*np.asarray(pts).T, 1)
-    return float(-intercept / slope)
+    if slope * step <= 0:  # not falling outward (a blurred, flat prediction): no edge to extrapolate
+        return outer
+    # between the peak row and the plane's top (bottom) edge
+    limit = y[0] + half if step < 0 else y[-1] - half
+    return float(np.clip(-intercept / slope, *sorted((float(y[start]), float(limit)))))
 
 
 def measure_flame(plane, camera: PlenopticCamera, depth_offset_mm: float, *, columns=None,

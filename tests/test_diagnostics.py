@@ -151,3 +151,25 @@ def test_an_empty_prediction_is_a_failure_not_a_number():
     t = error_table(df)
     assert t.set_index("depth_mm").n_failed.to_dict() == {20.0: 0, 10.0: 0, 0.0: 1, -10.0: 0}
     assert isinstance(t, pd.DataFrame) and (df.route == "test").all()
+
+
+def test_cli_profiles_writes_csv_and_figure(tmp_path, capsys):
+    import json
+
+    from lf_flame.cli import main
+    depths = (20.0, 10.0, 0.0, -10.0)
+    sc = scenes.flame_scene(CAM, np.random.default_rng(5), template_scale=TEMPLATE_SCALE, regime="paper")
+    raw = simulate.render(CAM, sc, 4, seed=0)
+    src = tmp_path / "flame.npz"
+    np.savez(src, raw=raw, camera=CAM.to_json(), objects=json.dumps(sc.objects, default=float))
+    assert main(["profiles", str(src), "--route", "fourier", "--out", str(tmp_path / "p")]) == 0
+    df = pd.read_csv(tmp_path / "p.csv")
+    assert list(df.depth_mm) == list(depths) and list(df.plane) == [0, 1, 2, 3]
+    assert df.slope.values == pytest.approx([CAM.slope_for_depth(d) for d in depths], rel=1e-4)
+    assert (df.height_err_mm < 0.5).all() and df.failure.isna().all()
+    axial = pd.read_csv(tmp_path / "p.axial.csv")
+    assert set(axial.depth_mm) == set(depths) and (axial.height_mm.groupby(axial.plane).max() > 3).all()
+    assert (tmp_path / "p.png").stat().st_size > 20_000
+    # the stored planes exist only in a dataset
+    assert main(["profiles", str(src), "--route", "ground-truth", "--out", str(tmp_path / "q")]) == 2
+    assert "DATASET.h5:INDEX" in capsys.readouterr().err
