@@ -30,7 +30,7 @@ it (``docs/diagnostics.md`` has the measured figures):
   it (a bias upward of the integrated intensity, of a few per cent where neighbours
   overlap).
 - **Height** is not the region's extent: the flame's luminosity fades to zero at both its
-  base and its tip (soot burn-out), so any threshold shortens it (by 0.9-1.6 mm at 10 %
+  base and its tip (soot burn-out), so any threshold shortens it (by 0.7-1.3 mm at 10 %
   of the peak on the paper preset's ground truth). The base and the tip are each found
   by extrapolating the flame's edge to zero intensity along the axial peak profile (the
   brightest pixel of the flame in each row): a straight line is fitted to the rows
