@@ -328,8 +328,8 @@ def summary(df: pd.DataFrame, prov: dict, n_test: int, ref_rpp: int, gt_heights:
                   & (ref.backend != "jax")]
     if len(learned):
         lines.append("- The learned routes beside their yardsticks (same backbone, same light fields): " + "; ".join(
-            f"{_label(r)}: SSIM {r.ssim_mean:.3f}, {r.psnr_db_mean:.1f} dB, height error {r.height_err_mm_mean:.2f} mm, "
-            f"{r.latency_ms_median:.3g} ms"
+            f"{_label(r)}: SSIM {r.ssim_mean:.3f}, {r.psnr_db_mean:.1f} dB, "
+            f"height error {r.height_err_mm_mean:.2f} mm, {r.latency_ms_median:.3g} ms"
             for r in learned.itertuples()) + ".")
     for sec, cols in (("simulator: rays per pixel", ["route", "rays_per_pixel", "latency_ms_median", "image_rmse"]),
                       ("simulator: effects", ["setting", "latency_ms_median"]),

@@ -328,7 +328,8 @@ def _plot_profiles(path, cam, stack, depths, ms, objects, route):
     vmax = max(float(np.max(stack)), 1e-9)
     for k, (plane, d, m) in enumerate(zip(stack, depths, ms)):
         ax = fig.add_subplot(grid[0, k])
-        (top, bottom), (left, right) = (lenslet_to_object_mm(cam, [-0.5, plane.shape[0] - 0.5], [-0.5, plane.shape[1] - 0.5], d))
+        (top, bottom), (left, right) = lenslet_to_object_mm(cam, [-0.5, plane.shape[0] - 0.5],
+                                                            [-0.5, plane.shape[1] - 0.5], d)
         ax.imshow(plane, cmap="inferno", vmin=0, vmax=vmax, extent=(left, right, bottom, top))
         title = f"{d:+.0f} mm"
         if m is not None:

@@ -140,6 +140,8 @@ def test_bad_input():
         measure_stack(np.ones((2, CAM.n_rows, CAM.n_cols)), CAM, [obj])
     with pytest.raises(ValueError, match="NaN"):
         measure_stack(nan[None], CAM, [obj])
+    with pytest.raises(ValueError, match="depths_mm"):
+        scenes.flame_scene(CAM, np.random.default_rng(0), depths_mm=(10.0, 0.0))
 
 
 def test_an_empty_prediction_is_a_failure_not_a_number():
