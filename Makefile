@@ -19,7 +19,7 @@ SCENES := shapes flame
 FRESH_paper := 20
 FRESH_quick := 2
 
-.PHONY: help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff test clean-quick
+.PHONY: help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff heights test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -84,6 +84,12 @@ $(MODELS)/%/train_info.json: $(DATA)/%.h5 $(ECFG)
 
 train-shapes: $(foreach r,$(REGIMES),$(MODELS)/$(r)/shapes/train_info.json) ## train the model (and its baselines) on the shapes
 train-flame: $(foreach r,$(REGIMES),$(MODELS)/$(r)/flame/train_info.json) ## train the model (and its baselines) on the flames
+
+# flame height, base and centre measured on the ground-truth planes (test split) against the simulation's truth
+heights: $(foreach r,$(REGIMES),$(RES)/$(r)/heights_gt.csv) ## flame diagnostics on the ground truth -> results/PRESET/REGIME/heights_gt.csv
+
+$(RES)/%/heights_gt.csv: $(DATA)/%/flame.h5 experiments/flame_heights.py lf_flame/diagnostics.py
+	$(VENV)/bin/python experiments/flame_heights.py --dataset $< --out $(@D)
 
 # the paper preset's map is committed in results/, the quick one stays in results/quick
 TRADEOFF_OUT := $(if $(filter paper,$(PRESET)),results,$(RES))

@@ -14,7 +14,10 @@ Sections (column ``section``):
   a subprocess, JAX. Latency: median, 10th and 90th percentile of ``repeats`` calls after a
   warm-up, on one light field. Accuracy: SSIM/PSNR per plane (scikit-image), mean over the
   test split, against the **reference**: bilinear shift-and-sum at the same slopes of the
-  same scene rendered noise-free at ``ref_rays_per_pixel``.
+  same scene rendered noise-free at ``ref_rays_per_pixel``; and, in physical terms, the
+  flame height measured on each route's planes (:mod:`lf_flame.diagnostics`) against the
+  simulation's true height: mean absolute error in mm per plane (``height_err_mm_*``) and
+  the number of planes where no flame could be measured (``height_failed``).
 - ``simulator: rays per pixel`` and ``simulator: effects``: rows of
   ``experiments/bench_sim.py`` (image RMSE against a high-sample render, and time).
 - ``slope search``: grid steps against the largest slope error (analytic slopes of the
@@ -52,6 +55,7 @@ from lf_flame.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.config import (atomic_write_text, load_experiment_config, load_toml,  # noqa: E402
                              provenance)
 from lf_flame.dataset import GT_MASK, LightFieldDataset, SCENES, sample_rng  # noqa: E402
+from lf_flame.diagnostics import error_table, score_stacks  # noqa: E402
 from lf_flame.metrics import psnr_per_plane, ssim_per_plane  # noqa: E402
 from lf_flame.refocus import aperture_mask, find_sharpest_slope, focal_stack, raw_to_views, refocus  # noqa: E402
 from lf_flame.scenes import PAPER_DEPTHS_MM  # noqa: E402
@@ -84,26 +88,42 @@ def _accuracy(preds, refs) -> dict:
     return row
 
 
-def _route_row(route, setting, fn, raws, refs, repeats, backend="numpy/numba") -> dict:
+def _height_accuracy(preds, truth) -> dict:
+    """Mean absolute flame-height error (mm) per plane of ``preds`` (k, 4, R, C) against
+    ``truth = (camera, objects of each sample)``; planes with no measurable flame are
+    counted in ``height_failed`` and left out of the means."""
+    camera, objects = truth
+    t = error_table(score_stacks(np.clip(np.asarray(preds), 0, 1), camera, objects))
+    row = {f"height_err_mm_{d:+.0f}mm": float(v) for d, v in zip(t.depth_mm, t.height_err_mm)}
+    ok = t.height_err_mm.notna()
+    row.update(height_err_mm_mean=float(t.height_err_mm[ok].mean()) if ok.any() else float("nan"),
+               height_failed=int(t.n_failed.sum()))
+    return row
+
+
+def _route_row(route, setting, fn, raws, refs, repeats, backend="numpy/numba", truth=None) -> dict:
     t = _times(lambda: fn(raws[0]), repeats)
     row = dict(section="refocusing", route=route, setting=setting, backend=backend,
                latency_ms_median=t[0], latency_ms_p10=t[1], latency_ms_p90=t[2],
                throughput_lf_per_s=1e3 / t[0], n_samples=len(refs))
-    row.update(_accuracy([fn(r) for r in raws], refs))
+    preds = [fn(r) for r in raws]
+    row.update(_accuracy(preds, refs))
+    if truth is not None:
+        row.update(_height_accuracy(preds, truth))
     return row
 
 
-def classical_rows(ds, raws, refs, repeats) -> list[dict]:
+def classical_rows(ds, raws, refs, repeats, truth=None) -> list[dict]:
     n, slopes = ds.camera.pixels_per_lenslet, ds.slopes
     mask = aperture_mask(n, GT_MASK)
     routes = [("shift-sum", "nearest (whole lenslets)", dict(interpolation="nearest")),
               ("shift-sum", "bilinear", {}),
               ("Fourier slice", "4-D FFT + 4 slices", dict(method="fourier"))]
-    return [_route_row(r, s, lambda raw, kw=kw: refocus(raw, slopes, n, mask, **kw), raws, refs, repeats)
-            for r, s, kw in routes]
+    return [_route_row(r, s, lambda raw, kw=kw: refocus(raw, slopes, n, mask, **kw), raws, refs, repeats,
+                       truth=truth) for r, s, kw in routes]
 
 
-def model_rows(model_dirs, raws, refs, repeats, baselines: bool = True) -> list[dict]:
+def model_rows(model_dirs, raws, refs, repeats, baselines: bool = True, truth=None) -> list[dict]:
     """The trained models (full: backbone + decoder) on the current Keras backend and, with
     ``baselines``, the yardsticks saved beside each (mean image; linear decoders, which run
     the same backbone)."""
@@ -118,23 +138,25 @@ def model_rows(model_dirs, raws, refs, repeats, baselines: bool = True) -> list[
         def fn(raw, model=model):
             return np.transpose(np.asarray(model.predict_on_batch(raw[None, ..., None]))[0], (2, 0, 1))
         rows.append(_route_row("model", f"backbone input {size}, {info['epochs_run']} epochs, "
-                               f"{info['backbone_weights']}", fn, raws, refs, repeats, backend=keras.backend.backend()))
+                               f"{info['backbone_weights']}", fn, raws, refs, repeats, backend=keras.backend.backend(),
+                               truth=truth))
         for route, base in (load_baselines(d) if baselines else {}).items():
             if route == "mean image":
                 rows.append(_route_row(route, "training split's mean ground truth", lambda raw, m=base.mean: m, raws,
-                                       refs, repeats))
+                                       refs, repeats, truth=truth))
                 continue
 
             def lin_fn(raw, lin=base, fx=fx):
                 return lin.predict(np.asarray(fx.predict_on_batch(raw[None, ..., None])))[0]
             rows.append(_route_row(route, f"backbone input {size}, {info['backbone_weights']}", lin_fn, raws, refs,
-                                   repeats, backend=keras.backend.backend()))
+                                   repeats, backend=keras.backend.backend(), truth=truth))
     return rows
 
 
-def jax_model_rows(model_dirs, raws, refs, repeats, tmp: Path) -> list[dict]:
+def jax_model_rows(model_dirs, raws, refs, repeats, tmp: Path, truth=None) -> list[dict]:
     """:func:`model_rows` with ``KERAS_BACKEND=jax`` in a subprocess (a backend is fixed at import)."""
-    np.savez(tmp / "tradeoff_inputs.npz", raws=np.stack(raws), refs=refs)
+    extra = {} if truth is None else dict(camera=truth[0].to_json(), objects=json.dumps(truth[1], default=float))
+    np.savez(tmp / "tradeoff_inputs.npz", raws=np.stack(raws), refs=refs, **extra)
     r = subprocess.run([sys.executable, __file__, "--models-only", str(tmp / "tradeoff_inputs.npz"),
                         "--repeats", str(repeats), *map(str, model_dirs)],
                        env=dict(os.environ, KERAS_BACKEND="jax", TF_CPP_MIN_LOG_LEVEL="3"),
@@ -210,7 +232,15 @@ def _label(r) -> str:
 
 def plot(df: pd.DataFrame, out: Path) -> None:
     ref = _routes(df)
-    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    fig, (ax, axh) = plt.subplots(1, 2, figsize=(14, 4.5))
+    for r in ref.itertuples():
+        axh.plot(r.latency_ms_median, r.height_err_mm_mean, "o" if r.pareto else "s", color="C0" if r.pareto else "C7")
+        axh.annotate(_label(r), (r.latency_ms_median, r.height_err_mm_mean), fontsize=7, xytext=(4, 4),
+                     textcoords="offset points")
+    axh.set_xscale("log")
+    axh.set_xlabel("latency per light field, 4 planes (ms, median)")
+    axh.set_ylabel("flame height error (mm, mean abs., mean of 4 planes)")
+    axh.set_title("flame height vs the simulation's truth (blue: SSIM Pareto front)", fontsize=9)
     for r in ref.itertuples():
         ax.errorbar(r.latency_ms_median, r.ssim_mean, xerr=[[r.latency_ms_median - r.latency_ms_p10],
                                                              [r.latency_ms_p90 - r.latency_ms_median]],
@@ -253,10 +283,11 @@ def plot(df: pd.DataFrame, out: Path) -> None:
     plt.close(fig)
 
 
-def summary(df: pd.DataFrame, prov: dict, n_test: int, ref_rpp: int) -> str:
+def summary(df: pd.DataFrame, prov: dict, n_test: int, ref_rpp: int, gt_heights: dict | None = None) -> str:
     ref = _routes(df)
     cols = ["route", "setting", "backend", "latency_ms_median", "latency_ms_p10", "latency_ms_p90",
-            "throughput_lf_per_s", *[f"ssim_{p}" for p in PLANES], "ssim_mean", "psnr_db_mean", "pareto"]
+            "throughput_lf_per_s", *[f"ssim_{p}" for p in PLANES], "ssim_mean", "psnr_db_mean",
+            *[f"height_err_mm_{p}" for p in PLANES], "height_err_mm_mean", "height_failed", "pareto"]
     fastest = ref.loc[ref.latency_ms_median.idxmin()]
     best = ref.loc[ref.ssim_mean.idxmax()]
     models = ref[ref.route == "model"]
@@ -267,12 +298,23 @@ def summary(df: pd.DataFrame, prov: dict, n_test: int, ref_rpp: int) -> str:
              f"JAX {prov['versions'].get('jax', 'not installed')}. No GPU.", "",
              f"## Refocusing routes: raw flame light field -> 4 planes ({n_test} test light fields)", "",
              f"Reference: bilinear shift-and-sum at the same slopes of the same scenes rendered noise-free at "
-             f"{ref_rpp} rays/pixel. Latency: median (p10-p90) of repeated calls after a warm-up.", "",
+             f"{ref_rpp} rays/pixel. Latency: median (p10-p90) of repeated calls after a warm-up. "
+             "Height error: flame height measured on the route's planes (`lf_flame.diagnostics`) against the "
+             "simulation's true height, mean absolute error in mm per plane; `height_failed`: planes where no "
+             "flame could be measured (left out of the means).", "",
              ref[cols].to_markdown(index=False, floatfmt=".4g"), "",
              "![Pareto](tradeoff_pareto.png)", "",
              f"- Fastest: **{_label(fastest)}**, {fastest.latency_ms_median:.3g} ms, SSIM {fastest.ssim_mean:.3f}.",
              f"- Most accurate: **{_label(best)}**, SSIM {best.ssim_mean:.3f} at {best.latency_ms_median:.3g} ms.",
-             f"- Pareto front: {', '.join(_label(r) for r in ref[ref.pareto].itertuples())}."]
+             f"- Pareto front: {', '.join(_label(r) for r in ref[ref.pareto].itertuples())}.",
+             "- Flame height error (mm, mean over the planes) beside latency: " + "; ".join(
+                 f"{_label(r)}: {r.height_err_mm_mean:.2f} mm at {r.latency_ms_median:.3g} ms"
+                 + (f" ({r.height_failed:.0f} planes unmeasurable)" if r.height_failed else "")
+                 for r in ref.sort_values("height_err_mm_mean").itertuples()) + "."]
+    if gt_heights:
+        lines.append("- The dataset's own ground-truth planes of the same light fields: height error "
+                     + ", ".join(f"{gt_heights[f'height_err_mm_{p}']:.2f}" for p in PLANES)
+                     + f" mm ({', '.join(PLANES)}): what the measurement itself costs.")
     if len(models):
         m = models.loc[models.latency_ms_median.idxmin()]
         bil = ref[(ref.route == "shift-sum") & (ref.setting == "bilinear")].iloc[0]
@@ -286,7 +328,8 @@ def summary(df: pd.DataFrame, prov: dict, n_test: int, ref_rpp: int) -> str:
                   & (ref.backend != "jax")]
     if len(learned):
         lines.append("- The learned routes beside their yardsticks (same backbone, same light fields): " + "; ".join(
-            f"{_label(r)}: SSIM {r.ssim_mean:.3f}, {r.psnr_db_mean:.1f} dB, {r.latency_ms_median:.3g} ms"
+            f"{_label(r)}: SSIM {r.ssim_mean:.3f}, {r.psnr_db_mean:.1f} dB, "
+            f"height error {r.height_err_mm_mean:.2f} mm, {r.latency_ms_median:.3g} ms"
             for r in learned.itertuples()) + ".")
     for sec, cols in (("simulator: rays per pixel", ["route", "rays_per_pixel", "latency_ms_median", "image_rmse"]),
                       ("simulator: effects", ["setting", "latency_ms_median"]),
@@ -316,7 +359,11 @@ def main(argv=None):
     a = p.parse_args(argv)
     if a.models_only:
         z = np.load(a.models_only)
-        print(json.dumps(model_rows(a.dirs, list(z["raws"]), z["refs"], a.repeats, baselines=False)))
+        truth = None
+        if "camera" in z:
+            from lf_flame.camera import PlenopticCamera
+            truth = (PlenopticCamera.from_dict(json.loads(str(z["camera"]))), json.loads(str(z["objects"])))
+        print(json.dumps(model_rows(a.dirs, list(z["raws"]), z["refs"], a.repeats, baselines=False, truth=truth)))
         return 0
 
     t0 = time.perf_counter()
@@ -342,11 +389,13 @@ def main(argv=None):
     print(f"reference stacks of {len(test)} test light fields at {tcfg['ref_rays_per_pixel']} rays/pixel")
     refs = reference_stacks(ds, test, tcfg["ref_rays_per_pixel"])
     raws = [ds.raw(int(i)) for i in test]
-    rows = classical_rows(ds, raws, refs, a.repeats)
-    rows += model_rows(model_dirs, raws, refs, a.repeats)
+    truth = (ds.camera, [ds.params(int(i)) for i in test])
+    gt_heights = _height_accuracy(ds.gt(list(test)), truth)  # the dataset's own ground-truth planes
+    rows = classical_rows(ds, raws, refs, a.repeats, truth)
+    rows += model_rows(model_dirs, raws, refs, a.repeats, truth=truth)
     import importlib.util
     if importlib.util.find_spec("jax") is not None:
-        rows += jax_model_rows(model_dirs, raws, refs, a.repeats, out)
+        rows += jax_model_rows(model_dirs, raws, refs, a.repeats, out, truth)
     print("simulator knobs")
     rows += simulator_rows(quick)
     print("slope search grids")
@@ -360,9 +409,10 @@ def main(argv=None):
     df.to_csv(tmp, index=False)
     os.replace(tmp, out / "tradeoff.csv")
     plot(df, out)
-    atomic_write_text(out / "tradeoff.md", summary(df, prov, len(test), tcfg["ref_rays_per_pixel"]))
+    atomic_write_text(out / "tradeoff.md", summary(df, prov, len(test), tcfg["ref_rays_per_pixel"], gt_heights))
     atomic_write_text(out / "tradeoff.json", json.dumps(dict(
         preset=a.preset, tradeoff_config=tcfg, repeats=a.repeats, dataset=str(flame), test_indices=test.tolist(),
+        ground_truth_height_err_mm=gt_heights,
         models=[str(d) for d in model_dirs], wall_time_s=time.perf_counter() - t0, provenance=prov), indent=2))
     print((out / "tradeoff.md").read_text())
     return 0

@@ -241,30 +241,40 @@ def cmd_train(a):
           f"(best val_loss {info['best_val_loss']:.5f}, backbone {info['backbone_weights']}) -> {a.out}")
 
 
-def cmd_predict(a):
+#: ``--route`` names of the learned routes -> the names they carry in a model folder.
+LEARNED_ROUTES = {"network": "network", "mean-image": "mean image", "linear-gap": "linear decoder (GAP-pooled)",
+                  "linear-unpooled": "linear decoder (un-pooled)"}
+
+
+def _learned_runner(raw, cam, raw_name, model_dir, route):
+    """The function ``x (1, rows, cols, 1) -> stack (4, R, C)`` of a learned route, with the
+    model's info; checks that the raw image fits the model."""
     from .camera import PlenopticCamera
     from .train import load_full_model
-    raw, cam = _load_raw(a.raw)
-    model, info = load_full_model(a.model_dir)
+    model, info = load_full_model(model_dir)
     if tuple(raw.shape) != tuple(info["raw_shape"]):
         raise ValueError(f"raw image {raw.shape} does not match the model's sensor {tuple(info['raw_shape'])}")
     if cam is not None and cam != PlenopticCamera.from_dict(json.loads(info["dataset_camera"])):
-        raise ValueError(f"{a.raw} was rendered with another camera than the model was trained on")
+        raise ValueError(f"{raw_name} was rendered with another camera than the model was trained on")
     if not np.all(np.isfinite(raw)):
-        raise ValueError(f"{a.raw} contains NaN or inf")
-    x = raw.astype(np.float32)[None, ..., None]
-    if a.route == "network":
+        raise ValueError(f"{raw_name} contains NaN or inf")
+    if route == "network":
         def run(x):
             return np.transpose(np.asarray(model.predict_on_batch(x))[0], (2, 0, 1))
     else:
         from .train import load_baselines
-        route = {"mean-image": "mean image", "linear-gap": "linear decoder (GAP-pooled)",
-                 "linear-unpooled": "linear decoder (un-pooled)"}[a.route]
-        base = load_baselines(a.model_dir)[route]
+        base = load_baselines(model_dir)[LEARNED_ROUTES[route]]
         fx = model.get_layer("feature_extractor")
 
         def run(x):
             return base.predict(np.asarray(fx.predict_on_batch(x)))[0]
+    return run, info
+
+
+def cmd_predict(a):
+    raw, cam = _load_raw(a.raw)
+    run, info = _learned_runner(raw, cam, a.raw, a.model_dir, a.route)
+    x = raw.astype(np.float32)[None, ..., None]
     run(x)  # warm-up: graph tracing
     times = []
     for _ in range(max(1, a.repeat)):
@@ -276,6 +286,151 @@ def cmd_predict(a):
           f"{info['model_config']['input_cols']}, weights {info['backbone_weights']}, "
           f"keras backend {__import__('keras').backend.backend()})")
     _write_stack(a.out, stack, latency_s=np.asarray(times))
+
+
+def _profiles_input(a):
+    """Camera, 4-plane stack, depths, slopes and flame objects (or None) for ``profiles``."""
+    from .camera import PAPER_CAMERA
+    from .refocus import aperture_mask, refocus
+    from .scenes import PAPER_DEPTHS_MM
+    s = str(a.raw)
+    gt, objects, slopes = None, None, None
+    if ".h5:" in s:
+        from .dataset import LightFieldDataset
+        f, i = s.rsplit(":", 1)
+        ds = LightFieldDataset(f)
+        raw, cam = ds.raw(int(i)), ds.camera
+        gt, objects, slopes = ds.gt(int(i)), ds.params(int(i)), ds.slopes
+    else:
+        raw, cam = _load_raw(a.raw)
+        objects = _raw_objects(a.raw)
+    cam = cam or PAPER_CAMERA
+    if objects is not None and not all("height_mm" in o for o in objects):
+        raise ValueError(f"{a.raw} does not hold a flame scene (its objects have no flame heights)")
+    depths = [float(o["depth_offset_mm"]) for o in objects] if objects else list(PAPER_DEPTHS_MM)
+    if a.slope:
+        slopes = a.slope
+    elif slopes is None:
+        slopes = [cam.slope_for_depth(d) for d in depths]
+    if len(slopes) != len(depths):
+        raise ValueError(f"need {len(depths)} slopes, one per plane. Received: {slopes}")
+    n = cam.pixels_per_lenslet
+    if a.route == "ground-truth":
+        if gt is None:
+            raise ValueError("--route ground-truth needs a dataset sample DATASET.h5:INDEX")
+        stack = gt
+    elif a.route in LEARNED_ROUTES:
+        if not a.model_dir:
+            raise ValueError(f"--route {a.route} needs --model-dir")
+        run, _ = _learned_runner(raw, cam, a.raw, a.model_dir, a.route)
+        stack = run(raw.astype(np.float32)[None, ..., None])
+    else:
+        kw = {"shift-sum": {}, "shift-sum-nearest": dict(interpolation="nearest"),
+              "fourier": dict(method="fourier")}[a.route]
+        stack = refocus(raw, slopes, n, aperture_mask(n, "circular"), **kw)
+    return cam, np.asarray(stack), depths, list(slopes), objects
+
+
+def cmd_profiles(a):
+    import pandas as pd
+    from .config import atomic_write_text
+    from .diagnostics import EmptyPlaneError, flame_truth, measure_flame, score_stacks
+    cam, stack, depths, slopes, objects = _profiles_input(a)
+    if objects:
+        sample = int(str(a.raw).rsplit(":", 1)[1]) if ".h5:" in str(a.raw) else 0
+        df = score_stacks(stack[None], cam, [objects], samples=[sample], route=a.route)
+        df.insert(0, "plane", range(len(df)))
+        ms = []
+        for plane, o in zip(stack, objects):
+            try:
+                ms.append(measure_flame(plane, cam, o["depth_offset_mm"], columns=flame_truth(o)["columns"]))
+            except EmptyPlaneError:
+                ms.append(None)
+    else:
+        ms, rows = [], []
+        for k, (plane, d) in enumerate(zip(stack, depths)):
+            try:
+                m = measure_flame(plane, cam, d)
+                rows.append(dict(plane=k, route=a.route, depth_mm=d, **m.summary(), failure=""))
+            except EmptyPlaneError as e:
+                m = None
+                rows.append(dict(plane=k, route=a.route, depth_mm=d, failure=str(e)))
+            ms.append(m)
+        df = pd.DataFrame(rows)
+    df.insert(3, "slope", slopes)
+    out = Path(a.out)
+    atomic_write_text(f"{out}.csv", df.to_csv(index=False, float_format="%.5g"))
+    axial = pd.DataFrame([dict(plane=k, depth_mm=d, height_mm=h, intensity=v)
+                          for k, (m, d) in enumerate(zip(ms, depths)) if m is not None
+                          for h, v in zip(m.axial_height_mm, m.axial_intensity)])
+    atomic_write_text(f"{out}.axial.csv", axial.to_csv(index=False, float_format="%.5g"))
+    _plot_profiles(f"{out}.png", cam, stack, depths, ms, objects, a.route)
+    cols = [c for c in ("depth_mm", "height_mm", "height_mm_true", "height_err_mm", "max_width_mm",
+                        "centroid_x_mm", "integrated_intensity", "failure") if c in df]
+    print(df[cols].to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    print(f"-> {out}.csv, {out}.axial.csv, {out}.png")
+
+
+def _plot_profiles(path, cam, stack, depths, ms, objects, route):
+    """Each plane in object-space mm with the measured outline and edges (and the true ones),
+    then the axial and radial profiles of the planes."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from .diagnostics import flame_truth, lenslet_to_object_mm
+    P = len(stack)
+    fig = plt.figure(figsize=(2.6 * P, 9.0))
+    grid = fig.add_gridspec(2, P, height_ratios=(2.2, 1.0))
+    vmax = max(float(np.max(stack)), 1e-9)
+    for k, (plane, d, m) in enumerate(zip(stack, depths, ms)):
+        ax = fig.add_subplot(grid[0, k])
+        (top, bottom), (left, right) = lenslet_to_object_mm(cam, [-0.5, plane.shape[0] - 0.5],
+                                                            [-0.5, plane.shape[1] - 0.5], d)
+        ax.imshow(plane, cmap="inferno", vmin=0, vmax=vmax, extent=(left, right, bottom, top))
+        title = f"{d:+.0f} mm"
+        if m is not None:
+            rows, cols = np.arange(plane.shape[0]), np.arange(plane.shape[1])
+            y, x = lenslet_to_object_mm(cam, rows[:, None], cols[None, :], d)
+            ax.contour(np.broadcast_to(x, plane.shape), np.broadcast_to(y, plane.shape), m.mask, [0.5],
+                       colors="w", linewidths=0.7)
+            for yy in (m.base_y_mm, m.tip_y_mm):
+                ax.axhline(yy, color="w", ls="--", lw=0.8)
+            title += f"\nH {m.height_mm:.2f} mm"
+        else:
+            title += "\nno flame found"
+        if objects:
+            t = flame_truth(objects[k])
+            for yy in (t["base_y_mm"], t["tip_y_mm"]):
+                ax.axhline(yy, color="c", lw=0.8)
+            title += f" (true {t['height_mm']:.2f})"
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel("x (mm)", fontsize=8)
+        if k == 0:
+            ax.set_ylabel("y (mm)", fontsize=8)
+        ax.tick_params(labelsize=7)
+    axa = fig.add_subplot(grid[1, : max(1, P // 2)])
+    axr = fig.add_subplot(grid[1, max(1, P // 2):]) if P > 1 else None
+    for k, (d, m) in enumerate(zip(depths, ms)):
+        if m is None:
+            continue
+        axa.plot(m.axial_height_mm, m.axial_intensity, color=f"C{k}", label=f"{d:+.0f} mm")
+        if axr is not None:
+            for j, r in enumerate(m.radial):
+                axr.plot(r.x_mm, r.intensity, color=f"C{k}", ls=("-", "--", ":")[j % 3], lw=0.9,
+                         label=f"{d:+.0f} mm, {r.height_mm:.1f} mm" if k == 0 or j == 0 else None)
+    axa.set(xlabel="height above the measured base (mm)", ylabel="intensity on the centreline",
+            title=f"axial profiles ({route})")
+    axa.legend(fontsize=7)
+    if axr is not None:
+        axr.set(xlabel="offset from the centreline (mm)", ylabel="intensity",
+                title="radial profiles at 25 / 50 / 75 % of the height")
+        axr.legend(fontsize=6, ncol=2)
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(f"{path}.partial.png")
+    fig.savefig(tmp, dpi=100)
+    plt.close(fig)
+    tmp.replace(path)
 
 
 def cmd_evaluate(a):
@@ -402,9 +557,23 @@ def main(argv=None):
     s.add_argument("--model-dir", required=True, help="folder written by 'lf-flame train'")
     s.add_argument("--out", required=True, help=".npz (stack (4, R, C), latency_s) or .png (planes side by side)")
     s.add_argument("--repeat", type=int, default=5, help="timed calls after the warm-up")
-    s.add_argument("--route", choices=["network", "mean-image", "linear-gap", "linear-unpooled"], default="network",
+    s.add_argument("--route", choices=list(LEARNED_ROUTES), default="network",
                    help="the trained network, or one of its yardsticks saved beside it")
     s.set_defaults(func=cmd_predict)
+
+    s = sub.add_parser("profiles", help="flame diagnostics per plane: height, widths, centroid, intensity, "
+                       "axial and radial profiles in object-space mm (CSV and figure)")
+    s.add_argument("raw", help=".npz from 'simulate --scene flame', .npy, or DATASET.h5:INDEX (the truth is "
+                               "marked when the flames' objects are known)")
+    s.add_argument("--route", choices=["ground-truth", "shift-sum", "shift-sum-nearest", "fourier",
+                                       *LEARNED_ROUTES], default="shift-sum",
+                   help="refocusing route; ground-truth: a dataset's stored planes; learned routes need --model-dir")
+    s.add_argument("--model-dir", help="folder written by 'lf-flame train' (learned routes)")
+    s.add_argument("--slope", type=float, action="append",
+                   help="one per plane (repeatable); default: the dataset's, else the analytic slopes of the depths")
+    s.add_argument("--out", required=True, help="PREFIX: writes PREFIX.csv (one row per plane), PREFIX.axial.csv "
+                                               "and PREFIX.png")
+    s.set_defaults(func=cmd_profiles)
 
     s = sub.add_parser("evaluate", help="SSIM/PSNR per plane on the test split, table and figure")
     s.add_argument("--dataset", required=True)

@@ -356,7 +356,8 @@ def _flame_params(k: int, w0: float, rng: np.random.Generator, vary: bool, regim
 
 
 def flame_scene(camera: PlenopticCamera, rng: np.random.Generator, *, template_scale: float = 0.64,
-                texels_per_lenslet: float = 3.0, vary: bool = True, regime: str = "varied") -> Scene:
+                texels_per_lenslet: float = 3.0, vary: bool = True, regime: str = "varied",
+                depths_mm=PAPER_DEPTHS_MM) -> Scene:
     """The paper's flame scene (Fig. 6): four flames, one at each of the four depths.
 
     The paper's 180 × 90-lenslet grid sees only about 23.7 × 11.8 mm at the focal plane
@@ -392,23 +393,30 @@ def flame_scene(camera: PlenopticCamera, rng: np.random.Generator, *, template_s
         over ``regime`` and draws nothing from ``rng``.
     regime : str
         One of :data:`REGIMES`: ``"paper"`` or ``"varied"`` (default).
+    depths_mm : sequence of four float
+        Depth offsets (mm) of the flames, farthest-left first; flame ``k`` keeps the
+        height statistics of :data:`FLAME_HEIGHT_MEAN_MM` [k] whatever its depth. Default
+        :data:`PAPER_DEPTHS_MM`; other depths test the diagnostics away from the paper's planes.
 
     Returns
     -------
     Scene
-        Four layers ordered as :data:`PAPER_DEPTHS_MM`; each object records its drawn
+        Four layers ordered as ``depths_mm``; each object records its drawn
         parameters (template and object-space heights, centre and base in mm, radiance,
         sway, phase) and ``regime`` (``"nominal"`` when ``vary`` is False).
 
     Raises
     ------
     ValueError
-        If ``regime`` is not in :data:`REGIMES`.
+        If ``regime`` is not in :data:`REGIMES` or ``depths_mm`` does not hold four depths.
     """
     _check_regime(regime)
+    if len(depths_mm) != len(FLAME_HEIGHT_MEAN_MM):
+        raise ValueError(f"depths_mm must hold {len(FLAME_HEIGHT_MEAN_MM)} depths. Received: {depths_mm}")
     h0, w0 = camera.field_of_view_mm(0.0)
     layers, objects = [], []
-    for k, dz in enumerate(PAPER_DEPTHS_MM):
+    for k, dz in enumerate(depths_mm):
+        dz = float(dz)
         scale = camera.object_distance_mm(dz) / camera.focus_distance_mm
         height, jitter, level, sway, phase = _flame_params(k, w0, rng, vary, regime)
         H = max(height, 1.0) * template_scale * scale

@@ -28,6 +28,14 @@ def test_make_tradeoff_quick():
     assert len(ref[ref.route == "model"].setting.str.split(",").str[0].unique()) >= 2  # two input sizes
     cols = ["latency_ms_median", "latency_ms_p10", "latency_ms_p90", "ssim_mean", "psnr_db_mean"]
     assert np.isfinite(ref[cols].values).all() and (ref.latency_ms_p10 <= ref.latency_ms_p90).all()
+    # every route's flame-height error in mm, from lf_flame.diagnostics against the scenes' truth
+    hcols = [c for c in ref.columns if c.startswith("height_err_mm_")]
+    assert len(hcols) == 5 and ref.height_failed.notna().all()
+    measured = ref[ref.height_failed == 0]
+    assert np.isfinite(measured[hcols].values).all() and (measured[hcols].values >= 0).all()
+    classical = ref[ref.route.isin(["shift-sum", "Fourier slice"])]
+    assert (classical.height_failed == 0).all() and (classical.height_err_mm_mean < 1.0).all()
+    assert "height error" in (out / "tradeoff.md").read_text()
     # the reference is bilinear shift-and-sum of a cleaner render: that route must score best
     assert ref.loc[ref.ssim_mean.idxmax(), "setting"] == "bilinear"
     sim = df[df.section == "simulator: rays per pixel"]

@@ -1,0 +1,506 @@
+"""Flame diagnostics per depth plane: where the flame is, its size in mm and its profiles.
+
+The one place for diagnostics (issue 17). A refocused plane ``(R, C)`` is in lenslets;
+:func:`lenslet_size_mm` turns lenslets into object-space millimetres at the plane's depth
+(the main lens's magnification ``d / z`` changes with the depth, see
+:meth:`~lf_flame.camera.PlenopticCamera.object_to_lenslet`). :func:`measure_flame`
+segments the in-focus flame with scikit-image and measures it; :func:`score_stacks`
+compares measurements with the simulation's truth (the flame scene's ``objects``).
+
+How the other planes' out-of-focus flames bias each measurement, and what is done about
+it (``docs/diagnostics.md`` has the measured figures):
+
+- **Which flame.** A refocused plane holds its own flame in focus plus the three other
+  flames blurred by discs of ``|Δslope| · N`` lenslets (17 lenslets for 10 mm apart with
+  the paper's camera), which can be brighter than a dim in-focus flame. The search is
+  restricted to the flame's column band (the burner's lateral position, known in an
+  experiment; the scene's ``roi`` columns in a simulation; its rows, which hold the true
+  height, are never used). Within it, of the regions above the segmentation threshold,
+  the **sharpest** one (largest mean Sobel gradient, scikit-image ``filters.sobel``) is
+  the in-focus flame: blur removes gradients, so a blurred neighbour loses even when it
+  is brighter (sharpness = mean gradient / mean value, so brightness does not count).
+  Where the dim in-focus flame and a brighter blur merge into one region above the
+  threshold, there is nothing to choose and the measurement includes the blur.
+- **Segmentation threshold** at :data:`SEGMENT_FRACTION` (30 %) of the brightest pixel in
+  the band, ``measure.label`` + ``measure.regionprops``. Blurred light of neighbours
+  adds to the flame's own; a low threshold lets the region merge with a neighbour's blur
+  (the tip then jumps to the taller neighbour's), a high one eats the flame's dim base
+  and tip. Widths, centroid and integrated intensity are taken on this region, so they
+  are those of the flame above 30 % of its peak, plus whatever blurred light lies inside
+  it (a bias upward of the integrated intensity, of a few per cent where neighbours
+  overlap).
+- **Height** is not the region's extent: the flame's luminosity fades to zero at both its
+  base and its tip (soot burn-out), so any threshold shortens it (by 0.7-1.3 mm at 10 %
+  of the peak on the paper preset's ground truth). The base and the tip are each found
+  by extrapolating the flame's edge to zero intensity along the axial peak profile (the
+  brightest pixel of the flame in each row): a straight line is fitted to the rows
+  between :data:`EDGE_FIT_RANGE` (20 % and 60 %) of the profile's maximum and its zero
+  crossing is the edge. Blurred light below 20 % of the peak does not enter the fit. The
+  walk from the peak row to each end follows the flame's own columns (it cannot jump
+  sideways to blur the region touches elsewhere) and goes on past the region only while
+  the profile keeps falling as fast as the flame's edge does (:data:`TAIL_FALL`), not
+  along the slow tail of a neighbour's blur. Biases that remain (measured,
+  ``docs/diagnostics.md``): the line undershoots the base by 3-4 % of the height (the
+  luminosity rises concavely from the base); at the tip the error depends on the blurred
+  neighbours (about −2 % of the height with the paper's layout, near 0 elsewhere), so
+  on the paper's planes the two partly cancel. Where a short in-focus flame merges, above
+  the threshold, with a brighter blur of a taller neighbour, the tip follows the blur
+  (errors of 1-3 mm seen).
+- **Axial and radial profiles** are samples of the plane, out-of-focus light included:
+  they are biased upward wherever a neighbour's blur overlaps, most near the base, where
+  all flames stand at the same image row.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+from scipy import ndimage
+from skimage import filters, measure
+
+from .camera import PlenopticCamera
+
+#: Segmentation threshold, a fraction of the brightest pixel of the flame's column band.
+SEGMENT_FRACTION = 0.3
+#: Fractions of the axial peak profile's maximum between which the base and tip edges are
+#: fitted by a straight line and extrapolated to zero.
+EDGE_FIT_RANGE = (0.2, 0.6)
+#: Past the segmented region, the edge walk goes on while the profile falls per row at
+#: least this fraction of its mean fall per row inside the region's part of the fit.
+TAIL_FALL = 0.25
+#: Regions smaller than this many lenslets are noise, not a flame.
+MIN_AREA_LENSLETS = 10
+#: Default heights of the radial profiles, fractions of the measured height above the base.
+RADIAL_FRACTIONS = (0.25, 0.5, 0.75)
+
+
+class EmptyPlaneError(ValueError):
+    """A plane holds no flame to measure (no light, or no region large enough)."""
+
+
+def lenslet_size_mm(camera: PlenopticCamera, depth_offset_mm: float) -> float:
+    """Object-space size (mm) of one lenslet of a plane refocused at depth ``dz``.
+
+    The refocused image has one pixel per lenslet; a lenslet of pitch ``p`` sees
+    ``p z / d`` mm of the plane at object distance ``z = z_f + dz`` (chief ray through the
+    main-lens centre, :meth:`~lf_flame.camera.PlenopticCamera.object_to_lenslet`): 0.1314 mm
+    at the focal plane of the paper's camera, 0.1394 mm at +20 mm, 0.1273 mm at −10 mm.
+
+    Raises
+    ------
+    ValueError
+        If the plane lies at or inside the main lens's focal length.
+    """
+    z = camera.object_distance_mm(depth_offset_mm)
+    camera.image_distance_mm(z)  # raises for an impossible plane
+    return camera.field_of_view_mm(depth_offset_mm)[0] / camera.n_rows
+
+
+def lenslet_to_object_mm(camera: PlenopticCamera, rows, cols, depth_offset_mm: float):
+    """Object-space ``(y, x)`` (mm; y up, x right) of refocused-image pixels ``(rows, cols)``.
+
+    The inverse of :meth:`~lf_flame.camera.PlenopticCamera.object_to_lenslet`: pixel
+    index ``i`` has its centre at lenslet coordinate ``i + 0.5``.
+
+    Parameters
+    ----------
+    rows, cols : array_like
+        Pixel indices (may be fractional) of the refocused image, rows down, columns right.
+    depth_offset_mm : float
+        Depth of the plane (mm from the focal plane, > 0 farther).
+
+    Returns
+    -------
+    y_mm, x_mm : ndarray, broadcast from ``rows`` and ``cols``.
+    """
+    s = lenslet_size_mm(camera, depth_offset_mm)
+    r0, c0 = camera.object_to_lenslet(0.0, 0.0, depth_offset_mm)
+    return (r0 - (np.asarray(rows, np.float64) + 0.5)) * s, (np.asarray(cols, np.float64) + 0.5 - c0) * s
+
+
+@dataclass(frozen=True)
+class RadialProfile:
+    """Intensity across the flame at one height.
+
+    Attributes
+    ----------
+    height_mm : float
+        Height above the measured base (mm).
+    x_mm : ndarray of shape (n,)
+        Lateral offset from the flame's centreline (mm, right positive), one per column
+        of the column band.
+    intensity : ndarray of shape (n,)
+        The plane's value there (bilinear between rows), same scale as the plane.
+    """
+
+    height_mm: float
+    x_mm: np.ndarray
+    intensity: np.ndarray
+
+
+@dataclass(frozen=True)
+class FlameMeasurement:
+    """What :func:`measure_flame` finds in one plane. Lengths in object-space mm.
+
+    Attributes
+    ----------
+    depth_offset_mm, lenslet_mm : float
+        The plane's depth and the object-space size of one of its lenslets.
+    height_mm : float
+        ``tip_y_mm - base_y_mm``.
+    base_y_mm, tip_y_mm : float
+        Heights (y up, mm, from the optical axis) of the base and the tip: the axial
+        edges extrapolated to zero intensity (module docstring).
+    base_width_mm : float
+        Width of the segmented region at 10 % of the height above the base (the
+        luminous sheath is dark right at the base).
+    max_width_mm, max_width_y_mm : float
+        Largest width of the region and the height (y, mm) of that row.
+    centroid_y_mm, centroid_x_mm : float
+        Intensity-weighted centroid of the region.
+    integrated_intensity : float
+        Sum of the plane over the region times the lenslet area (intensity · mm²).
+    peak_intensity, threshold : float
+        Brightest value of the region and the segmentation threshold (plane's scale).
+    mask : ndarray of shape (R, C), bool
+        The segmented region (rows, columns of the plane).
+    axial_height_mm, axial_intensity : ndarray of shape (n,)
+        Axial profile: the plane along the centreline (the region's intensity-weighted
+        centre column in each row, bilinear), against height above the base, from the
+        region's lowest to highest row.
+    radial : tuple of RadialProfile
+        Radial profiles at the requested heights.
+    """
+
+    depth_offset_mm: float
+    lenslet_mm: float
+    height_mm: float
+    base_y_mm: float
+    tip_y_mm: float
+    base_width_mm: float
+    max_width_mm: float
+    max_width_y_mm: float
+    centroid_y_mm: float
+    centroid_x_mm: float
+    integrated_intensity: float
+    peak_intensity: float
+    threshold: float
+    mask: np.ndarray = field(repr=False)
+    axial_height_mm: np.ndarray = field(repr=False)
+    axial_intensity: np.ndarray = field(repr=False)
+    radial: tuple = field(repr=False, default=())
+
+    def summary(self) -> dict:
+        """The scalar measurements as a dict (one CSV row)."""
+        return {k: float(getattr(self, k)) for k in (
+            "depth_offset_mm", "lenslet_mm", "height_mm", "base_y_mm", "tip_y_mm", "base_width_mm", "max_width_mm",
+            "max_width_y_mm", "centroid_y_mm", "centroid_x_mm", "integrated_intensity", "peak_intensity",
+            "threshold")}
+
+
+def _check_plane(plane, camera: PlenopticCamera) -> np.ndarray:
+    a = np.asarray(plane)
+    if a.shape != (camera.n_rows, camera.n_cols):
+        raise ValueError(f"plane must have the camera's lenslet grid shape {(camera.n_rows, camera.n_cols)} "
+                         f"(rows, columns). Received: shape {a.shape}")
+    if not np.issubdtype(a.dtype, np.number) or np.issubdtype(a.dtype, np.complexfloating):
+        raise ValueError(f"plane must hold real numbers. Received: dtype {a.dtype}")
+    a = a.astype(np.float64)
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"plane contains {int(np.sum(~np.isfinite(a)))} NaN or infinite values")
+    return a
+
+
+def _check_columns(columns, n_cols: int) -> tuple[int, int]:
+    if columns is None:
+        return 0, n_cols
+    try:
+        c0, c1 = (int(v) for v in columns)
+    except (TypeError, ValueError):
+        raise ValueError(f"columns must be (col0, col1). Received: columns={columns!r}") from None
+    if not 0 <= c0 < c1 <= n_cols:
+        raise ValueError(f"columns must satisfy 0 <= col0 < col1 <= {n_cols}. Received: columns={columns!r}")
+    return c0, c1
+
+
+def _edge(img, mask, y, start, step, lo, hi) -> float:
+    """Edge height (y, mm) where the axial peak profile, walked from row ``start`` in
+    direction ``step`` (-1 up, +1 down), extrapolates to zero (see module docstring).
+
+    The walk follows the flame: in each row it looks only at the columns of the previous
+    row's run widened by one lenslet on each side (within the region while the region
+    lasts), so it cannot jump to blurred light that the region touches elsewhere. Past
+    the region's end it goes on only while the profile keeps falling at least
+    :data:`TAIL_FALL` times as fast as it fell inside the region: the flame's own fading
+    edge does, the slowly varying blur of other planes does not. ``lo`` and ``hi`` are
+    fractions of the profile at ``start``.
+    """
+    cols = np.flatnonzero(mask[start])
+    a, b = cols[0], cols[-1]
+    ref = img[start, a:b + 1].max()
+    lo, hi = lo * ref, hi * ref
+    pts, falls, prev, i, last = [], [], np.inf, start, start
+    while 0 <= i < img.shape[0]:
+        lo_c, hi_c = max(a - 1, 0), min(b + 2, img.shape[1])
+        inside = np.flatnonzero(mask[i, lo_c:hi_c]) + lo_c
+        if inside.size:
+            a, b = inside[0], inside[-1]
+        v = img[i, a:b + 1].max()
+        if v < lo:
+            break
+        if not inside.size and not (falls and prev - v >= TAIL_FALL * np.mean(falls)):
+            break
+        if v <= hi:
+            if pts and inside.size:
+                falls.append(prev - v)
+            pts.append((y[i], v))
+        prev, last, i = v, i, i + step
+    half = 0.5 * (y[0] - y[1])
+    outer = float(y[last] - step * half)  # the outer edge of the last row above ``lo``
+    if len(pts) < 2:  # too steep to fit
+        return outer
+    slope, intercept = np.polyfit(*np.asarray(pts).T, 1)
+    if slope * step <= 0:  # not falling outward (a blurred, flat prediction): no edge to extrapolate
+        return outer
+    # between the peak row and the plane's top (bottom) edge
+    limit = y[0] + half if step < 0 else y[-1] - half
+    return float(np.clip(-intercept / slope, *sorted((float(y[start]), float(limit)))))
+
+
+def measure_flame(plane, camera: PlenopticCamera, depth_offset_mm: float, *, columns=None,
+                  segment_fraction: float = SEGMENT_FRACTION, edge_fit_range=EDGE_FIT_RANGE,
+                  radial_heights_mm=None) -> FlameMeasurement:
+    """Segment the in-focus flame of a refocused plane and measure it in object-space mm.
+
+    Parameters
+    ----------
+    plane : ndarray of shape (R, C)
+        A refocused image (rows, columns; one pixel per lenslet), e.g. one plane of the
+        ground truth or of any refocusing route, non-negative radiance (any scale).
+    camera : PlenopticCamera
+        The camera (lenslet grid and optics) that took the light field.
+    depth_offset_mm : float
+        Depth of the plane the image is focused on (mm from the focal plane).
+    columns : (col0, col1) or None
+        Column band ``[col0, col1)`` (lenslets) where the flame stands, e.g. a scene
+        object's ``roi[2:4]``; None: the whole plane.
+    segment_fraction : float in (0, 1)
+        Segmentation threshold, fraction of the band's brightest pixel.
+    edge_fit_range : (lo, hi), 0 < lo < hi <= 1
+        Fractions of the axial peak profile's maximum fitted for the base and tip edges.
+    radial_heights_mm : sequence of float or None
+        Heights above the measured base (mm) of the radial profiles; None: 25, 50 and
+        75 % of the measured height. Heights outside the plane are skipped.
+
+    Returns
+    -------
+    FlameMeasurement
+
+    Raises
+    ------
+    ValueError
+        A plane of the wrong shape (not the camera's ``(n_rows, n_cols)``), with NaN or
+        inf; a bad band or fraction; an impossible depth.
+    EmptyPlaneError
+        (a ValueError) An empty plane: no positive value in the band, or no region of at
+        least :data:`MIN_AREA_LENSLETS` lenslets above the threshold.
+
+    Notes
+    -----
+    The method and its biases are in the module docstring and ``docs/diagnostics.md``.
+    Flame edges by extrapolating the intensity edge to zero: the "tangent" construction
+    used for edge positions of blurred profiles (e.g. knife-edge methods); segmentation
+    by thresholding and connected components, scikit-image ``measure.label``.
+    """
+    img = _check_plane(plane, camera)
+    c0, c1 = _check_columns(columns, camera.n_cols)
+    if not 0.0 < segment_fraction < 1.0:
+        raise ValueError(f"segment_fraction must lie in (0, 1). Received: {segment_fraction!r}")
+    lo, hi = (float(v) for v in edge_fit_range)
+    if not 0.0 < lo < hi <= 1.0:
+        raise ValueError(f"edge_fit_range must be (lo, hi) with 0 < lo < hi <= 1. Received: {edge_fit_range!r}")
+    s = lenslet_size_mm(camera, depth_offset_mm)
+    band = np.zeros_like(img)
+    band[:, c0:c1] = img[:, c0:c1]
+    peak = float(band.max())
+    if peak <= 0.0:
+        raise EmptyPlaneError(f"plane is empty: no light in columns [{c0}, {c1}) (maximum {peak})")
+    threshold = segment_fraction * peak
+    labels = measure.label(band >= threshold)
+    # sharpness of each region: mean Sobel gradient over mean value (brightness-free)
+    regions = [r for r in measure.regionprops(labels, intensity_image=np.dstack([filters.sobel(img), img]))
+               if r.area >= MIN_AREA_LENSLETS]
+    if not regions:
+        raise EmptyPlaneError(f"plane is empty: no region of {MIN_AREA_LENSLETS} lenslets or more above "
+                         f"{segment_fraction:.0%} of the peak {peak:.4g} in columns [{c0}, {c1})")
+    mask = labels == max(regions, key=lambda r: r.intensity_mean[0] / r.intensity_mean[1]).label
+
+    rows_idx = np.arange(img.shape[0])
+    y, _ = lenslet_to_object_mm(camera, rows_idx, 0, depth_offset_mm)
+    profile = np.where(mask, img, 0.0).max(axis=1)
+    start = int(np.argmax(profile))
+    pmax = float(profile[start])
+    tip = _edge(img, mask, y, start, -1, lo, hi)
+    base = _edge(img, mask, y, start, +1, lo, hi)
+    height = tip - base
+
+    props = measure.regionprops(mask.astype(np.uint8), intensity_image=img)[0]
+    cy, cx = lenslet_to_object_mm(camera, *props.centroid_weighted, depth_offset_mm)
+    rows = np.flatnonzero(mask.any(axis=1))
+    first = np.array([np.flatnonzero(mask[r])[0] for r in rows])
+    last = np.array([np.flatnonzero(mask[r])[-1] for r in rows])
+    widths = (last - first + 1) * s
+    k = int(np.argmax(widths))
+    row_base = np.interp(base + 0.1 * height, y[rows][::-1], rows[::-1].astype(float))
+    base_width = float(widths[int(np.argmin(np.abs(rows - row_base)))])
+
+    # centreline: intensity-weighted centre column of the region in each row
+    w = np.where(mask, img, 0.0)[rows]
+    centre_col = (w * np.arange(img.shape[1])).sum(axis=1) / w.sum(axis=1)
+    axial = ndimage.map_coordinates(img, [rows.astype(float), centre_col], order=1, mode="nearest")
+    radial = []
+    if radial_heights_mm is None:
+        radial_heights_mm = [f * height for f in RADIAL_FRACTIONS]
+    cols = np.arange(c0, c1, dtype=float)
+    for h in radial_heights_mm:
+        r = (camera.object_to_lenslet(base + float(h), 0.0, depth_offset_mm)[0] - 0.5)
+        if not 0 <= r <= img.shape[0] - 1:
+            continue
+        cc = float(np.interp(r, rows, centre_col))
+        vals = ndimage.map_coordinates(img, [np.full_like(cols, r), cols], order=1, mode="nearest")
+        radial.append(RadialProfile(float(h), (cols - cc) * s, vals))
+    return FlameMeasurement(
+        depth_offset_mm=float(depth_offset_mm), lenslet_mm=s, height_mm=height, base_y_mm=base, tip_y_mm=tip,
+        base_width_mm=base_width, max_width_mm=float(widths[k]), max_width_y_mm=float(y[rows[k]]),
+        centroid_y_mm=float(cy), centroid_x_mm=float(cx), integrated_intensity=float(img[mask].sum() * s * s),
+        peak_intensity=float(img[mask].max()), threshold=threshold, mask=mask,
+        axial_height_mm=y[rows] - base, axial_intensity=axial, radial=tuple(radial))
+
+
+# ---- the truth and scoring --------------------------------------------------------
+def flame_truth(obj: dict) -> dict:
+    """The simulation's truth of one flame object (:func:`lf_flame.scenes.flame_scene`).
+
+    Returns
+    -------
+    dict with ``depth_offset_mm``, ``height_mm``, ``base_y_mm``, ``tip_y_mm`` and
+    ``centre_x_mm`` (object space, mm) and ``columns`` (the object's ``roi`` columns).
+
+    Raises
+    ------
+    ValueError
+        If ``obj`` is not a flame object (lacks a height, base or centre).
+    """
+    missing = [k for k in ("depth_offset_mm", "height_mm", "base_y_mm", "centre_x_mm", "roi") if k not in obj]
+    if missing:
+        raise ValueError(f"not a flame object: lacks {missing}. Received: {obj.get('name', obj)!r}")
+    return dict(depth_offset_mm=float(obj["depth_offset_mm"]), height_mm=float(obj["height_mm"]),
+                base_y_mm=float(obj["base_y_mm"]), tip_y_mm=float(obj["base_y_mm"]) + float(obj["height_mm"]),
+                centre_x_mm=float(obj["centre_x_mm"]), columns=(int(obj["roi"][2]), int(obj["roi"][3])))
+
+
+def measure_stack(stack, camera: PlenopticCamera, objects, **kw) -> list:
+    """Measure each plane of a focal stack against its flame object.
+
+    Parameters
+    ----------
+    stack : ndarray of shape (P, R, C)
+        Refocused planes, plane ``k`` focused on ``objects[k]``'s depth.
+    camera : PlenopticCamera
+    objects : sequence of P dict
+        Flame objects (:func:`flame_truth`): each gives the plane's depth and column band.
+    **kw
+        Passed to :func:`measure_flame`.
+
+    Returns
+    -------
+    list of P :class:`FlameMeasurement`, or the :class:`EmptyPlaneError` raised for a
+    plane with nothing to measure (an empty prediction, say).
+
+    Raises
+    ------
+    ValueError
+        A stack of the wrong shape, NaN or inf, an object that is not a flame's.
+    """
+    stack = np.asarray(stack)
+    if stack.ndim != 3 or len(stack) != len(objects):
+        raise ValueError(f"stack must have shape ({len(objects)}, R, C), one plane per object. "
+                         f"Received: shape {stack.shape}")
+    out = []
+    for plane, obj in zip(stack, objects):
+        t = flame_truth(obj)
+        try:
+            out.append(measure_flame(plane, camera, t["depth_offset_mm"], columns=t["columns"], **kw))
+        except EmptyPlaneError as e:
+            out.append(e)
+    return out
+
+
+def score_stacks(stacks, camera: PlenopticCamera, objects_list, samples=None, **labels) -> pd.DataFrame:
+    """Measured against true flame geometry, per plane of each sample.
+
+    Parameters
+    ----------
+    stacks : ndarray of shape (n, P, R, C)
+        Refocused stacks (ground truth or any route's prediction).
+    camera : PlenopticCamera
+    objects_list : sequence of n sequences of P flame objects
+        Each sample's scene objects (``LightFieldDataset.params(i)``).
+    samples : sequence of n ids or None
+        Sample ids for the ``sample`` column (default 0 .. n-1).
+    **labels
+        Columns added to every row (route, regime, ...).
+
+    Returns
+    -------
+    DataFrame, one row per sample and plane: labels, ``sample``, ``depth_mm``, the true
+    ``height_mm_true``, ``base_y_mm_true``, ``tip_y_mm_true``, ``centre_x_mm_true``, the
+    measured :meth:`FlameMeasurement.summary` values, the absolute errors
+    ``height_err_mm``, ``base_err_mm``, ``tip_err_mm``, ``centre_x_err_mm`` (|measured −
+    true|, centre against the centroid), and ``failure`` (the reason a plane could not be
+    measured, else empty; its errors are NaN).
+
+    Raises
+    ------
+    ValueError
+        Stacks and objects of different lengths; as :func:`measure_stack`.
+    """
+    if len(stacks) != len(objects_list):
+        raise ValueError(f"{len(stacks)} stacks but {len(objects_list)} object lists")
+    samples = range(len(stacks)) if samples is None else samples
+    rows = []
+    for i, stack, objects in zip(samples, stacks, objects_list):
+        for obj, m in zip(objects, measure_stack(stack, camera, objects)):
+            t = flame_truth(obj)
+            row = dict(labels, sample=int(i), depth_mm=t["depth_offset_mm"],
+                       **{f"{k}_true": v for k, v in t.items() if k not in ("columns", "depth_offset_mm")})
+            if isinstance(m, EmptyPlaneError):
+                row.update(failure=str(m), height_err_mm=math.nan, base_err_mm=math.nan, tip_err_mm=math.nan,
+                           centre_x_err_mm=math.nan)
+            else:
+                row.update(m.summary(), failure="", height_err_mm=abs(m.height_mm - t["height_mm"]),
+                           base_err_mm=abs(m.base_y_mm - t["base_y_mm"]), tip_err_mm=abs(m.tip_y_mm - t["tip_y_mm"]),
+                           centre_x_err_mm=abs(m.centroid_x_mm - t["centre_x_mm"]))
+            rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def error_table(scores: pd.DataFrame, by=("depth_mm",)) -> pd.DataFrame:
+    """Mean absolute errors (mm) per group of :func:`score_stacks` rows (default: per plane).
+
+    Returns
+    -------
+    DataFrame with ``by`` columns, ``n`` (planes), ``n_failed`` (not measurable; left out
+    of the means), the mean absolute ``height_err_mm``, ``base_err_mm``, ``tip_err_mm``,
+    ``centre_x_err_mm``, the largest height error ``height_err_mm_max`` and the mean
+    signed height error ``height_bias_mm`` (measured − true).
+    """
+    df = scores.assign(height_bias=scores.get("height_mm", np.nan) - scores.height_mm_true)
+    g = df.groupby(list(by), sort=False)
+    return pd.DataFrame(dict(
+        n=g.size(), n_failed=g.failure.apply(lambda f: int((f != "").sum())),
+        height_err_mm=g.height_err_mm.mean(), height_err_mm_max=g.height_err_mm.max(),
+        height_bias_mm=g.height_bias.mean(), base_err_mm=g.base_err_mm.mean(), tip_err_mm=g.tip_err_mm.mean(),
+        centre_x_err_mm=g.centre_x_err_mm.mean())).reset_index()
