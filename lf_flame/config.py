@@ -88,7 +88,7 @@ class TrainConfig:
     layers trained at the paper's settings: :func:`lf_flame.train.closed_form_start`) or
     'paper' (every decoder layer trained from a random initialisation with batch
     statistics from batches of 2, as the paper describes; it does not learn here).
-    ``refine_iterations`` (per scene): L-BFGS iterations of the closed-form start's
+    ``refine_iterations`` (per scene): L-BFGS iterations per plane of the closed-form start's
     output-space refinement of the Dense layer (:func:`lf_flame.train.refine_dense`; 0: none).
     """
 
