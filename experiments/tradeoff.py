@@ -128,7 +128,8 @@ def model_rows(model_dirs, raws, refs, repeats, baselines: bool = True, truth=No
     ``baselines``, the yardsticks saved beside each (mean image; linear decoders, which run
     the same backbone)."""
     import keras
-    from lf_flame.train import load_baselines, load_full_model
+    from lf_flame.baselines import load_baselines
+    from lf_flame.model_files import load_full_model
     rows = []
     for d in model_dirs:
         model, info = load_full_model(d)

@@ -12,17 +12,26 @@
   chosen per plane on the validation split.
 
 :func:`ridge_path` is the solver, shared with the network's closed-form start
-(:mod:`lf_flame.train`). Everything here is NumPy/SciPy: no Keras.
+(:mod:`lf_flame.closed_form`). Everything here is NumPy/SciPy: no Keras.
+
+Stage: fitted on the cached backbone features (:mod:`lf_flame.features`) by
+:func:`fit_baselines` before the network trains, saved beside it and loaded by
+:func:`load_baselines` wherever the network is scored.
 """
 from __future__ import annotations
 
+import json
 import os
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import h5py
 import numpy as np
 from scipy.linalg import eigh
+
+from .config import atomic_write_text
+from .features import load_features
 
 #: Candidate regularisations, relative to the mean eigenvalue of the Gram matrix.
 RELATIVE_ALPHAS = tuple(10.0 ** np.arange(-6.0, 3.01, 0.5))
@@ -319,3 +328,69 @@ def _open_h5(path, route: str):
         f.close()
         raise ValueError(f"{path} holds a {got!r}, not a {route!r}")
     return f
+
+
+#: The baselines' files in a model folder, by route.
+BASELINE_FILES = {"mean image": "mean_image.h5", "linear decoder (GAP-pooled)": "linear_gap.h5",
+                  "linear decoder (un-pooled)": "linear_unpooled.h5"}
+
+
+def load_baselines(model_dir) -> dict:
+    """The yardsticks saved beside a trained network: route -> MeanImage or LinearDecoder.
+
+    Raises
+    ------
+    FileNotFoundError, ValueError
+        A baseline file is missing, corrupt or of another route.
+    """
+    return {route: (MeanImage if route == "mean image" else LinearDecoder).load(Path(model_dir) / name)
+            for route, name in BASELINE_FILES.items()}
+
+
+def fit_baselines(features_path, ds, out: Path) -> dict:
+    """Fit the mean image and both linear decoders on the training split (λ per plane chosen
+    on the validation split) and save them in ``out`` (:data:`BASELINE_FILES`), unless done
+    for this very dataset.
+
+    Parameters
+    ----------
+    features_path : path of the dataset's feature cache (:func:`lf_flame.features.compute_features`)
+    ds : :class:`lf_flame.dataset.LightFieldDataset`
+    out : folder of the model
+
+    Returns
+    -------
+    dict : route -> validation SSIM per plane (list of 4) and fit time (s).
+
+    ``baselines.json`` holds that dict under ``routes`` and, under ``dataset_digest``, the
+    :func:`lf_flame.dataset.content_digest` of the dataset they were fitted on. Yardsticks
+    saved for another dataset (another digest, or none recorded) are fitted again, with a
+    message.
+    """
+    from .metrics import mean_ssim
+    info_path = out / "baselines.json"
+    if info_path.exists() and all((out / f).exists() for f in BASELINE_FILES.values()):
+        old = json.loads(info_path.read_text())
+        if old.get("dataset_digest") == ds.digest:
+            return old["routes"]
+        print(f"{out}: the yardsticks were fitted on another dataset than {ds.path} "
+              f"(digest {str(old.get('dataset_digest'))[:12]} != {ds.digest[:12]}); fitting them again")
+    tr, va = np.sort(ds.splits["train"]), np.sort(ds.splits["val"])
+    gt_tr, gt_va = ds.gt(tr), ds.gt(va)
+    info = {}
+    t = time.perf_counter()
+    mean = MeanImage.fit(gt_tr)
+    mean.save(out / BASELINE_FILES[mean.route])
+    info[mean.route] = dict(val_ssim=[mean_ssim(gt_va[:, k], mean.predict(va)[:, k]) for k in range(gt_va.shape[1])],
+                            fit_s=time.perf_counter() - t)
+    f_tr, f_va = load_features(features_path, tr), load_features(features_path, va)
+    for pooling in ("gap", "none"):
+        t = time.perf_counter()
+        dec = LinearDecoder.fit(pooling, f_tr, gt_tr, f_va, gt_va, mean_ssim)
+        dec.save(out / BASELINE_FILES[dec.route])
+        info[dec.route] = dict(val_ssim=dec.val_scores.tolist(), alphas=dec.alphas.tolist(),
+                               fit_s=time.perf_counter() - t)
+        print(f"{dec.route}: validation SSIM {np.round(dec.val_scores, 3).tolist()} "
+              f"({info[dec.route]['fit_s']:.0f} s)")
+    atomic_write_text(info_path, json.dumps(dict(dataset_digest=ds.digest, routes=info), indent=2))
+    return info

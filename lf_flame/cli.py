@@ -250,7 +250,7 @@ def _learned_runner(raw, cam, raw_name, model_dir, route):
     """The function ``x (1, rows, cols, 1) -> stack (4, R, C)`` of a learned route, with the
     model's info; checks that the raw image fits the model."""
     from .camera import PlenopticCamera
-    from .train import load_full_model
+    from .model_files import load_full_model
     model, info = load_full_model(model_dir)
     if tuple(raw.shape) != tuple(info["raw_shape"]):
         raise ValueError(f"raw image {raw.shape} does not match the model's sensor {tuple(info['raw_shape'])}")
@@ -262,7 +262,7 @@ def _learned_runner(raw, cam, raw_name, model_dir, route):
         def run(x):
             return np.transpose(np.asarray(model.predict_on_batch(x))[0], (2, 0, 1))
     else:
-        from .train import load_baselines
+        from .baselines import load_baselines
         base = load_baselines(model_dir)[LEARNED_ROUTES[route]]
         fx = model.get_layer("feature_extractor")
 
@@ -435,7 +435,7 @@ def _plot_profiles(path, cam, stack, depths, ms, objects, route):
 
 def cmd_evaluate(a):
     from .evaluate import evaluate
-    table = evaluate(a.dataset, a.model_dir, a.results, n_fresh=a.fresh)
+    table = evaluate(a.dataset, a.model_dir, a.results, n_heldout=a.heldout, heldout_seed=a.heldout_seed)
     print(table.to_string(index=False))
 
 
@@ -579,7 +579,10 @@ def main(argv=None):
     s.add_argument("--dataset", required=True)
     s.add_argument("--model-dir", required=True)
     s.add_argument("--results", required=True)
-    s.add_argument("--fresh", type=int, default=0, help="also score this many freshly drawn samples")
+    s.add_argument("--heldout", type=int, default=0,
+                   help="also score a second held-out set of this many samples, drawn with --heldout-seed")
+    s.add_argument("--heldout-seed", type=int, default=None,
+                   help="seed of the second held-out set (not the dataset's seed)")
     s.set_defaults(func=cmd_evaluate)
 
     s = sub.add_parser("tables", help="collect Tables I and II, slopes and stage times into tables.md")

@@ -85,11 +85,11 @@ class TrainConfig:
     comes first, or when the validation SSIM has not improved for ``patience`` epochs.
     ``recipe``: 'closed-form' (batch-norm statistics of the training split, frozen; the
     Dense layer solved in closed form from the mean image; then the Dense and output
-    layers trained at the paper's settings: :func:`lf_flame.train.closed_form_start`) or
+    layers trained at the paper's settings: :func:`lf_flame.closed_form.closed_form_start`) or
     'paper' (every decoder layer trained from a random initialisation with batch
     statistics from batches of 2, as the paper describes; it does not learn here).
     ``refine_iterations`` (per scene): L-BFGS iterations per plane of the closed-form start's
-    output-space refinement of the Dense layer (:func:`lf_flame.train.refine_dense`; 0: none).
+    output-space refinement of the Dense layer (:func:`lf_flame.closed_form.refine_dense`; 0: none).
     """
 
     recipe: str = "closed-form"

@@ -44,18 +44,23 @@ SCENE_IDS = {"shapes": 1, "flame": 2}
 GT_MASK = "circular"
 
 
-def sample_rng(cfg: DatasetConfig, scene: str, index: int) -> np.random.Generator:
-    """The generator that draws sample ``index`` of ``scene`` (independent of order and sharding)."""
-    return np.random.default_rng([cfg.seed, SCENE_IDS[scene], index])
+def sample_rng(cfg: DatasetConfig, scene: str, index: int, seed: int | None = None) -> np.random.Generator:
+    """The generator that draws sample ``index`` of ``scene`` (independent of order and
+    sharding) in the stream of ``seed`` (default: the dataset's ``cfg.seed``)."""
+    return np.random.default_rng([cfg.seed if seed is None else int(seed), SCENE_IDS[scene], index])
 
 
 def make_sample(camera: PlenopticCamera, cfg: DatasetConfig, scene: str, index: int, slopes,
-                rays_per_pixel: int | None = None):
+                rays_per_pixel: int | None = None, seed: int | None = None):
     """Render one sample: raw image as stored (uint16 counts, (R·N, C·N)), ground truth
-    ((4, R, C) float32, refocused from exactly the stored counts), and the scene objects."""
-    sc = SCENES[scene](camera, sample_rng(cfg, scene, index), regime=cfg.regime)
+    ((4, R, C) float32, refocused from exactly the stored counts), and the scene objects.
+
+    ``seed`` picks the stream that scenes and ray samples are drawn from (default the
+    dataset's ``cfg.seed``); another seed gives samples the dataset never holds."""
+    seed = cfg.seed if seed is None else int(seed)
+    sc = SCENES[scene](camera, sample_rng(cfg, scene, index, seed), regime=cfg.regime)
     raw = render(camera, sc, rays_per_pixel or cfg.rays_per_pixel,
-                 seed=(cfg.seed * 1_000_003 + SCENE_IDS[scene] * 100_003 + index) % 2**63)
+                 seed=(seed * 1_000_003 + SCENE_IDS[scene] * 100_003 + index) % 2**63)
     counts = np.round(raw * RAW_SCALE).astype(np.uint16)
     gt = refocus(counts / np.float32(RAW_SCALE), slopes, camera.pixels_per_lenslet,
                  aperture_mask(camera.pixels_per_lenslet, GT_MASK))
@@ -315,15 +320,32 @@ class LightFieldDataset:
         d = json.loads(self.attrs["dataset_config"])
         return DatasetConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
 
-    def fresh_sample(self, j: int):
-        """Sample ``n + j``: drawn and rendered exactly as the dataset's own samples, but never
-        stored in it, so no model has seen it (the models' fresh-sample score).
+    def heldout_sample(self, j: int, seed: int):
+        """Sample ``j`` of a second held-out set: drawn and rendered as the dataset's own
+        samples (same camera, regime, rays per pixel and slopes) but from the stream of
+        ``seed`` instead of the dataset's, so neither training nor any choice made on the
+        validation split has seen it.
+
+        Parameters
+        ----------
+        j : int
+            Index in the held-out stream (0, 1, ...).
+        seed : int
+            Seed of the held-out stream; must differ from the dataset's own seed.
 
         Returns
         -------
         (raw (R·N, C·N) float32 in [0, 1], gt (4, R, C) float32)
+
+        Raises
+        ------
+        ValueError
+            ``seed`` is the dataset's own seed (its samples would be the stored ones).
         """
-        counts, gt, _ = make_sample(self.camera, self.config, self.scene, self.n + int(j), self.slopes)
+        if int(seed) == self.config.seed:
+            raise ValueError(f"the held-out seed must differ from the dataset's seed {self.config.seed}. "
+                             f"Received: seed={seed}")
+        counts, gt, _ = make_sample(self.camera, self.config, self.scene, int(j), self.slopes, seed=int(seed))
         return counts.astype(np.float32) / RAW_SCALE, gt
 
     def params(self, index) -> list:

@@ -59,20 +59,28 @@ def score(gt: np.ndarray, pred: np.ndarray, **labels) -> list[dict]:
 
 def route_predictions(baselines: dict, features: np.ndarray, decoder) -> dict:
     """Each route's planes (n, 4, R, C) for backbone features (n, h, w, 2048): the network
-    and the yardsticks of :func:`lf_flame.train.load_baselines`."""
+    and the yardsticks of :func:`lf_flame.baselines.load_baselines`."""
     x = np.asarray(features, np.float32)
     out = {"network": np.transpose(np.asarray(decoder.predict_on_batch(x)), (0, 3, 1, 2))}
     out.update({route: base.predict(x) for route, base in baselines.items()})
     return out
 
 
-def evaluate(dataset_path, model_dir, results_dir, n_fresh: int = 0) -> pd.DataFrame:
-    """Score the network and its yardsticks per plane on the test split and on fresh samples.
+#: Name of the second held-out set's split in tables and metrics.
+HELDOUT2 = "held-out 2"
+
+
+def evaluate(dataset_path, model_dir, results_dir, n_heldout: int = 0, heldout_seed: int | None = None) -> pd.DataFrame:
+    """Score the network and its yardsticks per plane on the test split and on a second
+    held-out set.
 
     Routes (:data:`ROUTES`): the trained network, the training split's mean image, and the
     GAP-pooled and un-pooled linear decoders, all from the same frozen backbone features
-    and scored by :func:`score`. Fresh samples are ``n_fresh`` samples drawn and rendered
-    like the dataset's but never stored in it (:meth:`LightFieldDataset.fresh_sample`).
+    and scored by :func:`score`. The second held-out set (split :data:`HELDOUT2`) is
+    ``n_heldout`` samples drawn and rendered like the dataset's, but from the stream of
+    ``heldout_seed``, which neither the dataset nor any choice made on its validation
+    split used (:meth:`LightFieldDataset.heldout_sample`); its seed is written into the
+    table and ``eval_<scene>.json``.
 
     Writes ``metrics_<scene>.csv`` (per route, split, sample and plane), ``table_<scene>.csv``
     and ``.md`` (mean ± sd per route and plane; the paper's values on the paper regime),
@@ -85,9 +93,11 @@ def evaluate(dataset_path, model_dir, results_dir, n_fresh: int = 0) -> pd.DataF
     Raises
     ------
     ValueError
-        The dataset was rendered with another camera than the model was trained on.
+        The dataset was rendered with another camera than the model was trained on, or
+        ``n_heldout`` without a ``heldout_seed`` (or with the dataset's own seed).
     """
-    from .train import load_baselines, load_decoder, load_full_model
+    from .baselines import load_baselines
+    from .model_files import load_decoder, load_full_model
 
     ds = LightFieldDataset(dataset_path)
     model_dir, results_dir = Path(model_dir), Path(results_dir)
@@ -104,24 +114,28 @@ def evaluate(dataset_path, model_dir, results_dir, n_fresh: int = 0) -> pd.DataF
     rows = []
     for route in ROUTES:
         rows += score(gt_test, preds[route], route=route, split="test", sample=test)
-    if n_fresh:
+    if n_heldout:
+        if heldout_seed is None:
+            raise ValueError("a second held-out set needs its own seed (heldout_seed)")
         fx = load_full_model(model_dir)[0].get_layer("feature_extractor")
-        raws, gts = zip(*(ds.fresh_sample(j) for j in range(n_fresh)))
+        raws, gts = zip(*(ds.heldout_sample(j, heldout_seed) for j in range(n_heldout)))
         feats = np.concatenate([np.asarray(fx.predict_on_batch(np.stack(raws[s:s + 4])[..., None]))
-                                for s in range(0, n_fresh, 4)])
-        fresh = route_predictions(baselines, feats, dec)
+                                for s in range(0, n_heldout, 4)])
+        held = route_predictions(baselines, feats, dec)
         for route in ROUTES:
-            rows += score(np.stack(gts), fresh[route], route=route, split="fresh", sample=ds.n + np.arange(n_fresh))
+            rows += score(np.stack(gts), held[route], route=route, split=HELDOUT2, sample=np.arange(n_heldout))
     per = pd.DataFrame(rows)
     results_dir.mkdir(parents=True, exist_ok=True)
     per.to_csv(results_dir / f"metrics_{ds.scene}.csv", index=False)
     table = summarise(per, ds.scene, ds.config.regime)
     table.to_csv(results_dir / f"table_{ds.scene}.csv", index=False)
-    atomic_write_text(results_dir / f"table_{ds.scene}.md", table_markdown(table, ds.scene, ds.config.regime, info))
+    atomic_write_text(results_dir / f"table_{ds.scene}.md",
+                      table_markdown(table, ds.scene, ds.config.regime, info, heldout_seed))
     figure(ds, test[0], preds, results_dir / f"fig_{ds.scene}.png")
     learning_curves(model_dir / "history.csv", results_dir, ds.scene, info.get("baselines", {}))
     atomic_write_text(results_dir / f"eval_{ds.scene}.json", json.dumps(
-        dict(train_info=info, n_test=len(test), n_fresh=n_fresh, dataset_attrs={k: str(v) for k, v in ds.attrs.items()},
+        dict(train_info=info, n_test=len(test), n_heldout=n_heldout, heldout_seed=heldout_seed,
+             dataset_seed=ds.config.seed, dataset_attrs={k: str(v) for k, v in ds.attrs.items()},
              provenance=provenance()), indent=2))
     return table
 
@@ -142,7 +156,7 @@ def summarise(per: pd.DataFrame, scene: str, regime: str) -> pd.DataFrame:
     return table
 
 
-def table_markdown(table: pd.DataFrame, scene: str, regime: str, info: dict) -> str:
+def table_markdown(table: pd.DataFrame, scene: str, regime: str, info: dict, heldout_seed: int | None = None) -> str:
     """Markdown: per split, SSIM and PSNR of every route per plane (mean ± sd), and the paper's."""
     on_paper = regime == "paper"
     routes = [r for r in ROUTES if r in set(table.route)]
@@ -153,7 +167,8 @@ def table_markdown(table: pd.DataFrame, scene: str, regime: str, info: dict) -> 
         n = int(t.n.iloc[0])
         for metric, unit, fmt in (("ssim", "SSIM", "{:.3f}"), ("psnr_db", "PSNR (dB)", "{:.2f}")):
             lines += [f"{unit}, {split} split ({n} samples)" if split == "test" else
-                      f"{unit}, {n} fresh samples (never seen in training or selection)", "",
+                      f"{unit}, second held-out set: {n} samples drawn with seed {heldout_seed} "
+                      "(not the dataset's; never used in training or selection)", "",
                       "| depth (mm) | object | " + " | ".join(head) + " |",
                       "|---:|---|" + "---:|" * len(head)]
             for dz in PAPER_DEPTHS_MM:

@@ -153,7 +153,7 @@ def test_black_and_saturated_targets_keep_the_loss_finite(level):
 
 
 def test_resumed_epoch_sees_the_same_batches():
-    from lf_flame.train import FeatureBatches
+    from lf_flame.features import FeatureBatches
     fresh = FeatureBatches("unused.h5", None, np.arange(20), 2, True, seed=7)
     orders = [fresh._order.copy()]
     for _ in range(3):

@@ -98,7 +98,8 @@ def test_time_budget_stops_training(flame_h5, tmp_path):
 
 
 def test_predict_full_model_equals_cached_feature_path(flame_h5, tmp_path, capsys):
-    from lf_flame.train import load_decoder, predict_features
+    from lf_flame.features import predict_features
+    from lf_flame.model_files import load_decoder
     out = tmp_path / "model"
     assert main(["train", "--dataset", str(flame_h5), "--experiment-config",
                  _experiment(tmp_path / "exp.toml", epochs=2), "--out", str(out), "--quiet"]) == 0
@@ -207,18 +208,22 @@ def test_saved_random_backbone_is_the_one_that_made_the_features(flame_h5, tmp_p
     # draws random numbers before failing; the backbone saved with the model must still be
     # the draw that computed the cached features
     import keras
-    import lf_flame.train as T
-    real = T.resolve_weights
+
+    import lf_flame.features as F
+    from lf_flame.config import ModelConfig, TrainConfig
+    from lf_flame.model_files import load_full_model
+    from lf_flame.train import train
+    real = F.resolve_weights
 
     def auto_offline(spec):
         keras.layers.Dense(64).build((None, 64))  # a draw, as the failed ImageNet build makes
         return real("none")
 
-    monkeypatch.setattr(T, "resolve_weights", auto_offline)
+    monkeypatch.setattr(F, "resolve_weights", auto_offline)
     out = tmp_path / "model"
-    T.train(flame_h5, out, T.ModelConfig(input_rows=64, input_cols=32, weights="auto"),
-            T.TrainConfig(max_epochs={"flame": 1}, time_budget_s={"flame": 600}, seed=11), progress=False)
-    model, info = T.load_full_model(out)
+    train(flame_h5, out, ModelConfig(input_rows=64, input_cols=32, weights="auto"),
+          TrainConfig(max_epochs={"flame": 1}, time_budget_s={"flame": 600}, seed=11), progress=False)
+    model, info = load_full_model(out)
     fx = model.get_layer("feature_extractor")
     with h5py.File(info["feature_cache"]) as f:
         cached = f["features"][0].astype(np.float32)
@@ -239,7 +244,7 @@ def test_pooled_features_do_not_depend_on_the_batch_partner():
     import keras
     from lf_flame.config import ModelConfig
     from lf_flame.model import build_decoder
-    from lf_flame.train import freeze_for_probe
+    from lf_flame.closed_form import freeze_for_probe
     feats = np.random.default_rng(0).normal(size=(3, 4, 2, 16)).astype("float32")
     keras.utils.set_random_seed(0)
     dec = build_decoder((4, 2, 16), 6, 4, ModelConfig())
@@ -252,7 +257,9 @@ def test_pooled_features_do_not_depend_on_the_batch_partner():
     assert np.allclose(a, inference, atol=1e-6)  # and training sees what inference sees
 
 
-def test_paper_recipe_stays_reproducible(flame_h5, tmp_path):
+def test_paper_recipe_stays_reproducible_and_fails(flame_h5, tmp_path):
+    """recipe = 'paper' (random init, batch statistics of 2, dropout on the pixel map) is kept
+    as a named option for its failure: after an epoch it does not reach the mean image."""
     exp = tmp_path / "exp.toml"
     exp.write_text(EXPERIMENT.format(epochs=1, budget=600).replace("[train]", '[train]\nrecipe = "paper"')
                    .replace("[model]", '[model]\ndropout_at = "pixels"'))
@@ -261,23 +268,28 @@ def test_paper_recipe_stays_reproducible(flame_h5, tmp_path):
                  "--quiet"]) == 0
     info = json.loads((out / "train_info.json").read_text())
     assert info["train_config"]["recipe"] == "paper" and info["model_config"]["dropout_at"] == "pixels"
-    assert info["start"] == {"recipe": "paper", "wall_time_s": pytest.approx(info["start"]["wall_time_s"])}
+    assert set(info["start"]) == {"recipe", "dataset_digest", "wall_time_s"}
     assert _epochs(out) == [0, 1]
     import keras
     last = keras.models.load_model(out / "decoder_last.keras")
     assert last.get_layer("bn1").trainable and last.get_layer("conv1").trainable
+    h = pd.read_csv(out / "history.csv")
+    mean_val = np.mean(info["baselines"]["mean image"]["val_ssim"])
+    assert h.val_ssim.max() < mean_val - 0.1, (h.val_ssim.tolist(), mean_val)
 
 
-def test_closed_form_start_beats_the_mean_image_and_training_keeps_it(flame_h5, tmp_path):
-    from lf_flame.train import load_decoder
+def test_closed_form_start_beats_the_mean_image_and_the_best_epoch_is_kept(flame_h5, tmp_path):
+    from lf_flame.baselines import load_baselines
+    from lf_flame.dataset import LightFieldDataset
+    from lf_flame.features import load_features, predict_features
+    from lf_flame.metrics import ssim_per_plane
+    from lf_flame.model_files import load_decoder
     out = tmp_path / "model"
     assert main(["train", "--dataset", str(flame_h5), "--experiment-config",
                  _experiment(tmp_path / "exp.toml", epochs=2), "--out", str(out), "--quiet"]) == 0
     info = json.loads((out / "train_info.json").read_text())
-    mean_val = np.mean(info["baselines"]["mean image"]["val_ssim"])
     h = pd.read_csv(out / "history.csv")
-    assert h.val_ssim.iloc[0] == pytest.approx(info["start_val_ssim"]) and h.val_ssim.iloc[0] > mean_val
-    assert info["best_val_ssim"] >= info["start_val_ssim"]
+    assert h.val_ssim.iloc[0] == pytest.approx(info["start_val_ssim"])
     # the start was solved on the pooled features in NumPy: the Keras network scores the same
     assert np.mean(info["start"]["val_ssim"]) == pytest.approx(h.val_ssim.iloc[0], abs=2e-3)
     assert info["start"]["val_loss"] == pytest.approx(h.val_loss.iloc[0]) and np.isfinite(h.loss.iloc[0])
@@ -286,21 +298,14 @@ def test_closed_form_start_beats_the_mean_image_and_training_keeps_it(flame_h5, 
     assert np.all(np.array(info["start"]["val_ssim"]) >= np.array(info["start"]["gauss_newton_val_ssim"]) - 1e-6)
     dec, _ = load_decoder(out)  # the best checkpoint: what evaluate and predict use
     assert dec.get_layer("bn1").moving_variance.numpy().mean() != 1.0  # population statistics, not the init
-
-
-def test_refine_dense_fits_the_output_space_loss():
-    from lf_flame.train import refine_dense
-    rng = np.random.default_rng(3)
-    h = rng.normal(size=(120, 8)).astype(np.float32)
-    w_true = rng.normal(scale=2.0, size=(8, 9 * 8 * 4)).astype(np.float32)  # (R, C, P) = (9, 8, 4)
-    y = (1 / (1 + np.exp(-(h @ w_true)))).astype(np.float32)
-    y_va = y[80:].reshape(40, 9, 8, 4)
-    w0, b0 = np.zeros_like(w_true), np.zeros(w_true.shape[1], np.float32)
-    w, b, info = refine_dense(h[:80], y[:80], h[80:], y_va, w0, b0, max_iter=60)
-    assert min(info["refine_iterations"]) > 10 and min(info["kept_iteration"]) > 0
-    z = h[80:] @ w + b
-    err = np.abs(1 / (1 + np.exp(-z)) - y[80:])
-    assert err.mean() < 2e-3 and err.max() < 0.1  # the known sigmoid map, recovered on unseen samples
-    assert info["val_loss"] < 1e-4 < np.mean((0.5 - y[80:]) ** 2)
-    same = refine_dense(h[:80], y[:80], h[80:], y_va, w0, b0, max_iter=0)
-    assert np.array_equal(same[0], w0) and same[2]["kept_iteration"] == [0, 0, 0, 0]
+    ds = LightFieldDataset(flame_h5)
+    val, test = np.sort(ds.splits["val"]), np.sort(ds.splits["test"])
+    # the checkpoint kept scores, recomputed from its weights, the best validation SSIM of the history
+    kept = np.mean([ssim_per_plane(g, p) for g, p in zip(ds.gt(val), predict_features(dec, info["feature_cache"], val))])
+    assert kept == pytest.approx(h.val_ssim.max(), abs=1e-5)
+    # on samples that chose nothing (the test split), the network beats the mean image by a margin
+    net = predict_features(dec, info["feature_cache"], test)
+    mean = load_baselines(out)["mean image"].predict(load_features(info["feature_cache"], test))
+    margin = [np.mean(ssim_per_plane(g, p)) - np.mean(ssim_per_plane(g, q))
+              for g, p, q in zip(ds.gt(test), net, mean)]
+    assert min(margin) > 0.02, margin

@@ -1,0 +1,79 @@
+"""Caches computed from a dataset (backbone features, the yardsticks, a training run) are
+tied to the exact dataset by its content digest and rebuilt when it changes."""
+import dataclasses
+import json
+
+import h5py
+import numpy as np
+
+from lf_flame import dataset as D
+from lf_flame.baselines import MeanImage, fit_baselines
+from lf_flame.camera import PlenopticCamera
+from lf_flame.config import DatasetConfig, ModelConfig, TrainConfig
+from lf_flame.features import compute_features
+from lf_flame.train import train
+
+CAM = PlenopticCamera(n_rows=20, n_cols=10)
+CFG = DatasetConfig(n_samples={"shapes": 6, "flame": 12}, rays_per_pixel=1, seed=3, regime="paper")
+SLOPES = [CAM.slope_for_depth(d) for d in (20.0, 10.0, 0.0, -10.0)]
+MODEL = ModelConfig(input_rows=64, input_cols=32, weights="none")
+
+
+def test_digest_names_the_content(tmp_path):
+    a = D.generate(tmp_path / "a.h5", CAM, CFG, "flame", SLOPES, progress=False)
+    b = D.generate(tmp_path / "b.h5", CAM, CFG, "flame", SLOPES, progress=False)
+    c = D.generate(tmp_path / "c.h5", CAM, dataclasses.replace(CFG, rays_per_pixel=2), "flame", SLOPES,
+                   progress=False)
+    da, db, dc = (D.LightFieldDataset(p).digest for p in (a, b, c))
+    assert da == db != dc  # the same settings render the same file; other rays per pixel another
+    with h5py.File(a, "r") as f:
+        assert f.attrs["digest"] == D.content_digest(f)  # written at generation
+    with h5py.File(b, "a") as f:  # one ground-truth value changed
+        f["gt"][0, 0, 0, 0] += 0.5
+        del f.attrs["digest"]  # (a file made before digests: computed on reading)
+    assert D.LightFieldDataset(b).digest != da
+
+
+def test_features_baselines_and_training_are_rebuilt_for_a_regenerated_dataset(tmp_path, capsys):
+    path, out = tmp_path / "flame.h5", tmp_path / "model"
+    out.mkdir()
+    D.generate(path, CAM, CFG, "flame", SLOPES, progress=False)
+    ds = D.LightFieldDataset(path)
+    feats, _ = compute_features(ds, MODEL, "none", progress=False, seed=7)
+    fit_baselines(feats, ds, out)
+    with h5py.File(feats) as f:
+        before = f["features"][:]
+    stamp = feats.stat().st_mtime_ns
+    assert compute_features(ds, MODEL, "none", progress=False, seed=7)[0] == feats
+    assert feats.stat().st_mtime_ns == stamp  # the same dataset: the cache is reused
+    capsys.readouterr()
+
+    # the same path, the other regime, same camera, seed and sample count
+    D.generate(path, CAM, dataclasses.replace(CFG, regime="varied"), "flame", SLOPES, progress=False)
+    new = D.LightFieldDataset(path)
+    assert new.digest != ds.digest and new.n == ds.n and new.attrs["camera"] == ds.attrs["camera"]
+    feats2, _ = compute_features(new, MODEL, "none", progress=False, seed=7)
+    assert "computing it again" in capsys.readouterr().out
+    with h5py.File(feats2) as f:
+        assert f.attrs["dataset_digest"] == new.digest
+        assert not np.array_equal(f["features"][:], before)
+    fit_baselines(feats2, new, out)
+    assert "fitting them again" in capsys.readouterr().out
+    assert json.loads((out / "baselines.json").read_text())["dataset_digest"] == new.digest
+    mean = MeanImage.load(out / "mean_image.h5").mean
+    assert np.allclose(mean, new.gt(np.sort(new.splits["train"])).mean(axis=0), atol=1e-6)
+
+
+def test_a_training_run_is_not_resumed_on_another_dataset(tmp_path, capsys):
+    path, out = tmp_path / "flame.h5", tmp_path / "model"
+    D.generate(path, CAM, CFG, "flame", SLOPES, progress=False)
+    tcfg = TrainConfig(max_epochs={"flame": 1}, time_budget_s={"flame": 600}, refine_iterations={"flame": 2})
+    train(path, out, MODEL, tcfg, progress=False)
+    assert json.loads((out / "start.json").read_text())["dataset_digest"] == D.LightFieldDataset(path).digest
+    D.generate(path, CAM, dataclasses.replace(CFG, regime="varied"), "flame", SLOPES, progress=False)
+    capsys.readouterr()
+    info = train(path, out, MODEL, tcfg, progress=False)
+    assert "holds a run on another dataset" in capsys.readouterr().out
+    new = D.LightFieldDataset(path).digest
+    assert json.loads((out / "start.json").read_text())["dataset_digest"] == new
+    assert info["epochs_run"] == 1 and json.loads((out / "baselines.json").read_text())["dataset_digest"] == new
