@@ -31,7 +31,8 @@ Then both calibrations on the simulator's white images with known centres
 (with provenance).
 
 Usage: ``python experiments/real_captures.py --data .bench/napari-lf/napari_lf/examples --out results/real
-[--plenopticam .bench/plenopticam]``.
+[--plenopticam .bench/plenopticam] [--figures-only]`` (``--figures-only``: the figures alone,
+the summaries left as they are).
 """
 from __future__ import annotations
 
@@ -216,9 +217,14 @@ def figure(path, name, white, cal, views, roi, search, slopes, stack):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig = plt.figure(figsize=(16, 8.5), constrained_layout=True)
-    gs = fig.add_gridspec(2, len(slopes))
-    ax = fig.add_subplot(gs[0, :2])
+    # two rows laid out apart (subfigures): the top row's three panels, the focal stack's
+    # planes below, each row as tall as its images need
+    width, top_h = 16.0, 4.6
+    stack_h = width / len(slopes) * stack.shape[1] / stack.shape[2] + 0.45
+    fig = plt.figure(figsize=(width, top_h + stack_h + 0.4), layout="constrained")
+    top, bottom = fig.subfigures(2, 1, height_ratios=[top_h, stack_h])
+    ax_white, ax_view, ax_curve = top.subplots(1, 3)
+    ax = ax_white
     cen = cal.centres_px()
     mid = cen[cal.n_rows // 2, cal.n_cols // 2]
     half = 5 * cal.pitch_px
@@ -232,16 +238,18 @@ def figure(path, name, white, cal, views, roi, search, slopes, stack):
     ax.plot(m[sm, 1], m[sm, 0], "cx", ms=6, label="measured")
     ax.set_title(f"white image, 10 x 10 lenslets about the centre\npitch {cal.pitch_px:.3f} px, "
                  f"rotation {cal.rotation_deg:+.3f}°, residual {cal.residual_rms_px:.2f} px rms", fontsize=9)
-    ax.legend(fontsize=8, loc="upper right")
+    ax.set(xlabel="sensor column (px)", ylabel="sensor row (px)")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1), borderaxespad=0)   # beside, not on, the lenslets
     n = views.shape[0]
-    ax = fig.add_subplot(gs[0, 2:4])
+    ax = ax_view
     cv = views[n // 2, n // 2]
     ax.imshow(cv, cmap="gray", vmin=0, vmax=np.percentile(cv, 99.5))
     ax.add_patch(plt.Rectangle((roi[2] - 0.5, roi[0] - 0.5), roi[3] - roi[2], roi[1] - roi[0], fill=False,
                                ec="y", lw=1))
     ax.set_title(f"centre view of {n} x {n}, {views.shape[2]} x {views.shape[3]} lenslets\n"
                  "(box: ROI of the slope search)", fontsize=9)
-    ax = fig.add_subplot(gs[0, 4:])
+    ax.set(xlabel="lenslet column", ylabel="lenslet row")
+    ax = ax_curve
     ax.plot(search.slopes, search.scores / search.scores.max(), ".-", ms=3)
     ax.axvline(search.slope, color="r", lw=0.8)
     ax.set_xlabel("slope (lenslets per view)")
@@ -249,8 +257,7 @@ def figure(path, name, white, cal, views, roi, search, slopes, stack):
     ax.set_title(f"sharpness of the ROI (Fourier slice, Tenengrad)\npeak at slope {search.slope:+.3f}",
                  fontsize=9)
     vmax = np.percentile(stack, 99.5)
-    for k, (s, im) in enumerate(zip(slopes, stack)):
-        ax = fig.add_subplot(gs[1, k])
+    for s, im, ax in zip(slopes, stack, bottom.subplots(1, len(slopes))):
         ax.imshow(im, cmap="gray", vmin=0, vmax=vmax)
         ax.set_title(f"shift-and-sum, slope {s:+.2f}", fontsize=9)
         ax.axis("off")
@@ -259,9 +266,11 @@ def figure(path, name, white, cal, views, roi, search, slopes, stack):
     plt.close(fig)
 
 
-def run(data: Path, out: Path, plenopticam_dir=None) -> pd.DataFrame:
+def run(data: Path, out: Path, plenopticam_dir=None, figures_only: bool = False) -> pd.DataFrame | None:
+    """Every capture's figure and, unless ``figures_only``, the summaries (``figures_only``:
+    the figures alone, no PlenoptiCam, no synthetic images, no tables written; None)."""
     out.mkdir(parents=True, exist_ok=True)
-    pcam = _load_plenopticam(plenopticam_dir)
+    pcam = None if figures_only else _load_plenopticam(plenopticam_dir)
     rows = []
     for name, (lf_file, white_file, dark_file, optics_files) in CAPTURES.items():
         raw = calibrate.load_image(data / lf_file)
@@ -291,6 +300,9 @@ def run(data: Path, out: Path, plenopticam_dir=None) -> pd.DataFrame:
         stack = refocus_views(views, slopes, mask, method="shift-sum")
         figure(out / f"{name}.png", name, (white - dark) / np.percentile(white - dark, 99.5), cal, views, roi,
                search, slopes, stack)
+        print(f"-> {out / f'{name}.png'}")
+        if figures_only:
+            continue
         row = dict(capture=name, sensor=f"{white.shape[0]}x{white.shape[1]}", layout=cal.layout,
                    pitch_px=round(cal.pitch_px, 4), periodogram_px=round(p_per, 4),
                    periodogram_cols_rows_px=f"{p_cols:.3f} / {p_rows:.3f}",
@@ -315,6 +327,8 @@ def run(data: Path, out: Path, plenopticam_dir=None) -> pd.DataFrame:
                             if ok.any() else "", f"pcam_{meth}_s": round(t_pc, 2)})
         rows.append(row)
         print(json.dumps(row))
+    if figures_only:
+        return None
     df = pd.DataFrame(rows)
     df.to_csv(out / "summary.csv", index=False)
     syn = pd.DataFrame(synthetic_rows(pcam))
@@ -341,11 +355,15 @@ def main(argv=None):
     ap.add_argument("--data", required=True, help="napari_lf/examples folder")
     ap.add_argument("--out", required=True)
     ap.add_argument("--plenopticam", help="folder with PlenoptiCam installed (pip install --no-deps --target)")
+    ap.add_argument("--figures-only", action="store_true",
+                    help="redraw <out>/<capture>.png only: no PlenoptiCam, no synthetic images, summaries untouched")
     a = ap.parse_args(argv)
     data = Path(a.data)
     if not data.is_dir():
         raise SystemExit(f"error: no napari-lf example folder at {data} (make real-data installs it)")
-    print(run(data, Path(a.out), a.plenopticam).to_string(index=False))
+    df = run(data, Path(a.out), a.plenopticam, a.figures_only)
+    if df is not None:
+        print(df.to_string(index=False))
 
 
 if __name__ == "__main__":

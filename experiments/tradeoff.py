@@ -24,7 +24,9 @@ Sections (column ``section``):
   nominal shapes scene) and time per object.
 - ``training``: validation SSIM against epochs and wall time, from the learning curves.
 
-Usage: ``python experiments/tradeoff.py --preset paper|quick --data-dir D --model-dir M --out O``.
+Usage: ``python experiments/tradeoff.py --preset paper|quick --data-dir D --model-dir M --out O``;
+``python experiments/tradeoff.py --plot-only --out O`` measures nothing and redraws the two
+figures from ``O/tradeoff.csv``.
 The second, smaller backbone input size is trained here if its model folder is missing
 (settings in the ``[tradeoff]`` table of ``experiments/<preset>.toml``).
 """
@@ -34,6 +36,7 @@ import argparse
 import dataclasses
 import json
 import os
+import re
 import subprocess
 import sys
 import time
@@ -43,6 +46,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
@@ -235,54 +239,128 @@ def _label(r) -> str:
     return f"{r.route} {r.setting.split(',')[0]}" + ("" if r.backend == "numpy/numba" else f" [{r.backend}]")
 
 
+#: colour per route family, in the plots (the mean image is a grey reference line)
+_ROUTE_COLOURS = {"shift-sum": "C0", "Fourier slice": "C1", "model": "C2", "linear decoder (GAP-pooled)": "C3",
+                  "linear decoder (un-pooled)": "C4"}
+
+
+def _input_px(setting: str) -> int | None:
+    """Pixels of the backbone input a row's setting names (``backbone input RxC``), or None."""
+    m = re.search(r"backbone input (\d+)x(\d+)", setting)
+    return int(m[1]) * int(m[2]) if m else None
+
+
+def _marker(r, largest_input: int | None) -> dict:
+    """Marker of one refocusing row: colour by route, squares for whole-lenslet shifts and
+    for backbone inputs smaller than ``largest_input``, hollow for the JAX backend."""
+    colour = _ROUTE_COLOURS.get(r.route, "C5")
+    px = _input_px(r.setting)
+    small = r.setting.startswith("nearest") or (px is not None and largest_input is not None and px < largest_input)
+    return dict(marker="s" if small else "o", ms=7, color=colour, mec=colour,
+                mfc="none" if r.backend == "jax" else colour, mew=1.5, ls="none")
+
+
+def _log_ms_axis(ax, lo: float, hi: float) -> None:
+    """A log latency axis from ``lo`` to ``hi`` ms, ticks at 1-2-5 steps labelled plainly."""
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
+    ax.set_xscale("log")
+    ax.set_xlim(lo, hi)
+    ticks = [m * 10.0 ** e for e in range(int(np.floor(np.log10(lo))), int(np.ceil(np.log10(hi))) + 1)
+             for m in (1, 2, 5)]
+    if sum(lo <= t <= hi for t in ticks) < 3:    # less than a decade: denser ticks
+        ticks = [m * 10.0 ** e for e in range(int(np.floor(np.log10(lo))), int(np.ceil(np.log10(hi))) + 1)
+                 for m in (1, 1.5, 2, 3, 4, 5, 7)]
+    ax.xaxis.set_major_locator(FixedLocator([t for t in ticks if lo <= t <= hi]))
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    ax.xaxis.set_minor_formatter(NullFormatter())
+
+
 def plot(df: pd.DataFrame, out: Path) -> None:
+    """``tradeoff_pareto.png`` (refocusing routes: latency against SSIM and against flame
+    height error) and ``tradeoff_knobs.png`` (simulator, slope search, training) from the
+    rows of ``tradeoff.csv``."""
     ref = _routes(df)
-    fig, (ax, axh) = plt.subplots(1, 2, figsize=(14, 4.5))
-    for r in ref.itertuples():
-        axh.plot(r.latency_ms_median, r.height_err_mm_mean, "o" if r.pareto else "s", color="C0" if r.pareto else "C7")
-        axh.annotate(_label(r), (r.latency_ms_median, r.height_err_mm_mean), fontsize=7, xytext=(4, 4),
-                     textcoords="offset points")
-    axh.set_xscale("log")
-    axh.set_xlabel("latency per light field, 4 planes (ms, median)")
-    axh.set_ylabel("flame height error (mm, mean abs., mean of 4 planes)")
-    axh.set_title("flame height vs the simulation's truth (blue: SSIM Pareto front)", fontsize=9)
-    for r in ref.itertuples():
+    # the routes that compute something from the light field, in the legend's order
+    order = {r: k for k, r in enumerate(_ROUTE_COLOURS)}
+    looks = ref[ref.route != "mean image"].assign(
+        _o=lambda d: d.route.map(order).fillna(len(order)), _jax=lambda d: d.backend == "jax",
+        _px=lambda d: -d.setting.map(_input_px).fillna(0)).sort_values(["_o", "_jax", "_px"], kind="stable")
+    mean = ref[ref.route == "mean image"]
+    # x-range: the computing routes' p10-p90, with room on either side (the mean image's
+    # latency is that of returning a constant: a reference line, not a point)
+    lo, hi = looks.latency_ms_p10.min() / 1.6, looks.latency_ms_p90.max() * 1.6
+    sizes = [px for px in map(_input_px, looks.setting) if px is not None]
+    largest = max(sizes) if sizes else None
+    fig, (ax, axh) = plt.subplots(1, 2, figsize=(13, 5.6))
+    handles = []
+    for r in looks.itertuples():
+        m = _marker(r, largest)
         ax.errorbar(r.latency_ms_median, r.ssim_mean, xerr=[[r.latency_ms_median - r.latency_ms_p10],
                                                              [r.latency_ms_p90 - r.latency_ms_median]],
-                    fmt="o" if r.pareto else "s", color="C0" if r.pareto else "C7", capsize=3)
-        ax.annotate(_label(r), (r.latency_ms_median, r.ssim_mean), fontsize=7, xytext=(4, 4),
-                    textcoords="offset points")
-    front = ref[ref.pareto].sort_values("latency_ms_median")
-    ax.plot(front.latency_ms_median, front.ssim_mean, "C0--", lw=1, label="Pareto front")
-    ax.set_xscale("log")
-    ax.set_xlabel("latency per light field, 4 planes (ms, median and p10-p90)")
+                    capsize=3, elinewidth=1, **m)
+        handles.append(Line2D([], [], **m, label=_label(r) + (" (Pareto front)" if r.pareto else "")))
+        axh.plot(r.latency_ms_median, r.height_err_mm_mean, **m)
+    front = looks[looks.pareto].sort_values("latency_ms_median")
+    handles.append(ax.plot(front.latency_ms_median, front.ssim_mean, "k--", lw=1, label="SSIM Pareto front")[0])
+    for a, col in ((ax, "ssim_mean"), (axh, "height_err_mm_mean")):
+        for r in mean.itertuples():
+            a.axhline(getattr(r, col), color="0.45", ls=":", lw=1.5)
+            a.annotate(f"mean image: {getattr(r, col):.3g} (ignores its input, {r.latency_ms_median:.1g} ms)",
+                       (0.01, getattr(r, col)), xycoords=("axes fraction", "data"), xytext=(0, 3),
+                       textcoords="offset points", fontsize=7.5, color="0.3", va="bottom")
+        a.axvline(1e3 / 30, color="0.7", lw=1, zorder=0)
+        a.annotate("real time: 33 ms (30 light fields/s)", (1e3 / 30, 0.5), xycoords=("data", "axes fraction"),
+                   xytext=(-3, 0), textcoords="offset points", fontsize=7, color="0.4", rotation=90,
+                   ha="right", va="center")
+        _log_ms_axis(a, lo, hi)
+    if len(mean):   # room above the mean image's line for its label
+        for a, col in ((ax, "ssim_mean"), (axh, "height_err_mm_mean")):
+            vals = ref[col].dropna()
+            pad = 0.06 * (vals.max() - vals.min())
+            a.set_ylim(vals.min() - pad, vals.max() + 2 * pad if a is axh else vals.max() + pad)
+    ax.set_xlabel("latency per light field, 4 planes (ms, median and p10-p90; log)")
     ax.set_ylabel("SSIM vs reference (mean of 4 planes)")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
+    ax.set_title("accuracy of the planes", fontsize=10)
+    axh.set_xlabel("latency per light field, 4 planes (ms, median; log)")
+    axh.set_ylabel("flame height error (mm, mean abs., mean of 4 planes)")
+    axh.set_title("flame height vs the simulation's truth (lower is better)", fontsize=10)
+    fig.legend(handles=handles, loc="lower center", ncol=3, fontsize=8, frameon=False,
+               title="colour: route; square: whole-lenslet shifts or the smaller backbone input; hollow: JAX",
+               title_fontsize=8)
+    rows = int(np.ceil(len(handles) / 3))
+    fig.tight_layout(rect=(0, 0.035 * rows + 0.05, 1, 1))
     fig.savefig(out / "tradeoff_pareto.png", dpi=110)
     plt.close(fig)
 
-    fig, ax = plt.subplots(1, 3, figsize=(13, 3.8))
+    fig, ax = plt.subplots(1, 3, figsize=(14, 4.2))
     sim = df[df.section == "simulator: rays per pixel"]
     for scene, g in sim.groupby("route"):
+        g = g.sort_values("rays_per_pixel")
         ax[0].loglog(g.latency_ms_median, g.image_rmse, "o-", label=scene)
         for r in g.itertuples():
-            ax[0].annotate(f"{r.rays_per_pixel:.0f}", (r.latency_ms_median, r.image_rmse), fontsize=7)
-    ax[0].set(xlabel="render time (ms)", ylabel="image RMSE vs high-sample render", title="simulator: rays per pixel")
-    ax[0].legend(fontsize=8)
-    ss = df[df.section == "slope search"]
+            ax[0].annotate(f"{r.rays_per_pixel:.0f}", (r.latency_ms_median, r.image_rmse), fontsize=7,
+                           xytext=(4, 3), textcoords="offset points")
+    if len(sim):
+        _log_ms_axis(ax[0], sim.latency_ms_median.min() / 1.3, sim.latency_ms_median.max() * 1.4)
+    ax[0].set(xlabel="render time (ms; log)", ylabel="image RMSE vs high-sample render (log)",
+              title="simulator: rays per pixel (labels)")
+    ax[0].legend(fontsize=8, loc="upper right")
+    ss = df[df.section == "slope search"]       # in grid order, coarse to fine
     ax[1].loglog(ss.latency_ms_median, ss.slope_error_max, "o-", label="largest error")
     ax[1].loglog(ss.latency_ms_median, ss.slope_error_mean, "s--", label="mean error")
     for r in ss.itertuples():
-        ax[1].annotate(f"{r.coarse_step:g}/{r.fine_step:g}", (r.latency_ms_median, r.slope_error_max), fontsize=7)
-    ax[1].set(xlabel="time per object (ms)", ylabel="slope error (lenslets per view)",
-              title="slope search: coarse/fine grid step")
-    ax[1].legend(fontsize=8)
+        ax[1].annotate(f"{r.coarse_step:g}/{r.fine_step:g}", (r.latency_ms_median, r.slope_error_max), fontsize=7,
+                       xytext=(4, 3), textcoords="offset points")
+    if len(ss):
+        _log_ms_axis(ax[1], ss.latency_ms_median.min() / 1.2, ss.latency_ms_median.max() * 1.5)
+    ax[1].set(xlabel="time per object (ms; log)", ylabel="slope error (lenslets per view; log)",
+              title="slope search: coarse/fine grid step (labels)")
+    ax[1].legend(fontsize=8, loc="best")
     tr = df[df.section == "training"]
     for route, g in tr.groupby("route"):
         ax[2].plot(g.train_wall_s / 60, g.val_ssim, ".-", label=route)
     ax[2].set(xlabel="training wall time (min)", ylabel="validation SSIM (vs dataset GT)", title="training")
-    ax[2].legend(fontsize=8)
+    ax[2].legend(fontsize=8, loc="lower left")
     fig.tight_layout()
     fig.savefig(out / "tradeoff_knobs.png", dpi=100)
     plt.close(fig)
@@ -360,6 +438,8 @@ def main(argv=None):
     p.add_argument("--out")
     p.add_argument("--models-only", help=argparse.SUPPRESS)  # JAX subprocess: inputs .npz
     p.add_argument("--repeats", type=int, default=20)
+    p.add_argument("--plot-only", action="store_true",
+                   help="measure nothing: redraw the two figures in --out from the tradeoff.csv there")
     p.add_argument("dirs", nargs="*", help=argparse.SUPPRESS)
     a = p.parse_args(argv)
     if a.models_only:
@@ -369,6 +449,13 @@ def main(argv=None):
             from lf_flame.camera import PlenopticCamera
             truth = (PlenopticCamera.from_dict(json.loads(str(z["camera"]))), json.loads(str(z["objects"])))
         print(json.dumps(model_rows(a.dirs, list(z["raws"]), z["refs"], a.repeats, baselines=False, truth=truth)))
+        return 0
+    if a.plot_only:
+        if not a.out:
+            p.error("--plot-only needs --out (the folder with tradeoff.csv)")
+        out = Path(a.out)
+        plot(pd.read_csv(out / "tradeoff.csv"), out)
+        print(f"-> {out / 'tradeoff_pareto.png'}, {out / 'tradeoff_knobs.png'}")
         return 0
 
     t0 = time.perf_counter()

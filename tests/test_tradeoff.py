@@ -46,3 +46,16 @@ def test_make_tradeoff_quick():
     prov = json.loads((out / "tradeoff.json").read_text())["provenance"]
     assert {"versions", "cpu_count", "date", "numba_threads"} <= set(prov)
     assert "Pareto front" in (out / "tradeoff.md").read_text()
+
+
+def test_plot_only_redraws_both_figures_from_the_committed_csv(tmp_path):
+    """``--plot-only`` measures nothing: it reads ``<out>/tradeoff.csv`` and writes the two PNGs only."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("tradeoff_script", ROOT / "experiments" / "tradeoff.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    shutil.copy(ROOT / "results" / "tradeoff.csv", tmp_path / "tradeoff.csv")
+    assert mod.main(["--plot-only", "--out", str(tmp_path)]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["tradeoff.csv", "tradeoff_knobs.png", "tradeoff_pareto.png"]
+    for png in ("tradeoff_pareto.png", "tradeoff_knobs.png"):
+        assert (tmp_path / png).stat().st_size > 10_000
