@@ -319,13 +319,26 @@ def ridge_dense(h_tr, z_tr, h_va, gt_va, scale, score_plane):
     return w, b, [float(a / path.alpha_scale) for a in alphas], scores
 
 
-#: Layers that the 'closed-form' recipe trains (a linear probe of the decoder's head).
+#: Decoder layers that the 'closed-form' recipe's epochs may train (a probe of the head).
 PROBE_LAYERS = ("dense", "refocused")
 
 
-def freeze_for_probe(decoder) -> None:
-    """Freeze every decoder layer but :data:`PROBE_LAYERS`: the convolutions keep their
-    weights, and the batch-norm layers (frozen, so Keras 3 runs them in inference mode)
-    their population statistics, in training as in inference."""
+def freeze_for_probe(decoder, layers=("dense",)) -> None:
+    """Freeze every decoder layer but ``layers`` (a subset of :data:`PROBE_LAYERS`): the
+    convolutions keep their weights, and the batch-norm layers (frozen, so Keras 3 runs them
+    in inference mode) their population statistics, in training as in inference.
+
+    By default only the Dense layer trains; the output 3×3 convolution stays the identity
+    the start set. Trained at the paper's settings it lowers validation SSIM (varied shapes:
+    0.848 → 0.826 in one epoch, validation MSE 0.002427 → 0.002386; with the Dense layer
+    alone 0.848 → 0.848, MSE → 0.002420; ``experiments/learning_causes.py``).
+
+    Raises
+    ------
+    ValueError
+        ``layers`` names a layer outside :data:`PROBE_LAYERS`.
+    """
+    if not set(layers) <= set(PROBE_LAYERS):
+        raise ValueError(f"train_layers must be among {PROBE_LAYERS}. Received: {tuple(layers)}")
     for layer in decoder.layers:
-        layer.trainable = layer.name in PROBE_LAYERS
+        layer.trainable = layer.name in layers

@@ -90,6 +90,8 @@ class TrainConfig:
     statistics from batches of 2, as the paper describes; it does not learn here).
     ``refine_iterations`` (per scene): L-BFGS iterations per plane of the closed-form start's
     output-space refinement of the Dense layer (:func:`lf_flame.closed_form.refine_dense`; 0: none).
+    ``train_layers``: the decoder layers the 'closed-form' recipe's epochs train, among
+    'dense' and 'refocused' (the output 3×3 convolution; :func:`lf_flame.closed_form.freeze_for_probe`).
     """
 
     recipe: str = "closed-form"
@@ -100,10 +102,14 @@ class TrainConfig:
     time_budget_s: dict = dataclasses.field(default_factory=lambda: {"shapes": 3000, "flame": 900})
     patience: int = 20
     seed: int = 7
+    train_layers: tuple = ("dense",)
 
     def __post_init__(self):
         if self.recipe not in ("closed-form", "paper"):
             raise ValueError(f"recipe must be 'closed-form' or 'paper'. Received: recipe={self.recipe!r}")
+        if not self.train_layers or not set(self.train_layers) <= {"dense", "refocused"}:
+            raise ValueError("train_layers must be a non-empty subset of ('dense', 'refocused'). "
+                             f"Received: train_layers={self.train_layers!r}")
 
 
 def _build(cls, d: dict, where: str):

@@ -198,9 +198,12 @@ def figure(ds: LightFieldDataset, index: int, preds: dict, path) -> None:
     ax[0, 0].imshow(raw, cmap="gray", vmin=0, vmax=1)
     ax[0, 0].set_title("raw light field")
     n = ds.camera.pixels_per_lenslet
-    r0, c0 = raw.shape[0] // 2 - 3 * n, raw.shape[1] // 2 - 3 * n
+    lenslets = raw[:raw.shape[0] // n * n, :raw.shape[1] // n * n].reshape(raw.shape[0] // n, n, -1, n).sum(axis=(1, 3))
+    r, c = np.unravel_index(np.argmax(lenslets), lenslets.shape)  # 6×6 lenslets about the brightest
+    r0 = int(np.clip(r - 3, 0, lenslets.shape[0] - 6)) * n
+    c0 = int(np.clip(c - 3, 0, lenslets.shape[1] - 6)) * n
     ax[1, 0].imshow(raw[r0:r0 + 6 * n, c0:c0 + 6 * n], cmap="gray", vmin=0, vmax=1)
-    ax[1, 0].set_title("raw, 6×6 lenslets")
+    ax[1, 0].set_title("raw, 6×6 lenslets (brightest)", fontsize=9)
     for k, dz in enumerate(PAPER_DEPTHS_MM):
         ax[0, k + 1].imshow(gt[k], cmap="gray", vmin=0, vmax=1)
         ax[0, k + 1].set_title(f"ground truth {dz:+.0f} mm", fontsize=9)
@@ -222,25 +225,32 @@ def figure(ds: LightFieldDataset, index: int, preds: dict, path) -> None:
 
 
 def learning_curves(history_csv, results_dir, scene: str, baselines: dict | None = None) -> None:
-    """Copy the training history to ``results_dir`` and plot loss and validation SSIM
-    against epoch and wall time (``learning_<scene>.csv`` / ``.png``), with each baseline's
-    validation SSIM (mean of the planes) as a horizontal line. Epoch 0 is the start."""
+    """Copy the training history to ``results_dir`` (``learning_<scene>.csv``) and plot it
+    against the epoch (``learning_<scene>.png``; epoch 0 is the start): MSE (training, with
+    dropout during the epochs and without at the start; validation), validation SSIM with
+    each yardstick's (mean of the planes) as a labelled line, and validation PSNR."""
+    from matplotlib.ticker import MaxNLocator
     h = pd.read_csv(history_csv)
     h.to_csv(Path(results_dir) / f"learning_{scene}.csv", index=False)
-    fig, ax = plt.subplots(1, 2, figsize=(11, 4))
-    for a, x, label in ((ax[0], h["epoch"], "epoch (0 = start)"), (ax[1], h["wall_time_s"] / 60, "wall time (min)")):
-        a.semilogy(x, h["loss"], label="train MSE (epochs: with dropout; start: without)")
-        a.semilogy(x, h["val_loss"], label="validation MSE")
-        a.set(xlabel=label, ylabel="MSE")
-        b = a.twinx()
-        b.plot(x, h["val_ssim"], "g.-", label="network, validation SSIM")
-        for k, (route, v) in enumerate((baselines or {}).items()):
-            b.axhline(float(np.mean(v["val_ssim"])), color=f"C{k + 3}", ls="--", lw=1,
-                      label=f"{_SHORT.get(route, route)}: {np.mean(v['val_ssim']):.3f}")
-        b.set_ylabel("validation SSIM")
-        a.legend(loc="upper left", fontsize=7)
-        b.legend(loc="lower right", fontsize=7)
-    fig.suptitle(f"{scene}: learning curves")
+    panels = [("MSE", ("loss", "training MSE (epochs: with dropout)"), ("val_loss", "validation MSE")),
+              ("validation SSIM", ("val_ssim", "network"),), ("validation PSNR (dB)", ("val_psnr_db", "network"),)]
+    panels = [p for p in panels if all(c in h for c, _ in p[1:])]
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.9), squeeze=False)
+    for ax, (ylabel, *curves) in zip(axes[0], panels):
+        for k, (col, label) in enumerate(curves):
+            ax.plot(h["epoch"], h[col], ".-", color=f"C{k}", label=label)
+        if ylabel == "MSE":
+            ax.set_yscale("log")
+        if ylabel == "validation SSIM":
+            for k, (route, v) in enumerate((baselines or {}).items()):
+                y = float(np.mean(v["val_ssim"]))
+                ax.axhline(y, color=f"C{k + 3}", ls="--", lw=1, label=f"{_SHORT.get(route, route)}: {y:.3f}")
+        ax.set(xlabel="epoch (0 = closed-form start)", ylabel=ylabel)
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=1, frameon=False)
+    wall = h["wall_time_s"].iloc[-1] / 60
+    fig.suptitle(f"{scene}: learning curves ({len(h) - 1} epochs after the start; {wall:.1f} min in all, "
+                 "the start included)", fontsize=10)
     fig.tight_layout()
     fig.savefig(Path(results_dir) / f"learning_{scene}.png", dpi=100)
     plt.close(fig)
@@ -269,7 +279,7 @@ def plot_slope_curves(labels, searches, path, metric: str = "tenengrad") -> None
     fig, ax = plt.subplots(figsize=(7, 4))
     for label, s in zip(labels, searches):
         peak = s.scores.max()
-        ax.plot(s.slopes, s.scores / peak if peak > 0 else s.scores, label=f"{label}: {s.slope:.3f}")
+        ax.plot(s.slopes, s.scores / peak if peak > 0 else s.scores, label=f"{label}: {round(s.slope, 3) + 0.0:.3f}")
     ax.set_xlabel("slope (lenslets per view)")
     ax.set_ylabel(f"sharpness ({metric}, normalised)")
     ax.legend(fontsize=8)

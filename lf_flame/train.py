@@ -152,7 +152,7 @@ def _start(ds, feats_path, model_cfg: ModelConfig, train_cfg: TrainConfig, label
         gap = LinearDecoder.load(out / BASELINE_FILES["linear decoder (GAP-pooled)"])
         start.update(closed_form_start(decoder, feats_path, ds, model_cfg,
                                        max_iter=int(train_cfg.refine_iterations[ds.scene]), linear=gap))
-        freeze_for_probe(decoder)
+        freeze_for_probe(decoder, train_cfg.train_layers)
         logs = dict(loss=start["loss"], val_loss=start["val_loss"])  # the network's output is σ(dense) here
     decoder.compile(optimizer=keras.optimizers.Adam(train_cfg.learning_rate), loss="mse")
     decoder.optimizer.build(decoder.trainable_variables)  # its (empty) state is saved with the start
@@ -165,7 +165,9 @@ def _start(ds, feats_path, model_cfg: ModelConfig, train_cfg: TrainConfig, label
     wall.on_epoch_end(0, logs)
     start["wall_time_s"] = logs["wall_time_s"]
     atomic_write_text(out / "start.json", json.dumps(start, indent=2))
-    atomic_write_text(out / "history.csv", pd.DataFrame([dict(epoch=0, **logs)]).to_csv(index=False))
+    # in the column order of keras.callbacks.CSVLogger (epoch, then sorted keys), which appends to it
+    row = dict(epoch=0, **{k: logs[k] for k in sorted(logs)})
+    atomic_write_text(out / "history.csv", pd.DataFrame([row]).to_csv(index=False))
     decoder.save_weights(out / "decoder_best.weights.h5")
     _LabelWeightsFile(out / "decoder_best.weights.h5", label).on_epoch_end(0)
     resume = _ResumeCheckpoint(out / "decoder_last.keras", out / "train_state.json", label)
