@@ -36,7 +36,7 @@ def _load_views(path):
     simulated camera split by :func:`lf_flame.refocus.raw_to_views`."""
     s = str(path)
     if s.endswith(".h5") and ".h5:" not in s:
-        from .calibrate import load_views
+        from .decode import load_views
         return load_views(s)[0], None
     from .camera import PAPER_CAMERA
     from .refocus import raw_to_views
@@ -172,7 +172,8 @@ def _calibration_file(info, kind, override):
 
 
 def cmd_decode(a):
-    from .calibrate import GridCalibration, decode, load_image, save_views
+    from .calibrate import GridCalibration, load_image
+    from .decode import decode, save_views
     cal = GridCalibration.load(a.calibration)
     raw = load_image(a.raw)
     white = None if a.no_white else _calibration_file(cal.white, "white", a.white)

@@ -296,7 +296,7 @@ def refocus_views(views: np.ndarray, slopes, mask=None, *, method: str = "shift-
     """Refocus sub-aperture views (N, N, R, C) at ``slopes``: -> (S, R, C) float32.
 
     As :func:`refocus`, for views already split (e.g. decoded from a real camera's raw
-    image by :func:`lf_flame.calibrate.decode`).
+    image by :func:`lf_flame.decode.decode`).
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}. Received: {method!r}")

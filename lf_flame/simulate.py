@@ -249,7 +249,7 @@ def render_views(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16
     View ``(u, v)`` of lenslet ``(r, c)`` is the pixel-sized area centred ``(u - (N-1)/2,
     v - (N-1)/2)`` pixels from the lenslet's image centre along the grid's (rotated)
     axes (rays through the lenslet whose cell holds their sensor point, as for
-    :func:`render`): the area that :func:`lf_flame.calibrate.decode`
+    :func:`render`): the area that :func:`lf_flame.decode.decode`
     resamples from the raw image. Each area takes the random ray shifts of the sensor
     pixel it lies on, so for the perfect grid these are the sensor's own pixels:
     ``raw_to_views(render(...))`` up to float rounding.
