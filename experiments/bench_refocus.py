@@ -39,7 +39,7 @@ import numpy as np
 import pandas as pd
 from numba import njit, prange
 
-from lf_flame import _kernels, scenes, simulate
+from lf_flame import _refocus_kernels, scenes, simulate
 from lf_flame.camera import PAPER_CAMERA, PlenopticCamera
 from lf_flame.config import atomic_write_text, provenance
 from lf_flame.refocus import FourierSlice, _check_finite, aperture_mask, focal_stack, raw_to_views
@@ -59,7 +59,7 @@ def _read_all(a):
 
 @njit(parallel=True, fastmath={'contract'})  # no cache: see _read_all
 def _inner_loop_floor(n_threads, n_pass, n, n_cols):
-    """Run the row pass's inner loop of :func:`lf_flame._kernels.shift_sum_stack` (its
+    """Run the row pass's inner loop of :func:`lf_flame._refocus_kernels.shift_sum_stack` (its
     two-view form, ``t += (g1 a1 + f1 c1) + (g2 a2 + f2 c2)`` with ``c`` one row of
     ``n_cols`` below ``a``) ``n_pass`` times over ``n`` samples in each of ``n_threads``
     threads, on per-thread arrays small enough to stay in L1 cache. Returns a checksum."""
@@ -149,7 +149,7 @@ def run(quick: bool, plenopticam_dir) -> pd.DataFrame:
     flat = views.reshape(-1)
     add("lf-read", "one read of the light field", 0, _times(lambda: _read_all(flat), repeats),
         f"{views.nbytes / 1e6:.1f} MB")
-    threads, block = numba.get_num_threads(), _kernels._SUB_ROWS * C  # the kernel's blocks of rows
+    threads, block = numba.get_num_threads(), _refocus_kernels._SUB_ROWS * C  # the kernel's blocks of rows
     per_pass = threads * 2 * block  # view samples of one pass: 2 views per thread
     n_pass = -(-len(PAPER_SLOPES) * views.size // per_pass)  # each view sample once per plane
     add("inner-loop floor", "4-plane stack's row-pass arithmetic, data in L1", 4,

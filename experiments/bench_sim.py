@@ -10,7 +10,7 @@ Writes ``<out>/bench_sim.csv``, ``<out>/bench_sim.md`` and ``<out>/bench_sim.jso
 - sampling: RMSE of the raw image against a high-sample reference for each ray count
   (the data behind the default rays per pixel);
 - forward vs backward: the same single flame layer traced object -> sensor
-  (:func:`lf_flame._kernels.render_forward`) and sensor -> object, error against time.
+  (:func:`lf_flame._simulate_kernels.render_forward`) and sensor -> object, error against time.
 
 Usage: ``python experiments/bench_sim.py --out results [--quick]``.
 """
@@ -27,7 +27,7 @@ import numba
 import numpy as np
 import pandas as pd
 
-from lf_flame import _kernels, scenes, simulate
+from lf_flame import _simulate_kernels, scenes, simulate
 from lf_flame.camera import PAPER_CAMERA, PlenopticCamera
 from lf_flame.config import atomic_write_text, provenance
 
@@ -100,11 +100,11 @@ def run(quick: bool) -> pd.DataFrame:
     top, left = layer.centre_mm[0] + layer.size_mm[0] / 2, layer.centre_mm[1] - layer.size_mm[1] / 2
 
     def forward(n):
-        return _kernels.render_forward(z, cam.main_focal_mm, cam.mla_distance_mm, cam.sensor_distance_mm,
-                                       cam.mla_pitch_mm, cam.mla_focal_mm,
-                                       cam.pixel_pitch_mm, cam.n_rows, cam.n_cols, cam.pixels_per_lenslet,
-                                       cam.aperture_diameter_mm / 2, layer.radiance, top, left, layer.size_mm[0],
-                                       layer.size_mm[1], n, 0, numba.get_num_threads())
+        return _simulate_kernels.render_forward(z, cam.main_focal_mm, cam.mla_distance_mm, cam.sensor_distance_mm,
+                                                cam.mla_pitch_mm, cam.mla_focal_mm,
+                                                cam.pixel_pitch_mm, cam.n_rows, cam.n_cols, cam.pixels_per_lenslet,
+                                                cam.aperture_diameter_mm / 2, layer.radiance, top, left,
+                                                layer.size_mm[0], layer.size_mm[1], n, 0, numba.get_num_threads())
     for mult in (1, 4, 16):
         n = n_px * mult
         add("forward vs backward", "flame layer", "forward", "rays = pixels x", mult, n,

@@ -13,7 +13,7 @@ For each capture, measured in this run:
 - an independent pitch: the peak of the periodogram of the white image's mean row and
   column profiles (SciPy, Hann window, zero-padded to 2^20 points), and the pitch the
   stated optics imply (lenslet pitch / pixel size, parsed from the capture's files);
-- :func:`lf_flame.calibrate.decode` of the light-field frame (dark-subtracted,
+- :func:`lf_flame.decode.decode` of the light-field frame (dark-subtracted,
   white-normalised) into N × N views, N the pitch rounded down;
 - the slope search (:func:`lf_flame.refocus.find_sharpest_slope`, Fourier slice,
   Tenengrad, circular aperture, slopes -2 to 2) on the brightest structure of the
@@ -48,7 +48,7 @@ import numpy as np
 import pandas as pd
 from scipy import ndimage, signal
 
-from lf_flame import calibrate
+from lf_flame import calibrate, decode
 from lf_flame.config import atomic_write_text, provenance
 from lf_flame.refocus import aperture_mask, find_sharpest_slope, refocus_views
 
@@ -284,7 +284,7 @@ def run(data: Path, out: Path, plenopticam_dir=None, figures_only: bool = False)
         pitch_um, pixel_um, src = stated_optics(data, optics_files)
         p_stated = pitch_um / pixel_um
         t = time.perf_counter()
-        views = calibrate.decode(raw, cal, white, dark, camera_id=name)
+        views = decode.decode(raw, cal, white, dark, camera_id=name)
         t_dec = time.perf_counter() - t
         n = views.shape[0]
         mask = aperture_mask(n, "circular")

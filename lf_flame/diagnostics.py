@@ -5,7 +5,8 @@ The one place for diagnostics (issue 17). A refocused plane ``(R, C)`` is in len
 (the main lens's magnification ``d / z`` changes with the depth, see
 :meth:`~lf_flame.camera.PlenopticCamera.object_to_lenslet`). :func:`measure_flame`
 segments the in-focus flame with scikit-image and measures it; :func:`score_stacks`
-compares measurements with the simulation's truth (the flame scene's ``objects``).
+compares measurements with the simulation's truth (the flame scene's ``objects``);
+:func:`plot_profiles` draws them (the figure of ``lf-flame profiles``).
 
 How the other planes' out-of-focus flames bias each measurement, and what is done about
 it (``docs/diagnostics.md`` has the measured figures):
@@ -54,6 +55,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -504,3 +506,64 @@ def error_table(scores: pd.DataFrame, by=("depth_mm",)) -> pd.DataFrame:
         height_err_mm=g.height_err_mm.mean(), height_err_mm_max=g.height_err_mm.max(),
         height_bias_mm=g.height_bias.mean(), base_err_mm=g.base_err_mm.mean(), tip_err_mm=g.tip_err_mm.mean(),
         centre_x_err_mm=g.centre_x_err_mm.mean())).reset_index()
+
+
+def plot_profiles(path, cam, stack, depths, ms, objects, route):
+    """Each plane in object-space mm with the measured outline and edges (and the true ones),
+    then the axial and radial profiles of the planes."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    P = len(stack)
+    fig = plt.figure(figsize=(2.6 * P, 9.0))
+    grid = fig.add_gridspec(2, P, height_ratios=(2.2, 1.0))
+    vmax = max(float(np.max(stack)), 1e-9)
+    for k, (plane, d, m) in enumerate(zip(stack, depths, ms)):
+        ax = fig.add_subplot(grid[0, k])
+        (top, bottom), (left, right) = lenslet_to_object_mm(cam, [-0.5, plane.shape[0] - 0.5],
+                                                            [-0.5, plane.shape[1] - 0.5], d)
+        ax.imshow(plane, cmap="inferno", vmin=0, vmax=vmax, extent=(left, right, bottom, top))
+        title = f"{d:+.0f} mm"
+        if m is not None:
+            rows, cols = np.arange(plane.shape[0]), np.arange(plane.shape[1])
+            y, x = lenslet_to_object_mm(cam, rows[:, None], cols[None, :], d)
+            ax.contour(np.broadcast_to(x, plane.shape), np.broadcast_to(y, plane.shape), m.mask, [0.5],
+                       colors="w", linewidths=0.7)
+            for yy in (m.base_y_mm, m.tip_y_mm):
+                ax.axhline(yy, color="w", ls="--", lw=0.8)
+            title += f"\nH {m.height_mm:.2f} mm"
+        else:
+            title += "\nno flame found"
+        if objects:
+            t = flame_truth(objects[k])
+            for yy in (t["base_y_mm"], t["tip_y_mm"]):
+                ax.axhline(yy, color="c", lw=0.8)
+            title += f" (true {t['height_mm']:.2f})"
+        ax.set_title(title, fontsize=9)
+        ax.set_xlabel("x (mm)", fontsize=8)
+        if k == 0:
+            ax.set_ylabel("y (mm)", fontsize=8)
+        ax.tick_params(labelsize=7)
+    axa = fig.add_subplot(grid[1, : max(1, P // 2)])
+    axr = fig.add_subplot(grid[1, max(1, P // 2):]) if P > 1 else None
+    for k, (d, m) in enumerate(zip(depths, ms)):
+        if m is None:
+            continue
+        axa.plot(m.axial_height_mm, m.axial_intensity, color=f"C{k}", label=f"{d:+.0f} mm")
+        if axr is not None:
+            for j, r in enumerate(m.radial):
+                axr.plot(r.x_mm, r.intensity, color=f"C{k}", ls=("-", "--", ":")[j % 3], lw=0.9,
+                         label=f"{d:+.0f} mm, {r.height_mm:.1f} mm" if k == 0 or j == 0 else None)
+    axa.set(xlabel="height above the measured base (mm)", ylabel="intensity on the centreline",
+            title=f"axial profiles ({route})")
+    axa.legend(fontsize=7)
+    if axr is not None:
+        axr.set(xlabel="offset from the centreline (mm)", ylabel="intensity",
+                title="radial profiles at 25 / 50 / 75 % of the height")
+        axr.legend(fontsize=6, ncol=2)
+    fig.tight_layout()
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(f"{path}.partial.png")
+    fig.savefig(tmp, dpi=100)
+    plt.close(fig)
+    tmp.replace(path)

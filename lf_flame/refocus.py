@@ -17,7 +17,7 @@ import scipy.fft
 from scipy import ndimage
 from skimage import filters
 
-from . import _kernels
+from . import _refocus_kernels
 
 
 _EXPONENT_BITS = {np.dtype(np.float32): (np.uint32, 0x7F800000), np.dtype(np.float64): (np.uint64, 0x7FF0000000000000)}
@@ -30,7 +30,7 @@ def _check_finite(name, a):
     if a.dtype in _EXPONENT_BITS and a.size >= 1 << 16:
         utype, exponent = _EXPONENT_BITS[a.dtype]
         bits = np.ascontiguousarray(a).reshape(-1).view(utype)
-        finite = _kernels.max_exponent(bits, utype(exponent)) != exponent
+        finite = _refocus_kernels.max_exponent(bits, utype(exponent)) != exponent
     else:
         finite = bool(np.all(np.isfinite(a)))
     if not finite:
@@ -160,7 +160,7 @@ def focal_stack(views: np.ndarray, slopes, mask: np.ndarray | None = None, *, in
         shifts = np.floor(shifts + 0.5)
     out = np.empty((len(slopes), R, C), np.float32)
     rows_per_task = -(-R // numba.get_num_threads())
-    if not _kernels.shift_sum_stack(views.reshape(n, n, R * C), R, shifts, shifts, mask, out, rows_per_task):
+    if not _refocus_kernels.shift_sum_stack(views.reshape(n, n, R * C), R, shifts, shifts, mask, out, rows_per_task):
         raise ValueError("views contain NaN or inf")
     return out
 
@@ -269,7 +269,7 @@ class FourierSlice:
         j_r, w_r = self._taps(-slopes[:, None] * fr[None, :])
         j_c, w_c = self._taps(-slopes[:, None] * fc[None, :])
         spec = np.empty((len(slopes), self.R2, len(fc)), np.complex64)
-        _kernels.fourier_slice(self.spectrum, j_r, w_r, j_c, w_c, spec)
+        _refocus_kernels.fourier_slice(self.spectrum, j_r, w_r, j_c, w_c, spec)
         img = scipy.fft.irfft2(spec, s=(self.R2, self.C2), workers=-1)[:, :R, :C]
         shifts = slopes[:, None] * _view_offsets(self.n)[None, :]
         count = np.einsum("sur,uv,svc->src", _band_limited_box(shifts, R, self.R2), self.mask.astype(np.float64),
@@ -296,7 +296,7 @@ def refocus_views(views: np.ndarray, slopes, mask=None, *, method: str = "shift-
     """Refocus sub-aperture views (N, N, R, C) at ``slopes``: -> (S, R, C) float32.
 
     As :func:`refocus`, for views already split (e.g. decoded from a real camera's raw
-    image by :func:`lf_flame.calibrate.decode`).
+    image by :func:`lf_flame.decode.decode`).
     """
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}. Received: {method!r}")

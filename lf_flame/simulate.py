@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from . import _kernels
+from . import _simulate_kernels
 from .camera import PlenopticCamera
 from .optics import RayTransferMatrix, free_space
 from .scenes import Scene
@@ -98,15 +98,15 @@ def backward_chain(camera: PlenopticCamera) -> tuple[RayTransferMatrix, ...]:
 def trace_coefficients(camera: PlenopticCamera, layers, z) -> tuple[np.ndarray, np.ndarray]:
     """Per-row and per-column affine coefficients of the backward ABCD chain.
 
-    See :func:`lf_flame._kernels.axis_coefficients`; returns ``(ky, kx)`` of shapes
+    See :func:`lf_flame._simulate_kernels.axis_coefficients`; returns ``(ky, kx)`` of shapes
     (2 + n_layers, 4, n_rows * N) and (2 + n_layers, 4, n_cols * N), float64.
     """
     tr, tc = layers[0].radiance.shape
     top, left, h, w = _layer_frames(layers)
     chain = tuple(m.matrix for m in backward_chain(camera))
     n, p, pp = camera.pixels_per_lenslet, camera.mla_pitch_mm, camera.pixel_pitch_mm
-    ky = _kernels.axis_coefficients(camera.n_rows, n, p, pp, 1.0, *chain, z, top * tr / h, -tr / h)
-    kx = _kernels.axis_coefficients(camera.n_cols, n, p, pp, -1.0, *chain, z, -left * tc / w, tc / w)
+    ky = _simulate_kernels.axis_coefficients(camera.n_rows, n, p, pp, 1.0, *chain, z, top * tr / h, -tr / h)
+    kx = _simulate_kernels.axis_coefficients(camera.n_cols, n, p, pp, -1.0, *chain, z, -left * tc / w, tc / w)
     return ky, kx
 
 
@@ -157,7 +157,7 @@ def render(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16, seed
     layers, z, rad, alpha = _stack_layers(camera, scene)
     ky, kx = trace_coefficients(camera, layers, z)
     out = np.empty(camera.sensor_shape, dtype=np.float32)
-    _kernels.render_backward(ky, kx, camera.pixels_per_lenslet, rad, alpha, content_box(rad, alpha),
+    _simulate_kernels.render_backward(ky, kx, camera.pixels_per_lenslet, rad, alpha, content_box(rad, alpha),
                              bool(fx.occlusion), camera.aperture_diameter_mm / 2 if fx.aperture else -1.0,
                              bool(fx.cos4), 3 if fx.crosstalk else 1, int(rays_per_pixel), int(seed), out)
     return apply_sensor(out, fx, seed)
@@ -166,11 +166,11 @@ def render(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16, seed
 def _axis_basis(camera: PlenopticCamera, z, tex_offset, tex_scale) -> np.ndarray:
     """Coefficients (2 + n_layers, 4) of each traced quantity along one axis as
     ``a[q, 0] y_s + a[q, 1] y_l + a[q, 2] y_c + a[q, 3]`` (quantities q as in
-    :func:`lf_flame._kernels.axis_coefficients`): the backward chain traced on unit
+    :func:`lf_flame._simulate_kernels.axis_coefficients`): the backward chain traced on unit
     sensor, lenslet-plane and lenslet-centre heights (it is linear and homogeneous)."""
     chain = tuple(m.matrix for m in backward_chain(camera))
     e = np.eye(3)
-    y_m, t_m, y_o, t_o = _kernels.trace_rays(e[0], e[1], e[2], *chain)
+    y_m, t_m, y_o, t_o = _simulate_kernels.trace_rays(e[0], e[1], e[2], *chain)
     a = np.zeros((2 + len(z), 4))
     a[0, :3], a[1, :3] = y_m, t_m
     for li in range(len(z)):
@@ -184,7 +184,7 @@ def render_points(camera: PlenopticCamera, scene: Scene, points_px: np.ndarray, 
     """Mean radiance of pixel-sized areas of the sensor, for any lenslet grid.
 
     The general-grid renderer behind :func:`render` and :func:`render_views`
-    (kernel :func:`lf_flame._kernels.render_points`): the same backward ABCD chain and
+    (kernel :func:`lf_flame._simulate_kernels.render_points`): the same backward ABCD chain and
     ray samples as the perfect-grid kernel; each ray passes through the lenslet whose
     image cell (:meth:`~lf_flame.camera.PlenopticCamera.nearest_lenslet`) holds its
     point of the sensor.
@@ -234,7 +234,7 @@ def render_points(camera: PlenopticCamera, scene: Scene, points_px: np.ndarray, 
     t = math.radians(camera.grid_rotation_deg)
     lens_mat = camera.mla_pitch_mm * np.array([[math.cos(t), -math.sin(t)], [math.sin(t), math.cos(t)]])
     out = np.empty(len(pts), np.float32)
-    _kernels.render_points(np.ascontiguousarray(pts), keys.astype(np.int64), H, W, pp,
+    _simulate_kernels.render_points(np.ascontiguousarray(pts), keys.astype(np.int64), H, W, pp,
                            np.asarray(camera.grid_centre_px, np.float64), np.linalg.inv(camera.grid_matrix), lens_mm,
                            lens_mat, camera.grid_layout == "hex", ay, ax, rad,
                            alpha if fx.occlusion else np.zeros((1, 1, 1), np.float32), bool(fx.occlusion),
@@ -249,7 +249,7 @@ def render_views(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16
     View ``(u, v)`` of lenslet ``(r, c)`` is the pixel-sized area centred ``(u - (N-1)/2,
     v - (N-1)/2)`` pixels from the lenslet's image centre along the grid's (rotated)
     axes (rays through the lenslet whose cell holds their sensor point, as for
-    :func:`render`): the area that :func:`lf_flame.calibrate.decode`
+    :func:`render`): the area that :func:`lf_flame.decode.decode`
     resamples from the raw image. Each area takes the random ray shifts of the sensor
     pixel it lies on, so for the perfect grid these are the sensor's own pixels:
     ``raw_to_views(render(...))`` up to float rounding.
@@ -310,7 +310,7 @@ def render_reference(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int 
     tr, tc = rad.shape[1:]
     top, left, h, w = _layer_frames(layers)
     span = 3 if fx.crosstalk else 1
-    r4 = _kernels._R4
+    r4 = _simulate_kernels._R4
     out = np.empty((H, W), np.float32)
     j = np.arange(W)
     x_pix = -(j + 0.5 - W / 2) * pp

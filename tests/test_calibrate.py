@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from lf_flame import calibrate, cli, scenes, simulate
+from lf_flame import calibrate, cli, decode, scenes, simulate
 from lf_flame.calibrate import CalibrationError, GridCalibration
 from lf_flame.camera import PlenopticCamera
 from lf_flame.refocus import aperture_mask, find_sharpest_slope
@@ -56,7 +56,7 @@ def test_decoded_views_match_the_directly_rendered_views(square_lf):
     """Measured (64 rays per pixel): RMSE 0.0144 of white-normalised radiance (signal RMS 0.238),
     where two direct renders with other seeds differ by 0.0100 (Monte Carlo noise)."""
     cam, scene, white_scene, white, raw, cal = square_lf
-    views = calibrate.decode(raw, cal, white, n_views=25)
+    views = decode.decode(raw, cal, white, n_views=25)
     _, k = _nearest(cal.centres_px()[:1, 0], cam.lenslet_image_centres_px().reshape(-1, 2))
     r0, c0 = divmod(int(k[0]), cam.n_cols)
     R, C = views.shape[2:]
@@ -78,7 +78,7 @@ def test_decoded_views_match_the_directly_rendered_views(square_lf):
 
 def test_hexagonal_views_are_resampled_to_a_square_grid(white_case):
     cam, white, cal = white_case
-    views = calibrate.decode(white, cal, white, n_views=21)
+    views = decode.decode(white, cal, white, n_views=21)
     if cal.layout == "square":
         assert views.shape == (21, 21, cal.n_rows, cal.n_cols)
     else:
@@ -137,17 +137,17 @@ def test_nan_is_refused(square_lf):
     with pytest.raises(ValueError, match="white image contains NaN"):
         calibrate.calibrate(bad)
     with pytest.raises(ValueError, match="raw image contains NaN"):
-        calibrate.decode(np.where(np.arange(raw.size).reshape(raw.shape) == 7, np.nan, raw), cal, white)
+        decode.decode(np.where(np.arange(raw.size).reshape(raw.shape) == 7, np.nan, raw), cal, white)
     with pytest.raises(ValueError, match="dark frame contains NaN"):
-        calibrate.decode(raw, cal, white, np.full(raw.shape, np.inf))
+        decode.decode(raw, cal, white, np.full(raw.shape, np.inf))
 
 
 def test_raw_of_another_size_is_refused(square_lf):
     cam, _, _, white, raw, cal = square_lf
     with pytest.raises(ValueError, match=r"raw image has shape \(451, 500\), not the \(451, 504\)"):
-        calibrate.decode(raw[:, :500], cal, white)
+        decode.decode(raw[:, :500], cal, white)
     with pytest.raises(ValueError, match="white image has shape"):
-        calibrate.decode(raw, cal, white[:-1])
+        decode.decode(raw, cal, white[:-1])
 
 
 def test_calibration_of_another_camera_is_refused(square_lf):
@@ -157,10 +157,10 @@ def test_calibration_of_another_camera_is_refused(square_lf):
                                 sensor_rows=H, sensor_cols=W)        # same sensor size, another MLA
     other_raw = simulate.render(other, scenes.shapes_scene(other, np.random.default_rng(1)), 4)
     with pytest.raises(ValueError, match="another camera"):
-        calibrate.decode(other_raw, cal, white)
-    calibrate.check_grid(raw, cal)                                   # its own camera passes
+        decode.decode(other_raw, cal, white)
+    decode.check_grid(raw, cal)  # its own camera passes
     with pytest.raises(ValueError, match="of camera 'A', not 'B'"):
-        calibrate.decode(raw, dataclasses.replace(cal, camera_id="A"), white, camera_id="B")
+        decode.decode(raw, dataclasses.replace(cal, camera_id="A"), white, camera_id="B")
 
 
 # ---- the command line ------------------------------------------------------------------------
@@ -176,8 +176,8 @@ def test_cli_calibrate_decode_refocus_slopes(square_lf, tmp_path, capsys):
     assert got.pitch_px == pytest.approx(cal.pitch_px) and got.white["sha256"] and got.camera_id == "sim"
     assert cli.main(["decode", str(tmp_path / "raw.npy"), "--calibration", str(tmp_path / "c.json"),
                      "--views", "25", "--out", str(tmp_path / "v.h5")]) == 0
-    views, _ = calibrate.load_views(tmp_path / "v.h5")
-    assert np.allclose(views, calibrate.decode(raw, cal, white, dark, n_views=25), atol=1e-5)
+    views, _ = decode.load_views(tmp_path / "v.h5")
+    assert np.allclose(views, decode.decode(raw, cal, white, dark, n_views=25), atol=1e-5)
     assert cli.main(["refocus", str(tmp_path / "v.h5"), "--slope", "0", "--slope", "1.25",
                      "--out", str(tmp_path / "s.npz")]) == 0
     with np.load(tmp_path / "s.npz") as z:

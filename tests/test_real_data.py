@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lf_flame import calibrate
+from lf_flame import calibrate, decode
 from lf_flame.refocus import aperture_mask, find_sharpest_slope
 
 EXAMPLES = Path(__file__).resolve().parents[1] / ".bench" / "napari-lf" / "napari_lf" / "examples"
@@ -39,13 +39,13 @@ def test_real_capture_calibrates_decodes_and_refocuses():
     assert abs(cal.pitch_px / _periodogram_pitch(white - dark) - 1) < 0.002, cal.pitch_px
     assert abs(cal.pitch_px / (100 / 6.5) - 1) < 0.01
     assert cal.residual_rms_px < 0.3 and cal.layout == "square"
-    views = calibrate.decode(raw, cal, white, dark)
+    views = decode.decode(raw, cal, white, dark)
     assert views.shape == (15, 15, cal.n_rows, cal.n_cols) and np.all(np.isfinite(views))
-    calibrate.check_grid(raw - dark, cal)
+    decode.check_grid(raw - dark, cal)
     # the vesicle's rim is sharpest at one slope, inside the range, well above the ends
     s = find_sharpest_slope(views, (12, 20, 14, 22), lo=-2, hi=2, mask=aperture_mask(15, "circular"))
     assert -1.5 < s.slope < 1.5 and s.scores.max() > 10 * max(s.scores[0], s.scores[-1])
     # another capture's white image is not this calibration's grid
     other = calibrate.load_image(EXAMPLES / "antleg" / "radiometry_frame.png")[:436, :436]
     with pytest.raises(ValueError, match="another camera"):
-        calibrate.decode(other, cal)
+        decode.decode(other, cal)

@@ -3,7 +3,7 @@ import pytest
 
 from lf_flame import scenes, simulate
 from lf_flame.camera import PAPER_CAMERA
-from lf_flame import _kernels
+from lf_flame import _refocus_kernels
 from lf_flame.refocus import (_EXPONENT_BITS, FourierSlice, _check_finite, aperture_mask, find_sharpest_slope,
                               focal_stack, normalized_variance, raw_to_views, refocus, tenengrad,
                               variance_of_laplacian, views_to_raw)
@@ -101,7 +101,7 @@ def test_stack_independent_of_task_split():
     outs = []
     for rows_per_task in (1, 5, 16, 37):
         out = np.empty((2, 37, 21), np.float32)
-        _kernels.shift_sum_stack(v.reshape(15, 15, -1), 37, sh, sh, np.ones((15, 15), bool), out, rows_per_task)
+        _refocus_kernels.shift_sum_stack(v.reshape(15, 15, -1), 37, sh, sh, np.ones((15, 15), bool), out, rows_per_task)
         outs.append(out)
     assert all(np.array_equal(outs[0], o) for o in outs[1:])
 
@@ -160,12 +160,12 @@ def test_finite_check_finds_nan_and_inf_anywhere(dtype):
     """The bit-level check (lanes of 64, a tail, chunks of 2^16) misses no position."""
     utype, exponent = _EXPONENT_BITS[np.dtype(dtype)]
     small = np.linspace(-3e38 if dtype == np.float32 else -1e308, 1e30, 203).astype(dtype)
-    assert _kernels.max_exponent(small.view(utype), utype(exponent)) != exponent  # large but finite
+    assert _refocus_kernels.max_exponent(small.view(utype), utype(exponent)) != exponent  # large but finite
     for i in range(small.size):
         for bad in (np.nan, np.inf, -np.inf):
             a = small.copy()
             a[i] = bad
-            assert _kernels.max_exponent(a.view(utype), utype(exponent)) == exponent
+            assert _refocus_kernels.max_exponent(a.view(utype), utype(exponent)) == exponent
     big = np.ones(3 * 2 ** 16 + 5, dtype)
     _check_finite("x", big)
     for i in (0, 2 ** 16 - 1, 2 ** 16, 2 * 2 ** 16 + 7, big.size - 1):

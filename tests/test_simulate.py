@@ -136,7 +136,7 @@ def test_flame_heights_follow_the_paper(small_camera):
 
 def test_kernel_chain_matches_numpy_abcd_chain_to_1e12(small_camera):
     """The kernel's per-ray chain against explicit RayTransferMatrix products, random rays."""
-    from lf_flame import _kernels
+    from lf_flame import _simulate_kernels
     cam = small_camera
     rng = np.random.default_rng(0)
     n = 10_000
@@ -144,7 +144,7 @@ def test_kernel_chain_matches_numpy_abcd_chain_to_1e12(small_camera):
     y_c = rng.uniform(-2, 2, n)
     y_l = y_c + rng.uniform(-0.06, 0.06, n)
     chain = simulate.backward_chain(cam)
-    got = _kernels.trace_rays(y_s, y_l, y_c, *(m.matrix for m in chain))
+    got = _simulate_kernels.trace_rays(y_s, y_l, y_c, *(m.matrix for m in chain))
     gap, lenslet_inv, mla_to_lens, lens_inv = chain
     t0 = (y_l - gap.A * y_s) / gap.B
     y1, t1 = gap.apply(y_s, t0)
@@ -158,11 +158,11 @@ def test_kernel_chain_matches_numpy_abcd_chain_to_1e12(small_camera):
 
 def test_affine_coefficients_reproduce_the_chain(small_camera):
     """K[q, 0] + K[q, 1] du + K[q, 2] da + K[q, 3] o equals the traced ray (float64)."""
-    from lf_flame import _kernels
+    from lf_flame import _simulate_kernels
     cam, n = small_camera, small_camera.pixels_per_lenslet
     chain = [m.matrix for m in simulate.backward_chain(cam)]
     z = np.array([cam.object_distance_mm(10.0)])
-    K = _kernels.axis_coefficients(cam.n_rows, n, cam.mla_pitch_mm, cam.pixel_pitch_mm, 1.0, *chain, z,
+    K = _simulate_kernels.axis_coefficients(cam.n_rows, n, cam.mla_pitch_mm, cam.pixel_pitch_mm, 1.0, *chain, z,
                                    np.array([3.0]), np.array([-2.0]))
     rng = np.random.default_rng(1)
     i = rng.integers(0, cam.n_rows * n, 1000)
@@ -170,7 +170,8 @@ def test_affine_coefficients_reproduce_the_chain(small_camera):
     o = np.floor(da + 0.5)
     y_s = (i + 0.5 - cam.n_rows * n / 2) * cam.pixel_pitch_mm + du * cam.pixel_pitch_mm
     y_c = (i // n + 0.5 - cam.n_rows / 2) * cam.mla_pitch_mm
-    y_m, t_m, y_o, t_o = _kernels.trace_rays(y_s, y_c + da * cam.mla_pitch_mm, y_c + o * cam.mla_pitch_mm, *chain)
+    y_m, t_m, y_o, t_o = _simulate_kernels.trace_rays(y_s, y_c + da * cam.mla_pitch_mm, y_c + o * cam.mla_pitch_mm,
+                                                      *chain)
     affine = lambda q: K[q, 0, i] + K[q, 1, i] * du + K[q, 2, i] * da + K[q, 3, i] * o  # noqa: E731
     assert np.allclose(affine(0), y_m, rtol=0, atol=1e-12)
     assert np.allclose(affine(1), t_m, rtol=0, atol=1e-12)
@@ -193,7 +194,7 @@ def test_kernel_render_matches_numpy_reference(small_camera, name, crosstalk):
 
 def test_content_culling_is_exact(small_camera):
     """Skipping rays that cannot reach a layer's content changes no pixel."""
-    from lf_flame import _kernels
+    from lf_flame import _simulate_kernels
     cam = small_camera
     sc = scenes.shapes_scene(cam, np.random.default_rng(2))
     layers, z, rad, alpha = simulate._stack_layers(cam, sc)
@@ -204,7 +205,7 @@ def test_content_culling_is_exact(small_camera):
     outs = []
     for b in (box, full):
         out = np.empty(cam.sensor_shape, np.float32)
-        _kernels.render_backward(ky, kx, cam.pixels_per_lenslet, rad, alpha, b, True, 38.9, True, 1, 4, 0, out)
+        _simulate_kernels.render_backward(ky, kx, cam.pixels_per_lenslet, rad, alpha, b, True, 38.9, True, 1, 4, 0, out)
         outs.append(out)
     assert np.array_equal(*outs)
 

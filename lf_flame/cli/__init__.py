@@ -1,0 +1,151 @@
+"""``lf-flame``: the command line that the Make targets call. ``lf-flame --help``.
+
+The argument parser and :func:`main`; the commands, one module per stage:
+:mod:`.optics` (simulate, refocus, slopes), :mod:`.real` (calibrate, decode),
+:mod:`.learning` (dataset, train, predict, evaluate, tables) and :mod:`.profiles`;
+:mod:`._io` reads and writes their files.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from .learning import LEARNED_ROUTES, cmd_dataset, cmd_evaluate, cmd_predict, cmd_tables, cmd_train
+from .optics import cmd_refocus, cmd_simulate, cmd_slopes
+from .profiles import cmd_profiles
+from .real import cmd_calibrate, cmd_decode
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(prog="lf-flame", description="Light-field refocusing of burner flames: "
+                                "simulate, refocus, build datasets, train and evaluate the paper's model.")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    s = sub.add_parser("simulate", help="render a raw light-field image of a scene")
+    s.add_argument("--scene", choices=["shapes", "flame", "point"], required=True)
+    s.add_argument("--out", required=True, help=".npz (raw, camera, objects[, views]) or .png")
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--rays-per-pixel", type=int, default=16)
+    s.add_argument("--data-config", help="TOML with a [camera] table (default: the paper's camera)")
+    s.add_argument("--nominal", action="store_true", help="the nominal scene (no random variation)")
+    s.add_argument("--views", action="store_true", help="also store sub-aperture views (N, N, R, C)")
+    s.add_argument("--crosstalk", action="store_true", help="add crosstalk through neighbouring lenslets")
+    s.add_argument("--bit-depth", type=int, help="quantise the raw image to this many bits")
+    s.add_argument("--depth", type=float, default=0.0, help="point scene: depth offset (mm)")
+    s.add_argument("--y", type=float, default=0.0, help="point scene: height (mm)")
+    s.add_argument("--x", type=float, default=0.0, help="point scene: lateral position (mm)")
+    s.set_defaults(func=cmd_simulate)
+
+    s = sub.add_parser("calibrate", help="calibrate a real camera's lenslet grid from a white image")
+    s.add_argument("white", help="white (flat-field) image: PNG, TIFF, .npy or .npz")
+    s.add_argument("--dark", help="dark frame, subtracted first")
+    s.add_argument("--layout", choices=["auto", "square", "hex"], default="auto")
+    s.add_argument("--camera-id", help="name of the camera, stored and checked by decode")
+    s.add_argument("--out", required=True, help="calibration JSON")
+    s.set_defaults(func=cmd_calibrate)
+
+    s = sub.add_parser("decode", help="decode a real raw image into sub-aperture views with a calibration")
+    s.add_argument("raw", help="raw light-field image: PNG, TIFF, .npy or .npz")
+    s.add_argument("--calibration", required=True, help="JSON written by 'lf-flame calibrate'")
+    s.add_argument("--white", help="white image (default: the calibration's, checked by its SHA-256)")
+    s.add_argument("--dark", help="dark frame (default: the calibration's, if any)")
+    s.add_argument("--no-white", action="store_true", help="no white-image normalisation")
+    s.add_argument("--views", type=int, help="views per axis (default: the pitch rounded down)")
+    s.add_argument("--camera-id", help="refuse a calibration of another camera")
+    s.add_argument("--out", required=True, help="HDF5 of the views (N, N, R, C)")
+    s.set_defaults(func=cmd_decode)
+
+    s = sub.add_parser("refocus", help="refocus a raw image (or decoded views) at one or more slopes")
+    s.add_argument("raw", help=".npz from simulate, .npy, DATASET.h5:INDEX, or VIEWS.h5 from decode")
+    s.add_argument("--slope", type=float, action="append", required=True, help="lenslets per view (repeatable)")
+    s.add_argument("--method", choices=["shift-sum", "fourier"], default="shift-sum")
+    s.add_argument("--interpolation", choices=["bilinear", "nearest"], default="bilinear",
+                   help="shift-sum only: bilinear, or whole-lenslet shifts")
+    s.add_argument("--aperture", choices=["square", "circular"], default="circular")
+    s.add_argument("--out", required=True, help=".npz (stack) or .png (planes side by side)")
+    s.set_defaults(func=cmd_refocus)
+
+    s = sub.add_parser("slopes", help="sharpest slope of each object of a raw image (table and plot of the "
+                       "sharpness curves); without RAW, calibrate the nominal scene of a data config")
+    s.add_argument("raw", nargs="?", help=".npz from simulate (its objects' ROIs are used), .npy, DATASET.h5:INDEX, "
+                   "or VIEWS.h5 from decode")
+    s.add_argument("--roi", type=int, nargs=4, action="append", metavar=("ROW0", "ROW1", "COL0", "COL1"),
+                   help="region in lenslets (repeatable; default: the stored objects, else the whole image)")
+    s.add_argument("--metric", choices=["tenengrad", "laplacian", "normvar"], default="tenengrad")
+    s.add_argument("--method", choices=["fourier", "shift-sum"], default="fourier")
+    s.add_argument("--lo", type=float, default=-3.0)
+    s.add_argument("--hi", type=float, default=3.0)
+    s.add_argument("--aperture", choices=["square", "circular"], default="circular")
+    s.add_argument("--out-prefix", help="write PREFIX.slopes.csv and PREFIX.slopes.png (default: beside RAW)")
+    s.add_argument("--data-config", help="calibration mode: data config TOML")
+    s.add_argument("--out", help="calibration mode: JSON of the slopes used for ground truth")
+    s.add_argument("--results", help="calibration mode: folder for slopes.csv and slopes.png")
+    s.set_defaults(func=cmd_slopes)
+
+    s = sub.add_parser("dataset", help="generate (or resume) a dataset in HDF5")
+    s.add_argument("--data-config", required=True)
+    s.add_argument("--scene", choices=["shapes", "flame"], required=True)
+    s.add_argument("--slopes", required=True, help="JSON written by 'lf-flame slopes'")
+    s.add_argument("--regime", choices=["paper", "varied"],
+                   help="scene variation (docs/scenes.md) instead of the data config's")
+    s.add_argument("--out", required=True)
+    s.add_argument("--shard", help="i/N: render only shard i of N (1 <= i <= N) beside --out; an unsharded "
+                                   "run imports finished shards and renders the rest")
+    s.add_argument("--quiet", action="store_true")
+    s.set_defaults(func=cmd_dataset)
+
+    s = sub.add_parser("train", help="train the decoder on cached backbone features (resumable)")
+    s.add_argument("--dataset", required=True)
+    s.add_argument("--experiment-config", required=True)
+    s.add_argument("--out", required=True, help="model folder")
+    s.add_argument("--input-size", help="ROWSxCOLS: backbone input size instead of the config's")
+    s.add_argument("--time-budget-s", type=float, help="training time budget (s) instead of the config's")
+    s.add_argument("--quiet", action="store_true")
+    s.set_defaults(func=cmd_train)
+
+    s = sub.add_parser("predict", help="the trained model's 4 refocused planes of a raw image, with its latency")
+    s.add_argument("raw", help=".npz from simulate, .npy, or DATASET.h5:INDEX")
+    s.add_argument("--model-dir", required=True, help="folder written by 'lf-flame train'")
+    s.add_argument("--out", required=True, help=".npz (stack (4, R, C), latency_s) or .png (planes side by side)")
+    s.add_argument("--repeat", type=int, default=5, help="timed calls after the warm-up")
+    s.add_argument("--route", choices=list(LEARNED_ROUTES), default="network",
+                   help="the trained network, or one of its yardsticks saved beside it")
+    s.set_defaults(func=cmd_predict)
+
+    s = sub.add_parser("profiles", help="flame diagnostics per plane: height, widths, centroid, intensity, "
+                       "axial and radial profiles in object-space mm (CSV and figure)")
+    s.add_argument("raw", help=".npz from 'simulate --scene flame', .npy, or DATASET.h5:INDEX (the truth is "
+                               "marked when the flames' objects are known)")
+    s.add_argument("--route", choices=["ground-truth", "shift-sum", "shift-sum-nearest", "fourier",
+                                       *LEARNED_ROUTES], default="shift-sum",
+                   help="refocusing route; ground-truth: a dataset's stored planes; learned routes need --model-dir")
+    s.add_argument("--model-dir", help="folder written by 'lf-flame train' (learned routes)")
+    s.add_argument("--slope", type=float, action="append",
+                   help="one per plane (repeatable); default: the dataset's, else the analytic slopes of the depths")
+    s.add_argument("--out", required=True, help="PREFIX: writes PREFIX.csv (one row per plane), PREFIX.axial.csv "
+                                               "and PREFIX.png")
+    s.set_defaults(func=cmd_profiles)
+
+    s = sub.add_parser("evaluate", help="SSIM/PSNR per plane on the test split, table and figure")
+    s.add_argument("--dataset", required=True)
+    s.add_argument("--model-dir", required=True)
+    s.add_argument("--results", required=True)
+    s.add_argument("--heldout", type=int, default=0,
+                   help="also score a second held-out set of this many samples, drawn with --heldout-seed")
+    s.add_argument("--heldout-seed", type=int, default=None,
+                   help="seed of the second held-out set (not the dataset's seed)")
+    s.set_defaults(func=cmd_evaluate)
+
+    s = sub.add_parser("tables", help="collect Tables I and II, slopes and stage times into tables.md")
+    s.add_argument("--results", required=True)
+    s.add_argument("--data-dir", required=True)
+    s.add_argument("--model-dir", required=True)
+    s.set_defaults(func=cmd_tables)
+
+    a = p.parse_args(argv)
+    try:
+        a.func(a)
+    except (ValueError, FileNotFoundError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    return 0

@@ -1,0 +1,105 @@
+"""Commands of the simulated camera: ``simulate`` (:mod:`lf_flame.simulate`), ``refocus``
+and ``slopes`` (:mod:`lf_flame.refocus`; without a raw image, the nominal scene's slope
+calibration of a data config).
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ._io import _load_views, _raw_objects, _save_image, _write_stack
+
+
+def cmd_simulate(a):
+    from .. import scenes, simulate
+    from ..camera import PAPER_CAMERA
+    from ..config import load_data_config
+    cam = load_data_config(a.data_config)[0] if a.data_config else PAPER_CAMERA
+    if a.scene == "point":
+        sc = scenes.point_scene(cam, a.depth, a.y, a.x)
+    else:
+        sc = scenes.SCENES[a.scene](cam, np.random.default_rng(a.seed), vary=not a.nominal)
+    if a.crosstalk or a.bit_depth:
+        import dataclasses
+        sc = dataclasses.replace(sc, effects=dataclasses.replace(sc.effects, crosstalk=a.crosstalk or
+                                                                 sc.effects.crosstalk, bit_depth=a.bit_depth))
+    t = time.perf_counter()
+    raw = simulate.render(cam, sc, a.rays_per_pixel, a.seed)
+    dt = time.perf_counter() - t
+    out = Path(a.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if out.suffix == ".png":
+        _save_image(out, raw)
+    else:
+        extra = {}
+        if a.views:
+            from ..refocus import raw_to_views
+            extra["views"] = raw_to_views(raw, cam.pixels_per_lenslet)
+        np.savez_compressed(out, raw=raw, camera=cam.to_json(), objects=json.dumps(sc.objects, default=float),
+                            **extra)
+    print(f"rendered {sc.name} {raw.shape} at {a.rays_per_pixel} rays/pixel in {dt:.2f} s -> {out}")
+
+
+def cmd_refocus(a):
+    from ..refocus import aperture_mask, refocus_views
+    views, _ = _load_views(a.raw)
+    n = views.shape[0]
+    t = time.perf_counter()
+    stack = refocus_views(views, a.slope, aperture_mask(n, a.aperture), method=a.method,
+                          interpolation=a.interpolation)
+    print(f"refocused {len(a.slope)} planes ({a.method}) in {1e3 * (time.perf_counter() - t):.2f} ms")
+    _write_stack(a.out, stack, slopes=np.asarray(a.slope))
+
+
+def cmd_slopes(a):
+    if a.raw is None:
+        return _calibrate_slopes(a)
+    import pandas as pd
+    from ..evaluate import plot_slope_curves
+    from ..refocus import aperture_mask, find_sharpest_slope
+    views, cam = _load_views(a.raw)
+    if a.roi:
+        objects = [dict(name=f"roi{i}", roi=tuple(r)) for i, r in enumerate(a.roi)]
+    else:
+        objects = _raw_objects(a.raw) or [dict(name="image", roi=(0, views.shape[2], 0, views.shape[3]))]
+    mask = aperture_mask(views.shape[0], a.aperture)
+    t = time.perf_counter()
+    searches = [find_sharpest_slope(views, o["roi"], metric=a.metric, method=a.method, lo=a.lo, hi=a.hi, mask=mask)
+                for o in objects]
+    rows = []
+    for o, s in zip(objects, searches):
+        row = dict(object=o["name"], roi=" ".join(str(int(x)) for x in o["roi"]), slope=round(s.slope, 4))
+        if cam is not None:  # decoded views of a real camera: no optics, no depth
+            try:
+                row["depth_mm"] = round(cam.depth_for_slope(s.slope), 2)
+            except ValueError:
+                row["depth_mm"] = float("nan")
+        if "depth_offset_mm" in o:
+            row["true_depth_mm"] = o["depth_offset_mm"]
+            row["analytic_slope"] = round(cam.slope_for_depth(o["depth_offset_mm"]), 4)
+        rows.append(row)
+    df = pd.DataFrame(rows)
+    print(df.to_string(index=False))
+    print(f"searched {len(objects)} regions ({a.method}, {a.metric}) in {time.perf_counter() - t:.2f} s")
+    out = Path(a.out_prefix or Path(a.raw.split(".h5:")[0]).with_suffix(""))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    df.to_csv(f"{out}.slopes.csv", index=False)
+    plot_slope_curves([o["name"] for o in objects], searches, f"{out}.slopes.png", a.metric)
+    print(f"-> {out}.slopes.csv, {out}.slopes.png")
+
+
+def _calibrate_slopes(a):
+    from ..config import atomic_write_text, load_data_config
+    from ..dataset import calibrate_slopes
+    from ..evaluate import write_slopes
+    if not (a.data_config and a.out and a.results):
+        raise SystemExit("error: give RAW, or --data-config, --out and --results to calibrate the nominal scene")
+    cam, cfg = load_data_config(a.data_config)
+    t = time.perf_counter()
+    slopes, searches, objects = calibrate_slopes(cam, cfg.calibration_rays_per_pixel)
+    df = write_slopes(cam, slopes, searches, objects, a.results)
+    print(df.to_string(index=False))
+    atomic_write_text(a.out, json.dumps({"slopes": slopes, "wall_time_s": time.perf_counter() - t}))

@@ -1,0 +1,94 @@
+"""The ``profiles`` command: flame diagnostics per plane (:mod:`lf_flame.diagnostics`) of a
+stack refocused by any route; its figure is :func:`lf_flame.diagnostics.plot_profiles`.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ._io import _load_raw, _raw_objects
+from .learning import LEARNED_ROUTES, _learned_runner
+
+
+def _profiles_input(a):
+    """Camera, 4-plane stack, depths, slopes and flame objects (or None) for ``profiles``."""
+    from ..camera import PAPER_CAMERA
+    from ..refocus import aperture_mask, refocus
+    from ..scenes import PAPER_DEPTHS_MM
+    s = str(a.raw)
+    gt, objects, slopes = None, None, None
+    if ".h5:" in s:
+        from ..dataset import LightFieldDataset
+        f, i = s.rsplit(":", 1)
+        ds = LightFieldDataset(f)
+        raw, cam = ds.raw(int(i)), ds.camera
+        gt, objects, slopes = ds.gt(int(i)), ds.params(int(i)), ds.slopes
+    else:
+        raw, cam = _load_raw(a.raw)
+        objects = _raw_objects(a.raw)
+    cam = cam or PAPER_CAMERA
+    if objects is not None and not all("height_mm" in o for o in objects):
+        raise ValueError(f"{a.raw} does not hold a flame scene (its objects have no flame heights)")
+    depths = [float(o["depth_offset_mm"]) for o in objects] if objects else list(PAPER_DEPTHS_MM)
+    if a.slope:
+        slopes = a.slope
+    elif slopes is None:
+        slopes = [cam.slope_for_depth(d) for d in depths]
+    if len(slopes) != len(depths):
+        raise ValueError(f"need {len(depths)} slopes, one per plane. Received: {slopes}")
+    n = cam.pixels_per_lenslet
+    if a.route == "ground-truth":
+        if gt is None:
+            raise ValueError("--route ground-truth needs a dataset sample DATASET.h5:INDEX")
+        stack = gt
+    elif a.route in LEARNED_ROUTES:
+        if not a.model_dir:
+            raise ValueError(f"--route {a.route} needs --model-dir")
+        run, _ = _learned_runner(raw, cam, a.raw, a.model_dir, a.route)
+        stack = run(raw.astype(np.float32)[None, ..., None])
+    else:
+        kw = {"shift-sum": {}, "shift-sum-nearest": dict(interpolation="nearest"),
+              "fourier": dict(method="fourier")}[a.route]
+        stack = refocus(raw, slopes, n, aperture_mask(n, "circular"), **kw)
+    return cam, np.asarray(stack), depths, list(slopes), objects
+
+
+def cmd_profiles(a):
+    import pandas as pd
+    from ..config import atomic_write_text
+    from ..diagnostics import EmptyPlaneError, flame_truth, measure_flame, plot_profiles, score_stacks
+    cam, stack, depths, slopes, objects = _profiles_input(a)
+    if objects:
+        sample = int(str(a.raw).rsplit(":", 1)[1]) if ".h5:" in str(a.raw) else 0
+        df = score_stacks(stack[None], cam, [objects], samples=[sample], route=a.route)
+        df.insert(0, "plane", range(len(df)))
+        ms = []
+        for plane, o in zip(stack, objects):
+            try:
+                ms.append(measure_flame(plane, cam, o["depth_offset_mm"], columns=flame_truth(o)["columns"]))
+            except EmptyPlaneError:
+                ms.append(None)
+    else:
+        ms, rows = [], []
+        for k, (plane, d) in enumerate(zip(stack, depths)):
+            try:
+                m = measure_flame(plane, cam, d)
+                rows.append(dict(plane=k, route=a.route, depth_mm=d, **m.summary(), failure=""))
+            except EmptyPlaneError as e:
+                m = None
+                rows.append(dict(plane=k, route=a.route, depth_mm=d, failure=str(e)))
+            ms.append(m)
+        df = pd.DataFrame(rows)
+    df.insert(3, "slope", slopes)
+    out = Path(a.out)
+    atomic_write_text(f"{out}.csv", df.to_csv(index=False, float_format="%.5g"))
+    axial = pd.DataFrame([dict(plane=k, depth_mm=d, height_mm=h, intensity=v)
+                          for k, (m, d) in enumerate(zip(ms, depths)) if m is not None
+                          for h, v in zip(m.axial_height_mm, m.axial_intensity)])
+    atomic_write_text(f"{out}.axial.csv", axial.to_csv(index=False, float_format="%.5g"))
+    plot_profiles(f"{out}.png", cam, stack, depths, ms, objects, a.route)
+    cols = [c for c in ("depth_mm", "height_mm", "height_mm_true", "height_err_mm", "max_width_mm",
+                        "centroid_x_mm", "integrated_intensity", "failure") if c in df]
+    print(df[cols].to_string(index=False, float_format=lambda v: f"{v:.3f}"))
+    print(f"-> {out}.csv, {out}.axial.csv, {out}.png")

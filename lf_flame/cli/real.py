@@ -1,0 +1,53 @@
+"""Commands of real cameras: ``calibrate`` (:mod:`lf_flame.calibrate`) and ``decode``
+(:mod:`lf_flame.decode`).
+"""
+from __future__ import annotations
+
+import dataclasses
+import time
+from pathlib import Path
+
+
+def cmd_calibrate(a):
+    from ..calibrate import calibrate, file_digest, load_image
+    white = load_image(a.white)
+    dark = load_image(a.dark) if a.dark else None
+    t = time.perf_counter()
+    cal = calibrate(white, dark, layout=a.layout, camera_id=a.camera_id or "")
+    dt = time.perf_counter() - t
+    cal = dataclasses.replace(cal, white=file_digest(a.white), dark=file_digest(a.dark) if a.dark else None)
+    cal.save(a.out)
+    print(f"{cal.layout} grid: pitch {cal.pitch_px:.4f} px, rotation {cal.rotation_deg:+.4f}°, offset "
+          f"({cal.offset_px[0]:+.2f}, {cal.offset_px[1]:+.2f}) px, {cal.n_rows} x {cal.n_cols} lenslets decoded; "
+          f"fit residual {cal.residual_rms_px:.3f} px rms, {cal.residual_max_px:.3f} px max over "
+          f"{len(cal.lenslets)} of {cal.n_found} lenslet images; {dt:.2f} s -> {a.out}")
+
+
+def _calibration_file(info, kind, override):
+    """The white or dark image a calibration names, checked against its SHA-256."""
+    from ..calibrate import file_digest, load_image
+    if override:
+        return load_image(override)
+    if not info:
+        return None
+    p = Path(info["path"])
+    if not p.is_file():
+        raise FileNotFoundError(f"the calibration's {kind} image {p} is gone; give it with --{kind}")
+    if file_digest(p)["sha256"] != info["sha256"]:
+        raise ValueError(f"the calibration's {kind} image {p} has changed since the calibration")
+    return load_image(p)
+
+
+def cmd_decode(a):
+    from ..calibrate import GridCalibration, load_image
+    from ..decode import decode, save_views
+    cal = GridCalibration.load(a.calibration)
+    raw = load_image(a.raw)
+    white = None if a.no_white else _calibration_file(cal.white, "white", a.white)
+    dark = _calibration_file(cal.dark, "dark", a.dark)
+    t = time.perf_counter()
+    views = decode(raw, cal, white, dark, n_views=a.views, camera_id=a.camera_id)
+    dt = time.perf_counter() - t
+    save_views(a.out, views, cal, raw=str(Path(a.raw).resolve()), white_normalised=white is not None)
+    print(f"decoded {Path(a.raw).name} into {views.shape[0]} x {views.shape[1]} views of {views.shape[2]} x "
+          f"{views.shape[3]} lenslets in {dt:.2f} s -> {a.out}")
