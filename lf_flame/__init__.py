@@ -8,6 +8,7 @@ slope search), :mod:`~lf_flame.dataset` (HDF5 datasets), :mod:`~lf_flame.model`
 :mod:`~lf_flame.baselines` (mean image, linear decoders), :mod:`~lf_flame.closed_form`
 (the network's closed-form start), :mod:`~lf_flame.train` (the training run),
 :mod:`~lf_flame.model_files` (trained models loaded), :mod:`~lf_flame.evaluate`,
-:mod:`~lf_flame.diagnostics` (flame measurements), :mod:`~lf_flame.calibrate` (real cameras).
+:mod:`~lf_flame.diagnostics` (flame measurements), :mod:`~lf_flame.calibrate` and
+:mod:`~lf_flame.decode` (real cameras), :mod:`~lf_flame.cli` (the `lf-flame` command line).
 """
 __version__ = "0.1.0"

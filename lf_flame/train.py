@@ -180,11 +180,11 @@ def _start(ds, feats_path, model_cfg: ModelConfig, train_cfg: TrainConfig, label
 def train(dataset_path, out_dir, model_cfg: ModelConfig, train_cfg: TrainConfig, progress: bool = True) -> dict:
     """Train the decoder on a dataset's cached features; resumable.
 
-    Writes to ``out_dir``: ``decoder_best.weights.h5`` (lowest validation loss; its HDF5
+    Writes to ``out_dir``: ``decoder_best.weights.h5`` (highest validation SSIM; its HDF5
     attribute ``backbone_weights`` names the backbone), ``backbone.weights.h5`` (only for a
     random-init backbone), ``decoder_last.keras`` and
-    ``train_state.json`` (for resume), ``history.csv`` (loss, val_loss, val_ssim,
-    wall_time_s per epoch) and, last, ``train_info.json`` (configs, weights used, epochs,
+    ``train_state.json`` (for resume), ``history.csv`` (loss, val_loss, val_psnr_db,
+    val_ssim, wall_time_s per epoch; epoch 0 is the start) and, last, ``train_info.json`` (configs, weights used, epochs,
     wall time, provenance). A run started again in the same folder continues from the last
     complete epoch with the same split, data order and optimizer state.
 

@@ -45,7 +45,7 @@ def cmd_train(a):
         tcfg = dataclasses.replace(tcfg, time_budget_s={k: a.time_budget_s for k in tcfg.time_budget_s})
     info = train(a.dataset, a.out, mcfg, tcfg, progress=not a.quiet)
     print(f"trained {info['epochs_run']} epochs in {info['training_wall_time_s']:.0f} s "
-          f"(best val_loss {info['best_val_loss']:.5f}, backbone {info['backbone_weights']}) -> {a.out}")
+          f"(best validation SSIM {info['best_val_ssim']:.4f} at epoch {info['best_epoch']}, backbone {info['backbone_weights']}) -> {a.out}")
 
 
 #: ``--route`` names of the learned routes -> the names they carry in a model folder.
