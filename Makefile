@@ -18,7 +18,7 @@ SCENES := shapes flame
 # a second held-out set scored beside the test split: samples drawn like the dataset's but from
 # their own seed, which no dataset, training or choice uses (never stored, never seen)
 HELDOUT_paper := 20
-HELDOUT_quick := 2
+HELDOUT_quick := 4
 HELDOUT_SEED := 770077
 
 .PHONY: help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff heights test clean-quick

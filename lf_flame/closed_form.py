@@ -10,6 +10,7 @@ L-BFGS on the output-space MSE, one run per plane; then which layers the epochs 
 from __future__ import annotations
 
 import numpy as np
+from scipy.special import expit
 
 from .config import ModelConfig
 from .dataset import LightFieldDataset
@@ -104,7 +105,8 @@ def refine_dense(h_tr, y_tr, h_va, y_va, w, b, max_iter: int, patience: int | No
 
 
 def _sigmoid(z):
-    return 1 / (1 + np.exp(-z))
+    """σ(z) without overflow for large negative logits (the backgrounds' −9.2 and beyond)."""
+    return expit(z)
 
 
 def _refine_plane(h_tr, y_tr, h_va, gt_va, w, b, max_iter, patience):
