@@ -289,7 +289,7 @@ def test_closed_form_start_beats_the_mean_image_and_the_best_epoch_is_kept(flame
                  _experiment(tmp_path / "exp.toml", epochs=2), "--out", str(out), "--quiet"]) == 0
     info = json.loads((out / "train_info.json").read_text())
     h = pd.read_csv(out / "history.csv")
-    assert h.val_ssim.iloc[0] == pytest.approx(info["start_val_ssim"])
+    assert h.val_ssim.iloc[0] == pytest.approx(info["start_val_ssim"], abs=1e-12)
     # the start was solved on the pooled features in NumPy: the Keras network scores the same
     assert np.mean(info["start"]["val_ssim"]) == pytest.approx(h.val_ssim.iloc[0], abs=2e-3)
     assert info["start"]["val_loss"] == pytest.approx(h.val_loss.iloc[0]) and np.isfinite(h.loss.iloc[0])
@@ -299,13 +299,35 @@ def test_closed_form_start_beats_the_mean_image_and_the_best_epoch_is_kept(flame
     dec, _ = load_decoder(out)  # the best checkpoint: what evaluate and predict use
     assert dec.get_layer("bn1").moving_variance.numpy().mean() != 1.0  # population statistics, not the init
     ds = LightFieldDataset(flame_h5)
-    val, test = np.sort(ds.splits["val"]), np.sort(ds.splits["test"])
-    # the checkpoint kept scores, recomputed from its weights, the best validation SSIM of the history
-    kept = np.mean([ssim_per_plane(g, p) for g, p in zip(ds.gt(val), predict_features(dec, info["feature_cache"], val))])
-    assert kept == pytest.approx(h.val_ssim.max(), abs=1e-5)
+    test = np.sort(ds.splits["test"])
     # on samples that chose nothing (the test split), the network beats the mean image by a margin
     net = predict_features(dec, info["feature_cache"], test)
     mean = load_baselines(out)["mean image"].predict(load_features(info["feature_cache"], test))
     margin = [np.mean(ssim_per_plane(g, p)) - np.mean(ssim_per_plane(g, q))
               for g, p, q in zip(ds.gt(test), net, mean)]
     assert min(margin) > 0.02, margin
+
+
+def test_the_checkpoint_kept_is_the_best_epoch(flame_h5, tmp_path):
+    """Without the L-BFGS refinement the Dense layer's epochs improve the start a little
+    (about 1e-5 validation SSIM per epoch on the quick flames): the weights kept must be
+    the epoch with the best validation SSIM, recomputed from them, not the start."""
+    from lf_flame.dataset import LightFieldDataset
+    from lf_flame.features import predict_features
+    from lf_flame.metrics import ssim_per_plane
+    from lf_flame.model_files import load_decoder
+    exp = tmp_path / "exp.toml"
+    exp.write_text(EXPERIMENT.format(epochs=2, budget=600).replace("refine_iterations = { shapes = 5, flame = 5 }",
+                                                                   "refine_iterations = { shapes = 0, flame = 0 }"))
+    out = tmp_path / "model"
+    assert main(["train", "--dataset", str(flame_h5), "--experiment-config", str(exp), "--out", str(out),
+                 "--quiet"]) == 0
+    h = pd.read_csv(out / "history.csv")
+    best = int(h.val_ssim.idxmax())
+    assert best > 0, h.val_ssim.tolist()  # an epoch beat the start
+    dec, info = load_decoder(out)
+    assert info["best_epoch"] == best
+    ds = LightFieldDataset(flame_h5)
+    val = np.sort(ds.splits["val"])
+    kept = np.mean([ssim_per_plane(g, p) for g, p in zip(ds.gt(val), predict_features(dec, info["feature_cache"], val))])
+    assert kept == pytest.approx(h.val_ssim.iloc[best], abs=1e-9) and kept > h.val_ssim.iloc[0] + 1e-7
