@@ -87,8 +87,7 @@ def compute_features(ds: LightFieldDataset, cfg: ModelConfig, weights_spec: str,
                 raise FloatingPointError("backbone features are not finite in float16")
             d[s:s + len(idx)] = feats.astype(np.float16)
         f.attrs.update(dataset=str(ds.path), dataset_camera=ds.attrs["camera"], dataset_digest=ds.digest,
-                       weights=label, seed=seed,
-                       model_config=to_json(cfg), wall_time_s=time.perf_counter() - t0)
+                       weights=label, seed=seed, model_config=to_json(cfg), wall_time_s=time.perf_counter() - t0)
     os.replace(tmp, path)
     return path, label
 

@@ -2,7 +2,6 @@
 ray counts, refocusing edge inputs, paraxial validity, training targets at the range
 ends, determinism of whole datasets, disk full. Property tests use hypothesis."""
 import errno
-import json
 import os
 import subprocess
 import sys
