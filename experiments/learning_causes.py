@@ -32,8 +32,7 @@ import pandas as pd
 from lf_flame.config import load_experiment_config, provenance
 from lf_flame.dataset import LightFieldDataset
 from lf_flame.features import FeatureBatches, compute_features, predict_features
-from lf_flame.metrics import psnr_per_plane, ssim_per_plane
-from lf_flame.train import train
+from lf_flame.train import train, validation_scores
 
 VARIANTS = {
     "dense+refocused, dropout": (("dense", "refocused"), True),
@@ -46,11 +45,8 @@ VARIANTS = {
 def val_scores(decoder, feats, ds) -> dict:
     """Validation MSE, SSIM and PSNR (dB), means over samples and planes."""
     idx = np.sort(ds.splits["val"])
-    pred = np.clip(predict_features(decoder, feats, idx), 0, 1)
-    gt = ds.gt(idx)
-    return dict(val_mse=float(np.mean((pred - gt) ** 2)),
-                val_ssim=float(np.mean([ssim_per_plane(g, p) for g, p in zip(gt, pred)])),
-                val_psnr_db=float(np.mean([psnr_per_plane(g, p) for g, p in zip(gt, pred)])))
+    mse = float(np.mean((np.clip(predict_features(decoder, feats, idx), 0, 1) - ds.gt(idx)) ** 2))
+    return dict(val_mse=mse, **validation_scores(decoder, feats, ds, idx))
 
 
 def main(argv=None):

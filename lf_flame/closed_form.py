@@ -10,7 +10,7 @@ L-BFGS on the output-space MSE, one run per plane; then which layers the epochs 
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import expit
+from scipy.special import expit  # σ, without overflow for large negative logits
 
 from .config import ModelConfig
 from .dataset import LightFieldDataset
@@ -100,13 +100,8 @@ def refine_dense(h_tr, y_tr, h_va, y_va, w, b, max_iter: int, patience: int | No
         for key, v in zip(info, (its, kept, score)):
             info[key].append(v)
     z_va = h_va @ w + b
-    info.update(loss=sq_err / np.size(y_tr), val_loss=float(np.mean((_sigmoid(z_va) - y_va.reshape(len(y_va), -1)) ** 2)))
+    info.update(loss=sq_err / np.size(y_tr), val_loss=float(np.mean((expit(z_va) - y_va.reshape(len(y_va), -1)) ** 2)))
     return w, b, info
-
-
-def _sigmoid(z):
-    """σ(z) without overflow for large negative logits (the backgrounds' −9.2 and beyond)."""
-    return expit(z)
 
 
 def _refine_plane(h_tr, y_tr, h_va, gt_va, w, b, max_iter, patience):
@@ -125,11 +120,11 @@ def _refine_plane(h_tr, y_tr, h_va, gt_va, w, b, max_iter, patience):
 
     def val_score(x):
         wk, bk = unpack(x)
-        return mean_ssim(gt_va, _sigmoid(h_va @ wk + bk).reshape(gt_va.shape))
+        return mean_ssim(gt_va, expit(h_va @ wk + bk).reshape(gt_va.shape))
 
     def sse(x):
         wk, bk = unpack(x)
-        s = _sigmoid(h_tr @ wk + bk)
+        s = expit(h_tr @ wk + bk)
         r = s - y_tr
         return s, r, float((r ** 2).sum())
 
@@ -238,8 +233,9 @@ def closed_form_start(decoder, features_path, ds: LightFieldDataset, cfg: ModelC
         scale = np.ones(h_tr.shape[1])
     y = np.ascontiguousarray(np.transpose(ds.gt(tr), (0, 2, 3, 1)))  # (n, R, C, P): the Dense layout
     n_planes = y.shape[-1]
-    w, b, relative_alpha, scores = ridge_dense(h_tr, gauss_newton_targets(y, eps), h_va, ds.gt(va), scale, mean_ssim)
-    w, b, refined = refine_dense(h_tr, y.reshape(len(y), -1), h_va, np.transpose(ds.gt(va), (0, 2, 3, 1)),
+    gt_va = ds.gt(va)
+    w, b, relative_alpha, scores = ridge_dense(h_tr, gauss_newton_targets(y, eps), h_va, gt_va, scale, mean_ssim)
+    w, b, refined = refine_dense(h_tr, y.reshape(len(y), -1), h_va, np.transpose(gt_va, (0, 2, 3, 1)),
                                  w, b, max_iter)
     decoder.get_layer("dense").set_weights([w, b])
     k = np.zeros(decoder.get_layer("refocused").kernel.shape, np.float32)
@@ -311,7 +307,7 @@ def ridge_dense(h_tr, z_tr, h_va, gt_va, scale, score_plane):
 
     def predict(alpha):
         zv = path.predict(kq, alpha).reshape(len(h_va), *shape)
-        return np.transpose(_sigmoid(zv), (0, 3, 1, 2))
+        return np.transpose(expit(zv), (0, 3, 1, 2))
 
     rel = np.array([*RELATIVE_ALPHAS, np.inf])
     alphas, scores = choose_alpha_per_plane(predict, path.alpha_scale * rel, gt_va, score_plane)

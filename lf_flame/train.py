@@ -32,6 +32,23 @@ from .model import build_decoder
 from .model_files import save_random_backbone
 
 
+def validation_scores(decoder, features_path, ds: LightFieldDataset, indices) -> dict:
+    """The decoder's ``val_ssim`` and ``val_psnr_db`` (dB): means over the samples
+    ``indices`` and the planes, from cached features; what the learning curves log.
+
+    Parameters
+    ----------
+    decoder : keras.Model, features (h, w, 2048) -> planes (R, C, 4)
+    features_path : the dataset's feature cache
+    ds : the dataset (ground truth)
+    indices : sample indices (read in sorted order)
+    """
+    pred = np.clip(predict_features(decoder, features_path, indices), 0, 1)
+    gt = ds.gt(np.sort(np.asarray(indices)))
+    return dict(val_ssim=float(np.mean([ssim_per_plane(g, p) for g, p in zip(gt, pred)])),
+                val_psnr_db=float(np.mean([psnr_per_plane(g, p) for g, p in zip(gt, pred)])))
+
+
 class _WallClock(keras.callbacks.Callback):
     """Adds validation SSIM and PSNR (dB; means over samples and planes) and cumulative wall
     time to the epoch logs, and stops at the time budget: after an epoch, training stops
@@ -49,11 +66,7 @@ class _WallClock(keras.callbacks.Callback):
         self.t_epoch = time.perf_counter()
 
     def on_epoch_end(self, epoch, logs=None):
-        feats_path, ds, idx = self.val_data
-        pred = predict_features(self.model, feats_path, idx)
-        gts = [ds.gt(int(i)) for i in np.sort(idx)]
-        logs["val_ssim"] = float(np.mean([ssim_per_plane(g, p) for g, p in zip(gts, pred)]))
-        logs["val_psnr_db"] = float(np.mean([psnr_per_plane(g, np.clip(p, 0, 1)) for g, p in zip(gts, pred)]))
+        logs.update(validation_scores(self.model, *self.val_data))
         now = time.perf_counter()
         logs["wall_time_s"] = self.offset + now - self.t0
         self.longest = max(self.longest, now - self.t_epoch)
