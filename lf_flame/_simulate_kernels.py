@@ -111,7 +111,7 @@ def axis_coefficients(n_lenslets, n_pix, mla_pitch, pixel_pitch, sign, gap, lens
 
 @njit(parallel=True, cache=True, fastmath={'contract'})
 def render_backward(ky, kx, n_pix, radiance, alpha, layer_box, occlusion, aperture_radius, use_cos4, lenslet_span,
-                    rays_per_pixel, seed, out):
+                    rays_per_pixel, seed, out, adjoint, y_adj, grad):
     """Backward-trace ``rays_per_pixel`` rays per sensor pixel into a stack of layers.
 
     Every ray of pixel (i, j) has four sample coordinates: its start in the pixel
@@ -130,6 +130,17 @@ def render_backward(ky, kx, n_pix, radiance, alpha, layer_box, occlusion, apertu
     (``sum_k T_k L_k``, ``T_{k+1} = T_k (1 - alpha_k)``) when ``occlusion``, else summed
     (optically thin emitters). ``out`` (H, W) float32 receives the irradiance estimate:
     the mean over the rays times ``lenslet_span**2`` (the sampled area in lenslets).
+
+    ``adjoint`` False renders (``y_adj`` and ``grad`` unused: pass (1, 1) arrays).
+    ``adjoint`` True runs the transpose of the same linear map (``occlusion`` must be
+    False: only then is the image linear in ``radiance`` alone): every ray of pixel
+    (i, j) adds ``y_adj[i, j]`` (H, W) float64 times its weight to the texel it reads,
+    in ``grad`` (n_blocks, n_layers * rows * cols) float64, zeroed by the caller, one
+    row per parallel block of sensor rows (summed by the caller; a fixed block count
+    keeps the sum bit-identical at any thread count). Forward and adjoint are one
+    compiled function, so both compute every texel index with the same instructions:
+    the adjoint is exact, not an approximation (``lf_flame.reconstruct``). ``out`` and
+    ``radiance`` are not read then (``radiance`` gives the texture shape).
     """
     ky = ky.astype(np.float32)
     kx = kx.astype(np.float32)
@@ -170,8 +181,10 @@ def render_backward(ky, kx, n_pix, radiance, alpha, layer_box, occlusion, apertu
                 last = j
         col_lo[li] = first
         col_hi[li] = last + 1
-    n_blocks = min(H, 64)
+    n_blocks = grad.shape[0] if adjoint else min(H, 64)
     for b in prange(n_blocks):
+        g = grad[b] if adjoint else grad[0]
+        gw = np.zeros(W)
         rot = np.empty((4, W), np.float32)
         du_y = np.empty(W, np.float32)
         du_x = np.empty(W, np.float32)
@@ -235,6 +248,9 @@ def render_backward(ky, kx, n_pix, radiance, alpha, layer_box, occlusion, apertu
                         tx = kx[1, 0, j] + kx[1, 1, j] * du_x[j] + kx[1, 2, j] * da_x[j] + kx[1, 3, j] * o_x[j]
                         t2 = one + ty * ty + tx * tx
                         wgt[j] *= one / (t2 * t2)
+                if adjoint:
+                    for j in range(W):
+                        gw[j] = wgt[j] * y_adj[i, j] * scale
                 for li in range(n_layers):
                     q = 2 + li
                     a0, a1, a2, a3 = ky[q, 0, i], ky[q, 1, i], ky[q, 2, i], ky[q, 3, i]
@@ -260,6 +276,11 @@ def render_backward(ky, kx, n_pix, radiance, alpha, layer_box, occlusion, apertu
                             fc = c0[j] + c1[j] * dxx[j] + c2[j] * axx[j]
                             inside[j] = one if (fr >= zero) & (fr < trf) & (fc >= zero) & (fc < tcf) else zero
                             texel[j] = off + np.int32(min(max(fr, zero), tr_max)) * tc + np.int32(min(max(fc, zero), tc_max))
+                    if adjoint:
+                        gg = gw[j0:j1]
+                        for j in range(n):
+                            g[texel[j]] += inside[j] * gg[j]
+                        continue
                     vv = val[j0:j1]
                     for j in range(n):
                         texv[j] = rad[texel[j]]
@@ -274,10 +295,12 @@ def render_backward(ky, kx, n_pix, radiance, alpha, layer_box, occlusion, apertu
                     else:
                         for j in range(n):
                             vv[j] += inside[j] * texv[j]
+                if not adjoint:
+                    for j in range(W):
+                        acc[j] += wgt[j] * val[j]
+            if not adjoint:
                 for j in range(W):
-                    acc[j] += wgt[j] * val[j]
-            for j in range(W):
-                out[i, j] = acc[j] * scale
+                    out[i, j] = acc[j] * scale
 
 
 @njit(parallel=True, cache=True)

@@ -29,6 +29,9 @@ from .optics import RayTransferMatrix, free_space
 from .scenes import Scene
 
 
+_UNUSED = np.zeros((1, 1))  # the kernel's adjoint buffers, when rendering
+
+
 def _stack_layers(camera: PlenopticCamera, scene: Scene):
     if not scene.layers:
         raise ValueError(f"scene {scene.name!r} has no layers")
@@ -159,7 +162,8 @@ def render(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16, seed
     out = np.empty(camera.sensor_shape, dtype=np.float32)
     _simulate_kernels.render_backward(ky, kx, camera.pixels_per_lenslet, rad, alpha, content_box(rad, alpha),
                              bool(fx.occlusion), camera.aperture_diameter_mm / 2 if fx.aperture else -1.0,
-                             bool(fx.cos4), 3 if fx.crosstalk else 1, int(rays_per_pixel), int(seed), out)
+                             bool(fx.cos4), 3 if fx.crosstalk else 1, int(rays_per_pixel), int(seed), out,
+                             False, _UNUSED, _UNUSED)
     return apply_sensor(out, fx, seed)
 
 

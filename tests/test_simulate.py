@@ -205,7 +205,8 @@ def test_content_culling_is_exact(small_camera):
     outs = []
     for b in (box, full):
         out = np.empty(cam.sensor_shape, np.float32)
-        _simulate_kernels.render_backward(ky, kx, cam.pixels_per_lenslet, rad, alpha, b, True, 38.9, True, 1, 4, 0, out)
+        _simulate_kernels.render_backward(ky, kx, cam.pixels_per_lenslet, rad, alpha, b, True, 38.9, True, 1, 4, 0, out,
+                                          False, np.zeros((1, 1)), np.zeros((1, 1)))
         outs.append(out)
     assert np.array_equal(*outs)
 

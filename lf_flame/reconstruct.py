@@ -1,0 +1,443 @@
+"""3-D emission reconstruction: each plane's own light, not its blurred focal stack.
+
+The one place for reconstruction (issue 25). A refocused plane is the plane in focus
+plus every other plane's defocused light; flames are optically thin (they emit and do
+not occlude), so a light field is a *linear* function of the emission on the planes.
+With its ray samples fixed, the simulator's backward tracer (:func:`lf_flame.simulate.render`,
+kernel :func:`lf_flame._simulate_kernels.render_backward`) *is* that linear map ``A``,
+from emission on ``P`` planes to sub-aperture views. :class:`EmissionOperator` wraps it
+and its exact transpose (the same kernel scattering each pixel's value back to the
+texels its rays read) as a :class:`pylops.LinearOperator`; the solvers are PyLops's and
+PyProximal's (:func:`reconstruct`).
+
+The grid of each plane (:func:`plane_grid`): one sample per lenslet footprint at the
+plane's depth, ``p z / d`` mm (:func:`lf_flame.diagnostics.lenslet_size_mm`), over the
+lenslet grid's field of view there. That is the resolution a plenoptic 1.0 camera
+samples an in-focus plane at (one ray bundle per lenslet), and on it the refocused
+plane and the reconstructed plane share pixels, so every diagnostic reads both.
+
+Sources: the forward model is the paper's ray-transfer-matrix camera (Eq. 1, SPEC.md);
+light-field tomography of flames by ray tracing + (damped) LSQR: Sun, Hossain, Xu et
+al., Opt. Commun. 390 (2017); SIRT / Chambolle-Pock with TV and non-negativity:
+Viganò et al., Opt. Express (2018) (plenoptomos); Richardson-Lucy as in LF microscopy
+(Broxton et al., Opt. Express 21 (2013); napari-LF).
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pylops
+import pyproximal
+from pylops.optimization.basic import lsqr
+from pyproximal.optimization.primal import ProximalGradient
+from pyproximal.optimization.primaldual import PrimalDual
+from tqdm.auto import tqdm
+
+from . import _simulate_kernels
+from .camera import PlenopticCamera
+from .scenes import Effects, Layer, Scene
+from .refocus import raw_to_views, views_to_raw
+from .simulate import _stack_layers, _validate_sampling, trace_coefficients
+
+#: Parallel blocks of sensor rows of the adjoint, each scattering into its own buffer:
+#: fixed, so the adjoint's sum is bit-identical at any thread count.
+ADJOINT_BLOCKS = 8
+#: The flame scenes' effects (optically thin emitters seen through the aperture, cos^4).
+FLAME_EFFECTS = Effects(aperture=True, cos4=True, occlusion=False)
+
+
+def plane_grid(camera: PlenopticCamera, depth_offset_mm: float, margin: float = 1.0):
+    """Frame (height, width) in mm of the reconstruction grid of the plane at ``dz``.
+
+    The grid has ``(n_rows, n_cols)`` samples (one per lenslet) over the lenslet grid's
+    field of view at that depth (:meth:`~lf_flame.camera.PlenopticCamera.field_of_view_mm`)
+    times ``margin``, centred on the optical axis.
+
+    Raises
+    ------
+    ValueError
+        A depth that is not finite or lies at or inside the main lens's focal length.
+    """
+    dz = float(depth_offset_mm)
+    if not math.isfinite(dz):
+        raise ValueError(f"plane depth must be finite. Received: {depth_offset_mm!r}")
+    z = camera.object_distance_mm(dz)
+    if z <= camera.main_focal_mm:
+        raise ValueError(f"a plane at {dz:+g} mm (object distance {z:g} mm) lies at or inside the main lens's "
+                         f"focal length {camera.main_focal_mm:g} mm: the camera cannot image it")
+    h, w = camera.field_of_view_mm(dz)
+    return h * margin, w * margin
+
+
+class EmissionOperator(pylops.LinearOperator):
+    """The light field as a linear map of the emission on ``P`` planes (matrix-free).
+
+    ``A x`` renders sub-aperture views of ``x`` with the simulator's backward tracer
+    (the same kernel and the same rays as :func:`lf_flame.simulate.render`, noise-free,
+    no saturation); ``A^T y`` is its exact transpose: the same rays carry each view
+    pixel's value back to the texels they read, with the same weights (aperture,
+    cos^4, crosstalk). Both are float64 at the interface, float32 radiance inside (as
+    the renderer).
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+        A perfect lenslet grid (square, unrotated, integer pitch).
+    depths_mm : sequence of float
+        Depth offsets (mm from the focal plane, > 0 farther) of the ``P`` planes.
+    grid_shape : (int, int) or None
+        Samples (rows, columns) of every plane; None: ``(n_rows, n_cols)``, one per lenslet.
+    sizes_mm : sequence of P (float, float) or None
+        Height and width (mm) each plane's grid covers; None: :func:`plane_grid` with ``margin``.
+    centres_mm : sequence of P (float, float) or None
+        Centre (y up, x right; mm) of each grid; None: the optical axis.
+    margin : float
+        Field-of-view factor of the default grids.
+    effects : Effects
+        What the camera does to each ray (aperture, cos^4, crosstalk); occlusion must be
+        off (the map is linear in emission only for optically thin scenes).
+    rays_per_pixel, seed : int
+        The renderer's ray samples (:func:`lf_flame.simulate.render`).
+
+    Attributes
+    ----------
+    dims : (P, rows, cols)
+        Model shape (axis order: plane as ``depths_mm``, then rows down, columns right).
+    dimsd : (N, N, R, C)
+        Data shape: the views of :func:`lf_flame.refocus.raw_to_views`.
+
+    Raises
+    ------
+    ValueError
+        A non-perfect lenslet grid, no planes, a plane the camera cannot image, a
+        non-positive grid, occlusion on, bad sampling.
+
+    Notes
+    -----
+    One matvec costs one render of ``x`` (its content box culled, exactly); one rmatvec
+    the same rays again, scattering into :data:`ADJOINT_BLOCKS` buffers.
+    ``pylops.utils.dottest`` holds to float rounding (``tests/test_reconstruct.py``).
+    """
+
+    def __init__(self, camera: PlenopticCamera, depths_mm, *, grid_shape=None, sizes_mm=None, centres_mm=None,
+                 margin: float = 1.0, effects: Effects = FLAME_EFFECTS, rays_per_pixel: int = 4, seed: int = 0):
+        if not camera.perfect_grid:
+            raise ValueError("the emission operator needs a perfect lenslet grid (square, unrotated, integer "
+                             "pitch); decode the capture to such views first (lf_flame.decode)")
+        if effects.occlusion:
+            raise ValueError("occlusion makes the light field non-linear in the emission: flames are optically "
+                             "thin, set Effects(occlusion=False)")
+        depths = [float(d) for d in np.atleast_1d(np.asarray(depths_mm, dtype=np.float64))]
+        if not depths:
+            raise ValueError("depths_mm is empty: give at least one plane")
+        gr, gc = (camera.n_rows, camera.n_cols) if grid_shape is None else (int(v) for v in grid_shape)
+        if gr < 1 or gc < 1:
+            raise ValueError(f"grid_shape must be positive. Received: {grid_shape!r}")
+        sizes = [plane_grid(camera, d, margin) for d in depths] if sizes_mm is None else list(sizes_mm)
+        centres = [(0.0, 0.0)] * len(depths) if centres_mm is None else list(centres_mm)
+        if len(sizes) != len(depths) or len(centres) != len(depths):
+            raise ValueError(f"{len(depths)} depths but {len(sizes)} sizes and {len(centres)} centres")
+        zero = np.zeros((gr, gc), np.float32)
+        scene = Scene("operator", tuple(Layer(zero, None, d, tuple(c), tuple(s))
+                                        for d, s, c in zip(depths, sizes, centres)), effects)
+        _validate_sampling(rays_per_pixel, seed)
+        for d in depths:
+            plane_grid(camera, d)          # raises for a plane the camera cannot image
+        layers, z, _, _ = _stack_layers(camera, scene)   # nearest first
+        order = sorted(range(len(depths)), key=lambda k: depths[k])
+        self._ky, self._kx = trace_coefficients(camera, layers, z)
+        self._order = np.asarray(order)    # kernel layer j is plane order[j]
+        self.camera, self.effects = camera, effects
+        self.depths_mm = tuple(depths)
+        self.sizes_mm = tuple(tuple(float(v) for v in s) for s in sizes)
+        self.centres_mm = tuple(tuple(float(v) for v in c) for c in centres)
+        self.rays_per_pixel, self.seed = int(rays_per_pixel), int(seed)
+        n = camera.pixels_per_lenslet
+        super().__init__(dtype=np.float64, dims=(len(depths), gr, gc), dimsd=(n, n, camera.n_rows, camera.n_cols))
+
+    # ---- the kernel, both ways ----------------------------------------------------
+    def _kernel(self, rad, box, adjoint, y_raw, grad):
+        fx, cam = self.effects, self.camera
+        out = np.empty(cam.sensor_shape, np.float32)
+        _simulate_kernels.render_backward(
+            self._ky, self._kx, cam.pixels_per_lenslet, rad, np.zeros((1, 1, 1), np.float32), box, False,
+            cam.aperture_diameter_mm / 2 if fx.aperture else -1.0, bool(fx.cos4), 3 if fx.crosstalk else 1,
+            self.rays_per_pixel, self.seed, out, adjoint, y_raw, grad)
+        return out
+
+    def _matvec(self, x):
+        P, gr, gc = self.dims
+        rad = np.ascontiguousarray(np.reshape(x, self.dims)[self._order], dtype=np.float32)
+        nz = rad != 0
+        box = np.zeros((P, 4), np.int64)
+        for k in range(P):
+            rows, cols = np.flatnonzero(nz[k].any(axis=1)), np.flatnonzero(nz[k].any(axis=0))
+            if rows.size:
+                box[k] = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+        raw = self._kernel(rad, box, False, np.zeros((1, 1)), np.zeros((1, 1)))
+        return raw_to_views(raw, self.camera.pixels_per_lenslet).astype(np.float64).ravel()
+
+    def _rmatvec(self, y):
+        P, gr, gc = self.dims
+        raw = views_to_raw(np.reshape(np.asarray(y, np.float64), self.dimsd))
+        grad = np.zeros((ADJOINT_BLOCKS, P * gr * gc))
+        box = np.tile(np.array([0, gr, 0, gc], np.int64), (P, 1))
+        self._kernel(np.zeros((P, gr, gc), np.float32), box, True, raw, grad)
+        out = np.empty((P, gr, gc))
+        out[self._order] = grad.sum(axis=0).reshape(P, gr, gc)
+        return out.ravel()
+
+    def normalised_adjoint(self, views) -> np.ndarray:
+        """``A^T y / A^T 1``: each sample's mean over the rays that read it, a refocused stack.
+
+        Parameters
+        ----------
+        views : ndarray of shape (N, N, R, C)
+
+        Returns
+        -------
+        planes : ndarray of shape (P, rows, cols), float64; 0 where no ray reaches a sample.
+        """
+        num = self.rmatvec(np.asarray(views, np.float64).ravel())
+        den = self.rmatvec(np.ones(self.shape[0]))
+        return np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0).reshape(self.dims)
+
+
+# ---- the truth on a reconstruction grid ----------------------------------------------
+def _overlap(src_edges: np.ndarray, dst_edges: np.ndarray) -> np.ndarray:
+    """(n_dst, n_src) fraction of each destination cell covered by each source cell
+    (1-D, both edge arrays increasing)."""
+    lo = np.maximum(dst_edges[:-1, None], src_edges[None, :-1])
+    hi = np.minimum(dst_edges[1:, None], src_edges[None, 1:])
+    return np.clip(hi - lo, 0.0, None) / np.diff(dst_edges)[:, None]
+
+
+def resample_layer(layer: Layer, shape, size_mm, centre_mm=(0.0, 0.0)) -> np.ndarray:
+    """A layer's radiance averaged over the cells of another grid (area-weighted, exact).
+
+    The renderer reads a texture as piecewise constant (nearest texel), so the average
+    of its texels over a cell, weighted by the area they share, is the cell's emission.
+
+    Parameters
+    ----------
+    layer : Layer
+        Texture (rows, cols) over ``layer.size_mm`` about ``layer.centre_mm``.
+    shape : (int, int)
+        Cells (rows, columns) of the grid.
+    size_mm, centre_mm : (float, float)
+        Height and width, and centre (y up, x right), of the grid in mm.
+
+    Returns
+    -------
+    ndarray of shape ``shape``, float64: mean radiance per cell (0 outside the layer).
+    """
+    (tr, tc), (gr, gc) = layer.radiance.shape, shape
+    # both grids' edges in mm, rows measured downward from the top so the edges increase
+    src_y = np.linspace(-(layer.centre_mm[0] + layer.size_mm[0] / 2), -(layer.centre_mm[0] - layer.size_mm[0] / 2), tr + 1)
+    src_x = np.linspace(layer.centre_mm[1] - layer.size_mm[1] / 2, layer.centre_mm[1] + layer.size_mm[1] / 2, tc + 1)
+    dst_y = np.linspace(-(centre_mm[0] + size_mm[0] / 2), -(centre_mm[0] - size_mm[0] / 2), gr + 1)
+    dst_x = np.linspace(centre_mm[1] - size_mm[1] / 2, centre_mm[1] + size_mm[1] / 2, gc + 1)
+    return _overlap(src_y, dst_y) @ layer.radiance.astype(np.float64) @ _overlap(src_x, dst_x).T
+
+
+def scene_truth(scene: Scene, op: EmissionOperator) -> np.ndarray:
+    """The emission of ``scene`` on the operator's planes: the truth a reconstruction is scored on.
+
+    A scene layer at one of the operator's depths gives that plane its radiance
+    (:func:`resample_layer`). Layers between two planes (a volume sampled finer than the
+    planes) are shared between the two nearest planes linearly in depth (each plane
+    stands for the slab around it); layers outside the planes' range go to the nearest.
+
+    Returns
+    -------
+    ndarray of shape ``op.dims`` (P, rows, cols), float64.
+    """
+    d = np.asarray(op.depths_mm)
+    order = np.argsort(d)
+    ds = d[order]
+    truth = np.zeros(op.dims)
+    for L in scene.layers:
+        k = int(np.searchsorted(ds, L.depth_offset_mm))
+        if k == 0 or k == len(ds) or np.isclose(ds[min(k, len(ds) - 1)], L.depth_offset_mm):
+            shares = [(order[min(k, len(ds) - 1)], 1.0)]
+        else:
+            f = (L.depth_offset_mm - ds[k - 1]) / (ds[k] - ds[k - 1])
+            shares = [(order[k - 1], 1.0 - f), (order[k], f)]
+        for p, wgt in shares:
+            truth[p] += wgt * resample_layer(L, op.dims[1:], op.sizes_mm[p], op.centres_mm[p])
+    return truth
+
+
+# ---- solvers ---------------------------------------------------------------------------
+#: Solvers of :func:`reconstruct`; "adjoint" is plain refocusing (the baseline).
+SOLVERS = ("adjoint", "lsqr", "fista", "pd-tv", "rl")
+#: Iterations each solver runs unless told (chosen on validation renders, ``make reconstruct``).
+DEFAULT_ITERS = {"adjoint": 0, "lsqr": 30, "fista": 30, "pd-tv": 60, "rl": 15}
+
+
+@dataclass
+class Reconstruction:
+    """Emission on planes recovered from one light field (:func:`reconstruct`).
+
+    Attributes
+    ----------
+    planes : ndarray of shape (P, rows, cols), float64
+        Emission (the scene's radiance units) on each plane, rows down, columns right.
+    depths_mm : tuple of P float
+        Depth offset of each plane (mm from the focal plane).
+    sample_mm : tuple of P (float, float)
+        Size (height, width) of one grid sample on each plane, mm.
+    solver : str
+    settings : dict
+        The solver's knobs (iterations, damping, TV weight, step, rays per pixel, seed).
+    residuals : ndarray of shape (n,)
+        Relative data residual ``||A x - y|| / ||y||`` per iteration (for FISTA and the
+        primal-dual solver at the point where the gradient is taken).
+    time_s : float
+        Wall time of the solve (the operator built, the step size found, the iterations).
+    """
+
+    planes: np.ndarray
+    depths_mm: tuple
+    sample_mm: tuple
+    solver: str
+    settings: dict = field(default_factory=dict)
+    residuals: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    time_s: float = 0.0
+
+
+class _TrackedL2(pyproximal.L2):
+    """``1/2 ||A x - b||^2`` that records the relative residual at every gradient it gives."""
+
+    def __init__(self, Op, b, bar=None):
+        super().__init__(Op=Op, b=b)
+        self.history, self._norm, self._bar = [], float(np.linalg.norm(b)) or 1.0, bar
+
+    def grad(self, x):
+        r = self.Op.matvec(x) - self.b
+        self.history.append(float(np.linalg.norm(r)) / self._norm)
+        if self._bar is not None:
+            self._bar.update()
+        return self.Op.rmatvec(r)
+
+
+def lipschitz_bound(op: EmissionOperator) -> float:
+    """Upper bound of ``||A||^2`` (the gradient's Lipschitz constant of ``1/2 ||A x - y||^2``).
+
+    Every entry of ``A`` is non-negative, so ``||A||_2^2 <= ||A||_1 ||A||_inf`` = (largest
+    column sum) x (largest row sum) (Schur's test; Horn & Johnson, Matrix Analysis,
+    5.6.P) from one ``A^T 1`` and one ``A 1``. On the paper's camera it is 1.2x the
+    largest singular value squared found by power iteration, at a tenth of its cost.
+    """
+    return float(op.rmatvec(np.ones(op.shape[0])).max() * op.matvec(np.ones(op.shape[1])).max())
+
+
+def check_views(views, op: EmissionOperator) -> np.ndarray:
+    """Views as float64 of the operator's data shape, or a ValueError naming the problem."""
+    v = np.asarray(views)
+    if v.shape != tuple(op.dimsd):
+        raise ValueError(f"views of shape {v.shape} do not come from this camera: its views are {tuple(op.dimsd)} "
+                         "(N, N, n_rows, n_cols)")
+    if not np.issubdtype(v.dtype, np.number):
+        raise ValueError(f"views must hold numbers. Received: dtype {v.dtype}")
+    v = v.astype(np.float64)
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"views contain {int(np.sum(~np.isfinite(v)))} NaN or infinite values")
+    return v
+
+
+def reconstruct(views, op: EmissionOperator, solver: str = "fista", iters: int | None = None, *,
+                damp: float = 0.0, tv: float = 0.0, progress: bool = False) -> Reconstruction:
+    """Recover the emission on the operator's planes from one light field.
+
+    Parameters
+    ----------
+    views : ndarray of shape (N, N, R, C)
+        Sub-aperture views (:func:`lf_flame.refocus.raw_to_views`), radiance units.
+    op : EmissionOperator
+        The camera and the planes (their depths and grids).
+    solver : str
+        One of :data:`SOLVERS`:
+
+        - ``"adjoint"``: ``A^T y / A^T 1``, plain refocusing through the same rays (no iterations).
+        - ``"lsqr"``: damped LSQR (Tikhonov, ``damp``), PyLops; may go negative.
+        - ``"fista"``: accelerated proximal gradient on ``1/2 ||A x - y||^2`` with
+          non-negativity (``pyproximal.Box(lower=0)``), step ``1 / L``
+          (:func:`lipschitz_bound`); Beck & Teboulle, SIAM J. Imaging Sci. 2 (2009).
+        - ``"pd-tv"``: PyProximal's primal-dual (Chambolle & Pock, J. Math. Imaging Vis.
+          40 (2011)) on ``1/2 ||A x - y||^2 + tv sum ||grad x_k||`` (isotropic TV per
+          plane) with ``x >= 0``.
+        - ``"rl"``: Richardson-Lucy, ``x <- x A^T(y / A x) / A^T 1`` (the light-field
+          microscopy default, 15 iterations; Broxton et al. 2013), non-negative.
+    iters : int or None
+        Iterations; None: :data:`DEFAULT_ITERS`.
+    damp, tv : float
+        LSQR's damping and the TV weight (>= 0); ignored by the other solvers.
+    progress : bool
+        A tqdm bar over the iterations.
+
+    Returns
+    -------
+    Reconstruction
+
+    Raises
+    ------
+    ValueError
+        An unknown solver, negative iterations or weights, views of another camera
+        (shape), NaN or inf in the views.
+    """
+    if solver not in SOLVERS:
+        raise ValueError(f"solver must be one of {SOLVERS}. Received: {solver!r}")
+    iters = DEFAULT_ITERS[solver] if iters is None else int(iters)
+    if iters < 0 or damp < 0 or tv < 0 or not (math.isfinite(damp) and math.isfinite(tv)):
+        raise ValueError(f"iters, damp and tv must be finite and >= 0. Received: {iters}, {damp}, {tv}")
+    y = check_views(views, op).ravel()
+    t0 = time.perf_counter()
+    n = op.shape[1]
+    settings = dict(iters=iters, rays_per_pixel=op.rays_per_pixel, seed=op.seed)
+    bar = tqdm(total=iters, desc=f"reconstruct ({solver})", unit="it", disable=not progress)
+    norm = float(np.linalg.norm(y)) or 1.0
+    residuals = []
+    if solver == "adjoint":
+        x = op.normalised_adjoint(y.reshape(op.dimsd)).ravel()
+        residuals = [float(np.linalg.norm(op.matvec(x) - y)) / norm]
+    elif solver == "lsqr":
+        settings["damp"] = damp
+        out = lsqr(op, y, np.zeros(n), damp=damp, niter=iters, calc_var=False, callback=lambda _: bar.update())
+        x = np.ravel(out[0])
+        residuals = np.asarray(out[-1])[1:] / norm   # LSQR's own ||A x - y|| estimate per iteration
+    elif solver == "fista":
+        settings["step"] = tau = 1.0 / lipschitz_bound(op)
+        f = _TrackedL2(op, y, bar)
+        x = ProximalGradient(f, pyproximal.Box(lower=0.0), np.zeros(n), tau=tau, niter=iters, acceleration="fista")
+        residuals = f.history
+    elif solver == "pd-tv":
+        P, gr, gc = op.dims
+        grad = pylops.VStack([pylops.FirstDerivative(op.dims, axis=a, edge=True, kind="forward") for a in (1, 2)])
+        K = pylops.VStack([op, grad])
+        L = lipschitz_bound(op) + 8.0                   # ||grad||^2 <= 8 (forward differences, 2-D)
+        tau = mu = 0.99 / math.sqrt(L)
+        g = pyproximal.VStack([pyproximal.L2(b=y), pyproximal.L21(ndim=2, sigma=tv)], nn=[op.shape[0], 2 * n])
+        settings.update(tv=tv, step=tau)
+
+        def track(xk):  # the primal-dual iteration exposes no residual: one more matvec each
+            residuals.append(float(np.linalg.norm(op.matvec(xk) - y)) / norm)
+            bar.update()
+        x = PrimalDual(pyproximal.Box(lower=0.0), g, K, np.zeros(n), tau=tau, mu=mu, niter=iters, callback=track)
+    else:  # rl
+        ones = op.rmatvec(np.ones(op.shape[0]))
+        seen = ones > 0
+        yp = np.clip(y, 0.0, None)
+        x = np.full(n, max(float(yp.mean()), 1e-12))   # a flat start, the data's mean level
+        for _ in range(iters):
+            ax = op.matvec(x)
+            residuals.append(float(np.linalg.norm(ax - y)) / norm)
+            x = np.where(seen, x * op.rmatvec(yp / np.maximum(ax, 1e-12)) / np.where(seen, ones, 1.0), 0.0)
+            bar.update()
+    bar.close()
+    sample = tuple((h / op.dims[1], w / op.dims[2]) for h, w in op.sizes_mm)
+    return Reconstruction(np.asarray(x).reshape(op.dims), op.depths_mm, sample, solver, settings,
+                          np.asarray(residuals, np.float64), time.perf_counter() - t0)

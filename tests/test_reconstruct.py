@@ -1,0 +1,126 @@
+"""The emission operator (the simulator as a linear map), its exact adjoint, and the solvers."""
+import numpy as np
+import pylops
+import pytest
+
+from lf_flame import refocus, scenes, simulate
+from lf_flame.camera import PlenopticCamera
+from lf_flame.reconstruct import EmissionOperator, reconstruct, scene_truth
+
+PAPER_DEPTHS = (20.0, 10.0, 0.0, -10.0)
+
+
+@pytest.fixture(scope="module")
+def tiny_camera():
+    """The paper's optics, 5 pixels per lenslet, 24 x 16 lenslets: dottests in a second."""
+    return PlenopticCamera(n_rows=24, n_cols=16, pixels_per_lenslet=5)
+
+
+@pytest.mark.parametrize("depths", [PAPER_DEPTHS, (35.0,), (-25.0, 3.0, 41.0), tuple(np.linspace(-30, 40, 32))],
+                         ids=["paper", "one", "others", "32-planes"])
+def test_the_adjoint_passes_the_dot_test(tiny_camera, depths):
+    op = EmissionOperator(tiny_camera, depths, rays_per_pixel=2)
+    assert pylops.utils.dottest(op, *op.shape, rtol=1e-6, raiseerror=False)
+
+
+@pytest.mark.parametrize("effects", [scenes.Effects(aperture=False, cos4=False, occlusion=False, crosstalk=True)],
+                         ids=["crosstalk"])
+def test_the_adjoint_passes_the_dot_test_with_other_effects(tiny_camera, effects):
+    op = EmissionOperator(tiny_camera, PAPER_DEPTHS, effects=effects, rays_per_pixel=3, seed=7)
+    assert pylops.utils.dottest(op, *op.shape, rtol=1e-6, raiseerror=False)
+
+
+def test_the_adjoint_is_the_transpose_entry_by_entry(tiny_camera):
+    """<e_p, A e_t> = <A^T e_p, e_t> for single texels and pixels: the same rays both ways."""
+    op = EmissionOperator(tiny_camera, (10.0, -5.0), rays_per_pixel=4)
+    texels = range(0, op.shape[1], 97)
+    A_t = np.stack([op.matvec(np.eye(1, op.shape[1], k).ravel()) for k in texels], axis=1)  # columns of A
+    pixels = np.flatnonzero(A_t.any(axis=1))[:20]
+    AT_p = np.stack([op.rmatvec(np.eye(1, op.shape[0], k).ravel())[::97] for k in pixels])  # rows of A
+    assert A_t[pixels].max() > 0
+    np.testing.assert_allclose(AT_p, A_t[pixels], rtol=1e-6, atol=1e-9)
+
+
+def test_the_operator_renders_a_scene_as_the_simulator_does(small_camera):
+    scene = scenes.flame_scene(small_camera, np.random.default_rng(3), regime="varied")
+    L = scene.layers
+    op = EmissionOperator(small_camera, [l.depth_offset_mm for l in L], grid_shape=L[0].radiance.shape,
+                          sizes_mm=[l.size_mm for l in L], centres_mm=[l.centre_mm for l in L], effects=scene.effects,
+                          rays_per_pixel=4, seed=11)
+    views = op.matvec(np.stack([l.radiance for l in L]).astype(np.float64).ravel()).reshape(op.dimsd)
+    rendered = refocus.raw_to_views(simulate.render(small_camera, scene, 4, 11), small_camera.pixels_per_lenslet)
+    assert rendered.max() > 0.1
+    np.testing.assert_allclose(np.clip(views, 0, 1), rendered, rtol=0, atol=1e-6)  # the renderer saturates at 1
+
+
+@pytest.fixture(scope="module")
+def planted(tiny_camera):
+    """Two planes 30 mm apart, a planted emission on the operator's own grid, noise-free data."""
+    op = EmissionOperator(tiny_camera, (20.0, -10.0), rays_per_pixel=4)
+    x = np.zeros(op.dims)
+    x[0, 4:12, 3:6] = 0.8
+    x[1, 10:20, 8:13] = np.linspace(0.2, 1.0, 10)[:, None]
+    return op, x, op.matvec(x.ravel()).reshape(op.dimsd)
+
+
+@pytest.mark.parametrize("solver,iters", [("fista", 300), ("lsqr", 100)])
+def test_a_planted_emission_is_recovered_to_one_percent(planted, solver, iters):
+    op, x, views = planted
+    r = reconstruct(views, op, solver, iters)
+    err = [np.linalg.norm(r.planes[k] - x[k]) / np.linalg.norm(x[k]) for k in range(2)]
+    assert max(err) < 0.01, err
+    plain = reconstruct(views, op, "adjoint").planes
+    assert min(np.linalg.norm(plain[k] - x[k]) / np.linalg.norm(x[k]) for k in range(2)) > 0.1
+
+
+@pytest.mark.parametrize("solver,kw", [("fista", {}), ("rl", {}), ("pd-tv", dict(tv=1e-3))])
+def test_non_negative_solvers_stay_non_negative(planted, solver, kw):
+    op, x, views = planted
+    noisy = views + np.random.default_rng(1).normal(0, 0.05, views.shape)
+    r = reconstruct(noisy, op, solver, 20, **kw)
+    assert r.planes.min() >= 0.0
+    assert len(r.residuals) == 20 and r.residuals[-1] < r.residuals[0]
+
+
+def test_lsqr_residual_decreases(planted):
+    op, x, views = planted
+    r = reconstruct(views, op, "lsqr", 25)
+    assert len(r.residuals) == 25
+    assert np.all(np.diff(r.residuals) <= 1e-12) and r.residuals[-1] < 0.1 * r.residuals[0]
+
+
+def test_the_truth_is_the_layer_averaged_over_the_grid(small_camera):
+    """Against the texture read as the renderer reads it (nearest texel) at 16 x 16 points per cell."""
+    scene = scenes.flame_scene(small_camera, np.random.default_rng(0), regime="paper")
+    op = EmissionOperator(small_camera, PAPER_DEPTHS, rays_per_pixel=1)
+    truth = scene_truth(scene, op)
+    for k in (0, 3):
+        L, (h, w) = scene.layers[k], op.sizes_mm[k]
+        (tr, tc), (gr, gc) = L.radiance.shape, op.dims[1:]
+        f = (np.arange(16) + 0.5) / 16
+        y = h / 2 - (np.arange(gr)[:, None] + f[None]).ravel() * h / gr        # 16 points per cell, top down
+        x = -w / 2 + (np.arange(gc)[:, None] + f[None]).ravel() * w / gc
+        rows = np.floor((L.centre_mm[0] + L.size_mm[0] / 2 - y) / L.size_mm[0] * tr).astype(int)
+        cols = np.floor((x - L.centre_mm[1] + L.size_mm[1] / 2) / L.size_mm[1] * tc).astype(int)
+        ref = L.radiance[np.ix_(rows, cols)].reshape(gr, 16, gc, 16).mean(axis=(1, 3))
+        assert truth[k].max() > 0.5
+        np.testing.assert_allclose(truth[k], ref, atol=0.02)
+        assert np.abs(truth[k] - ref).mean() < 2e-3
+
+
+def test_bad_input_is_refused(tiny_camera, planted):
+    op, x, views = planted
+    bad = views.copy()
+    bad[0, 0, 0, 0] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        reconstruct(bad, op)
+    with pytest.raises(ValueError, match="do not come from this camera"):
+        reconstruct(views[:, :, :-1], op)
+    with pytest.raises(ValueError, match="focal length"):
+        EmissionOperator(tiny_camera, (0.0, -tiny_camera.focus_distance_mm + 1.0))
+    with pytest.raises(ValueError, match="perfect lenslet grid"):
+        EmissionOperator(PlenopticCamera(n_rows=24, n_cols=16, pixels_per_lenslet=5, grid_rotation_deg=0.5), (0.0,))
+    with pytest.raises(ValueError, match="occlusion"):
+        EmissionOperator(tiny_camera, (0.0,), effects=scenes.Effects(occlusion=True))
+    with pytest.raises(ValueError, match="solver"):
+        reconstruct(views, op, "magic")
