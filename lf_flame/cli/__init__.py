@@ -2,7 +2,8 @@
 
 The argument parser and :func:`main`; the commands, one module per stage:
 :mod:`.optics` (simulate, refocus, slopes), :mod:`.real` (calibrate, decode),
-:mod:`.learning` (dataset, train, predict, evaluate, tables) and :mod:`.profiles`;
+:mod:`.learning` (dataset, train, predict, evaluate, tables), :mod:`.volume` (reconstruct)
+and :mod:`.profiles`;
 :mod:`._io` reads and writes their files.
 """
 from __future__ import annotations
@@ -14,6 +15,8 @@ from .learning import LEARNED_ROUTES, cmd_dataset, cmd_evaluate, cmd_predict, cm
 from .optics import cmd_refocus, cmd_simulate, cmd_slopes
 from .profiles import cmd_profiles
 from .real import cmd_calibrate, cmd_decode
+from .volume import cmd_reconstruct
+from ..reconstruct import SOLVERS
 
 
 def main(argv=None):
@@ -117,14 +120,30 @@ def main(argv=None):
     s.add_argument("raw", help=".npz from 'simulate --scene flame', .npy, or DATASET.h5:INDEX (the truth is "
                                "marked when the flames' objects are known)")
     s.add_argument("--route", choices=["ground-truth", "shift-sum", "shift-sum-nearest", "fourier",
-                                       *LEARNED_ROUTES], default="shift-sum",
-                   help="refocusing route; ground-truth: a dataset's stored planes; learned routes need --model-dir")
+                                       *LEARNED_ROUTES, *(f"reconstruct-{k}" for k in SOLVERS)],
+                   default="shift-sum", help="refocusing route; ground-truth: a dataset's stored planes; learned "
+                   "routes need --model-dir; reconstruct-SOLVER: each plane's emission (lf-flame reconstruct, the "
+                   "solver's default iterations)")
     s.add_argument("--model-dir", help="folder written by 'lf-flame train' (learned routes)")
     s.add_argument("--slope", type=float, action="append",
                    help="one per plane (repeatable); default: the dataset's, else the analytic slopes of the depths")
     s.add_argument("--out", required=True, help="PREFIX: writes PREFIX.csv (one row per plane), PREFIX.axial.csv "
                                                "and PREFIX.png")
     s.set_defaults(func=cmd_profiles)
+
+    s = sub.add_parser("reconstruct", help="each plane's emission from one light field (3-D reconstruction with "
+                       "the simulator as the forward operator) -> HDF5 and a figure")
+    s.add_argument("raw", help=".npz from simulate, .npy, DATASET.h5:INDEX, or views .h5 from 'lf-flame decode'")
+    s.add_argument("--depth", type=float, action="append", help="plane depth (mm from the focal plane; repeatable)")
+    s.add_argument("--slope", type=float, action="append", help="plane slope instead of a depth (repeatable)")
+    s.add_argument("--solver", choices=list(SOLVERS), default="fista")
+    s.add_argument("--iters", type=int, help="iterations (default: the solver's, chosen on validation renders)")
+    s.add_argument("--damp", type=float, default=0.0, help="LSQR damping (Tikhonov)")
+    s.add_argument("--tv", type=float, default=0.0, help="TV weight of pd-tv")
+    s.add_argument("--rays-per-pixel", type=int, default=4, help="rays per pixel of the forward operator")
+    s.add_argument("--out", required=True, help="volume.h5 (planes, depths, mm per sample, settings, residuals); "
+                                               "the figure goes beside it as .png")
+    s.set_defaults(func=cmd_reconstruct)
 
     s = sub.add_parser("evaluate", help="SSIM/PSNR per plane on the test split, table and figure")
     s.add_argument("--dataset", required=True)

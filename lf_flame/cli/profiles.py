@@ -47,6 +47,10 @@ def _profiles_input(a):
             raise ValueError(f"--route {a.route} needs --model-dir")
         run, _ = _learned_runner(raw, cam, a.raw, a.model_dir, a.route)
         stack = run(raw.astype(np.float32)[None, ..., None])
+    elif a.route.startswith("reconstruct-"):
+        from ..refocus import raw_to_views
+        from .volume import run_reconstruction
+        stack = run_reconstruction(cam, raw_to_views(raw, n), depths, a.route.split("-", 1)[1])[1].planes
     else:
         kw = {"shift-sum": {}, "shift-sum-nearest": dict(interpolation="nearest"),
               "fourier": dict(method="fourier")}[a.route]
