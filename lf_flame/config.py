@@ -157,7 +157,7 @@ def provenance() -> dict:
     """Package versions, machine, threads, git commit and date, for every result."""
     pkgs = {}
     for name in ("lf_flame", "numpy", "numba", "scipy", "scikit-image", "h5py", "keras", "tensorflow-cpu",
-                 "tensorflow", "jax", "pandas"):
+                 "tensorflow", "jax", "pandas", "pylops", "pyproximal"):
         try:
             pkgs[name] = metadata.version(name)
         except metadata.PackageNotFoundError:

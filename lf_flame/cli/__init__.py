@@ -16,7 +16,7 @@ from .optics import cmd_refocus, cmd_simulate, cmd_slopes
 from .profiles import cmd_profiles
 from .real import cmd_calibrate, cmd_decode
 from .volume import cmd_reconstruct
-from ..reconstruct import SOLVERS
+from ..reconstruct import DEFAULT_TV, SOLVERS
 
 
 def main(argv=None):
@@ -139,7 +139,7 @@ def main(argv=None):
     s.add_argument("--solver", choices=list(SOLVERS), default="fista")
     s.add_argument("--iters", type=int, help="iterations (default: the solver's, chosen on validation renders)")
     s.add_argument("--damp", type=float, default=0.0, help="LSQR damping (Tikhonov)")
-    s.add_argument("--tv", type=float, default=0.0, help="TV weight of pd-tv")
+    s.add_argument("--tv", type=float, default=DEFAULT_TV, help="TV weight of pd-tv")
     s.add_argument("--rays-per-pixel", type=int, default=4, help="rays per pixel of the forward operator")
     s.add_argument("--out", required=True, help="volume.h5 (planes, depths, mm per sample, settings, residuals); "
                                                "the figure goes beside it as .png")

@@ -30,12 +30,13 @@ def reconstruct_input(a):
     return cam, views, depths, objects
 
 
-def run_reconstruction(cam, views, depths, solver, iters=None, *, damp=0.0, tv=0.0, rays_per_pixel=4,
+def run_reconstruction(cam, views, depths, solver, iters=None, *, damp=0.0, tv=None, rays_per_pixel=4,
                        progress=False):
     """Build the operator of ``cam`` at ``depths`` and solve (:func:`lf_flame.reconstruct.reconstruct`)."""
-    from ..reconstruct import EmissionOperator, reconstruct
+    from ..reconstruct import DEFAULT_TV, EmissionOperator, reconstruct
     op = EmissionOperator(cam, depths, rays_per_pixel=rays_per_pixel)
-    return op, reconstruct(views, op, solver, iters, damp=damp, tv=tv, progress=progress)
+    return op, reconstruct(views, op, solver, iters, damp=damp, tv=DEFAULT_TV if tv is None else tv,
+                           progress=progress)
 
 
 def cmd_reconstruct(a):

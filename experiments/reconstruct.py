@@ -1,0 +1,298 @@
+"""Each plane's emission from one light field, scored against the truth (``make reconstruct``).
+
+Writes to ``--out`` (default ``results``):
+
+- ``reconstruct.csv``: one row per route, scene, noise level, render and plane
+  (:func:`lf_flame.reconstruct.score_planes`: relative L2 error, SSIM, PSNR, flame height
+  error and its flags, time). Routes: ``refocus-adjoint`` (``A^T y / A^T 1``, plain
+  refocusing through the operator's rays: the baseline row), ``refocus-shift-sum``
+  (:func:`lf_flame.refocus.focal_stack`, bilinear) and every solver at the iterations
+  chosen on validation renders.
+- ``reconstruct_iters.csv``: error against iterations and time of every solver, on the
+  validation renders (the choice, and the speed-accuracy rows of ``make tradeoff``).
+- ``reconstruct_tail.csv``: the flame height error of every plane of ``--tail`` fresh
+  varied-regime flame scenes (4 rays per pixel, analytic slopes), shift-and-sum beside
+  the chosen solver.
+- ``reconstruct.md`` (tables) and ``reconstruct.json`` (provenance, timing of one
+  operator pair beside one 4-plane ``focal_stack``); figures ``reconstruct_*.png``.
+
+Scenes (``lf_flame.scenes``): the paper's four flames in both regimes, the overlap scene
+(flames one behind another), the volumetric flame; each noise-free and with shot + read
+noise at ``--snr-db`` (14 dB: the LSQR-LMBC paper's). Seeds: validation renders
+``VAL_SEEDS``, scored renders ``TEST_SEEDS``, the tail ``TAIL_SEED0 + i``: three
+disjoint streams that no dataset file uses.
+
+Usage: ``python experiments/reconstruct.py --out results [--tests 3] [--tail 200] [--stage all|main|tail]``.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import time
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+from tqdm import tqdm  # noqa: E402
+
+from lf_flame import scenes, simulate  # noqa: E402
+from lf_flame.camera import PAPER_CAMERA  # noqa: E402
+from lf_flame.config import atomic_write_text, provenance  # noqa: E402
+from lf_flame.diagnostics import score_stacks  # noqa: E402
+from lf_flame.reconstruct import (DEFAULT_ITERS, EmissionOperator, plot_reconstruction,  # noqa: E402
+                                  reconstruct, scene_truth, score_planes)
+from lf_flame.refocus import aperture_mask, focal_stack, raw_to_views  # noqa: E402
+
+VAL_SEEDS = (920001, 920002)
+TEST_SEEDS = (930001, 930002, 930003, 930004, 930005)
+TAIL_SEED0 = 940000
+RAYS_DATA = 16          # rays per pixel of the rendered light fields (the datasets')
+RAYS_OP = 4             # rays per pixel of the operator
+#: every solver's knobs tried on the validation renders (iterations are read off one run)
+CANDIDATES = {"fista": [{}], "lsqr": [dict(damp=0.0), dict(damp=0.3)], "rl": [{}], "pd-tv": [dict(tv=3e-3)]}
+MAX_ITERS = 60
+CHECKPOINTS = (5, 10, 15, 20, 30, 45, 60)
+
+
+def build_scene(kind: str, cam, seed: int):
+    rng = np.random.default_rng(seed)
+    if kind in ("paper", "varied"):
+        return scenes.flame_scene(cam, rng, regime=kind)
+    if kind == "overlap":
+        return scenes.overlap_scene(cam, rng)
+    if kind == "volume":
+        return scenes.volume_flame_scene(cam, rng)
+    raise ValueError(kind)
+
+
+def planes_of(kind: str, scene) -> list:
+    """Depths (mm) of the reconstruction planes: the flames' own, or 8 planes through a volume."""
+    if kind == "volume":
+        d = [L.depth_offset_mm for L in scene.layers]
+        return list(np.linspace(min(d), max(d), 8))
+    return [float(o["depth_offset_mm"]) for o in scene.objects]
+
+
+def noisy(scene, raw_clean, snr_db, seed):
+    """The scene's render with shot and read noise (2 e-) whose full well gives ``snr_db``
+    over the raw image; returns (raw, measured SNR dB, full well)."""
+    if snr_db is None:
+        return raw_clean, np.inf, None
+    s = raw_clean.astype(np.float64)
+    read = 2.0
+    # noise power sum(s) / fw + N read^2 / fw^2 = sum(s^2) / 10^(snr/10): a quadratic in 1 / fw
+    a, b, c = s.size * read ** 2, s.sum(), -np.sum(s ** 2) / 10 ** (snr_db / 10)
+    fw = 1.0 / ((-b + np.sqrt(b * b - 4 * a * c)) / (2 * a))
+    fx = dataclasses.replace(scene.effects, full_well_e=float(fw), read_noise_e=read)
+    raw = simulate.apply_sensor(raw_clean.copy(), fx, seed)
+    snr = 10 * np.log10(np.sum(s ** 2) / np.sum((raw - s) ** 2))
+    return raw, float(snr), float(fw)
+
+
+def light_field(kind, cam, seed, snr_db):
+    scene = build_scene(kind, cam, seed)
+    raw, snr, fw = noisy(scene, simulate.render(cam, scene, RAYS_DATA, seed), snr_db, seed)
+    depths = planes_of(kind, scene)
+    op = EmissionOperator(cam, depths, rays_per_pixel=RAYS_OP)
+    objects = None if kind == "volume" else scene.objects
+    return scene, raw_to_views(raw, cam.pixels_per_lenslet), depths, op, scene_truth(scene, op), objects, snr
+
+
+def rel_errors(x, truth):
+    x = x.reshape(truth.shape)
+    return np.linalg.norm((x - truth).reshape(len(x), -1), axis=1) / np.linalg.norm(truth.reshape(len(x), -1), axis=1)
+
+
+def iteration_curves(cam, kinds, noise_levels):
+    """Error per plane at CHECKPOINTS of every candidate, from one run each, on VAL_SEEDS."""
+    rows = []
+    for kind in kinds:
+        for snr_db in noise_levels:
+            for seed in VAL_SEEDS:
+                scene, views, depths, op, truth, objects, snr = light_field(kind, cam, seed, snr_db)
+                for solver, cands in CANDIDATES.items():
+                    for kw in cands:
+                        t0 = time.perf_counter()
+                        marks = {}
+
+                        def cb(k, x):
+                            if k in CHECKPOINTS:
+                                marks[k] = (time.perf_counter() - t0, rel_errors(x, truth))
+                        reconstruct(views, op, solver, MAX_ITERS, callback=cb, **kw)
+                        for k, (t, e) in marks.items():
+                            rows += [dict(scene=kind, snr_db=snr_db if snr_db else np.inf, snr_measured_db=snr,
+                                          seed=seed, solver=solver, knobs=json.dumps(kw), iters=k, time_s=t,
+                                          plane=p, depth_mm=depths[p], rel_err=e[p]) for p in range(len(depths))]
+                print(f"  validation {kind} snr={snr_db} seed={seed} done", flush=True)
+    return pd.DataFrame(rows)
+
+
+def choose(curves: pd.DataFrame, slack: float = 1.1) -> dict:
+    """Per solver, the knobs and the fewest iterations whose score is within ``slack`` of
+    the solver's best; score: the mean over the validation renders (noise-free and noisy
+    pooled) of each render's worst plane error."""
+    worst = curves.groupby(["solver", "knobs", "iters", "scene", "snr_db", "seed"]).rel_err.max().reset_index()
+    score = worst.groupby(["solver", "knobs", "iters"]).rel_err.mean().reset_index()
+    ok = score[score.rel_err <= slack * score.groupby("solver").rel_err.transform("min")]
+    best = ok.sort_values(["iters", "rel_err"]).groupby("solver").head(1)
+    return {r.solver: dict(iters=int(r.iters), **json.loads(r.knobs)) for r in best.itertuples()}
+
+
+def score_tests(cam, kinds, noise_levels, chosen, n_tests, figdir):
+    rows = []
+    n = cam.pixels_per_lenslet
+    mask = aperture_mask(n, "circular")
+    for kind in kinds:
+        for snr_db in noise_levels:
+            for seed in TEST_SEEDS[:n_tests]:
+                scene, views, depths, op, truth, objects, snr = light_field(kind, cam, seed, snr_db)
+                labels = dict(scene=kind, snr_db=snr_db if snr_db else np.inf, snr_measured_db=snr, seed=seed)
+                t0 = time.perf_counter()
+                fs = focal_stack(views, [cam.slope_for_depth(d) for d in depths], mask)
+                rows.append(score_planes(fs, truth, cam, depths, objects, time_s=time.perf_counter() - t0,
+                                         route="refocus-shift-sum", **labels))
+                adj = reconstruct(views, op, "adjoint")
+                rows.append(score_planes(adj.planes, truth, cam, depths, objects, time_s=adj.time_s,
+                                         route="refocus-adjoint", **labels))
+                for solver, kw in chosen.items():
+                    kw = dict(kw)
+                    rec = reconstruct(views, op, solver, kw.pop("iters"), **kw)
+                    rows.append(score_planes(rec.planes, truth, cam, depths, objects, time_s=rec.time_s,
+                                             route=f"reconstruct-{solver}", iters=rec.settings["iters"], **labels))
+                    if solver == "fista" and seed == TEST_SEEDS[0]:
+                        tag = f"{kind}_{'clean' if snr_db is None else f'{snr_db:.0f}dB'}"
+                        plot_reconstruction(figdir / f"reconstruct_{tag}.png", rec, adj.planes, truth,
+                                            title=f"{kind} scene, {tag}: FISTA {rec.settings['iters']} it., "
+                                                  f"{rec.time_s:.1f} s | refocused | truth")
+                print(f"  test {kind} snr={snr_db} seed={seed} done", flush=True)
+    return pd.concat(rows, ignore_index=True)
+
+
+def tail(cam, iters, n):
+    """Height errors of every plane of ``n`` fresh varied flame scenes: shift-and-sum beside FISTA."""
+    rows = []
+    depths = list(scenes.PAPER_DEPTHS_MM)
+    op = EmissionOperator(cam, depths, rays_per_pixel=RAYS_OP)
+    mask = aperture_mask(cam.pixels_per_lenslet, "circular")
+    for i in tqdm(range(n), desc="tail", unit="scene"):
+        seed = TAIL_SEED0 + i
+        scene = scenes.flame_scene(cam, np.random.default_rng(seed), regime="varied")
+        views = raw_to_views(simulate.render(cam, scene, 4, seed), cam.pixels_per_lenslet)
+        fs = focal_stack(views, [cam.slope_for_depth(d) for d in depths], mask)
+        rec = reconstruct(views, op, "fista", iters)
+        for route, st in (("refocus-shift-sum", fs), ("reconstruct-fista", rec.planes)):
+            rows.append(score_stacks(np.clip(st, 0, None)[None], cam, [scene.objects], samples=[seed], route=route))
+    return pd.concat(rows, ignore_index=True)
+
+
+def tail_table(df: pd.DataFrame, by=("route",)) -> pd.DataFrame:
+    g = df.groupby(list(by))
+    return pd.DataFrame(dict(
+        planes=g.size(), share_over_1mm=g.height_err_mm.apply(lambda e: float(np.mean(~(e <= 1.0)))),
+        median_mm=g.height_err_mm.median(), p90_mm=g.height_err_mm.quantile(0.9), worst_mm=g.height_err_mm.max(),
+        failed=g.failure.apply(lambda f: int((f != "").sum())))).reset_index()
+
+
+def time_pair(cam, repeats=7):
+    """One operator pair (A, A^T) beside one 4-plane focal_stack, same light field, same run."""
+    depths = list(scenes.PAPER_DEPTHS_MM)
+    op = EmissionOperator(cam, depths, rays_per_pixel=RAYS_OP)
+    scene = scenes.flame_scene(cam, np.random.default_rng(VAL_SEEDS[0]), regime="varied")
+    views = raw_to_views(simulate.render(cam, scene, RAYS_DATA, 0), cam.pixels_per_lenslet)
+    x = np.random.default_rng(0).random(op.shape[1])
+    y = views.astype(np.float64).ravel()
+    slopes = [cam.slope_for_depth(d) for d in depths]
+    mask = aperture_mask(cam.pixels_per_lenslet, "circular")
+    out = {}
+    for name, f in (("A", lambda: op.matvec(x)), ("A^T", lambda: op.rmatvec(y)),
+                    ("focal_stack", lambda: focal_stack(views, slopes, mask))):
+        f()
+        t = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            f()
+            t.append(time.perf_counter() - t0)
+        out[name] = dict(median_ms=1e3 * float(np.median(t)), p90_ms=1e3 * float(np.quantile(t, 0.9)),
+                         worst_ms=1e3 * float(np.max(t)))
+    return out
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--out", default="results")
+    p.add_argument("--tests", type=int, default=3, help="scored renders per scene and noise level")
+    p.add_argument("--tail", type=int, default=200, help="fresh varied scenes of the height-error tail")
+    p.add_argument("--snr-db", type=float, default=14.0)
+    p.add_argument("--kinds", default="paper,varied,overlap,volume")
+    p.add_argument("--stage", choices=["all", "main", "tail"], default="all",
+                   help="tail: only the height tail (FISTA at --tail-iters); main: all but the tail (the report "
+                        "reads an existing reconstruct_tail.csv)")
+    p.add_argument("--tail-iters", type=int, default=DEFAULT_ITERS["fista"])
+    a = p.parse_args(argv)
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    cam = PAPER_CAMERA
+    t0 = time.perf_counter()
+    if a.stage == "tail":
+        tl = tail(cam, a.tail_iters, a.tail)
+        atomic_write_text(out / "reconstruct_tail.csv", tl.to_csv(index=False, float_format="%.5g"))
+        print(tail_table(tl).to_string(index=False), f"\n{(time.perf_counter() - t0) / 60:.1f} min")
+        return
+    kinds = a.kinds.split(",")
+    noise = (None, a.snr_db)
+    timing = time_pair(cam)
+    print("timing", timing, flush=True)
+    curves = iteration_curves(cam, [k for k in kinds if k in ("varied", "overlap")], noise)
+    atomic_write_text(out / "reconstruct_iters.csv", curves.to_csv(index=False, float_format="%.5g"))
+    chosen = choose(curves)
+    print("chosen on validation renders:", chosen, flush=True)
+    scores = score_tests(cam, kinds, noise, chosen, a.tests, out)
+    atomic_write_text(out / "reconstruct.csv", scores.to_csv(index=False, float_format="%.5g"))
+    if a.stage == "all":
+        tl = tail(cam, chosen["fista"]["iters"], a.tail)
+        atomic_write_text(out / "reconstruct_tail.csv", tl.to_csv(index=False, float_format="%.5g"))
+    tail_csv = out / "reconstruct_tail.csv"
+    tl = pd.read_csv(tail_csv, keep_default_na=False, na_values=[""]) if tail_csv.exists() else pd.DataFrame()
+    write_report(out, scores, curves, tl, chosen, timing, a, time.perf_counter() - t0)
+
+
+def write_report(out, scores, curves, tl, chosen, timing, a, wall):
+    s = scores.assign(noise=np.where(np.isinf(scores.snr_db), "noise-free", f"{a.snr_db:g} dB"))
+    per_plane = s.groupby(["scene", "noise", "route", "depth_mm"], sort=False).agg(
+        rel_err=("rel_err", "mean"), rel_err_worst=("rel_err", "max"), ssim=("ssim", "mean"),
+        psnr_db=("psnr_db", "mean"), height_err_mm=("height_err_mm", "mean"),
+        height_err_worst=("height_err_mm", "max"), time_s=("time_s", "median")).reset_index()
+    worst = s.groupby(["scene", "noise", "route"], sort=False).agg(
+        worst_plane_rel_err=("rel_err", "max"), mean_rel_err=("rel_err", "mean"),
+        worst_height_err_mm=("height_err_mm", "max"), time_s_median=("time_s", "median"),
+        time_s_worst=("time_s", "max")).reset_index()
+    lines = ["# Each plane's emission, reconstructed from one light field (`make reconstruct`)", "",
+             f"Command: `python experiments/reconstruct.py --out {a.out} --tests {a.tests} --tail {a.tail} "
+             f"--snr-db {a.snr_db:g}`; wall time {wall / 60:.1f} min. Solver settings chosen on validation renders "
+             f"(seeds {VAL_SEEDS}; `reconstruct_iters.csv`): `{json.dumps(chosen)}`. Scored on renders "
+             f"{TEST_SEEDS[:a.tests]} ({RAYS_DATA} rays/pixel); operator {RAYS_OP} rays/pixel; relative error "
+             "‖x̂ − x‖/‖x‖ per plane against the scene's emission on the grid (one sample per lenslet).", "",
+             "## Worst plane per route (over planes and renders)", "",
+             worst.to_markdown(index=False, floatfmt=".3f"), "",
+             "## Per plane (mean over renders; worst beside it)", "",
+             per_plane.to_markdown(index=False, floatfmt=".3f"), "",
+             "## One operator pair beside one 4-plane focal stack (same light field, same run)", "",
+             pd.DataFrame(timing).T.to_markdown(floatfmt=".1f"), ""]
+    if len(tl):
+        lines += [f"## Flame height tail: {a.tail} fresh varied scenes (seeds {TAIL_SEED0}+i, 4 rays/pixel, "
+                  "analytic slopes)", "", tail_table(tl).to_markdown(index=False, floatfmt=".3f"), "",
+                  tail_table(tl, ("route", "depth_mm")).to_markdown(index=False, floatfmt=".3f"), ""]
+    atomic_write_text(out / "reconstruct.md", "\n".join(lines))
+    atomic_write_text(out / "reconstruct.json", json.dumps(dict(
+        provenance=provenance(), chosen=chosen, timing_ms=timing, wall_time_s=wall, val_seeds=VAL_SEEDS,
+        test_seeds=TEST_SEEDS[:a.tests], tail_seed0=TAIL_SEED0, tail=a.tail, snr_db=a.snr_db,
+        rays_per_pixel_data=RAYS_DATA, rays_per_pixel_operator=RAYS_OP), indent=2, default=str))
+    print((out / "reconstruct.md").read_text())
+
+
+if __name__ == "__main__":
+    main()
