@@ -419,21 +419,138 @@ def flame_scene(camera: PlenopticCamera, rng: np.random.Generator, *, template_s
         dz = float(dz)
         scale = camera.object_distance_mm(dz) / camera.focus_distance_mm
         height, jitter, level, sway, phase = _flame_params(k, w0, rng, vary, regime)
-        H = max(height, 1.0) * template_scale * scale
         cx = ((k + 0.5) / 4 - 0.5) * w0 * 0.9 * scale + jitter * scale
-        base_y = -0.45 * h0 * scale
-        y, x, (h, w), texel = _layer_grid(camera, dz, texels_per_lenslet, 1.2)
+        layer, obj = _flame_layer(camera, dz, max(height, 1.0) * template_scale * scale, cx, -0.45 * h0 * scale,
+                                  level, sway, phase, texels_per_lenslet)
+        layers.append(layer)
+        obj.update(height_template_mm=height, regime=regime if vary else "nominal")
+        objects.append({k: obj[k] for k in _FLAME_KEYS})   # the datasets' order (their digest reads it)
+    return Scene("flame", tuple(layers), FLAME_EFFECTS, tuple(objects))
+
+
+_FLAME_KEYS = ("name", "depth_offset_mm", "height_template_mm", "height_mm", "centre_x_mm", "base_y_mm", "radiance",
+               "sway", "phase", "regime", "roi")
+#: Optically thin flames: they add their emission (no occlusion); aperture and cos⁴ of Eq. 1; noise-free.
+FLAME_EFFECTS = Effects(aperture=True, cos4=True, occlusion=False)
+
+
+def _flame_layer(camera, dz, H, cx, base_y, level, sway, phase, texels_per_lenslet):
+    """One flame of height ``H`` (mm), centre ``cx`` and base ``base_y`` (mm) at depth ``dz``:
+    its layer (the field x 1.2) and its object record (see :func:`flame_scene`)."""
+    y, x, (h, w), texel = _layer_grid(camera, dz, texels_per_lenslet, 1.2)
+    eta = (y - base_y) / H
+    half_w = 0.07 * H * np.sqrt(np.clip(1.0 - eta, 0.0, 1.0)) + 1e-9
+    centre = cx + sway * H * eta ** 2 * np.sin(2 * math.pi * eta / 0.6 + phase)
+    lum = (level * flame_luminosity(eta, (x - centre) / half_w)).astype(np.float32)
+    hw = 0.07 * H + sway * H
+    obj = dict(name=f"flame_{dz:+.0f}mm", depth_offset_mm=dz, height_mm=H, centre_x_mm=cx, base_y_mm=base_y,
+               radiance=level, sway=sway, phase=phase, roi=_roi(camera, dz, base_y, base_y + H, cx - hw, cx + hw))
+    return Layer(radiance=lum, alpha=None, depth_offset_mm=dz, centre_mm=(0.0, 0.0), size_mm=(h, w)), obj
+
+
+def overlap_scene(camera: PlenopticCamera, rng: np.random.Generator, *, depths_mm=(20.0, 5.0, -10.0),
+                  texels_per_lenslet: float = 3.0, vary: bool = True) -> Scene:
+    """Flames standing one behind another in the same columns: the hard case of refocusing.
+
+    The farthest flame is the tallest and brightest; each nearer one is shorter and
+    dimmer, down to a short dim flame in front of a tall bright one (the case of
+    ``docs/diagnostics.md``, where a refocused plane's dim flame merges with its bright
+    neighbour's blur). Nominal (``vary`` False): heights 90 % of the field at the
+    farthest depth falling linearly to 45 % of it at the nearest, radiance 1.0 falling to
+    0.4, all centred on the optical axis. ``vary``: heights and radiance x U(0.9, 1.1),
+    lateral offset U(−0.5, 0.5) mm per flame, sway up to 4 % of the height.
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+    rng : numpy.random.Generator
+    depths_mm : sequence of 2 to 4 distinct float
+        Depth offsets (mm from the focal plane), any order.
+    texels_per_lenslet : float
+    vary : bool
+
+    Returns
+    -------
+    Scene
+        One layer and one flame object per depth (keys as :func:`flame_scene`'s), farthest first.
+
+    Raises
+    ------
+    ValueError
+        Fewer than 2 or more than 4 depths, repeated or non-finite depths, a depth the
+        camera cannot image.
+    """
+    d = sorted((float(v) for v in depths_mm), reverse=True)
+    if not 2 <= len(d) <= 4 or len(set(d)) != len(d) or not all(math.isfinite(v) for v in d):
+        raise ValueError(f"depths_mm must hold 2 to 4 distinct finite depths. Received: {depths_mm!r}")
+    h0, _ = camera.field_of_view_mm(0.0)
+    layers, objects = [], []
+    for k, dz in enumerate(d):
+        camera.image_distance_mm(camera.object_distance_mm(dz))   # raises for a depth it cannot image
+        scale = camera.object_distance_mm(dz) / camera.focus_distance_mm
+        f = k / (len(d) - 1)
+        height, level = 0.9 - 0.45 * f, 1.0 - 0.6 * f
+        cx, sway, phase = 0.0, 0.0, 0.0
+        if vary:
+            height, level = height * rng.uniform(0.9, 1.1), level * rng.uniform(0.9, 1.1)
+            cx, sway, phase = rng.uniform(-0.5, 0.5), rng.uniform(0.0, 0.04), rng.uniform(0.0, 2 * math.pi)
+        layer, obj = _flame_layer(camera, dz, height * h0 * scale, cx * scale, -0.45 * h0 * scale, min(level, 1.0),
+                                  sway, phase, texels_per_lenslet)
+        layers.append(layer)
+        objects.append(obj)
+    return Scene("overlap", tuple(layers), FLAME_EFFECTS, tuple(objects))
+
+
+def volume_flame_scene(camera: PlenopticCamera, rng: np.random.Generator | None = None, *,
+                       centre_depth_mm: float = 0.0, diameter_mm: float = 10.0, height_mm: float | None = None,
+                       n_layers: int = 24, texels_per_lenslet: float = 3.0) -> Scene:
+    """An axisymmetric emitting volume (a laminar diffusion flame) sampled as thin layers.
+
+    Emission density ``e(r, y) = env(eta) exp(-(r - R(eta))^2 / (2 s^2))``: a luminous
+    sheath (Burke & Schumann 1928) of radius ``R(eta) = 0.4 D sqrt(1 - eta)`` and
+    thickness ``s = 0.08 D`` around the axis (``r`` from the axis, in x and depth), with
+    ``env(eta) = sin(pi eta^0.75)`` along the height (``eta`` = height above the base /
+    flame height). Layer ``k`` stands for the slab ``centre ± D/2`` cut in ``n_layers``
+    equal parts, at the slab's middle, with radiance ``e`` times the slab thickness (its
+    emission integrated through the slab), scaled so the brightest line of sight
+    carries 0.9 (no saturation). ``rng``, if given, jitters the height by ±10 %.
+
+    Returns
+    -------
+    Scene
+        ``n_layers`` layers nearest first; one object ``name="volume"`` with the centre
+        depth, diameter, height, base, ``layer_depths_mm``, ``layer_thickness_mm`` and the
+        ``peak_emission`` (per mm of depth) of the scaled density.
+
+    Raises
+    ------
+    ValueError
+        Fewer than 2 layers, a non-positive diameter, a slab the camera cannot image.
+    """
+    if int(n_layers) < 2 or not diameter_mm > 0:
+        raise ValueError(f"need n_layers >= 2 and diameter_mm > 0. Received: {n_layers}, {diameter_mm}")
+    h0, _ = camera.field_of_view_mm(0.0)
+    H = (0.8 * h0 if height_mm is None else float(height_mm)) * (rng.uniform(0.9, 1.1) if rng is not None else 1.0)
+    dzs = centre_depth_mm + (np.arange(n_layers) + 0.5) / n_layers * diameter_mm - diameter_mm / 2
+    thick = diameter_mm / n_layers
+    base_y = -0.45 * h0
+    raw = []
+    for dz in dzs:
+        camera.image_distance_mm(camera.object_distance_mm(dz))
+        y, x, (h, w), _ = _layer_grid(camera, dz, texels_per_lenslet, 1.2)
         eta = (y - base_y) / H
-        half_w = 0.07 * H * np.sqrt(np.clip(1.0 - eta, 0.0, 1.0)) + 1e-9
-        centre = cx + sway * H * eta ** 2 * np.sin(2 * math.pi * eta / 0.6 + phase)
-        lum = (level * flame_luminosity(eta, (x - centre) / half_w)).astype(np.float32)
-        layers.append(Layer(radiance=lum, alpha=None, depth_offset_mm=dz, centre_mm=(0.0, 0.0), size_mm=(h, w)))
-        hw = 0.07 * H + sway * H
-        objects.append(dict(name=f"flame_{dz:+.0f}mm", depth_offset_mm=dz, height_template_mm=height,
-                            height_mm=H, centre_x_mm=cx, base_y_mm=base_y, radiance=level,
-                            sway=sway, phase=phase, regime=regime if vary else "nominal",
-                            roi=_roi(camera, dz, base_y, base_y + H, cx - hw, cx + hw)))
-    return Scene("flame", tuple(layers), Effects(aperture=True, cos4=True, occlusion=False), tuple(objects))
+        r = np.sqrt(x ** 2 + (dz - centre_depth_mm) ** 2)
+        R = 0.4 * diameter_mm * np.sqrt(np.clip(1.0 - eta, 0.0, 1.0))
+        env = np.where((eta >= 0) & (eta <= 1), np.sin(np.pi * np.clip(eta, 0, 1) ** 0.75), 0.0)
+        raw.append((dz, h, w, env * np.exp(-(r - R) ** 2 / (2 * (0.08 * diameter_mm) ** 2))))
+    peak = 0.9 / (thick * max(float(np.max(sum(e for *_, e in raw))), 1e-12))   # brightest line of sight -> 0.9
+    layers = tuple(Layer((e * peak * thick).astype(np.float32), None, float(dz), (0.0, 0.0), (h, w))
+                   for dz, h, w, e in raw)
+    obj = dict(name="volume", depth_offset_mm=float(centre_depth_mm), diameter_mm=float(diameter_mm), height_mm=H,
+               base_y_mm=base_y, centre_x_mm=0.0, layer_depths_mm=[float(v) for v in dzs], layer_thickness_mm=thick,
+               peak_emission=peak, roi=_roi(camera, centre_depth_mm, base_y, base_y + H, -diameter_mm / 2,
+                                             diameter_mm / 2))
+    return Scene("volume", layers, FLAME_EFFECTS, (obj,))
 
 
 def point_scene(camera: PlenopticCamera, depth_offset_mm: float = 0.0, y_mm: float = 0.0, x_mm: float = 0.0,
