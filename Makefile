@@ -21,7 +21,7 @@ HELDOUT_paper := 20
 HELDOUT_quick := 4
 HELDOUT_SEED := 770077
 
-.PHONY: help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff heights test clean-quick
+.PHONY: help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct heights test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -98,6 +98,13 @@ TRADEOFF_OUT := $(if $(filter paper,$(PRESET)),results,$(RES))
 tradeoff: $(MODELS)/varied/flame/train_info.json ## speed-accuracy map of every route and knob -> results/tradeoff.{csv,md,png}
 	$(VENV)/bin/python experiments/tradeoff.py --preset $(PRESET) --data-dir $(DATA)/varied \
 		--model-dir $(MODELS)/varied --out $(TRADEOFF_OUT)
+
+# each plane's emission from one light field (lf_flame.reconstruct), scored against the truth; the
+# paper preset's results are committed in results/, the quick one (fewer renders) stays in results/quick
+RECON_ARGS_paper := --tests 2 --tail 200
+RECON_ARGS_quick := --tests 1 --tail 8
+reconstruct: $(STAMP) ## 3-D emission reconstruction, every solver against refocusing -> results/reconstruct.{csv,md,json,png}
+	$(VENV)/bin/python experiments/reconstruct.py --out $(TRADEOFF_OUT) $(RECON_ARGS_$(PRESET))
 
 # the stem is REGIME/table_SCENE
 $(RES)/%.md: $(MODELS)/$$(*D)/$$(subst table_,,$$(*F))/train_info.json

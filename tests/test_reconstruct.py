@@ -124,3 +124,29 @@ def test_bad_input_is_refused(tiny_camera, planted):
         EmissionOperator(tiny_camera, (0.0,), effects=scenes.Effects(occlusion=True))
     with pytest.raises(ValueError, match="solver"):
         reconstruct(views, op, "magic")
+
+
+def test_the_overlap_scene_stands_flames_one_behind_another(small_camera):
+    sc = scenes.overlap_scene(small_camera, np.random.default_rng(4))
+    objs = sorted(sc.objects, key=lambda o: o["depth_offset_mm"])       # nearest first
+    assert len(sc.layers) == 3 and not sc.effects.occlusion
+    c0, c1 = max(o["roi"][2] for o in objs), min(o["roi"][3] for o in objs)
+    assert c1 - c0 > 0.5 * (objs[0]["roi"][3] - objs[0]["roi"][2])   # the same columns
+    front, back = objs[0], objs[-1]
+    assert front["height_mm"] < 0.7 * back["height_mm"] and front["radiance"] < 0.6 * back["radiance"]
+    with pytest.raises(ValueError, match="distinct"):
+        scenes.overlap_scene(small_camera, np.random.default_rng(0), depths_mm=(5.0, 5.0))
+
+
+def test_the_volume_is_axisymmetric_and_its_light_does_not_depend_on_its_layers(small_camera):
+    v = scenes.volume_flame_scene(small_camera, n_layers=16)
+    assert len(v.layers) == 16
+    def light(L):  # radiance integrated over the layer's area
+        return L.radiance.sum() * L.size_mm[0] * L.size_mm[1] / L.radiance.size
+    a, b = v.layers[2], v.layers[13]                                    # mirror slabs about the centre
+    assert abs(light(a) / light(b) - 1) < 0.02
+    np.testing.assert_allclose(a.radiance, a.radiance[:, ::-1], atol=1e-6 * a.radiance.max())   # mirror in x
+    light = [sum(light(L) for L in scenes.volume_flame_scene(small_camera, n_layers=n).layers) for n in (16, 40)]
+    assert abs(light[0] / light[1] - 1) < 0.03
+    raw = simulate.render(small_camera, v, 2, 0)
+    assert 0.05 < raw.max() <= 1.0
