@@ -4,11 +4,10 @@ import dataclasses
 import numpy as np
 import pandas as pd
 import pytest
+from scipy import ndimage
 
 from lf_flame import scenes, simulate
 from lf_flame.camera import PlenopticCamera
-from scipy import ndimage
-
 from lf_flame.diagnostics import (TIP_PEDESTAL_MM, EmptyPlaneError, error_table, flame_truth, lenslet_size_mm,
                                   lenslet_to_object_mm, measure_flame, measure_stack, score_stacks)
 from lf_flame.refocus import aperture_mask, refocus
@@ -287,3 +286,19 @@ def test_cli_profiles_writes_csv_and_figure(tmp_path, capsys):
     # the stored planes exist only in a dataset
     assert main(["profiles", str(src), "--route", "ground-truth", "--out", str(tmp_path / "q")]) == 2
     assert "DATASET.h5:INDEX" in capsys.readouterr().err
+
+
+def test_flame_tail_experiment_writes_csv_and_md(tmp_path):
+    """``experiments/flame_tail.py`` at a tiny size: every plane in the CSV, the tail in the md."""
+    import importlib.util
+    from pathlib import Path
+    spec = importlib.util.spec_from_file_location(
+        "flame_tail", Path(__file__).resolve().parents[1] / "experiments" / "flame_tail.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    assert mod.main(["--n", "2", "--seed0", "990000", "--out", str(tmp_path / "tail")]) == 0
+    df = pd.read_csv(tmp_path / "tail.csv", keep_default_na=False, na_values=[""])
+    assert len(df) == 2 * 2 * 4 and list(df.columns) == list(mod.CSV_COLUMNS)
+    assert set(df.regime) == {"varied", "paper"} and df.height_err_mm.notna().all()
+    md = (tmp_path / "tail.md").read_text()
+    assert "% > 1 mm trusted" in md and "Detector's confusion" in md and "--seed0 990000" in md
