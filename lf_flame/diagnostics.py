@@ -47,6 +47,22 @@ it (``docs/diagnostics.md`` has the measured figures):
   on the paper's planes the two partly cancel. Where a short in-focus flame merges, above
   the threshold, with a brighter blur of a taller neighbour, the tip follows the blur
   (errors of 1-3 mm seen).
+- **Flags** (:attr:`FlameMeasurement.flags`, :attr:`FlameMeasurement.trusted`): the
+  cases above where the height cannot be trusted are detected and flagged, never
+  returned silently. ``"merged"``: the edge walk ran on light from outside the column
+  band (its brightest lenslet on the band's inner border in some row: the region is a
+  sliver of a neighbour's blur at the border, or merged with it), or the tip's fitted
+  rows stand on other flames' light: the lower of the two lenslets
+  :data:`PEDESTAL_GAP` beside the flame, averaged over the fitted rows, over the fitted
+  slope, is the distance (mm) a pedestal of that level moves the extrapolated tip up;
+  above :data:`TIP_PEDESTAL_MM` the tip is not trusted. Only the tip: at the base every
+  flame of the scene stands on the same row, the neighbours' blur fades with the flame
+  and did not move the base (measured, ``docs/diagnostics.md``). ``"cut"``: the region
+  or an edge walk reaches the plane's border. ``"no-edge"``: an edge walk ended with the
+  region, above the fitted range. Widths, centroid and integrated intensity of a
+  trusted plane may still include blur where the region touches a neighbour's blur
+  below the tip (they are not flagged). Measured on 200 fresh scenes per regime
+  (``experiments/flame_tail.py``, ``docs/diagnostics.md``).
 - **Axial and radial profiles** are samples of the plane, out-of-focus light included:
   they are biased upward wherever a neighbour's blur overlaps, most near the base, where
   all flames stand at the same image row.
@@ -56,6 +72,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -72,6 +89,14 @@ EDGE_FIT_RANGE = (0.2, 0.6)
 #: Past the segmented region, the edge walk goes on while the profile falls per row at
 #: least this fraction of its mean fall per row inside the region's part of the fit.
 TAIL_FALL = 0.25
+#: The light beside the flame is read this many lenslets outside the walk's run (past the
+#: in-focus flame's own edge) to measure the pedestal other flames' blur puts under an edge.
+PEDESTAL_GAP = 3
+#: A tip whose fitted rows stand on a pedestal worth more than this many mm of edge shift
+#: (pedestal / slope of the fit) is flagged "merged" (threshold from ``experiments/flame_tail.py``).
+TIP_PEDESTAL_MM = 0.35
+#: Flags a :class:`FlameMeasurement` may carry: measurements the method cannot trust.
+FLAGS = ("merged", "cut", "no-edge")
 #: Regions smaller than this many lenslets are noise, not a flame.
 MIN_AREA_LENSLETS = 10
 #: Default heights of the radial profiles, fractions of the measured height above the base.
@@ -174,6 +199,23 @@ class FlameMeasurement:
         region's lowest to highest row.
     radial : tuple of RadialProfile
         Radial profiles at the requested heights.
+    flags : tuple of str
+        Why the height (and the base and tip) cannot be trusted, from :data:`FLAGS`;
+        empty when it can (module docstring, "Flags"):
+
+        - ``"merged"``: an edge walk ran on other flames' light: the brightest lenslet of
+          a walked row lies on an inner border of the column band (light from outside the
+          band), or the tip's fitted rows stand on a pedestal of light worth more than
+          :data:`TIP_PEDESTAL_MM` of edge shift (``tip_pedestal_mm``);
+        - ``"cut"``: the region reaches the plane's first or last row or column, or an
+          edge walk reached the plane's end: the true tip or base may lie outside;
+        - ``"no-edge"``: an edge walk stopped where the region ends, above the fitted
+          range (the threshold, set by brighter light in the band, cut the flame before
+          its edge faded), so that edge is the threshold's, not the flame's.
+    tip_pedestal_mm : float
+        The light beside the flame in the tip's fitted rows divided by the fitted slope
+        (mm): how far a pedestal of that level moves the extrapolated tip upward. NaN
+        when the tip was not fitted (too few rows, or not falling).
     """
 
     depth_offset_mm: float
@@ -193,13 +235,23 @@ class FlameMeasurement:
     axial_height_mm: np.ndarray = field(repr=False)
     axial_intensity: np.ndarray = field(repr=False)
     radial: tuple = field(repr=False, default=())
+    flags: tuple[str, ...] = ()
+    tip_pedestal_mm: float = math.nan
+
+    @property
+    def trusted(self) -> bool:
+        """True when no flag is raised (:attr:`flags` is empty)."""
+        return not self.flags
 
     def summary(self) -> dict:
-        """The scalar measurements as a dict (one CSV row)."""
-        return {k: float(getattr(self, k)) for k in (
+        """The scalar measurements as a dict (one CSV row); ``flags`` joined by ``;``
+        (empty string when trusted)."""
+        row = {k: float(getattr(self, k)) for k in (
             "depth_offset_mm", "lenslet_mm", "height_mm", "base_y_mm", "tip_y_mm", "base_width_mm", "max_width_mm",
             "max_width_y_mm", "centroid_y_mm", "centroid_x_mm", "integrated_intensity", "peak_intensity",
-            "threshold")}
+            "threshold", "tip_pedestal_mm")}
+        row["flags"] = ";".join(self.flags)
+        return row
 
 
 def _check_plane(plane, camera: PlenopticCamera) -> np.ndarray:
@@ -227,9 +279,29 @@ def _check_columns(columns, n_cols: int) -> tuple[int, int]:
     return c0, c1
 
 
-def _edge(img, mask, y, start, step, lo, hi) -> float:
-    """Edge height (y, mm) where the axial peak profile, walked from row ``start`` in
-    direction ``step`` (-1 up, +1 down), extrapolates to zero (see module docstring).
+class _Edge(NamedTuple):
+    """What :func:`_edge` finds at one end of the flame."""
+
+    y_mm: float  #: the edge's height (y, mm)
+    #: in some row of the walk the profile's brightest lenslet lies on a border of the
+    #: band that is not the plane's edge: the walk ran on light from outside the band
+    on_band_border: bool
+    #: the light beside the flame in the fitted rows (mean over them of the lower of the
+    #: two lenslets :data:`PEDESTAL_GAP` outside the row's run) over the fitted line's
+    #: slope (intensity per mm): how far a pedestal of that level moves the extrapolated
+    #: zero outward, in mm; NaN when no line was fitted
+    pedestal_mm: float
+    #: the walk reached the plane's first or last row, or the edge was clipped to it
+    at_plane_end: bool
+    #: the edge was fitted, or the profile fell below ``lo`` (a hard edge); False: the
+    #: walk stopped at the region's end above the fitted range, so the edge returned is
+    #: where the segmentation threshold cut the flame, not the flame's edge
+    found: bool
+
+
+def _edge(img, mask, y, start, step, lo, hi, band) -> _Edge:
+    """Walk the axial peak profile from row ``start`` in direction ``step`` (-1 up, +1
+    down) to the flame's edge, extrapolated to zero (see module docstring).
 
     The walk follows the flame: in each row it looks only at the columns of the previous
     row's run widened by one lenslet on each side (within the region while the region
@@ -237,38 +309,50 @@ def _edge(img, mask, y, start, step, lo, hi) -> float:
     the region's end it goes on only while the profile keeps falling at least
     :data:`TAIL_FALL` times as fast as it fell inside the region: the flame's own fading
     edge does, the slowly varying blur of other planes does not. ``lo`` and ``hi`` are
-    fractions of the profile at ``start``.
+    fractions of the profile at ``start``; ``band`` is the column band ``(c0, c1)``.
+    What the walk saw on the way is returned with the edge (:class:`_Edge`), for the flags.
     """
+    c0, c1 = band
+    n_rows, n_cols = img.shape
+    borders = [c for c, inner in ((c0, c0 > 0), (c1 - 1, c1 < n_cols)) if inner]
     cols = np.flatnonzero(mask[start])
     a, b = cols[0], cols[-1]
     ref = img[start, a:b + 1].max()
     lo, hi = lo * ref, hi * ref
-    pts, falls, prev, i, last = [], [], np.inf, start, start
-    while 0 <= i < img.shape[0]:
-        lo_c, hi_c = max(a - 1, 0), min(b + 2, img.shape[1])
+    pts, beside, falls, prev, i, last, on_border, below = [], [], [], np.inf, start, start, False, False
+    while 0 <= i < n_rows:
+        lo_c, hi_c = max(a - 1, 0), min(b + 2, n_cols)
         inside = np.flatnonzero(mask[i, lo_c:hi_c]) + lo_c
         if inside.size:
             a, b = inside[0], inside[-1]
         v = img[i, a:b + 1].max()
         if v < lo:
+            below = True
             break
         if not inside.size and not (falls and prev - v >= TAIL_FALL * np.mean(falls)):
             break
+        on_border |= a + int(np.argmax(img[i, a:b + 1])) in borders
         if v <= hi:
             if pts and inside.size:
                 falls.append(prev - v)
             pts.append((y[i], v))
+            beside.append(min(img[i, max(a - PEDESTAL_GAP, 0)], img[i, min(b + PEDESTAL_GAP, n_cols - 1)]))
         prev, last, i = v, i, i + step
     half = 0.5 * (y[0] - y[1])
+    at_end = last in (0, n_rows - 1)
     outer = float(y[last] - step * half)  # the outer edge of the last row above ``lo``
-    if len(pts) < 2:  # too steep to fit
-        return outer
+    if len(pts) < 2:  # too steep to fit (a hard edge), or the region ended above the fitted range
+        return _Edge(outer, on_border, math.nan, at_end, below)
     slope, intercept = np.polyfit(*np.asarray(pts).T, 1)
     if slope * step <= 0:  # not falling outward (a blurred, flat prediction): no edge to extrapolate
-        return outer
+        return _Edge(outer, on_border, math.nan, at_end, below)
+    pedestal = float(np.mean(beside) / abs(slope))
     # between the peak row and the plane's top (bottom) edge
     limit = y[0] + half if step < 0 else y[-1] - half
-    return float(np.clip(-intercept / slope, *sorted((float(y[start]), float(limit)))))
+    edge = -intercept / slope
+    if step * (edge - limit) < 0:  # beyond the plane's edge: clipped
+        return _Edge(float(limit), on_border, pedestal, True, True)
+    return _Edge(float(max(edge, y[start]) if step < 0 else min(edge, y[start])), on_border, pedestal, at_end, True)
 
 
 def measure_flame(plane, camera: PlenopticCamera, depth_offset_mm: float, *, columns=None,
@@ -344,9 +428,18 @@ def measure_flame(plane, camera: PlenopticCamera, depth_offset_mm: float, *, col
     profile = np.where(mask, img, 0.0).max(axis=1)
     start = int(np.argmax(profile))
     pmax = float(profile[start])
-    tip = _edge(img, mask, y, start, -1, lo, hi)
-    base = _edge(img, mask, y, start, +1, lo, hi)
+    tip_edge = _edge(img, mask, y, start, -1, lo, hi, (c0, c1))
+    base_edge = _edge(img, mask, y, start, +1, lo, hi, (c0, c1))
+    tip, base = tip_edge.y_mm, base_edge.y_mm
     height = tip - base
+    flags = []
+    if tip_edge.on_band_border or base_edge.on_band_border or tip_edge.pedestal_mm > TIP_PEDESTAL_MM:
+        flags.append("merged")
+    if tip_edge.at_plane_end or base_edge.at_plane_end or any(e.any() for e in (mask[0], mask[-1], mask[:, 0],
+                                                                                 mask[:, -1])):
+        flags.append("cut")
+    if not (tip_edge.found and base_edge.found):
+        flags.append("no-edge")
 
     props = measure.regionprops(mask.astype(np.uint8), intensity_image=img)[0]
     cy, cx = lenslet_to_object_mm(camera, *props.centroid_weighted, depth_offset_mm)
@@ -378,7 +471,8 @@ def measure_flame(plane, camera: PlenopticCamera, depth_offset_mm: float, *, col
         base_width_mm=base_width, max_width_mm=float(widths[k]), max_width_y_mm=float(y[rows[k]]),
         centroid_y_mm=float(cy), centroid_x_mm=float(cx), integrated_intensity=float(img[mask].sum() * s * s),
         peak_intensity=float(img[mask].max()), threshold=threshold, mask=mask,
-        axial_height_mm=y[rows] - base, axial_intensity=axial, radial=tuple(radial))
+        axial_height_mm=y[rows] - base, axial_intensity=axial, radial=tuple(radial), flags=tuple(flags),
+        tip_pedestal_mm=tip_edge.pedestal_mm)
 
 
 # ---- the truth and scoring --------------------------------------------------------
@@ -461,8 +555,9 @@ def score_stacks(stacks, camera: PlenopticCamera, objects_list, samples=None, **
     ``height_mm_true``, ``base_y_mm_true``, ``tip_y_mm_true``, ``centre_x_mm_true``, the
     measured :meth:`FlameMeasurement.summary` values, the absolute errors
     ``height_err_mm``, ``base_err_mm``, ``tip_err_mm``, ``centre_x_err_mm`` (|measured −
-    true|, centre against the centroid), and ``failure`` (the reason a plane could not be
-    measured, else empty; its errors are NaN).
+    true|, centre against the centroid), ``flags`` (:attr:`FlameMeasurement.flags` joined
+    by ``;``, empty when trusted) and ``failure`` (the reason a plane could not be
+    measured, else empty; its errors are NaN and its flags empty).
 
     Raises
     ------
@@ -479,7 +574,7 @@ def score_stacks(stacks, camera: PlenopticCamera, objects_list, samples=None, **
             row = dict(labels, sample=int(i), depth_mm=t["depth_offset_mm"],
                        **{f"{k}_true": v for k, v in t.items() if k not in ("columns", "depth_offset_mm")})
             if isinstance(m, EmptyPlaneError):
-                row.update(failure=str(m), height_err_mm=math.nan, base_err_mm=math.nan, tip_err_mm=math.nan,
+                row.update(failure=str(m), flags="", height_err_mm=math.nan, base_err_mm=math.nan, tip_err_mm=math.nan,
                            centre_x_err_mm=math.nan)
             else:
                 row.update(m.summary(), failure="", height_err_mm=abs(m.height_mm - t["height_mm"]),
@@ -489,28 +584,68 @@ def score_stacks(stacks, camera: PlenopticCamera, objects_list, samples=None, **
     return pd.DataFrame(rows)
 
 
+def _tail(err: pd.Series) -> pd.Series:
+    """Tail of absolute errors (NaN left out): share over 1 mm, 90th percentile, worst."""
+    err = err.dropna()
+    if err.empty:
+        return pd.Series(dict(share_over_1mm=math.nan, p90=math.nan, max=math.nan))
+    return pd.Series(dict(share_over_1mm=float((err > 1.0).mean()), p90=float(err.quantile(0.9)),
+                          max=float(err.max())))
+
+
 def error_table(scores: pd.DataFrame, by=("depth_mm",)) -> pd.DataFrame:
-    """Mean absolute errors (mm) per group of :func:`score_stacks` rows (default: per plane).
+    """Mean absolute errors and their tail (mm) per group of :func:`score_stacks` rows
+    (default: per plane).
 
     Returns
     -------
     DataFrame with ``by`` columns, ``n`` (planes), ``n_failed`` (not measurable; left out
-    of the means), the mean absolute ``height_err_mm``, ``base_err_mm``, ``tip_err_mm``,
-    ``centre_x_err_mm``, the largest height error ``height_err_mm_max`` and the mean
-    signed height error ``height_bias_mm`` (measured − true).
+    of every statistic), ``n_flagged`` (measured but flagged, :attr:`FlameMeasurement.flags`),
+    the mean absolute ``height_err_mm``, ``base_err_mm``, ``tip_err_mm``,
+    ``centre_x_err_mm``, the mean signed height error ``height_bias_mm`` (measured −
+    true), and the height error's tail: ``share_over_1mm`` (fraction of measured planes
+    off by more than 1 mm), ``height_err_mm_p90`` (90th percentile), ``height_err_mm_max``
+    (worst); and the same three over the trusted planes only (suffix ``_trusted``). The
+    means are over all measured planes, flagged ones included (as before the flags).
     """
-    df = scores.assign(height_bias=scores.get("height_mm", np.nan) - scores.height_mm_true)
+    flags = scores["flags"].fillna("") if "flags" in scores else pd.Series("", index=scores.index)
+    df = scores.assign(height_bias=scores.get("height_mm", np.nan) - scores.height_mm_true,
+                       flagged=(flags != "") & (scores.failure == ""),
+                       height_err_trusted=scores.height_err_mm.where(flags == ""))
     g = df.groupby(list(by), sort=False)
+    tail = g.height_err_mm.apply(_tail).unstack()
+    tail_t = g.height_err_trusted.apply(_tail).unstack()
     return pd.DataFrame(dict(
-        n=g.size(), n_failed=g.failure.apply(lambda f: int((f != "").sum())),
-        height_err_mm=g.height_err_mm.mean(), height_err_mm_max=g.height_err_mm.max(),
+        n=g.size(), n_failed=g.failure.apply(lambda f: int((f != "").sum())), n_flagged=g.flagged.sum().astype(int),
+        height_err_mm=g.height_err_mm.mean(), height_err_mm_max=tail["max"],
         height_bias_mm=g.height_bias.mean(), base_err_mm=g.base_err_mm.mean(), tip_err_mm=g.tip_err_mm.mean(),
-        centre_x_err_mm=g.centre_x_err_mm.mean())).reset_index()
+        centre_x_err_mm=g.centre_x_err_mm.mean(), share_over_1mm=tail.share_over_1mm, height_err_mm_p90=tail.p90,
+        share_over_1mm_trusted=tail_t.share_over_1mm, height_err_mm_p90_trusted=tail_t.p90,
+        height_err_mm_max_trusted=tail_t["max"])).reset_index()
 
 
 def plot_profiles(path, cam, stack, depths, ms, objects, route):
     """Each plane in object-space mm with the measured outline and edges (and the true ones),
-    then the axial and radial profiles of the planes."""
+    then the axial and radial profiles of the planes.
+
+    A flagged plane (:attr:`FlameMeasurement.flags`) has a red title ending in
+    ``UNTRUSTED: <flags>`` and its measured edges and profiles drawn dotted.
+
+    Parameters
+    ----------
+    path : str or Path
+        PNG to write.
+    cam : PlenopticCamera
+    stack : ndarray of shape (P, R, C)
+    depths : sequence of P float
+        Depth (mm) of each plane.
+    ms : sequence of P FlameMeasurement or None
+        The measurements (None: no flame found).
+    objects : sequence of P flame objects or None
+        The truth, drawn when given.
+    route : str
+        Named in the axial profiles' title.
+    """
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -530,7 +665,7 @@ def plot_profiles(path, cam, stack, depths, ms, objects, route):
             ax.contour(np.broadcast_to(x, plane.shape), np.broadcast_to(y, plane.shape), m.mask, [0.5],
                        colors="w", linewidths=0.7)
             for yy in (m.base_y_mm, m.tip_y_mm):
-                ax.axhline(yy, color="w", ls="--", lw=0.8)
+                ax.axhline(yy, color="w", ls="--" if m.trusted else ":", lw=0.8)
             title += f"\nH {m.height_mm:.2f} mm"
         else:
             title += "\nno flame found"
@@ -539,7 +674,9 @@ def plot_profiles(path, cam, stack, depths, ms, objects, route):
             for yy in (t["base_y_mm"], t["tip_y_mm"]):
                 ax.axhline(yy, color="c", lw=0.8)
             title += f" (true {t['height_mm']:.2f})"
-        ax.set_title(title, fontsize=9)
+        if m is not None and not m.trusted:
+            title += f"\nUNTRUSTED: {', '.join(m.flags)}"
+        ax.set_title(title, fontsize=9, color="k" if m is None or m.trusted else "red")
         ax.set_xlabel("x (mm)", fontsize=8)
         if k == 0:
             ax.set_ylabel("y (mm)", fontsize=8)
@@ -549,7 +686,8 @@ def plot_profiles(path, cam, stack, depths, ms, objects, route):
     for k, (d, m) in enumerate(zip(depths, ms)):
         if m is None:
             continue
-        axa.plot(m.axial_height_mm, m.axial_intensity, color=f"C{k}", label=f"{d:+.0f} mm")
+        axa.plot(m.axial_height_mm, m.axial_intensity, color=f"C{k}", ls="-" if m.trusted else ":",
+                 label=f"{d:+.0f} mm" + ("" if m.trusted else " (untrusted)"))
         if axr is not None:
             for j, r in enumerate(m.radial):
                 axr.plot(r.x_mm, r.intensity, color=f"C{k}", ls=("-", "--", ":")[j % 3], lw=0.9,

@@ -4,11 +4,12 @@ import dataclasses
 import numpy as np
 import pandas as pd
 import pytest
+from scipy import ndimage
 
 from lf_flame import scenes, simulate
 from lf_flame.camera import PlenopticCamera
-from lf_flame.diagnostics import (EmptyPlaneError, error_table, flame_truth, lenslet_size_mm, lenslet_to_object_mm,
-                                  measure_flame, measure_stack, score_stacks)
+from lf_flame.diagnostics import (TIP_PEDESTAL_MM, EmptyPlaneError, error_table, flame_truth, lenslet_size_mm,
+                                  lenslet_to_object_mm, measure_flame, measure_stack, score_stacks)
 from lf_flame.refocus import aperture_mask, refocus
 
 # two thirds of the paper's lenslet grid, the paper's optics; flames scaled to fit the field
@@ -64,6 +65,7 @@ def test_height_of_a_lone_flame_at_two_magnifications():
         assert m.mask.sum() > 100 and 0 < m.base_width_mm <= m.max_width_mm < 0.3 * t["height_mm"]
         assert len(m.radial) == 3 and m.axial_height_mm.shape == m.axial_intensity.shape
         assert m.axial_intensity.max() > m.threshold
+        assert m.flags == () and m.trusted  # a clean lone flame is trusted
     true_ratio = truth[30.0]["height_mm"] / truth[-15.0]["height_mm"]
     assert true_ratio == pytest.approx(CAM.object_distance_mm(30.0) / CAM.object_distance_mm(-15.0))
     assert meas[30.0].height_mm / meas[-15.0].height_mm == pytest.approx(true_ratio, rel=0.02)
@@ -77,16 +79,17 @@ def test_heights_beside_blurred_flames(depths):
     df = score_stacks(stack[None], CAM, [objects])
     assert (df.failure == "").all()
     assert (df.height_err_mm < 0.5).all(), df[["depth_mm", "height_mm_true", "height_mm"]]
+    assert (df["flags"] == "").all(), df[["depth_mm", "flags", "tip_pedestal_mm"]]  # nothing to distrust
     # the flames stand 0.225 of the field apart: a centroid on the wrong flame is off by > 1.5 mm
     assert (df.centre_x_err_mm < 0.3).all()
     t = error_table(df)
     assert list(t.depth_mm) == list(depths) and (t.n == 1).all() and (t.n_failed == 0).all()
+    assert (t.n_flagged == 0).all() and (t.share_over_1mm == 0).all()
 
 
 def test_the_sharp_region_wins_over_a_brighter_blurred_one():
     """A dim sharp-edged flame-like bar and, apart from it in the same band, a brighter
     smooth blob (what defocus makes of a flame): the sharp one is measured."""
-    from scipy import ndimage
     plane = np.zeros((CAM.n_rows, CAM.n_cols))
     plane[40:100, 10:18] = 0.4                                   # in focus: hard edges
     blob = np.zeros_like(plane)
@@ -101,6 +104,113 @@ def test_the_sharp_region_wins_over_a_brighter_blurred_one():
     # a bar has hard ends: both edges within a lenslet of them
     assert m.height_mm == pytest.approx(60 * m.lenslet_mm, abs=m.lenslet_mm)
     assert m.max_width_mm == pytest.approx(8 * m.lenslet_mm)
+    assert m.trusted  # hard ends are edges found, not cut by the threshold
+
+
+# ---- flags: measurements the method cannot trust ----------------------------------
+BAND = (12, 40)
+
+
+def _flame(base=100, tip=40, col=24.0, half_width=4.0, peak=0.5):
+    """A planted in-focus flame (R, C) at 0 mm: luminosity rising linearly over the bottom
+    30 % of rows ``base``..``tip`` and falling linearly to zero at the tip (its edges
+    extrapolate exactly), hard sides narrowing towards the tip."""
+    r = np.arange(CAM.n_rows)[:, None] + 0.5
+    c = np.arange(CAM.n_cols)[None, :] + 0.5
+    eta = (base - r) / (base - tip)
+    axial = np.where((eta >= 0) & (eta <= 1), np.where(eta < 0.3, eta / 0.3, (1 - eta) / 0.7), 0.0)
+    return peak * axial * (np.abs(c - col) <= half_width * np.sqrt(np.clip(1 - eta, 0.05, 1)))
+
+
+def _blur(rows, cols, amplitude, sigma):
+    """A bright box ``rows`` × ``cols`` blurred by a Gaussian of ``sigma`` lenslets: what
+    defocus makes of another flame."""
+    box = np.zeros((CAM.n_rows, CAM.n_cols))
+    box[slice(*rows), slice(*cols)] = 1.0
+    return amplitude * ndimage.gaussian_filter(box, sigma)
+
+
+def test_the_planted_flame_alone_is_measured_and_trusted():
+    m = measure_flame(_flame(), CAM, 0.0, columns=BAND)
+    assert m.height_mm == pytest.approx(60 * m.lenslet_mm, abs=0.1)
+    assert m.flags == () and m.trusted and m.tip_pedestal_mm < 0.01
+    assert m.summary()["flags"] == ""
+
+
+def test_a_sliver_of_light_from_outside_the_band_is_flagged_merged():
+    """A bright blur standing left of the band (the case of ``lf-flame simulate --scene
+    flame``'s +20 mm plane, measured 6.97 mm for 20.15): the region is the sliver of it
+    inside the band's border, sharper than the flame merged with the rest; the walk runs
+    along the band's border. Not caught by the pedestal (below its threshold)."""
+    m = measure_flame(_flame() + _blur((10, 80), (0, 12), 2.0, 5.0), CAM, 0.0, columns=BAND)
+    assert abs(m.height_mm - 60 * m.lenslet_mm) > 1.0  # the method fails here
+    assert m.mask[:, BAND[0]].any() and not m.mask[:, 20:].any()  # on the sliver, not the flame
+    assert "merged" in m.flags and not m.trusted
+    assert m.tip_pedestal_mm < TIP_PEDESTAL_MM  # the band's border alone catches it
+    assert m.summary()["flags"] == ";".join(m.flags)
+
+
+def test_a_tip_on_other_flames_light_is_flagged_merged():
+    """A broad blur over the flame's tip (a taller flame behind, out of focus) raises the
+    tip's fitted rows: the extrapolated tip comes out > 1 mm too high. Its walk stays on
+    the flame's columns (no band border): the pedestal catches it."""
+    r = np.arange(CAM.n_rows)[:, None]
+    c = np.arange(CAM.n_cols)[None, :]
+    pedestal = 0.15 * np.exp(-(r - 40) ** 2 / (2 * 15 ** 2) - (c - 22) ** 2 / (2 * 12 ** 2))
+    m = measure_flame(_flame() + pedestal, CAM, 0.0, columns=BAND)
+    assert m.height_mm - 60 * m.lenslet_mm > 1.0
+    assert m.tip_pedestal_mm > TIP_PEDESTAL_MM and m.flags == ("merged",)
+
+
+def test_a_dim_flame_cut_by_the_threshold_is_flagged_no_edge():
+    """A dim flame beside a blur three times brighter in its band: the 30 % threshold cuts
+    the flame at 70 % of its peak, above the fitted range, and the edge returned is the
+    threshold's: 5 mm short."""
+    m = measure_flame(_flame() + _blur((10, 60), (2, 16), 1.5, 4.0), CAM, 0.0, columns=BAND)
+    assert 60 * m.lenslet_mm - m.height_mm > 3.0
+    assert not m.mask[:, :18].any()  # the flame's own region...
+    assert "no-edge" in m.flags and not m.trusted  # ...but not its edge
+
+
+@pytest.mark.parametrize("where", ["top", "bottom", "left"])
+def test_a_flame_cut_by_the_field_is_flagged_cut(where):
+    """The flame runs out of the plane: the true tip (base, side) may lie outside."""
+    flame, band = {"top": (_flame(base=70, tip=-10), BAND), "bottom": (_flame(base=130, tip=60), BAND),
+                   "left": (_flame(col=2.0), (0, 20))}[where]
+    m = measure_flame(flame, CAM, 0.0, columns=band)
+    assert "cut" in m.flags and not m.trusted
+    # the same flame inside the field is trusted
+    assert measure_flame(_flame(), CAM, 0.0, columns=band if where != "left" else (12, 40)).trusted
+
+
+def test_a_dim_flame_beside_bright_blur_in_a_render_is_flagged():
+    """Rendered: the 0 mm flame at 30 % radiance, its tip on the blur of the taller +10 and
+    +20 mm flames, comes out > 1 mm too tall; flagged, the other planes trusted."""
+    stack, objects = _render((20.0, 10.0, 0.0, -10.0), radiance=(1.0, 1.0, 0.3, 1.0))
+    df = score_stacks(stack[None], CAM, [objects])
+    assert df.height_err_mm[2] > 1.0 and df["flags"][2] == "merged"
+    assert (df["flags"].drop(2) == "").all() and (df.height_err_mm.drop(2) < 0.5).all()
+    t = error_table(df.assign(all=0), by=("all",))
+    assert t.n_flagged[0] == 1 and t.share_over_1mm[0] == 0.25 and t.share_over_1mm_trusted[0] == 0.0
+    assert t.height_err_mm_max[0] == pytest.approx(df.height_err_mm.max())
+    assert t.height_err_mm_max_trusted[0] == pytest.approx(df.height_err_mm.drop(2).max())
+
+
+def test_error_table_tail_columns():
+    err = [0.1, 0.2, 0.3, 1.5, 0.4, 2.5, np.nan, 0.2]
+    flags = ["", "", "", "merged", "", "", "", "cut"]
+    df = pd.DataFrame(dict(depth_mm=[10.0] * 8, height_err_mm=err, height_mm_true=5.0, height_mm=5.0,
+                           base_err_mm=0.0, tip_err_mm=0.0, centre_x_err_mm=0.0, flags=flags,
+                           failure=[""] * 6 + ["no flame"] + [""]))
+    t = error_table(df).iloc[0]
+    measured = np.array([0.1, 0.2, 0.3, 1.5, 0.4, 2.5, 0.2])
+    trusted = np.array([0.1, 0.2, 0.3, 0.4, 2.5])
+    assert (t.n, t.n_failed, t.n_flagged) == (8, 1, 2)
+    assert t.share_over_1mm == pytest.approx(2 / 7) and t.share_over_1mm_trusted == pytest.approx(1 / 5)
+    assert t.height_err_mm_p90 == pytest.approx(np.quantile(measured, 0.9))
+    assert t.height_err_mm_p90_trusted == pytest.approx(np.quantile(trusted, 0.9))
+    assert (t.height_err_mm_max, t.height_err_mm_max_trusted) == (2.5, 2.5)
+    assert t.height_err_mm == pytest.approx(measured.mean())
 
 
 def test_bad_input():
@@ -169,9 +279,26 @@ def test_cli_profiles_writes_csv_and_figure(tmp_path, capsys):
     assert list(df.depth_mm) == list(depths) and list(df.plane) == [0, 1, 2, 3]
     assert df.slope.values == pytest.approx([CAM.slope_for_depth(d) for d in depths], rel=1e-4)
     assert (df.height_err_mm < 0.5).all() and df.failure.isna().all()
+    assert "flags" in df and df["flags"].isna().all()  # the column is there, empty: all trusted
     axial = pd.read_csv(tmp_path / "p.axial.csv")
     assert set(axial.depth_mm) == set(depths) and (axial.height_mm.groupby(axial.plane).max() > 3).all()
     assert (tmp_path / "p.png").stat().st_size > 20_000
     # the stored planes exist only in a dataset
     assert main(["profiles", str(src), "--route", "ground-truth", "--out", str(tmp_path / "q")]) == 2
     assert "DATASET.h5:INDEX" in capsys.readouterr().err
+
+
+def test_flame_tail_experiment_writes_csv_and_md(tmp_path):
+    """``experiments/flame_tail.py`` at a tiny size: every plane in the CSV, the tail in the md."""
+    import importlib.util
+    from pathlib import Path
+    spec = importlib.util.spec_from_file_location(
+        "flame_tail", Path(__file__).resolve().parents[1] / "experiments" / "flame_tail.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    assert mod.main(["--n", "2", "--seed0", "990000", "--out", str(tmp_path / "tail")]) == 0
+    df = pd.read_csv(tmp_path / "tail.csv", keep_default_na=False, na_values=[""])
+    assert len(df) == 2 * 2 * 4 and list(df.columns) == list(mod.CSV_COLUMNS)
+    assert set(df.regime) == {"varied", "paper"} and df.height_err_mm.notna().all()
+    md = (tmp_path / "tail.md").read_text()
+    assert "% > 1 mm trusted" in md and "Detector's confusion" in md and "--seed0 990000" in md

@@ -93,6 +93,6 @@ def cmd_profiles(a):
     atomic_write_text(f"{out}.axial.csv", axial.to_csv(index=False, float_format="%.5g"))
     plot_profiles(f"{out}.png", cam, stack, depths, ms, objects, a.route)
     cols = [c for c in ("depth_mm", "height_mm", "height_mm_true", "height_err_mm", "max_width_mm",
-                        "centroid_x_mm", "integrated_intensity", "failure") if c in df]
+                        "centroid_x_mm", "integrated_intensity", "flags", "failure") if c in df]
     print(df[cols].to_string(index=False, float_format=lambda v: f"{v:.3f}"))
     print(f"-> {out}.csv, {out}.axial.csv, {out}.png")
