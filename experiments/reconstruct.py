@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -39,11 +40,14 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_refocus import _times  # noqa: E402
+
 from lf_flame import scenes, simulate  # noqa: E402
 from lf_flame.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
-from lf_flame.diagnostics import score_stacks  # noqa: E402
-from lf_flame.reconstruct import (DEFAULT_ITERS, EmissionOperator, plot_reconstruction,  # noqa: E402
+from lf_flame.diagnostics import error_table, score_stacks  # noqa: E402
+from lf_flame.reconstruct import (SOLVERS, EmissionOperator, plot_reconstruction,  # noqa: E402
                                   reconstruct, scene_truth, score_planes)
 from lf_flame.refocus import aperture_mask, focal_stack, raw_to_views  # noqa: E402
 
@@ -53,9 +57,9 @@ TAIL_SEED0 = 940000
 RAYS_DATA = 16          # rays per pixel of the rendered light fields (the datasets')
 RAYS_OP = 4             # rays per pixel of the operator
 #: every solver's knobs tried on the validation renders (iterations are read off one run)
-CANDIDATES = {"fista": [{}], "lsqr": [dict(damp=0.0), dict(damp=0.3)], "rl": [{}], "pd-tv": [dict(tv=3e-3)]}
-MAX_ITERS = 80
-CHECKPOINTS = (5, 10, 15, 20, 30, 45, 60, 80)
+CANDIDATES = {"fista": [{}], "lsqr": [dict(damp=0.0)], "rl": [{}], "pd-tv": [dict(tv=0.1), dict(tv=0.3), dict(tv=1.0)]}
+MAX_ITERS = 60
+CHECKPOINTS = (5, 10, 15, 20, 30, 40, 50, 60)
 
 
 def build_scene(kind: str, cam, seed: int):
@@ -78,9 +82,12 @@ def planes_of(kind: str, scene) -> list:
     return [float(o["depth_offset_mm"]) for o in scene.objects]
 
 
-def noisy(scene, raw_clean, snr_db, seed):
-    """The scene's render with shot and read noise (2 e-) whose full well gives ``snr_db``
-    over the raw image; returns (raw, measured SNR dB, full well)."""
+def noisy(cam, scene, raw_clean, snr_db, seed):
+    """The scene rendered again with shot and read noise (2 e-) whose full well gives
+    ``snr_db`` (measured, within 0.2 dB) over the clean raw image; the same seed keeps the
+    same rays, and the noise falls on the light before the sensor clips it (a pixel
+    saturates as a real one does).
+    Returns (raw, measured SNR dB, full well)."""
     if snr_db is None:
         return raw_clean, np.inf, None
     s = raw_clean.astype(np.float64)
@@ -88,15 +95,19 @@ def noisy(scene, raw_clean, snr_db, seed):
     # noise power sum(s) / fw + N read^2 / fw^2 = sum(s^2) / 10^(snr/10): a quadratic in 1 / fw
     a, b, c = s.size * read ** 2, s.sum(), -np.sum(s ** 2) / 10 ** (snr_db / 10)
     fw = 1.0 / ((-b + np.sqrt(b * b - 4 * a * c)) / (2 * a))
-    fx = dataclasses.replace(scene.effects, full_well_e=float(fw), read_noise_e=read)
-    raw = simulate.apply_sensor(raw_clean.copy(), fx, seed)
-    snr = 10 * np.log10(np.sum(s ** 2) / np.sum((raw - s) ** 2))
+    for _ in range(4):   # saturated pixels are noise-free: shrink the full well until the SNR is measured
+        fx = dataclasses.replace(scene.effects, full_well_e=float(fw), read_noise_e=read)
+        raw = simulate.render(cam, dataclasses.replace(scene, effects=fx), RAYS_DATA, seed)
+        snr = 10 * np.log10(np.sum(s ** 2) / np.sum((raw - s) ** 2))
+        if abs(snr - snr_db) < 0.2:
+            break
+        fw /= 10 ** ((snr - snr_db) / 10)
     return raw, float(snr), float(fw)
 
 
 def light_field(kind, cam, seed, snr_db):
     scene = build_scene(kind, cam, seed)
-    raw, snr, fw = noisy(scene, simulate.render(cam, scene, RAYS_DATA, seed), snr_db, seed)
+    raw, snr, fw = noisy(cam, scene, simulate.render(cam, scene, RAYS_DATA, seed), snr_db, seed)
     depths = planes_of(kind, scene)
     op = EmissionOperator(cam, depths, rays_per_pixel=RAYS_OP)
     objects = None if kind == "volume" else scene.objects
@@ -132,18 +143,20 @@ def iteration_curves(cam, kinds, noise_levels):
     return pd.DataFrame(rows)
 
 
-def choose(curves: pd.DataFrame, slack: float = 1.1) -> dict:
+def choose(curves: pd.DataFrame, slack: float = 1.1) -> tuple[dict, str]:
     """Per solver, the knobs and the fewest iterations whose score is within ``slack`` of
-    the solver's best; score: the mean over the validation renders (noise-free and noisy
-    pooled) of each render's worst plane error."""
+    the solver's best, and the solver whose choice scores best: *the* chosen solver.
+    Score: the worst over the validation renders (noise-free and noisy) of each render's
+    worst plane error."""
     worst = curves.groupby(["solver", "knobs", "iters", "scene", "snr_db", "seed"]).rel_err.max().reset_index()
-    score = worst.groupby(["solver", "knobs", "iters"]).rel_err.mean().reset_index()
+    score = worst.groupby(["solver", "knobs", "iters"]).rel_err.max().reset_index()
     ok = score[score.rel_err <= slack * score.groupby("solver").rel_err.transform("min")]
     best = ok.sort_values(["iters", "rel_err"]).groupby("solver").head(1)
-    return {r.solver: dict(iters=int(r.iters), **json.loads(r.knobs)) for r in best.itertuples()}
+    per_solver = {r.solver: dict(iters=int(r.iters), **json.loads(r.knobs)) for r in best.itertuples()}
+    return per_solver, str(best.sort_values("rel_err").solver.iloc[0])
 
 
-def score_tests(cam, kinds, noise_levels, chosen, n_tests, figdir):
+def score_tests(cam, kinds, noise_levels, chosen, best, n_tests, figdir):
     rows = []
     n = cam.pixels_per_lenslet
     mask = aperture_mask(n, "circular")
@@ -164,38 +177,38 @@ def score_tests(cam, kinds, noise_levels, chosen, n_tests, figdir):
                     rec = reconstruct(views, op, solver, kw.pop("iters"), **kw)
                     rows.append(score_planes(rec.planes, truth, cam, depths, objects, time_s=rec.time_s,
                                              route=f"reconstruct-{solver}", iters=rec.settings["iters"], **labels))
-                    if solver == "fista" and seed == TEST_SEEDS[0]:
+                    if solver == best and seed == TEST_SEEDS[0]:
                         tag = f"{kind}_{'clean' if snr_db is None else f'{snr_db:.0f}dB'}"
                         plot_reconstruction(figdir / f"reconstruct_{tag}.png", rec, adj.planes, truth,
-                                            title=f"{kind} scene, {tag}: FISTA {rec.settings['iters']} it., "
+                                            title=f"{kind} scene, {tag}: {solver} {rec.settings['iters']} it., "
                                                   f"{rec.time_s:.1f} s | refocused | truth")
                 print(f"  test {kind} snr={snr_db} seed={seed} done", flush=True)
     return pd.concat(rows, ignore_index=True)
 
 
-def tail(cam, iters, n):
-    """Height errors of every plane of ``n`` fresh varied flame scenes: shift-and-sum beside FISTA."""
+def tail(cam, solver, knobs, seeds):
+    """Height errors (:func:`lf_flame.diagnostics.score_stacks`, flags included) of every
+    plane of fresh varied flame scenes, one per seed: shift-and-sum beside ``solver``."""
     rows = []
     depths = list(scenes.PAPER_DEPTHS_MM)
     op = EmissionOperator(cam, depths, rays_per_pixel=RAYS_OP)
     mask = aperture_mask(cam.pixels_per_lenslet, "circular")
-    for i in tqdm(range(n), desc="tail", unit="scene"):
-        seed = TAIL_SEED0 + i
+    kw = dict(knobs)
+    iters = kw.pop("iters", None)
+    for seed in tqdm(seeds, desc="tail", unit="scene"):
         scene = scenes.flame_scene(cam, np.random.default_rng(seed), regime="varied")
         views = raw_to_views(simulate.render(cam, scene, 4, seed), cam.pixels_per_lenslet)
         fs = focal_stack(views, [cam.slope_for_depth(d) for d in depths], mask)
-        rec = reconstruct(views, op, "fista", iters)
-        for route, st in (("refocus-shift-sum", fs), ("reconstruct-fista", rec.planes)):
+        rec = reconstruct(views, op, solver, iters, **kw)
+        for route, st in (("refocus-shift-sum", fs), (f"reconstruct-{solver}", rec.planes)):
             rows.append(score_stacks(np.clip(st, 0, None)[None], cam, [scene.objects], samples=[seed], route=route))
     return pd.concat(rows, ignore_index=True)
 
 
 def tail_table(df: pd.DataFrame, by=("route",)) -> pd.DataFrame:
-    g = df.groupby(list(by))
-    return pd.DataFrame(dict(
-        planes=g.size(), share_over_1mm=g.height_err_mm.apply(lambda e: float(np.mean(~(e <= 1.0)))),
-        median_mm=g.height_err_mm.median(), p90_mm=g.height_err_mm.quantile(0.9), worst_mm=g.height_err_mm.max(),
-        failed=g.failure.apply(lambda f: int((f != "").sum())))).reset_index()
+    cols = ["n", "n_failed", "n_flagged", "height_err_mm", "share_over_1mm", "height_err_mm_p90", "height_err_mm_max",
+            "share_over_1mm_trusted", "height_err_mm_p90_trusted", "height_err_mm_max_trusted"]
+    return error_table(df.assign(flags=df["flags"].fillna(""), failure=df["failure"].fillna("")), by)[list(by) + cols]
 
 
 def time_pair(cam, repeats=7):
@@ -211,14 +224,7 @@ def time_pair(cam, repeats=7):
     out = {}
     for name, f in (("A", lambda: op.matvec(x)), ("A^T", lambda: op.rmatvec(y)),
                     ("focal_stack", lambda: focal_stack(views, slopes, mask))):
-        f()
-        t = []
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            f()
-            t.append(time.perf_counter() - t0)
-        out[name] = dict(median_ms=1e3 * float(np.median(t)), p90_ms=1e3 * float(np.quantile(t, 0.9)),
-                         worst_ms=1e3 * float(np.max(t)))
+        out[name] = dict(zip(("median_ms", "p10_ms", "p90_ms"), map(float, _times(f, repeats))))
     return out
 
 
@@ -230,16 +236,19 @@ def main(argv=None):
     p.add_argument("--snr-db", type=float, default=14.0)
     p.add_argument("--kinds", default="paper,varied,overlap,volume")
     p.add_argument("--stage", choices=["all", "main", "tail"], default="all",
-                   help="tail: only the height tail (FISTA at --tail-iters); main: all but the tail (the report "
-                        "reads an existing reconstruct_tail.csv)")
-    p.add_argument("--tail-iters", type=int, default=DEFAULT_ITERS["fista"])
+                   help="tail: only the height tail (--tail-solver and its knobs, scenes --tail-first ... + --tail); "
+                        "main: all but the tail (the report reads an existing reconstruct_tail.csv)")
+    p.add_argument("--tail-first", type=int, default=0, help="first tail scene (seed TAIL_SEED0 + it): shards")
+    p.add_argument("--tail-solver", default="rl", choices=[s for s in SOLVERS if s != "adjoint"])
+    p.add_argument("--tail-knobs", default="{}", help='JSON, e.g. {"iters": 40, "tv": 0.3}')
     a = p.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     cam = PAPER_CAMERA
     t0 = time.perf_counter()
+    tail_seeds = range(TAIL_SEED0 + a.tail_first, TAIL_SEED0 + a.tail_first + a.tail)
     if a.stage == "tail":
-        tl = tail(cam, a.tail_iters, a.tail)
+        tl = tail(cam, a.tail_solver, json.loads(a.tail_knobs), tail_seeds)
         atomic_write_text(out / "reconstruct_tail.csv", tl.to_csv(index=False, float_format="%.5g"))
         print(tail_table(tl).to_string(index=False), f"\n{(time.perf_counter() - t0) / 60:.1f} min")
         return
@@ -249,19 +258,19 @@ def main(argv=None):
     print("timing", timing, flush=True)
     curves = iteration_curves(cam, [k for k in kinds if k in ("varied", "overlap")], noise)
     atomic_write_text(out / "reconstruct_iters.csv", curves.to_csv(index=False, float_format="%.5g"))
-    chosen = choose(curves)
-    print("chosen on validation renders:", chosen, flush=True)
-    scores = score_tests(cam, kinds, noise, chosen, a.tests, out)
+    chosen, best = choose(curves)
+    print("chosen on validation renders:", chosen, "best:", best, flush=True)
+    scores = score_tests(cam, kinds, noise, chosen, best, a.tests, out)
     atomic_write_text(out / "reconstruct.csv", scores.to_csv(index=False, float_format="%.5g"))
     if a.stage == "all":
-        tl = tail(cam, chosen["fista"]["iters"], a.tail)
+        tl = tail(cam, best, chosen[best], tail_seeds)
         atomic_write_text(out / "reconstruct_tail.csv", tl.to_csv(index=False, float_format="%.5g"))
     tail_csv = out / "reconstruct_tail.csv"
     tl = pd.read_csv(tail_csv, keep_default_na=False, na_values=[""]) if tail_csv.exists() else pd.DataFrame()
-    write_report(out, scores, curves, tl, chosen, timing, a, time.perf_counter() - t0)
+    write_report(out, scores, curves, tl, chosen, best, timing, a, time.perf_counter() - t0)
 
 
-def write_report(out, scores, curves, tl, chosen, timing, a, wall):
+def write_report(out, scores, curves, tl, chosen, best, timing, a, wall):
     s = scores.assign(noise=np.where(np.isinf(scores.snr_db), "noise-free", f"{a.snr_db:g} dB"))
     per_plane = s.groupby(["scene", "noise", "route", "depth_mm"], sort=False).agg(
         rel_err=("rel_err", "mean"), rel_err_worst=("rel_err", "max"), ssim=("ssim", "mean"),
@@ -274,7 +283,8 @@ def write_report(out, scores, curves, tl, chosen, timing, a, wall):
     lines = ["# Each plane's emission, reconstructed from one light field (`make reconstruct`)", "",
              f"Command: `python experiments/reconstruct.py --out {a.out} --tests {a.tests} --tail {a.tail} "
              f"--snr-db {a.snr_db:g}`; wall time {wall / 60:.1f} min. Solver settings chosen on validation renders "
-             f"(seeds {VAL_SEEDS}; `reconstruct_iters.csv`): `{json.dumps(chosen)}`. Scored on renders "
+             f"(seeds {VAL_SEEDS}; `reconstruct_iters.csv`): `{json.dumps(chosen)}`; **the chosen solver: "
+             f"`{best}`** (the lowest worst-plane error over the validation renders). Scored on renders "
              f"{TEST_SEEDS[:a.tests]} ({RAYS_DATA} rays/pixel); operator {RAYS_OP} rays/pixel; relative error "
              "‖x̂ − x‖/‖x‖ per plane against the scene's emission on the grid (one sample per lenslet).", "",
              "## Worst plane per route (over planes and renders)", "",
@@ -284,12 +294,13 @@ def write_report(out, scores, curves, tl, chosen, timing, a, wall):
              "## One operator pair beside one 4-plane focal stack (same light field, same run)", "",
              pd.DataFrame(timing).T.to_markdown(floatfmt=".1f"), ""]
     if len(tl):
-        lines += [f"## Flame height tail: {a.tail} fresh varied scenes (seeds {TAIL_SEED0}+i, 4 rays/pixel, "
-                  "analytic slopes)", "", tail_table(tl).to_markdown(index=False, floatfmt=".3f"), "",
+        lines += [f"## Flame height tail: {tl['sample'].nunique()} fresh varied scenes (seeds {TAIL_SEED0}+i, "
+                  "4 rays/pixel, analytic slopes; `--stage tail`)", "",
+                  "Absolute height error (mm); *trusted*: planes without flags (`FlameMeasurement.flags`).", "", tail_table(tl).to_markdown(index=False, floatfmt=".3f"), "",
                   tail_table(tl, ("route", "depth_mm")).to_markdown(index=False, floatfmt=".3f"), ""]
     atomic_write_text(out / "reconstruct.md", "\n".join(lines))
     atomic_write_text(out / "reconstruct.json", json.dumps(dict(
-        provenance=provenance(), chosen=chosen, timing_ms=timing, wall_time_s=wall, val_seeds=VAL_SEEDS,
+        provenance=provenance(), chosen=chosen, chosen_solver=best, timing_ms=timing, wall_time_s=wall, val_seeds=VAL_SEEDS,
         test_seeds=TEST_SEEDS[:a.tests], tail_seed0=TAIL_SEED0, tail=a.tail, snr_db=a.snr_db,
         rays_per_pixel_data=RAYS_DATA, rays_per_pixel_operator=RAYS_OP), indent=2, default=str))
     print((out / "reconstruct.md").read_text())

@@ -94,14 +94,19 @@ def _accuracy(preds, refs) -> dict:
 
 def _height_accuracy(preds, truth) -> dict:
     """Mean absolute flame-height error (mm) per plane of ``preds`` (k, 4, R, C) against
-    ``truth = (camera, objects of each sample)``; planes with no measurable flame are
-    counted in ``height_failed`` and left out of the means."""
+    ``truth = (camera, objects of each sample)``, and its tail over all planes (share off by
+    more than 1 mm, 90th percentile, worst; planes flagged untrusted); planes with no
+    measurable flame are counted in ``height_failed`` and left out."""
     camera, objects = truth
-    t = error_table(score_stacks(np.clip(np.asarray(preds), 0, 1), camera, objects))
+    scores = score_stacks(np.clip(np.asarray(preds), 0, 1), camera, objects)
+    t = error_table(scores)
     row = {f"height_err_mm_{d:+.0f}mm": float(v) for d, v in zip(t.depth_mm, t.height_err_mm)}
     ok = t.height_err_mm.notna()
     row.update(height_err_mm_mean=float(t.height_err_mm[ok].mean()) if ok.any() else float("nan"),
                height_failed=int(t.n_failed.sum()))
+    a = error_table(scores.assign(planes="all"), ("planes",)).iloc[0]   # the tail over every plane
+    row.update(height_share_over_1mm=float(a.share_over_1mm), height_err_mm_p90=float(a.height_err_mm_p90),
+               height_err_mm_max=float(a.height_err_mm_max), height_flagged=int(a.n_flagged))
     return row
 
 
@@ -217,6 +222,53 @@ def training_rows(model_dirs) -> list[dict]:
                              train_wall_s=r.wall_time_s,
                              val_ssim=r.val_ssim, val_loss=r.val_loss))
     return rows
+
+
+def reconstruction_rows(folder: Path) -> list[dict]:
+    """Every solver at every iteration count of ``make reconstruct``'s validation curves
+    (``folder/reconstruct_iters.csv``, written there by ``experiments/reconstruct.py``): time
+    against the worst plane's relative emission error, per scene and noise level; [] when
+    the curves are missing. Time: median and 90th percentile over the validation renders."""
+    f = folder / "reconstruct_iters.csv"
+    if not f.exists():
+        return []
+    c = pd.read_csv(f)
+    per_render = c.groupby(["scene", "snr_db", "solver", "knobs", "iters", "seed"], sort=False).agg(
+        rel_err=("rel_err", "max"), time_s=("time_s", "first")).reset_index()
+    rows = []
+    for (scene, snr, solver, knobs, iters), g in per_render.groupby(["scene", "snr_db", "solver", "knobs", "iters"],
+                                                                   sort=False):
+        rows.append(dict(section="reconstruction", route=f"reconstruct-{solver}",
+                         setting=f"{iters} it. {knobs if knobs != '{}' else ''}".strip(), scene=scene,
+                         noise="noise-free" if np.isinf(snr) else f"{snr:g} dB", iters=int(iters),
+                         latency_ms_median=1e3 * float(g.time_s.median()),
+                         latency_ms_p90=1e3 * float(g.time_s.quantile(0.9)),
+                         worst_plane_rel_err=float(g.rel_err.max()), mean_worst_plane_rel_err=float(g.rel_err.mean()),
+                         n_samples=len(g)))
+    return rows
+
+
+def plot_reconstruction(df: pd.DataFrame, out: Path) -> None:
+    """``tradeoff_reconstruct.png``: worst-plane emission error against time, one line per
+    solver and knob setting through its iteration counts, one panel per scene and noise."""
+    rec = df[df.section == "reconstruction"]
+    panels = list(rec.groupby(["scene", "noise"], sort=False))
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 4.2), squeeze=False, sharey=True)
+    for ax, ((scene, noise), g) in zip(axes[0], panels):
+        for (route, knobs), h in g.groupby([g.route, g.setting.str.replace(r"^\d+ it\.\s*", "", regex=True)],
+                                           sort=False):
+            ax.plot(h.latency_ms_median / 1e3, h.worst_plane_rel_err, "o-", ms=3,
+                    label=f"{route.replace('reconstruct-', '')} {knobs}".strip())
+        ax.set_yscale("log")
+        ax.set_xlabel("time (s, median over renders)")
+        ax.set_title(f"{scene}, {noise}")
+        ax.grid(alpha=0.3, which="both")
+    axes[0, 0].set_ylabel("worst plane relative error")
+    axes[0, -1].legend(fontsize=7)
+    fig.suptitle("3-D reconstruction: error against time, iterations along each line (validation renders)")
+    fig.tight_layout()
+    fig.savefig(out / "tradeoff_reconstruct.png", dpi=110)
+    plt.close(fig)
 
 
 def pareto(df: pd.DataFrame) -> pd.Series:
@@ -364,13 +416,16 @@ def plot(df: pd.DataFrame, out: Path) -> None:
     fig.tight_layout()
     fig.savefig(out / "tradeoff_knobs.png", dpi=100)
     plt.close(fig)
+    if (df.section == "reconstruction").any():
+        plot_reconstruction(df, out)
 
 
 def summary(df: pd.DataFrame, prov: dict, n_test: int, ref_rpp: int, gt_heights: dict | None = None) -> str:
     ref = _routes(df)
     cols = ["route", "setting", "backend", "latency_ms_median", "latency_ms_p10", "latency_ms_p90",
             "throughput_lf_per_s", *[f"ssim_{p}" for p in PLANES], "ssim_mean", "psnr_db_mean",
-            *[f"height_err_mm_{p}" for p in PLANES], "height_err_mm_mean", "height_failed", "pareto"]
+            *[f"height_err_mm_{p}" for p in PLANES], "height_err_mm_mean", "height_share_over_1mm",
+            "height_err_mm_p90", "height_err_mm_max", "height_flagged", "height_failed", "pareto"]
     fastest = ref.loc[ref[ref.route != "mean image"].latency_ms_median.idxmin()]
     best = ref.loc[ref.ssim_mean.idxmax()]
     models = ref[ref.route == "model"]
@@ -383,9 +438,11 @@ def summary(df: pd.DataFrame, prov: dict, n_test: int, ref_rpp: int, gt_heights:
              f"Reference: bilinear shift-and-sum at the same slopes of the same scenes rendered noise-free at "
              f"{ref_rpp} rays/pixel. Latency: median (p10-p90) of repeated calls after a warm-up. "
              "Height error: flame height measured on the route's planes (`lf_flame.diagnostics`) against the "
-             "simulation's true height, mean absolute error in mm per plane; `height_failed`: planes where no "
-             "flame could be measured (left out of the means).", "",
-             ref[cols].to_markdown(index=False, floatfmt=".4g"), "",
+             "simulation's true height, mean absolute error in mm per plane, and its tail over all planes: the "
+             "share off by more than 1 mm, the 90th percentile and the worst; `height_flagged`: planes whose "
+             "height the method cannot trust (`FlameMeasurement.flags`); `height_failed`: planes where no "
+             "flame could be measured (left out).", "",
+             ref[[c for c in cols if c in ref]].to_markdown(index=False, floatfmt=".4g"), "",
              "![Pareto](tradeoff_pareto.png)", "",
              f"- Fastest: **{_label(fastest)}**, {fastest.latency_ms_median:.3g} ms, SSIM {fastest.ssim_mean:.3f}.",
              f"- Most accurate: **{_label(best)}**, SSIM {best.ssim_mean:.3f} at {best.latency_ms_median:.3g} ms.",
@@ -427,6 +484,22 @@ def summary(df: pd.DataFrame, prov: dict, n_test: int, ref_rpp: int, gt_heights:
                      f"({b.train_wall_s / 60:.1f} min); last {g.val_ssim.iloc[-1]:.3f} at epoch "
                      f"{g.epochs.iloc[-1]:.0f} ({g.train_wall_s.iloc[-1] / 60:.1f} min).")
     lines += ["", "![knobs](tradeoff_knobs.png)", ""]
+    rec = df[df.section == "reconstruction"]
+    if len(rec):
+        knobs = rec.setting.str.replace(r"^\d+ it\.\s*", "", regex=True)
+        err = rec.assign(solver=rec.route.str.replace("reconstruct-", "") + " " + knobs).pivot_table(
+            index=["scene", "noise", "solver"], columns="iters", values="worst_plane_rel_err", sort=False)
+        per_it = rec.assign(solver=rec.route.str.replace("reconstruct-", "") + " " + knobs,
+                            s_per_it=rec.latency_ms_median / 1e3 / rec.iters).groupby(
+            ["scene", "noise", "solver"], sort=False).s_per_it.median()
+        err.columns = [f"{int(c)} it." for c in err.columns]
+        lines += ["## 3-D reconstruction: worst-plane emission error against iterations and time", "",
+                  "From `make reconstruct`'s validation curves (`reconstruct_iters.csv`: the renders the "
+                  "iterations and weights are chosen on; the scored renders are in `reconstruct.md`). "
+                  "Worst plane's relative error ‖x̂ − x‖/‖x‖ over the renders; `s/it.`: seconds per "
+                  "iteration (median), so a setting's time is iterations x s/it.", "",
+                  err.assign(**{"s/it.": per_it}).reset_index().to_markdown(index=False, floatfmt=".3g"), "",
+                  "![reconstruction](tradeoff_reconstruct.png)", ""]
     return "\n".join(lines)
 
 
@@ -495,6 +568,7 @@ def main(argv=None):
                               ds.camera if quick else PAPER_CAMERA)
     shapes = [models / "shapes"] if (models / "shapes" / "train_info.json").exists() else []
     rows += training_rows(model_dirs + shapes)
+    rows += reconstruction_rows(out)
     df = pd.DataFrame(rows)
     prov = provenance()
     tmp = out / "tradeoff.csv.partial"

@@ -278,7 +278,7 @@ SOLVERS = ("adjoint", "lsqr", "fista", "pd-tv", "rl")
 #: worst-plane error on validation renders (``results/reconstruct_iters.csv``, ``make reconstruct``).
 DEFAULT_ITERS = {"adjoint": 0, "lsqr": 60, "fista": 30, "pd-tv": 20, "rl": 60}
 #: TV weight of "pd-tv" unless told (validation renders, as the iterations).
-DEFAULT_TV = 3e-3
+DEFAULT_TV = 0.3
 
 
 @dataclass
@@ -351,7 +351,8 @@ def check_views(views, op: EmissionOperator) -> np.ndarray:
 
 
 def reconstruct(views, op: EmissionOperator, solver: str = "fista", iters: int | None = None, *,
-                damp: float = 0.0, tv: float = DEFAULT_TV, progress: bool = False, callback=None) -> Reconstruction:
+                damp: float = 0.0, tv: float = DEFAULT_TV, saturation: float | None = 1.0, progress: bool = False,
+                callback=None) -> Reconstruction:
     """Recover the emission on the operator's planes from one light field.
 
     Parameters
@@ -377,6 +378,11 @@ def reconstruct(views, op: EmissionOperator, solver: str = "fista", iters: int |
         Iterations; None: :data:`DEFAULT_ITERS`.
     damp, tv : float
         LSQR's damping and the TV weight (>= 0); ignored by the other solvers.
+    saturation : float or None
+        The sensor's clipping level in the views' units (1.0: :func:`lf_flame.simulate.render`'s).
+        A pixel at or above it holds only a lower bound of its light: the iterative solvers
+        leave it out of the fit (weight 0 in ``||W (A x - y)||``; Richardson-Lucy: ratio
+        left out). None: every pixel is fitted. The count is ``settings["n_saturated"]``.
     progress : bool
         A tqdm bar over the iterations.
     callback : callable or None
@@ -391,17 +397,24 @@ def reconstruct(views, op: EmissionOperator, solver: str = "fista", iters: int |
     ------
     ValueError
         An unknown solver, negative iterations or weights, views of another camera
-        (shape), NaN or inf in the views.
+        (shape), NaN or inf in the views, a saturation level that is not positive.
     """
     if solver not in SOLVERS:
         raise ValueError(f"solver must be one of {SOLVERS}. Received: {solver!r}")
     iters = DEFAULT_ITERS[solver] if iters is None else int(iters)
     if iters < 0 or damp < 0 or tv < 0 or not (math.isfinite(damp) and math.isfinite(tv)):
         raise ValueError(f"iters, damp and tv must be finite and >= 0. Received: {iters}, {damp}, {tv}")
+    if saturation is not None and not (math.isfinite(saturation) and saturation > 0):
+        raise ValueError(f"saturation must be a positive finite level or None. Received: {saturation!r}")
     y = check_views(views, op).ravel()
     t0 = time.perf_counter()
     n = op.shape[1]
-    settings = dict(iters=iters, rays_per_pixel=op.rays_per_pixel, seed=op.seed)
+    fit = np.ones(y.size, bool) if saturation is None else y < saturation   # pixels that carry their light
+    n_sat = int(y.size - fit.sum())
+    # the fitted operator and data: W A and W y, W the 0/1 weight of the unsaturated pixels
+    A, yw = (op, y) if n_sat == 0 else (pylops.Diagonal(fit.astype(np.float64)) @ op, np.where(fit, y, 0.0))
+    settings = dict(iters=iters, rays_per_pixel=op.rays_per_pixel, seed=op.seed, saturation=saturation,
+                    n_saturated=n_sat)
     bar = tqdm(total=iters, desc=f"reconstruct ({solver})", unit="it", disable=not progress)
     norm = float(np.linalg.norm(y)) or 1.0
     residuals = []
@@ -417,37 +430,40 @@ def reconstruct(views, op: EmissionOperator, solver: str = "fista", iters: int |
         residuals = [float(np.linalg.norm(op.matvec(x) - y)) / norm]
     elif solver == "lsqr":
         settings["damp"] = damp
-        out = lsqr(op, y, np.zeros(n), damp=damp, niter=iters, calc_var=False, callback=step)
+        out = lsqr(A, yw, np.zeros(n), damp=damp, niter=iters, calc_var=False, callback=step)
         x = np.ravel(out[0])
         residuals = np.asarray(out[-1])[1:] / norm   # LSQR's own ||A x - y|| estimate per iteration
     elif solver == "fista":
         settings["step"] = tau = 1.0 / lipschitz_bound(op)
-        f = _TrackedL2(op, y)
+        f = _TrackedL2(A, yw)
         x = ProximalGradient(f, pyproximal.Box(lower=0.0), np.zeros(n), tau=tau, niter=iters, acceleration="fista",
                              callback=step)
         residuals = f.history
     elif solver == "pd-tv":
-        P, gr, gc = op.dims
-        grad = pylops.VStack([pylops.FirstDerivative(op.dims, axis=a, edge=True, kind="forward") for a in (1, 2)])
-        K = pylops.VStack([op, grad])
-        L = lipschitz_bound(op) + 8.0                   # ||grad||^2 <= 8 (forward differences, 2-D)
-        tau = mu = 0.99 / math.sqrt(L)
-        g = pyproximal.VStack([pyproximal.L2(b=y), pyproximal.L21(ndim=2, sigma=tv)], nn=[op.shape[0], 2 * n])
+        # the gradient block scaled by c to the norm of A (||c grad||^2 <= 8 c^2 = ||A||^2 bound):
+        # with one step for both blocks, an unscaled TV term would move ~sqrt(||A||^2 / 8) times slower
+        La = lipschitz_bound(op)
+        c = math.sqrt(La / 8.0)
+        grad = pylops.VStack([c * pylops.FirstDerivative(op.dims, axis=a, edge=True, kind="forward") for a in (1, 2)])
+        K = pylops.VStack([A, grad])
+        tau = mu = 0.99 / math.sqrt(2.0 * La)
+        g = pyproximal.VStack([pyproximal.L2(b=yw), pyproximal.L21(ndim=2, sigma=tv / c)], nn=[op.shape[0], 2 * n])
         settings.update(tv=tv, step=tau)
 
         def track(xk):  # the primal-dual iteration exposes no residual: one more matvec each
-            residuals.append(float(np.linalg.norm(op.matvec(xk) - y)) / norm)
+            residuals.append(float(np.linalg.norm(A.matvec(xk) - yw)) / norm)
             step(xk)
         x = PrimalDual(pyproximal.Box(lower=0.0), g, K, np.zeros(n), tau=tau, mu=mu, niter=iters, callback=track)
     else:  # rl
-        ones = op.rmatvec(np.ones(op.shape[0]))
+        ones = op.rmatvec(fit.astype(np.float64))
         seen = ones > 0
-        yp = np.clip(y, 0.0, None)
-        x = np.full(n, max(float(yp.mean()), 1e-12))   # a flat start, the data's mean level
+        yp = np.clip(yw, 0.0, None)
+        x = np.full(n, max(float(yp[fit].mean()) if n_sat < y.size else 0.0, 1e-12))   # flat start, the data's level
         for _ in range(iters):
             ax = op.matvec(x)
-            residuals.append(float(np.linalg.norm(ax - y)) / norm)
-            x = np.where(seen, x * op.rmatvec(yp / np.maximum(ax, 1e-12)) / np.where(seen, ones, 1.0), 0.0)
+            residuals.append(float(np.linalg.norm(np.where(fit, ax - y, 0.0))) / norm)
+            ratio = np.where(fit, yp / np.maximum(ax, 1e-12), 0.0)
+            x = np.where(seen, x * op.rmatvec(ratio) / np.where(seen, ones, 1.0), 0.0)
             step(x)
     bar.close()
     sample = tuple((h / op.dims[1], w / op.dims[2]) for h, w in op.sizes_mm)

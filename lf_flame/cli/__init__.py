@@ -19,6 +19,11 @@ from .volume import cmd_reconstruct
 from ..reconstruct import DEFAULT_TV, SOLVERS
 
 
+def _level_or_none(text: str):
+    """A sensor level for ``--saturation``, or None for 'none'."""
+    return None if text.lower() == "none" else float(text)
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(prog="lf-flame", description="Light-field refocusing of burner flames: "
                                 "simulate, refocus, build datasets, train and evaluate the paper's model.")
@@ -140,6 +145,9 @@ def main(argv=None):
     s.add_argument("--iters", type=int, help="iterations (default: the solver's, chosen on validation renders)")
     s.add_argument("--damp", type=float, default=0.0, help="LSQR damping (Tikhonov)")
     s.add_argument("--tv", type=float, default=DEFAULT_TV, help="TV weight of pd-tv")
+    s.add_argument("--saturation", type=_level_or_none, default=1.0,
+                   help="the sensor's clipping level in the views' units: pixels at or above it are left out of the "
+                        "fit ('none': fit every pixel)")
     s.add_argument("--rays-per-pixel", type=int, default=4, help="rays per pixel of the forward operator")
     s.add_argument("--out", required=True, help="volume.h5 (planes, depths, mm per sample, settings, residuals); "
                                                "the figure goes beside it as .png")

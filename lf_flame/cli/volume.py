@@ -30,13 +30,13 @@ def reconstruct_input(a):
     return cam, views, depths, objects
 
 
-def run_reconstruction(cam, views, depths, solver, iters=None, *, damp=0.0, tv=None, rays_per_pixel=4,
-                       progress=False):
+def run_reconstruction(cam, views, depths, solver, iters=None, *, damp=0.0, tv=None, saturation=1.0,
+                       rays_per_pixel=4, progress=False):
     """Build the operator of ``cam`` at ``depths`` and solve (:func:`lf_flame.reconstruct.reconstruct`)."""
     from ..reconstruct import DEFAULT_TV, EmissionOperator, reconstruct
     op = EmissionOperator(cam, depths, rays_per_pixel=rays_per_pixel)
     return op, reconstruct(views, op, solver, iters, damp=damp, tv=DEFAULT_TV if tv is None else tv,
-                           progress=progress)
+                           saturation=saturation, progress=progress)
 
 
 def cmd_reconstruct(a):
@@ -44,7 +44,7 @@ def cmd_reconstruct(a):
     from ..refocus import aperture_mask, focal_stack
     cam, views, depths, objects = reconstruct_input(a)
     op, rec = run_reconstruction(cam, views, depths, a.solver, a.iters, damp=a.damp, tv=a.tv,
-                                 rays_per_pixel=a.rays_per_pixel, progress=True)
+                                 saturation=a.saturation, rays_per_pixel=a.rays_per_pixel, progress=True)
     out = Path(a.out)
     save_reconstruction(out, rec, source=str(a.raw), camera=cam.to_json())
     n = cam.pixels_per_lenslet
