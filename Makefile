@@ -105,6 +105,8 @@ RECON_ARGS_paper := --tests 2 --tail 200
 RECON_ARGS_quick := --tests 1 --tail 8
 reconstruct: $(STAMP) ## 3-D emission reconstruction, every solver against refocusing -> results/reconstruct.{csv,md,json,png}
 	$(VENV)/bin/python experiments/reconstruct.py --out $(TRADEOFF_OUT) $(RECON_ARGS_$(PRESET))
+	if [ -f $(TRADEOFF_OUT)/tradeoff.csv ]; then \
+		$(VENV)/bin/python experiments/tradeoff.py --reconstruction-only --out $(TRADEOFF_OUT); fi
 
 # the stem is REGIME/table_SCENE
 $(RES)/%.md: $(MODELS)/$$(*D)/$$(subst table_,,$$(*F))/train_info.json

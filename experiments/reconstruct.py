@@ -211,8 +211,9 @@ def tail_table(df: pd.DataFrame, by=("route",)) -> pd.DataFrame:
     return error_table(df.assign(flags=df["flags"].fillna(""), failure=df["failure"].fillna("")), by)[list(by) + cols]
 
 
-def time_pair(cam, repeats=7):
-    """One operator pair (A, A^T) beside one 4-plane focal_stack, same light field, same run."""
+def time_pair(cam, repeats=7, chosen=None, solve_repeats=3):
+    """One operator pair (A, A^T) beside one 4-plane focal_stack, same light field, same run;
+    with ``chosen`` ({solver: knobs}), one whole 4-plane reconstruction by each solver too."""
     depths = list(scenes.PAPER_DEPTHS_MM)
     op = EmissionOperator(cam, depths, rays_per_pixel=RAYS_OP)
     scene = scenes.flame_scene(cam, np.random.default_rng(VAL_SEEDS[0]), regime="varied")
@@ -225,6 +226,11 @@ def time_pair(cam, repeats=7):
     for name, f in (("A", lambda: op.matvec(x)), ("A^T", lambda: op.rmatvec(y)),
                     ("focal_stack", lambda: focal_stack(views, slopes, mask))):
         out[name] = dict(zip(("median_ms", "p10_ms", "p90_ms"), map(float, _times(f, repeats))))
+    for solver, knobs in (chosen or {}).items():
+        kw = dict(knobs)
+        it = kw.pop("iters")
+        out[f"reconstruct {solver} {it} it."] = dict(zip(("median_ms", "p10_ms", "p90_ms"), map(float, _times(
+            lambda: reconstruct(views, op, solver, it, **kw), solve_repeats))))
     return out
 
 
@@ -235,9 +241,12 @@ def main(argv=None):
     p.add_argument("--tail", type=int, default=200, help="fresh varied scenes of the height-error tail")
     p.add_argument("--snr-db", type=float, default=14.0)
     p.add_argument("--kinds", default="paper,varied,overlap,volume")
-    p.add_argument("--stage", choices=["all", "main", "tail"], default="all",
+    p.add_argument("--stage", choices=["all", "main", "tail", "report", "timing"], default="all",
                    help="tail: only the height tail (--tail-solver and its knobs, scenes --tail-first ... + --tail); "
-                        "main: all but the tail (the report reads an existing reconstruct_tail.csv)")
+                        "main: all but the tail (the report reads an existing reconstruct_tail.csv); report: "
+                        "measure nothing, rewrite reconstruct.md from the CSVs and reconstruct.json in --out; timing: "
+                        "time A, A^T, focal_stack and each chosen solver (from reconstruct_iters.csv) on a quiet "
+                        "machine -> reconstruct_timing.json, read by the report")
     p.add_argument("--tail-first", type=int, default=0, help="first tail scene (seed TAIL_SEED0 + it): shards")
     p.add_argument("--tail-solver", default="rl", choices=[s for s in SOLVERS if s != "adjoint"])
     p.add_argument("--tail-knobs", default="{}", help='JSON, e.g. {"iters": 40, "tv": 0.3}')
@@ -252,6 +261,21 @@ def main(argv=None):
         atomic_write_text(out / "reconstruct_tail.csv", tl.to_csv(index=False, float_format="%.5g"))
         print(tail_table(tl).to_string(index=False), f"\n{(time.perf_counter() - t0) / 60:.1f} min")
         return
+    tail_csv = out / "reconstruct_tail.csv"
+    if a.stage == "timing":
+        timing = time_pair(cam, chosen=choose(pd.read_csv(out / "reconstruct_iters.csv"))[0])
+        atomic_write_text(out / "reconstruct_timing.json", json.dumps(dict(timing_ms=timing, provenance=provenance()),
+                                                                      indent=2, default=str))
+        print(pd.DataFrame(timing).T.to_string())
+        return
+    if a.stage == "report":
+        j = json.loads((out / "reconstruct.json").read_text())
+        tl = pd.read_csv(tail_csv, keep_default_na=False, na_values=[""]) if tail_csv.exists() else pd.DataFrame()
+        curves = pd.read_csv(out / "reconstruct_iters.csv")
+        chosen, best = choose(curves)    # the same choice, from the same curves
+        write_report(out, pd.read_csv(out / "reconstruct.csv"), curves, tl, chosen, best, j["timing_ms"], a,
+                     j["wall_time_s"], j["provenance"])
+        return
     kinds = a.kinds.split(",")
     noise = (None, a.snr_db)
     timing = time_pair(cam)
@@ -265,12 +289,25 @@ def main(argv=None):
     if a.stage == "all":
         tl = tail(cam, best, chosen[best], tail_seeds)
         atomic_write_text(out / "reconstruct_tail.csv", tl.to_csv(index=False, float_format="%.5g"))
-    tail_csv = out / "reconstruct_tail.csv"
     tl = pd.read_csv(tail_csv, keep_default_na=False, na_values=[""]) if tail_csv.exists() else pd.DataFrame()
-    write_report(out, scores, curves, tl, chosen, best, timing, a, time.perf_counter() - t0)
+    write_report(out, scores, curves, tl, chosen, best, timing, a, time.perf_counter() - t0, provenance())
 
 
-def write_report(out, scores, curves, tl, chosen, best, timing, a, wall):
+def _versus(worst: pd.DataFrame, route: str) -> pd.DataFrame:
+    """Per scene and noise: ``route``'s worst plane (error, height error, time) beside
+    shift-and-sum's on the same renders, and the ratio of their worst-plane errors."""
+    key = ["scene", "noise"]
+    r = worst[worst.route == route].set_index(key)
+    b = worst[worst.route == "refocus-shift-sum"].set_index(key)
+    return pd.DataFrame({"worst_plane_rel_err": r.worst_plane_rel_err,
+                         "shift_sum_worst_plane_rel_err": b.worst_plane_rel_err,
+                         "ratio": r.worst_plane_rel_err / b.worst_plane_rel_err,
+                         "worst_height_err_mm": r.worst_height_err_mm,
+                         "shift_sum_worst_height_err_mm": b.worst_height_err_mm,
+                         "time_s_median": r.time_s_median, "time_s_worst": r.time_s_worst}).reset_index()
+
+
+def write_report(out, scores, curves, tl, chosen, best, timing, a, wall, prov):
     s = scores.assign(noise=np.where(np.isinf(scores.snr_db), "noise-free", f"{a.snr_db:g} dB"))
     per_plane = s.groupby(["scene", "noise", "route", "depth_mm"], sort=False).agg(
         rel_err=("rel_err", "mean"), rel_err_worst=("rel_err", "max"), ssim=("ssim", "mean"),
@@ -287,12 +324,22 @@ def write_report(out, scores, curves, tl, chosen, best, timing, a, wall):
              f"`{best}`** (the lowest worst-plane error over the validation renders). Scored on renders "
              f"{TEST_SEEDS[:a.tests]} ({RAYS_DATA} rays/pixel); operator {RAYS_OP} rays/pixel; relative error "
              "‖x̂ − x‖/‖x‖ per plane against the scene's emission on the grid (one sample per lenslet).", "",
+             f"## The chosen solver (`{best}`) against refocusing (shift-and-sum), same renders", "",
+             _versus(worst, f"reconstruct-{best}").to_markdown(index=False, floatfmt=".3f"), "",
              "## Worst plane per route (over planes and renders)", "",
              worst.to_markdown(index=False, floatfmt=".3f"), "",
              "## Per plane (mean over renders; worst beside it)", "",
              per_plane.to_markdown(index=False, floatfmt=".3f"), "",
              "## One operator pair beside one 4-plane focal stack (same light field, same run)", "",
              pd.DataFrame(timing).T.to_markdown(floatfmt=".1f"), ""]
+    quiet = out / "reconstruct_timing.json"
+    if quiet.exists():
+        j = json.loads(quiet.read_text())
+        lines += [f"## Times on a quiet machine (`--stage timing`, {j['provenance']['date']}, "
+                  f"{j['provenance']['cpu_count']} cores): one paper light field, 4 planes", "",
+                  "Each solver at its chosen iterations: the whole solve (operator applied, step found, "
+                  "iterations); median and 10th-90th percentile of 3 solves after a warm-up.", "",
+                  pd.DataFrame(j["timing_ms"]).T.to_markdown(floatfmt=".1f"), ""]
     if len(tl):
         lines += [f"## Flame height tail: {tl['sample'].nunique()} fresh varied scenes (seeds {TAIL_SEED0}+i, "
                   "4 rays/pixel, analytic slopes; `--stage tail`)", "",
@@ -300,7 +347,7 @@ def write_report(out, scores, curves, tl, chosen, best, timing, a, wall):
                   tail_table(tl, ("route", "depth_mm")).to_markdown(index=False, floatfmt=".3f"), ""]
     atomic_write_text(out / "reconstruct.md", "\n".join(lines))
     atomic_write_text(out / "reconstruct.json", json.dumps(dict(
-        provenance=provenance(), chosen=chosen, chosen_solver=best, timing_ms=timing, wall_time_s=wall, val_seeds=VAL_SEEDS,
+        provenance=prov, chosen=chosen, chosen_solver=best, timing_ms=timing, wall_time_s=wall, val_seeds=VAL_SEEDS,
         test_seeds=TEST_SEEDS[:a.tests], tail_seed0=TAIL_SEED0, tail=a.tail, snr_db=a.snr_db,
         rays_per_pixel_data=RAYS_DATA, rays_per_pixel_operator=RAYS_OP), indent=2, default=str))
     print((out / "reconstruct.md").read_text())

@@ -23,10 +23,14 @@ Sections (column ``section``):
 - ``slope search``: grid steps against the largest slope error (analytic slopes of the
   nominal shapes scene) and time per object.
 - ``training``: validation SSIM against epochs and wall time, from the learning curves.
+- ``reconstruction``: every 3-D reconstruction solver at every iteration count of ``make
+  reconstruct``'s validation curves: time against the worst plane's emission error.
 
 Usage: ``python experiments/tradeoff.py --preset paper|quick --data-dir D --model-dir M --out O``;
-``python experiments/tradeoff.py --plot-only --out O`` measures nothing and redraws the two
-figures from ``O/tradeoff.csv``.
+``python experiments/tradeoff.py --plot-only --out O`` measures nothing and redraws the
+figures from ``O/tradeoff.csv``; ``--reconstruction-only`` measures nothing either and refreshes
+the ``reconstruction`` section (rows, figure ``tradeoff_reconstruct.png``, tables) from
+``O/reconstruct_iters.csv`` (``make reconstruct`` runs it).
 The second, smaller backbone input size is trained here if its model folder is missing
 (settings in the ``[tradeoff]`` table of ``experiments/<preset>.toml``).
 """
@@ -513,6 +517,9 @@ def main(argv=None):
     p.add_argument("--repeats", type=int, default=20)
     p.add_argument("--plot-only", action="store_true",
                    help="measure nothing: redraw the two figures in --out from the tradeoff.csv there")
+    p.add_argument("--reconstruction-only", action="store_true",
+                   help="measure nothing: replace the reconstruction rows of --out's tradeoff.csv with those of its "
+                        "reconstruct_iters.csv (make reconstruct), redraw the figures and rewrite tradeoff.md")
     p.add_argument("dirs", nargs="*", help=argparse.SUPPRESS)
     a = p.parse_args(argv)
     if a.models_only:
@@ -529,6 +536,20 @@ def main(argv=None):
         out = Path(a.out)
         plot(pd.read_csv(out / "tradeoff.csv"), out)
         print(f"-> {out / 'tradeoff_pareto.png'}, {out / 'tradeoff_knobs.png'}")
+        return 0
+
+    if a.reconstruction_only:
+        out = Path(a.out)
+        old = pd.read_csv(out / "tradeoff.csv")
+        df = pd.concat([old[old.section != "reconstruction"], pd.DataFrame(reconstruction_rows(out))],
+                       ignore_index=True)
+        atomic_write_text(out / "tradeoff.csv", df.to_csv(index=False))
+        plot(df, out)
+        j = json.loads((out / "tradeoff.json").read_text())
+        atomic_write_text(out / "tradeoff.md", summary(df, j["provenance"], len(j["test_indices"]),
+                                                       j["tradeoff_config"]["ref_rays_per_pixel"],
+                                                       j.get("ground_truth_height_err_mm")))
+        print(f"{int((df.section == 'reconstruction').sum())} reconstruction rows -> {out / 'tradeoff.md'}")
         return 0
 
     t0 = time.perf_counter()

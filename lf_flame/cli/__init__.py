@@ -16,7 +16,7 @@ from .optics import cmd_refocus, cmd_simulate, cmd_slopes
 from .profiles import cmd_profiles
 from .real import cmd_calibrate, cmd_decode
 from .volume import cmd_reconstruct
-from ..reconstruct import DEFAULT_TV, SOLVERS
+from ..reconstruct import DEFAULT_SOLVER, DEFAULT_TV, SOLVERS
 
 
 def _level_or_none(text: str):
@@ -141,7 +141,8 @@ def main(argv=None):
     s.add_argument("raw", help=".npz from simulate, .npy, DATASET.h5:INDEX, or views .h5 from 'lf-flame decode'")
     s.add_argument("--depth", type=float, action="append", help="plane depth (mm from the focal plane; repeatable)")
     s.add_argument("--slope", type=float, action="append", help="plane slope instead of a depth (repeatable)")
-    s.add_argument("--solver", choices=list(SOLVERS), default="fista")
+    s.add_argument("--solver", choices=list(SOLVERS), default=DEFAULT_SOLVER,
+                   help="default: the one chosen on validation renders (make reconstruct)")
     s.add_argument("--iters", type=int, help="iterations (default: the solver's, chosen on validation renders)")
     s.add_argument("--damp", type=float, default=0.0, help="LSQR damping (Tikhonov)")
     s.add_argument("--tv", type=float, default=DEFAULT_TV, help="TV weight of pd-tv")
