@@ -242,8 +242,9 @@ def reconstruction_rows(folder: Path) -> list[dict]:
     rows = []
     for (scene, snr, solver, knobs, iters), g in per_render.groupby(["scene", "snr_db", "solver", "knobs", "iters"],
                                                                    sort=False):
-        rows.append(dict(section="reconstruction", route=f"reconstruct-{solver}",
-                         setting=f"{iters} it. {knobs if knobs != '{}' else ''}".strip(), scene=scene,
+        knobs = knobs if knobs != "{}" else ""
+        rows.append(dict(section="reconstruction", route=f"reconstruct-{solver}", knobs=knobs,
+                         setting=f"{iters} it. {knobs}".strip(), scene=scene,
                          noise="noise-free" if np.isinf(snr) else f"{snr:g} dB", iters=int(iters),
                          latency_ms_median=1e3 * float(g.time_s.median()),
                          latency_ms_p90=1e3 * float(g.time_s.quantile(0.9)),
@@ -259,8 +260,7 @@ def plot_reconstruction(df: pd.DataFrame, out: Path) -> None:
     panels = list(rec.groupby(["scene", "noise"], sort=False))
     fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 4.2), squeeze=False, sharey=True)
     for ax, ((scene, noise), g) in zip(axes[0], panels):
-        for (route, knobs), h in g.groupby([g.route, g.setting.str.replace(r"^\d+ it\.\s*", "", regex=True)],
-                                           sort=False):
+        for (route, knobs), h in g.groupby([g.route, g.knobs.fillna("")], sort=False):
             ax.plot(h.latency_ms_median / 1e3, h.worst_plane_rel_err, "o-", ms=3,
                     label=f"{route.replace('reconstruct-', '')} {knobs}".strip())
         ax.set_yscale("log")
@@ -490,12 +490,11 @@ def summary(df: pd.DataFrame, prov: dict, n_test: int, ref_rpp: int, gt_heights:
     lines += ["", "![knobs](tradeoff_knobs.png)", ""]
     rec = df[df.section == "reconstruction"]
     if len(rec):
-        knobs = rec.setting.str.replace(r"^\d+ it\.\s*", "", regex=True)
-        err = rec.assign(solver=rec.route.str.replace("reconstruct-", "") + " " + knobs).pivot_table(
-            index=["scene", "noise", "solver"], columns="iters", values="worst_plane_rel_err", sort=False)
-        per_it = rec.assign(solver=rec.route.str.replace("reconstruct-", "") + " " + knobs,
-                            s_per_it=rec.latency_ms_median / 1e3 / rec.iters).groupby(
-            ["scene", "noise", "solver"], sort=False).s_per_it.median()
+        rec = rec.assign(solver=(rec.route.str.replace("reconstruct-", "") + " " + rec.knobs.fillna("")).str.strip(),
+                         s_per_it=rec.latency_ms_median / 1e3 / rec.iters)
+        err = rec.pivot_table(index=["scene", "noise", "solver"], columns="iters", values="worst_plane_rel_err",
+                              sort=False)
+        per_it = rec.groupby(["scene", "noise", "solver"], sort=False).s_per_it.median()
         err.columns = [f"{int(c)} it." for c in err.columns]
         lines += ["## 3-D reconstruction: worst-plane emission error against iterations and time", "",
                   "From `make reconstruct`'s validation curves (`reconstruct_iters.csv`: the renders the "
