@@ -2,8 +2,8 @@
 
 The argument parser and :func:`main`; the commands, one module per stage:
 :mod:`.optics` (simulate, refocus, slopes), :mod:`.real` (calibrate, decode),
-:mod:`.learning` (dataset, train, predict, evaluate, tables), :mod:`.volume` (reconstruct)
-and :mod:`.profiles`;
+:mod:`.learning` (dataset, train, predict, evaluate, tables), :mod:`.volume` (reconstruct),
+:mod:`.profiles` and :mod:`.sequence` (recordings over time);
 :mod:`._io` reads and writes their files.
 """
 from __future__ import annotations
@@ -15,6 +15,7 @@ from .learning import LEARNED_ROUTES, cmd_dataset, cmd_evaluate, cmd_predict, cm
 from .optics import cmd_refocus, cmd_simulate, cmd_slopes
 from .profiles import cmd_profiles
 from .real import cmd_calibrate, cmd_decode
+from .sequence import cmd_sequence, cmd_simulate_sequence
 from .volume import cmd_reconstruct
 from ..reconstruct import DEFAULT_SOLVER, DEFAULT_TV, SOLVERS
 
@@ -22,6 +23,25 @@ from ..reconstruct import DEFAULT_SOLVER, DEFAULT_TV, SOLVERS
 def _level_or_none(text: str):
     """A sensor level for ``--saturation``, or None for 'none'."""
     return None if text.lower() == "none" else float(text)
+
+
+def _sequence_scene_args(s, simulate_only=False):
+    """Arguments of a simulated recording (``simulate-sequence``; ``sequence --simulate``)."""
+    pre = "--simulate: " if simulate_only else ""
+    if not simulate_only:
+        s.add_argument("--simulate", choices=["paper", "overlap"], default="paper",
+                       help="paper: four flames at the paper's depths; overlap: two flames 20 mm apart, one "
+                            "behind the other")
+    s.add_argument("--fps", type=float, help=("frame rate, frames/s (a recording: default its file's; " if
+                                              simulate_only else "frame rate, frames/s (") + "simulated: 500)")
+    s.add_argument("--duration", type=float, default=1.0, help=pre + "length, s")
+    s.add_argument("--freq", type=float, action="append", help=pre + "each flame's flicker frequency, Hz, farthest "
+                   "first (repeatable; default drawn from 5-20 Hz)")
+    s.add_argument("--noise", action="store_true", help=pre + "shot and read noise, 12 bits")
+    s.add_argument("--seed", type=int, default=0, help=pre + "seed of the frequencies, phases and jitter")
+    s.add_argument("--rays-per-pixel", type=int, default=4)
+    s.add_argument("--data-config", help="TOML with a [camera] table (default: the file's, else the paper's camera)")
+    s.add_argument("--quiet", action="store_true")
 
 
 def main(argv=None):
@@ -99,8 +119,38 @@ def main(argv=None):
     s.add_argument("--out", required=True)
     s.add_argument("--shard", help="i/N: render only shard i of N (1 <= i <= N) beside --out; an unsharded "
                                    "run imports finished shards and renders the rest")
+    s.add_argument("--scheduler", help="render on the Dask cluster at this address (tcp://...) or scheduler file")
+    s.add_argument("--workers", type=int, help="render on a local Dask cluster of this many worker processes")
     s.add_argument("--quiet", action="store_true")
     s.set_defaults(func=cmd_dataset)
+
+    s = sub.add_parser("simulate-sequence", help="render a simulated recording of flickering flames to HDF5 "
+                       "(frames (T, H, W), fps, camera and the truth)")
+    _sequence_scene_args(s)
+    s.add_argument("--out", required=True, help="HDF5 file")
+    s.set_defaults(func=cmd_simulate_sequence)
+
+    s = sub.add_parser("sequence", help="a flame recording: each plane's height, widths and intensity over time, "
+                       "their spectra and dominant flicker frequency (serially or on Dask)")
+    s.add_argument("input", nargs="?", help="HDF5 stack of raw frames (dataset 'frames' (T, H, W); optional "
+                   "'times_s'), or a folder of TIFF/PNG/.npy frames in name order")
+    s.add_argument("--simulate", choices=["paper", "overlap"], help="instead of INPUT: a simulated recording, "
+                   "rendered frame by frame in the workers")
+    _sequence_scene_args(s, simulate_only=True)
+    s.add_argument("--depth", type=float, action="append", help="plane depth offset, mm (repeatable)")
+    s.add_argument("--slope", type=float, action="append", help="plane slope, lenslets per view (repeatable)")
+    s.add_argument("--route", choices=["shift-sum", *(f"reconstruct-{k}" for k in SOLVERS)], default="shift-sum",
+                   help="planes by shift-and-sum, or each plane's emission (lf-flame reconstruct's defaults)")
+    s.add_argument("--calibration", help="real frames: JSON of 'lf-flame calibrate' (frames are decoded)")
+    s.add_argument("--white", help="real frames: white image for decoding")
+    s.add_argument("--dark", help="real frames: dark frame")
+    s.add_argument("--nperseg", type=int, help="Welch segment, frames (default: the whole record, bin 1/T)")
+    s.add_argument("--chunk", type=int, default=16, help="frames per task")
+    s.add_argument("--workers", type=int, help="a local Dask cluster of this many single-thread worker processes "
+                   "(default: serial, Numba's threads)")
+    s.add_argument("--scheduler", help="an existing Dask cluster: address (tcp://...) or scheduler file")
+    s.add_argument("--out", required=True, help="output folder (resumed when it holds the same run)")
+    s.set_defaults(func=cmd_sequence)
 
     s = sub.add_parser("train", help="train the decoder on cached backbone features (resumable)")
     s.add_argument("--dataset", required=True)
