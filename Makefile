@@ -21,7 +21,7 @@ HELDOUT_paper := 20
 HELDOUT_quick := 4
 HELDOUT_SEED := 770077
 
-.PHONY: help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct heights test clean-quick
+.PHONY: help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct sequence heights test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -103,6 +103,11 @@ tradeoff: $(MODELS)/varied/flame/train_info.json ## speed-accuracy map of every 
 # paper preset's results are committed in results/, the quick one (fewer renders) stays in results/quick
 RECON_ARGS_paper := --tests 2 --tail 200
 RECON_ARGS_quick := --tests 1 --tail 8
+# flame recordings over time (lf_flame.sequence): each plane's flicker frequency, the overlap, and the
+# per-frame cost serially and on Dask; `--stage reconstruct` (about 30 min) adds the overlap's emission route
+sequence: $(STAMP) ## flame recordings: per-plane flicker spectra, serial and Dask frames/s -> results/sequence.{csv,md,json,png}
+	$(VENV)/bin/python experiments/sequence.py --out $(TRADEOFF_OUT)
+
 reconstruct: $(STAMP) ## 3-D emission reconstruction, every solver against refocusing -> results/reconstruct.{csv,md,json,png}
 	$(VENV)/bin/python experiments/reconstruct.py --out $(TRADEOFF_OUT) $(RECON_ARGS_$(PRESET))
 	if [ -f $(TRADEOFF_OUT)/tradeoff.csv ]; then \

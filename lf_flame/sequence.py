@@ -13,6 +13,7 @@ frame. ``OUT/summary.json`` is written last: a folder without it is not a finish
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -110,7 +111,7 @@ def _scaled(a: np.ndarray) -> np.ndarray:
     if a.ndim == 3 and a.shape[-1] in (3, 4):
         a = a[..., :3].mean(axis=-1)
     if np.issubdtype(a.dtype, np.integer):
-        return (a / np.float32(np.iinfo(a.dtype).max)).astype(np.float32)
+        return a.astype(np.float32) * np.float32(1.0 / np.iinfo(a.dtype).max)
     return a.astype(np.float32)
 
 
@@ -296,6 +297,43 @@ class SequenceJob:
         return reconstruct(views, self._cache["op"], self.route.split("-", 1)[1]).planes
 
 
+def simulated_job(seq: FlameSequence, camera: PlenopticCamera, source=None, *, route: str = "shift-sum",
+                  chunk: int = CHUNK, slopes=None) -> tuple[SequenceJob, np.ndarray]:
+    """The job of a simulated recording, one plane per flame at its depth, and its truth.
+
+    Each plane's diagnostics look in its flame's column band (the first frame's ``roi``
+    widened by 2 lenslets, which holds the sway); its true frequency is the flame's.
+
+    Parameters
+    ----------
+    seq : FlameSequence
+    camera : PlenopticCamera
+    source : frame source or None
+        The frames (e.g. an HDF5 stack written by :func:`write_frames`); None: rendered
+        in the workers (:class:`SimulatedSource`, 4 rays per pixel).
+    route, chunk : as :class:`SequenceJob`
+    slopes : sequence of float or None
+        One per flame; None: the camera's analytic slopes of the flames' depths.
+
+    Returns
+    -------
+    (job, truth) : truth of shape (T, P), each flame's true height (mm) per frame.
+    """
+    depths = tuple(f.depth_offset_mm for f in seq.flames)
+    cols = tuple((max(0, o["roi"][2] - 2), min(camera.n_cols, o["roi"][3] + 2))
+                 for o in seq.scene(camera, 0).objects)
+    slopes = tuple(camera.slope_for_depth(d) for d in depths) if slopes is None else tuple(slopes)
+    job = SequenceJob(source or SimulatedSource(seq, camera, 4), camera, seq.fps, depths, slopes, cols, route,
+                      truth_freqs_hz=tuple(f.freq_hz for f in seq.flames), chunk=chunk)
+    return job, np.array([seq.heights_mm(i) for i in range(seq.n_frames)])
+
+
+def _warm_up(job: SequenceJob) -> None:
+    """Process frame 0 once (imports, Numba's kernels loaded): a worker's first task then
+    costs what every other does."""
+    process_chunk(0, dataclasses.replace(job, chunk=1))
+
+
 def process_chunk(c: int, job: SequenceJob) -> dict:
     """Process chunk ``c`` of ``job`` (frames ``c * chunk`` to ``(c + 1) * chunk``).
 
@@ -444,7 +482,9 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
 
     Returns
     -------
-    dict : the summary.
+    dict : the summary: ``wall_s`` and ``frames_per_s`` of the chunks processed, from the
+        moment the cluster is up (``startup_s``, its start); ``busy_s``, the seconds the
+        tasks spent reading (or rendering), refocusing and measuring.
 
     Raises
     ------
@@ -476,6 +516,7 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
 
     if scheduler is None and workers is None:
         from tqdm import tqdm
+        startup = 0.0
         for c in tqdm(todo, desc="chunks", disable=not progress):
             keep(c, process_chunk(c, job))
         n_workers = 0
@@ -483,6 +524,9 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
         from .parallel import dask_client, map_unordered
         with dask_client(scheduler, workers or 1) as client:
             n_workers = len(client.nthreads())
+            client.run(_warm_up, job)   # imports and Numba's cached kernels, counted in the start-up
+            startup = time.perf_counter() - t0
+            t0 += startup
             for c, res in map_unordered(client, process_chunk, todo, job, name="frames", progress=progress,
                                         total=len(todo)):
                 keep(c, res)
@@ -503,7 +547,7 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
     plot_sequence(out / "sequence.png", frames, spec, pk,
                   f"{job.source.n_frames} frames at {job.fps:g} frames/s, route {job.route}")
     summary = dict(settings=job.identity(), n_frames=job.source.n_frames, chunks_processed=len(todo),
-                   workers=n_workers, scheduler=scheduler, wall_s=wall,
+                   workers=n_workers, scheduler=scheduler, startup_s=startup, wall_s=wall,
                    frames_per_s=(len(todo) and sum(min(job.chunk, job.source.n_frames - c * job.chunk)
                                                    for c in todo) / wall),
                    busy_s=busy, provenance=provenance())

@@ -18,22 +18,18 @@ import pytest
 from lf_flame.camera import PAPER_CAMERA
 from lf_flame.cli import main
 from lf_flame.scenes import flicker_sequence
-from lf_flame.sequence import (SequenceJob, SimulatedSource, frame_rate, open_source, process_chunk, run,
+from lf_flame.sequence import (SimulatedSource, frame_rate, open_source, process_chunk, run, simulated_job,
                                write_frames)
 
 NOISE = (10_000.0, 5.0, 12)
 
 
-def _job(seq, cam=PAPER_CAMERA, chunk=16, source=None):
-    depths = tuple(f.depth_offset_mm for f in seq.flames)
-    cols = tuple((max(0, o["roi"][2] - 2), min(cam.n_cols, o["roi"][3] + 2)) for o in seq.scene(cam, 0).objects)
-    return SequenceJob(source or SimulatedSource(seq, cam, 4), cam, seq.fps, depths,
-                       tuple(cam.slope_for_depth(d) for d in depths), cols,
-                       truth_freqs_hz=tuple(f.freq_hz for f in seq.flames), chunk=chunk)
+def _job(seq, chunk=16, source=None):
+    return simulated_job(seq, PAPER_CAMERA, source, chunk=chunk)[0]
 
 
 def _truth(seq):
-    return np.array([seq.heights_mm(i) for i in range(seq.n_frames)])
+    return simulated_job(seq, PAPER_CAMERA)[1]
 
 
 @pytest.mark.parametrize("noise", [None, NOISE], ids=["noise-free", "noise"])

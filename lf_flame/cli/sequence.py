@@ -34,18 +34,9 @@ def cmd_simulate_sequence(a):
           + ", ".join(f"{f.depth_offset_mm:+g} mm {f.freq_hz:g} Hz" for f in seq.flames) + f" -> {path}")
 
 
-def _truth(seq, cam, n_planes):
-    """True heights (T, P), frequencies and column bands of a simulated sequence's flames."""
-    if len(seq.flames) != n_planes:
-        return None, None, [None] * n_planes
-    truth = np.array([seq.heights_mm(i) for i in range(seq.n_frames)])
-    cols = [(max(0, o["roi"][2] - 2), min(cam.n_cols, o["roi"][3] + 2)) for o in seq.scene(cam, 0).objects]
-    return truth, tuple(f.freq_hz for f in seq.flames), cols
-
-
 def cmd_sequence(a):
     from ..scenes import FlameSequence
-    from ..sequence import SequenceJob, SimulatedSource, frame_rate, open_source, run
+    from ..sequence import SequenceJob, SimulatedSource, frame_rate, open_source, run, simulated_job
     if (a.input is None) == (a.simulate is None):
         raise ValueError("give a recording INPUT or --simulate KIND, not both or neither")
     cam, seq, attrs = _camera(a), None, {}
@@ -68,22 +59,21 @@ def cmd_sequence(a):
             seq = FlameSequence.from_dict(json.loads(attrs["sequence"]))
     if a.depth and a.slope:
         raise ValueError("give the planes as --depth or as --slope, not both")
-    if a.depth:
-        depths = [float(v) for v in a.depth]
-    elif a.slope:
-        depths = [cam.depth_for_slope(s) for s in a.slope]
-    elif seq is not None:
-        depths = [f.depth_offset_mm for f in seq.flames]
+    if seq is not None and not a.depth:
+        if a.slope and len(a.slope) != len(seq.flames):
+            raise ValueError(f"give one --slope per flame ({len(seq.flames)}). Received: {a.slope}")
+        job, truth = simulated_job(seq, cam, source, route=a.route, chunk=a.chunk, slopes=a.slope)
     else:
-        raise ValueError("give the planes of a recording: --depth MM (repeatable) or --slope S")
-    slopes = list(a.slope) if a.slope else [cam.slope_for_depth(d) for d in depths]
-    truth, freqs, cols = _truth(seq, cam, len(depths)) if seq is not None else (None, None, [None] * len(depths))
-    cal = None
-    if a.calibration:
-        from ..calibrate import GridCalibration
-        cal = GridCalibration.load(a.calibration).to_dict()
-    job = SequenceJob(source, cam, fps, tuple(depths), tuple(slopes), tuple(cols), a.route, cal, a.white, a.dark,
-                      freqs, a.chunk)
+        if not (a.depth or a.slope):
+            raise ValueError("give the planes of a recording: --depth MM (repeatable) or --slope S")
+        depths = [float(v) for v in a.depth] if a.depth else [cam.depth_for_slope(s) for s in a.slope]
+        slopes = list(a.slope) if a.slope else [cam.slope_for_depth(d) for d in depths]
+        cal = None
+        if a.calibration:
+            from ..calibrate import GridCalibration
+            cal = GridCalibration.load(a.calibration).to_dict()
+        job, truth = SequenceJob(source, cam, fps, tuple(depths), tuple(slopes), (None,) * len(depths), a.route,
+                                 cal, a.white, a.dark, chunk=a.chunk), None
     s = run(job, a.out, scheduler=a.scheduler, workers=a.workers, nperseg=a.nperseg, truth=truth,
             progress=not a.quiet)
     import pandas as pd
