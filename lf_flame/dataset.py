@@ -142,8 +142,25 @@ def _import_shards(f, path: Path, expected: dict) -> int:
     return copied
 
 
+def _sample_at(index: int, camera, cfg, scene, slopes):
+    """:func:`make_sample` with the index first (a Dask task of :func:`generate`)."""
+    return make_sample(camera, cfg, scene, index, slopes)
+
+
+def _store(f, i: int, sample) -> None:
+    """Write sample ``i`` into the open dataset, its done flag last (a crash leaves it to do)."""
+    counts, gt, objects = sample
+    f["raw"][i] = counts
+    f["gt"][i] = gt
+    f["params"][i] = json.dumps(objects, default=float)
+    f.flush()
+    f["done"][i] = 1
+    f.flush()
+
+
 def generate(path, camera: PlenopticCamera, cfg: DatasetConfig, scene: str, slopes, progress: bool = True,
-             shard: tuple[int, int] | None = None) -> Path:
+             shard: tuple[int, int] | None = None, *, scheduler: str | None = None,
+             workers: int | None = None) -> Path:
     """Generate (or resume) the dataset of ``scene`` at ``path``.
 
     Parameters
@@ -156,6 +173,11 @@ def generate(path, camera: PlenopticCamera, cfg: DatasetConfig, scene: str, slop
         Ground-truth slopes, one per depth of :data:`PAPER_DEPTHS_MM`.
     shard : (i, n) or None
         Render only shard ``i`` of ``n`` (1 <= i <= n) into :func:`shard_path`.
+    scheduler, workers : str, int or None
+        Render on Dask (:func:`lf_flame.parallel.dask_client`): the cluster at
+        ``scheduler`` (address or scheduler file), or ``workers`` local worker processes.
+        This process writes every sample; the file holds the same arrays as a serial run.
+        Both None: render here, in order.
 
     Returns
     -------
@@ -217,14 +239,16 @@ def generate(path, camera: PlenopticCamera, cfg: DatasetConfig, scene: str, slop
             todo = np.flatnonzero((f["done"][:] == 0) & mine)
             total = int(mine.sum())
         label = f"{scene} dataset" + ("" if shard is None else f" shard {shard[0]}/{shard[1]}")
-        for i in tqdm(todo, desc=label, disable=not progress, initial=total - len(todo), total=total):
-            counts, gt, objects = make_sample(camera, cfg, scene, int(i), slopes)
-            f["raw"][i] = counts
-            f["gt"][i] = gt
-            f["params"][i] = json.dumps(objects, default=float)
-            f.flush()
-            f["done"][i] = 1
-            f.flush()
+        if scheduler is None and workers is None:
+            for i in tqdm(todo, desc=label, disable=not progress, initial=total - len(todo), total=total):
+                _store(f, int(i), make_sample(camera, cfg, scene, int(i), slopes))
+        else:   # rendered on Dask workers, written here as each arrives (any order; same bytes)
+            from .parallel import dask_client, map_unordered
+            with dask_client(scheduler, workers or 1) as client:
+                for i, sample in map_unordered(client, _sample_at, [int(i) for i in todo], camera, cfg, scene,
+                                               list(slopes), name=label.replace(" ", "-"), progress=progress,
+                                               total=len(todo)):
+                    _store(f, i, sample)
         f.attrs["provenance"] = json.dumps(provenance())
         f.attrs["digest"] = content_digest(f)
         f.attrs["wall_time_s_last_run"] = time.perf_counter() - t0

@@ -27,7 +27,8 @@ def cmd_dataset(a):
             shard = tuple(int(v) for v in a.shard.split("/"))
         except ValueError:
             raise SystemExit(f"--shard must look like i/N (e.g. 2/4). Received: {a.shard!r}") from None
-    p = generate(a.out, cam, cfg, a.scene, slopes, progress=not a.quiet, shard=shard)
+    p = generate(a.out, cam, cfg, a.scene, slopes, progress=not a.quiet, shard=shard, scheduler=a.scheduler,
+                 workers=a.workers)
     print(f"dataset -> {p}")
 
 
