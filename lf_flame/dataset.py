@@ -244,10 +244,13 @@ def generate(path, camera: PlenopticCamera, cfg: DatasetConfig, scene: str, slop
                 _store(f, int(i), make_sample(camera, cfg, scene, int(i), slopes))
         else:   # rendered on Dask workers, written here as each arrives (any order; same bytes)
             from .parallel import dask_client, map_unordered
+            # task keys carry the settings: on a shared scheduler, a concurrent run with other
+            # settings must not be handed this run's samples (Dask reuses a task by its key)
+            tag = hashlib.sha256(json.dumps(expected, sort_keys=True).encode()).hexdigest()[:8]
             with dask_client(scheduler, workers or 1) as client:
                 for i, sample in map_unordered(client, _sample_at, [int(i) for i in todo], camera, cfg, scene,
-                                               list(slopes), name=label.replace(" ", "-"), progress=progress,
-                                               total=len(todo)):
+                                               list(slopes), name=f"{label.replace(' ', '-')}-{tag}",
+                                               progress=progress, total=len(todo)):
                     _store(f, i, sample)
         f.attrs["provenance"] = json.dumps(provenance())
         f.attrs["digest"] = content_digest(f)

@@ -14,6 +14,7 @@ frame. ``OUT/summary.json`` is written last: a folder without it is not a finish
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import json
 import math
 import os
@@ -527,7 +528,9 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
             client.run(_warm_up, job)   # imports and Numba's cached kernels, counted in the start-up
             startup = time.perf_counter() - t0
             t0 += startup
-            for c, res in map_unordered(client, process_chunk, todo, job, name="frames", progress=progress,
+            # keys carry the run's identity: two recordings on one shared scheduler never share a task
+            tag = hashlib.sha256(ident.encode()).hexdigest()[:8]
+            for c, res in map_unordered(client, process_chunk, todo, job, name=f"frames-{tag}", progress=progress,
                                         total=len(todo)):
                 keep(c, res)
     wall = time.perf_counter() - t0
