@@ -32,7 +32,7 @@ import pandas as pd
 from lf_flame.camera import PAPER_CAMERA
 from lf_flame.cli.sequence import NOISE
 from lf_flame.config import atomic_write_text, provenance
-from lf_flame.scenes import flicker_sequence
+from lf_flame.scenes_time import flicker_sequence
 from lf_flame.sequence import SimulatedSource, open_source, run, simulated_job, write_frames
 
 SEED_PAPER, SEED_OVERLAP = 26001, 26002

@@ -1,7 +1,7 @@
 """Flame recordings: each plane's flame diagnostics over time, and their flicker spectra.
 
 A recording is a series of raw light-field frames (an HDF5 stack, a folder of image
-files, or a simulated :class:`lf_flame.scenes.FlameSequence`). Every frame is refocused
+files, or a simulated :class:`lf_flame.scenes_time.FlameSequence`). Every frame is refocused
 at the planes (or reconstructed, :mod:`lf_flame.reconstruct`) and measured per plane by
 :func:`lf_flame.diagnostics.measure_flame`; each plane's height and intensity over time
 then give its spectrum (Welch, :func:`scipy.signal.welch`) and dominant flicker frequency.
@@ -27,7 +27,7 @@ import pandas as pd
 
 from .camera import PlenopticCamera
 from .config import atomic_write_text, provenance
-from .scenes import FlameSequence
+from .scenes_time import FlameSequence
 
 #: Per-plane signals whose spectra are computed (columns of the frames table).
 SIGNALS = ("height_mm", "integrated_intensity")
@@ -41,7 +41,7 @@ CHUNK = 16
 # Frame sources: picklable descriptions, opened where the frame is read (in the worker).
 @dataclass(frozen=True)
 class SimulatedSource:
-    """Frames rendered from a :class:`~lf_flame.scenes.FlameSequence` (frame ``i`` with ray
+    """Frames rendered from a :class:`~lf_flame.scenes_time.FlameSequence` (frame ``i`` with ray
     seed ``seed * 1000003 + i``), ``rays_per_pixel`` rays per pixel."""
 
     sequence: FlameSequence

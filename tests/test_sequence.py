@@ -17,7 +17,7 @@ import pytest
 
 from lf_flame.camera import PAPER_CAMERA
 from lf_flame.cli import main
-from lf_flame.scenes import flicker_sequence
+from lf_flame.scenes_time import flicker_sequence
 from lf_flame.sequence import (SimulatedSource, frame_rate, open_source, process_chunk, run, simulated_job,
                                write_frames)
 

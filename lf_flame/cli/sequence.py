@@ -12,7 +12,7 @@ NOISE = (10_000.0, 5.0, 12)
 
 
 def _sequence_of(a, cam):
-    from ..scenes import flicker_sequence
+    from ..scenes_time import flicker_sequence
     return flicker_sequence(cam, np.random.default_rng(a.seed), a.simulate, fps=a.fps or 500.0,
                             duration_s=a.duration, freqs_hz=a.freq, noise=NOISE if a.noise else None)
 
@@ -35,7 +35,7 @@ def cmd_simulate_sequence(a):
 
 
 def cmd_sequence(a):
-    from ..scenes import FlameSequence
+    from ..scenes_time import FlameSequence
     from ..sequence import SequenceJob, SimulatedSource, frame_rate, open_source, run, simulated_job
     if (a.input is None) == (a.simulate is None):
         raise ValueError("give a recording INPUT or --simulate KIND, not both or neither")
