@@ -481,7 +481,7 @@ def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters
 
 # ---- scoring, files, figure ----------------------------------------------------------
 def score_planes(planes, truth, camera: PlenopticCamera, depths_mm, objects=None, *, time_s=float("nan"),
-                 **labels):
+                 measure=None, **labels):
     """The one scoring function of every route to the emission, per plane.
 
     Parameters
@@ -496,6 +496,10 @@ def score_planes(planes, truth, camera: PlenopticCamera, depths_mm, objects=None
         measured on the plane (:func:`lf_flame.diagnostics.measure_flame`) and compared.
     time_s : float
         The route's wall time for the whole stack.
+    measure : dict or None
+        Keyword arguments of :func:`~lf_flame.diagnostics.measure_flame`: planes of emission
+        are measured with :data:`~lf_flame.diagnostics.EMISSION_MEASURE`, refocused planes
+        with the defaults (:func:`~lf_flame.diagnostics.measure_settings` of the route).
     **labels
         Columns added to every row (route, scene, noise ...).
 
@@ -518,7 +522,7 @@ def score_planes(planes, truth, camera: PlenopticCamera, depths_mm, objects=None
     df = pd.DataFrame(dict(labels, plane=range(len(planes)), depth_mm=[float(d) for d in depths_mm], rel_err=rel,
                            ssim=ssim_per_plane(truth, planes), psnr_db=psnr_per_plane(truth, planes)))
     if objects is not None:
-        h = score_stacks(np.clip(planes, 0, None)[None], camera, [list(objects)])
+        h = score_stacks(np.clip(planes, 0, None)[None], camera, [list(objects)], measure=measure)
         keep = [c for c in ("height_mm", "height_mm_true", "height_err_mm", "flags", "failure") if c in h]
         df = pd.concat([df, h[keep].reset_index(drop=True)], axis=1)
     df["time_s"] = time_s

@@ -344,7 +344,8 @@ def process_chunk(c: int, job: SequenceJob) -> dict:
     :meth:`FlameMeasurement.summary` fields, failure) and the seconds spent reading
     (or rendering), refocusing and measuring.
     """
-    from .diagnostics import EmptyPlaneError, measure_flame
+    from .diagnostics import EmptyPlaneError, measure_flame, measure_settings
+    kw = measure_settings(job.route)
     t = dict(read_s=0.0, refocus_s=0.0, measure_s=0.0)
     rows = []
     for i in range(c * job.chunk, min((c + 1) * job.chunk, job.source.n_frames)):
@@ -359,7 +360,7 @@ def process_chunk(c: int, job: SequenceJob) -> dict:
         for k, (plane, d) in enumerate(zip(stack, job.depths_mm)):
             row = dict(frame=i, time_s=i / job.fps, plane=k, depth_mm=d)
             try:
-                row.update(measure_flame(plane, job.camera, d, columns=job.columns[k]).summary(), failure="")
+                row.update(measure_flame(plane, job.camera, d, columns=job.columns[k], **kw).summary(), failure="")
             except EmptyPlaneError as e:
                 row.update(failure=str(e))
             rows.append(row)

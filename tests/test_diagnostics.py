@@ -302,3 +302,26 @@ def test_flame_tail_experiment_writes_csv_and_md(tmp_path):
     assert set(df.regime) == {"varied", "paper"} and df.height_err_mm.notna().all()
     md = (tmp_path / "tail.md").read_text()
     assert "% > 1 mm trusted" in md and "Detector's confusion" in md and "--seed0 990000" in md
+
+
+def test_planes_of_emission_are_measured_with_their_own_edges():
+    """On the true emission (sharp: no other plane's blur), the emission settings' edges
+    lie closer to the flame's than the refocused planes' defaults, which undershoot the
+    base (lf_flame.diagnostics.EMISSION_MEASURE; results/reconstruct_edges.csv)."""
+    from lf_flame.diagnostics import EMISSION_MEASURE, measure_settings
+    from lf_flame.reconstruct import EmissionOperator, scene_truth
+    assert measure_settings("reconstruct-pd-tv") == measure_settings("truth") == EMISSION_MEASURE
+    assert measure_settings("shift-sum") == measure_settings("refocus-adjoint") == {}
+    errs = {"truth": [], "shift-sum": []}
+    for seed in (1, 2, 3):
+        sc = scenes.flame_scene(CAM, np.random.default_rng(seed), template_scale=TEMPLATE_SCALE, regime="paper")
+        depths = [o["depth_offset_mm"] for o in sc.objects]
+        truth = scene_truth(sc, EmissionOperator(CAM, depths, rays_per_pixel=1))
+        for plane, obj, d in zip(truth, sc.objects, depths):
+            t = flame_truth(obj)
+            for route in errs:
+                m = measure_flame(plane, CAM, d, columns=t["columns"], **measure_settings(route))
+                assert m.trusted
+                errs[route].append(abs(m.height_mm - t["height_mm"]))
+    assert max(errs["truth"]) < 0.15
+    assert np.mean(errs["truth"]) < 0.5 * np.mean(errs["shift-sum"])

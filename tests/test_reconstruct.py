@@ -20,6 +20,12 @@ def tiny_camera():
                          ids=["paper", "one", "others", "32-planes"])
 def test_the_adjoint_passes_the_dot_test(tiny_camera, depths):
     op = EmissionOperator(tiny_camera, depths, rays_per_pixel=2)
+    # dottest draws its vectors from numpy's global generator: seeded, so the test is
+    # deterministic. The kernel is float32 inside (as the renderer), so <A u, v> carries
+    # float32 rounding, and with mixed-sign normal vectors the two inner products nearly
+    # cancel now and then: over 200 unseeded draws (paper planes) 3 % of them differ by
+    # 1e-6 to 3e-5 relative. A wrong adjoint misses by far more (the entry test below).
+    np.random.seed(0)
     assert pylops.utils.dottest(op, *op.shape, rtol=1e-6, raiseerror=False)
 
 
@@ -27,6 +33,7 @@ def test_the_adjoint_passes_the_dot_test(tiny_camera, depths):
                          ids=["crosstalk"])
 def test_the_adjoint_passes_the_dot_test_with_other_effects(tiny_camera, effects):
     op = EmissionOperator(tiny_camera, PAPER_DEPTHS, effects=effects, rays_per_pixel=3, seed=7)
+    np.random.seed(0)   # as above
     assert pylops.utils.dottest(op, *op.shape, rtol=1e-6, raiseerror=False)
 
 

@@ -61,23 +61,24 @@ def _profiles_input(a):
 def cmd_profiles(a):
     import pandas as pd
     from ..config import atomic_write_text
-    from ..diagnostics import EmptyPlaneError, flame_truth, measure_flame, plot_profiles, score_stacks
+    from ..diagnostics import EmptyPlaneError, flame_truth, measure_flame, measure_settings, plot_profiles, score_stacks
+    kw = measure_settings(a.route)
     cam, stack, depths, slopes, objects = _profiles_input(a)
     if objects:
         sample = int(str(a.raw).rsplit(":", 1)[1]) if ".h5:" in str(a.raw) else 0
-        df = score_stacks(stack[None], cam, [objects], samples=[sample], route=a.route)
+        df = score_stacks(stack[None], cam, [objects], samples=[sample], measure=kw, route=a.route)
         df.insert(0, "plane", range(len(df)))
         ms = []
         for plane, o in zip(stack, objects):
             try:
-                ms.append(measure_flame(plane, cam, o["depth_offset_mm"], columns=flame_truth(o)["columns"]))
+                ms.append(measure_flame(plane, cam, o["depth_offset_mm"], columns=flame_truth(o)["columns"], **kw))
             except EmptyPlaneError:
                 ms.append(None)
     else:
         ms, rows = [], []
         for k, (plane, d) in enumerate(zip(stack, depths)):
             try:
-                m = measure_flame(plane, cam, d)
+                m = measure_flame(plane, cam, d, **kw)
                 rows.append(dict(plane=k, route=a.route, depth_mm=d, **m.summary(), failure=""))
             except EmptyPlaneError as e:
                 m = None
