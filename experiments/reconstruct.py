@@ -321,8 +321,9 @@ def main(argv=None):
     if a.stage == "edges":
         chosen, best = choose(pd.read_csv(out / "reconstruct_iters.csv"))
         df = edge_scores(cam, best, chosen[best], (None, a.snr_db))
-        atomic_write_text(out / "reconstruct_edges.csv", df.drop(columns=["sample"]).to_csv(
-            index=False, float_format="%.5g"))
+        keep = ["candidate", "segment_fraction", "edge_fit_range", "route", "scene", "seed", "snr_db", "depth_mm",
+                "height_mm_true", "height_mm", "height_err_mm", "base_err_mm", "tip_err_mm", "flags", "failure"]
+        atomic_write_text(out / "reconstruct_edges.csv", df[keep].to_csv(index=False, float_format="%.5g"))
         j, table = choose_edges(df)
         atomic_write_text(out / "reconstruct_edges.json", json.dumps(dict(
             choice=EDGE_CANDIDATES[j], candidates=EDGE_CANDIDATES, solver=best, knobs=chosen[best], val_seeds=VAL_SEEDS,
