@@ -6,7 +6,7 @@ For each regime, draws ``n`` fresh flame scenes (:func:`lf_flame.scenes.flame_sc
 each at 4 rays per pixel (:func:`lf_flame.simulate.render`, seed ``seed0 + i``), refocuses
 it by shift-and-sum (:func:`lf_flame.refocus.focal_stack`, bilinear, ``--aperture`` views)
 at the analytic slopes of the four flames' depths, and scores every plane against the
-simulation's truth (:func:`lf_flame.diagnostics.score_stacks`).
+simulation's truth (:func:`lf_flame.diagnostics_scoring.score_stacks`).
 
 Writes ``<out>.csv`` (one row per scene and plane: truth, measurement, errors, the tip's
 pedestal and the flags) and ``<out>.md``: per regime and depth, and over all depths, the
@@ -30,7 +30,7 @@ from tqdm import tqdm
 from lf_flame import diagnostics, refocus, scenes, simulate
 from lf_flame.camera import PAPER_CAMERA
 from lf_flame.config import atomic_write_text
-from lf_flame.diagnostics import error_table, score_stacks
+from lf_flame.diagnostics_scoring import error_table, score_stacks
 
 RAYS_PER_PIXEL = 4
 #: Columns kept in the CSV (one row per scene and plane).
@@ -45,7 +45,7 @@ def score_regime(regime: str, n: int, seed0: int, aperture: str, camera=PAPER_CA
 
     Returns
     -------
-    DataFrame, one row per scene and plane (:func:`lf_flame.diagnostics.score_stacks`'s
+    DataFrame, one row per scene and plane (:func:`lf_flame.diagnostics_scoring.score_stacks`'s
     columns plus ``regime`` and ``seed``).
     """
     mask = refocus.aperture_mask(camera.pixels_per_lenslet, aperture)

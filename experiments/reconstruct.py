@@ -46,9 +46,11 @@ from bench_refocus import _times  # noqa: E402
 from lf_flame import scenes, simulate  # noqa: E402
 from lf_flame.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
-from lf_flame.diagnostics import EMISSION_MEASURE, error_table, measure_settings, score_stacks  # noqa: E402
-from lf_flame.reconstruct import (SOLVERS, EmissionOperator, plot_reconstruction,  # noqa: E402
+from lf_flame.diagnostics import EMISSION_MEASURE, measure_settings  # noqa: E402
+from lf_flame.diagnostics_scoring import error_table, score_stacks  # noqa: E402
+from lf_flame.reconstruct import (SOLVERS, EmissionOperator,  # noqa: E402
                                   reconstruct, scene_truth, score_planes)
+from lf_flame.reconstruct_files import plot_reconstruction  # noqa: E402
 from lf_flame.refocus import aperture_mask, focal_stack, raw_to_views  # noqa: E402
 
 VAL_SEEDS = (920001, 920002)
@@ -197,7 +199,7 @@ def score_tests(cam, kinds, noise_levels, chosen, best, n_tests, figdir):
 
 
 def tail(cam, solver, knobs, seeds):
-    """Height errors (:func:`lf_flame.diagnostics.score_stacks`, flags included) of every
+    """Height errors (:func:`lf_flame.diagnostics_scoring.score_stacks`, flags included) of every
     plane of fresh varied flame scenes, one per seed: shift-and-sum beside ``solver``."""
     rows = []
     depths = list(scenes.PAPER_DEPTHS_MM)
@@ -255,6 +257,71 @@ def choose_edges(df: pd.DataFrame) -> tuple[int, pd.DataFrame]:
     return int(worst.idxmin()), table
 
 
+def fwhm(z, p) -> float:
+    """Full width at half maximum (units of ``z``) of the profile ``p`` sampled at ``z``
+    (increasing), by linear interpolation of the half-maximum crossings on either side of
+    the peak; a side that never falls below half is cut at the sampled range."""
+    p = np.asarray(p, float)
+    k = int(np.argmax(p))
+    half = p[k] / 2
+    i, j = k, k
+    while i > 0 and p[i - 1] > half:
+        i -= 1
+    while j < len(p) - 1 and p[j + 1] > half:
+        j += 1
+    lo = z[0] if i == 0 else np.interp(half, [p[i - 1], p[i]], [z[i - 1], z[i]])
+    hi = z[-1] if j == len(p) - 1 else np.interp(half, [p[j + 1], p[j]], [z[j + 1], z[j]])
+    return float(hi - lo)
+
+
+#: axial resolution: point sources at these depths (mm), planes every AXIAL_STEP_MM within
+#: AXIAL_HALF_RANGE_MM of each, on a 41 x 41 lenslet crop of the paper's camera (same optics)
+AXIAL_DEPTHS_MM = (-10.0, 0.0, 10.0, 20.0)
+AXIAL_STEP_MM = 0.25
+AXIAL_HALF_RANGE_MM = 8.0
+
+
+def axial_resolution(solver, knobs):
+    """The axial response of a point source: a Gaussian spot (1 lenslet footprint sigma,
+    radiance 0.8) alone at each of :data:`AXIAL_DEPTHS_MM`, rendered noise-free, then
+    reconstructed by ``solver`` on planes every :data:`AXIAL_STEP_MM` through it, beside the
+    shift-and-sum focal stack on the same planes. Response per plane: the brightest value
+    within one lenslet of the point. Returns (profiles, summary): the summary gives each
+    route's FWHM along depth and the depth step that moves the point by one lenslet
+    between the outermost views of the aperture (the views' parallax)."""
+    from lf_flame.camera import PlenopticCamera
+    from lf_flame.diagnostics import lenslet_size_mm
+    from lf_flame.reconstruct import FLAME_EFFECTS
+    cam = PlenopticCamera(n_rows=41, n_cols=41)      # the paper's optics, a crop of its lenslet grid
+    mask = aperture_mask(cam.pixels_per_lenslet, "circular")
+    n_views = int(mask.sum(axis=1).max())            # views across the aperture's diameter
+    c = cam.n_rows // 2
+    kw = dict(knobs)
+    iters = kw.pop("iters", None)
+    yy, xx = np.mgrid[-4:5, -4:5]
+    spot = (0.8 * np.exp(-(yy ** 2 + xx ** 2) / 2.0)).astype(np.float32)   # 3 texels per lenslet footprint
+    profiles, summary = [], []
+    for z0 in AXIAL_DEPTHS_MM:
+        s = lenslet_size_mm(cam, z0)
+        scene = scenes.Scene("point", (scenes.Layer(spot, None, z0, (0.0, 0.0), (3 * s, 3 * s)),), FLAME_EFFECTS)
+        views = raw_to_views(simulate.render(cam, scene, RAYS_DATA, 1), cam.pixels_per_lenslet)
+        planes = z0 + np.arange(-AXIAL_HALF_RANGE_MM, AXIAL_HALF_RANGE_MM + 1e-9, AXIAL_STEP_MM)
+        rec = reconstruct(views, EmissionOperator(cam, planes, rays_per_pixel=RAYS_OP), solver, iters, **kw)
+        fs = focal_stack(views, [cam.slope_for_depth(d) for d in planes], mask)
+        row = dict(depth_mm=z0, lenslet_mm=s, solve_s=rec.time_s)
+        for route, st in ((f"reconstruct-{solver}", rec.planes), ("refocus-shift-sum", fs)):
+            resp = st[:, c - 1:c + 2, c - 1:c + 2].max(axis=(1, 2))
+            profiles += [dict(point_depth_mm=z0, route=route, plane_mm=float(d), response=float(v))
+                         for d, v in zip(planes, resp)]
+            row[f"fwhm_mm {route}"] = fwhm(planes, resp)
+            row[f"peak_at_mm {route}"] = float(planes[int(np.argmax(resp))])
+        s0, ds = cam.slope_for_depth(z0), 1.0 / (n_views - 1)
+        row["parallax_step_mm"] = abs(cam.depth_for_slope(s0 + ds) - cam.depth_for_slope(s0 - ds)) / 2
+        summary.append(row)
+        print(f"  axial {z0:+g} mm: {row}", flush=True)
+    return pd.DataFrame(profiles), pd.DataFrame(summary)
+
+
 def tail_table(df: pd.DataFrame, by=("route",)) -> pd.DataFrame:
     cols = ["n", "n_failed", "n_flagged", "height_err_mm", "share_over_1mm", "height_err_mm_p90", "height_err_mm_max",
             "share_over_1mm_trusted", "height_err_mm_p90_trusted", "height_err_mm_max_trusted"]
@@ -291,7 +358,7 @@ def main(argv=None):
     p.add_argument("--tail", type=int, default=200, help="fresh varied scenes of the height-error tail")
     p.add_argument("--snr-db", type=float, default=14.0)
     p.add_argument("--kinds", default="paper,varied,overlap,volume")
-    p.add_argument("--stage", choices=["all", "main", "tail", "report", "timing", "edges"], default="all",
+    p.add_argument("--stage", choices=["all", "main", "tail", "report", "timing", "edges", "axial"], default="all",
                    help="tail: only the height tail (--tail-solver and its knobs, scenes --tail-first ... + --tail); "
                         "main: all but the tail (the report reads an existing reconstruct_tail.csv); report: "
                         "measure nothing, rewrite reconstruct.md from the CSVs and reconstruct.json in --out; timing: "
@@ -332,6 +399,16 @@ def main(argv=None):
         print(table.to_string(index=False), "\nchoice:", EDGE_CANDIDATES[j])
         if EDGE_CANDIDATES[j] != {k: v for k, v in EMISSION_MEASURE.items()}:
             print(f"lf_flame.diagnostics.EMISSION_MEASURE is {EMISSION_MEASURE}: set it to the choice")
+        return
+    if a.stage == "axial":
+        chosen, best = choose(pd.read_csv(out / "reconstruct_iters.csv"))
+        prof, summ = axial_resolution(best, chosen[best])
+        atomic_write_text(out / "reconstruct_axial.csv", prof.to_csv(index=False, float_format="%.5g"))
+        atomic_write_text(out / "reconstruct_axial.json", json.dumps(dict(
+            summary=summ.to_dict("records"), solver=best, knobs=chosen[best], step_mm=AXIAL_STEP_MM,
+            provenance=provenance(), wall_time_s=time.perf_counter() - t0), indent=2, default=float))
+        plot_axial(out / "reconstruct_axial.png", prof)
+        print(summ.to_string(index=False))
         return
     if a.stage == "report":
         j = json.loads((out / "reconstruct.json").read_text())
@@ -374,6 +451,23 @@ def _versus(worst: pd.DataFrame, route: str) -> pd.DataFrame:
                          "time_s_median": r.time_s_median, "time_s_worst": r.time_s_worst}).reset_index()
 
 
+def plot_axial(path, prof: pd.DataFrame) -> None:
+    """Each point's response along depth, per route, normalised to its peak."""
+    import matplotlib.pyplot as plt
+    pts = sorted(prof.point_depth_mm.unique())
+    fig, ax = plt.subplots(1, len(pts), figsize=(3.2 * len(pts), 2.8), squeeze=False)
+    for a_, z0 in zip(ax[0], pts):
+        for route, g in prof[prof.point_depth_mm == z0].groupby("route"):
+            a_.plot(g.plane_mm - z0, g.response / g.response.max(), label=route)
+        a_.axhline(0.5, color="0.6", lw=0.8)
+        a_.set_title(f"point at {z0:+g} mm", fontsize=9)
+        a_.set_xlabel("plane − point depth (mm)", fontsize=8)
+    ax[0, 0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def write_report(out, scores, curves, tl, chosen, best, timing, a, wall, prov):
     s = scores.assign(noise=np.where(np.isinf(scores.snr_db), "noise-free", f"{a.snr_db:g} dB"))
     per_plane = s.groupby(["scene", "noise", "route", "depth_mm"], sort=False).agg(
@@ -410,6 +504,17 @@ def write_report(out, scores, curves, tl, chosen, best, timing, a, wall, prov):
                   f"{j['edge_seed0']}+i, paper, varied, overlap) and `{j['solver']}`'s reconstructions of the "
                   "validation renders (noise-free and noisy). Refocused planes keep the defaults (first row).", "",
                   pd.DataFrame(j["table"])[cols].to_markdown(index=False, floatfmt=".3f"), ""]
+    axial = out / "reconstruct_axial.json"
+    if axial.exists():
+        j = json.loads(axial.read_text())
+        lines += [f"## Axial resolution: a point source (`--stage axial`, noise-free, `{j['solver']}` "
+                  f"{json.dumps(j['knobs'])})", "",
+                  f"A spot one lenslet footprint wide alone at each depth, planes every {j['step_mm']} mm through it "
+                  "(41 x 41 lenslets of the paper's camera). FWHM along depth of the brightest value within one "
+                  "lenslet of the point, reconstructed and refocused; *parallax step*: the depth change that moves "
+                  "the point by one lenslet between the outermost views of the aperture. Figure: "
+                  "`reconstruct_axial.png`.", "",
+                  pd.DataFrame(j["summary"]).to_markdown(index=False, floatfmt=".3f"), ""]
     quiet = out / "reconstruct_timing.json"
     if quiet.exists():
         j = json.loads(quiet.read_text())

@@ -63,7 +63,7 @@ from lf_flame.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.config import (atomic_write_text, load_experiment_config, load_toml,  # noqa: E402
                              provenance)
 from lf_flame.dataset import GT_MASK, LightFieldDataset, SCENES, sample_rng  # noqa: E402
-from lf_flame.diagnostics import error_table, score_stacks  # noqa: E402
+from lf_flame.diagnostics_scoring import error_table, score_stacks  # noqa: E402
 from lf_flame.metrics import psnr_per_plane, ssim_per_plane  # noqa: E402
 from lf_flame.refocus import aperture_mask, find_sharpest_slope, raw_to_views, refocus  # noqa: E402
 from lf_flame.scenes import PAPER_DEPTHS_MM  # noqa: E402

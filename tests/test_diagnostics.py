@@ -8,8 +8,9 @@ from scipy import ndimage
 
 from lf_flame import scenes, simulate
 from lf_flame.camera import PlenopticCamera
-from lf_flame.diagnostics import (TIP_PEDESTAL_MM, EmptyPlaneError, error_table, flame_truth, lenslet_size_mm,
-                                  lenslet_to_object_mm, measure_flame, measure_stack, score_stacks)
+from lf_flame.diagnostics import (TIP_PEDESTAL_MM, EmptyPlaneError, flame_truth, lenslet_size_mm,
+                                  lenslet_to_object_mm, measure_flame)
+from lf_flame.diagnostics_scoring import error_table, measure_stack, score_stacks
 from lf_flame.refocus import aperture_mask, refocus
 
 # two thirds of the paper's lenslet grid, the paper's optics; flames scaled to fit the field

@@ -178,18 +178,33 @@ def test_the_volume_is_axisymmetric_and_its_light_does_not_depend_on_its_layers(
     assert 0.05 < raw.max() <= 1.0
 
 
-def test_the_experiment_chooses_on_the_worst_plane_of_the_worst_render():
-    """``choose``: per solver the fewest iterations within 10 % of its best; the chosen solver
-    is the one whose worst validation render is best, not whose mean is."""
+def _experiment():
     import importlib.util
-    import json
     from pathlib import Path
-
-    import pandas as pd
     path = Path(__file__).resolve().parents[1] / "experiments" / "reconstruct.py"
     spec = importlib.util.spec_from_file_location("reconstruct_experiment", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
+    return mod
+
+
+def test_the_axial_fwhm_of_a_sampled_profile():
+    """The axial resolution's FWHM: a Gaussian's 2 sqrt(2 ln 2) sigma, sampled coarsely and off
+    its peak; a profile cut by the sampled range is measured to the range's end."""
+    fwhm = _experiment().fwhm
+    z = np.arange(-8.0, 8.01, 0.25)
+    for sigma, mu in ((0.5, 0.1), (1.3, -0.7), (2.0, 0.0)):
+        assert fwhm(z, np.exp(-(z - mu) ** 2 / (2 * sigma ** 2))) == pytest.approx(2.3548 * sigma, rel=0.03)
+    assert fwhm(z, np.exp(-(z + 8.0) ** 2 / 2)) == pytest.approx(2.3548 / 2, rel=0.05)
+
+
+def test_the_experiment_chooses_on_the_worst_plane_of_the_worst_render():
+    """``choose``: per solver the fewest iterations within 10 % of its best; the chosen solver
+    is the one whose worst validation render is best, not whose mean is."""
+    import json
+
+    import pandas as pd
+    mod = _experiment()
     rows = []
     # solver a: fine on one render, poor on the other; b: uniformly middling; b converges by 20 it.
     for solver, errs in (("a", {10: (0.30, 0.02), 20: (0.20, 0.01), 40: (0.19, 0.01)}),

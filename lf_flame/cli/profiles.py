@@ -61,7 +61,8 @@ def _profiles_input(a):
 def cmd_profiles(a):
     import pandas as pd
     from ..config import atomic_write_text
-    from ..diagnostics import EmptyPlaneError, flame_truth, measure_flame, measure_settings, plot_profiles, score_stacks
+    from ..diagnostics import EmptyPlaneError, flame_truth, measure_flame, measure_settings, plot_profiles
+    from ..diagnostics_scoring import score_stacks
     kw = measure_settings(a.route)
     cam, stack, depths, slopes, objects = _profiles_input(a)
     if objects:

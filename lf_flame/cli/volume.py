@@ -40,7 +40,7 @@ def run_reconstruction(cam, views, depths, solver, iters=None, *, damp=0.0, tv=N
 
 
 def cmd_reconstruct(a):
-    from ..reconstruct import plot_reconstruction, save_reconstruction
+    from ..reconstruct_files import plot_reconstruction, save_reconstruction
     from ..refocus import aperture_mask, focal_stack
     cam, views, depths, objects = reconstruct_input(a)
     op, rec = run_reconstruction(cam, views, depths, a.solver, a.iters, damp=a.damp, tv=a.tv,
