@@ -111,7 +111,7 @@ def axis_coefficients(n_lenslets, n_pix, mla_pitch, pixel_pitch, sign, gap, lens
 
 @njit(parallel=True, cache=True, fastmath={'contract'})
 def render_backward(ky, kx, n_pix, radiance, alpha, layer_box, occlusion, aperture_radius, use_cos4, lenslet_span,
-                    rays_per_pixel, seed, out, adjoint, y_adj, grad):
+                    rays_per_pixel, seed, out, adjoint, y_adj, grad, record, tab_texel, tab_weight):
     """Backward-trace ``rays_per_pixel`` rays per sensor pixel into a stack of layers.
 
     Every ray of pixel (i, j) has four sample coordinates: its start in the pixel
@@ -141,6 +141,13 @@ def render_backward(ky, kx, n_pix, radiance, alpha, layer_box, occlusion, apertu
     compiled function, so both compute every texel index with the same instructions:
     the adjoint is exact, not an approximation (``lf_flame.reconstruct``). ``out`` and
     ``radiance`` are not read then (``radiance`` gives the texture shape).
+
+    ``record`` True (``adjoint`` False, every layer's box its whole texture) renders
+    nothing and writes the map itself, ray by ray: ``tab_weight`` (H, W, rays_per_pixel)
+    float32 receives each ray's weight times the area it stands for (0 for a lost ray),
+    ``tab_texel`` (H, W, rays_per_pixel, n_layers) int32, filled with -1 by the caller,
+    the flat index (into ``grad``'s layout) of the texel each ray reads on each layer,
+    left -1 where it misses the layer. Otherwise pass (1, 1, 1, 1) and (1, 1, 1) arrays.
     """
     ky = ky.astype(np.float32)
     kx = kx.astype(np.float32)
@@ -248,6 +255,9 @@ def render_backward(ky, kx, n_pix, radiance, alpha, layer_box, occlusion, apertu
                         tx = kx[1, 0, j] + kx[1, 1, j] * du_x[j] + kx[1, 2, j] * da_x[j] + kx[1, 3, j] * o_x[j]
                         t2 = one + ty * ty + tx * tx
                         wgt[j] *= one / (t2 * t2)
+                if record:
+                    for j in range(W):
+                        tab_weight[i, j, k] = wgt[j] * np.float32(scale)
                 if adjoint:
                     for j in range(W):
                         gw[j] = wgt[j] * y_adj[i, j] * scale
@@ -276,6 +286,11 @@ def render_backward(ky, kx, n_pix, radiance, alpha, layer_box, occlusion, apertu
                             fc = c0[j] + c1[j] * dxx[j] + c2[j] * axx[j]
                             inside[j] = one if (fr >= zero) & (fr < trf) & (fc >= zero) & (fc < tcf) else zero
                             texel[j] = off + np.int32(min(max(fr, zero), tr_max)) * tc + np.int32(min(max(fc, zero), tc_max))
+                    if record:
+                        for j in range(n):
+                            if inside[j] > zero:
+                                tab_texel[i, j0 + j, k, li] = texel[j]
+                        continue
                     if adjoint:
                         gg = gw[j0:j1]
                         for j in range(n):
@@ -295,10 +310,10 @@ def render_backward(ky, kx, n_pix, radiance, alpha, layer_box, occlusion, apertu
                     else:
                         for j in range(n):
                             vv[j] += inside[j] * texv[j]
-                if not adjoint:
+                if not (adjoint or record):
                     for j in range(W):
                         acc[j] += wgt[j] * val[j]
-            if not adjoint:
+            if not (adjoint or record):
                 for j in range(W):
                     out[i, j] = acc[j] * scale
 

@@ -36,17 +36,21 @@ from pyproximal.optimization.primal import ProximalGradient
 from pyproximal.optimization.primaldual import PrimalDual
 from tqdm.auto import tqdm
 
-from . import _simulate_kernels
+from . import _reconstruct_kernels, _simulate_kernels
 from .camera import PlenopticCamera
 from .scenes import Effects, Layer, Scene
 from .refocus import raw_to_views, views_to_raw
-from .simulate import _stack_layers, _validate_sampling, trace_coefficients
+from .simulate import NO_TABLE, _stack_layers, _validate_sampling, trace_coefficients
 
 #: Parallel blocks of sensor rows of the adjoint, each scattering into its own buffer:
 #: fixed, so the adjoint's sum is bit-identical at any thread count.
 ADJOINT_BLOCKS = 8
 #: The flame scenes' effects (optically thin emitters seen through the aperture, cos^4).
 FLAME_EFFECTS = Effects(aperture=True, cos4=True, occlusion=False)
+#: Largest ray table (bytes: 4 per ray and plane for the texel, 4 per ray for the weight) an
+#: :class:`EmissionOperator` records; a larger map is traced anew at every application.
+#: The paper's camera, 4 planes, 4 rays per pixel: 292 MB.
+RAY_TABLE_MAX_BYTES = 1 << 30
 
 
 def plane_grid(camera: PlenopticCamera, depth_offset_mm: float, margin: float = 1.0):
@@ -101,6 +105,10 @@ class EmissionOperator(pylops.LinearOperator):
         off (the map is linear in emission only for optically thin scenes).
     rays_per_pixel, seed : int
         The renderer's ray samples (:func:`lf_flame.simulate.render`).
+    ray_table : bool
+        Record the map once, ray by ray (:attr:`ray_table_bytes`, at the first application),
+        and apply it from the record: the same rays and weights, 3-5x faster (``python
+        experiments/reconstruct.py --stage timing``). Skipped above :data:`RAY_TABLE_MAX_BYTES`.
 
     Attributes
     ----------
@@ -117,13 +125,17 @@ class EmissionOperator(pylops.LinearOperator):
 
     Notes
     -----
-    One matvec costs one render of ``x`` (its content box culled, exactly); one rmatvec
-    the same rays again, scattering into :data:`ADJOINT_BLOCKS` buffers.
+    Traced (``ray_table=False``), one matvec costs one render of ``x`` (its content box
+    culled, exactly) and one rmatvec the same rays again, scattering into
+    :data:`ADJOINT_BLOCKS` buffers. Recorded, the tracer runs once, writing each ray's
+    weight and texel indices (:mod:`lf_flame._reconstruct_kernels`); each application is
+    then a gather or a scatter over that record, in float64.
     ``pylops.utils.dottest`` holds to float rounding (``tests/test_reconstruct.py``).
     """
 
     def __init__(self, camera: PlenopticCamera, depths_mm, *, grid_shape=None, sizes_mm=None, centres_mm=None,
-                 margin: float = 1.0, effects: Effects = FLAME_EFFECTS, rays_per_pixel: int = 4, seed: int = 0):
+                 margin: float = 1.0, effects: Effects = FLAME_EFFECTS, rays_per_pixel: int = 4, seed: int = 0,
+                 ray_table: bool = True):
         if not camera.perfect_grid:
             raise ValueError("the emission operator needs a perfect lenslet grid (square, unrotated, integer "
                              "pitch); decode the capture to such views first (lf_flame.decode)")
@@ -157,19 +169,42 @@ class EmissionOperator(pylops.LinearOperator):
         self.rays_per_pixel, self.seed = int(rays_per_pixel), int(seed)
         n = camera.pixels_per_lenslet
         super().__init__(dtype=np.float64, dims=(len(depths), gr, gc), dimsd=(n, n, camera.n_rows, camera.n_cols))
+        H, W = camera.sensor_shape
+        self.ray_table_bytes = H * W * self.rays_per_pixel * 4 * (len(depths) + 1)
+        self._use_table = bool(ray_table) and self.ray_table_bytes <= RAY_TABLE_MAX_BYTES
+        self._table = None
 
     # ---- the kernel, both ways ----------------------------------------------------
-    def _kernel(self, rad, box, adjoint, y_raw, grad):
+    def _kernel(self, rad, box, adjoint, y_raw, grad, record=False, table=NO_TABLE):
         fx, cam = self.effects, self.camera
         out = np.empty(cam.sensor_shape, np.float32)
         _simulate_kernels.render_backward(
             self._ky, self._kx, cam.pixels_per_lenslet, rad, np.zeros((1, 1, 1), np.float32), box, False,
             cam.aperture_diameter_mm / 2 if fx.aperture else -1.0, bool(fx.cos4), 3 if fx.crosstalk else 1,
-            self.rays_per_pixel, self.seed, out, adjoint, y_raw, grad)
+            self.rays_per_pixel, self.seed, out, adjoint, y_raw, grad, record, *table)
         return out
+
+    def _ray_table(self):
+        """The map recorded ray by ray, as compressed rows (:mod:`lf_flame._reconstruct_kernels`),
+        once; None when the operator traces (``ray_table`` off, or over the size limit)."""
+        if self._use_table and self._table is None:
+            P, gr, gc = self.dims
+            (H, W), K = self.camera.sensor_shape, self.rays_per_pixel
+            rays = (np.full((H, W, K, P), -1, np.int32), np.zeros((H, W, K), np.float32))
+            box = np.tile(np.array([0, gr, 0, gc], np.int64), (P, 1))
+            self._kernel(np.zeros((P, gr, gc), np.float32), box, False, np.zeros((1, 1)), np.zeros((1, 1)),
+                         True, rays)
+            self._table = _reconstruct_kernels.ray_table_to_csr(*rays, self.camera.pixels_per_lenslet)
+        return self._table
 
     def _matvec(self, x):
         P, gr, gc = self.dims
+        table = self._ray_table()
+        if table is not None:
+            out = np.empty(self.shape[0])
+            xk = np.ascontiguousarray(np.reshape(x, self.dims)[self._order], dtype=np.float64).ravel()
+            _reconstruct_kernels.csr_forward(*table, xk, ADJOINT_BLOCKS, out)
+            return out
         rad = np.ascontiguousarray(np.reshape(x, self.dims)[self._order], dtype=np.float32)
         nz = rad != 0
         box = np.zeros((P, 4), np.int64)
@@ -182,10 +217,14 @@ class EmissionOperator(pylops.LinearOperator):
 
     def _rmatvec(self, y):
         P, gr, gc = self.dims
-        raw = views_to_raw(np.reshape(np.asarray(y, np.float64), self.dimsd))
         grad = np.zeros((ADJOINT_BLOCKS, P * gr * gc))
-        box = np.tile(np.array([0, gr, 0, gc], np.int64), (P, 1))
-        self._kernel(np.zeros((P, gr, gc), np.float32), box, True, raw, grad)
+        table = self._ray_table()
+        if table is not None:
+            _reconstruct_kernels.csr_adjoint(*table, np.ascontiguousarray(y, dtype=np.float64).ravel(), grad)
+        else:
+            raw = views_to_raw(np.reshape(np.asarray(y, np.float64), self.dimsd))
+            box = np.tile(np.array([0, gr, 0, gc], np.int64), (P, 1))
+            self._kernel(np.zeros((P, gr, gc), np.float32), box, True, raw, grad)
         out = np.empty((P, gr, gc))
         out[self._order] = grad.sum(axis=0).reshape(P, gr, gc)
         return out.ravel()

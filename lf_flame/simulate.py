@@ -30,6 +30,8 @@ from .scenes import Scene
 
 
 _UNUSED = np.zeros((1, 1))  # the kernel's adjoint buffers, when rendering
+#: the kernel's ray-table outputs (texel, weight), when not recording the map
+NO_TABLE = (np.full((1, 1, 1, 1), -1, np.int32), np.zeros((1, 1, 1), np.float32))
 
 
 def _stack_layers(camera: PlenopticCamera, scene: Scene):
@@ -163,7 +165,7 @@ def render(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16, seed
     _simulate_kernels.render_backward(ky, kx, camera.pixels_per_lenslet, rad, alpha, content_box(rad, alpha),
                              bool(fx.occlusion), camera.aperture_diameter_mm / 2 if fx.aperture else -1.0,
                              bool(fx.cos4), 3 if fx.crosstalk else 1, int(rays_per_pixel), int(seed), out,
-                             False, _UNUSED, _UNUSED)
+                             False, _UNUSED, _UNUSED, False, *NO_TABLE)
     return apply_sensor(out, fx, seed)
 
 

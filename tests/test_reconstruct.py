@@ -3,6 +3,7 @@ import numpy as np
 import pylops
 import pytest
 
+from lf_flame import reconstruct as reconstruct_module
 from lf_flame import refocus, scenes, simulate
 from lf_flame.camera import PlenopticCamera
 from lf_flame.reconstruct import EmissionOperator, reconstruct, scene_truth
@@ -18,15 +19,35 @@ def tiny_camera():
 
 @pytest.mark.parametrize("depths", [PAPER_DEPTHS, (35.0,), (-25.0, 3.0, 41.0), tuple(np.linspace(-30, 40, 32))],
                          ids=["paper", "one", "others", "32-planes"])
-def test_the_adjoint_passes_the_dot_test(tiny_camera, depths):
-    op = EmissionOperator(tiny_camera, depths, rays_per_pixel=2)
+@pytest.mark.parametrize("ray_table", [True, False], ids=["recorded", "traced"])
+def test_the_adjoint_passes_the_dot_test(tiny_camera, depths, ray_table):
+    op = EmissionOperator(tiny_camera, depths, rays_per_pixel=2, ray_table=ray_table)
     # dottest draws its vectors from numpy's global generator: seeded, so the test is
     # deterministic. The kernel is float32 inside (as the renderer), so <A u, v> carries
     # float32 rounding, and with mixed-sign normal vectors the two inner products nearly
     # cancel now and then: over 200 unseeded draws (paper planes) 3 % of them differ by
     # 1e-6 to 3e-5 relative. A wrong adjoint misses by far more (the entry test below).
+    # The recorded map is applied in float64 both ways: it holds to float64 rounding.
     np.random.seed(0)
-    assert pylops.utils.dottest(op, *op.shape, rtol=1e-6, raiseerror=False)
+    assert pylops.utils.dottest(op, *op.shape, rtol=1e-12 if ray_table else 1e-6, raiseerror=False)
+
+
+@pytest.mark.parametrize("effects", [reconstruct_module.FLAME_EFFECTS,
+                                     scenes.Effects(aperture=False, cos4=False, occlusion=False, crosstalk=True)],
+                         ids=["flame", "crosstalk"])
+def test_the_recorded_map_is_the_traced_map(tiny_camera, effects, monkeypatch):
+    """The ray table holds the tracer's own rays: A and A^T from the record equal the traced
+    ones (float32 weights), and above the size limit the operator traces."""
+    rec = EmissionOperator(tiny_camera, PAPER_DEPTHS, effects=effects, rays_per_pixel=3, seed=5)
+    monkeypatch.setattr(reconstruct_module, "RAY_TABLE_MAX_BYTES", rec.ray_table_bytes - 1)
+    traced = EmissionOperator(tiny_camera, PAPER_DEPTHS, effects=effects, rays_per_pixel=3, seed=5)
+    assert traced._ray_table() is None and rec._ray_table() is not None
+    rng = np.random.default_rng(1)
+    x, y = rng.random(rec.shape[1]), rng.random(rec.shape[0])
+    ax, aty = traced.matvec(x), traced.rmatvec(y)
+    assert ax.max() > 0 and aty.max() > 0
+    np.testing.assert_allclose(rec.matvec(x), ax, rtol=1e-6, atol=1e-7 * ax.max())
+    np.testing.assert_allclose(rec.rmatvec(y), aty, rtol=1e-6, atol=1e-7 * aty.max())
 
 
 @pytest.mark.parametrize("effects", [scenes.Effects(aperture=False, cos4=False, occlusion=False, crosstalk=True)],

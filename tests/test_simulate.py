@@ -206,7 +206,7 @@ def test_content_culling_is_exact(small_camera):
     for b in (box, full):
         out = np.empty(cam.sensor_shape, np.float32)
         _simulate_kernels.render_backward(ky, kx, cam.pixels_per_lenslet, rad, alpha, b, True, 38.9, True, 1, 4, 0, out,
-                                          False, np.zeros((1, 1)), np.zeros((1, 1)))
+                                          False, np.zeros((1, 1)), np.zeros((1, 1)), False, *simulate.NO_TABLE)
         outs.append(out)
     assert np.array_equal(*outs)
 
