@@ -358,9 +358,11 @@ def main(argv=None):
     p.add_argument("--tail", type=int, default=200, help="fresh varied scenes of the height-error tail")
     p.add_argument("--snr-db", type=float, default=14.0)
     p.add_argument("--kinds", default="paper,varied,overlap,volume")
-    p.add_argument("--stage", choices=["all", "main", "tail", "report", "timing", "edges", "axial"], default="all",
+    p.add_argument("--stage", choices=["all", "main", "score", "tail", "report", "timing", "edges", "axial"],
+                   default="all",
                    help="tail: only the height tail (--tail-solver and its knobs, scenes --tail-first ... + --tail); "
-                        "main: all but the tail (the report reads an existing reconstruct_tail.csv); report: "
+                        "main: all but the tail (the report reads an existing reconstruct_tail.csv); score: main "
+                        "with the validation curves read from reconstruct_iters.csv in --out, not rerun; report: "
                         "measure nothing, rewrite reconstruct.md from the CSVs and reconstruct.json in --out; timing: "
                         "time A, A^T, focal_stack and each chosen solver (from reconstruct_iters.csv) on a quiet "
                         "machine -> reconstruct_timing.json, read by the report")
@@ -422,8 +424,11 @@ def main(argv=None):
     noise = (None, a.snr_db)
     timing = time_pair(cam)
     print("timing", timing, flush=True)
-    curves = iteration_curves(cam, [k for k in kinds if k in ("varied", "overlap")], noise)
-    atomic_write_text(out / "reconstruct_iters.csv", curves.to_csv(index=False, float_format="%.5g"))
+    if a.stage == "score":
+        curves = pd.read_csv(out / "reconstruct_iters.csv")
+    else:
+        curves = iteration_curves(cam, [k for k in kinds if k in ("varied", "overlap")], noise)
+        atomic_write_text(out / "reconstruct_iters.csv", curves.to_csv(index=False, float_format="%.5g"))
     chosen, best = choose(curves)
     print("chosen on validation renders:", chosen, "best:", best, flush=True)
     scores = score_tests(cam, kinds, noise, chosen, best, a.tests, out)

@@ -40,41 +40,50 @@ def _pixel_entries(tab_texel, tab_weight, i, j, cols, vals):
     return m
 
 
+@njit(cache=True)
+def _csr_rows(tab_texel, tab_weight, n_pix, p0, p1, indptr, indices, data, fill):
+    """Rows ``p0 <= p < p1`` (views order): their entry counts into ``indptr[p + 1]``, or,
+    with ``fill``, their entries at ``indptr[p]``."""
+    H, W, K, L = tab_texel.shape
+    R, C = H // n_pix, W // n_pix
+    cols = np.empty(K * L, np.int32)
+    vals = np.empty(K * L, np.float64)
+    for p in range(p0, p1):
+        c = p % C
+        r = (p // C) % R
+        v = (p // (C * R)) % n_pix
+        u = p // (C * R * n_pix)
+        m = _pixel_entries(tab_texel, tab_weight, r * n_pix + u, c * n_pix + v, cols, vals)
+        if not fill:
+            indptr[p + 1] = m
+            continue
+        for e in range(m):
+            indices[indptr[p] + e] = cols[e]
+            data[indptr[p] + e] = vals[e]
+
+
 @njit(parallel=True, cache=True)
-def ray_table_to_csr(tab_texel, tab_weight, n_pix):
-    """Compressed rows of the recorded map.
+def ray_table_to_csr(tab_texel, tab_weight, n_pix, n_blocks):
+    """Compressed rows of the recorded map, built in ``n_blocks`` parallel blocks of rows.
 
     ``tab_texel`` (H, W, K, L) int32 (-1: no texel), ``tab_weight`` (H, W, K) float32.
     Row ``p = ((u N + v) R + r) C + c`` is raw pixel ``(r N + u, c N + v)``. Returns
     ``indptr`` (H W + 1,) int64, ``indices`` int32 and ``data`` float32 (the rays' summed
     weights per texel).
     """
-    H, W, K, L = tab_texel.shape
-    R, C = H // n_pix, W // n_pix
-    n = H * W
-    counts = np.zeros(n + 1, np.int64)
-    for u in prange(n_pix):
-        cols = np.empty(K * L, np.int32)
-        vals = np.empty(K * L, np.float64)
-        for v in range(n_pix):
-            for r in range(R):
-                for c in range(C):
-                    p = ((u * n_pix + v) * R + r) * C + c
-                    counts[p + 1] = _pixel_entries(tab_texel, tab_weight, r * n_pix + u, c * n_pix + v, cols, vals)
-    indptr = np.cumsum(counts)
+    n = tab_texel.shape[0] * tab_texel.shape[1]
+    indptr = np.zeros(n + 1, np.int64)
+    indices = np.empty(0, np.int32)
+    data = np.empty(0, np.float32)
+    for b in prange(n_blocks):
+        _csr_rows(tab_texel, tab_weight, n_pix, b * n // n_blocks, (b + 1) * n // n_blocks, indptr, indices, data,
+                  False)
+    indptr = np.cumsum(indptr)
     indices = np.empty(indptr[n], np.int32)
     data = np.empty(indptr[n], np.float32)
-    for u in prange(n_pix):
-        cols = np.empty(K * L, np.int32)
-        vals = np.empty(K * L, np.float64)
-        for v in range(n_pix):
-            for r in range(R):
-                for c in range(C):
-                    p = ((u * n_pix + v) * R + r) * C + c
-                    m = _pixel_entries(tab_texel, tab_weight, r * n_pix + u, c * n_pix + v, cols, vals)
-                    for e in range(m):
-                        indices[indptr[p] + e] = cols[e]
-                        data[indptr[p] + e] = vals[e]
+    for b in prange(n_blocks):
+        _csr_rows(tab_texel, tab_weight, n_pix, b * n // n_blocks, (b + 1) * n // n_blocks, indptr, indices, data,
+                  True)
     return indptr, indices, data
 
 

@@ -194,7 +194,7 @@ class EmissionOperator(pylops.LinearOperator):
             box = np.tile(np.array([0, gr, 0, gc], np.int64), (P, 1))
             self._kernel(np.zeros((P, gr, gc), np.float32), box, False, np.zeros((1, 1)), np.zeros((1, 1)),
                          True, rays)
-            self._table = _reconstruct_kernels.ray_table_to_csr(*rays, self.camera.pixels_per_lenslet)
+            self._table = _reconstruct_kernels.ray_table_to_csr(*rays, self.camera.pixels_per_lenslet, ADJOINT_BLOCKS)
         return self._table
 
     def _matvec(self, x):
