@@ -48,7 +48,7 @@ from lf_flame.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.diagnostics import EMISSION_MEASURE, measure_settings  # noqa: E402
 from lf_flame.diagnostics_scoring import error_table, score_stacks  # noqa: E402
-from lf_flame.reconstruct import (SOLVERS, EmissionOperator,  # noqa: E402
+from lf_flame.reconstruct import (DEFAULT_SOLVER, SOLVERS, EmissionOperator,  # noqa: E402
                                   reconstruct, scene_truth, score_planes)
 from lf_flame.reconstruct_files import plot_reconstruction  # noqa: E402
 from lf_flame.refocus import aperture_mask, focal_stack, raw_to_views  # noqa: E402
@@ -329,8 +329,10 @@ def tail_table(df: pd.DataFrame, by=("route",)) -> pd.DataFrame:
 
 
 def time_pair(cam, repeats=7, chosen=None, solve_repeats=3):
-    """One operator pair (A, A^T) beside one 4-plane focal_stack, same light field, same run;
-    with ``chosen`` ({solver: knobs}), one whole 4-plane reconstruction by each solver too."""
+    """One operator pair (A, A^T) beside one 4-plane focal_stack, same light field, same run,
+    from the recorded map and traced (``ray_table=False``), and the recording itself (one
+    first ``A``); with ``chosen`` ({solver: knobs}), one whole 4-plane reconstruction by each
+    solver too, and by the default solver on the traced operator."""
     depths = list(scenes.PAPER_DEPTHS_MM)
     op = EmissionOperator(cam, depths, rays_per_pixel=RAYS_OP)
     scene = scenes.flame_scene(cam, np.random.default_rng(VAL_SEEDS[0]), regime="varied")
@@ -339,15 +341,24 @@ def time_pair(cam, repeats=7, chosen=None, solve_repeats=3):
     y = views.astype(np.float64).ravel()
     slopes = [cam.slope_for_depth(d) for d in depths]
     mask = aperture_mask(cam.pixels_per_lenslet, "circular")
+    traced = EmissionOperator(cam, depths, rays_per_pixel=RAYS_OP, ray_table=False)
     out = {}
+
+    def put(name, f, n):
+        out[name] = dict(zip(("median_ms", "p10_ms", "p90_ms"), map(float, _times(f, n))))
+    put("record the operator's rays (once)",
+        lambda: EmissionOperator(cam, depths, rays_per_pixel=RAYS_OP).matvec(x), 3)
     for name, f in (("A", lambda: op.matvec(x)), ("A^T", lambda: op.rmatvec(y)),
+                    ("A traced", lambda: traced.matvec(x)), ("A^T traced", lambda: traced.rmatvec(y)),
                     ("focal_stack", lambda: focal_stack(views, slopes, mask))):
-        out[name] = dict(zip(("median_ms", "p10_ms", "p90_ms"), map(float, _times(f, repeats))))
+        put(name, f, repeats)
     for solver, knobs in (chosen or {}).items():
         kw = dict(knobs)
         it = kw.pop("iters")
-        out[f"reconstruct {solver} {it} it."] = dict(zip(("median_ms", "p10_ms", "p90_ms"), map(float, _times(
-            lambda: reconstruct(views, op, solver, it, **kw), solve_repeats))))
+        put(f"reconstruct {solver} {it} it.", lambda: reconstruct(views, op, solver, it, **kw), solve_repeats)
+        if solver == DEFAULT_SOLVER:
+            put(f"reconstruct {solver} {it} it. traced", lambda: reconstruct(views, traced, solver, it, **kw),
+                solve_repeats)
     return out
 
 
