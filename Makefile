@@ -90,7 +90,7 @@ train-flame: $(foreach r,$(REGIMES),$(MODELS)/$(r)/flame/train_info.json) ## tra
 # flame height, base and centre measured on the ground-truth planes (test split) against the simulation's truth
 heights: $(foreach r,$(REGIMES),$(RES)/$(r)/heights_gt.csv) ## flame diagnostics on the ground truth -> results/PRESET/REGIME/heights_gt.csv
 
-$(RES)/%/heights_gt.csv: $(DATA)/%/flame.h5 experiments/flame_heights.py lf_flame/diagnostics.py
+$(RES)/%/heights_gt.csv: $(DATA)/%/flame.h5 experiments/flame_heights.py lf_flame/measure/diagnostics.py
 	$(VENV)/bin/python experiments/flame_heights.py --dataset $< --out $(@D)
 
 # the paper preset's map is committed in results/, the quick one stays in results/quick
@@ -99,11 +99,11 @@ tradeoff: $(MODELS)/varied/flame/train_info.json ## speed-accuracy map of every 
 	$(VENV)/bin/python experiments/tradeoff.py --preset $(PRESET) --data-dir $(DATA)/varied \
 		--model-dir $(MODELS)/varied --out $(TRADEOFF_OUT)
 
-# each plane's emission from one light field (lf_flame.reconstruct), scored against the truth; the
+# each plane's emission from one light field (lf_flame.tomo), scored against the truth; the
 # paper preset's results are committed in results/, the quick one (fewer renders) stays in results/quick
 RECON_ARGS_paper := --tests 2 --tail 200
 RECON_ARGS_quick := --tests 1 --tail 8
-# flame recordings over time (lf_flame.sequence): each plane's flicker frequency, the overlap, and the
+# flame recordings over time (lf_flame.recordings): each plane's flicker frequency, the overlap, and the
 # per-frame cost serially and on Dask; `--stage reconstruct` (about 30 min) adds the overlap's emission route
 sequence: $(STAMP) ## flame recordings: per-plane flicker spectra, serial and Dask frames/s -> results/sequence.{csv,md,json,png}
 	$(VENV)/bin/python experiments/sequence.py --out $(TRADEOFF_OUT)

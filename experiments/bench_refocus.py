@@ -11,10 +11,10 @@ calls after a warm-up call.
 - ``inner-loop floor``: the focal-stack kernel's inner loop (two views' bilinear samples
   added to a sum) run on data that stay in L1 cache, as many times as the 4-plane stack
   needs it: the time its arithmetic takes with no memory traffic, the compute floor;
-- ``shift-sum bilinear`` / ``shift-sum nearest``: :func:`lf_flame.refocus.focal_stack`
+- ``shift-sum bilinear`` / ``shift-sum nearest``: :func:`lf_flame.refocus.shift_and_sum.focal_stack`
   (views already checked, ``check_finite=False``; the check that ``check_finite=True``
   adds is its own row);
-- ``fourier``: :class:`lf_flame.refocus.FourierSlice`, the 4-D FFT (``precompute``) and
+- ``fourier``: :class:`lf_flame.refocus.shift_and_sum.FourierSlice`, the 4-D FFT (``precompute``) and
   then the slices;
 - ``plenopticam``: PlenoptiCam 0.9.3's ``LfpShiftAndSum.refo_from_vp`` (integer shifts
   only, 3 colour channels) where it imports from ``--plenopticam PATH`` (a folder made
@@ -39,10 +39,12 @@ import numpy as np
 import pandas as pd
 from numba import njit, prange
 
-from lf_flame import _refocus_kernels, scenes, simulate
-from lf_flame.camera import PAPER_CAMERA, PlenopticCamera
+from lf_flame.refocus import _kernels as _refocus_kernels
+from lf_flame.simulate import scenes
+from lf_flame.simulate import tracer as simulate
+from lf_flame.optics.camera import PAPER_CAMERA, PlenopticCamera
 from lf_flame.config import atomic_write_text, provenance
-from lf_flame.refocus import FourierSlice, _check_finite, aperture_mask, focal_stack, raw_to_views
+from lf_flame.refocus.shift_and_sum import FourierSlice, _check_finite, aperture_mask, focal_stack, raw_to_views
 
 PAPER_SLOPES = [2.281, 1.175, 0.0, -1.249]  # analytic slopes of the paper's four planes
 INTEGER_SLOPES = [-2.0, -1.0, 0.0, 1.0]  # what PlenoptiCam can do: a = 2, 1, 0, -1
@@ -59,7 +61,7 @@ def _read_all(a):
 
 @njit(parallel=True, fastmath={'contract'})  # no cache: see _read_all
 def _inner_loop_floor(n_threads, n_pass, n, n_cols):
-    """Run the row pass's inner loop of :func:`lf_flame._refocus_kernels.shift_sum_stack` (its
+    """Run the row pass's inner loop of :func:`lf_flame.refocus._kernels.shift_sum_stack` (its
     two-view form, ``t += (g1 a1 + f1 c1) + (g2 a2 + f2 c2)`` with ``c`` one row of
     ``n_cols`` below ``a``) ``n_pass`` times over ``n`` samples in each of ``n_threads``
     threads, on per-thread arrays small enough to stay in L1 cache. Returns a checksum."""
@@ -204,7 +206,7 @@ DEPTH_SETS = [(20.0, 10.0, 0.0, -10.0), (-15.0, -5.0, 5.0, 25.0), (-12.0, -2.0, 
 def slope_search_table(quick: bool) -> pd.DataFrame:
     """Sharpest slope of each shape found by both scoring methods, at the paper's depths and
     others in -15..+25 mm, beside the analytic slope (and the paper's, at its depths)."""
-    from lf_flame.refocus import find_sharpest_slope
+    from lf_flame.refocus.shift_and_sum import find_sharpest_slope
     cam = PAPER_CAMERA
     rows = []
     for depths in DEPTH_SETS[:2] if quick else DEPTH_SETS:

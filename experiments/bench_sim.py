@@ -4,13 +4,13 @@ Writes ``<out>/bench_sim.csv``, ``<out>/bench_sim.md`` and ``<out>/bench_sim.jso
 (provenance). All figures are measured in this one run on this machine:
 
 - throughput: Mray/s end to end (sample generation + tracing + binning + sensor
-  model) of :func:`lf_flame.simulate.render` against the plain NumPy version of the same
-  chain (:func:`lf_flame.simulate.render_reference`);
+  model) of :func:`lf_flame.simulate.tracer.render` against the plain NumPy version of the same
+  chain (:func:`lf_flame.simulate.tracer.render_reference`);
 - effects: ms per raw image for each effect set, each switched on alone;
 - sampling: RMSE of the raw image against a high-sample reference for each ray count
   (the data behind the default rays per pixel);
 - forward vs backward: the same single flame layer traced object -> sensor
-  (:func:`lf_flame._simulate_kernels.render_forward`) and sensor -> object, error against time.
+  (:func:`lf_flame.simulate._kernels.render_forward`) and sensor -> object, error against time.
 
 Usage: ``python experiments/bench_sim.py --out results [--quick]``.
 """
@@ -27,8 +27,10 @@ import numba
 import numpy as np
 import pandas as pd
 
-from lf_flame import _simulate_kernels, scenes, simulate
-from lf_flame.camera import PAPER_CAMERA, PlenopticCamera
+from lf_flame.simulate import _kernels as _simulate_kernels
+from lf_flame.simulate import scenes
+from lf_flame.simulate import tracer as simulate
+from lf_flame.optics.camera import PAPER_CAMERA, PlenopticCamera
 from lf_flame.config import atomic_write_text, provenance
 
 

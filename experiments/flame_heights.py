@@ -1,7 +1,7 @@
 """Flame geometry measured on a dataset's ground-truth planes, scored against the simulation's truth.
 
 Writes ``<out>/heights_gt.csv`` (per plane: mean absolute errors in mm of the height, base,
-tip and centre over the split; :func:`lf_flame.diagnostics_scoring.error_table`) and
+tip and centre over the split; :func:`lf_flame.measure.scoring.error_table`) and
 ``<out>/heights_gt_samples.csv`` (every sample and plane: measured and true values).
 
 Usage: ``python experiments/flame_heights.py --dataset data/paper/paper/flame.h5 --out results/paper/paper``
@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from lf_flame.config import atomic_write_text
-from lf_flame.dataset import LightFieldDataset
-from lf_flame.diagnostics_scoring import error_table, score_stacks
+from lf_flame.learn.dataset import LightFieldDataset
+from lf_flame.measure.scoring import error_table, score_stacks
 
 
 def main(argv=None) -> int:

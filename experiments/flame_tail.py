@@ -1,12 +1,12 @@
 """The diagnostics' tail: how often shift-and-sum flame heights are off by more than 1 mm,
-and whether :attr:`lf_flame.diagnostics.FlameMeasurement.flags` catches those planes.
+and whether :attr:`lf_flame.measure.diagnostics.FlameMeasurement.flags` catches those planes.
 
-For each regime, draws ``n`` fresh flame scenes (:func:`lf_flame.scenes.flame_scene` with
+For each regime, draws ``n`` fresh flame scenes (:func:`lf_flame.simulate.scenes.flame_scene` with
 ``numpy.random.default_rng(seed0 + i)``; seeds no other file of the project uses), renders
-each at 4 rays per pixel (:func:`lf_flame.simulate.render`, seed ``seed0 + i``), refocuses
-it by shift-and-sum (:func:`lf_flame.refocus.focal_stack`, bilinear, ``--aperture`` views)
+each at 4 rays per pixel (:func:`lf_flame.simulate.tracer.render`, seed ``seed0 + i``), refocuses
+it by shift-and-sum (:func:`lf_flame.refocus.shift_and_sum.focal_stack`, bilinear, ``--aperture`` views)
 at the analytic slopes of the four flames' depths, and scores every plane against the
-simulation's truth (:func:`lf_flame.diagnostics_scoring.score_stacks`).
+simulation's truth (:func:`lf_flame.measure.scoring.score_stacks`).
 
 Writes ``<out>.csv`` (one row per scene and plane: truth, measurement, errors, the tip's
 pedestal and the flags) and ``<out>.md``: per regime and depth, and over all depths, the
@@ -27,10 +27,13 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from lf_flame import diagnostics, refocus, scenes, simulate
-from lf_flame.camera import PAPER_CAMERA
+from lf_flame.measure import diagnostics
+from lf_flame.refocus import shift_and_sum as refocus
+from lf_flame.simulate import scenes
+from lf_flame.simulate import tracer as simulate
+from lf_flame.optics.camera import PAPER_CAMERA
 from lf_flame.config import atomic_write_text
-from lf_flame.diagnostics_scoring import error_table, score_stacks
+from lf_flame.measure.scoring import error_table, score_stacks
 
 RAYS_PER_PIXEL = 4
 #: Columns kept in the CSV (one row per scene and plane).
@@ -45,7 +48,7 @@ def score_regime(regime: str, n: int, seed0: int, aperture: str, camera=PAPER_CA
 
     Returns
     -------
-    DataFrame, one row per scene and plane (:func:`lf_flame.diagnostics_scoring.score_stacks`'s
+    DataFrame, one row per scene and plane (:func:`lf_flame.measure.scoring.score_stacks`'s
     columns plus ``regime`` and ``seed``).
     """
     mask = refocus.aperture_mask(camera.pixels_per_lenslet, aperture)
@@ -92,7 +95,7 @@ def confusion(scores: pd.DataFrame) -> pd.DataFrame:
 
 def pedestal_table(scores: pd.DataFrame) -> pd.DataFrame:
     """The tip pedestal (mm) on good planes and on planes off by > 1 mm, per regime: what
-    the threshold :data:`lf_flame.diagnostics.TIP_PEDESTAL_MM` separates."""
+    the threshold :data:`lf_flame.measure.diagnostics.TIP_PEDESTAL_MM` separates."""
     ok = scores[scores.failure == ""]
     rows = []
     for regime, g in ok.groupby("regime", sort=False):

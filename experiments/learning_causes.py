@@ -30,9 +30,9 @@ import numpy as np
 import pandas as pd
 
 from lf_flame.config import load_experiment_config, provenance
-from lf_flame.dataset import LightFieldDataset
-from lf_flame.features import FeatureBatches, compute_features, predict_features
-from lf_flame.train import train, validation_scores
+from lf_flame.learn.dataset import LightFieldDataset
+from lf_flame.learn.features import FeatureBatches, compute_features, predict_features
+from lf_flame.learn.training import train, validation_scores
 
 VARIANTS = {
     "dense+refocused, dropout": (("dense", "refocused"), True),

@@ -8,14 +8,14 @@ this script reads its ``napari_lf/examples`` files only (lf_flame never imports 
 
 For each capture, measured in this run:
 
-- :func:`lf_flame.calibrate.calibrate` on the white frame minus the dark frame: pitch,
+- :func:`lf_flame.real.calibration.calibrate` on the white frame minus the dark frame: pitch,
   rotation, offset, fit residual (px) and wall time;
 - an independent pitch: the peak of the periodogram of the white image's mean row and
   column profiles (SciPy, Hann window, zero-padded to 2^20 points), and the pitch the
   stated optics imply (lenslet pitch / pixel size, parsed from the capture's files);
-- :func:`lf_flame.decode.decode` of the light-field frame (dark-subtracted,
+- :func:`lf_flame.real.decoding.decode` of the light-field frame (dark-subtracted,
   white-normalised) into N × N views, N the pitch rounded down;
-- the slope search (:func:`lf_flame.refocus.find_sharpest_slope`, Fourier slice,
+- the slope search (:func:`lf_flame.refocus.shift_and_sum.find_sharpest_slope`, Fourier slice,
   Tenengrad, circular aperture, slopes -2 to 2) on the brightest structure of the
   centre view, and its sharpness curve: the peak over the curve's ends, the full width
   at half maximum (slope units), and whether the peak lies inside the searched range;
@@ -47,9 +47,10 @@ import numpy as np
 import pandas as pd
 from scipy import ndimage, signal
 
-from lf_flame import calibrate, decode
+from lf_flame.real import calibration as calibrate
+from lf_flame.real import decoding as decode
 from lf_flame.config import atomic_write_text, provenance
-from lf_flame.refocus import aperture_mask, find_sharpest_slope, refocus_views
+from lf_flame.refocus.shift_and_sum import aperture_mask, find_sharpest_slope, refocus_views
 
 #: file names of each capture in napari_lf/examples (light field, white, dark, optics files)
 CAPTURES = {
@@ -179,8 +180,9 @@ SYNTHETIC = [(0.0, (0.0, 0.0)), (0.4, (3.2, -5.7)), (-1.3, (-2.5, 4.1)), (1.9, (
 def synthetic_rows(pcam) -> list[dict]:
     """Both calibrations on the simulator's white images (28 x 28 lenslets, pitch 15.43 px,
     f-number matched, cos⁴): centre errors against the camera's true lenslet image centres."""
-    from lf_flame import scenes, simulate
-    from lf_flame.camera import PlenopticCamera
+    from lf_flame.simulate import scenes
+    from lf_flame.simulate import tracer as simulate
+    from lf_flame.optics.camera import PlenopticCamera
     rows = []
     for rot, off in SYNTHETIC:
         cam = PlenopticCamera(n_rows=28, n_cols=28, pixels_per_lenslet=15, grid_pitch_px=15.43,

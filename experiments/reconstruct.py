@@ -3,10 +3,10 @@
 Writes to ``--out`` (default ``results``):
 
 - ``reconstruct.csv``: one row per route, scene, noise level, render and plane
-  (:func:`lf_flame.reconstruct.score_planes`: relative L2 error, SSIM, PSNR, flame height
+  (:func:`lf_flame.tomo.scoring`: relative L2 error, SSIM, PSNR, flame height
   error and its flags, time). Routes: ``refocus-adjoint`` (``A^T y / A^T 1``, plain
   refocusing through the operator's rays: the baseline row), ``refocus-shift-sum``
-  (:func:`lf_flame.refocus.focal_stack`, bilinear) and every solver at the iterations
+  (:func:`lf_flame.refocus.shift_and_sum.focal_stack`, bilinear) and every solver at the iterations
   chosen on validation renders.
 - ``reconstruct_iters.csv``: error against iterations and time of every solver, on the
   validation renders (the choice, and the speed-accuracy rows of ``make tradeoff``).
@@ -16,7 +16,7 @@ Writes to ``--out`` (default ``results``):
 - ``reconstruct.md`` (tables) and ``reconstruct.json`` (provenance, timing of one
   operator pair beside one 4-plane ``focal_stack``); figures ``reconstruct_*.png``.
 
-Scenes (``lf_flame.scenes``): the paper's four flames in both regimes, the overlap scene
+Scenes (``lf_flame.simulate.scenes``): the paper's four flames in both regimes, the overlap scene
 (flames one behind another), the volumetric flame; each noise-free and with shot + read
 noise at ``--snr-db`` (14 dB: the LSQR-LMBC paper's). Seeds: validation renders
 ``VAL_SEEDS``, scored renders ``TEST_SEEDS``, the tail ``TAIL_SEED0 + i``: three
@@ -43,15 +43,18 @@ from tqdm import tqdm  # noqa: E402
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_refocus import _times  # noqa: E402
 
-from lf_flame import scenes, simulate  # noqa: E402
-from lf_flame.camera import PAPER_CAMERA  # noqa: E402
+from lf_flame.simulate import scenes  # noqa: E402
+from lf_flame.simulate import tracer as simulate
+from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
-from lf_flame.diagnostics import EMISSION_MEASURE, measure_settings  # noqa: E402
-from lf_flame.diagnostics_scoring import error_table, score_stacks  # noqa: E402
-from lf_flame.reconstruct import (DEFAULT_SOLVER, SOLVERS, EmissionOperator,  # noqa: E402
-                                  reconstruct, scene_truth, score_planes)
-from lf_flame.reconstruct_files import plot_reconstruction  # noqa: E402
-from lf_flame.refocus import aperture_mask, focal_stack, raw_to_views  # noqa: E402
+from lf_flame.measure.diagnostics import EMISSION_MEASURE, measure_settings  # noqa: E402
+from lf_flame.measure.scoring import error_table, score_stacks  # noqa: E402
+from lf_flame.tomo.solvers import DEFAULT_SOLVER, SOLVERS, reconstruct
+from lf_flame.tomo.operator import EmissionOperator
+from lf_flame.tomo.truth import scene_truth
+from lf_flame.tomo.scoring import score_planes
+from lf_flame.tomo.files import plot_reconstruction  # noqa: E402
+from lf_flame.refocus.shift_and_sum import aperture_mask, focal_stack, raw_to_views  # noqa: E402
 
 VAL_SEEDS = (920001, 920002)
 TEST_SEEDS = (930001, 930002, 930003, 930004, 930005)
@@ -199,7 +202,7 @@ def score_tests(cam, kinds, noise_levels, chosen, best, n_tests, figdir):
 
 
 def tail(cam, solver, knobs, seeds):
-    """Height errors (:func:`lf_flame.diagnostics_scoring.score_stacks`, flags included) of every
+    """Height errors (:func:`lf_flame.measure.scoring.score_stacks`, flags included) of every
     plane of fresh varied flame scenes, one per seed: shift-and-sum beside ``solver``."""
     rows = []
     depths = list(scenes.PAPER_DEPTHS_MM)
@@ -289,9 +292,9 @@ def axial_resolution(solver, knobs):
     within one lenslet of the point. Returns (profiles, summary): the summary gives each
     route's FWHM along depth and the depth step that moves the point by one lenslet
     between the outermost views of the aperture (the views' parallax)."""
-    from lf_flame.camera import PlenopticCamera
-    from lf_flame.diagnostics import lenslet_size_mm
-    from lf_flame.reconstruct import FLAME_EFFECTS
+    from lf_flame.optics.camera import PlenopticCamera
+    from lf_flame.measure.diagnostics import lenslet_size_mm
+    from lf_flame.tomo.operator import FLAME_EFFECTS
     cam = PlenopticCamera(n_rows=41, n_cols=41)      # the paper's optics, a crop of its lenslet grid
     mask = aperture_mask(cam.pixels_per_lenslet, "circular")
     n_views = int(mask.sum(axis=1).max())            # views across the aperture's diameter
@@ -411,7 +414,7 @@ def main(argv=None):
             wall_time_s=time.perf_counter() - t0), indent=2, default=float))
         print(table.to_string(index=False), "\nchoice:", EDGE_CANDIDATES[j])
         if EDGE_CANDIDATES[j] != {k: v for k, v in EMISSION_MEASURE.items()}:
-            print(f"lf_flame.diagnostics.EMISSION_MEASURE is {EMISSION_MEASURE}: set it to the choice")
+            print(f"lf_flame.measure.diagnostics.EMISSION_MEASURE is {EMISSION_MEASURE}: set it to the choice")
         return
     if a.stage == "axial":
         chosen, best = choose(pd.read_csv(out / "reconstruct_iters.csv"))
@@ -515,7 +518,7 @@ def write_report(out, scores, curves, tl, chosen, best, timing, a, wall, prov):
         cols = ["segment_fraction", "edge_fit_range", "route", "n", "n_flagged", "height_err_mm", "height_bias_mm",
                 "height_err_mm_p90_trusted", "height_err_mm_max_trusted"]
         lines += ["## How flames are measured on planes of emission (`--stage edges`, validation only)", "",
-                  f"Chosen: `{json.dumps(j['choice'])}` (`lf_flame.diagnostics.EMISSION_MEASURE`): the lowest worst "
+                  f"Chosen: `{json.dumps(j['choice'])}` (`lf_flame.measure.diagnostics.EMISSION_MEASURE`): the lowest worst "
                   "trusted height error over the true emission of 80 validation scenes per kind (seeds "
                   f"{j['edge_seed0']}+i, paper, varied, overlap) and `{j['solver']}`'s reconstructions of the "
                   "validation renders (noise-free and noisy). Refocused planes keep the defaults (first row).", "",

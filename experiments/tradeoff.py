@@ -15,7 +15,7 @@ Sections (column ``section``):
   warm-up, on one light field. Accuracy: SSIM/PSNR per plane (scikit-image), mean over the
   test split, against the **reference**: bilinear shift-and-sum at the same slopes of the
   same scene rendered noise-free at ``ref_rays_per_pixel``; and, in physical terms, the
-  flame height measured on each route's planes (:mod:`lf_flame.diagnostics`) against the
+  flame height measured on each route's planes (:mod:`lf_flame.measure.diagnostics`) against the
   simulation's true height: mean absolute error in mm per plane (``height_err_mm_*``) and
   the number of planes where no flame could be measured (``height_failed``).
 - ``simulator: rays per pixel`` and ``simulator: effects``: rows of
@@ -58,15 +58,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_sim  # noqa: E402
 from bench_refocus import _times  # noqa: E402
 
-from lf_flame import scenes, simulate  # noqa: E402
-from lf_flame.camera import PAPER_CAMERA  # noqa: E402
-from lf_flame.config import (atomic_write_text, load_experiment_config, load_toml,  # noqa: E402
-                             provenance)
-from lf_flame.dataset import GT_MASK, LightFieldDataset, SCENES, sample_rng  # noqa: E402
-from lf_flame.diagnostics_scoring import error_table, score_stacks  # noqa: E402
-from lf_flame.metrics import psnr_per_plane, ssim_per_plane  # noqa: E402
-from lf_flame.refocus import aperture_mask, find_sharpest_slope, raw_to_views, refocus  # noqa: E402
-from lf_flame.scenes import PAPER_DEPTHS_MM  # noqa: E402
+from lf_flame.simulate import scenes  # noqa: E402
+from lf_flame.simulate import tracer as simulate
+from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
+from lf_flame.config import atomic_write_text, load_experiment_config, load_toml, provenance
+from lf_flame.learn.dataset import GT_MASK, LightFieldDataset, SCENES, sample_rng  # noqa: E402
+from lf_flame.measure.scoring import error_table, score_stacks  # noqa: E402
+from lf_flame.measure.metrics import psnr_per_plane, ssim_per_plane  # noqa: E402
+from lf_flame.refocus.shift_and_sum import aperture_mask, find_sharpest_slope, raw_to_views, refocus  # noqa: E402
+from lf_flame.simulate.scenes import PAPER_DEPTHS_MM  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 PLANES = [f"{d:+.0f}mm" for d in PAPER_DEPTHS_MM]
@@ -141,8 +141,8 @@ def model_rows(model_dirs, raws, refs, repeats, baselines: bool = True, truth=No
     ``baselines``, the yardsticks saved beside each (mean image; linear decoders, which run
     the same backbone)."""
     import keras
-    from lf_flame.baselines import load_baselines
-    from lf_flame.model_files import load_full_model
+    from lf_flame.learn.baselines import load_baselines
+    from lf_flame.learn.model_files import load_full_model
     rows = []
     for d in model_dirs:
         model, info = load_full_model(d)
@@ -441,7 +441,7 @@ def summary(df: pd.DataFrame, prov: dict, n_test: int, ref_rpp: int, gt_heights:
              f"## Refocusing routes: raw flame light field -> 4 planes ({n_test} test light fields)", "",
              f"Reference: bilinear shift-and-sum at the same slopes of the same scenes rendered noise-free at "
              f"{ref_rpp} rays/pixel. Latency: median (p10-p90) of repeated calls after a warm-up. "
-             "Height error: flame height measured on the route's planes (`lf_flame.diagnostics`) against the "
+             "Height error: flame height measured on the route's planes (`lf_flame.measure.diagnostics`) against the "
              "simulation's true height, mean absolute error in mm per plane, and its tail over all planes: the "
              "share off by more than 1 mm, the 90th percentile and the worst; `height_flagged`: planes whose "
              "height the method cannot trust (`FlameMeasurement.flags`); `height_failed`: planes where no "
@@ -525,7 +525,7 @@ def main(argv=None):
         z = np.load(a.models_only)
         truth = None
         if "camera" in z:
-            from lf_flame.camera import PlenopticCamera
+            from lf_flame.optics.camera import PlenopticCamera
             truth = (PlenopticCamera.from_dict(json.loads(str(z["camera"]))), json.loads(str(z["objects"])))
         print(json.dumps(model_rows(a.dirs, list(z["raws"]), z["refs"], a.repeats, baselines=False, truth=truth)))
         return 0
@@ -563,7 +563,7 @@ def main(argv=None):
     # the second backbone input size, trained here under the same settings and its own budget
     small = models / f"flame-{tcfg['small_input']}"
     if not (small / "train_info.json").exists():
-        from lf_flame.train import train
+        from lf_flame.learn.training import train
         mcfg, trc = load_experiment_config(ecfg)
         rows_, cols_ = (int(v) for v in tcfg["small_input"].split("x"))
         train(flame, small, dataclasses.replace(mcfg, input_rows=rows_, input_cols=cols_),

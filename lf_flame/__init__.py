@@ -1,14 +1,18 @@
 """lf_flame: deep-learning light-field refocusing of burner flames, reproduced.
 
-Modules: :mod:`~lf_flame.optics` (ray transfer matrices), :mod:`~lf_flame.camera`
-(the plenoptic camera), :mod:`~lf_flame.scenes` (layered scenes),
-:mod:`~lf_flame.simulate` (ray tracer), :mod:`~lf_flame.refocus` (shift-and-sum,
-slope search), :mod:`~lf_flame.dataset` (HDF5 datasets), :mod:`~lf_flame.model`
-(the Keras model), :mod:`~lf_flame.features` (backbone feature cache),
-:mod:`~lf_flame.baselines` (mean image, linear decoders), :mod:`~lf_flame.closed_form`
-(the network's closed-form start), :mod:`~lf_flame.train` (the training run),
-:mod:`~lf_flame.model_files` (trained models loaded), :mod:`~lf_flame.evaluate`,
-:mod:`~lf_flame.diagnostics` (flame measurements), :mod:`~lf_flame.calibrate` and
-:mod:`~lf_flame.decode` (real cameras), :mod:`~lf_flame.cli` (the `lf-flame` command line).
+The package's folders are its stages (``docs/architecture.md`` draws them):
+
+- :mod:`lf_flame.optics`: ray transfer matrices and the plenoptic camera;
+- :mod:`lf_flame.simulate`: scenes and the ray tracer that renders raw light fields;
+- :mod:`lf_flame.refocus`: sub-aperture views, shift-and-sum and the slope search;
+- :mod:`lf_flame.real`: white-image calibration and decoding of real captures;
+- :mod:`lf_flame.learn`: datasets, the paper's Keras model, its yardsticks, Tables I and II;
+- :mod:`lf_flame.measure`: flame diagnostics per plane, SSIM and PSNR;
+- :mod:`lf_flame.tomo`: each plane's emission by inverting the camera as a linear operator;
+- :mod:`lf_flame.recordings`: flames over time, per-plane flicker, serially or on Dask;
+- :mod:`lf_flame.cli`: the ``lf-flame`` command line.
+
+Shared by every stage: :mod:`lf_flame.config` (configs, provenance, atomic writes) and
+:mod:`lf_flame.parallel` (Dask clients and an unordered map).
 """
 __version__ = "0.1.0"

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
 
-from .camera import PlenopticCamera
-from .scenes import REGIMES
+from .optics.camera import PlenopticCamera
+from .simulate.scenes import REGIMES
 
 
 @dataclass(frozen=True)
@@ -67,7 +67,7 @@ class ModelConfig:
     ``weights``: 'imagenet', 'auto' (ImageNet if obtainable, else random init with a
     warning), 'none', or a path to a ``.h5`` weights file. ``dropout_at``: where the
     paper's Dropout(``dropout``) sits, 'gap' (the pooled vector) or 'pixels' (the map
-    before the sigmoid convolution); see :data:`lf_flame.model.DROPOUT_PLACES`.
+    before the sigmoid convolution); see :data:`lf_flame.learn.model.DROPOUT_PLACES`.
     """
 
     input_rows: int = 448
@@ -85,13 +85,13 @@ class TrainConfig:
     comes first, or when the validation SSIM has not improved for ``patience`` epochs.
     ``recipe``: 'closed-form' (batch-norm statistics of the training split, frozen; the
     Dense layer solved in closed form from the mean image; then the Dense and output
-    layers trained at the paper's settings: :func:`lf_flame.closed_form.closed_form_start`) or
+    layers trained at the paper's settings: :func:`lf_flame.learn.closed_form.closed_form_start`) or
     'paper' (every decoder layer trained from a random initialisation with batch
     statistics from batches of 2, as the paper describes; it does not learn here).
     ``refine_iterations`` (per scene): L-BFGS iterations per plane of the closed-form start's
-    output-space refinement of the Dense layer (:func:`lf_flame.closed_form.refine_dense`; 0: none).
+    output-space refinement of the Dense layer (:func:`lf_flame.learn.closed_form.refine_dense`; 0: none).
     ``train_layers``: the decoder layers the 'closed-form' recipe's epochs train, among
-    'dense' and 'refocused' (the output 3×3 convolution; :func:`lf_flame.closed_form.freeze_for_probe`).
+    'dense' and 'refocused' (the output 3×3 convolution; :func:`lf_flame.learn.closed_form.freeze_for_probe`).
     """
 
     recipe: str = "closed-form"

@@ -4,7 +4,7 @@ The one place that starts or joins a cluster and maps a function over work items
 item is a Dask task; its result comes back to the calling process, which alone writes
 files, so a worker that dies mid-task costs only a rerun of that task on another worker
 (Dask's scheduler reschedules it): no item is lost, none is written twice. Serves
-flame recordings (:mod:`lf_flame.sequence`) and dataset rendering (:mod:`lf_flame.dataset`).
+flame recordings (:mod:`lf_flame.recordings`) and dataset rendering (:mod:`lf_flame.learn.dataset`).
 """
 from __future__ import annotations
 

@@ -5,8 +5,8 @@ os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "2")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from lf_flame import scenes  # noqa: E402
-from lf_flame.camera import PlenopticCamera  # noqa: E402
+from lf_flame.simulate import scenes  # noqa: E402
+from lf_flame.optics.camera import PlenopticCamera  # noqa: E402
 
 
 @pytest.fixture(scope="session")

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from lf_flame.baselines import LinearDecoder, MeanImage, pool_features, ridge_path
+from lf_flame.learn.baselines import LinearDecoder, MeanImage, pool_features, ridge_path
 
 
 def _neg_mse(gt, pred):

@@ -6,12 +6,12 @@ import json
 import h5py
 import numpy as np
 
-from lf_flame import dataset as D
-from lf_flame.baselines import MeanImage, fit_baselines
-from lf_flame.camera import PlenopticCamera
+from lf_flame.learn import dataset as D
+from lf_flame.learn.baselines import MeanImage, fit_baselines
+from lf_flame.optics.camera import PlenopticCamera
 from lf_flame.config import DatasetConfig, ModelConfig, TrainConfig
-from lf_flame.features import compute_features
-from lf_flame.train import train
+from lf_flame.learn.features import compute_features
+from lf_flame.learn.training import train
 
 CAM = PlenopticCamera(n_rows=20, n_cols=10)
 CFG = DatasetConfig(n_samples={"shapes": 6, "flame": 12}, rays_per_pixel=1, seed=3, regime="paper")

@@ -5,10 +5,14 @@ import json
 import numpy as np
 import pytest
 
-from lf_flame import calibrate, cli, decode, scenes, simulate
-from lf_flame.calibrate import CalibrationError, GridCalibration
-from lf_flame.camera import PlenopticCamera
-from lf_flame.refocus import aperture_mask, find_sharpest_slope
+from lf_flame.real import calibration as calibrate
+from lf_flame import cli
+from lf_flame.real import decoding as decode
+from lf_flame.simulate import scenes
+from lf_flame.simulate import tracer as simulate
+from lf_flame.real.calibration import CalibrationError, GridCalibration
+from lf_flame.optics.camera import PlenopticCamera
+from lf_flame.refocus.shift_and_sum import aperture_mask, find_sharpest_slope
 
 
 def _camera(layout="square", rotation=1.3):

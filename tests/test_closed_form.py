@@ -5,11 +5,10 @@ import h5py
 import keras
 import numpy as np
 
-from lf_flame.baselines import LinearDecoder, ridge_path
-from lf_flame.closed_form import (gauss_newton_targets, layer_outputs, pair_convolutions, refine_dense,
-                                  ridge_dense, set_population_statistics)
+from lf_flame.learn.baselines import LinearDecoder, ridge_path
+from lf_flame.learn.closed_form import gauss_newton_targets, layer_outputs, pair_convolutions, refine_dense, ridge_dense, set_population_statistics
 from lf_flame.config import ModelConfig
-from lf_flame.model import build_decoder
+from lf_flame.learn.model import build_decoder
 
 
 def _sigmoid(z):

@@ -2,10 +2,10 @@ import h5py
 import numpy as np
 import pytest
 
-from lf_flame import dataset as D
-from lf_flame.camera import PlenopticCamera
+from lf_flame.learn import dataset as D
+from lf_flame.optics.camera import PlenopticCamera
 from lf_flame.config import DatasetConfig
-from lf_flame.refocus import aperture_mask, refocus
+from lf_flame.refocus.shift_and_sum import aperture_mask, refocus
 
 CAM = PlenopticCamera(n_rows=20, n_cols=10)
 CFG = DatasetConfig(n_samples={"shapes": 6, "flame": 4}, rays_per_pixel=1, seed=3)

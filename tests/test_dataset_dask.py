@@ -1,4 +1,4 @@
-"""Dataset rendering on a shared Dask cluster (:func:`lf_flame.dataset.generate` with ``scheduler=``).
+"""Dataset rendering on a shared Dask cluster (:func:`lf_flame.learn.dataset.generate` with ``scheduler=``).
 
 The serial-vs-``workers=2`` equality of every array lives in ``tests/test_dataset.py``."""
 import dataclasses
@@ -7,8 +7,8 @@ from concurrent.futures import ThreadPoolExecutor
 import h5py
 import numpy as np
 
-from lf_flame import dataset as D
-from lf_flame.camera import PlenopticCamera
+from lf_flame.learn import dataset as D
+from lf_flame.optics.camera import PlenopticCamera
 from lf_flame.config import DatasetConfig
 
 CAM = PlenopticCamera(n_rows=20, n_cols=10)  # the tiny presets of tests/test_dataset.py

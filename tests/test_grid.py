@@ -6,9 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from lf_flame import scenes, simulate
-from lf_flame.camera import PlenopticCamera
-from lf_flame.refocus import raw_to_views
+from lf_flame.simulate import scenes
+from lf_flame.simulate import tracer as simulate
+from lf_flame.optics.camera import PlenopticCamera
+from lf_flame.refocus.shift_and_sum import raw_to_views
 
 
 @pytest.fixture(scope="module")

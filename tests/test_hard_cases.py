@@ -12,12 +12,11 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from lf_flame import dataset as D
-from lf_flame import simulate
-from lf_flame.camera import PAPER_CAMERA, PARAXIAL_LIMIT, PlenopticCamera
+from lf_flame.learn import dataset as D
+from lf_flame.simulate import tracer as simulate
+from lf_flame.optics.camera import PAPER_CAMERA, PARAXIAL_LIMIT, PlenopticCamera
 from lf_flame.config import DatasetConfig, atomic_write_text
-from lf_flame.refocus import (FourierSlice, aperture_mask, find_sharpest_slope, focal_stack, normalized_variance,
-                              raw_to_views, tenengrad, variance_of_laplacian)
+from lf_flame.refocus.shift_and_sum import FourierSlice, aperture_mask, find_sharpest_slope, focal_stack, normalized_variance, raw_to_views, tenengrad, variance_of_laplacian
 
 
 # ---- accumulation -------------------------------------------------------------------
@@ -138,7 +137,7 @@ def test_slope_depth_round_trip_property(depth):
 def test_black_and_saturated_targets_keep_the_loss_finite(level):
     import keras
     from lf_flame.config import ModelConfig
-    from lf_flame.model import build_decoder
+    from lf_flame.learn.model import build_decoder
     keras.utils.set_random_seed(0)
     dec = build_decoder((2, 1, 2048), 6, 4, ModelConfig())
     dec.compile(optimizer=keras.optimizers.Adam(1e-3), loss="mse")
@@ -152,7 +151,7 @@ def test_black_and_saturated_targets_keep_the_loss_finite(level):
 
 
 def test_resumed_epoch_sees_the_same_batches():
-    from lf_flame.features import FeatureBatches
+    from lf_flame.learn.features import FeatureBatches
     fresh = FeatureBatches("unused.h5", None, np.arange(20), 2, True, seed=7)
     orders = [fresh._order.copy()]
     for _ in range(3):
@@ -171,7 +170,7 @@ SLOPES = [CAM.slope_for_depth(d) for d in (20.0, 10.0, 0.0, -10.0)]
 _GENERATE = """
 import sys
 from lf_flame import dataset as D
-from lf_flame.camera import PlenopticCamera
+from lf_flame.optics.camera import PlenopticCamera
 from lf_flame.config import DatasetConfig
 cam = PlenopticCamera(n_rows=20, n_cols=10)
 cfg = DatasetConfig(n_samples={"shapes": 3, "flame": 3}, rays_per_pixel=1, seed=5)

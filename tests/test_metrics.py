@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from lf_flame.metrics import psnr_per_plane, ssim_per_plane
+from lf_flame.measure.metrics import psnr_per_plane, ssim_per_plane
 
 
 def test_identical_images():

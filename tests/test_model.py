@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from lf_flame.config import ModelConfig
-from lf_flame.model import build_model, resolve_weights
+from lf_flame.learn.model import build_model, resolve_weights
 
 
 @pytest.fixture(scope="module")

@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from lf_flame.camera import PAPER_CAMERA, PlenopticCamera
-from lf_flame.optics import ApertureStop, MicrolensArray, RayTransferMatrix, free_space, thin_lens
+from lf_flame.optics.camera import PAPER_CAMERA, PlenopticCamera
+from lf_flame.optics.matrices import ApertureStop, MicrolensArray, RayTransferMatrix, free_space, thin_lens
 
 
 def test_composition_order_matches_matrix_product():

@@ -3,10 +3,14 @@ import numpy as np
 import pylops
 import pytest
 
-from lf_flame import reconstruct as reconstruct_module
-from lf_flame import refocus, scenes, simulate
-from lf_flame.camera import PlenopticCamera
-from lf_flame.reconstruct import EmissionOperator, reconstruct, scene_truth
+from lf_flame.tomo import operator as operator_module
+from lf_flame.refocus import shift_and_sum as refocus
+from lf_flame.simulate import scenes
+from lf_flame.simulate import tracer as simulate
+from lf_flame.optics.camera import PlenopticCamera
+from lf_flame.tomo.operator import EmissionOperator
+from lf_flame.tomo.solvers import reconstruct
+from lf_flame.tomo.truth import scene_truth
 
 PAPER_DEPTHS = (20.0, 10.0, 0.0, -10.0)
 
@@ -32,14 +36,14 @@ def test_the_adjoint_passes_the_dot_test(tiny_camera, depths, ray_table):
     assert pylops.utils.dottest(op, *op.shape, rtol=1e-12 if ray_table else 1e-6, raiseerror=False)
 
 
-@pytest.mark.parametrize("effects", [reconstruct_module.FLAME_EFFECTS,
+@pytest.mark.parametrize("effects", [operator_module.FLAME_EFFECTS,
                                      scenes.Effects(aperture=False, cos4=False, occlusion=False, crosstalk=True)],
                          ids=["flame", "crosstalk"])
 def test_the_recorded_map_is_the_traced_map(tiny_camera, effects, monkeypatch):
     """The ray table holds the tracer's own rays: A and A^T from the record equal the traced
     ones (float32 weights), and above the size limit the operator traces."""
     rec = EmissionOperator(tiny_camera, PAPER_DEPTHS, effects=effects, rays_per_pixel=3, seed=5)
-    monkeypatch.setattr(reconstruct_module, "RAY_TABLE_MAX_BYTES", rec.ray_table_bytes - 1)
+    monkeypatch.setattr(operator_module, "RAY_TABLE_MAX_BYTES", rec.ray_table_bytes - 1)
     traced = EmissionOperator(tiny_camera, PAPER_DEPTHS, effects=effects, rays_per_pixel=3, seed=5)
     assert traced._ray_table() is None and rec._ray_table() is not None
     rng = np.random.default_rng(1)

@@ -1,12 +1,11 @@
 import numpy as np
 import pytest
 
-from lf_flame import scenes, simulate
-from lf_flame.camera import PAPER_CAMERA
-from lf_flame import _refocus_kernels
-from lf_flame.refocus import (_EXPONENT_BITS, FourierSlice, _check_finite, aperture_mask, find_sharpest_slope,
-                              focal_stack, normalized_variance, raw_to_views, refocus, tenengrad,
-                              variance_of_laplacian, views_to_raw)
+from lf_flame.simulate import scenes
+from lf_flame.simulate import tracer as simulate
+from lf_flame.optics.camera import PAPER_CAMERA
+from lf_flame.refocus import _kernels as _refocus_kernels
+from lf_flame.refocus.shift_and_sum import _EXPONENT_BITS, FourierSlice, _check_finite, aperture_mask, find_sharpest_slope, focal_stack, normalized_variance, raw_to_views, refocus, tenengrad, variance_of_laplacian, views_to_raw
 
 
 @pytest.fixture

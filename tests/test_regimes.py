@@ -3,10 +3,10 @@ scenes as they were before regimes existed, bit for bit."""
 import numpy as np
 import pytest
 
-from lf_flame import dataset, scenes
+from lf_flame.learn import dataset
+from lf_flame.simulate import scenes
 from lf_flame.config import DatasetConfig
-from lf_flame.scenes import (FLAME_HEIGHT_MEAN_MM, FLAME_HEIGHT_SD_MM, PAPER_RELATIVE_SD, REGIMES, flame_scene,
-                             shapes_scene)
+from lf_flame.simulate.scenes import FLAME_HEIGHT_MEAN_MM, FLAME_HEIGHT_SD_MM, PAPER_RELATIVE_SD, REGIMES, flame_scene, shapes_scene
 
 
 def _same_scene(a, b):

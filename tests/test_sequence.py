@@ -15,11 +15,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from lf_flame.camera import PAPER_CAMERA
+from lf_flame.optics.camera import PAPER_CAMERA
 from lf_flame.cli import main
-from lf_flame.scenes_time import flicker_sequence
-from lf_flame.sequence import (SimulatedSource, frame_rate, open_source, process_chunk, run, simulated_job,
-                               write_frames)
+from lf_flame.simulate.scenes_time import flicker_sequence
+from lf_flame.recordings.sources import SimulatedSource, frame_rate, open_source, write_frames
+from lf_flame.recordings.job import process_chunk, simulated_job
+from lf_flame.recordings.runner import run
 
 NOISE = (10_000.0, 5.0, 12)
 

@@ -28,7 +28,7 @@ def test_make_tradeoff_quick():
     assert len(ref[ref.route == "model"].setting.str.split(",").str[0].unique()) >= 2  # two input sizes
     cols = ["latency_ms_median", "latency_ms_p10", "latency_ms_p90", "ssim_mean", "psnr_db_mean"]
     assert np.isfinite(ref[cols].values).all() and (ref.latency_ms_p10 <= ref.latency_ms_p90).all()
-    # every route's flame-height error in mm, from lf_flame.diagnostics against the scenes' truth
+    # every route's flame-height error in mm, from lf_flame.measure.diagnostics against the scenes' truth
     hcols = [c for c in ref.columns if c.startswith("height_err_mm_")]
     assert len(hcols) == 7 and ref.height_failed.notna().all()     # 4 planes, mean, p90, worst
     assert (ref.height_share_over_1mm.between(0, 1) & (ref.height_err_mm_p90 <= ref.height_err_mm_max)).all()

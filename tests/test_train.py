@@ -98,8 +98,8 @@ def test_time_budget_stops_training(flame_h5, tmp_path):
 
 
 def test_predict_full_model_equals_cached_feature_path(flame_h5, tmp_path, capsys):
-    from lf_flame.features import predict_features
-    from lf_flame.model_files import load_decoder
+    from lf_flame.learn.features import predict_features
+    from lf_flame.learn.model_files import load_decoder
     out = tmp_path / "model"
     assert main(["train", "--dataset", str(flame_h5), "--experiment-config",
                  _experiment(tmp_path / "exp.toml", epochs=2), "--out", str(out), "--quiet"]) == 0
@@ -132,7 +132,7 @@ def test_predict_rejects_mismatched_input(flame_h5, tmp_path, capsys):
 FIT = """
 import numpy as np, keras
 from lf_flame.config import ModelConfig
-from lf_flame.model import build_model
+from lf_flame.learn.model import build_model
 keras.utils.set_random_seed(0)
 model, fx, dec = build_model((90, 60), (6, 4), ModelConfig(input_rows=64, input_cols=64), weights=None)
 model.compile(optimizer=keras.optimizers.Adam(1e-3), loss="mse")
@@ -160,7 +160,7 @@ def test_tiny_fit_on_each_keras_backend(backend):
 
 @pytest.mark.skipif(not Path("/usr/bin/time").exists(), reason="GNU time is not installed")
 def test_gnu_time_report_parsed(tmp_path):
-    from lf_flame.evaluate import read_gnu_time
+    from lf_flame.learn.evaluation import read_gnu_time
     report = tmp_path / "time_v.txt"
     subprocess.run(["/usr/bin/time", "-v", "-o", str(report), sys.executable, "-c",
                     "import numpy, time; a = numpy.ones(50 * 2**20, numpy.uint8); time.sleep(0.2)"], check=True)
@@ -176,7 +176,7 @@ def test_model_refuses_a_dataset_from_another_camera(flame_h5, tmp_path, capsys)
     assert main(["train", "--dataset", str(flame_h5), "--experiment-config",
                  _experiment(tmp_path / "exp.toml", epochs=1), "--out", str(out), "--quiet"]) == 0
     info = json.loads((out / "train_info.json").read_text())
-    from lf_flame.camera import PlenopticCamera
+    from lf_flame.optics.camera import PlenopticCamera
     info["dataset_camera"] = PlenopticCamera(mla_pitch_mm=0.1).to_json()  # as if trained on another camera
     (out / "train_info.json").write_text(json.dumps(info))
     assert main(["evaluate", "--dataset", str(flame_h5), "--model-dir", str(out), "--results", str(tmp_path)]) == 2
@@ -209,10 +209,10 @@ def test_saved_random_backbone_is_the_one_that_made_the_features(flame_h5, tmp_p
     # the draw that computed the cached features
     import keras
 
-    import lf_flame.features as F
+    import lf_flame.learn.features as F
     from lf_flame.config import ModelConfig, TrainConfig
-    from lf_flame.model_files import load_full_model
-    from lf_flame.train import train
+    from lf_flame.learn.model_files import load_full_model
+    from lf_flame.learn.training import train
     real = F.resolve_weights
 
     def auto_offline(spec):
@@ -227,7 +227,7 @@ def test_saved_random_backbone_is_the_one_that_made_the_features(flame_h5, tmp_p
     fx = model.get_layer("feature_extractor")
     with h5py.File(info["feature_cache"]) as f:
         cached = f["features"][0].astype(np.float32)
-    from lf_flame.dataset import LightFieldDataset
+    from lf_flame.learn.dataset import LightFieldDataset
     got = np.asarray(fx.predict_on_batch(LightFieldDataset(flame_h5).raw([0])[..., None]))[0]
     assert np.abs(got - cached).max() <= 2e-3 * np.abs(cached).max()
 
@@ -243,8 +243,8 @@ def _pooled_with_partners(decoder, feats):
 def test_pooled_features_do_not_depend_on_the_batch_partner():
     import keras
     from lf_flame.config import ModelConfig
-    from lf_flame.model import build_decoder
-    from lf_flame.closed_form import freeze_for_probe
+    from lf_flame.learn.model import build_decoder
+    from lf_flame.learn.closed_form import freeze_for_probe
     feats = np.random.default_rng(0).normal(size=(3, 4, 2, 16)).astype("float32")
     keras.utils.set_random_seed(0)
     dec = build_decoder((4, 2, 16), 6, 4, ModelConfig())
@@ -279,11 +279,11 @@ def test_paper_recipe_stays_reproducible_and_fails(flame_h5, tmp_path):
 
 
 def test_closed_form_start_beats_the_mean_image_and_the_best_epoch_is_kept(flame_h5, tmp_path):
-    from lf_flame.baselines import load_baselines
-    from lf_flame.dataset import LightFieldDataset
-    from lf_flame.features import load_features, predict_features
-    from lf_flame.metrics import ssim_per_plane
-    from lf_flame.model_files import load_decoder
+    from lf_flame.learn.baselines import load_baselines
+    from lf_flame.learn.dataset import LightFieldDataset
+    from lf_flame.learn.features import load_features, predict_features
+    from lf_flame.measure.metrics import ssim_per_plane
+    from lf_flame.learn.model_files import load_decoder
     out = tmp_path / "model"
     assert main(["train", "--dataset", str(flame_h5), "--experiment-config",
                  _experiment(tmp_path / "exp.toml", epochs=2), "--out", str(out), "--quiet"]) == 0
@@ -312,10 +312,10 @@ def test_the_checkpoint_kept_is_the_best_epoch(flame_h5, tmp_path):
     """Without the L-BFGS refinement the Dense layer's epochs improve the start a little
     (about 1e-5 validation SSIM per epoch on the quick flames): the weights kept must be
     the epoch with the best validation SSIM, recomputed from them, not the start."""
-    from lf_flame.dataset import LightFieldDataset
-    from lf_flame.features import predict_features
-    from lf_flame.metrics import ssim_per_plane
-    from lf_flame.model_files import load_decoder
+    from lf_flame.learn.dataset import LightFieldDataset
+    from lf_flame.learn.features import predict_features
+    from lf_flame.measure.metrics import ssim_per_plane
+    from lf_flame.learn.model_files import load_decoder
     exp = tmp_path / "exp.toml"
     exp.write_text(EXPERIMENT.format(epochs=2, budget=600).replace("refine_iterations = { shapes = 5, flame = 5 }",
                                                                    "refine_iterations = { shapes = 0, flame = 0 }"))

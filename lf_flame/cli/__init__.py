@@ -17,7 +17,7 @@ from .profiles import cmd_profiles
 from .real import cmd_calibrate, cmd_decode
 from .sequence import cmd_sequence, cmd_simulate_sequence
 from .volume import cmd_reconstruct
-from ..reconstruct import DEFAULT_SOLVER, DEFAULT_TV, SOLVERS
+from ..tomo.solvers import DEFAULT_SOLVER, DEFAULT_TV, SOLVERS
 
 
 def _level_or_none(text: str):

@@ -13,7 +13,7 @@ def _load_raw(path):
     """A raw image from .npz (key 'raw'), .npy, or a dataset sample 'file.h5:INDEX'."""
     s = str(path)
     if ".h5:" in s:
-        from ..dataset import LightFieldDataset
+        from ..learn.dataset import LightFieldDataset
         f, i = s.rsplit(":", 1)
         ds = LightFieldDataset(f)
         return ds.raw(int(i)), ds.camera
@@ -22,7 +22,7 @@ def _load_raw(path):
         raise SystemExit(f"error: raw image file not found: {p}")
     if p.suffix == ".npz":
         with np.load(p) as z:
-            from ..camera import PlenopticCamera
+            from ..optics.camera import PlenopticCamera
             cam = PlenopticCamera.from_dict(json.loads(str(z["camera"]))) if "camera" in z else None
             return z["raw"], cam
     return np.load(p), None
@@ -31,13 +31,13 @@ def _load_raw(path):
 def _load_views(path):
     """Sub-aperture views (N, N, R, C) and the camera (or None) of RAW: a file of views
     decoded by ``lf-flame decode`` (.h5 without ':INDEX'), else a raw image of the
-    simulated camera split by :func:`lf_flame.refocus.raw_to_views`."""
+    simulated camera split by :func:`lf_flame.refocus.shift_and_sum.raw_to_views`."""
     s = str(path)
     if s.endswith(".h5") and ".h5:" not in s:
-        from ..decode import load_views
+        from ..real.decoding import load_views
         return load_views(s)[0], None
-    from ..camera import PAPER_CAMERA
-    from ..refocus import raw_to_views
+    from ..optics.camera import PAPER_CAMERA
+    from ..refocus.shift_and_sum import raw_to_views
     raw, cam = _load_raw(path)
     cam = cam or PAPER_CAMERA
     return raw_to_views(raw, cam.pixels_per_lenslet), cam

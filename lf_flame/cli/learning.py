@@ -1,6 +1,6 @@
-"""Commands of the learning stage: ``dataset`` (:mod:`lf_flame.dataset`), ``train``
-(:mod:`lf_flame.train`), ``predict`` (a trained network or its yardsticks), ``evaluate``
-and ``tables`` (:mod:`lf_flame.evaluate`).
+"""Commands of the learning stage: ``dataset`` (:mod:`lf_flame.learn.dataset`), ``train``
+(:mod:`lf_flame.learn.training`), ``predict`` (a trained network or its yardsticks), ``evaluate``
+and ``tables`` (:mod:`lf_flame.learn.evaluation`).
 """
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from ._io import _load_raw, _write_stack
 
 def cmd_dataset(a):
     from ..config import load_data_config
-    from ..dataset import generate
+    from ..learn.dataset import generate
     cam, cfg = load_data_config(a.data_config)
     if a.regime:
         cfg = dataclasses.replace(cfg, regime=a.regime)
@@ -34,7 +34,7 @@ def cmd_dataset(a):
 
 def cmd_train(a):
     from ..config import load_experiment_config
-    from ..train import train
+    from ..learn.training import train
     mcfg, tcfg = load_experiment_config(a.experiment_config)
     if a.input_size:
         try:
@@ -57,8 +57,8 @@ LEARNED_ROUTES = {"network": "network", "mean-image": "mean image", "linear-gap"
 def _learned_runner(raw, cam, raw_name, model_dir, route):
     """The function ``x (1, rows, cols, 1) -> stack (4, R, C)`` of a learned route, with the
     model's info; checks that the raw image fits the model."""
-    from ..camera import PlenopticCamera
-    from ..model_files import load_full_model
+    from ..optics.camera import PlenopticCamera
+    from ..learn.model_files import load_full_model
     model, info = load_full_model(model_dir)
     if tuple(raw.shape) != tuple(info["raw_shape"]):
         raise ValueError(f"raw image {raw.shape} does not match the model's sensor {tuple(info['raw_shape'])}")
@@ -70,7 +70,7 @@ def _learned_runner(raw, cam, raw_name, model_dir, route):
         def run(x):
             return np.transpose(np.asarray(model.predict_on_batch(x))[0], (2, 0, 1))
     else:
-        from ..baselines import load_baselines
+        from ..learn.baselines import load_baselines
         base = load_baselines(model_dir)[LEARNED_ROUTES[route]]
         fx = model.get_layer("feature_extractor")
 
@@ -97,15 +97,15 @@ def cmd_predict(a):
 
 
 def cmd_evaluate(a):
-    from ..evaluate import evaluate
+    from ..learn.evaluation import evaluate
     table = evaluate(a.dataset, a.model_dir, a.results, n_heldout=a.heldout, heldout_seed=a.heldout_seed)
     print(table.to_string(index=False))
 
 
 def cmd_tables(a):
     import h5py
-    from ..evaluate import read_gnu_time, write_tables
-    from ..scenes import REGIMES
+    from ..learn.evaluation import read_gnu_time, write_tables
+    from ..simulate.scenes import REGIMES
     times, targets = {}, {}
     sl = Path(a.data_dir) / "slopes.json"
     if sl.exists():

@@ -1,5 +1,5 @@
-"""Commands of the simulated camera: ``simulate`` (:mod:`lf_flame.simulate`), ``refocus``
-and ``slopes`` (:mod:`lf_flame.refocus`; without a raw image, the nominal scene's slope
+"""Commands of the simulated camera: ``simulate`` (:mod:`lf_flame.simulate.tracer`), ``refocus``
+and ``slopes`` (:mod:`lf_flame.refocus.shift_and_sum`; without a raw image, the nominal scene's slope
 calibration of a data config).
 """
 from __future__ import annotations
@@ -14,8 +14,9 @@ from ._io import _load_views, _raw_objects, _save_image, _write_stack
 
 
 def cmd_simulate(a):
-    from .. import scenes, simulate
-    from ..camera import PAPER_CAMERA
+    from ..simulate import scenes
+    from ..simulate import tracer as simulate
+    from ..optics.camera import PAPER_CAMERA
     from ..config import load_data_config
     cam = load_data_config(a.data_config)[0] if a.data_config else PAPER_CAMERA
     if a.scene == "point":
@@ -36,7 +37,7 @@ def cmd_simulate(a):
     else:
         extra = {}
         if a.views:
-            from ..refocus import raw_to_views
+            from ..refocus.shift_and_sum import raw_to_views
             extra["views"] = raw_to_views(raw, cam.pixels_per_lenslet)
         np.savez_compressed(out, raw=raw, camera=cam.to_json(), objects=json.dumps(sc.objects, default=float),
                             **extra)
@@ -44,7 +45,7 @@ def cmd_simulate(a):
 
 
 def cmd_refocus(a):
-    from ..refocus import aperture_mask, refocus_views
+    from ..refocus.shift_and_sum import aperture_mask, refocus_views
     views, _ = _load_views(a.raw)
     n = views.shape[0]
     t = time.perf_counter()
@@ -58,8 +59,8 @@ def cmd_slopes(a):
     if a.raw is None:
         return _calibrate_slopes(a)
     import pandas as pd
-    from ..evaluate import plot_slope_curves
-    from ..refocus import aperture_mask, find_sharpest_slope
+    from ..learn.evaluation import plot_slope_curves
+    from ..refocus.shift_and_sum import aperture_mask, find_sharpest_slope
     views, cam = _load_views(a.raw)
     if a.roi:
         objects = [dict(name=f"roi{i}", roi=tuple(r)) for i, r in enumerate(a.roi)]
@@ -93,8 +94,8 @@ def cmd_slopes(a):
 
 def _calibrate_slopes(a):
     from ..config import atomic_write_text, load_data_config
-    from ..dataset import calibrate_slopes
-    from ..evaluate import write_slopes
+    from ..learn.dataset import calibrate_slopes
+    from ..learn.evaluation import write_slopes
     if not (a.data_config and a.out and a.results):
         raise SystemExit("error: give RAW, or --data-config, --out and --results to calibrate the nominal scene")
     cam, cfg = load_data_config(a.data_config)

@@ -1,5 +1,5 @@
-"""The ``profiles`` command: flame diagnostics per plane (:mod:`lf_flame.diagnostics`) of a
-stack refocused by any route; its figure is :func:`lf_flame.diagnostics.plot_profiles`.
+"""The ``profiles`` command: flame diagnostics per plane (:mod:`lf_flame.measure.diagnostics`) of a
+stack refocused by any route; its figure is :func:`lf_flame.measure.diagnostics.plot_profiles`.
 """
 from __future__ import annotations
 
@@ -13,13 +13,13 @@ from .learning import LEARNED_ROUTES, _learned_runner
 
 def _profiles_input(a):
     """Camera, 4-plane stack, depths, slopes and flame objects (or None) for ``profiles``."""
-    from ..camera import PAPER_CAMERA
-    from ..refocus import aperture_mask, refocus
-    from ..scenes import PAPER_DEPTHS_MM
+    from ..optics.camera import PAPER_CAMERA
+    from ..refocus.shift_and_sum import aperture_mask, refocus
+    from ..simulate.scenes import PAPER_DEPTHS_MM
     s = str(a.raw)
     gt, objects, slopes = None, None, None
     if ".h5:" in s:
-        from ..dataset import LightFieldDataset
+        from ..learn.dataset import LightFieldDataset
         f, i = s.rsplit(":", 1)
         ds = LightFieldDataset(f)
         raw, cam = ds.raw(int(i)), ds.camera
@@ -48,7 +48,7 @@ def _profiles_input(a):
         run, _ = _learned_runner(raw, cam, a.raw, a.model_dir, a.route)
         stack = run(raw.astype(np.float32)[None, ..., None])
     elif a.route.startswith("reconstruct-"):
-        from ..refocus import raw_to_views
+        from ..refocus.shift_and_sum import raw_to_views
         from .volume import run_reconstruction
         stack = run_reconstruction(cam, raw_to_views(raw, n), depths, a.route.split("-", 1)[1])[1].planes
     else:
@@ -61,8 +61,8 @@ def _profiles_input(a):
 def cmd_profiles(a):
     import pandas as pd
     from ..config import atomic_write_text
-    from ..diagnostics import EmptyPlaneError, flame_truth, measure_flame, measure_settings, plot_profiles
-    from ..diagnostics_scoring import score_stacks
+    from ..measure.diagnostics import EmptyPlaneError, flame_truth, measure_flame, measure_settings, plot_profiles
+    from ..measure.scoring import score_stacks
     kw = measure_settings(a.route)
     cam, stack, depths, slopes, objects = _profiles_input(a)
     if objects:

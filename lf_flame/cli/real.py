@@ -1,5 +1,5 @@
-"""Commands of real cameras: ``calibrate`` (:mod:`lf_flame.calibrate`) and ``decode``
-(:mod:`lf_flame.decode`).
+"""Commands of real cameras: ``calibrate`` (:mod:`lf_flame.real.calibration`) and ``decode``
+(:mod:`lf_flame.real.decoding`).
 """
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 
 
 def cmd_calibrate(a):
-    from ..calibrate import calibrate, file_digest, load_image
+    from ..real.calibration import calibrate, file_digest, load_image
     white = load_image(a.white)
     dark = load_image(a.dark) if a.dark else None
     t = time.perf_counter()
@@ -25,7 +25,7 @@ def cmd_calibrate(a):
 
 def _calibration_file(info, kind, override):
     """The white or dark image a calibration names, checked against its SHA-256."""
-    from ..calibrate import file_digest, load_image
+    from ..real.calibration import file_digest, load_image
     if override:
         return load_image(override)
     if not info:
@@ -39,8 +39,8 @@ def _calibration_file(info, kind, override):
 
 
 def cmd_decode(a):
-    from ..calibrate import GridCalibration, load_image
-    from ..decode import decode, save_views
+    from ..real.calibration import GridCalibration, load_image
+    from ..real.decoding import decode, save_views
     cal = GridCalibration.load(a.calibration)
     raw = load_image(a.raw)
     white = None if a.no_white else _calibration_file(cal.white, "white", a.white)

@@ -1,5 +1,5 @@
 """The ``sequence`` and ``simulate-sequence`` commands: a flame recording's per-plane
-diagnostics over time and their flicker spectra (:mod:`lf_flame.sequence`), serially or on Dask.
+diagnostics over time and their flicker spectra (:mod:`lf_flame.recordings`), serially or on Dask.
 """
 from __future__ import annotations
 
@@ -12,13 +12,13 @@ NOISE = (10_000.0, 5.0, 12)
 
 
 def _sequence_of(a, cam):
-    from ..scenes_time import flicker_sequence
+    from ..simulate.scenes_time import flicker_sequence
     return flicker_sequence(cam, np.random.default_rng(a.seed), a.simulate, fps=a.fps or 500.0,
                             duration_s=a.duration, freqs_hz=a.freq, noise=NOISE if a.noise else None)
 
 
 def _camera(a):
-    from ..camera import PAPER_CAMERA
+    from ..optics.camera import PAPER_CAMERA
     if getattr(a, "data_config", None):
         from ..config import load_data_config
         return load_data_config(a.data_config)[0]
@@ -26,7 +26,7 @@ def _camera(a):
 
 
 def cmd_simulate_sequence(a):
-    from ..sequence import SimulatedSource, write_frames
+    from ..recordings.sources import SimulatedSource, write_frames
     cam = _camera(a)
     seq = _sequence_of(a, cam)
     path = write_frames(a.out, SimulatedSource(seq, cam, a.rays_per_pixel), progress=not a.quiet)
@@ -35,8 +35,10 @@ def cmd_simulate_sequence(a):
 
 
 def cmd_sequence(a):
-    from ..scenes_time import FlameSequence
-    from ..sequence import SequenceJob, SimulatedSource, frame_rate, open_source, run, simulated_job
+    from ..simulate.scenes_time import FlameSequence
+    from ..recordings.job import SequenceJob, simulated_job
+    from ..recordings.sources import SimulatedSource, frame_rate, open_source
+    from ..recordings.runner import run
     if (a.input is None) == (a.simulate is None):
         raise ValueError("give a recording INPUT or --simulate KIND, not both or neither")
     cam, seq, attrs = _camera(a), None, {}
@@ -48,7 +50,7 @@ def cmd_sequence(a):
         source, attrs = open_source(a.input)
         times = None
         if "camera" in attrs and not a.data_config:
-            from ..camera import PlenopticCamera
+            from ..optics.camera import PlenopticCamera
             cam = PlenopticCamera.from_dict(json.loads(attrs["camera"]))
         if hasattr(source, "path"):
             import h5py
@@ -70,7 +72,7 @@ def cmd_sequence(a):
         slopes = list(a.slope) if a.slope else [cam.slope_for_depth(d) for d in depths]
         cal = None
         if a.calibration:
-            from ..calibrate import GridCalibration
+            from ..real.calibration import GridCalibration
             cal = GridCalibration.load(a.calibration).to_dict()
         job, truth = SequenceJob(source, cam, fps, tuple(depths), tuple(slopes), (None,) * len(depths), a.route,
                                  cal, a.white, a.dark, chunk=a.chunk), None

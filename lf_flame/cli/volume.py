@@ -1,5 +1,5 @@
 """The ``reconstruct`` command: each plane's emission from one light field
-(:mod:`lf_flame.reconstruct`), written to HDF5 with a figure.
+(:mod:`lf_flame.tomo`), written to HDF5 with a figure.
 """
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ from ._io import _load_views, _raw_objects
 
 def reconstruct_input(a):
     """Camera, views, depths (mm) and flame objects (or None) of ``reconstruct``/``profiles``."""
-    from ..camera import PAPER_CAMERA
-    from ..scenes import PAPER_DEPTHS_MM
+    from ..optics.camera import PAPER_CAMERA
+    from ..simulate.scenes import PAPER_DEPTHS_MM
     views, cam = _load_views(a.raw)
     cam = cam or PAPER_CAMERA
     objects = _raw_objects(a.raw)
@@ -32,16 +32,17 @@ def reconstruct_input(a):
 
 def run_reconstruction(cam, views, depths, solver, iters=None, *, damp=0.0, tv=None, saturation=1.0,
                        rays_per_pixel=4, progress=False):
-    """Build the operator of ``cam`` at ``depths`` and solve (:func:`lf_flame.reconstruct.reconstruct`)."""
-    from ..reconstruct import DEFAULT_TV, EmissionOperator, reconstruct
+    """Build the operator of ``cam`` at ``depths`` and solve (:func:`lf_flame.tomo.solvers`)."""
+    from ..tomo.solvers import DEFAULT_TV, reconstruct
+    from ..tomo.operator import EmissionOperator
     op = EmissionOperator(cam, depths, rays_per_pixel=rays_per_pixel)
     return op, reconstruct(views, op, solver, iters, damp=damp, tv=DEFAULT_TV if tv is None else tv,
                            saturation=saturation, progress=progress)
 
 
 def cmd_reconstruct(a):
-    from ..reconstruct_files import plot_reconstruction, save_reconstruction
-    from ..refocus import aperture_mask, focal_stack
+    from ..tomo.files import plot_reconstruction, save_reconstruction
+    from ..refocus.shift_and_sum import aperture_mask, focal_stack
     cam, views, depths, objects = reconstruct_input(a)
     op, rec = run_reconstruction(cam, views, depths, a.solver, a.iters, damp=a.damp, tv=a.tv,
                                  saturation=a.saturation, rays_per_pixel=a.rays_per_pixel, progress=True)

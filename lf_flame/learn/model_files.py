@@ -1,0 +1,86 @@
+"""Trained models on disk: the decoder and its backbone, loaded for inference.
+
+Stage: after training (:mod:`lf_flame.learn.training` writes the files), for evaluation
+(:mod:`lf_flame.learn.evaluation`), ``lf-flame predict`` and the trade-off map.
+"""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import keras
+
+from ..config import ModelConfig
+from .dataset import LightFieldDataset
+from .model import build_decoder, build_feature_extractor, resolve_weights
+
+
+def load_decoder(model_dir):
+    """The trained decoder of ``model_dir`` and its ``train_info`` dict.
+
+    Raises
+    ------
+    FileNotFoundError
+        ``train_info.json`` or the weights file is missing.
+    """
+    model_dir = Path(model_dir)
+    info_path, weights_path = model_dir / "train_info.json", model_dir / "decoder_best.weights.h5"
+    for p in (info_path, weights_path):
+        if not p.is_file():
+            raise FileNotFoundError(f"trained model file not found: {p} (run 'lf-flame train' first)")
+    info = json.loads(info_path.read_text())
+    cfg = ModelConfig(**info["model_config"])
+    dec = build_decoder(info["feature_shape"], *info["output_shape"], cfg)
+    dec.load_weights(weights_path)
+    return dec, info
+
+
+def load_full_model(model_dir):
+    """Backbone + trained decoder as one model: raw (batch, rows, cols, 1) -> (batch, R, C, 4).
+
+    The backbone is rebuilt with the weights recorded at training: ImageNet or the weights
+    file, or for a random-init backbone the draw saved in ``backbone.weights.h5`` (the one
+    that made the cached features), so any Keras backend gives the same model.
+
+    Returns
+    -------
+    (model, info)
+
+    Raises
+    ------
+    FileNotFoundError
+        A missing model file, or backbone weights file recorded at training.
+    ValueError
+        The backbone weights found are not those the model was trained with.
+    """
+    from .model import compose
+    dec, info = load_decoder(model_dir)
+    cfg = ModelConfig(**info["model_config"])
+    label = info["backbone_weights"]
+    if label == "random-init":  # the saved draw: Keras backends draw different random weights
+        fx = build_feature_extractor(info["raw_shape"], cfg, None)
+        fx.load_weights(_backbone_file(model_dir))
+    else:
+        weights, got = resolve_weights("imagenet" if label == "imagenet" else cfg.weights)
+        if got != label:
+            raise ValueError(f"the model was trained on backbone weights {label!r} but {got!r} were found")
+        fx = build_feature_extractor(info["raw_shape"], cfg, weights)
+    return compose(fx, dec), info
+
+
+def _backbone_file(model_dir) -> Path:
+    p = Path(model_dir) / "backbone.weights.h5"
+    if not p.is_file():
+        raise FileNotFoundError(f"random-init backbone weights not found: {p} (written by 'lf-flame train')")
+    return p
+
+
+def save_random_backbone(ds: LightFieldDataset, cfg: ModelConfig, seed: int, out: Path) -> None:
+    """Save the random-init backbone that made the feature cache (same seed, same draw)."""
+    path = out / "backbone.weights.h5"
+    if not path.exists():
+        keras.utils.set_random_seed(seed)
+        tmp = out / "partial.backbone.weights.h5"
+        build_feature_extractor(ds.camera.sensor_shape, cfg, None).save_weights(tmp)
+        os.replace(tmp, path)

@@ -1,0 +1,24 @@
+"""Measurement: flame diagnostics per plane and image scores.
+
+:mod:`.diagnostics` measures a flame on one plane (height, base, widths, radial
+profiles, in mm) with flags for heights it cannot trust; :mod:`.scoring` scores focal
+stacks' diagnostics against a scene's truth; :mod:`.metrics` SSIM and PSNR per plane
+(scikit-image).
+
+Its public names are importable from here (loaded on first use, as scikit-image does).
+"""
+import lazy_loader as lazy
+
+__getattr__, __dir__, __all__ = lazy.attach(
+    __name__,
+    submodules=["diagnostics", "metrics", "scoring"],
+    submod_attrs={
+        "diagnostics": ["SEGMENT_FRACTION", "EDGE_FIT_RANGE", "TAIL_FALL", "PEDESTAL_GAP", "TIP_PEDESTAL_MM",
+                 "FLAGS", "MIN_AREA_LENSLETS", "RADIAL_FRACTIONS", "EMISSION_MEASURE",
+                 "measure_settings", "EmptyPlaneError", "lenslet_size_mm",
+                 "lenslet_to_object_mm", "RadialProfile", "FlameMeasurement", "measure_flame",
+                 "flame_truth", "plot_profiles"],
+        "metrics": ["ssim_per_plane", "psnr_per_plane", "mean_ssim"],
+        "scoring": ["measure_stack", "score_stacks", "error_table"],
+    },
+)

@@ -1,0 +1,21 @@
+"""The camera's optics: ray transfer (ABCD) matrices and the plenoptic 1.0 camera.
+
+:mod:`.matrices` holds the 4x4 ray transfer matrices (free space, thin lens, aperture stop,
+microlens array; Gerrard & Burch, *Introduction to Matrix Methods in Optics*);
+:mod:`.camera` the paper's camera (main lens, microlens array, sensor; SPEC.md) and a
+user's own, with its lenslet grid and the slope of every depth.
+
+Its public names are importable from here (loaded on first use, as scikit-image does).
+"""
+import lazy_loader as lazy
+
+__getattr__, __dir__, __all__ = lazy.attach(
+    __name__,
+    submodules=["camera", "matrices"],
+    submod_attrs={
+        "camera": ["GRID_LAYOUTS", "MAX_GRID_ROTATION_DEG", "PARAXIAL_LIMIT", "PlenopticCamera",
+                 "PAPER_CAMERA"],
+        "matrices": ["DET_TOL", "RayTransferMatrix", "free_space", "thin_lens", "ApertureStop",
+                 "MicrolensArray"],
+    },
+)

@@ -1,0 +1,66 @@
+"""Each plane's flicker spectrum (Welch, :func:`scipy.signal.welch`) and its dominant frequency."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+#: Per-plane signals whose spectra are computed (columns of the frames table).
+SIGNALS = ("height_mm", "integrated_intensity")
+
+
+# ---------------------------------------------------------------------------------
+def spectra(frames: pd.DataFrame, fps: float, nperseg: int | None = None, signals=SIGNALS) -> pd.DataFrame:
+    """Each plane's power spectrum of each signal (Welch, Hann window, mean removed).
+
+    Parameters
+    ----------
+    frames : DataFrame
+        The frames table (columns frame, plane, depth_mm and the ``signals``); a frame
+        whose plane could not be measured (NaN) takes the plane's mean.
+    fps : float
+        Frame rate (frames/s).
+    nperseg : int or None
+        Welch segment length (frames); None: the whole record, so the bin is 1/T.
+
+    Returns
+    -------
+    DataFrame with columns plane, depth_mm, signal, freq_hz, power (the signal's unit
+    squared: ``scaling="spectrum"``, a sinusoid of amplitude a on a bin has power a²/2).
+    """
+    from scipy.signal import welch
+    out = []
+    for (k, d), g in frames.groupby(["plane", "depth_mm"], sort=True):
+        g = g.sort_values("frame")
+        for s in signals:
+            x = g[s].to_numpy(float)
+            x = np.where(np.isfinite(x), x, np.nanmean(x) if np.isfinite(x).any() else 0.0)
+            f, p = welch(x, fs=fps, nperseg=min(nperseg or len(x), len(x)), detrend="constant", scaling="spectrum")
+            out.append(pd.DataFrame(dict(plane=k, depth_mm=d, signal=s, freq_hz=f, power=p)))
+    return pd.concat(out, ignore_index=True)
+
+
+def peaks(spec: pd.DataFrame, truth_freqs_hz=None) -> pd.DataFrame:
+    """Dominant frequency of each plane and signal (the largest power above 0 Hz), its
+    amplitude ``sqrt(2 P)``, and where the true frequencies are known (one per plane, plane
+    ``k`` holding flame ``k``): the true frequency, the error in bins, and how far (dB) the
+    other flames' frequencies lie below the plane's own on its spectrum (the worst of them).
+    """
+    rows = []
+    for (k, d, s), g in spec.groupby(["plane", "depth_mm", "signal"], sort=False):
+        f, p = g.freq_hz.to_numpy(), g.power.to_numpy()
+        j = 1 + int(np.argmax(p[1:]))
+        df = f[1] - f[0]
+        row = dict(plane=k, depth_mm=d, signal=s, bin_hz=df, dominant_hz=f[j], amplitude=math.sqrt(2 * p[j]))
+        if truth_freqs_hz is not None:
+            def power_at(hz):   # the largest power within one bin of hz (a tone off the bin grid splits)
+                return float(p[np.abs(f - hz) <= df].max())
+            own = truth_freqs_hz[k]
+            others = [v for i, v in enumerate(truth_freqs_hz) if i != k]
+            row.update(true_hz=own, error_bins=abs(f[j] - own) / df, within_one_bin=abs(f[j] - own) <= df)
+            if others:
+                below = [10 * math.log10(power_at(own) / max(power_at(v), 1e-300)) for v in others]
+                row.update(others_below_db=min(below), worst_other_hz=others[int(np.argmin(below))])
+        rows.append(row)
+    return pd.DataFrame(rows)

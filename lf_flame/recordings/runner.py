@@ -1,0 +1,120 @@
+"""Running a recording serially or on Dask, resumably.
+
+Frames are processed in chunks, serially or as Dask tasks (:mod:`lf_flame.parallel`);
+the calling process writes each finished chunk to ``OUT/parts/`` (temporary file, then
+rename), so a restart skips the chunks done and a killed worker loses or duplicates no
+frame. ``OUT/summary.json`` is written last: a folder without it is not a finished run.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..config import atomic_write_text, provenance
+from .job import SequenceJob, _warm_up, process_chunk
+from .plot import plot_sequence
+from .flicker import peaks, spectra
+
+
+# ---------------------------------------------------------------------------------
+def _write_csv(path: Path, df: pd.DataFrame) -> None:
+    atomic_write_text(path, df.to_csv(index=False, float_format="%.6g"))
+
+
+def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | None = None, nperseg=None,
+        truth=None, progress: bool = True) -> dict:
+    """Process a recording into ``out``: frames.csv, spectra.csv, peaks.csv, sequence.png
+    and, last, summary.json (settings, timings, provenance).
+
+    Serial (Numba's threads) when ``scheduler`` and ``workers`` are None, else on Dask:
+    ``workers`` local worker processes of one thread, or the cluster at ``scheduler``.
+    Chunks already in ``out/parts`` are skipped; both paths write the same tables.
+
+    Parameters
+    ----------
+    job : SequenceJob
+    out : path-like
+        Output folder (created).
+    truth : ndarray of shape (T, P) or None
+        True heights (mm) of plane k's flame per frame: a ``height_mm_true`` column.
+
+    Returns
+    -------
+    dict : the summary: ``wall_s`` and ``frames_per_s`` of the chunks processed, from the
+        moment the cluster is up (``startup_s``, its start); ``busy_s``, the seconds the
+        tasks spent reading (or rendering), refocusing and measuring.
+
+    Raises
+    ------
+    ValueError
+        ``out`` holds a run with other settings; a frame that cannot be processed (NaN,
+        wrong size); a chunk table that does not hold its frames exactly once.
+    """
+    out = Path(out)
+    parts = out / "parts"
+    parts.mkdir(parents=True, exist_ok=True)
+    ident = json.dumps(job.identity(), sort_keys=True, default=float)
+    jf = out / "job.json"
+    if jf.exists() and jf.read_text() != ident:
+        raise ValueError(f"{out} holds a run with other settings (job.json); give another --out or delete it")
+    (out / "summary.json").unlink(missing_ok=True)   # not finished until written again
+    atomic_write_text(jf, ident)
+    todo = [c for c in range(job.n_chunks) if not (parts / f"chunk-{c:05d}.csv").exists()]
+    t0 = time.perf_counter()
+    busy = dict(read_s=0.0, refocus_s=0.0, measure_s=0.0)
+
+    def keep(c, res):
+        df = pd.DataFrame(res["rows"])
+        want = list(range(c * job.chunk, min((c + 1) * job.chunk, job.source.n_frames)))
+        if sorted(df.frame.unique()) != want or len(df) != len(want) * len(job.depths_mm):
+            raise ValueError(f"chunk {c} returned frames {sorted(df.frame.unique())}, expected {want}")
+        _write_csv(parts / f"chunk-{c:05d}.csv", df)
+        for k in busy:
+            busy[k] += res[k]
+
+    if scheduler is None and workers is None:
+        from tqdm import tqdm
+        startup = 0.0
+        for c in tqdm(todo, desc="chunks", disable=not progress):
+            keep(c, process_chunk(c, job))
+        n_workers = 0
+    else:
+        from ..parallel import dask_client, map_unordered
+        with dask_client(scheduler, workers or 1) as client:
+            n_workers = len(client.nthreads())
+            client.run(_warm_up, job)   # imports and Numba's cached kernels, counted in the start-up
+            startup = time.perf_counter() - t0
+            t0 += startup
+            # keys carry the run's identity: two recordings on one shared scheduler never share a task
+            tag = hashlib.sha256(ident.encode()).hexdigest()[:8]
+            for c, res in map_unordered(client, process_chunk, todo, job, name=f"frames-{tag}", progress=progress,
+                                        total=len(todo)):
+                keep(c, res)
+    wall = time.perf_counter() - t0
+    frames = pd.concat([pd.read_csv(parts / f"chunk-{c:05d}.csv", keep_default_na=False, na_values=[""])
+                        for c in range(job.n_chunks)], ignore_index=True).sort_values(["frame", "plane"])
+    counts = frames.groupby("frame").size()
+    if len(counts) != job.source.n_frames or (counts != len(job.depths_mm)).any():
+        raise ValueError(f"{parts} does not hold every frame exactly once; delete it and run again")
+    if truth is not None:
+        frames["height_mm_true"] = np.asarray(truth, float)[frames.frame.to_numpy(), frames.plane.to_numpy()]
+        frames["height_err_mm"] = frames.height_mm - frames.height_mm_true
+    spec = spectra(frames, job.fps, nperseg)
+    pk = peaks(spec, job.truth_freqs_hz)
+    _write_csv(out / "frames.csv", frames)
+    _write_csv(out / "spectra.csv", spec)
+    _write_csv(out / "peaks.csv", pk)
+    plot_sequence(out / "sequence.png", frames, spec, pk,
+                  f"{job.source.n_frames} frames at {job.fps:g} frames/s, route {job.route}")
+    summary = dict(settings=job.identity(), n_frames=job.source.n_frames, chunks_processed=len(todo),
+                   workers=n_workers, scheduler=scheduler, startup_s=startup, wall_s=wall,
+                   frames_per_s=(len(todo) and sum(min(job.chunk, job.source.n_frames - c * job.chunk)
+                                                   for c in todo) / wall),
+                   busy_s=busy, provenance=provenance())
+    atomic_write_text(out / "summary.json", json.dumps(summary, indent=1, default=float))
+    return summary

@@ -1,0 +1,194 @@
+"""Frame sources of a recording and its frame rate.
+
+A recording is a series of raw light-field frames: an HDF5 stack, a folder of image
+files, or a simulated :class:`lf_flame.simulate.scenes_time.FlameSequence`. The sources are
+picklable descriptions, opened where the frames are read (in the worker).
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..optics.camera import PlenopticCamera
+from ..simulate.scenes_time import FlameSequence
+
+#: Image files a folder of frames may hold (read in name order).
+FRAME_SUFFIXES = (".tif", ".tiff", ".png", ".npy")
+
+
+# ---------------------------------------------------------------------------------
+# Frame sources: picklable descriptions, opened where the frame is read (in the worker).
+@dataclass(frozen=True)
+class SimulatedSource:
+    """Frames rendered from a :class:`~lf_flame.simulate.scenes_time.FlameSequence` (frame ``i`` with ray
+    seed ``seed * 1000003 + i``), ``rays_per_pixel`` rays per pixel."""
+
+    sequence: FlameSequence
+    camera: PlenopticCamera
+    rays_per_pixel: int = 4
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.sequence.n_frames)
+
+    def raw(self, i: int) -> np.ndarray:
+        from ..simulate.tracer import render
+        return render(self.camera, self.sequence.scene(self.camera, i), self.rays_per_pixel,
+                      seed=(self.sequence.seed * 1_000_003 + int(i)) % 2**63)
+
+    def identity(self) -> dict:
+        return dict(kind="simulated", sequence=self.sequence.to_dict(), rays_per_pixel=self.rays_per_pixel)
+
+
+@dataclass(frozen=True)
+class H5Source:
+    """Frames of an HDF5 file: dataset ``frames`` of shape (T, H, W), any real dtype;
+    integer frames are scaled by their dtype's maximum, float frames kept."""
+
+    path: str
+    dataset: str = "frames"
+
+    @property
+    def n_frames(self) -> int:
+        import h5py
+        with h5py.File(self.path, "r") as f:
+            return int(f[self.dataset].shape[0])
+
+    def raw(self, i: int) -> np.ndarray:
+        import h5py
+        with h5py.File(self.path, "r") as f:
+            a = f[self.dataset][int(i)]
+        return _scaled(a)
+
+    def identity(self) -> dict:
+        st = os.stat(self.path)
+        return dict(kind="hdf5", path=str(Path(self.path).resolve()), size=st.st_size, mtime=st.st_mtime)
+
+
+@dataclass(frozen=True)
+class FolderSource:
+    """Frames as image files of a folder (:data:`FRAME_SUFFIXES`), in name order."""
+
+    files: tuple
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.files)
+
+    def raw(self, i: int) -> np.ndarray:
+        p = self.files[int(i)]
+        if p.endswith(".npy"):
+            return _scaled(np.load(p))
+        from skimage import io
+        return _scaled(np.asarray(io.imread(p)))   # keeps the dtype (load_image returns float64)
+
+    def identity(self) -> dict:
+        return dict(kind="folder", files=[str(Path(p).resolve()) for p in self.files])
+
+
+def _scaled(a: np.ndarray) -> np.ndarray:
+    a = np.asarray(a)
+    if a.ndim == 3 and a.shape[-1] in (3, 4):
+        a = a[..., :3].mean(axis=-1)
+    if np.issubdtype(a.dtype, np.integer):
+        return a.astype(np.float32) * np.float32(1.0 / np.iinfo(a.dtype).max)
+    return a.astype(np.float32)
+
+
+def open_source(path, camera: PlenopticCamera | None = None):
+    """The frame source of ``path``: an HDF5 stack (its dataset ``frames``, (T, H, W)) or a
+    folder of image files.
+
+    Returns
+    -------
+    (source, attrs) : the source and the HDF5 file's attributes (``fps``, ``camera``,
+        ``sequence`` when written by :func:`write_frames`; empty for a folder).
+
+    Raises
+    ------
+    ValueError
+        A missing path, an empty folder, a file without a 3-D ``frames`` dataset.
+    """
+    p = Path(path)
+    if p.is_dir():
+        files = tuple(str(f) for f in sorted(p.iterdir()) if f.suffix.lower() in FRAME_SUFFIXES)
+        if not files:
+            raise ValueError(f"folder {p} holds no frames ({', '.join(FRAME_SUFFIXES)} files)")
+        return FolderSource(files), {}
+    if not p.is_file():
+        raise ValueError(f"recording not found: {p}")
+    import h5py
+    try:
+        with h5py.File(p, "r") as f:
+            if "frames" not in f or f["frames"].ndim != 3 or f["frames"].shape[0] < 1:
+                raise ValueError(f"{p} has no 'frames' dataset of shape (T, H, W)")
+            attrs = {k: f.attrs[k] for k in f.attrs}
+    except OSError as e:
+        raise ValueError(f"{p} is not a readable HDF5 file ({e})") from None
+    return H5Source(str(p)), attrs
+
+
+def write_frames(path, source: SimulatedSource, progress: bool = True) -> Path:
+    """Render a simulated recording into an HDF5 stack: ``frames`` (T, H, W) uint16 counts
+    (x 65535), attributes ``fps``, ``camera`` and ``sequence`` (JSON, the truth); written
+    to a temporary file, then renamed."""
+    import h5py
+    from tqdm import tqdm
+    path = Path(path)
+    tmp = path.with_name(path.name + ".partial")
+    H, W = source.camera.sensor_shape
+    with h5py.File(tmp, "w") as f:
+        d = f.create_dataset("frames", (source.n_frames, H, W), np.uint16, chunks=(1, H, W), compression="lzf")
+        for i in tqdm(range(source.n_frames), desc="frames", disable=not progress):
+            d[i] = np.round(np.clip(source.raw(i), 0, 1) * 65535).astype(np.uint16)
+        f.attrs.update(fps=source.sequence.fps, camera=source.camera.to_json(),
+                       sequence=json.dumps(source.sequence.to_dict()))
+    os.replace(tmp, path)
+    return path
+
+
+def frame_rate(fps: float | None, attrs: dict, times_s=None) -> float:
+    """The recording's frame rate (frames/s): ``fps`` if given, else the file's ``fps``
+    attribute, else from its frame times; both must agree where both exist.
+
+    Parameters
+    ----------
+    fps : float or None
+        Given by the user.
+    attrs : dict
+        The HDF5 file's attributes (``fps``).
+    times_s : ndarray of shape (T,) or None
+        Time stamps of the frames (s), e.g. an HDF5 dataset ``times_s``.
+
+    Raises
+    ------
+    ValueError
+        No frame rate anywhere; a rate not positive and finite; time stamps not strictly
+        increasing or not evenly spaced (within 1 %); a given rate that disagrees (1 %)
+        with the file's.
+    """
+    found = []
+    if fps is not None:
+        found.append(("--fps", float(fps)))
+    if "fps" in attrs:
+        found.append(("the file's fps attribute", float(attrs["fps"])))
+    if times_s is not None and len(times_s) > 1:
+        dt = np.diff(np.asarray(times_s, float))
+        if not np.all(dt > 0):
+            raise ValueError(f"frame times are not strictly increasing (at frame {int(np.argmax(dt <= 0)) + 1})")
+        if dt.max() - dt.min() > 0.01 * np.median(dt):
+            raise ValueError(f"frame times are not evenly spaced ({dt.min():.6g}–{dt.max():.6g} s apart)")
+        found.append(("the frame times", 1.0 / float(np.median(dt))))
+    if not found:
+        raise ValueError("no frame rate: give --fps (frames/s)")
+    for name, v in found:
+        if not (math.isfinite(v) and v > 0):
+            raise ValueError(f"frame rate from {name} must be positive and finite. Received: {v}")
+        if abs(v - found[0][1]) > 0.01 * found[0][1]:
+            raise ValueError(f"frame rate from {name} ({v:g}) disagrees with {found[0][0]} ({found[0][1]:g})")
+    return found[0][1]

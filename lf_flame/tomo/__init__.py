@@ -1,0 +1,25 @@
+"""Tomography: each plane's emission, not its blurred focal stack.
+
+Flames are optically thin, so a light field is a linear function of the emission on
+the planes. :mod:`.operator` is that camera map as a PyLops operator (the simulator's
+tracer with fixed rays, recorded once, kernels in :mod:`._kernels`); :mod:`.solvers`
+recovers the emission with PyLops/PyProximal solvers; :mod:`.truth` puts a simulated
+scene's truth on the same grids; :mod:`.scoring` scores planes against it;
+:mod:`.files` saves, loads and draws a reconstruction.
+
+Its public names are importable from here (loaded on first use, as scikit-image does).
+"""
+import lazy_loader as lazy
+
+__getattr__, __dir__, __all__ = lazy.attach(
+    __name__,
+    submodules=["files", "operator", "scoring", "solvers", "truth"],
+    submod_attrs={
+        "files": ["save_reconstruction", "load_reconstruction", "plot_reconstruction"],
+        "operator": ["ADJOINT_BLOCKS", "RAY_TABLE_MAX_BYTES", "plane_grid", "EmissionOperator", "check_views"],
+        "scoring": ["score_planes"],
+        "solvers": ["SOLVERS", "DEFAULT_ITERS", "DEFAULT_TV", "PD_RESIDUAL_EVERY", "DEFAULT_SOLVER",
+                 "Reconstruction", "lipschitz_bound", "reconstruct"],
+        "truth": ["resample_layer", "scene_truth"],
+    },
+)

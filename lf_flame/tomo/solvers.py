@@ -1,0 +1,216 @@
+"""Solvers of the emission on planes from one light field (PyLops / PyProximal).
+
+:func:`reconstruct` runs one of :data:`SOLVERS` on an :class:`~lf_flame.tomo.operator.EmissionOperator`:
+damped LSQR (Sun, Hossain, Xu et al., Opt. Commun. 390 (2017)), FISTA with non-negativity,
+primal-dual (Chambolle-Pock) with TV and non-negativity (Viganò et al., Opt. Express
+(2018), plenoptomos), Richardson-Lucy (Broxton et al., Opt. Express 21 (2013); napari-LF),
+or the normalised adjoint (plain refocusing). Saturated pixels are left out of the fit.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pylops
+import pyproximal
+from pylops.optimization.basic import lsqr
+from pyproximal.optimization.primal import ProximalGradient
+from pyproximal.optimization.primaldual import PrimalDual
+from tqdm.auto import tqdm
+
+from .operator import EmissionOperator, check_views
+
+# ---- solvers ---------------------------------------------------------------------------
+#: Solvers of :func:`reconstruct`; "adjoint" is plain refocusing (the baseline).
+SOLVERS = ("adjoint", "lsqr", "fista", "pd-tv", "rl")
+#: Iterations each solver runs unless told: the fewest within 10 % of the solver's best
+#: worst-plane error on validation renders (``results/reconstruct_iters.csv``, ``make reconstruct``).
+DEFAULT_ITERS = {"adjoint": 0, "lsqr": 40, "fista": 30, "pd-tv": 40, "rl": 20}
+#: TV weight of "pd-tv" unless told (validation renders, as the iterations).
+DEFAULT_TV = 0.3
+#: "pd-tv" records its residual at the first, every this many and the last iteration (NaN
+#: between): each record costs one more ``A``, a third of an iteration.
+PD_RESIDUAL_EVERY = 5
+#: The solver whose worst validation render is best (``make reconstruct``): the default of ``lf-flame reconstruct``.
+DEFAULT_SOLVER = "pd-tv"
+
+
+@dataclass
+class Reconstruction:
+    """Emission on planes recovered from one light field (:func:`reconstruct`).
+
+    Attributes
+    ----------
+    planes : ndarray of shape (P, rows, cols), float64
+        Emission (the scene's radiance units) on each plane, rows down, columns right.
+    depths_mm : tuple of P float
+        Depth offset of each plane (mm from the focal plane).
+    sample_mm : tuple of P (float, float)
+        Size (height, width) of one grid sample on each plane, mm.
+    solver : str
+    settings : dict
+        The solver's knobs (iterations, damping, TV weight, step, rays per pixel, seed).
+    residuals : ndarray of shape (n,)
+        Relative data residual ``||A x - y|| / ||y||`` per iteration (for FISTA at the
+        point where the gradient is taken; for the primal-dual solver NaN between its
+        records, :data:`PD_RESIDUAL_EVERY`), saturated pixels left out.
+    time_s : float
+        Wall time of the solve (the operator built, the step size found, the iterations).
+    """
+
+    planes: np.ndarray
+    depths_mm: tuple
+    sample_mm: tuple
+    solver: str
+    settings: dict = field(default_factory=dict)
+    residuals: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    time_s: float = 0.0
+
+
+class _TrackedL2(pyproximal.L2):
+    """``1/2 ||A x - b||^2`` that records the relative residual at every gradient it gives."""
+
+    def __init__(self, Op, b):
+        super().__init__(Op=Op, b=b)
+        self.history, self._norm = [], float(np.linalg.norm(b)) or 1.0
+
+    def grad(self, x):
+        r = self.Op.matvec(x) - self.b
+        self.history.append(float(np.linalg.norm(r)) / self._norm)
+        return self.Op.rmatvec(r)
+
+
+def lipschitz_bound(op: EmissionOperator) -> float:
+    """Upper bound of ``||A||^2`` (the gradient's Lipschitz constant of ``1/2 ||A x - y||^2``).
+
+    Every entry of ``A`` is non-negative, so ``||A||_2^2 <= ||A||_1 ||A||_inf`` = (largest
+    column sum) x (largest row sum) (Schur's test; Horn & Johnson, Matrix Analysis,
+    5.6.P) from one ``A^T 1`` and one ``A 1``. On the paper's camera it is 1.2x the
+    largest singular value squared found by power iteration, at a tenth of its cost.
+    """
+    return float(op.rmatvec(np.ones(op.shape[0])).max() * op.matvec(np.ones(op.shape[1])).max())
+
+
+def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters: int | None = None, *,
+                damp: float = 0.0, tv: float = DEFAULT_TV, saturation: float | None = 1.0, progress: bool = False,
+                callback=None) -> Reconstruction:
+    """Recover the emission on the operator's planes from one light field.
+
+    Parameters
+    ----------
+    views : ndarray of shape (N, N, R, C)
+        Sub-aperture views (:func:`lf_flame.refocus.shift_and_sum.raw_to_views`), radiance units.
+    op : EmissionOperator
+        The camera and the planes (their depths and grids).
+    solver : str
+        One of :data:`SOLVERS`:
+
+        - ``"adjoint"``: ``A^T y / A^T 1``, plain refocusing through the same rays (no iterations).
+        - ``"lsqr"``: damped LSQR (Tikhonov, ``damp``), PyLops; may go negative.
+        - ``"fista"``: accelerated proximal gradient on ``1/2 ||A x - y||^2`` with
+          non-negativity (``pyproximal.Box(lower=0)``), step ``1 / L``
+          (:func:`lipschitz_bound`); Beck & Teboulle, SIAM J. Imaging Sci. 2 (2009).
+        - ``"pd-tv"``: PyProximal's primal-dual (Chambolle & Pock, J. Math. Imaging Vis.
+          40 (2011)) on ``1/2 ||A x - y||^2 + tv sum ||grad x_k||`` (isotropic TV per
+          plane) with ``x >= 0``.
+        - ``"rl"``: Richardson-Lucy, ``x <- x A^T(y / A x) / A^T 1`` (the light-field
+          microscopy default, 15 iterations; Broxton et al. 2013), non-negative.
+    iters : int or None
+        Iterations; None: :data:`DEFAULT_ITERS`.
+    damp, tv : float
+        LSQR's damping and the TV weight (>= 0); ignored by the other solvers.
+    saturation : float or None
+        The sensor's clipping level in the views' units (1.0: :func:`lf_flame.simulate.tracer.render`'s).
+        A pixel at or above it holds only a lower bound of its light: the iterative solvers
+        leave it out of the fit (weight 0 in ``||W (A x - y)||``; Richardson-Lucy: ratio
+        left out). None: every pixel is fitted. The count is ``settings["n_saturated"]``.
+    progress : bool
+        A tqdm bar over the iterations.
+    callback : callable or None
+        ``callback(k, x)`` after iteration ``k`` (1-based) with the iterate ``x`` (flat,
+        read-only use): error-against-iterations curves from one run.
+
+    Returns
+    -------
+    Reconstruction
+
+    Raises
+    ------
+    ValueError
+        An unknown solver, negative iterations or weights, views of another camera
+        (shape), NaN or inf in the views, a saturation level that is not positive.
+    """
+    if solver not in SOLVERS:
+        raise ValueError(f"solver must be one of {SOLVERS}. Received: {solver!r}")
+    iters = DEFAULT_ITERS[solver] if iters is None else int(iters)
+    if iters < 0 or damp < 0 or tv < 0 or not (math.isfinite(damp) and math.isfinite(tv)):
+        raise ValueError(f"iters, damp and tv must be finite and >= 0. Received: {iters}, {damp}, {tv}")
+    if saturation is not None and not (math.isfinite(saturation) and saturation > 0):
+        raise ValueError(f"saturation must be a positive finite level or None. Received: {saturation!r}")
+    y = check_views(views, op).ravel()
+    t0 = time.perf_counter()
+    n = op.shape[1]
+    fit = np.ones(y.size, bool) if saturation is None else y < saturation   # pixels that carry their light
+    n_sat = int(y.size - fit.sum())
+    # the fitted operator and data: W A and W y, W the 0/1 weight of the unsaturated pixels
+    A, yw = (op, y) if n_sat == 0 else (pylops.Diagonal(fit.astype(np.float64)) @ op, np.where(fit, y, 0.0))
+    settings = dict(iters=iters, rays_per_pixel=op.rays_per_pixel, seed=op.seed, saturation=saturation,
+                    n_saturated=n_sat)
+    bar = tqdm(total=iters, desc=f"reconstruct ({solver})", unit="it", disable=not progress)
+    norm = float(np.linalg.norm(y)) or 1.0
+    residuals = []
+    count = [0]
+
+    def step(x):
+        count[0] += 1
+        bar.update()
+        if callback is not None:
+            callback(count[0], np.ravel(x))
+    if solver == "adjoint":
+        x = op.normalised_adjoint(y.reshape(op.dimsd)).ravel()
+        residuals = [float(np.linalg.norm(op.matvec(x) - y)) / norm]
+    elif solver == "lsqr":
+        settings["damp"] = damp
+        out = lsqr(A, yw, np.zeros(n), damp=damp, niter=iters, calc_var=False, callback=step)
+        x = np.ravel(out[0])
+        residuals = np.asarray(out[-1])[1:] / norm   # LSQR's own ||A x - y|| estimate per iteration
+    elif solver == "fista":
+        settings["step"] = tau = 1.0 / lipschitz_bound(op)
+        f = _TrackedL2(A, yw)
+        x = ProximalGradient(f, pyproximal.Box(lower=0.0), np.zeros(n), tau=tau, niter=iters, acceleration="fista",
+                             callback=step)
+        residuals = f.history
+    elif solver == "pd-tv":
+        # the gradient block scaled by c to the norm of A (||c grad||^2 <= 8 c^2 = ||A||^2 bound):
+        # with one step for both blocks, an unscaled TV term would move ~sqrt(||A||^2 / 8) times slower
+        La = lipschitz_bound(op)
+        c = math.sqrt(La / 8.0)
+        grad = pylops.VStack([c * pylops.FirstDerivative(op.dims, axis=a, edge=True, kind="forward") for a in (1, 2)])
+        K = pylops.VStack([A, grad])
+        tau = mu = 0.99 / math.sqrt(2.0 * La)
+        g = pyproximal.VStack([pyproximal.L2(b=yw), pyproximal.L21(ndim=2, sigma=tv / c)], nn=[op.shape[0], 2 * n])
+        settings.update(tv=tv, step=tau)
+
+        def track(xk):  # the primal-dual iteration exposes no residual: one more A, so only now and then
+            k = count[0] + 1
+            residuals.append(float(np.linalg.norm(A.matvec(xk) - yw)) / norm
+                             if k == 1 or k % PD_RESIDUAL_EVERY == 0 or k == iters else math.nan)
+            step(xk)
+        x = PrimalDual(pyproximal.Box(lower=0.0), g, K, np.zeros(n), tau=tau, mu=mu, niter=iters, callback=track)
+    else:  # rl
+        ones = op.rmatvec(fit.astype(np.float64))
+        seen = ones > 0
+        yp = np.clip(yw, 0.0, None)
+        x = np.full(n, max(float(yp[fit].mean()) if n_sat < y.size else 0.0, 1e-12))   # flat start, the data's level
+        for _ in range(iters):
+            ax = op.matvec(x)
+            residuals.append(float(np.linalg.norm(np.where(fit, ax - y, 0.0))) / norm)
+            ratio = np.where(fit, yp / np.maximum(ax, 1e-12), 0.0)
+            x = np.where(seen, x * op.rmatvec(ratio) / np.where(seen, ones, 1.0), 0.0)
+            step(x)
+    bar.close()
+    sample = tuple((h / op.dims[1], w / op.dims[2]) for h, w in op.sizes_mm)
+    return Reconstruction(np.asarray(x).reshape(op.dims), op.depths_mm, sample, solver, settings,
+                          np.asarray(residuals, np.float64), time.perf_counter() - t0)

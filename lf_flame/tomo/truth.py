@@ -1,0 +1,76 @@
+"""The truth of a simulated scene on the reconstruction's plane grids.
+
+Each plane's emission (its layers' radiance) resampled by area overlap onto the grid of
+:func:`lf_flame.tomo.operator.plane_grid`, so a reconstruction is scored pixel for pixel.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..simulate.scenes import Layer, Scene
+from .operator import EmissionOperator
+
+
+# ---- the truth on a reconstruction grid ----------------------------------------------
+def _overlap(src_edges: np.ndarray, dst_edges: np.ndarray) -> np.ndarray:
+    """(n_dst, n_src) fraction of each destination cell covered by each source cell
+    (1-D, both edge arrays increasing)."""
+    lo = np.maximum(dst_edges[:-1, None], src_edges[None, :-1])
+    hi = np.minimum(dst_edges[1:, None], src_edges[None, 1:])
+    return np.clip(hi - lo, 0.0, None) / np.diff(dst_edges)[:, None]
+
+
+def resample_layer(layer: Layer, shape, size_mm, centre_mm=(0.0, 0.0)) -> np.ndarray:
+    """A layer's radiance averaged over the cells of another grid (area-weighted, exact).
+
+    The renderer reads a texture as piecewise constant (nearest texel), so the average
+    of its texels over a cell, weighted by the area they share, is the cell's emission.
+
+    Parameters
+    ----------
+    layer : Layer
+        Texture (rows, cols) over ``layer.size_mm`` about ``layer.centre_mm``.
+    shape : (int, int)
+        Cells (rows, columns) of the grid.
+    size_mm, centre_mm : (float, float)
+        Height and width, and centre (y up, x right), of the grid in mm.
+
+    Returns
+    -------
+    ndarray of shape ``shape``, float64: mean radiance per cell (0 outside the layer).
+    """
+    (tr, tc), (gr, gc) = layer.radiance.shape, shape
+    # both grids' edges in mm, rows measured downward from the top so the edges increase
+    src_y = np.linspace(-(layer.centre_mm[0] + layer.size_mm[0] / 2), -(layer.centre_mm[0] - layer.size_mm[0] / 2), tr + 1)
+    src_x = np.linspace(layer.centre_mm[1] - layer.size_mm[1] / 2, layer.centre_mm[1] + layer.size_mm[1] / 2, tc + 1)
+    dst_y = np.linspace(-(centre_mm[0] + size_mm[0] / 2), -(centre_mm[0] - size_mm[0] / 2), gr + 1)
+    dst_x = np.linspace(centre_mm[1] - size_mm[1] / 2, centre_mm[1] + size_mm[1] / 2, gc + 1)
+    return _overlap(src_y, dst_y) @ layer.radiance.astype(np.float64) @ _overlap(src_x, dst_x).T
+
+
+def scene_truth(scene: Scene, op: EmissionOperator) -> np.ndarray:
+    """The emission of ``scene`` on the operator's planes: the truth a reconstruction is scored on.
+
+    A scene layer at one of the operator's depths gives that plane its radiance
+    (:func:`resample_layer`). Layers between two planes (a volume sampled finer than the
+    planes) are shared between the two nearest planes linearly in depth (each plane
+    stands for the slab around it); layers outside the planes' range go to the nearest.
+
+    Returns
+    -------
+    ndarray of shape ``op.dims`` (P, rows, cols), float64.
+    """
+    d = np.asarray(op.depths_mm)
+    order = np.argsort(d)
+    ds = d[order]
+    truth = np.zeros(op.dims)
+    for L in scene.layers:
+        k = int(np.searchsorted(ds, L.depth_offset_mm))
+        if k == 0 or k == len(ds) or np.isclose(ds[min(k, len(ds) - 1)], L.depth_offset_mm):
+            shares = [(order[min(k, len(ds) - 1)], 1.0)]
+        else:
+            f = (L.depth_offset_mm - ds[k - 1]) / (ds[k] - ds[k - 1])
+            shares = [(order[k - 1], 1.0 - f), (order[k], f)]
+        for p, wgt in shares:
+            truth[p] += wgt * resample_layer(L, op.dims[1:], op.sizes_mm[p], op.centres_mm[p])
+    return truth
