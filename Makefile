@@ -21,7 +21,7 @@ HELDOUT_paper := 20
 HELDOUT_quick := 4
 HELDOUT_SEED := 770077
 
-.PHONY: help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct sequence heights test clean-quick
+.PHONY: help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct sequence new-user heights test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -107,6 +107,10 @@ RECON_ARGS_quick := --tests 1 --tail 8
 # per-frame cost serially and on Dask; `--stage reconstruct` (about 30 min) adds the overlap's emission route
 sequence: $(STAMP) ## flame recordings: per-plane flicker spectra, serial and Dask frames/s -> results/sequence.{csv,md,json,png}
 	$(VENV)/bin/python experiments/sequence.py --out $(TRADEOFF_OUT)
+
+# a new user's first light field through the command line (simulate, then profiles per route)
+new-user: $(STAMP) ## the README's first-light-field commands, each route's heights -> results/new_user.{csv,md}
+	$(VENV)/bin/python experiments/new_user.py --out $(TRADEOFF_OUT)
 
 reconstruct: $(STAMP) ## 3-D emission reconstruction, every solver against refocusing -> results/reconstruct.{csv,md,json,png}
 	$(VENV)/bin/python experiments/reconstruct.py --out $(TRADEOFF_OUT) $(RECON_ARGS_$(PRESET))
