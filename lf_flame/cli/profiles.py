@@ -51,8 +51,10 @@ def _profiles_input(a):
         stack = run(raw.astype(np.float32)[None, ..., None])
     elif route.tomographic:
         from ..refocus.shift_and_sum import raw_to_views
-        from .volume import run_reconstruction
-        stack = run_reconstruction(cam, raw_to_views(raw, n), depths, route.solver)[1].planes
+        from .volume import run_reconstruction, saturation_note
+        rec = run_reconstruction(cam, raw_to_views(raw, n), depths, route.solver)[1]
+        print(saturation_note(rec))
+        stack = rec.planes
     else:
         stack = refocus(raw, slopes, n, aperture_mask(n, "circular"), **route.options)
     return cam, np.asarray(stack), depths, list(slopes), objects
