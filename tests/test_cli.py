@@ -124,3 +124,20 @@ def test_reconstruct_refuses_other_files_naming_what_it_reads(small_flame, capsy
         assert problem in err and ".npz from 'lf-flame simulate'" in err and "PNG or TIFF" in err, err
         assert "allow_pickle" not in err
     assert not (tmp_path / "r.h5").exists()
+
+
+def test_volume_figure_draws_each_plane_at_its_depth_and_height():
+    """The side views of reconstruct's volume figure: plane k's cells are centred on its
+    depth (not spread over the depth range, up to half a spacing off) and span its own
+    grid's height in mm."""
+    from lf_flame.tomo.files import _side_mesh
+    depths = np.array([-4.0, -3.0, -1.0, 0.5, 2.0, 3.0, 5.0])
+    h = 0.1 + 0.002 * depths          # mm per sample: linear in depth, as the grids are
+    X, Y = _side_mesh(depths, h, rows=10)
+    assert X.shape == Y.shape == (11, 8)
+    centres = (X[0, 1:] + X[0, :-1]) / 2
+    np.testing.assert_allclose(centres[1:-1], depths[1:-1], atol=0.6)   # mid-points between neighbours
+    assert np.all((X[0, :-1] < depths) & (depths < X[0, 1:]))
+    np.testing.assert_allclose(X[0, [0, -1]], [depths[0] - 0.5, depths[-1] + 1.0])
+    height = Y[0] - Y[-1]                     # top minus bottom edge at each depth edge
+    np.testing.assert_allclose(np.interp(depths, X[0], height), 10 * h, rtol=1e-9)

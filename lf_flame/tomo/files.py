@@ -88,12 +88,14 @@ def plot_reconstruction(path, rec: Reconstruction, refocused=None, truth=None, t
     """Each plane beside its refocused plane and, when known, the truth (one row per plane).
 
     Every panel is in object-space mm (x right, y up; each plane on its own grid, centred on
-    the optical axis), all on one colour scale from 0 (the colour bar, the scene's radiance
-    units). With more than 6 planes (a volume) the figure shows instead, per column:
-    the maximum over depth (each plane's grid, as the camera sees it: lenslets), a side
-    view (maximum over the columns) and a slice at one x (mm) through the brightest sample
-    of the truth (else of the reconstruction), depth across: each plane is drawn over half
-    the spacing to its neighbours, at its own height in mm.
+    the optical axis). Reconstructed and true emission share one colour scale from 0; the
+    refocused planes, which carry the light of every plane (defocused), have their own
+    (a colour bar each, the scene's radiance units). With more than 6 planes (a volume)
+    the figure shows instead, per column: the maximum over depth (each plane's grid, as
+    the camera sees it: lenslets), a side view (maximum over x) and a slice at one x (mm)
+    through the brightest column (summed over rows) of the truth, else of the
+    reconstruction, depth across: each plane is drawn over half the spacing to its
+    neighbours, at its own height in mm.
 
     Parameters
     ----------
@@ -112,8 +114,16 @@ def plot_reconstruction(path, rec: Reconstruction, refocused=None, truth=None, t
     cols = [("reconstructed", np.asarray(rec.planes))]
     cols += [("refocused", np.asarray(refocused))] if refocused is not None else []
     cols += [("truth", np.asarray(truth))] if truth is not None else []
-    vmax = max(float(np.max(c[1])) for c in cols) or 1.0
-    style = dict(cmap="inferno", vmin=0, vmax=vmax)
+    # emission (reconstructed, truth) on one scale; refocused planes, which carry the light of
+    # a whole slab (of every plane, defocused), on their own
+    emission = [st for name, st in cols if name != "refocused"]
+    scales = {"emission": max(float(np.max(st)) for st in emission) or 1.0}
+    if refocused is not None:
+        scales["refocused"] = float(np.max(refocused)) or 1.0
+
+    def style(name):
+        return dict(cmap="inferno", vmin=0, vmax=scales["refocused" if name == "refocused" else "emission"])
+    images = {}
     P = len(rec.planes)
     if P <= 6:
         ext = _plane_extents(rec)
@@ -121,7 +131,7 @@ def plot_reconstruction(path, rec: Reconstruction, refocused=None, truth=None, t
                                layout="constrained")
         for k in range(P):
             for j, (name, st) in enumerate(cols):
-                im = ax[k, j].imshow(st[k], extent=ext[k], **style)
+                images[name] = ax[k, j].imshow(st[k], extent=ext[k], **style(name))
                 ax[k, j].set_title(f"{name} {rec.depths_mm[k]:+.1f} mm", fontsize=8)
                 ax[k, j].tick_params(labelsize=6)
                 if j == 0:
@@ -134,7 +144,7 @@ def plot_reconstruction(path, rec: Reconstruction, refocused=None, truth=None, t
         rows, ncol = rec.planes.shape[1:]
         X, Y = _side_mesh(depths, sample[:, 0], rows)
         ref = cols[-1][1][order] if truth is not None else np.asarray(rec.planes)[order]
-        k0, _, c0 = np.unravel_index(int(np.argmax(ref)), ref.shape)
+        k0, c0 = np.unravel_index(int(np.argmax(ref.sum(axis=1))), (len(ref), ncol))   # the brightest column
         x0 = (c0 + 0.5 - ncol / 2) * sample[k0, 1]
         # column coordinate of x0 on each plane's grid: linear interpolation between columns
         cpos = x0 / sample[:, 1] + ncol / 2 - 0.5
@@ -145,25 +155,27 @@ def plot_reconstruction(path, rec: Reconstruction, refocused=None, truth=None, t
         fig, ax = plt.subplots(len(cols), 3, figsize=(10.5, 3.6 * len(cols)), squeeze=False, layout="constrained")
         for j, (name, st) in enumerate(cols):
             st = st[order]
-            im = ax[j, 0].imshow(st.max(axis=0), **style)
+            images[name] = ax[j, 0].imshow(st.max(axis=0), **style(name))
             ax[j, 0].set_title(f"{name}: max over depth", fontsize=8)
             ax[j, 0].set_xlabel("column (lenslet)", fontsize=7)
             ax[j, 0].set_ylabel("row (lenslet)", fontsize=7)
-            ax[j, 1].pcolormesh(X, Y, st.max(axis=2).T, shading="flat", **style)
+            ax[j, 1].pcolormesh(X, Y, st.max(axis=2).T, shading="flat", **style(name))
             ax[j, 1].set_title(f"{name}: max over x", fontsize=8)
             kk = np.arange(len(st))
             sl = (st[kk, :, lo[kk]] * (1 - f)[:, None] + st[kk, :, hi[kk]] * f[:, None]) * inside[:, None]
-            ax[j, 2].pcolormesh(X, Y, sl.T, shading="flat", **style)
-            ax[j, 2].set_title(f"{name}: slice at x = {x0:+.2f} mm (brightest {'truth' if truth is not None else 'sample'})",
-                               fontsize=8)
+            ax[j, 2].pcolormesh(X, Y, sl.T, shading="flat", **style(name))
+            ax[j, 2].set_title(f"{name}: slice at x = {x0:+.2f} mm", fontsize=8)
             for a in ax[j, 1:]:
                 a.set_xlabel("depth (mm from the focal plane)", fontsize=7)
                 a.set_ylabel("y (mm)", fontsize=7)
             for a in ax[j]:
                 a.tick_params(labelsize=6)
-    cb = fig.colorbar(im, ax=ax, shrink=0.6)
-    cb.set_label("radiance (the scene's units)", fontsize=8)
-    cb.ax.tick_params(labelsize=7)
+    for name, label in (("reconstructed", "emission (the scene's radiance units)"),
+                        ("refocused", "refocused (the scene's radiance units)")):
+        if name in images:
+            cb = fig.colorbar(images[name], ax=ax, shrink=0.45)
+            cb.set_label(label, fontsize=8)
+            cb.ax.tick_params(labelsize=7)
     fig.suptitle(title or f"{rec.solver}, {rec.settings.get('iters', 0)} iterations, {rec.time_s:.2f} s", fontsize=9)
     fig.savefig(path, dpi=110)
     plt.close(fig)
