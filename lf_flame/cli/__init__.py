@@ -89,7 +89,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--nominal", action="store_true", help="the nominal scene (no random variation)")
     s.add_argument("--views", action="store_true", help="also store sub-aperture views (N, N, R, C)")
     s.add_argument("--crosstalk", action="store_true", help="add crosstalk through neighbouring lenslets")
-    s.add_argument("--bit-depth", type=int, help="quantise the raw image to this many bits")
+    s.add_argument("--bit-depth", type=int, help="quantise the raw image to this many bits (default: not quantised)")
     s.add_argument("--depth", type=float, default=0.0, help="point scene: depth offset (mm)")
     s.add_argument("--y", type=float, default=0.0, help="point scene: height (mm)")
     s.add_argument("--x", type=float, default=0.0, help="point scene: lateral position (mm)")
@@ -99,7 +99,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("white", help="white (flat-field) image: PNG, TIFF, .npy or .npz")
     s.add_argument("--dark", help="dark frame, subtracted first")
     s.add_argument("--layout", choices=["auto", "square", "hex"], default="auto",
-                   help="lenslet grid; auto: told by the angle between the white image's lattice vectors (90°: square, 60°: hex)")
+                   help="lenslet grid; auto: told by the angle between the white image's lattice vectors "
+                        "(90°: square, 60°: hex)")
     s.add_argument("--camera-id", help="name of the camera, stored and checked by decode")
     s.add_argument("--out", required=True, help="calibration JSON")
     s.set_defaults(func=cmd_calibrate)
@@ -226,8 +227,8 @@ def build_parser() -> argparse.ArgumentParser:
                        "the simulator as the forward operator) -> HDF5 and a figure")
     s.add_argument("raw", help=RAW_FORMATS + ", or views .h5 from 'lf-flame decode'")
     s.add_argument("--depth", type=float, action="append",
-                   help="plane depth (mm from the focal plane; repeatable). Default: the depths of the objects "
-                        "stored in a simulated .npz, else the paper's four planes, "
+                   help="plane depth (mm from the focal plane; repeatable). Default: the depths of the objects that "
+                        "'lf-flame simulate' stored (.npz or .png), else the paper's four planes, "
                         + ", ".join(f"{d:+g}" for d in PAPER_DEPTHS_MM) + " mm")
     s.add_argument("--slope", type=float, action="append", help="plane slope instead of a depth (repeatable)")
     s.add_argument("--solver", choices=list(SOLVERS), default=DEFAULT_SOLVER,
