@@ -305,6 +305,31 @@ def test_flame_tail_experiment_writes_csv_and_md(tmp_path):
     assert "% > 1 mm trusted" in md and "Detector's confusion" in md and "--seed0 990000" in md
 
 
+def test_a_route_is_parsed_once_into_one_value():
+    """Every caller (command line, recordings, diagnostics, experiments) gets the same Route
+    from a name: the adjoint is plain refocusing under both its names (issue 34, 2.1)."""
+    from lf_flame.measure.diagnostics import EMISSION_MEASURE, measure_settings
+    from lf_flame.routes import Route, parse_route, route_names
+    adj = parse_route("reconstruct-adjoint")
+    assert adj == parse_route("refocus-adjoint") and (adj.kind, adj.solver, adj.tomographic) == ("refocus", "adjoint",
+                                                                                                 True)
+    assert parse_route("refocus-shift-sum") == parse_route("shift-sum") == Route("refocus", "shift-sum")
+    assert parse_route("shift-sum-nearest").options == {"interpolation": "nearest"}
+    assert parse_route("fourier").options == {"method": "fourier"}
+    pd_tv = parse_route("reconstruct-pd-tv")
+    assert (pd_tv.kind, pd_tv.solver, pd_tv.emission, pd_tv.tomographic) == ("emission", "pd-tv", True, True)
+    assert parse_route("truth").emission and not parse_route("truth").tomographic
+    assert parse_route("network").kind == "learned" and parse_route("ground-truth").kind == "stored"
+    assert parse_route(pd_tv) is pd_tv
+    for name in route_names():
+        r = parse_route(name)
+        assert measure_settings(name) == measure_settings(r) == (EMISSION_MEASURE if r.kind == "emission" else {})
+    with pytest.raises(ValueError, match="unknown route 'reconstruct-bogus'.*shift-sum"):
+        parse_route("reconstruct-bogus")
+    with pytest.raises(ValueError, match="unknown route"):
+        measure_settings("refocus")
+
+
 def test_planes_of_emission_are_measured_with_their_own_edges():
     """On the true emission (sharp: no other plane's blur), the emission settings' edges
     lie closer to the flame's than the refocused planes' defaults, which undershoot the
@@ -314,6 +339,8 @@ def test_planes_of_emission_are_measured_with_their_own_edges():
     from lf_flame.tomo.truth import scene_truth
     assert measure_settings("reconstruct-pd-tv") == measure_settings("truth") == EMISSION_MEASURE
     assert measure_settings("shift-sum") == measure_settings("refocus-adjoint") == {}
+    # the command line's name of the same plain refocusing is measured the same way
+    assert measure_settings("reconstruct-adjoint") == {}
     errs = {"truth": [], "shift-sum": []}
     for seed in (1, 2, 3):
         sc = scenes.flame_scene(CAM, np.random.default_rng(seed), template_scale=TEMPLATE_SCALE, regime="paper")

@@ -11,13 +11,37 @@ from __future__ import annotations
 import argparse
 import sys
 
-from .learning import LEARNED_ROUTES, cmd_dataset, cmd_evaluate, cmd_predict, cmd_tables, cmd_train
+from ..routes import LEARNED_ROUTES
+from ..simulate.scenes import PAPER_DEPTHS_MM
+from ..tomo.defaults import DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV, SOLVERS
+from ._io import RAW_FORMATS
+from .learning import cmd_dataset, cmd_evaluate, cmd_predict, cmd_tables, cmd_train
 from .optics import cmd_refocus, cmd_simulate, cmd_slopes
 from .profiles import cmd_profiles
 from .real import cmd_calibrate, cmd_decode
 from .sequence import cmd_sequence, cmd_simulate_sequence
 from .volume import cmd_reconstruct
-from ..tomo.solvers import DEFAULT_SOLVER, DEFAULT_TV, SOLVERS
+
+# The commands' modules import only NumPy at the top: each command imports the libraries
+# it uses (PyLops, TensorFlow, Dask, Numba, Matplotlib, SciPy ...) when it runs, so
+# ``lf-flame --help`` stays fast (tests/test_cli.py checks which modules it loads).
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Every option's help ends with its default, ``(default: ...)``; options without one
+    (``None``) say in their help what happens without them."""
+
+    def _get_help_string(self, action):
+        if action.default is None:
+            return action.help
+        return super()._get_help_string(action)
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose help (and its sub-commands') shows the defaults."""
+
+    def __init__(self, *args, formatter_class=HelpFormatter, **kwargs):
+        super().__init__(*args, formatter_class=formatter_class, **kwargs)
 
 
 def _level_or_none(text: str):
@@ -39,26 +63,33 @@ def _sequence_scene_args(s, simulate_only=False):
                    "first (repeatable; default drawn from 5-20 Hz)")
     s.add_argument("--noise", action="store_true", help=pre + "shot and read noise, 12 bits")
     s.add_argument("--seed", type=int, default=0, help=pre + "seed of the frequencies, phases and jitter")
-    s.add_argument("--rays-per-pixel", type=int, default=4)
+    s.add_argument("--rays-per-pixel", type=int, default=4, help=pre + "rays traced per sensor pixel")
     s.add_argument("--data-config", help="TOML with a [camera] table (default: the file's, else the paper's camera)")
-    s.add_argument("--quiet", action="store_true")
+    s.add_argument("--quiet", action="store_true", help="no progress bar")
 
 
-def main(argv=None):
-    p = argparse.ArgumentParser(prog="lf-flame", description="Light-field refocusing of burner flames: "
-                                "simulate, refocus, build datasets, train and evaluate the paper's model.")
+def build_parser() -> argparse.ArgumentParser:
+    """The ``lf-flame`` argument parser: one sub-parser per command."""
+    p = _Parser(prog="lf-flame", description="Light-field refocusing of burner flames: "
+                "simulate, refocus, build datasets, train and evaluate the paper's model.")
     sub = p.add_subparsers(dest="command", required=True)
 
     s = sub.add_parser("simulate", help="render a raw light-field image of a scene")
-    s.add_argument("--scene", choices=["shapes", "flame", "point"], required=True)
-    s.add_argument("--out", required=True, help=".npz (raw, camera, objects[, views]) or .png")
-    s.add_argument("--seed", type=int, default=0)
-    s.add_argument("--rays-per-pixel", type=int, default=16)
+    s.add_argument("--scene", choices=["shapes", "flame", "point"], required=True,
+                   help="shapes: the paper's four shapes (rectangle, triangle, circle, square); flame: four "
+                        "flames; both at the paper's depths " + ", ".join(f"{d:+g}" for d in PAPER_DEPTHS_MM) +
+                        " mm; point: one point of light (--depth, --y, --x)")
+    s.add_argument("--out", required=True, help=".npz (raw, camera, objects, scene[, views]) or .png (the raw "
+                   "image in 16 bits, clipped at 1, with the camera, objects and scene in its text); both read by "
+                   "the commands that take a raw image")
+    s.add_argument("--seed", type=int, default=0, help="seed of the scene's random variation and of the rays")
+    s.add_argument("--rays-per-pixel", type=int, default=16, help="rays traced per sensor pixel (fewer: faster, "
+                   "noisier)")
     s.add_argument("--data-config", help="TOML with a [camera] table (default: the paper's camera)")
     s.add_argument("--nominal", action="store_true", help="the nominal scene (no random variation)")
     s.add_argument("--views", action="store_true", help="also store sub-aperture views (N, N, R, C)")
     s.add_argument("--crosstalk", action="store_true", help="add crosstalk through neighbouring lenslets")
-    s.add_argument("--bit-depth", type=int, help="quantise the raw image to this many bits")
+    s.add_argument("--bit-depth", type=int, help="quantise the raw image to this many bits (default: not quantised)")
     s.add_argument("--depth", type=float, default=0.0, help="point scene: depth offset (mm)")
     s.add_argument("--y", type=float, default=0.0, help="point scene: height (mm)")
     s.add_argument("--x", type=float, default=0.0, help="point scene: lateral position (mm)")
@@ -67,7 +98,9 @@ def main(argv=None):
     s = sub.add_parser("calibrate", help="calibrate a real camera's lenslet grid from a white image")
     s.add_argument("white", help="white (flat-field) image: PNG, TIFF, .npy or .npz")
     s.add_argument("--dark", help="dark frame, subtracted first")
-    s.add_argument("--layout", choices=["auto", "square", "hex"], default="auto")
+    s.add_argument("--layout", choices=["auto", "square", "hex"], default="auto",
+                   help="lenslet grid; auto: told by the angle between the white image's lattice vectors "
+                        "(90°: square, 60°: hex)")
     s.add_argument("--camera-id", help="name of the camera, stored and checked by decode")
     s.add_argument("--out", required=True, help="calibration JSON")
     s.set_defaults(func=cmd_calibrate)
@@ -84,26 +117,30 @@ def main(argv=None):
     s.set_defaults(func=cmd_decode)
 
     s = sub.add_parser("refocus", help="refocus a raw image (or decoded views) at one or more slopes")
-    s.add_argument("raw", help=".npz from simulate, .npy, DATASET.h5:INDEX, or VIEWS.h5 from decode")
+    s.add_argument("raw", help=RAW_FORMATS + ", or VIEWS.h5 from decode")
     s.add_argument("--slope", type=float, action="append", required=True, help="lenslets per view (repeatable)")
-    s.add_argument("--method", choices=["shift-sum", "fourier"], default="shift-sum")
+    s.add_argument("--method", choices=["shift-sum", "fourier"], default="shift-sum",
+                   help="shift-and-sum of the views, or the Fourier slice")
     s.add_argument("--interpolation", choices=["bilinear", "nearest"], default="bilinear",
                    help="shift-sum only: bilinear, or whole-lenslet shifts")
-    s.add_argument("--aperture", choices=["square", "circular"], default="circular")
+    s.add_argument("--aperture", choices=["square", "circular"], default="circular",
+                   help="views summed: all, or those inside the main lens's circular aperture")
     s.add_argument("--out", required=True, help=".npz (stack) or .png (planes side by side)")
     s.set_defaults(func=cmd_refocus)
 
     s = sub.add_parser("slopes", help="sharpest slope of each object of a raw image (table and plot of the "
                        "sharpness curves); without RAW, calibrate the nominal scene of a data config")
-    s.add_argument("raw", nargs="?", help=".npz from simulate (its objects' ROIs are used), .npy, DATASET.h5:INDEX, "
+    s.add_argument("raw", nargs="?", help=RAW_FORMATS + " (a simulated .npz: its objects' ROIs are used), "
                    "or VIEWS.h5 from decode")
     s.add_argument("--roi", type=int, nargs=4, action="append", metavar=("ROW0", "ROW1", "COL0", "COL1"),
                    help="region in lenslets (repeatable; default: the stored objects, else the whole image)")
-    s.add_argument("--metric", choices=["tenengrad", "laplacian", "normvar"], default="tenengrad")
-    s.add_argument("--method", choices=["fourier", "shift-sum"], default="fourier")
-    s.add_argument("--lo", type=float, default=-3.0)
-    s.add_argument("--hi", type=float, default=3.0)
-    s.add_argument("--aperture", choices=["square", "circular"], default="circular")
+    s.add_argument("--metric", choices=["tenengrad", "laplacian", "normvar"], default="tenengrad",
+                   help="sharpness of a refocused region")
+    s.add_argument("--method", choices=["fourier", "shift-sum"], default="fourier", help="refocusing of the search")
+    s.add_argument("--lo", type=float, default=-3.0, help="lowest slope searched, lenslets per view")
+    s.add_argument("--hi", type=float, default=3.0, help="highest slope searched, lenslets per view")
+    s.add_argument("--aperture", choices=["square", "circular"], default="circular",
+                   help="views summed: all, or those inside the main lens's circular aperture")
     s.add_argument("--out-prefix", help="write PREFIX.slopes.csv and PREFIX.slopes.png (default: beside RAW)")
     s.add_argument("--data-config", help="calibration mode: data config TOML")
     s.add_argument("--out", help="calibration mode: JSON of the slopes used for ground truth")
@@ -111,17 +148,17 @@ def main(argv=None):
     s.set_defaults(func=cmd_slopes)
 
     s = sub.add_parser("dataset", help="generate (or resume) a dataset in HDF5")
-    s.add_argument("--data-config", required=True)
-    s.add_argument("--scene", choices=["shapes", "flame"], required=True)
+    s.add_argument("--data-config", required=True, help="data config TOML (camera, sizes, seed, regime)")
+    s.add_argument("--scene", choices=["shapes", "flame"], required=True, help="the paper's shapes or four flames")
     s.add_argument("--slopes", required=True, help="JSON written by 'lf-flame slopes'")
     s.add_argument("--regime", choices=["paper", "varied"],
                    help="scene variation (docs/scenes.md) instead of the data config's")
-    s.add_argument("--out", required=True)
+    s.add_argument("--out", required=True, help="dataset HDF5 (resumed when it exists)")
     s.add_argument("--shard", help="i/N: render only shard i of N (1 <= i <= N) beside --out; an unsharded "
                                    "run imports finished shards and renders the rest")
     s.add_argument("--scheduler", help="render on the Dask cluster at this address (tcp://...) or scheduler file")
     s.add_argument("--workers", type=int, help="render on a local Dask cluster of this many worker processes")
-    s.add_argument("--quiet", action="store_true")
+    s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=cmd_dataset)
 
     s = sub.add_parser("simulate-sequence", help="render a simulated recording of flickering flames to HDF5 "
@@ -153,16 +190,16 @@ def main(argv=None):
     s.set_defaults(func=cmd_sequence)
 
     s = sub.add_parser("train", help="train the decoder on cached backbone features (resumable)")
-    s.add_argument("--dataset", required=True)
-    s.add_argument("--experiment-config", required=True)
+    s.add_argument("--dataset", required=True, help="dataset HDF5 written by 'lf-flame dataset'")
+    s.add_argument("--experiment-config", required=True, help="experiment config TOML (model and training)")
     s.add_argument("--out", required=True, help="model folder")
     s.add_argument("--input-size", help="ROWSxCOLS: backbone input size instead of the config's")
     s.add_argument("--time-budget-s", type=float, help="training time budget (s) instead of the config's")
-    s.add_argument("--quiet", action="store_true")
+    s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=cmd_train)
 
     s = sub.add_parser("predict", help="the trained model's 4 refocused planes of a raw image, with its latency")
-    s.add_argument("raw", help=".npz from simulate, .npy, or DATASET.h5:INDEX")
+    s.add_argument("raw", help=RAW_FORMATS)
     s.add_argument("--model-dir", required=True, help="folder written by 'lf-flame train'")
     s.add_argument("--out", required=True, help=".npz (stack (4, R, C), latency_s) or .png (planes side by side)")
     s.add_argument("--repeat", type=int, default=5, help="timed calls after the warm-up")
@@ -172,13 +209,13 @@ def main(argv=None):
 
     s = sub.add_parser("profiles", help="flame diagnostics per plane: height, widths, centroid, intensity, "
                        "axial and radial profiles in object-space mm (CSV and figure)")
-    s.add_argument("raw", help=".npz from 'simulate --scene flame', .npy, or DATASET.h5:INDEX (the truth is "
-                               "marked when the flames' objects are known)")
+    s.add_argument("raw", help=RAW_FORMATS + " (the truth is marked when the flames' objects are known: "
+                   "'simulate --scene flame' .npz, dataset samples)")
     s.add_argument("--route", choices=["ground-truth", "shift-sum", "shift-sum-nearest", "fourier",
                                        *LEARNED_ROUTES, *(f"reconstruct-{k}" for k in SOLVERS)],
                    default="shift-sum", help="refocusing route; ground-truth: a dataset's stored planes; learned "
                    "routes need --model-dir; reconstruct-SOLVER: each plane's emission (lf-flame reconstruct, the "
-                   "solver's default iterations)")
+                   "solver's default iterations; reconstruct-adjoint is plain refocusing)")
     s.add_argument("--model-dir", help="folder written by 'lf-flame train' (learned routes)")
     s.add_argument("--slope", type=float, action="append",
                    help="one per plane (repeatable); default: the dataset's, else the analytic slopes of the depths")
@@ -188,12 +225,17 @@ def main(argv=None):
 
     s = sub.add_parser("reconstruct", help="each plane's emission from one light field (3-D reconstruction with "
                        "the simulator as the forward operator) -> HDF5 and a figure")
-    s.add_argument("raw", help=".npz from simulate, .npy, DATASET.h5:INDEX, or views .h5 from 'lf-flame decode'")
-    s.add_argument("--depth", type=float, action="append", help="plane depth (mm from the focal plane; repeatable)")
+    s.add_argument("raw", help=RAW_FORMATS + ", or views .h5 from 'lf-flame decode'")
+    s.add_argument("--depth", type=float, action="append",
+                   help="plane depth (mm from the focal plane; repeatable). Default: the depths of the objects that "
+                        "'lf-flame simulate' stored (.npz or .png), else the paper's four planes, "
+                        + ", ".join(f"{d:+g}" for d in PAPER_DEPTHS_MM) + " mm")
     s.add_argument("--slope", type=float, action="append", help="plane slope instead of a depth (repeatable)")
     s.add_argument("--solver", choices=list(SOLVERS), default=DEFAULT_SOLVER,
-                   help="default: the one chosen on validation renders (make reconstruct)")
-    s.add_argument("--iters", type=int, help="iterations (default: the solver's, chosen on validation renders)")
+                   help="the default is the one chosen on validation renders (make reconstruct); adjoint: plain "
+                        "refocusing through the operator's rays")
+    s.add_argument("--iters", type=int, help="iterations (default: the solver's, chosen on validation renders: "
+                   + ", ".join(f"{k} {v}" for k, v in DEFAULT_ITERS.items()) + ")")
     s.add_argument("--damp", type=float, default=0.0, help="LSQR damping (Tikhonov)")
     s.add_argument("--tv", type=float, default=DEFAULT_TV, help="TV weight of pd-tv")
     s.add_argument("--saturation", type=_level_or_none, default=1.0,
@@ -205,22 +247,25 @@ def main(argv=None):
     s.set_defaults(func=cmd_reconstruct)
 
     s = sub.add_parser("evaluate", help="SSIM/PSNR per plane on the test split, table and figure")
-    s.add_argument("--dataset", required=True)
-    s.add_argument("--model-dir", required=True)
-    s.add_argument("--results", required=True)
+    s.add_argument("--dataset", required=True, help="dataset HDF5 written by 'lf-flame dataset'")
+    s.add_argument("--model-dir", required=True, help="folder written by 'lf-flame train'")
+    s.add_argument("--results", required=True, help="folder for the table (CSV) and figure")
     s.add_argument("--heldout", type=int, default=0,
                    help="also score a second held-out set of this many samples, drawn with --heldout-seed")
     s.add_argument("--heldout-seed", type=int, default=None,
-                   help="seed of the second held-out set (not the dataset's seed)")
+                   help="seed of the second held-out set: needed with --heldout, not the dataset's seed")
     s.set_defaults(func=cmd_evaluate)
 
     s = sub.add_parser("tables", help="collect Tables I and II, slopes and stage times into tables.md")
-    s.add_argument("--results", required=True)
-    s.add_argument("--data-dir", required=True)
-    s.add_argument("--model-dir", required=True)
+    s.add_argument("--results", required=True, help="results folder: reads the evaluations, writes tables.md")
+    s.add_argument("--data-dir", required=True, help="folder of the datasets and slopes.json")
+    s.add_argument("--model-dir", required=True, help="folder of the trained models")
     s.set_defaults(func=cmd_tables)
+    return p
 
-    a = p.parse_args(argv)
+
+def main(argv=None):
+    a = build_parser().parse_args(argv)
     try:
         a.func(a)
     except (ValueError, FileNotFoundError) as e:

@@ -9,8 +9,41 @@ from pathlib import Path
 import numpy as np
 
 
+#: What the commands read as a raw image (``--help`` and the refusals name it).
+RAW_FORMATS = (".npz from 'lf-flame simulate' (key 'raw'), .npy, a PNG or TIFF image (integers scaled to [0, 1]; "
+               "'simulate --out RAW.png' stores its camera and objects in the PNG, other images and .npy get the "
+               "paper's camera), or DATASET.h5:INDEX")
+#: What ``simulate`` stores beside the raw image (JSON strings): arrays of its .npz, text of its PNG (``lf_flame.KEY``).
+META_KEYS = ("camera", "objects", "scene")
+#: Image files read as a raw image (scikit-image).
+IMAGE_SUFFIXES = (".png", ".tif", ".tiff")
+
+
+def _read_image(p: Path) -> np.ndarray:
+    """A PNG/TIFF raw image as float64 (rows, cols): integers scaled to [0, 1] by their type's
+    range (what ``simulate --out RAW.png`` wrote reads back as the clipped raw image,
+    quantised to 8 bits), colour averaged to gray."""
+    from skimage import io, util
+    try:
+        a = io.imread(p)
+    except Exception as e:  # the image readers raise many kinds
+        raise ValueError(f"{p} is not a readable image: {e}") from None
+    a = util.img_as_float64(a)
+    if a.ndim == 3 and a.shape[-1] in (3, 4):
+        a = a[..., :3].mean(axis=-1)
+    return a
+
+
 def _load_raw(path):
-    """A raw image from .npz (key 'raw'), .npy, or a dataset sample 'file.h5:INDEX'."""
+    """A raw image (rows, cols) and its camera (or None): see :data:`RAW_FORMATS`.
+
+    Raises
+    ------
+    ValueError
+        A file of another kind (the message names the formats read), or not a 2-D image.
+    SystemExit
+        The file does not exist.
+    """
     s = str(path)
     if ".h5:" in s:
         from ..learn.dataset import LightFieldDataset
@@ -20,22 +53,65 @@ def _load_raw(path):
     p = Path(s)
     if not p.is_file():
         raise SystemExit(f"error: raw image file not found: {p}")
-    if p.suffix == ".npz":
+    suffix = p.suffix.lower()
+    if suffix == ".npz":
         with np.load(p) as z:
-            from ..optics.camera import PlenopticCamera
-            cam = PlenopticCamera.from_dict(json.loads(str(z["camera"]))) if "camera" in z else None
-            return z["raw"], cam
-    return np.load(p), None
+            if "raw" not in z:
+                raise ValueError(f"{p} holds no raw image (its arrays: {', '.join(z.files)}). A raw image is "
+                                 + RAW_FORMATS)
+            raw = z["raw"]
+    elif suffix == ".npy":
+        try:
+            raw = np.load(p)
+        except ValueError:   # NumPy's message speaks of pickles: not the user's problem
+            raise ValueError(f"{p} is not a NumPy array file. A raw image is " + RAW_FORMATS) from None
+    elif suffix in IMAGE_SUFFIXES:
+        raw = _read_image(p)
+    else:
+        raise ValueError(f"cannot read {p} as a raw image ({suffix or 'no suffix'}). A raw image is " + RAW_FORMATS)
+    if raw.ndim != 2:
+        raise ValueError(f"{p}: an array of shape {raw.shape} is not a raw image (rows, cols)")
+    meta = _raw_meta(p)
+    cam = None
+    if "camera" in meta:
+        from ..optics.camera import PlenopticCamera
+        cam = PlenopticCamera.from_dict(json.loads(meta["camera"]))
+    return raw, cam
+
+
+def _raw_meta(path) -> dict:
+    """What ``simulate`` stored beside a raw image (:data:`META_KEYS` -> JSON string): the
+    arrays of its .npz or the text of its PNG; empty for any other file."""
+    p = Path(str(path))
+    suffix = p.suffix.lower()
+    if suffix == ".npz" and p.is_file():
+        with np.load(p) as z:
+            return {k: str(z[k]) for k in META_KEYS if k in z}
+    if suffix == ".png" and p.is_file():
+        from PIL import Image
+        with Image.open(p) as im:
+            text = dict(getattr(im, "text", {}))
+        return {k: text[f"lf_flame.{k}"] for k in META_KEYS if f"lf_flame.{k}" in text}
+    return {}
 
 
 def _load_views(path):
     """Sub-aperture views (N, N, R, C) and the camera (or None) of RAW: a file of views
     decoded by ``lf-flame decode`` (.h5 without ':INDEX'), else a raw image of the
-    simulated camera split by :func:`lf_flame.refocus.shift_and_sum.raw_to_views`."""
+    simulated camera split by :func:`lf_flame.refocus.shift_and_sum.raw_to_views`.
+
+    Raises
+    ------
+    ValueError
+        An .h5 file that is not decoded views, or a file that is no raw image (:func:`_load_raw`).
+    """
     s = str(path)
     if s.endswith(".h5") and ".h5:" not in s:
         from ..real.decoding import load_views
-        return load_views(s)[0], None
+        try:
+            return load_views(s)[0], None
+        except ValueError as e:
+            raise ValueError(f"{e}. Reads views .h5 from 'lf-flame decode', or a raw image: {RAW_FORMATS}") from None
     from ..optics.camera import PAPER_CAMERA
     from ..refocus.shift_and_sum import raw_to_views
     raw, cam = _load_raw(path)
@@ -43,11 +119,16 @@ def _load_views(path):
     return raw_to_views(raw, cam.pixels_per_lenslet), cam
 
 
-def _save_image(path, img):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    plt.imsave(path, np.clip(img, 0, 1), cmap="gray", vmin=0, vmax=1)
+def _save_image(path, img, metadata=None, bits: int = 8):
+    """An image in [0, 1] as a gray PNG of ``bits`` (8 or 16) bits: clipped, rounded to the
+    nearest level; ``metadata`` (str -> str) goes in its text chunks."""
+    from PIL import Image, PngImagePlugin
+    top = (1 << bits) - 1
+    q = np.round(np.clip(np.asarray(img, np.float64), 0, 1) * top).astype(np.uint16 if bits > 8 else np.uint8)
+    info = PngImagePlugin.PngInfo()
+    for k, v in (metadata or {}).items():
+        info.add_text(k, v)
+    Image.fromarray(q).save(path, pnginfo=info)
 
 
 def _write_stack(path, stack, **extra):
@@ -63,7 +144,42 @@ def _write_stack(path, stack, **extra):
 
 def _raw_objects(path):
     """The objects (with ``roi``) that ``lf-flame simulate`` stored beside the raw image, if any."""
-    if not str(path).endswith(".npz"):
+    meta = _raw_meta(path)
+    return json.loads(meta["objects"]) if "objects" in meta else None
+
+
+def simulated_scene(record: dict, camera):
+    """The scene of ``lf-flame simulate`` from its record (``kind``, ``seed``, ``nominal``; a
+    point: ``depth_mm``, ``y_mm``, ``x_mm``), the one it renders and stores beside the raw image."""
+    from ..simulate import scenes
+    if record["kind"] == "point":
+        return scenes.point_scene(camera, record["depth_mm"], record["y_mm"], record["x_mm"])
+    return scenes.SCENES[record["kind"]](camera, np.random.default_rng(record["seed"]), vary=not record["nominal"])
+
+
+def _raw_scene(path, camera):
+    """The scene ``lf-flame simulate`` rendered into RAW (an .npz), rebuilt from its record,
+    or None: no record (another file, an older one), or a rebuilt scene whose objects are
+    not the stored ones (the scenes have changed since)."""
+    meta = _raw_meta(path)
+    if "scene" not in meta or "objects" not in meta:
         return None
-    with np.load(path) as z:
-        return json.loads(str(z["objects"])) if "objects" in z else None
+    record, objects = json.loads(meta["scene"]), json.loads(meta["objects"])
+    sc = simulated_scene(record, camera)
+    return sc if json.loads(json.dumps(sc.objects, default=float)) == objects else None
+
+
+def camera_config(path):
+    """The camera of a TOML file's ``[camera]`` table (the paper's values for the keys it
+    leaves out); the file's other tables (``[dataset]`` ...) are not read, so a TOML holding
+    only a camera serves ``simulate`` and ``simulate-sequence``.
+
+    Raises
+    ------
+    ValueError
+        An unknown key in ``[camera]``, or a camera the optics refuse.
+    """
+    from ..config import _build, load_toml
+    from ..optics.camera import PlenopticCamera
+    return _build(PlenopticCamera, load_toml(path).get("camera", {}), f"{path} [camera]")
+

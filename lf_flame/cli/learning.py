@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..routes import LEARNED_ROUTES
 from ._io import _load_raw, _write_stack
 
 
@@ -47,11 +48,6 @@ def cmd_train(a):
     info = train(a.dataset, a.out, mcfg, tcfg, progress=not a.quiet)
     print(f"trained {info['epochs_run']} epochs in {info['training_wall_time_s']:.0f} s "
           f"(best validation SSIM {info['best_val_ssim']:.4f} at epoch {info['best_epoch']}, backbone {info['backbone_weights']}) -> {a.out}")
-
-
-#: ``--route`` names of the learned routes -> the names they carry in a model folder.
-LEARNED_ROUTES = {"network": "network", "mean-image": "mean image", "linear-gap": "linear decoder (GAP-pooled)",
-                  "linear-unpooled": "linear decoder (un-pooled)"}
 
 
 def _learned_runner(raw, cam, raw_name, model_dir, route):

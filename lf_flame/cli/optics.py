@@ -10,19 +10,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import _load_views, _raw_objects, _save_image, _write_stack
+from ._io import _load_views, _raw_objects, _save_image, _write_stack, camera_config, simulated_scene
 
 
 def cmd_simulate(a):
-    from ..simulate import scenes
     from ..simulate import tracer as simulate
     from ..optics.camera import PAPER_CAMERA
-    from ..config import load_data_config
-    cam = load_data_config(a.data_config)[0] if a.data_config else PAPER_CAMERA
-    if a.scene == "point":
-        sc = scenes.point_scene(cam, a.depth, a.y, a.x)
-    else:
-        sc = scenes.SCENES[a.scene](cam, np.random.default_rng(a.seed), vary=not a.nominal)
+    cam = camera_config(a.data_config) if a.data_config else PAPER_CAMERA
+    record = dict(kind=a.scene, seed=a.seed, nominal=a.nominal, depth_mm=a.depth, y_mm=a.y, x_mm=a.x)
+    sc = simulated_scene(record, cam)
     if a.crosstalk or a.bit_depth:
         import dataclasses
         sc = dataclasses.replace(sc, effects=dataclasses.replace(sc.effects, crosstalk=a.crosstalk or
@@ -32,15 +28,15 @@ def cmd_simulate(a):
     dt = time.perf_counter() - t
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
+    meta = dict(camera=cam.to_json(), objects=json.dumps(sc.objects, default=float), scene=json.dumps(record))
     if out.suffix == ".png":
-        _save_image(out, raw)
+        _save_image(out, raw, {f"lf_flame.{k}": v for k, v in meta.items()}, bits=16)
     else:
         extra = {}
         if a.views:
             from ..refocus.shift_and_sum import raw_to_views
             extra["views"] = raw_to_views(raw, cam.pixels_per_lenslet)
-        np.savez_compressed(out, raw=raw, camera=cam.to_json(), objects=json.dumps(sc.objects, default=float),
-                            **extra)
+        np.savez_compressed(out, raw=raw, **meta, **extra)
     print(f"rendered {sc.name} {raw.shape} at {a.rays_per_pixel} rays/pixel in {dt:.2f} s -> {out}")
 
 

@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from ._io import _load_raw, _raw_objects
-from .learning import LEARNED_ROUTES, _learned_runner
+from ..routes import parse_route
+from .learning import _learned_runner
 
 
 def _profiles_input(a):
@@ -38,23 +39,24 @@ def _profiles_input(a):
     if len(slopes) != len(depths):
         raise ValueError(f"need {len(depths)} slopes, one per plane. Received: {slopes}")
     n = cam.pixels_per_lenslet
-    if a.route == "ground-truth":
+    route = parse_route(a.route)
+    if route.kind == "stored":
         if gt is None:
             raise ValueError("--route ground-truth needs a dataset sample DATASET.h5:INDEX")
         stack = gt
-    elif a.route in LEARNED_ROUTES:
+    elif route.kind == "learned":
         if not a.model_dir:
             raise ValueError(f"--route {a.route} needs --model-dir")
-        run, _ = _learned_runner(raw, cam, a.raw, a.model_dir, a.route)
+        run, _ = _learned_runner(raw, cam, a.raw, a.model_dir, route.solver)
         stack = run(raw.astype(np.float32)[None, ..., None])
-    elif a.route.startswith("reconstruct-"):
+    elif route.tomographic:
         from ..refocus.shift_and_sum import raw_to_views
-        from .volume import run_reconstruction
-        stack = run_reconstruction(cam, raw_to_views(raw, n), depths, a.route.split("-", 1)[1])[1].planes
+        from .volume import run_reconstruction, saturation_note
+        rec = run_reconstruction(cam, raw_to_views(raw, n), depths, route.solver)[1]
+        print(saturation_note(rec))
+        stack = rec.planes
     else:
-        kw = {"shift-sum": {}, "shift-sum-nearest": dict(interpolation="nearest"),
-              "fourier": dict(method="fourier")}[a.route]
-        stack = refocus(raw, slopes, n, aperture_mask(n, "circular"), **kw)
+        stack = refocus(raw, slopes, n, aperture_mask(n, "circular"), **route.options)
     return cam, np.asarray(stack), depths, list(slopes), objects
 
 

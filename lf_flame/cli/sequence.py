@@ -20,8 +20,8 @@ def _sequence_of(a, cam):
 def _camera(a):
     from ..optics.camera import PAPER_CAMERA
     if getattr(a, "data_config", None):
-        from ..config import load_data_config
-        return load_data_config(a.data_config)[0]
+        from ._io import camera_config
+        return camera_config(a.data_config)
     return PAPER_CAMERA
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import _load_views, _raw_objects
+from ._io import _load_views, _raw_objects, _raw_scene
 
 
 def reconstruct_input(a):
@@ -16,6 +16,10 @@ def reconstruct_input(a):
     from ..simulate.scenes import PAPER_DEPTHS_MM
     views, cam = _load_views(a.raw)
     cam = cam or PAPER_CAMERA
+    if views.shape[2:] != (cam.n_rows, cam.n_cols):
+        raise ValueError(f"{a.raw}: views of {views.shape[2]} x {views.shape[3]} lenslets, but the camera (the "
+                         f"paper's when the file stores none: PNG, TIFF, .npy, decoded views) has {cam.n_rows} x "
+                         f"{cam.n_cols}; give the .npz that 'lf-flame simulate' writes, which stores its camera")
     objects = _raw_objects(a.raw)
     if getattr(a, "depth", None) and getattr(a, "slope", None):
         raise ValueError("give the planes as --depth or as --slope, not both")
@@ -40,18 +44,32 @@ def run_reconstruction(cam, views, depths, solver, iters=None, *, damp=0.0, tv=N
                            saturation=saturation, progress=progress)
 
 
+def saturation_note(rec) -> str:
+    """What the fit left out: the count of saturated pixels (``reconstruct``'s settings)."""
+    level, n = rec.settings.get("saturation"), rec.settings.get("n_saturated", 0)
+    if level is None:
+        return "saturation: none given, every pixel fitted"
+    if rec.solver == "adjoint":   # no fit: the adjoint carries every pixel back as it is
+        return f"{n} saturated pixels (at or above {level:g}), used as they are by the adjoint"
+    return f"{n} saturated pixels (at or above {level:g}) left out of the fit"
+
+
 def cmd_reconstruct(a):
     from ..tomo.files import plot_reconstruction, save_reconstruction
+    from ..tomo.truth import scene_truth
     from ..refocus.shift_and_sum import aperture_mask, focal_stack
     cam, views, depths, objects = reconstruct_input(a)
     op, rec = run_reconstruction(cam, views, depths, a.solver, a.iters, damp=a.damp, tv=a.tv,
                                  saturation=a.saturation, rays_per_pixel=a.rays_per_pixel, progress=True)
+    print(saturation_note(rec))
     out = Path(a.out)
     save_reconstruction(out, rec, source=str(a.raw), camera=cam.to_json())
     n = cam.pixels_per_lenslet
     refocused = focal_stack(views, [cam.slope_for_depth(d) for d in depths], aperture_mask(n, "circular"))
+    scene = _raw_scene(a.raw, cam)
+    truth = None if scene is None else scene_truth(scene, op)
     fig = out.with_suffix(".png")
-    plot_reconstruction(fig, rec, refocused)
+    plot_reconstruction(fig, rec, refocused, truth)
     res = f"{rec.residuals[-1]:.4f}" if len(rec.residuals) else "-"
     print(f"reconstructed {len(depths)} planes ({a.solver}, {rec.settings['iters']} iterations) in {rec.time_s:.2f} s;"
-          f" relative residual {res} -> {out}, {fig}")
+          f" relative residual {res} -> {out}, {fig}" + ("" if truth is None else " (with the scene's truth)"))

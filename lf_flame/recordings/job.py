@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..optics.camera import PlenopticCamera
+from ..routes import parse_route
 from ..simulate.scenes_time import FlameSequence
 from .sources import SimulatedSource
 
@@ -97,7 +98,10 @@ class SequenceJob:
 
     def planes(self, views: np.ndarray) -> np.ndarray:
         """The focal stack (P, R, C) of one frame, by the job's route."""
-        if self.route == "shift-sum":
+        route = parse_route(self.route)
+        if not route.tomographic and route != parse_route("shift-sum"):
+            raise ValueError(f"a recording's route is shift-sum or reconstruct-SOLVER. Received: {self.route!r}")
+        if not route.tomographic:
             from ..refocus.shift_and_sum import aperture_mask, focal_stack
             n = views.shape[0]
             return focal_stack(views, self.slopes, aperture_mask(n, "circular"))
@@ -105,7 +109,7 @@ class SequenceJob:
         from ..tomo.solvers import reconstruct
         if "op" not in self._cache:
             self._cache["op"] = EmissionOperator(self.camera, list(self.depths_mm), rays_per_pixel=4)
-        return reconstruct(views, self._cache["op"], self.route.split("-", 1)[1]).planes
+        return reconstruct(views, self._cache["op"], route.solver).planes
 
 
 def simulated_job(seq: FlameSequence, camera: PlenopticCamera, source=None, *, route: str = "shift-sum",

@@ -13,7 +13,7 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["files", "operator", "scoring", "solvers", "truth"],
+    submodules=["defaults", "files", "operator", "scoring", "solvers", "truth"],
     submod_attrs={
         "files": ["save_reconstruction", "load_reconstruction", "plot_reconstruction"],
         "operator": ["ADJOINT_BLOCKS", "RAY_TABLE_MAX_BYTES", "plane_grid", "EmissionOperator", "check_views"],

@@ -61,39 +61,121 @@ def load_reconstruction(path) -> Reconstruction:
                               json.loads(f.attrs["settings"]), f["residuals"][...], float(f.attrs["time_s"]))
 
 
+def _plane_extents(rec: Reconstruction) -> list:
+    """Each plane's (left, right, bottom, top) in mm (x right, y up), the grid centred on the
+    optical axis (:func:`lf_flame.tomo.operator.plane_grid`)."""
+    out = []
+    for plane, (h, w) in zip(rec.planes, rec.sample_mm):
+        H, W = plane.shape[0] * h, plane.shape[1] * w
+        out.append((-W / 2, W / 2, -H / 2, H / 2))
+    return out
+
+
+def _side_mesh(depths, sample_h, rows):
+    """Vertices (rows + 1, P + 1) of a side view (depth across, y up) of planes sorted by
+    depth: each plane spans half the spacing to its neighbours, and its rows span its own
+    height in mm (a grid's sample height grows linearly with depth; the edges' heights
+    are that line's)."""
+    d = np.asarray(depths, np.float64)
+    mid = (d[1:] + d[:-1]) / 2
+    edges = np.concatenate([[d[0] - (mid[0] - d[0])], mid, [d[-1] + (d[-1] - mid[-1])]])
+    h = np.polyval(np.polyfit(d, sample_h, 1), edges)
+    r = np.arange(rows + 1)[:, None]
+    return np.broadcast_to(edges, (rows + 1, len(edges))), (rows / 2 - r) * h[None, :]
+
+
 def plot_reconstruction(path, rec: Reconstruction, refocused=None, truth=None, title: str = "") -> None:
     """Each plane beside its refocused plane and, when known, the truth (one row per plane).
 
-    With more than 6 planes (a volume) the figure shows instead the maximum-intensity
-    projections along depth and along the columns, and the central slices.
+    Every panel is in object-space mm (x right, y up; each plane on its own grid, centred on
+    the optical axis). Reconstructed and true emission share one colour scale from 0; the
+    refocused planes, which carry the light of every plane (defocused), have their own
+    (a colour bar each, the scene's radiance units). With more than 6 planes (a volume)
+    the figure shows instead, per column: the maximum over depth (each plane's grid, as
+    the camera sees it: lenslets), a side view (maximum over x) and a slice at one x (mm)
+    through the brightest column (summed over rows) of the truth, else of the
+    reconstruction, depth across: each plane is drawn over half the spacing to its
+    neighbours, at its own height in mm.
+
+    Parameters
+    ----------
+    path : str or Path
+        The figure (PNG).
+    rec : Reconstruction
+    refocused, truth : ndarray of shape (P, rows, cols) or None
+        The planes refocused at the same depths on the same grid, and the true emission
+        (:func:`lf_flame.tomo.truth.scene_truth`).
+    title : str
+        The figure's title (default: the solver, its iterations and time).
     """
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    cols = [("reconstructed", rec.planes)] + ([("refocused", refocused)] if refocused is not None else []) + \
-        ([("truth", truth)] if truth is not None else [])
-    vmax = max(float(np.max(c[1])) for c in cols) or 1.0
+    cols = [("reconstructed", np.asarray(rec.planes))]
+    cols += [("refocused", np.asarray(refocused))] if refocused is not None else []
+    cols += [("truth", np.asarray(truth))] if truth is not None else []
+    # emission (reconstructed, truth) on one scale; refocused planes, which carry the light of
+    # a whole slab (of every plane, defocused), on their own
+    emission = [st for name, st in cols if name != "refocused"]
+    scales = {"emission": max(float(np.max(st)) for st in emission) or 1.0}
+    if refocused is not None:
+        scales["refocused"] = float(np.max(refocused)) or 1.0
+
+    def style(name):
+        return dict(cmap="inferno", vmin=0, vmax=scales["refocused" if name == "refocused" else "emission"])
+    images = {}
     P = len(rec.planes)
     if P <= 6:
-        fig, ax = plt.subplots(P, len(cols), figsize=(2.2 * len(cols), 3.6 * P), squeeze=False)
+        ext = _plane_extents(rec)
+        fig, ax = plt.subplots(P, len(cols), figsize=(2.4 * len(cols) + 1.0, 3.7 * P), squeeze=False,
+                               layout="constrained")
         for k in range(P):
             for j, (name, st) in enumerate(cols):
-                ax[k, j].imshow(st[k], cmap="inferno", vmin=0, vmax=vmax)
+                images[name] = ax[k, j].imshow(st[k], extent=ext[k], **style(name))
                 ax[k, j].set_title(f"{name} {rec.depths_mm[k]:+.1f} mm", fontsize=8)
-                ax[k, j].axis("off")
+                ax[k, j].tick_params(labelsize=6)
+                if j == 0:
+                    ax[k, j].set_ylabel("y (mm)", fontsize=7)
+                ax[k, j].set_xlabel("x (mm)", fontsize=7)
     else:
-        fig, ax = plt.subplots(len(cols), 3, figsize=(9, 3.4 * len(cols)), squeeze=False)
+        order = np.argsort(rec.depths_mm)
+        depths = np.asarray(rec.depths_mm, np.float64)[order]
+        sample = np.asarray(rec.sample_mm, np.float64)[order]
+        rows, ncol = rec.planes.shape[1:]
+        X, Y = _side_mesh(depths, sample[:, 0], rows)
+        ref = cols[-1][1][order] if truth is not None else np.asarray(rec.planes)[order]
+        k0, c0 = np.unravel_index(int(np.argmax(ref.sum(axis=1))), (len(ref), ncol))   # the brightest column
+        x0 = (c0 + 0.5 - ncol / 2) * sample[k0, 1]
+        # column coordinate of x0 on each plane's grid: linear interpolation between columns
+        cpos = x0 / sample[:, 1] + ncol / 2 - 0.5
+        lo = np.clip(np.floor(cpos).astype(int), 0, ncol - 1)
+        hi = np.clip(lo + 1, 0, ncol - 1)
+        f = np.clip(cpos - lo, 0.0, 1.0)
+        inside = (cpos >= -0.5) & (cpos <= ncol - 0.5)
+        fig, ax = plt.subplots(len(cols), 3, figsize=(10.5, 3.6 * len(cols)), squeeze=False, layout="constrained")
         for j, (name, st) in enumerate(cols):
-            st = np.asarray(st)
-            ax[j, 0].imshow(st.max(axis=0), cmap="inferno", vmin=0)
-            ax[j, 0].set_title(f"{name}: MIP along depth", fontsize=8)
-            ax[j, 1].imshow(st.max(axis=2).T, cmap="inferno", aspect="auto", vmin=0,
-                            extent=(rec.depths_mm[0], rec.depths_mm[-1], st.shape[1], 0))
-            ax[j, 1].set_title(f"{name}: MIP along columns (depth mm →)", fontsize=8)
-            ax[j, 2].imshow(st[:, :, st.shape[2] // 2].T, cmap="inferno", aspect="auto", vmin=0,
-                            extent=(rec.depths_mm[0], rec.depths_mm[-1], st.shape[1], 0))
-            ax[j, 2].set_title(f"{name}: central column slice", fontsize=8)
+            st = st[order]
+            images[name] = ax[j, 0].imshow(st.max(axis=0), **style(name))
+            ax[j, 0].set_title(f"{name}: max over depth", fontsize=8)
+            ax[j, 0].set_xlabel("column (lenslet)", fontsize=7)
+            ax[j, 0].set_ylabel("row (lenslet)", fontsize=7)
+            ax[j, 1].pcolormesh(X, Y, st.max(axis=2).T, shading="flat", **style(name))
+            ax[j, 1].set_title(f"{name}: max over x", fontsize=8)
+            kk = np.arange(len(st))
+            sl = (st[kk, :, lo[kk]] * (1 - f)[:, None] + st[kk, :, hi[kk]] * f[:, None]) * inside[:, None]
+            ax[j, 2].pcolormesh(X, Y, sl.T, shading="flat", **style(name))
+            ax[j, 2].set_title(f"{name}: slice at x = {x0:+.2f} mm", fontsize=8)
+            for a in ax[j, 1:]:
+                a.set_xlabel("depth (mm from the focal plane)", fontsize=7)
+                a.set_ylabel("y (mm)", fontsize=7)
+            for a in ax[j]:
+                a.tick_params(labelsize=6)
+    for name, label in (("reconstructed", "emission (the scene's radiance units)"),
+                        ("refocused", "refocused (the scene's radiance units)")):
+        if name in images:
+            cb = fig.colorbar(images[name], ax=ax, shrink=0.45)
+            cb.set_label(label, fontsize=8)
+            cb.ax.tick_params(labelsize=7)
     fig.suptitle(title or f"{rec.solver}, {rec.settings.get('iters', 0)} iterations, {rec.time_s:.2f} s", fontsize=9)
-    fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

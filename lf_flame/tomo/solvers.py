@@ -20,21 +20,15 @@ from pyproximal.optimization.primal import ProximalGradient
 from pyproximal.optimization.primaldual import PrimalDual
 from tqdm.auto import tqdm
 
+from .defaults import DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV, SOLVERS  # noqa: F401 (re-exported)
 from .operator import EmissionOperator, check_views
 
 # ---- solvers ---------------------------------------------------------------------------
-#: Solvers of :func:`reconstruct`; "adjoint" is plain refocusing (the baseline).
-SOLVERS = ("adjoint", "lsqr", "fista", "pd-tv", "rl")
-#: Iterations each solver runs unless told: the fewest within 10 % of the solver's best
-#: worst-plane error on validation renders (``results/reconstruct_iters.csv``, ``make reconstruct``).
-DEFAULT_ITERS = {"adjoint": 0, "lsqr": 40, "fista": 30, "pd-tv": 40, "rl": 20}
-#: TV weight of "pd-tv" unless told (validation renders, as the iterations).
-DEFAULT_TV = 0.3
+# SOLVERS, DEFAULT_ITERS, DEFAULT_TV and DEFAULT_SOLVER live in .defaults (no PyLops there:
+# the command line's parser reads them) and are re-exported here.
 #: "pd-tv" records its residual at the first, every this many and the last iteration (NaN
 #: between): each record costs one more ``A``, a third of an iteration.
 PD_RESIDUAL_EVERY = 5
-#: The solver whose worst validation render is best (``make reconstruct``): the default of ``lf-flame reconstruct``.
-DEFAULT_SOLVER = "pd-tv"
 
 
 @dataclass

@@ -1,0 +1,14 @@
+"""The solvers' names and defaults, without the solvers' libraries.
+
+:mod:`lf_flame.tomo.solvers` uses (and re-exports) these; the command line's argument
+parser reads them from here, so ``lf-flame --help`` does not import PyLops.
+"""
+#: Solvers of :func:`lf_flame.tomo.solvers.reconstruct`; "adjoint" is plain refocusing (the baseline).
+SOLVERS = ("adjoint", "lsqr", "fista", "pd-tv", "rl")
+#: Iterations each solver runs unless told: the fewest within 10 % of the solver's best
+#: worst-plane error on validation renders (``results/reconstruct_iters.csv``, ``make reconstruct``).
+DEFAULT_ITERS = {"adjoint": 0, "lsqr": 40, "fista": 30, "pd-tv": 40, "rl": 20}
+#: TV weight of "pd-tv" unless told (validation renders, as the iterations).
+DEFAULT_TV = 0.3
+#: The solver whose worst validation render is best (``make reconstruct``): the default of ``lf-flame reconstruct``.
+DEFAULT_SOLVER = "pd-tv"

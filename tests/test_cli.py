@@ -1,0 +1,143 @@
+"""The command line as a new user meets it (issue 34, section 5): every option's default
+in --help, a light import, what reconstruct leaves out, and files passed between commands."""
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from lf_flame.cli import build_parser, main
+
+ROOT = Path(__file__).resolve().parents[1]
+#: Libraries only the commands that use them may import (seconds of start-up).
+HEAVY = ("pylops", "pyproximal", "tensorflow", "keras", "dask", "numba", "matplotlib", "scipy", "skimage")
+
+
+def _sub_parsers():
+    p = build_parser()
+    sub = next(a for a in p._actions if isinstance(a, argparse._SubParsersAction))
+    return sub.choices
+
+
+def test_every_option_shows_its_default_in_help(monkeypatch):
+    """For every command, every option (or optional positional) with a default other than
+    None shows it as '(default: VALUE)' in --help, and every argument has help text (those
+    without a default say in it what happens without them)."""
+    monkeypatch.setenv("COLUMNS", "100000")   # one line per option: no wrapping inside a value
+    subs = _sub_parsers()
+    assert {"simulate", "reconstruct", "profiles", "sequence", "refocus", "slopes"} <= set(subs)
+    checked = 0
+    for name, sp in subs.items():
+        text = " ".join(sp.format_help().split())
+        for act in sp._actions:
+            if isinstance(act, argparse._HelpAction):
+                continue
+            assert act.help, f"{name} {act.dest}: no help text"
+            if act.default is not None and act.default is not argparse.SUPPRESS:
+                checked += 1
+                assert f"(default: {act.default})" in text, f"{name} {act.option_strings or act.dest}: default " \
+                                                            f"{act.default!r} not in its help"
+    assert checked > 30
+
+
+def test_help_names_reconstructs_planes_and_solver_defaults(monkeypatch):
+    from lf_flame.simulate.scenes import PAPER_DEPTHS_MM
+    from lf_flame.tomo.solvers import DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV
+    monkeypatch.setenv("COLUMNS", "100000")
+    text = _sub_parsers()["reconstruct"].format_help()
+    assert ", ".join(f"{d:+g}" for d in PAPER_DEPTHS_MM) + " mm" in text
+    assert all(f"{k} {v}" in text for k, v in DEFAULT_ITERS.items())
+    assert f"(default: {DEFAULT_SOLVER})" in text and f"(default: {DEFAULT_TV})" in text
+
+
+def test_importing_the_cli_loads_no_heavy_library():
+    """`lf-flame --help` builds every parser without PyLops, TensorFlow, Dask, Numba,
+    Matplotlib, SciPy or scikit-image: each command imports what it uses when it runs."""
+    code = ("import sys; from lf_flame.cli import build_parser; build_parser(); "
+            f"print(' '.join(m for m in {HEAVY!r} if m in sys.modules))")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, check=True,
+                       env={"PYTHONPATH": str(ROOT), "PATH": ""})
+    assert r.stdout.split() == [], f"importing lf_flame.cli loaded {r.stdout.split()}"
+
+
+@pytest.fixture(scope="module")
+def small_flame(tmp_path_factory):
+    """A flame light field of a 41 x 41-lenslet camera (1 ray per pixel), as .npz and .png."""
+    d = tmp_path_factory.mktemp("cli")
+    (d / "small.toml").write_text("[camera]\nn_rows = 41\nn_cols = 41\n")
+    for out in ("flame.npz", "flame.png"):
+        assert main(["simulate", "--scene", "flame", "--data-config", str(d / "small.toml"), "--rays-per-pixel",
+                     "1", "--out", str(d / out)]) == 0
+    return d
+
+
+def test_reconstruct_prints_the_saturated_pixels_it_leaves_out(small_flame, capsys):
+    raw = np.load(small_flame / "flame.npz")["raw"]
+    level = 0.5
+    n_sat = int((raw >= level).sum())
+    assert 0 < n_sat < raw.size
+    out = small_flame / "sat.h5"
+    assert main(["reconstruct", str(small_flame / "flame.npz"), "--solver", "fista", "--iters", "1",
+                 "--rays-per-pixel", "1", "--saturation", str(level), "--out", str(out)]) == 0
+    assert f"{n_sat} saturated pixels (at or above 0.5) left out of the fit" in capsys.readouterr().out
+    with h5py.File(out) as f:
+        assert json.loads(f.attrs["settings"])["n_saturated"] == n_sat
+
+
+def test_simulates_png_reads_back_with_its_camera_and_reconstructs(small_flame, capsys):
+    """`simulate --out x.png` then `reconstruct x.png`: the PNG carries the camera and the
+    scene (the truth column), its values are the raw image's to 16 bits."""
+    from lf_flame.cli._io import _load_raw
+    raw_npz, cam_npz = _load_raw(small_flame / "flame.npz")
+    raw_png, cam_png = _load_raw(small_flame / "flame.png")
+    assert cam_png == cam_npz and raw_png.shape == raw_npz.shape
+    assert np.max(np.abs(raw_png - np.clip(raw_npz, 0, 1))) <= 0.5 / 65535 + 1e-7
+    assert main(["reconstruct", str(small_flame / "flame.png"), "--solver", "adjoint", "--rays-per-pixel", "1",
+                 "--out", str(small_flame / "png.h5")]) == 0
+    out = capsys.readouterr().out
+    assert "reconstructed 4 planes" in out and "(with the scene's truth)" in out
+    assert (small_flame / "png.png").stat().st_size > 10_000
+
+
+def test_reconstruct_refuses_other_files_naming_what_it_reads(small_flame, capsys, tmp_path):
+    """What another command writes and reconstruct cannot use: refused, exit 2, with the
+    formats it reads named (not NumPy's allow_pickle message or a KeyError)."""
+    stack = tmp_path / "stack.npz"
+    assert main(["refocus", str(small_flame / "flame.npz"), "--slope", "0", "--out", str(stack)]) == 0
+    text = tmp_path / "notes.txt"
+    text.write_text("not an image")
+    fake_npy = tmp_path / "fake.npy"
+    fake_npy.write_text("not an array")
+    h5 = tmp_path / "frames.h5"
+    with h5py.File(h5, "w") as f:
+        f["frames"] = np.zeros((2, 4, 4))
+    capsys.readouterr()
+    for path, problem in ((stack, "holds no raw image (its arrays: stack, slopes)"),
+                          (text, "cannot read"), (fake_npy, "is not a NumPy array file"),
+                          (h5, "is not a file of decoded views")):
+        assert main(["reconstruct", str(path), "--out", str(tmp_path / "r.h5")]) == 2
+        err = capsys.readouterr().err
+        assert problem in err and ".npz from 'lf-flame simulate'" in err and "PNG or TIFF" in err, err
+        assert "allow_pickle" not in err
+    assert not (tmp_path / "r.h5").exists()
+
+
+def test_volume_figure_draws_each_plane_at_its_depth_and_height():
+    """The side views of reconstruct's volume figure: plane k's cells are centred on its
+    depth (not spread over the depth range, up to half a spacing off) and span its own
+    grid's height in mm."""
+    from lf_flame.tomo.files import _side_mesh
+    depths = np.array([-4.0, -3.0, -1.0, 0.5, 2.0, 3.0, 5.0])
+    h = 0.1 + 0.002 * depths          # mm per sample: linear in depth, as the grids are
+    X, Y = _side_mesh(depths, h, rows=10)
+    assert X.shape == Y.shape == (11, 8)
+    centres = (X[0, 1:] + X[0, :-1]) / 2
+    np.testing.assert_allclose(centres[1:-1], depths[1:-1], atol=0.6)   # mid-points between neighbours
+    assert np.all((X[0, :-1] < depths) & (depths < X[0, 1:]))
+    np.testing.assert_allclose(X[0, [0, -1]], [depths[0] - 0.5, depths[-1] + 1.0])
+    height = Y[0] - Y[-1]                     # top minus bottom edge at each depth edge
+    np.testing.assert_allclose(np.interp(depths, X[0], height), 10 * h, rtol=1e-9)
