@@ -47,7 +47,8 @@ from lf_flame.simulate import scenes  # noqa: E402
 from lf_flame.simulate import tracer as simulate
 from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
-from lf_flame.measure.diagnostics import EMISSION_MEASURE, measure_settings  # noqa: E402
+from lf_flame.measure.diagnostics import EMISSION_MEASURE  # noqa: E402
+from lf_flame.routes import measure_settings  # noqa: E402
 from lf_flame.measure.scoring import error_table, score_stacks  # noqa: E402
 from lf_flame.tomo.solvers import DEFAULT_SOLVER, SOLVERS, reconstruct
 from lf_flame.tomo.operator import EmissionOperator

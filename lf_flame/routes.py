@@ -120,3 +120,30 @@ def parse_route(text) -> Route:
     if name == "ground-truth":
         return Route("stored", "ground-truth", (), name)
     raise ValueError(f"unknown route {name!r}; the routes are: {', '.join(route_names())}")
+
+
+def measure_settings(route) -> dict:
+    """Keyword arguments of :func:`lf_flame.measure.diagnostics.measure_flame` for the planes of ``route``.
+
+    Parameters
+    ----------
+    route : str or lf_flame.routes.Route
+        A route's name (:func:`parse_route`) or the parsed route.
+
+    Returns
+    -------
+    dict
+        :data:`lf_flame.measure.diagnostics.EMISSION_MEASURE` for planes of emission (``kind == "emission"``: the
+        iterative solvers' ``"reconstruct-<solver>"``, and ``"truth"``, the scene's emission
+        on the reconstruction grid); the defaults (an empty dict) for every other route:
+        refocused planes (``"shift-sum"``, ``"fourier"``, and the tomography's adjoint,
+        ``"reconstruct-adjoint"`` = ``"refocus-adjoint"``, which is plain refocusing), a
+        network's prediction, a dataset's stored planes.
+
+    Raises
+    ------
+    ValueError
+        An unknown route name.
+    """
+    from .measure.diagnostics import EMISSION_MEASURE   # here: the command line imports this module light
+    return dict(EMISSION_MEASURE) if parse_route(route).emission else {}

@@ -6,12 +6,13 @@ import pandas as pd
 import pytest
 from scipy import ndimage
 
+from lf_flame.measure.diagnostics import (TIP_PEDESTAL_MM, EmptyPlaneError, flame_truth, lenslet_size_mm,
+                                          lenslet_to_object_mm, measure_flame)
+from lf_flame.measure.scoring import error_table, measure_stack, score_stacks
+from lf_flame.optics.camera import PlenopticCamera
+from lf_flame.refocus.shift_and_sum import aperture_mask, refocus
 from lf_flame.simulate import scenes
 from lf_flame.simulate import tracer as simulate
-from lf_flame.optics.camera import PlenopticCamera
-from lf_flame.measure.diagnostics import TIP_PEDESTAL_MM, EmptyPlaneError, flame_truth, lenslet_size_mm, lenslet_to_object_mm, measure_flame
-from lf_flame.measure.scoring import error_table, measure_stack, score_stacks
-from lf_flame.refocus.shift_and_sum import aperture_mask, refocus
 
 # two thirds of the paper's lenslet grid, the paper's optics; flames scaled to fit the field
 CAM = PlenopticCamera(n_rows=120, n_cols=60)
@@ -308,8 +309,8 @@ def test_flame_tail_experiment_writes_csv_and_md(tmp_path):
 def test_a_route_is_parsed_once_into_one_value():
     """Every caller (command line, recordings, diagnostics, experiments) gets the same Route
     from a name: the adjoint is plain refocusing under both its names (issue 34, 2.1)."""
-    from lf_flame.measure.diagnostics import EMISSION_MEASURE, measure_settings
-    from lf_flame.routes import Route, parse_route, route_names
+    from lf_flame.measure.diagnostics import EMISSION_MEASURE
+    from lf_flame.routes import Route, measure_settings, parse_route, route_names
     adj = parse_route("reconstruct-adjoint")
     assert adj == parse_route("refocus-adjoint") and (adj.kind, adj.solver, adj.tomographic) == ("refocus", "adjoint",
                                                                                                  True)
@@ -334,7 +335,8 @@ def test_planes_of_emission_are_measured_with_their_own_edges():
     """On the true emission (sharp: no other plane's blur), the emission settings' edges
     lie closer to the flame's than the refocused planes' defaults, which undershoot the
     base (lf_flame.measure.diagnostics.EMISSION_MEASURE; results/reconstruct_edges.csv)."""
-    from lf_flame.measure.diagnostics import EMISSION_MEASURE, measure_settings
+    from lf_flame.measure.diagnostics import EMISSION_MEASURE
+    from lf_flame.routes import measure_settings
     from lf_flame.tomo.operator import EmissionOperator
     from lf_flame.tomo.truth import scene_truth
     assert measure_settings("reconstruct-pd-tv") == measure_settings("truth") == EMISSION_MEASURE

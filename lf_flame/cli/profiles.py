@@ -63,7 +63,8 @@ def _profiles_input(a):
 def cmd_profiles(a):
     import pandas as pd
     from ..config import atomic_write_text
-    from ..measure.diagnostics import EmptyPlaneError, flame_truth, measure_flame, measure_settings, plot_profiles
+    from ..measure.diagnostics import EmptyPlaneError, flame_truth, measure_flame, plot_profiles
+    from ..routes import measure_settings
     from ..measure.scoring import score_stacks
     kw = measure_settings(a.route)
     cam, stack, depths, slopes, objects = _profiles_input(a)

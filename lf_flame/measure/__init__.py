@@ -15,7 +15,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
     submod_attrs={
         "diagnostics": ["SEGMENT_FRACTION", "EDGE_FIT_RANGE", "TAIL_FALL", "PEDESTAL_GAP", "TIP_PEDESTAL_MM",
                  "FLAGS", "MIN_AREA_LENSLETS", "RADIAL_FRACTIONS", "EMISSION_MEASURE",
-                 "measure_settings", "EmptyPlaneError", "lenslet_size_mm",
+                 "EmptyPlaneError", "lenslet_size_mm",
                  "lenslet_to_object_mm", "RadialProfile", "FlameMeasurement", "measure_flame",
                  "flame_truth", "plot_profiles"],
         "metrics": ["ssim_per_plane", "psnr_per_plane", "mean_ssim"],

@@ -80,7 +80,6 @@ from scipy import ndimage
 from skimage import filters, measure
 
 from ..optics.camera import PlenopticCamera
-from ..routes import parse_route
 
 #: Segmentation threshold, a fraction of the brightest pixel of the flame's column band.
 SEGMENT_FRACTION = 0.3
@@ -112,32 +111,6 @@ RADIAL_FRACTIONS = (0.25, 0.5, 0.75)
 #: solver's validation reconstructions (``python experiments/reconstruct.py --stage edges``,
 #: ``results/reconstruct_edges.csv``).
 EMISSION_MEASURE = dict(segment_fraction=0.05, edge_fit_range=(0.05, 0.5))
-
-
-def measure_settings(route) -> dict:
-    """Keyword arguments of :func:`measure_flame` for the planes of ``route``.
-
-    Parameters
-    ----------
-    route : str or lf_flame.routes.Route
-        A route's name (:func:`lf_flame.routes.parse_route`) or the parsed route.
-
-    Returns
-    -------
-    dict
-        :data:`EMISSION_MEASURE` for planes of emission (``kind == "emission"``: the
-        iterative solvers' ``"reconstruct-<solver>"``, and ``"truth"``, the scene's emission
-        on the reconstruction grid); the defaults (an empty dict) for every other route:
-        refocused planes (``"shift-sum"``, ``"fourier"``, and the tomography's adjoint,
-        ``"reconstruct-adjoint"`` = ``"refocus-adjoint"``, which is plain refocusing), a
-        network's prediction, a dataset's stored planes.
-
-    Raises
-    ------
-    ValueError
-        An unknown route name.
-    """
-    return dict(EMISSION_MEASURE) if parse_route(route).emission else {}
 
 
 class EmptyPlaneError(ValueError):

@@ -68,7 +68,7 @@ def score_stacks(stacks, camera: PlenopticCamera, objects_list, samples=None, *,
     samples : sequence of n ids or None
         Sample ids for the ``sample`` column (default 0 .. n-1).
     measure : dict or None
-        Keyword arguments of :func:`measure_flame` (:func:`measure_settings` of the route).
+        Keyword arguments of :func:`measure_flame` (:func:`lf_flame.routes.measure_settings` of the route).
     **labels
         Columns added to every row (route, regime, ...).
 

@@ -158,7 +158,8 @@ def process_chunk(c: int, job: SequenceJob) -> dict:
     :meth:`FlameMeasurement.summary` fields, failure) and the seconds spent reading
     (or rendering), refocusing and measuring.
     """
-    from ..measure.diagnostics import EmptyPlaneError, measure_flame, measure_settings
+    from ..measure.diagnostics import EmptyPlaneError, measure_flame
+    from ..routes import measure_settings
     kw = measure_settings(job.route)
     t = dict(read_s=0.0, refocus_s=0.0, measure_s=0.0)
     rows = []

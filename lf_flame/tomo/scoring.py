@@ -26,7 +26,7 @@ def score_planes(planes, truth, camera: PlenopticCamera, depths_mm, objects=None
     measure : dict or None
         Keyword arguments of :func:`~lf_flame.measure.diagnostics.measure_flame`: planes of emission
         are measured with :data:`~lf_flame.measure.diagnostics.EMISSION_MEASURE`, refocused planes
-        with the defaults (:func:`~lf_flame.measure.diagnostics.measure_settings` of the route).
+        with the defaults (:func:`~lf_flame.routes.measure_settings` of the route).
     **labels
         Columns added to every row (route, scene, noise ...).
 
