@@ -169,7 +169,7 @@ SLOPES = [CAM.slope_for_depth(d) for d in (20.0, 10.0, 0.0, -10.0)]
 
 _GENERATE = """
 import sys
-from lf_flame import dataset as D
+from lf_flame.learn import dataset as D
 from lf_flame.optics.camera import PlenopticCamera
 from lf_flame.config import DatasetConfig
 cam = PlenopticCamera(n_rows=20, n_cols=10)
