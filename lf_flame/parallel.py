@@ -27,8 +27,8 @@ def dask_client(scheduler: str | None = None, workers: int = 1, threads_per_work
     workers : int
         Local cluster only: worker processes (>= 1).
     threads_per_worker : int
-        Local cluster only: threads per worker (>= 1); Numba's kernels in a task use as
-        many threads (:func:`map_unordered`).
+        Local cluster only: threads per worker (>= 1), each running one task at a time
+        with Numba's kernels on one thread (:func:`map_unordered`).
 
     Yields
     ------
@@ -56,11 +56,33 @@ def dask_client(scheduler: str | None = None, workers: int = 1, threads_per_work
         yield client
 
 
-def _with_worker_threads(fn, item, *args):
-    """Run ``fn(item, *args)`` with Numba's kernels on as many threads as the worker has."""
+def _pin_kernel_threads(nthreads: int) -> None:
+    """Numba's kernels in this thread on one thread; where the process runs several tasks
+    at once (``nthreads > 1``), a threading layer that takes concurrent kernels
+    (``"threadsafe"``: TBB or OpenMP; Numba's own workqueue layer aborts on them), pinned
+    before the first kernel starts it."""
     import numba
+    from numba.np.ufunc import parallel
+    if nthreads > 1 and not parallel._is_initialized:
+        numba.config.THREADING_LAYER = "threadsafe"
+    numba.set_num_threads(1)
+
+
+def _pin_on_worker(dask_worker) -> None:
+    _pin_kernel_threads(dask_worker.state.nthreads)
+
+
+def prepare_workers(client) -> None:
+    """Pin every worker's Numba threads (:func:`map_unordered`'s rule) before anything
+    there runs a kernel, e.g. a warm-up through ``client.run``."""
+    client.run(_pin_on_worker)
+
+
+def _with_worker_threads(fn, item, *args):
+    """Run ``fn(item, *args)`` with Numba's kernels on one thread: a worker of ``nthreads``
+    threads runs that many tasks at once, so its cores are not oversubscribed."""
     from distributed import get_worker
-    numba.set_num_threads(max(1, min(get_worker().state.nthreads, numba.config.NUMBA_NUM_THREADS)))
+    _pin_kernel_threads(get_worker().state.nthreads)
     return fn(item, *args)
 
 
@@ -71,7 +93,10 @@ def map_unordered(client, fn: Callable, items: Iterable, *args, name: str = "tas
     At most ``window`` tasks are submitted ahead (default: twice the cluster's threads), so
     large results never pile up in the workers' memory. A task whose worker dies is rerun
     by Dask on another worker; each item is yielded exactly once. ``fn`` and ``args`` must
-    pickle (module-level functions, plain data); a task's exception is raised here.
+    pickle (module-level functions, plain data, or futures of data scattered to the
+    workers, ``client.scatter``); a task's exception is raised here. Each task runs its
+    Numba kernels on one thread (a worker of several threads runs as many tasks at once,
+    on a thread-safe threading layer).
 
     Parameters
     ----------

@@ -1,6 +1,8 @@
-"""Flame recordings (issue 26): per-plane flicker frequencies, the Dask path against the
-serial one, a real multi-process cluster with a worker killed mid-run, resuming, and the
-bad inputs a user meets."""
+"""Flame recordings (issues 26, 34): per-plane flicker frequencies, the Dask path against the
+serial one (one local cluster of two 2-thread workers for the module), a real multi-process
+cluster with a worker killed mid-run, resuming, the reconstruction's settings, and the bad
+inputs a user meets."""
+import dataclasses
 import json
 import os
 import signal
@@ -19,6 +21,8 @@ from lf_flame.optics.camera import PAPER_CAMERA
 from lf_flame.cli import main
 from lf_flame.simulate.scenes_time import flicker_sequence
 from lf_flame.recordings.sources import SimulatedSource, frame_rate, open_source, write_frames
+from lf_flame.recordings import job as job_module
+from lf_flame.recordings.flicker import peaks, spectra
 from lf_flame.recordings.job import process_chunk, simulated_job
 from lf_flame.recordings.runner import run
 
@@ -72,10 +76,60 @@ def serial_table(small_seq, tmp_path_factory):
     return (out / "frames.csv").read_bytes()
 
 
-def test_the_dask_path_writes_the_serial_tables(small_seq, serial_table, tmp_path):
-    s = run(_job(small_seq, chunk=4), tmp_path, workers=2, progress=False)
+@pytest.fixture(scope="module")
+def cluster():
+    """One local cluster for the module: two worker processes of two threads each."""
+    from distributed import Client, LocalCluster
+    with LocalCluster(n_workers=2, threads_per_worker=2, processes=True, dashboard_address=":0") as lc, \
+            Client(lc) as client:
+        yield lc.scheduler_address, client
+
+
+def test_the_dask_path_writes_the_serial_tables(small_seq, serial_table, cluster, tmp_path):
+    """On workers of two threads each (two chunks at once in one process)."""
+    s = run(_job(small_seq, chunk=4), tmp_path, scheduler=cluster[0], progress=False)
     assert s["workers"] == 2
     assert (tmp_path / "frames.csv").read_bytes() == serial_table
+
+
+def _kernel_threads(item):
+    """A task: run a parallel Numba kernel; the kernel threads and threading layer it had."""
+    import numba
+    from lf_flame.refocus.shift_and_sum import aperture_mask, focal_stack
+    focal_stack(np.ones((3, 3, 16, 16), np.float32), [0.0, 0.5], aperture_mask(3, "circular"))
+    time.sleep(0.2)   # the worker's two threads overlap
+    return numba.get_num_threads(), numba.threading_layer()
+
+
+def test_tasks_on_a_two_thread_worker_run_their_kernels_on_one_thread(cluster):
+    """A worker of two threads runs two tasks at once: each task's kernels get one thread
+    (not the worker's two, 4 threads on 2 cores), on a layer that takes concurrent kernels."""
+    import cloudpickle
+    from lf_flame.parallel import map_unordered
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    try:
+        got = dict(map_unordered(cluster[1], _kernel_threads, range(8), name="threads", progress=False))
+    finally:
+        cloudpickle.unregister_pickle_by_value(sys.modules[__name__])
+    assert sorted(got) == list(range(8))
+    assert {n for n, _ in got.values()} == {1}, got
+    assert {layer for _, layer in got.values()} <= {"omp", "tbb"}, got
+
+
+def test_each_worker_builds_the_emission_operator_once(cluster, tmp_path):
+    """8 chunks of one frame on 2 workers, reconstructed: each worker builds the operator
+    (and its ray record) once, in the warm-up, not once per chunk; the frames carry the
+    count of saturated pixels."""
+    seq = flicker_sequence(PAPER_CAMERA, np.random.default_rng(7), "overlap", fps=100, duration_s=0.08)
+    job = simulated_job(seq, PAPER_CAMERA, route="reconstruct-adjoint", chunk=1, operator_rays=1)[0]
+
+    def builds():
+        return sum(cluster[1].run(lambda: job_module._OPERATOR["builds"]).values())
+    before = builds()
+    s = run(job, tmp_path, scheduler=cluster[0], progress=False)
+    assert s["chunks_processed"] == 8 == seq.n_frames
+    assert builds() - before <= 2
+    assert "n_saturated" in pd.read_csv(tmp_path / "frames.csv")
 
 
 def _dask_cli():
@@ -83,10 +137,18 @@ def _dask_cli():
     return [str(exe)] if exe.exists() else [sys.executable, "-m", "dask"]
 
 
+def _wait_for(cond, what, timeout_s=120.0):
+    t = time.monotonic()
+    while not cond():
+        assert time.monotonic() - t < timeout_s, f"waited {timeout_s:g} s for {what}"
+        time.sleep(0.02)
+
+
 def test_a_killed_worker_loses_and_duplicates_no_frame(small_seq, serial_table, tmp_path):
     """A real cluster over TCP (``dask scheduler`` and two ``dask worker`` processes, no
-    nanny): one worker is killed with SIGKILL while chunks are still to do; the run
-    completes, every frame once, the same table as the serial path."""
+    nanny): one worker is killed with SIGKILL while it holds a chunk and chunks are still
+    to do; the scheduler records the chunk it lost; the run completes, every frame once,
+    the same table as the serial path."""
     sf = tmp_path / "scheduler.json"
     env = dict(os.environ, NUMBA_NUM_THREADS="1")
     procs = [subprocess.Popen([*_dask_cli(), "scheduler", "--scheduler-file", str(sf), "--port", "0",
@@ -102,23 +164,27 @@ def test_a_killed_worker_loses_and_duplicates_no_frame(small_seq, serial_table, 
                                            "--no-nanny", "--no-dashboard"], env=env, stdout=subprocess.DEVNULL,
                                           stderr=subprocess.DEVNULL))
         from distributed import Client
-        with Client(scheduler_file=str(sf), timeout=60) as c:
-            c.wait_for_workers(2, timeout=120)
+        c = Client(scheduler_file=str(sf), timeout=60)
+        c.wait_for_workers(2, timeout=120)
+        victim = {pid: addr for addr, pid in c.run(os.getpid).items()}[procs[1].pid]
         job = _job(small_seq, chunk=4)   # 10 chunks of 4 frames
         out = tmp_path / "run"
         result = {}
         th = threading.Thread(target=lambda: result.update(s=run(job, out, scheduler=str(sf), progress=False)))
         th.start()
-        for _ in range(1200):
-            if len(list((out / "parts").glob("chunk-*.csv"))) >= 2:
-                break
-            time.sleep(0.05)
+        _wait_for(lambda: len(list((out / "parts").glob("chunk-*.csv"))) >= 2, "two chunks done")
+        _wait_for(lambda: any(k.startswith("frames-") for k in c.processing([victim]).get(victim, ())),
+                  "a chunk on the worker to kill")
         done_at_kill = len(list((out / "parts").glob("chunk-*.csv")))
         procs[1].send_signal(signal.SIGKILL)
         th.join(timeout=300)
         assert not th.is_alive()
         assert done_at_kill < job.n_chunks, "the run ended before the worker was killed"
         assert procs[1].wait(timeout=10) == -signal.SIGKILL
+        removed = [e for _, e in c.get_events(victim) if e.get("action") == "remove-worker"]
+        assert removed and any(str(k).startswith("frames-") for k in removed[0]["processing-tasks"]), removed
+        c.close()
+        assert result["s"]["chunks_processed"] == job.n_chunks
         frames = pd.read_csv(out / "frames.csv")
         assert sorted(frames.frame) == sorted(list(range(small_seq.n_frames)) * 2)
         assert (out / "frames.csv").read_bytes() == serial_table
@@ -172,15 +238,98 @@ def test_recordings_on_file_and_in_a_folder_match_the_simulation(small_seq, seri
     bad[5] = np.nan
     _write_h5(tmp_path / "nan.h5", bad, fps=100.0)
     src3, _ = open_source(tmp_path / "nan.h5")
-    with pytest.raises(ValueError, match="frame 5: frame holds NaN"):
+    with pytest.raises(ValueError, match="frame 5: frame holds NaN") as err:
         run(_job(small_seq, chunk=4, source=src3), tmp_path / "nan", progress=False)
+    assert isinstance(err.value.__cause__, ValueError)   # the traceback into the frame's code is kept
     assert not (tmp_path / "nan" / "summary.json").exists()
+
+
+def test_a_chunk_reads_its_hdf5_frames_in_one_open(small_seq, tmp_path, monkeypatch):
+    """A chunk of 4 frames opens the file once (it opened it per frame) and reads the
+    frames ``raw(i)`` reads."""
+    h5 = write_frames(tmp_path / "rec.h5", SimulatedSource(dataclasses.replace(small_seq, n_frames=8), PAPER_CAMERA,
+                                                           1), progress=False)
+    src, _ = open_source(h5)
+    want = [src.raw(i) for i in range(4, 8)]
+    opens = []
+    real = h5py.File
+    monkeypatch.setattr(h5py, "File", lambda *a, **k: opens.append(a[0]) or real(*a, **k))
+    assert all(np.array_equal(a, b) for a, b in zip(src.frames(4, 8), want))
+    assert len(opens) == 1
+    job = _job(small_seq, chunk=4, source=src)
+    assert job.n_chunks == 2   # the length, read by the calling process, travels with the source
+    opens.clear()
+    res = process_chunk(1, job)
+    assert sorted({r["frame"] for r in res["rows"]}) == [4, 5, 6, 7]
+    assert len(opens) == 1
+
+
+def test_unmeasurable_frames_are_counted(small_seq, tmp_path):
+    """Frames without light (here 2 of 8) cannot be measured on any plane: their count per
+    plane is in the summary and peaks.csv (their values in the spectrum are the mean)."""
+    frames = np.stack(SimulatedSource(small_seq, PAPER_CAMERA, 1).frames(0, 8))
+    frames[[2, 5]] = 0.0
+    _write_h5(tmp_path / "dark.h5", frames, fps=100.0)
+    src, _ = open_source(tmp_path / "dark.h5")
+    s = run(_job(small_seq, chunk=4, source=src), tmp_path / "out", progress=False)
+    assert s["failed_frames"] == {0: 2, 1: 2}
+    assert pd.read_csv(tmp_path / "out" / "peaks.csv").n_failed.tolist() == [2, 2, 2, 2]   # 2 planes x 2 signals
+
+
+def test_reconstruction_settings_reach_the_solver_and_the_run_identity(small_seq, tmp_path):
+    """``iters``, ``tv``, ``saturation`` and ``operator_rays`` are the solver's: the job's
+    planes are those of ``reconstruct`` with the same settings; each is in the identity
+    (a resume after a change is refused), defaults resolved; the saturated pixels of each
+    frame are counted in its rows."""
+    from lf_flame.tomo.operator import EmissionOperator
+    from lf_flame.tomo.solvers import DEFAULT_ITERS, DEFAULT_TV, reconstruct
+    frames = np.stack(SimulatedSource(small_seq, PAPER_CAMERA, 1).frames(0, 2))
+    frames = np.clip(3.0 * frames, 0.0, 1.0)   # overexposed: clipped pixels
+    _write_h5(tmp_path / "bright.h5", frames, fps=100.0)
+    src, _ = open_source(tmp_path / "bright.h5")
+    job = simulated_job(small_seq, PAPER_CAMERA, src, route="reconstruct-pd-tv", chunk=2, iters=2, tv=0.05,
+                        saturation=0.9, operator_rays=1)[0]
+    views = job.views(frames[0])
+    want = reconstruct(views, EmissionOperator(PAPER_CAMERA, list(job.depths_mm), rays_per_pixel=1), "pd-tv", 2,
+                       tv=0.05, saturation=0.9)
+    np.testing.assert_array_equal(job.planes(views), want.planes)
+    assert want.settings["n_saturated"] > 0
+    rows = pd.DataFrame(process_chunk(0, job)["rows"])
+    assert rows.groupby("frame").n_saturated.first().tolist() == [int(np.sum(f >= 0.9)) for f in frames]
+    ident = job.identity()["reconstruction"]
+    assert ident == dict(solver="pd-tv", iters=2, tv=0.05, saturation=0.9, operator_rays=1)
+    for change in (dict(iters=3), dict(tv=0.1), dict(saturation=None), dict(operator_rays=2)):
+        assert dataclasses.replace(job, **change).identity() != job.identity(), change
+    default = dataclasses.replace(job, iters=None, tv=None).identity()["reconstruction"]
+    assert (default["iters"], default["tv"]) == (DEFAULT_ITERS["pd-tv"], DEFAULT_TV)
+    assert simulated_job(small_seq, PAPER_CAMERA)[0].identity()["reconstruction"] is None
 
 
 def test_bad_recordings_are_refused(tmp_path, small_seq):
     (tmp_path / "empty").mkdir()
     with pytest.raises(ValueError, match="holds no frames"):
         open_source(tmp_path / "empty")
+    job = _job(small_seq, chunk=4)
+    for chunk in (0, -4, 2.5):
+        with pytest.raises(ValueError, match=f"chunk .* must be a whole number >= 1. Received: {chunk}"):
+            dataclasses.replace(job, chunk=chunk)
+    with pytest.raises(ValueError, match="true frequency 70 Hz lies outside the spectrum of 100 frames/s"):
+        dataclasses.replace(job, truth_freqs_hz=(7.0, 70.0))
+    for bad in (dict(iters=-1), dict(tv=-0.1), dict(saturation=0.0), dict(operator_rays=0)):
+        with pytest.raises(ValueError, match="Received"):
+            dataclasses.replace(job, route="reconstruct-pd-tv", **bad)
+    _write_h5(tmp_path / "one.h5", np.zeros((1, 2700, 1350), np.uint16), fps=100.0)
+    src1, _ = open_source(tmp_path / "one.h5")
+    with pytest.raises(ValueError, match="1 frame has no spectrum: give at least 2 frames"):
+        run(_job(small_seq, source=src1), tmp_path / "one", progress=False)
+    f = pd.DataFrame(dict(frame=range(8), plane=0, depth_mm=0.0, height_mm=np.sin(np.arange(8.0)),
+                          integrated_intensity=1.0))
+    with pytest.raises(ValueError, match="true frequency 90 Hz lies outside the spectrum"):
+        peaks(spectra(f, 100.0), [90.0])
+    with pytest.raises(ValueError, match="at least 2 frames"):
+        peaks(spectra(f.iloc[:2], 100.0, nperseg=None).iloc[:1])
+    with pytest.raises(ValueError, match="nperseg .* Received: 1"):
+        spectra(f, 100.0, nperseg=1)
     _write_h5(tmp_path / "small.h5", np.zeros((3, 20, 30), np.uint16))
     src, _ = open_source(tmp_path / "small.h5")
     with pytest.raises(ValueError, match="frame 0: frame of 20 x 30 pixels; the camera's sensor is 2700 x 1350"):
@@ -198,13 +347,43 @@ def test_bad_recordings_are_refused(tmp_path, small_seq):
 
 
 def test_cli_simulates_and_measures_a_recording(tmp_path, capsys):
+    """The recording's four flames at 6, 9, 13 and 17 Hz (0.5 s at 100 frames/s, bins of
+    2 Hz, the flames 3-4 Hz apart): each plane's measured peak is its own flame's."""
     rec = tmp_path / "rec.h5"
-    assert main(["simulate-sequence", "--simulate", "overlap", "--fps", "100", "--duration", "0.2", "--freq", "8",
-                 "--freq", "13", "--out", str(rec), "--quiet"]) == 0
+    freqs = [6.0, 9.0, 13.0, 17.0]
+    assert main(["simulate-sequence", "--simulate", "paper", "--fps", "100", "--duration", "0.5",
+                 *(a for f in freqs for a in ("--freq", str(f))), "--rays-per-pixel", "1", "--out", str(rec),
+                 "--quiet"]) == 0
     assert main(["sequence", str(rec), "--out", str(tmp_path / "out"), "--quiet"]) == 0
-    pk = pd.read_csv(tmp_path / "out" / "peaks.csv")
-    assert list(pk.true_hz.unique()) == [8.0, 13.0]
+    pk = pd.read_csv(tmp_path / "out" / "peaks.csv").query("signal == 'height_mm'").sort_values("plane")
+    assert np.all(np.abs(pk.dominant_hz.to_numpy() - freqs) <= pk.bin_hz.to_numpy()), pk
     assert (tmp_path / "out" / "sequence.png").stat().st_size > 10_000
+    capsys.readouterr()
+    (tmp_path / "empty_dir").mkdir()
     assert main(["sequence", str(tmp_path / "empty_dir"), "--fps", "100", "--depth", "0",
                  "--out", str(tmp_path / "o2")]) == 2
+    assert "holds no frames" in capsys.readouterr().err
+    assert main(["sequence", str(tmp_path / "missing"), "--fps", "100", "--depth", "0",
+                 "--out", str(tmp_path / "o2")]) == 2
     assert "recording not found" in capsys.readouterr().err
+    assert main(["sequence", "--simulate", "paper", "--fps", "0", "--duration", "0.01", "--out", str(tmp_path / "o3")]) == 2
+    assert "--fps must be positive and finite (frames/s). Received: 0" in capsys.readouterr().err
+    for chunk in ("0", "-3"):
+        assert main(["sequence", str(rec), "--chunk", chunk, "--out", str(tmp_path / "o4")]) == 2
+        assert f"chunk (frames per task) must be a whole number >= 1. Received: {chunk}" in capsys.readouterr().err
+
+
+def test_cli_passes_the_reconstruction_settings(tmp_path, capsys):
+    """``sequence --route reconstruct-*`` takes ``--iters --tv --saturation --operator-rays``:
+    they are the run's settings, and its summary counts the saturated frames."""
+    rec = tmp_path / "rec.h5"
+    assert main(["simulate-sequence", "--simulate", "overlap", "--fps", "100", "--duration", "0.02",
+                 "--rays-per-pixel", "1", "--out", str(rec), "--quiet"]) == 0
+    assert main(["sequence", str(rec), "--route", "reconstruct-pd-tv", "--iters", "1", "--tv", "0.05",
+                 "--saturation", "0.5", "--operator-rays", "1", "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert s["settings"]["reconstruction"] == dict(solver="pd-tv", iters=1, tv=0.05, saturation=0.5, operator_rays=1)
+    assert s["n_saturated"]["frames"] == 2 and "frames with saturated pixels" in capsys.readouterr().out
+    assert main(["sequence", str(rec), "--route", "reconstruct-pd-tv", "--iters", "2", "--tv", "0.05",
+                 "--saturation", "0.5", "--operator-rays", "1", "--out", str(tmp_path / "out"), "--quiet"]) == 2
+    assert "other settings" in capsys.readouterr().err

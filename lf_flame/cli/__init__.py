@@ -177,12 +177,22 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--depth", type=float, action="append", help="plane depth offset, mm (repeatable)")
     s.add_argument("--slope", type=float, action="append", help="plane slope, lenslets per view (repeatable)")
     s.add_argument("--route", choices=["shift-sum", *(f"reconstruct-{k}" for k in SOLVERS)], default="shift-sum",
-                   help="planes by shift-and-sum, or each plane's emission (lf-flame reconstruct's defaults)")
+                   help="planes by shift-and-sum, or each plane's emission (as lf-flame reconstruct; its settings: "
+                        "--iters, --tv, --saturation, --operator-rays)")
+    s.add_argument("--iters", type=int, help="reconstruct-*: iterations (default: the solver's, chosen on validation "
+                   "renders)")
+    s.add_argument("--tv", type=float, default=DEFAULT_TV, help="reconstruct-pd-tv: TV weight (default: %(default)s)")
+    s.add_argument("--saturation", type=_level_or_none, default=1.0,
+                   help="reconstruct-*: the sensor's clipping level in the views' units: pixels at or above it are "
+                        "left out of the fit, counted per frame as n_saturated ('none': fit every pixel; default: "
+                        "%(default)s)")
+    s.add_argument("--operator-rays", type=int, default=4,
+                   help="reconstruct-*: rays per pixel of the forward operator (default: %(default)s)")
     s.add_argument("--calibration", help="real frames: JSON of 'lf-flame calibrate' (frames are decoded)")
     s.add_argument("--white", help="real frames: white image for decoding")
     s.add_argument("--dark", help="real frames: dark frame")
     s.add_argument("--nperseg", type=int, help="Welch segment, frames (default: the whole record, bin 1/T)")
-    s.add_argument("--chunk", type=int, default=16, help="frames per task")
+    s.add_argument("--chunk", type=int, default=16, help="frames per task (default: %(default)s)")
     s.add_argument("--workers", type=int, help="a local Dask cluster of this many single-thread worker processes "
                    "(default: serial, Numba's threads)")
     s.add_argument("--scheduler", help="an existing Dask cluster: address (tcp://...) or scheduler file")

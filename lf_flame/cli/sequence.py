@@ -4,6 +4,7 @@ diagnostics over time and their flicker spectra (:mod:`lf_flame.recordings`), se
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 
@@ -13,7 +14,10 @@ NOISE = (10_000.0, 5.0, 12)
 
 def _sequence_of(a, cam):
     from ..simulate.scenes_time import flicker_sequence
-    return flicker_sequence(cam, np.random.default_rng(a.seed), a.simulate, fps=a.fps or 500.0,
+    fps = 500.0 if a.fps is None else a.fps
+    if not (math.isfinite(fps) and fps > 0):
+        raise ValueError(f"--fps must be positive and finite (frames/s). Received: {a.fps:g}")
+    return flicker_sequence(cam, np.random.default_rng(a.seed), a.simulate, fps=fps,
                             duration_s=a.duration, freqs_hz=a.freq, noise=NOISE if a.noise else None)
 
 
@@ -61,10 +65,11 @@ def cmd_sequence(a):
             seq = FlameSequence.from_dict(json.loads(attrs["sequence"]))
     if a.depth and a.slope:
         raise ValueError("give the planes as --depth or as --slope, not both")
+    knobs = dict(iters=a.iters, tv=a.tv, saturation=a.saturation, operator_rays=a.operator_rays)
     if seq is not None and not a.depth:
         if a.slope and len(a.slope) != len(seq.flames):
             raise ValueError(f"give one --slope per flame ({len(seq.flames)}). Received: {a.slope}")
-        job, truth = simulated_job(seq, cam, source, route=a.route, chunk=a.chunk, slopes=a.slope)
+        job, truth = simulated_job(seq, cam, source, route=a.route, chunk=a.chunk, slopes=a.slope, **knobs)
     else:
         if not (a.depth or a.slope):
             raise ValueError("give the planes of a recording: --depth MM (repeatable) or --slope S")
@@ -75,11 +80,17 @@ def cmd_sequence(a):
             from ..real.calibration import GridCalibration
             cal = GridCalibration.load(a.calibration).to_dict()
         job, truth = SequenceJob(source, cam, fps, tuple(depths), tuple(slopes), (None,) * len(depths), a.route,
-                                 cal, a.white, a.dark, chunk=a.chunk), None
+                                 cal, a.white, a.dark, chunk=a.chunk, **knobs), None
     s = run(job, a.out, scheduler=a.scheduler, workers=a.workers, nperseg=a.nperseg, truth=truth,
             progress=not a.quiet)
     import pandas as pd
     pk = pd.read_csv(f"{a.out}/peaks.csv")
     print(pk.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+    for k, n in s["failed_frames"].items():
+        if n:
+            print(f"plane {k}: {n} of {s['n_frames']} frames could not be measured (the plane's mean in its spectrum)")
+    if "n_saturated" in s:
+        print(f"{s['n_saturated']['frames']} frames with saturated pixels left out of the fit "
+              f"(at most {s['n_saturated']['max_per_frame']} in a frame)")
     print(f"{s['n_frames']} frames ({s['chunks_processed']} chunks processed, {s['frames_per_s']:.1f} frames/s) "
           f"-> {a.out}/frames.csv, spectra.csv, peaks.csv, sequence.png, summary.json")

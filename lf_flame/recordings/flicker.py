@@ -28,11 +28,20 @@ def spectra(frames: pd.DataFrame, fps: float, nperseg: int | None = None, signal
     -------
     DataFrame with columns plane, depth_mm, signal, freq_hz, power (the signal's unit
     squared: ``scaling="spectrum"``, a sinusoid of amplitude a on a bin has power a²/2).
+
+    Raises
+    ------
+    ValueError
+        A plane with fewer than 2 frames, or ``nperseg`` below 2: no spectrum beyond 0 Hz.
     """
     from scipy.signal import welch
+    if nperseg is not None and (int(nperseg) != nperseg or nperseg < 2):
+        raise ValueError(f"nperseg (Welch segment, frames) must be a whole number >= 2. Received: {nperseg!r}")
     out = []
     for (k, d), g in frames.groupby(["plane", "depth_mm"], sort=True):
         g = g.sort_values("frame")
+        if len(g) < 2:
+            raise ValueError(f"plane {k} has {len(g)} frame: a spectrum needs at least 2 frames")
         for s in signals:
             x = g[s].to_numpy(float)
             x = np.where(np.isfinite(x), x, np.nanmean(x) if np.isfinite(x).any() else 0.0)
@@ -46,21 +55,34 @@ def peaks(spec: pd.DataFrame, truth_freqs_hz=None) -> pd.DataFrame:
     amplitude ``sqrt(2 P)``, and where the true frequencies are known (one per plane, plane
     ``k`` holding flame ``k``): the true frequency, the error in bins, and how far (dB) the
     other flames' frequencies lie below the plane's own on its spectrum (the worst of them).
+
+    Raises
+    ------
+    ValueError
+        A spectrum of a single bin (fewer than 2 frames); a true frequency more than one
+        bin outside the spectrum (0 to half the frame rate).
     """
     rows = []
     for (k, d, s), g in spec.groupby(["plane", "depth_mm", "signal"], sort=False):
         f, p = g.freq_hz.to_numpy(), g.power.to_numpy()
+        if len(f) < 2:
+            raise ValueError(f"plane {k}'s spectrum has {len(f)} bin: it needs at least 2 frames")
         j = 1 + int(np.argmax(p[1:]))
         df = f[1] - f[0]
         row = dict(plane=k, depth_mm=d, signal=s, bin_hz=df, dominant_hz=f[j], amplitude=math.sqrt(2 * p[j]))
         if truth_freqs_hz is not None:
+            for hz in truth_freqs_hz:
+                if not (-df <= hz <= f[-1] + df):
+                    raise ValueError(f"true frequency {hz:g} Hz lies outside the spectrum (0 to {f[-1]:g} Hz, "
+                                     f"bins of {df:g} Hz)")
+
             def power_at(hz):   # the largest power within one bin of hz (a tone off the bin grid splits)
                 return float(p[np.abs(f - hz) <= df].max())
             own = truth_freqs_hz[k]
             others = [v for i, v in enumerate(truth_freqs_hz) if i != k]
             row.update(true_hz=own, error_bins=abs(f[j] - own) / df, within_one_bin=abs(f[j] - own) <= df)
             if others:
-                below = [10 * math.log10(power_at(own) / max(power_at(v), 1e-300)) for v in others]
+                below = [10 * math.log10(max(power_at(own), 1e-300) / max(power_at(v), 1e-300)) for v in others]
                 row.update(others_below_db=min(below), worst_other_hz=others[int(np.argmin(below))])
         rows.append(row)
     return pd.DataFrame(rows)

@@ -5,7 +5,8 @@ measured per plane by :func:`lf_flame.measure.diagnostics.measure_flame`.
 """
 from __future__ import annotations
 
-import dataclasses
+import math
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -18,6 +19,12 @@ from .sources import SimulatedSource
 
 #: Frames per Dask task: enough to make scheduling a small share of the work.
 CHUNK = 16
+
+#: This process's emission operator (with its ray record), kept across chunks and keyed by
+#: what it is built from (camera, depths, rays per pixel): one per worker process, not one
+#: per task. ``builds`` counts the operators this process built.
+_OPERATOR = dict(key=None, op=None, builds=0)
+_OPERATOR_LOCK = threading.Lock()
 
 
 # ---------------------------------------------------------------------------------
@@ -41,8 +48,28 @@ class SequenceJob:
         Real frames: ``GridCalibration.to_dict()``; decoded with ``white``/``dark``.
     white, dark : str or None
         Paths of the white image and dark frame (real frames).
-    truth : tuple of tuple of float, or None
-        Simulated: the true height (mm) of plane ``k``'s flame, per frame.
+    truth_freqs_hz : tuple of float or None
+        Simulated: plane ``k``'s flame's flicker frequency (Hz), within 0 to ``fps / 2``.
+    chunk : int
+        Frames per task (>= 1).
+    iters : int or None
+        ``reconstruct-*`` routes: the solver's iterations (>= 0); None: the solver's default
+        (:data:`lf_flame.tomo.solvers.DEFAULT_ITERS`).
+    tv : float or None
+        ``reconstruct-pd-tv``: the TV weight (>= 0); None: :data:`~lf_flame.tomo.solvers.DEFAULT_TV`.
+    saturation : float or None
+        ``reconstruct-*`` routes: the sensor's clipping level in the views' units; pixels at
+        or above it are left out of the fit (their count per frame: ``n_saturated``). None:
+        every pixel is fitted.
+    operator_rays : int
+        ``reconstruct-*`` routes: rays per pixel of the emission operator (>= 1).
+
+    Raises
+    ------
+    ValueError
+        ``chunk`` below 1 or not whole, a frame rate not positive and finite, a true
+        frequency outside 0 to ``fps / 2``, reconstruction settings out of range, a route
+        other than shift-sum or reconstruct-SOLVER.
     """
 
     source: object
@@ -57,18 +84,63 @@ class SequenceJob:
     dark: str | None = None
     truth_freqs_hz: tuple | None = None
     chunk: int = CHUNK
+    iters: int | None = None
+    tv: float | None = None
+    saturation: float | None = 1.0
+    operator_rays: int = 4
     _cache: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def __post_init__(self):
+        route = parse_route(self.route)
+        if not route.tomographic and route != parse_route("shift-sum"):
+            raise ValueError(f"a recording's route is shift-sum or reconstruct-SOLVER. Received: {self.route!r}")
+        if isinstance(self.chunk, bool) or int(self.chunk) != self.chunk or self.chunk < 1:
+            raise ValueError(f"chunk (frames per task) must be a whole number >= 1. Received: {self.chunk!r}")
+        if not (math.isfinite(self.fps) and self.fps > 0):
+            raise ValueError(f"the frame rate must be positive and finite (frames/s). Received: {self.fps!r}")
+        for k, hz in enumerate(self.truth_freqs_hz or ()):
+            if not (0 <= hz <= self.fps / 2):
+                raise ValueError(f"flame {k}'s true frequency {hz:g} Hz lies outside the spectrum of "
+                                 f"{self.fps:g} frames/s (0 to {self.fps / 2:g} Hz)")
+        if self.iters is not None and (int(self.iters) != self.iters or self.iters < 0):
+            raise ValueError(f"iters must be a whole number >= 0 or None. Received: {self.iters!r}")
+        if self.tv is not None and not (math.isfinite(self.tv) and self.tv >= 0):
+            raise ValueError(f"tv must be finite and >= 0. Received: {self.tv!r}")
+        if self.saturation is not None and not (math.isfinite(self.saturation) and self.saturation > 0):
+            raise ValueError(f"saturation must be a positive finite level or None. Received: {self.saturation!r}")
+        if int(self.operator_rays) != self.operator_rays or self.operator_rays < 1:
+            raise ValueError(f"operator_rays must be a whole number >= 1. Received: {self.operator_rays!r}")
 
     @property
     def n_chunks(self) -> int:
         return -(-self.source.n_frames // self.chunk)
+
+    @property
+    def solver(self) -> str | None:
+        """The solver of a ``reconstruct-SOLVER`` route (:func:`lf_flame.routes.parse_route`);
+        None for shift-and-sum."""
+        route = parse_route(self.route)
+        return route.solver if route.tomographic else None
+
+    def reconstruction(self) -> dict | None:
+        """The reconstruction's settings, defaults resolved (iterations of the solver's
+        :data:`~lf_flame.tomo.defaults.DEFAULT_ITERS`, TV weight :data:`~lf_flame.tomo.defaults.DEFAULT_TV`);
+        None for shift-and-sum."""
+        if self.solver is None:
+            return None
+        from ..tomo.defaults import DEFAULT_ITERS, DEFAULT_TV
+        iters = DEFAULT_ITERS.get(self.solver) if self.iters is None else int(self.iters)
+        return dict(solver=self.solver, iters=iters, tv=float(DEFAULT_TV if self.tv is None else self.tv),
+                    saturation=None if self.saturation is None else float(self.saturation),
+                    operator_rays=int(self.operator_rays))
 
     def identity(self) -> dict:
         """What makes the run: a folder holding another identity is not resumed."""
         return dict(source=self.source.identity(), camera=self.camera.to_json(), fps=self.fps,
                     depths_mm=list(self.depths_mm), slopes=list(self.slopes),
                     columns=[None if c is None else list(c) for c in self.columns], route=self.route,
-                    calibration=self.calibration, white=self.white, dark=self.dark, chunk=self.chunk)
+                    calibration=self.calibration, white=self.white, dark=self.dark, chunk=self.chunk,
+                    reconstruction=self.reconstruction())
 
     def views(self, raw: np.ndarray) -> np.ndarray:
         """Sub-aperture views (N, N, R, C) of one raw frame (decoded when real)."""
@@ -98,22 +170,36 @@ class SequenceJob:
 
     def planes(self, views: np.ndarray) -> np.ndarray:
         """The focal stack (P, R, C) of one frame, by the job's route."""
-        route = parse_route(self.route)
-        if not route.tomographic and route != parse_route("shift-sum"):
-            raise ValueError(f"a recording's route is shift-sum or reconstruct-SOLVER. Received: {self.route!r}")
-        if not route.tomographic:
+        return self.planes_and_saturated(views)[0]
+
+    def planes_and_saturated(self, views: np.ndarray) -> tuple[np.ndarray, int | None]:
+        """The focal stack (P, R, C) of one frame by the job's route, and the count of its
+        pixels left out of the fit as saturated (``reconstruct-*``; None for shift-and-sum)."""
+        if self.solver is None:
             from ..refocus.shift_and_sum import aperture_mask, focal_stack
             n = views.shape[0]
-            return focal_stack(views, self.slopes, aperture_mask(n, "circular"))
-        from ..tomo.operator import EmissionOperator
+            return focal_stack(views, self.slopes, aperture_mask(n, "circular")), None
         from ..tomo.solvers import reconstruct
-        if "op" not in self._cache:
-            self._cache["op"] = EmissionOperator(self.camera, list(self.depths_mm), rays_per_pixel=4)
-        return reconstruct(views, self._cache["op"], route.solver).planes
+        r = self.reconstruction()
+        rec = reconstruct(views, self.operator(), r["solver"], r["iters"], tv=r["tv"], saturation=r["saturation"])
+        return rec.planes, int(rec.settings["n_saturated"])
+
+    def operator(self):
+        """The emission operator of the planes (``operator_rays`` rays per pixel), built once
+        per process and kept (with its ray record) while the camera, depths and rays stay."""
+        from ..tomo.operator import EmissionOperator
+        key = (self.camera.to_json(), tuple(float(d) for d in self.depths_mm), int(self.operator_rays))
+        with _OPERATOR_LOCK:
+            if _OPERATOR["key"] != key:
+                _OPERATOR.update(key=None, op=None)   # the old one's memory goes first
+                _OPERATOR.update(key=key, op=EmissionOperator(self.camera, list(self.depths_mm),
+                                                              rays_per_pixel=int(self.operator_rays)),
+                                 builds=_OPERATOR["builds"] + 1)
+            return _OPERATOR["op"]
 
 
 def simulated_job(seq: FlameSequence, camera: PlenopticCamera, source=None, *, route: str = "shift-sum",
-                  chunk: int = CHUNK, slopes=None) -> tuple[SequenceJob, np.ndarray]:
+                  chunk: int = CHUNK, slopes=None, **reconstruction) -> tuple[SequenceJob, np.ndarray]:
     """The job of a simulated recording, one plane per flame at its depth, and its truth.
 
     Each plane's diagnostics look in its flame's column band (the first frame's ``roi``
@@ -129,6 +215,8 @@ def simulated_job(seq: FlameSequence, camera: PlenopticCamera, source=None, *, r
     route, chunk : as :class:`SequenceJob`
     slopes : sequence of float or None
         One per flame; None: the camera's analytic slopes of the flames' depths.
+    **reconstruction
+        ``iters``, ``tv``, ``saturation``, ``operator_rays`` of :class:`SequenceJob`.
 
     Returns
     -------
@@ -139,48 +227,60 @@ def simulated_job(seq: FlameSequence, camera: PlenopticCamera, source=None, *, r
                  for o in seq.scene(camera, 0).objects)
     slopes = tuple(camera.slope_for_depth(d) for d in depths) if slopes is None else tuple(slopes)
     job = SequenceJob(source or SimulatedSource(seq, camera, 4), camera, seq.fps, depths, slopes, cols, route,
-                      truth_freqs_hz=tuple(f.freq_hz for f in seq.flames), chunk=chunk)
+                      truth_freqs_hz=tuple(f.freq_hz for f in seq.flames), chunk=chunk, **reconstruction)
     return job, np.array([seq.heights_mm(i) for i in range(seq.n_frames)])
 
 
 def _warm_up(job: SequenceJob) -> None:
-    """Process frame 0 once (imports, Numba's kernels loaded): a worker's first task then
-    costs what every other does."""
-    process_chunk(0, dataclasses.replace(job, chunk=1))
+    """Process frame 0 once (imports, Numba's kernels loaded, the emission operator built):
+    a worker's first task then costs what every other does."""
+    _process_frames(job, 0, 1)
 
 
 def process_chunk(c: int, job: SequenceJob) -> dict:
-    """Process chunk ``c`` of ``job`` (frames ``c * chunk`` to ``(c + 1) * chunk``).
+    """Process chunk ``c`` of ``job`` (frames ``c * chunk`` to ``(c + 1) * chunk``), its
+    frames read from the source in one call (:meth:`H5Source.frames`: one open).
 
     Returns
     -------
     dict with ``rows`` (one dict per frame and plane: frame, time_s, plane, depth_mm,
-    :meth:`FlameMeasurement.summary` fields, failure) and the seconds spent reading
-    (or rendering), refocusing and measuring.
+    :meth:`FlameMeasurement.summary` fields, failure; ``n_saturated``, the frame's pixels
+    left out of the fit, on ``reconstruct-*`` routes) and the seconds spent reading (or
+    rendering), refocusing and measuring.
+
+    Raises
+    ------
+    ValueError
+        A frame that cannot be processed (NaN or inf, another sensor size), naming the
+        frame; the original error is its cause.
     """
+    return _process_frames(job, c * job.chunk, min((c + 1) * job.chunk, job.source.n_frames))
+
+
+def _process_frames(job: SequenceJob, start: int, stop: int) -> dict:
     from ..measure.diagnostics import EmptyPlaneError, measure_flame
     from ..routes import measure_settings
     kw = measure_settings(job.route)
-    t = dict(read_s=0.0, refocus_s=0.0, measure_s=0.0)
+    t0 = time.perf_counter()
+    raws = job.source.frames(start, stop)
+    t = dict(read_s=time.perf_counter() - t0, refocus_s=0.0, measure_s=0.0)
     rows = []
-    for i in range(c * job.chunk, min((c + 1) * job.chunk, job.source.n_frames)):
-        t0 = time.perf_counter()
-        raw = job.source.raw(i)
+    for i, raw in zip(range(start, stop), raws):
         t1 = time.perf_counter()
         try:
-            stack = job.planes(job.views(raw))
+            stack, n_sat = job.planes_and_saturated(job.views(raw))
         except ValueError as e:
-            raise ValueError(f"frame {i}: {e}") from None
+            raise ValueError(f"frame {i}: {e}") from e
         t2 = time.perf_counter()
+        extra = {} if n_sat is None else dict(n_saturated=n_sat)
         for k, (plane, d) in enumerate(zip(stack, job.depths_mm)):
-            row = dict(frame=i, time_s=i / job.fps, plane=k, depth_mm=d)
+            row = dict(frame=i, time_s=i / job.fps, plane=k, depth_mm=d, **extra)
             try:
                 row.update(measure_flame(plane, job.camera, d, columns=job.columns[k], **kw).summary(), failure="")
             except EmptyPlaneError as e:
                 row.update(failure=str(e))
             rows.append(row)
         t3 = time.perf_counter()
-        t["read_s"] += t1 - t0
         t["refocus_s"] += t2 - t1
         t["measure_s"] += t3 - t2
     return dict(rows=rows, **t)

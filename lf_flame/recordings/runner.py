@@ -47,15 +47,24 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
     -------
     dict : the summary: ``wall_s`` and ``frames_per_s`` of the chunks processed, from the
         moment the cluster is up (``startup_s``, its start); ``busy_s``, the seconds the
-        tasks spent reading (or rendering), refocusing and measuring.
+        tasks spent reading (or rendering), refocusing and measuring; ``failed_frames``,
+        each plane's frames that could not be measured (their values in its spectrum are
+        the plane's mean; also ``n_failed`` in peaks.csv); on ``reconstruct-*`` routes
+        ``n_saturated``, the frames with saturated pixels left out of the fit and the most
+        in one frame (per frame: frames.csv).
 
     Raises
     ------
     ValueError
-        ``out`` holds a run with other settings; a frame that cannot be processed (NaN,
-        wrong size); a chunk table that does not hold its frames exactly once.
+        ``out`` holds a run with other settings; a recording of fewer than 2 frames (no
+        spectrum); ``nperseg`` below 2; a frame that cannot be processed (NaN, wrong size);
+        a chunk table that does not hold its frames exactly once.
     """
     out = Path(out)
+    if job.source.n_frames < 2:
+        raise ValueError(f"a recording of {job.source.n_frames} frame has no spectrum: give at least 2 frames")
+    if nperseg is not None and (int(nperseg) != nperseg or nperseg < 2):
+        raise ValueError(f"nperseg (Welch segment, frames) must be a whole number >= 2. Received: {nperseg!r}")
     parts = out / "parts"
     parts.mkdir(parents=True, exist_ok=True)
     ident = json.dumps(job.identity(), sort_keys=True, default=float)
@@ -84,16 +93,19 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
             keep(c, process_chunk(c, job))
         n_workers = 0
     else:
-        from ..parallel import dask_client, map_unordered
+        from ..parallel import dask_client, map_unordered, prepare_workers
         with dask_client(scheduler, workers or 1) as client:
             n_workers = len(client.nthreads())
-            client.run(_warm_up, job)   # imports and Numba's cached kernels, counted in the start-up
+            prepare_workers(client)
+            client.run(_warm_up, job)   # imports, Numba's cached kernels, the operator: counted in the start-up
+            # the job goes to every worker once, not with every task
+            job_on_workers = client.scatter(job, broadcast=True, hash=False)
             startup = time.perf_counter() - t0
             t0 += startup
             # keys carry the run's identity: two recordings on one shared scheduler never share a task
             tag = hashlib.sha256(ident.encode()).hexdigest()[:8]
-            for c, res in map_unordered(client, process_chunk, todo, job, name=f"frames-{tag}", progress=progress,
-                                        total=len(todo)):
+            for c, res in map_unordered(client, process_chunk, todo, job_on_workers, name=f"frames-{tag}",
+                                        progress=progress, total=len(todo)):
                 keep(c, res)
     wall = time.perf_counter() - t0
     frames = pd.concat([pd.read_csv(parts / f"chunk-{c:05d}.csv", keep_default_na=False, na_values=[""])
@@ -106,6 +118,8 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
         frames["height_err_mm"] = frames.height_mm - frames.height_mm_true
     spec = spectra(frames, job.fps, nperseg)
     pk = peaks(spec, job.truth_freqs_hz)
+    failed = frames.failure.notna().groupby(frames.plane).sum()
+    pk["n_failed"] = pk.plane.map(failed).astype(int)
     _write_csv(out / "frames.csv", frames)
     _write_csv(out / "spectra.csv", spec)
     _write_csv(out / "peaks.csv", pk)
@@ -115,6 +129,10 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
                    workers=n_workers, scheduler=scheduler, startup_s=startup, wall_s=wall,
                    frames_per_s=(len(todo) and sum(min(job.chunk, job.source.n_frames - c * job.chunk)
                                                    for c in todo) / wall),
-                   busy_s=busy, provenance=provenance())
+                   busy_s=busy, failed_frames={int(k): int(v) for k, v in failed.items()},
+                   provenance=provenance())
+    if "n_saturated" in frames:
+        per_frame = frames.groupby("frame").n_saturated.first()
+        summary["n_saturated"] = dict(frames=int((per_frame > 0).sum()), max_per_frame=int(per_frame.max()))
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=1, default=float))
     return summary

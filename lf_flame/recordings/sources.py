@@ -10,6 +10,7 @@ import json
 import math
 import os
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -44,6 +45,10 @@ class SimulatedSource:
     def identity(self) -> dict:
         return dict(kind="simulated", sequence=self.sequence.to_dict(), rays_per_pixel=self.rays_per_pixel)
 
+    def frames(self, start: int, stop: int) -> list:
+        """Frames ``start`` to ``stop`` (exclusive): a list of (H, W) float32 images."""
+        return [self.raw(i) for i in range(int(start), int(stop))]
+
 
 @dataclass(frozen=True)
 class H5Source:
@@ -53,17 +58,28 @@ class H5Source:
     path: str
     dataset: str = "frames"
 
-    @property
+    @cached_property
     def n_frames(self) -> int:
+        """Frames in the file (read once, then kept: it travels with the source)."""
         import h5py
         with h5py.File(self.path, "r") as f:
             return int(f[self.dataset].shape[0])
 
     def raw(self, i: int) -> np.ndarray:
+        """Frame ``i`` (H, W) float32, the file opened for it alone (:meth:`frames` reads a
+        run of frames in one open)."""
         import h5py
         with h5py.File(self.path, "r") as f:
             a = f[self.dataset][int(i)]
         return _scaled(a)
+
+    def frames(self, start: int, stop: int) -> list:
+        """Frames ``start`` to ``stop`` (exclusive), read in one open of the file and one
+        slice of the dataset: a list of (H, W) float32 images."""
+        import h5py
+        with h5py.File(self.path, "r") as f:
+            a = f[self.dataset][int(start):int(stop)]
+        return [_scaled(x) for x in a]
 
     def identity(self) -> dict:
         st = os.stat(self.path)
@@ -89,6 +105,10 @@ class FolderSource:
 
     def identity(self) -> dict:
         return dict(kind="folder", files=[str(Path(p).resolve()) for p in self.files])
+
+    def frames(self, start: int, stop: int) -> list:
+        """Frames ``start`` to ``stop`` (exclusive): a list of (H, W) float32 images."""
+        return [self.raw(i) for i in range(int(start), int(stop))]
 
 
 def _scaled(a: np.ndarray) -> np.ndarray:
