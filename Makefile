@@ -128,7 +128,7 @@ $(RES)/tables.md: $(foreach r,$(REGIMES),$(foreach s,$(SCENES),$(RES)/$(r)/table
 tables: $(RES)/tables.md ## Tables I and II, slopes and figures in results/$(PRESET)
 
 test: $(STAMP) $(NLF)/.installed ## run the test suite (includes an end-to-end run of the quick pipeline and a real capture's decode)
-	$(VENV)/bin/python -m pytest -q
+	$(VENV)/bin/python -m pytest -q --durations=10
 
 clean-quick: ## remove the quick preset's data, models and results
 	rm -rf data/quick models/quick results/quick

@@ -3,6 +3,7 @@ predict, and a tiny fit on each Keras backend."""
 import importlib.util
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -48,6 +49,17 @@ def flame_h5(tmp_path_factory):
     assert main(["dataset", "--data-config", str(ROOT / "data_gen/quick.toml"), "--scene", "flame",
                  "--slopes", str(d / "slopes.json"), "--out", str(h5), "--quiet"]) == 0
     return h5
+
+
+@pytest.fixture(scope="module")
+def trained(flame_h5, tmp_path_factory):
+    """A model trained 2 epochs on ``flame_h5`` by the CLI (the experiment above), shared by
+    the tests that only read a trained model folder (a test that edits it works on a copy)."""
+    d = tmp_path_factory.mktemp("trained")
+    out = d / "model"
+    assert main(["train", "--dataset", str(flame_h5), "--experiment-config", _experiment(d / "exp.toml", epochs=2),
+                 "--out", str(out), "--quiet"]) == 0
+    return out
 
 
 def _epochs(model_dir):
@@ -97,12 +109,10 @@ def test_time_budget_stops_training(flame_h5, tmp_path):
     assert _epochs(out) == [0]
 
 
-def test_predict_full_model_equals_cached_feature_path(flame_h5, tmp_path, capsys):
+def test_predict_full_model_equals_cached_feature_path(flame_h5, trained, tmp_path, capsys):
     from lf_flame.learn.features import predict_features
     from lf_flame.learn.model_files import load_decoder
-    out = tmp_path / "model"
-    assert main(["train", "--dataset", str(flame_h5), "--experiment-config",
-                 _experiment(tmp_path / "exp.toml", epochs=2), "--out", str(out), "--quiet"]) == 0
+    out = trained
     i = 3
     assert main(["predict", f"{flame_h5}:{i}", "--model-dir", str(out), "--out", str(tmp_path / "p.npz"),
                  "--repeat", "2"]) == 0
@@ -116,10 +126,8 @@ def test_predict_full_model_equals_cached_feature_path(flame_h5, tmp_path, capsy
     assert np.abs(full - cached).max() < 2e-3 < full.std()
 
 
-def test_predict_rejects_mismatched_input(flame_h5, tmp_path, capsys):
-    out = tmp_path / "model"
-    assert main(["train", "--dataset", str(flame_h5), "--experiment-config",
-                 _experiment(tmp_path / "exp.toml", epochs=1), "--out", str(out), "--quiet"]) == 0
+def test_predict_rejects_mismatched_input(flame_h5, trained, tmp_path, capsys):
+    out = trained
     np.save(tmp_path / "small.npy", np.zeros((30, 45), np.float32))
     assert main(["predict", str(tmp_path / "small.npy"), "--model-dir", str(out), "--out",
                  str(tmp_path / "p.npz")]) == 2
@@ -171,10 +179,9 @@ def test_gnu_time_report_parsed(tmp_path):
         read_gnu_time(tmp_path / "bad.txt")
 
 
-def test_model_refuses_a_dataset_from_another_camera(flame_h5, tmp_path, capsys):
+def test_model_refuses_a_dataset_from_another_camera(flame_h5, trained, tmp_path, capsys):
     out = tmp_path / "model"
-    assert main(["train", "--dataset", str(flame_h5), "--experiment-config",
-                 _experiment(tmp_path / "exp.toml", epochs=1), "--out", str(out), "--quiet"]) == 0
+    shutil.copytree(trained, out)  # edited below: a copy of the shared model
     info = json.loads((out / "train_info.json").read_text())
     from lf_flame.optics.camera import PlenopticCamera
     info["dataset_camera"] = PlenopticCamera(mla_pitch_mm=0.1).to_json()  # as if trained on another camera
@@ -187,10 +194,8 @@ def test_model_refuses_a_dataset_from_another_camera(flame_h5, tmp_path, capsys)
 
 @pytest.mark.jax
 @pytest.mark.skipif(importlib.util.find_spec("jax") is None, reason="jax is not installed")
-def test_jax_backend_predicts_what_tensorflow_predicts(flame_h5, tmp_path):
-    out = tmp_path / "model"
-    assert main(["train", "--dataset", str(flame_h5), "--experiment-config",
-                 _experiment(tmp_path / "exp.toml", epochs=1), "--out", str(out), "--quiet"]) == 0
+def test_jax_backend_predicts_what_tensorflow_predicts(flame_h5, trained, tmp_path):
+    out = trained
     stacks = {}
     for backend in ("tensorflow", "jax"):
         r = subprocess.run(LF + ["predict", f"{flame_h5}:2", "--model-dir", str(out), "--out",
@@ -278,15 +283,13 @@ def test_paper_recipe_stays_reproducible_and_fails(flame_h5, tmp_path):
     assert h.val_ssim.max() < mean_val - 0.1, (h.val_ssim.tolist(), mean_val)
 
 
-def test_closed_form_start_beats_the_mean_image_and_the_best_epoch_is_kept(flame_h5, tmp_path):
+def test_closed_form_start_beats_the_mean_image_and_the_best_epoch_is_kept(flame_h5, trained):
     from lf_flame.learn.baselines import load_baselines
     from lf_flame.learn.dataset import LightFieldDataset
     from lf_flame.learn.features import load_features, predict_features
     from lf_flame.measure.metrics import ssim_per_plane
     from lf_flame.learn.model_files import load_decoder
-    out = tmp_path / "model"
-    assert main(["train", "--dataset", str(flame_h5), "--experiment-config",
-                 _experiment(tmp_path / "exp.toml", epochs=2), "--out", str(out), "--quiet"]) == 0
+    out = trained
     info = json.loads((out / "train_info.json").read_text())
     h = pd.read_csv(out / "history.csv")
     assert h.val_ssim.iloc[0] == pytest.approx(info["start_val_ssim"], abs=1e-12)
