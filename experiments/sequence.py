@@ -49,8 +49,8 @@ SEED_RECON = 0
 class PerFrameH5(H5Source):
     """The HDF5 reading before issue 34: the file opened once for every frame."""
 
-    def frames(self, start: int, stop: int) -> list:
-        return [self.raw(i) for i in range(int(start), int(stop))]
+    def frames(self, start: int, stop: int):
+        return (self.raw(i) for i in range(int(start), int(stop)))
 
 
 #: The speed stage's modes: (name, local workers or None for serial, one open per frame).

@@ -43,7 +43,7 @@ def main(argv=None):
                 if mode == "one open per frame":
                     frames = [src.raw(i) for i in range(c, min(c + CHUNK, n))]
                 else:
-                    frames = src.frames(c, min(c + CHUNK, n))
+                    frames = list(src.frames(c, min(c + CHUNK, n)))
                 assert len(frames) == min(CHUNK, n - c)
             dt = time.perf_counter() - t
             rows.append(dict(mode=mode, repeat=rep, n_frames=n, chunk=CHUNK, read_ms_per_frame=1e3 * dt / n))

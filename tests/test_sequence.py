@@ -254,7 +254,8 @@ def test_a_chunk_reads_its_hdf5_frames_in_one_open(small_seq, tmp_path, monkeypa
     opens = []
     real = h5py.File
     monkeypatch.setattr(h5py, "File", lambda *a, **k: opens.append(a[0]) or real(*a, **k))
-    assert all(np.array_equal(a, b) for a, b in zip(src.frames(4, 8), want))
+    got = list(src.frames(4, 8))
+    assert len(got) == 4 and all(np.array_equal(a, b) for a, b in zip(got, want))
     assert len(opens) == 1
     job = _job(small_seq, chunk=4, source=src)
     assert job.n_chunks == 2   # the length, read by the calling process, travels with the source
@@ -267,7 +268,7 @@ def test_a_chunk_reads_its_hdf5_frames_in_one_open(small_seq, tmp_path, monkeypa
 def test_unmeasurable_frames_are_counted(small_seq, tmp_path):
     """Frames without light (here 2 of 8) cannot be measured on any plane: their count per
     plane is in the summary and peaks.csv (their values in the spectrum are the mean)."""
-    frames = np.stack(SimulatedSource(small_seq, PAPER_CAMERA, 1).frames(0, 8))
+    frames = np.stack(list(SimulatedSource(small_seq, PAPER_CAMERA, 1).frames(0, 8)))
     frames[[2, 5]] = 0.0
     _write_h5(tmp_path / "dark.h5", frames, fps=100.0)
     src, _ = open_source(tmp_path / "dark.h5")
@@ -283,7 +284,7 @@ def test_reconstruction_settings_reach_the_solver_and_the_run_identity(small_seq
     frame are counted in its rows."""
     from lf_flame.tomo.operator import EmissionOperator
     from lf_flame.tomo.solvers import DEFAULT_ITERS, DEFAULT_TV, reconstruct
-    frames = np.stack(SimulatedSource(small_seq, PAPER_CAMERA, 1).frames(0, 2))
+    frames = np.stack(list(SimulatedSource(small_seq, PAPER_CAMERA, 1).frames(0, 2)))
     frames = np.clip(3.0 * frames, 0.0, 1.0)   # overexposed: clipped pixels
     _write_h5(tmp_path / "bright.h5", frames, fps=100.0)
     src, _ = open_source(tmp_path / "bright.h5")

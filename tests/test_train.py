@@ -227,7 +227,8 @@ def test_saved_random_backbone_is_the_one_that_made_the_features(flame_h5, tmp_p
     monkeypatch.setattr(F, "resolve_weights", auto_offline)
     out = tmp_path / "model"
     train(flame_h5, out, ModelConfig(input_rows=64, input_cols=32, weights="auto"),
-          TrainConfig(max_epochs={"flame": 1}, time_budget_s={"flame": 600}, seed=11), progress=False)
+          TrainConfig(max_epochs={"flame": 1}, time_budget_s={"flame": 600}, refine_iterations={"flame": 0}, seed=11),
+          progress=False)
     model, info = load_full_model(out)
     fx = model.get_layer("feature_extractor")
     with h5py.File(info["feature_cache"]) as f:

@@ -261,12 +261,14 @@ def _process_frames(job: SequenceJob, start: int, stop: int) -> dict:
     from ..measure.diagnostics import EmptyPlaneError, measure_flame
     from ..routes import measure_settings
     kw = measure_settings(job.route)
-    t0 = time.perf_counter()
-    raws = job.source.frames(start, stop)
-    t = dict(read_s=time.perf_counter() - t0, refocus_s=0.0, measure_s=0.0)
+    t = dict(read_s=0.0, refocus_s=0.0, measure_s=0.0)
     rows = []
-    for i, raw in zip(range(start, stop), raws):
+    raws = job.source.frames(start, stop)
+    for i in range(start, stop):
+        t0 = time.perf_counter()
+        raw = next(raws)
         t1 = time.perf_counter()
+        t["read_s"] += t1 - t0
         try:
             stack, n_sat = job.planes_and_saturated(job.views(raw))
         except ValueError as e:
