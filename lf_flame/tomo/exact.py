@@ -66,12 +66,12 @@ import time
 import numpy as np
 import pylops
 import scipy.fft
-from numba import njit, prange
 
 from ..optics.camera import PlenopticCamera
 from ..simulate.scenes import FLAME_EFFECTS, Effects, Layer, Scene
 from ..simulate.tracer import _stack_layers, trace_coefficients
-from .operator import plane_grid
+from . import _exact_kernels
+from .operator import normalised_adjoint, plane_grid
 
 #: Gauss-Legendre nodes per smooth piece of a pixel's ``da`` range (per axis). Against 32
 #: nodes: largest tap off by 5.8e-5 of the largest tap, 5.6e-6 of the kernels' sum in all
@@ -81,223 +81,6 @@ QUADRATURE_NODES = 6
 #: lenslet's shifted by whole samples: above it the map is not a convolution.
 SHIFT_TOLERANCE = 1e-6
 PRECISIONS = ("float64", "float32")
-
-
-# ---- quadrature of the kernels (Numba) -----------------------------------------------------
-@njit(inline="always", cache=True)
-def _half_disc(y, r):
-    """Area of the disc of radius ``r`` (centred at 0) above the line ``Y = y``."""
-    if y >= r:
-        return 0.0
-    if y <= -r:
-        return math.pi * r * r
-    return r * r * math.acos(y / r) - y * math.sqrt(r * r - y * y)
-
-
-@njit(inline="always", cache=True)
-def _half_moment(y, r):
-    """First moment (along Y) of the disc above ``Y = y``: ``2/3 (r^2 - y^2)^(3/2)``."""
-    if abs(y) >= r:
-        return 0.0
-    return 2.0 / 3.0 * (r * r - y * y) ** 1.5
-
-
-@njit(inline="always", cache=True)
-def _arc(x, r):
-    """``int_0^x sqrt(r^2 - X^2) dX`` for ``0 <= x <= r``."""
-    return 0.5 * (x * math.sqrt(max(r * r - x * x, 0.0)) + r * r * math.asin(min(x / r, 1.0)))
-
-
-@njit(inline="always", cache=True)
-def _corner_pos(x, y, r):
-    """Area and first moments (X, Y) of the disc within ``X >= x, Y >= y``, ``x, y >= 0``."""
-    if x * x + y * y >= r * r:
-        return 0.0, 0.0, 0.0
-    sx = math.sqrt(r * r - y * y)
-    area = _arc(sx, r) - _arc(x, r) - y * (sx - x)
-    mx = ((r * r - x * x) ** 1.5 - y ** 3) / 3.0 - 0.5 * y * (sx * sx - x * x)
-    my = 0.5 * ((r * r - y * y) * (sx - x) - (sx ** 3 - x ** 3) / 3.0)
-    return area, mx, my
-
-
-@njit(inline="always", cache=True)
-def _corner(x, y, r):
-    """Area and first moments (X, Y) of the disc within ``X >= x, Y >= y`` (any signs), by
-    the disc's mirror symmetries."""
-    if x >= 0.0 and y >= 0.0:
-        return _corner_pos(x, y, r)
-    if x < 0.0 and y >= 0.0:
-        a, mx, my = _corner_pos(-x, y, r)
-        return _half_disc(y, r) - a, mx, _half_moment(y, r) - my
-    if x >= 0.0:
-        a, mx, my = _corner_pos(x, -y, r)
-        return _half_disc(x, r) - a, _half_moment(x, r) - mx, my
-    a, mx, my = _corner_pos(-x, -y, r)
-    return (math.pi * r * r - _half_disc(-x, r) - _half_disc(-y, r) + a, _half_moment(-x, r) - mx,
-            _half_moment(-y, r) - my)
-
-
-@njit(cache=True)
-def _clip_to_disc(y0, y1, x0, x1, r):
-    """The part of the rectangle ``[y0, y1] x [x0, x1]`` (mm, ``y`` along Y) inside the disc
-    of radius ``r`` (``r <= 0``: no disc): its fraction of the rectangle's area and the
-    offset of its centroid from the rectangle's centre (dy, dx)."""
-    if r <= 0.0:
-        return 1.0, 0.0, 0.0
-    if max(y0 * y0, y1 * y1) + max(x0 * x0, x1 * x1) <= r * r:
-        return 1.0, 0.0, 0.0
-    ny = 0.0 if y0 <= 0.0 <= y1 else min(y0 * y0, y1 * y1)
-    nx = 0.0 if x0 <= 0.0 <= x1 else min(x0 * x0, x1 * x1)
-    if ny + nx >= r * r:
-        return 0.0, 0.0, 0.0
-    a00, x00, y00 = _corner(x0, y0, r)
-    a10, x10, y10 = _corner(x1, y0, r)
-    a01, x01, y01 = _corner(x0, y1, r)
-    a11, x11, y11 = _corner(x1, y1, r)
-    area = a00 - a10 - a01 + a11
-    if area <= 0.0:
-        return 0.0, 0.0, 0.0
-    mx = (x00 - x10 - x01 + x11) / area - 0.5 * (x0 + x1)
-    my = (y00 - y10 - y01 + y11) / area - 0.5 * (y0 + y1)
-    return min(area / ((y1 - y0) * (x1 - x0)), 1.0), my, mx
-
-
-@njit(cache=True)
-def _axis_points(c, A, B, a0, a1, a2, t0, t1, t2, m0, n_taps, xg, wg, tap, wt, lo_mm, hi_mm, angle, slope, var):
-    """Quadrature points of one axis of one view and plane; returns how many were written.
-
-    Texel coordinate ``c + A du + B da``, main-lens height ``a0 + a1 du + a2 da`` (mm,
-    ``a1 != 0``), angle ``t0 + t1 du + t2 da`` (rad), ``du, da`` in [-1/2, 1/2]. ``da`` is
-    split where a texel boundary meets ``du = +-1/2`` and each piece integrated by
-    Gauss-Legendre (``xg, wg`` on [-1, 1]); ``du`` exactly: for each ``da`` node and tap
-    ``m0 + m`` the point holds the tap ``m``, the weight (``da`` weight x the length of the
-    ``du`` interval reading that tap), that interval's main-lens heights (mm), its angle
-    at the interval's middle, the angle's slope per mm of height and its variance over
-    the interval.
-    """
-    bp = np.empty(4 + 2 * (n_taps + 2))
-    bp[0] = -0.5
-    bp[1] = 0.5
-    nb = 2
-    if B != 0.0:
-        for s in (-0.5 * A, 0.5 * A):
-            v0 = c + s - 0.5 * abs(B)
-            v1 = c + s + 0.5 * abs(B)
-            for j in range(int(math.floor(v0)) + 1, int(math.ceil(v1))):
-                da = (j - c - s) / B
-                if -0.5 < da < 0.5 and nb < bp.shape[0]:
-                    bp[nb] = da
-                    nb += 1
-    bps = np.sort(bp[:nb])
-    n = 0
-    for seg in range(nb - 1):
-        d0, d1 = bps[seg], bps[seg + 1]
-        if d1 <= d0:
-            continue
-        half, mid = 0.5 * (d1 - d0), 0.5 * (d1 + d0)
-        for g in range(xg.shape[0]):
-            da = mid + half * xg[g]
-            w = half * wg[g]
-            base = c + B * da
-            for m in range(n_taps):
-                mm = m0 + m
-                if A > 0.0:
-                    lo, hi = (mm - base) / A, (mm + 1 - base) / A
-                elif A < 0.0:
-                    lo, hi = (mm + 1 - base) / A, (mm - base) / A
-                elif math.floor(base) == mm:
-                    lo, hi = -0.5, 0.5
-                else:
-                    continue
-                lo = max(lo, -0.5)
-                hi = min(hi, 0.5)
-                if hi <= lo:
-                    continue
-                e0 = a0 + a1 * lo + a2 * da
-                e1 = a0 + a1 * hi + a2 * da
-                tap[n] = m
-                wt[n] = w * (hi - lo)
-                lo_mm[n] = min(e0, e1)
-                hi_mm[n] = max(e0, e1)
-                angle[n] = t0 + t1 * 0.5 * (lo + hi) + t2 * da
-                slope[n] = t1 / a1
-                var[n] = (t1 * (hi - lo)) ** 2 / 12.0
-                n += 1
-    return n
-
-
-@njit(parallel=True, cache=True)
-def _kernel_quadrature(cy, ay, ty, m0y, cx, ax, tx, n0x, n_taps_y, n_taps_x, radius, use_cos4, xg, wg, h, moments):
-    """Kernels ``h`` (Nu, Nv, P, n_taps_y, n_taps_x) and, per view, the moments of its rays'
-    angles (``moments`` (Nu, Nv, 6): mass, mean ty, mean tx, var ty, cov, var tx).
-
-    ``cy`` (Nu, P, 3): texel coefficients (constant, du, da) of each view row ``u`` and
-    plane; ``ay``, ``ty`` (Nu, 3): main-lens height and angle coefficients (angle at the
-    reference lenslet); ``m0y`` (Nu, P) int64: first tap; ``cx``... the same along x.
-    ``radius`` of the aperture (mm; <= 0: none). Each pair of points (one per axis) is a
-    rectangle of main-lens heights: its part inside the aperture exactly (area and
-    centroid in closed form), cos^4 over it to second order about its centroid.
-    """
-    Nu, P = cy.shape[0], cy.shape[1]
-    Nv = cx.shape[0]
-    n_g = xg.shape[0]
-    cap_y = n_g * (3 + 2 * (n_taps_y + 2)) * n_taps_y
-    cap_x = n_g * (3 + 2 * (n_taps_x + 2)) * n_taps_x
-    for uv in prange(Nu * Nv):
-        u = uv // Nv
-        v = uv % Nv
-        tp_y = np.empty(cap_y, np.int64)
-        w_y = np.empty(cap_y)
-        l_y = np.empty(cap_y)
-        u_y = np.empty(cap_y)
-        a_y = np.empty(cap_y)
-        s_y = np.empty(cap_y)
-        v_y = np.empty(cap_y)
-        tp_x = np.empty(cap_x, np.int64)
-        w_x = np.empty(cap_x)
-        l_x = np.empty(cap_x)
-        u_x = np.empty(cap_x)
-        a_x = np.empty(cap_x)
-        s_x = np.empty(cap_x)
-        v_x = np.empty(cap_x)
-        for k in range(P):
-            ny = _axis_points(cy[u, k, 0], cy[u, k, 1], cy[u, k, 2], ay[u, 0], ay[u, 1], ay[u, 2],
-                              ty[u, 0], ty[u, 1], ty[u, 2], m0y[u, k], n_taps_y, xg, wg, tp_y, w_y, l_y, u_y, a_y,
-                              s_y, v_y)
-            nx = _axis_points(cx[v, k, 0], cx[v, k, 1], cx[v, k, 2], ax[v, 0], ax[v, 1], ax[v, 2],
-                              tx[v, 0], tx[v, 1], tx[v, 2], n0x[v, k], n_taps_x, xg, wg, tp_x, w_x, l_x, u_x, a_x,
-                              s_x, v_x)
-            s0 = sy = sx = syy = sxy = sxx = 0.0
-            for p in range(ny):
-                for q in range(nx):
-                    frac, dy, dx = _clip_to_disc(l_y[p], u_y[p], l_x[q], u_x[q], radius)
-                    mu = w_y[p] * w_x[q] * frac
-                    if mu == 0.0:
-                        continue
-                    t_y = a_y[p] + s_y[p] * dy
-                    t_x = a_x[q] + s_x[q] * dx
-                    f = 1.0
-                    if use_cos4:
-                        t2 = 1.0 + t_y * t_y + t_x * t_x
-                        f = 1.0 / (t2 * t2) + 0.5 * (
-                            (-4.0 / t2 ** 3 + 24.0 * t_y * t_y / t2 ** 4) * v_y[p]
-                            + (-4.0 / t2 ** 3 + 24.0 * t_x * t_x / t2 ** 4) * v_x[q])
-                    h[u, v, k, tp_y[p], tp_x[q]] += mu * f
-                    if k == 0:
-                        s0 += mu
-                        sy += mu * t_y
-                        sx += mu * t_x
-                        syy += mu * (t_y * t_y + v_y[p])
-                        sxy += mu * t_y * t_x
-                        sxx += mu * (t_x * t_x + v_x[q])
-            if k == 0 and s0 > 0.0:
-                my, mx = sy / s0, sx / s0
-                moments[u, v, 0] = s0
-                moments[u, v, 1] = my
-                moments[u, v, 2] = mx
-                moments[u, v, 3] = syy / s0 - my * my
-                moments[u, v, 4] = sxy / s0 - my * mx
-                moments[u, v, 5] = sxx / s0 - mx * mx
 
 
 def _cos4_mean(ty, tx, var_y, cov, var_x):
@@ -431,7 +214,7 @@ class ExactOperator(pylops.LinearOperator):
         h = np.zeros((N, N, P, n_ty, n_tx))
         moments = np.zeros((N, N, 6))
         radius = camera.aperture_diameter_mm / 2 if effects.aperture else -1.0
-        _kernel_quadrature(cy, ay, ty, m0y, cx, ax, tx, n0x, n_ty, n_tx, radius, bool(effects.cos4), xg, wg, h,
+        _exact_kernels.kernel_quadrature(cy, ay, ty, m0y, cx, ax, tx, n0x, n_ty, n_tx, radius, bool(effects.cos4), xg, wg, h,
                            moments)
 
         # per-pixel cos^4 drift: the pixel's mean cos^4 over the centre's (moment expansion)
@@ -531,7 +314,4 @@ class ExactOperator(pylops.LinearOperator):
         -------
         planes : ndarray of shape (P, rows, cols), float64; 0 where no pixel sees a sample.
         """
-        num = self.rmatvec(np.asarray(views, np.float64).ravel())
-        den = self.rmatvec(np.ones(self.shape[0]))
-        seen = den > 1e-12 * max(float(den.max()), 1e-300)
-        return np.where(seen, num / np.where(seen, den, 1.0), 0.0).reshape(self.dims)
+        return normalised_adjoint(self, views)

@@ -236,9 +236,17 @@ class EmissionOperator(pylops.LinearOperator):
         -------
         planes : ndarray of shape (P, rows, cols), float64; 0 where no ray reaches a sample.
         """
-        num = self.rmatvec(np.asarray(views, np.float64).ravel())
-        den = self.rmatvec(np.ones(self.shape[0]))
-        return np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0).reshape(self.dims)
+        return normalised_adjoint(self, views)
+
+
+def normalised_adjoint(op: pylops.LinearOperator, views) -> np.ndarray:
+    """``A^T y / A^T 1`` of any emission operator ``op``: each sample's weighted mean over
+    the pixels that see it, a refocused stack (P, rows, cols), float64; 0 where no pixel
+    sees a sample (``A^T 1`` at most 1e-12 of its largest value: an FFT's rounding)."""
+    num = op.rmatvec(np.asarray(views, np.float64).ravel())
+    den = op.rmatvec(np.ones(op.shape[0]))
+    seen = den > 1e-12 * max(float(den.max()), 1e-300)
+    return np.where(seen, num / np.where(seen, den, 1.0), 0.0).reshape(op.dims)
 
 
 def check_views(views, op: EmissionOperator) -> np.ndarray:
