@@ -5,7 +5,8 @@ the planes. :mod:`.operator` is that camera map as a PyLops operator (the simula
 tracer with fixed rays, recorded once, kernels in :mod:`._kernels`); :mod:`.exact` the
 same map without Monte-Carlo noise (per-view convolutions with kernels by deterministic
 quadrature, applied by FFT; kernels in :mod:`._exact_kernels`); :mod:`.solvers`
-recovers the emission with PyLops/PyProximal solvers; :mod:`.truth` puts a simulated
+recovers the emission with PyLops/PyProximal solvers, and :mod:`.fourier` on the exact
+operator's per-frequency normal matrices (ADMM; kernels in :mod:`._fourier_kernels`); :mod:`.truth` puts a simulated
 scene's truth on the same grids; :mod:`.scoring` scores planes against it;
 :mod:`.files` saves, loads and draws a reconstruction.
 
@@ -15,9 +16,10 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["defaults", "exact", "files", "operator", "scoring", "solvers", "truth"],
+    submodules=["defaults", "exact", "files", "fourier", "operator", "scoring", "solvers", "truth"],
     submod_attrs={
         "exact": ["QUADRATURE_NODES", "SHIFT_TOLERANCE", "PRECISIONS", "ExactOperator"],
+        "fourier": ["FourierSystem", "fourier_system", "solve_admm"],
         "files": ["save_reconstruction", "load_reconstruction", "plot_reconstruction"],
         "operator": ["ADJOINT_BLOCKS", "RAY_TABLE_MAX_BYTES", "plane_grid", "EmissionOperator",
                      "normalised_adjoint", "check_views"],

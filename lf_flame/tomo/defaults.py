@@ -4,11 +4,21 @@
 parser reads them from here, so ``lf-flame --help`` does not import PyLops.
 """
 #: Solvers of :func:`lf_flame.tomo.solvers.reconstruct`; "adjoint" is plain refocusing (the baseline).
-SOLVERS = ("adjoint", "lsqr", "fista", "pd-tv", "rl")
+SOLVERS = ("adjoint", "lsqr", "fista", "pd-tv", "rl", "admm")
 #: Iterations each solver runs unless told: the fewest within 10 % of the solver's best
 #: worst-plane error on validation renders (``results/reconstruct_iters.csv``, ``make reconstruct``).
-DEFAULT_ITERS = {"adjoint": 0, "lsqr": 40, "fista": 30, "pd-tv": 40, "rl": 20}
+DEFAULT_ITERS = {"adjoint": 0, "lsqr": 40, "fista": 30, "pd-tv": 40, "rl": 20, "admm": 5}
 #: TV weight of "pd-tv" unless told (validation renders, as the iterations).
 DEFAULT_TV = 0.3
 #: The solver whose worst validation render is best (``make reconstruct``): the default of ``lf-flame reconstruct``.
 DEFAULT_SOLVER = "pd-tv"
+#: Knobs of the "admm" solver (:func:`lf_flame.tomo.fourier.solve_admm`), chosen on validation renders at
+#: 400 rays per pixel (``experiments/exact_operator.py --stage tune``): fills of the missing data (its
+#: iterations), ADMM steps per fill, the gradient weight and the penalties (relative to the stack's light
+#: g0), the fills' momentum.
+ADMM_FILLS = 5
+ADMM_INNER = 10
+ADMM_LAM = 0.03
+ADMM_RHO = 0.01
+ADMM_RHO_TV = 1.0
+ADMM_MOMENTUM = 0.5

@@ -20,7 +20,7 @@ from pyproximal.optimization.primal import ProximalGradient
 from pyproximal.optimization.primaldual import PrimalDual
 from tqdm.auto import tqdm
 
-from .defaults import DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV, SOLVERS  # noqa: F401 (re-exported)
+from .defaults import ADMM_LAM, DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV, SOLVERS  # noqa: F401 (re-exported)
 from .operator import EmissionOperator, check_views
 
 # ---- solvers ---------------------------------------------------------------------------
@@ -88,8 +88,8 @@ def lipschitz_bound(op: EmissionOperator) -> float:
 
 
 def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters: int | None = None, *,
-                damp: float = 0.0, tv: float = DEFAULT_TV, saturation: float | None = 1.0, progress: bool = False,
-                callback=None) -> Reconstruction:
+                damp: float = 0.0, tv: float | None = None, lam: float = ADMM_LAM, saturation: float | None = 1.0,
+                progress: bool = False, callback=None) -> Reconstruction:
     """Recover the emission on the operator's planes from one light field.
 
     Parameters
@@ -111,10 +111,17 @@ def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters
           plane) with ``x >= 0``.
         - ``"rl"``: Richardson-Lucy, ``x <- x A^T(y / A x) / A^T 1`` (the light-field
           microscopy default, 15 iterations; Broxton et al. 2013), non-negative.
+        - ``"admm"``: on an :class:`~lf_flame.tomo.exact.ExactOperator` only: per-frequency
+          ADMM with the window and saturated pixels as missing data, non-negative, with
+          ``lam ||grad x||^2`` (and TV when ``tv > 0``); its iterations are the fills of the
+          missing data (:func:`lf_flame.tomo.fourier.solve_admm`).
     iters : int or None
         Iterations; None: :data:`DEFAULT_ITERS`.
     damp, tv : float
-        LSQR's damping and the TV weight (>= 0); ignored by the other solvers.
+        LSQR's damping and the TV weight (>= 0; pd-tv's, and admm's when given explicitly);
+        ignored by the other solvers.
+    lam : float
+        admm's gradient weight relative to the stack's light (:data:`~lf_flame.tomo.defaults.ADMM_LAM`).
     saturation : float or None
         The sensor's clipping level in the views' units (1.0: :func:`lf_flame.simulate.tracer.render`'s).
         A pixel at or above it holds only a lower bound of its light: the iterative solvers
@@ -139,6 +146,8 @@ def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters
     if solver not in SOLVERS:
         raise ValueError(f"solver must be one of {SOLVERS}. Received: {solver!r}")
     iters = DEFAULT_ITERS[solver] if iters is None else int(iters)
+    tv_given = tv is not None
+    tv = DEFAULT_TV if tv is None else tv
     if iters < 0 or damp < 0 or tv < 0 or not (math.isfinite(damp) and math.isfinite(tv)):
         raise ValueError(f"iters, damp and tv must be finite and >= 0. Received: {iters}, {damp}, {tv}")
     if saturation is not None and not (math.isfinite(saturation) and saturation > 0):
@@ -162,7 +171,19 @@ def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters
         bar.update()
         if callback is not None:
             callback(count[0], np.ravel(x))
-    if solver == "adjoint":
+    if solver == "admm":
+        from .exact import ExactOperator
+        from .fourier import solve_admm
+        if not isinstance(op, ExactOperator):
+            raise ValueError("the admm solver works on the exact operator's per-frequency matrices: give an "
+                             "lf_flame.tomo.exact.ExactOperator")
+        admm_tv = tv if tv_given else 0.0
+        settings.update(lam=lam, tv=admm_tv)
+        planes, residuals, settings["system_s"] = solve_admm(y.reshape(op.dimsd), op, fit.reshape(op.dimsd),
+                                                             fills=iters, lam=lam, tv=admm_tv,
+                                                             callback=lambda j, x: step(x))
+        x = planes.ravel()
+    elif solver == "adjoint":
         x = op.normalised_adjoint(y.reshape(op.dimsd)).ravel()
         residuals = [float(np.linalg.norm(op.matvec(x) - y)) / norm]
     elif solver == "lsqr":
