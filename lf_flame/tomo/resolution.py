@@ -36,9 +36,9 @@ mm; on plane ``k`` of sample ``a_k`` mm that is ``f_k = a_k / (2 s)`` cycles per
   the stack's grid. The condition also carries the two planes' different throughput at
   ``f``: far from focus a pixel's footprint spans several samples and blurs a fine
   feature out (on the paper's camera a 0.2 mm feature keeps 0.5 % of its best plane's
-  energy at +25 mm, 11 % at -15 mm), so near the sampling limit it rises again at large spacings: the far
-  plane is then barely seen rather than confused with the near one. The smallest
-  spacing is the first crossing;
+  energy at +25 mm, 11 % at -15 mm), so near the sampling limit it rises again at large
+  spacings: the far plane is then barely seen rather than confused with the near one.
+  The smallest spacing is the first crossing;
 - *independent depth modes*: the eigenvalues of the whole stack's ``G(f)`` above
   ``lambda_max / c``, at the frequency of the stack's mean sample, ``f = mean(a) / (2 s)``.
 
