@@ -21,7 +21,7 @@ HELDOUT_paper := 20
 HELDOUT_quick := 4
 HELDOUT_SEED := 770077
 
-.PHONY: help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct sequence new-user heights test clean-quick
+.PHONY: help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution sequence new-user heights test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -116,6 +116,10 @@ reconstruct: $(STAMP) ## 3-D emission reconstruction, every solver against refoc
 	$(VENV)/bin/python experiments/reconstruct.py --out $(TRADEOFF_OUT) $(RECON_ARGS_$(PRESET))
 	if [ -f $(TRADEOFF_OUT)/tradeoff.csv ]; then \
 		$(VENV)/bin/python experiments/tradeoff.py --reconstruction-only --out $(TRADEOFF_OUT); fi
+
+# the camera's depth-resolution map (lf_flame.tomo.resolution; about 1.5 min on 2 cores)
+resolution: $(STAMP) ## smallest resolvable plane spacing against feature size -> results/depth_resolution.{csv,md,png}
+	$(VENV)/bin/python experiments/depth_resolution.py --out $(TRADEOFF_OUT)
 
 # the stem is REGIME/table_SCENE
 $(RES)/%.md: $(MODELS)/$$(*D)/$$(subst table_,,$$(*F))/train_info.json

@@ -3,6 +3,7 @@
 The argument parser and :func:`main`; the commands, one module per stage:
 :mod:`.optics` (simulate, refocus, slopes), :mod:`.real` (calibrate, decode),
 :mod:`.learning` (dataset, train, predict, evaluate, tables), :mod:`.volume` (reconstruct),
+:mod:`.resolution` (the camera's depth-resolution map),
 :mod:`.profiles` and :mod:`.sequence` (recordings over time);
 :mod:`._io` reads and writes their files.
 """
@@ -14,11 +15,13 @@ import sys
 from ..routes import LEARNED_ROUTES
 from ..simulate.scenes import PAPER_DEPTHS_MM
 from ..tomo.defaults import DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV, SOLVERS
+from ..tomo.resolution import AXES, CONDITIONS, DEFAULT_FAR_MM, DEFAULT_NEAR_MM, DEFAULT_SPACING_MM, FEATURE_SIZES_MM
 from ._io import RAW_FORMATS
 from .learning import cmd_dataset, cmd_evaluate, cmd_predict, cmd_tables, cmd_train
 from .optics import cmd_refocus, cmd_simulate, cmd_slopes
 from .profiles import cmd_profiles
 from .real import cmd_calibrate, cmd_decode
+from .resolution import cmd_resolution
 from .sequence import cmd_sequence, cmd_simulate_sequence
 from .volume import cmd_reconstruct
 
@@ -255,6 +258,23 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True, help="volume.h5 (planes, depths, mm per sample, settings, residuals); "
                                                "the figure goes beside it as .png")
     s.set_defaults(func=cmd_reconstruct)
+
+    s = sub.add_parser("resolution", help="the camera's depth-resolution map: the smallest plane spacing that "
+                       "the light field resolves against feature size, at stated condition numbers (from the exact "
+                       "operator's per-frequency normal matrices of a dense stack)")
+    s.add_argument("--camera", help="TOML file with a [camera] table, as the data configs have (default: the "
+                   "paper's camera)")
+    s.add_argument("--near", type=float, default=DEFAULT_NEAR_MM, help="nearest plane of the stack, mm from the "
+                   "focal plane (> 0 farther)")
+    s.add_argument("--far", type=float, default=DEFAULT_FAR_MM, help="farthest plane, mm")
+    s.add_argument("--spacing", type=float, default=DEFAULT_SPACING_MM, help="the stack's plane spacing, mm")
+    s.add_argument("--condition", type=float, nargs="+", default=list(CONDITIONS),
+                   help="condition numbers of the two planes' normal block (>= 1)")
+    s.add_argument("--feature", type=float, nargs="+", default=list(FEATURE_SIZES_MM),
+                   help="feature sizes, half a period, mm")
+    s.add_argument("--axis", choices=list(AXES), default="rows", help="direction of the lateral frequency")
+    s.add_argument("--out", help="PREFIX: also write PREFIX.csv, PREFIX.md and PREFIX.png (default: print only)")
+    s.set_defaults(func=cmd_resolution)
 
     s = sub.add_parser("evaluate", help="SSIM/PSNR per plane on the test split, table and figure")
     s.add_argument("--dataset", required=True, help="dataset HDF5 written by 'lf-flame dataset'")

@@ -4,9 +4,11 @@ Flames are optically thin, so a light field is a linear function of the emission
 the planes. :mod:`.operator` is that camera map as a PyLops operator (the simulator's
 tracer with fixed rays, recorded once, kernels in :mod:`._kernels`); :mod:`.exact` the
 same map without Monte-Carlo noise (per-view convolutions with kernels by deterministic
-quadrature, applied by FFT; kernels in :mod:`._exact_kernels`); :mod:`.solvers`
+quadrature, applied by FFT; kernels in :mod:`._exact_kernels`); :mod:`.resolution` the
+camera's depth-resolution map from that map's per-frequency normal matrices; :mod:`.solvers`
 recovers the emission with PyLops/PyProximal solvers, and :mod:`.fourier` on the exact
-operator's per-frequency normal matrices (ADMM; kernels in :mod:`._fourier_kernels`); :mod:`.truth` puts a simulated
+operator's per-frequency normal matrices (ADMM; kernels in :mod:`._fourier_kernels`);
+:mod:`.truth` puts a simulated
 scene's truth on the same grids; :mod:`.scoring` scores planes against it;
 :mod:`.files` saves, loads and draws a reconstruction.
 
@@ -16,13 +18,17 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["defaults", "exact", "files", "fourier", "operator", "scoring", "solvers", "truth"],
+    submodules=["defaults", "exact", "files", "fourier", "operator", "resolution", "scoring", "solvers", "truth"],
     submod_attrs={
-        "exact": ["QUADRATURE_NODES", "SHIFT_TOLERANCE", "PRECISIONS", "ExactOperator"],
+        "exact": ["QUADRATURE_NODES", "SHIFT_TOLERANCE", "PRECISIONS", "ExactKernels", "exact_kernels",
+                  "ExactOperator"],
         "fourier": ["FourierSystem", "fourier_system", "solve_admm"],
         "files": ["save_reconstruction", "load_reconstruction", "plot_reconstruction"],
         "operator": ["ADJOINT_BLOCKS", "RAY_TABLE_MAX_BYTES", "plane_grid", "EmissionOperator",
                      "normalised_adjoint", "check_views"],
+        "resolution": ["FEATURE_SIZES_MM", "CONDITIONS", "AXES", "MAX_PLANES", "DepthResolution", "stack_depths",
+                       "kernel_response", "normal_matrix", "pair_conditions", "resolution_from_kernels",
+                       "depth_resolution", "plot_depth_resolution"],
         "scoring": ["score_planes"],
         "solvers": ["SOLVERS", "DEFAULT_ITERS", "DEFAULT_TV", "PD_RESIDUAL_EVERY", "DEFAULT_SOLVER",
                  "Reconstruction", "lipschitz_bound", "reconstruct"],

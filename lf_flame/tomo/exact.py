@@ -62,6 +62,7 @@ from __future__ import annotations
 import math
 import os
 import time
+from dataclasses import dataclass
 
 import numpy as np
 import pylops
@@ -92,6 +93,122 @@ def _cos4_mean(ty, tx, var_y, cov, var_x):
     hxx = -4.0 * s ** -3 + 24.0 * tx * tx * s ** -4
     hxy = 24.0 * ty * tx * s ** -4
     return f + 0.5 * (hyy * var_y + 2.0 * hxy * cov + hxx * var_x)
+
+
+# ---- the kernels -----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ExactKernels:
+    """The exact map's convolution kernels and per-pixel weights (:func:`exact_kernels`).
+
+    Attributes
+    ----------
+    kernels : ndarray of shape (N, N, P, Ty, Tx), float64
+        The taps ``h`` (view row ``u``, view column ``v``, plane, tap row, tap column); tap
+        ``(m, n)`` reads the plane at offset ``(tap_origin_y[u, k] + m, tap_origin_x[v, k] + n)``
+        samples from the pixel's lenslet.
+    tap_origin_y, tap_origin_x : ndarray of shape (N, P), int64
+    weights : ndarray of shape (N, N, R, C), float64
+        The per-pixel cos^4 drift ``w`` (1 without cos^4).
+    depths_mm : tuple of float
+        The planes' depth offsets (mm), as given.
+    sizes_mm : tuple of (float, float)
+        Each plane's grid frame (height, width) in mm; its sample is ``height / dims[1]`` mm.
+    margin : float
+    dims : (P, rows, cols)
+        Model shape.
+    dimsd : (N, N, R, C)
+        Data shape (views).
+    """
+
+    kernels: np.ndarray
+    tap_origin_y: np.ndarray
+    tap_origin_x: np.ndarray
+    weights: np.ndarray
+    depths_mm: tuple
+    sizes_mm: tuple
+    margin: float
+    dims: tuple
+    dimsd: tuple
+
+
+def exact_kernels(camera: PlenopticCamera, depths_mm, *, margin: float = 1.0, effects: Effects = FLAME_EFFECTS,
+                  quadrature_nodes: int = QUADRATURE_NODES) -> ExactKernels:
+    """The exact map's kernels by quadrature of the tracer's ray chain (module docstring).
+
+    What :class:`ExactOperator` builds its spectra from; parameters as there. Used alone
+    where only the kernels are needed (:mod:`lf_flame.tomo.resolution`).
+
+    Returns
+    -------
+    ExactKernels
+
+    Raises
+    ------
+    ValueError
+        As :class:`ExactOperator` (all but the precision).
+    """
+    if not camera.perfect_grid:
+        raise ValueError("the exact operator needs a perfect lenslet grid (square, unrotated, integer pitch); "
+                         "decode the capture to such views first (lf_flame.real.decoding)")
+    if effects.occlusion:
+        raise ValueError("occlusion makes the light field non-linear in the emission: flames are optically "
+                         "thin, set Effects(occlusion=False)")
+    if effects.crosstalk:
+        raise ValueError("the exact operator does not model crosstalk (an f-number-matched camera has none); "
+                         "use lf_flame.tomo.operator.EmissionOperator for Effects(crosstalk=True)")
+    if int(quadrature_nodes) != quadrature_nodes or quadrature_nodes < 1:
+        raise ValueError(f"quadrature_nodes must be a positive integer. Received: {quadrature_nodes!r}")
+    depths = [float(d) for d in np.atleast_1d(np.asarray(depths_mm, dtype=np.float64))]
+    if not depths:
+        raise ValueError("depths_mm is empty: give at least one plane")
+    R, C, N = camera.n_rows, camera.n_cols, camera.pixels_per_lenslet
+    margin = float(margin)
+    gr, gc = round(margin * R), round(margin * C)
+    if not (math.isfinite(margin) and margin > 0) or abs(gr - margin * R) > 1e-9 or abs(gc - margin * C) > 1e-9:
+        raise ValueError(f"margin must be positive and give whole samples on the {R} x {C} lenslet grid "
+                         f"(margin * n_rows, margin * n_cols whole). Received: margin={margin!r}")
+    sizes = [plane_grid(camera, d, margin) for d in depths]      # raises for a plane the camera cannot image
+    zero = np.zeros((gr, gc), np.float32)
+    scene = Scene("operator", tuple(Layer(zero, None, d, (0.0, 0.0), s) for d, s in zip(depths, sizes)), effects)
+    layers, z, _, _ = _stack_layers(camera, scene)               # nearest first
+    order = sorted(range(len(depths)), key=lambda k: depths[k])
+    ky_sorted, kx_sorted = trace_coefficients(camera, layers, z)
+    P = len(depths)
+    inv = np.empty(P, np.int64)
+    inv[order] = np.arange(P)                                    # plane k is kernel layer inv[k]
+    ky = np.concatenate([ky_sorted[:2], ky_sorted[2 + inv]])
+    kx = np.concatenate([kx_sorted[:2], kx_sorted[2 + inv]])
+    cy, ay, ty, dty = ExactOperator._axis(ky, N, R, "row")
+    cx, ax, tx, dtx = ExactOperator._axis(kx, N, C, "column")
+
+    # taps of each view and plane, and the canvas no wrap-around reaches
+    def taps(coef):
+        reach = 0.5 * (np.abs(coef[..., 1]) + np.abs(coef[..., 2]))
+        first = np.floor(coef[..., 0] - reach).astype(np.int64)
+        return first, int((np.floor(coef[..., 0] + reach).astype(np.int64) - first).max()) + 1
+    m0y, n_ty = taps(cy)
+    n0x, n_tx = taps(cx)
+    xg, wg = np.polynomial.legendre.leggauss(int(quadrature_nodes))
+    h = np.zeros((N, N, P, n_ty, n_tx))
+    moments = np.zeros((N, N, 6))
+    radius = camera.aperture_diameter_mm / 2 if effects.aperture else -1.0
+    _exact_kernels.kernel_quadrature(cy, ay, ty, m0y, cx, ax, tx, n0x, n_ty, n_tx, radius, bool(effects.cos4), xg, wg, h,
+                                     moments)
+
+    # per-pixel cos^4 drift: the pixel's mean cos^4 over the centre's (moment expansion)
+    if effects.cos4:
+        ry = (np.arange(R) - (R - 1) / 2)[None, :] * dty[:, None]          # (N, R) angle shift per row
+        rx = (np.arange(C) - (C - 1) / 2)[None, :] * dtx[:, None]          # (N, C)
+        my, mx, vy, cv, vx = (moments[..., i] for i in range(1, 6))
+        at = _cos4_mean(my[:, :, None, None] + ry[:, None, :, None], mx[:, :, None, None] + rx[None, :, None, :],
+                        vy[..., None, None], cv[..., None, None], vx[..., None, None])
+        centre = _cos4_mean(my, mx, vy, cv, vx)[..., None, None]
+        weights = np.where(moments[..., :1, None] > 0, at / np.where(centre > 0, centre, 1.0), 0.0)
+    else:
+        weights = np.ones((N, N, R, C))
+    weights = np.ascontiguousarray(np.broadcast_to(weights, (N, N, R, C)))
+    return ExactKernels(h, m0y, n0x, weights, tuple(depths), tuple(tuple(float(v) for v in s) for s in sizes),
+                        margin, (P, gr, gc), (N, N, R, C))
 
 
 # ---- the operator ----------------------------------------------------------------------------
@@ -167,68 +284,11 @@ class ExactOperator(pylops.LinearOperator):
     def __init__(self, camera: PlenopticCamera, depths_mm, *, margin: float = 1.0, effects: Effects = FLAME_EFFECTS,
                  precision: str = "float64", quadrature_nodes: int = QUADRATURE_NODES, workers: int | None = None):
         t_start = time.perf_counter()
-        if not camera.perfect_grid:
-            raise ValueError("the exact operator needs a perfect lenslet grid (square, unrotated, integer pitch); "
-                             "decode the capture to such views first (lf_flame.real.decoding)")
-        if effects.occlusion:
-            raise ValueError("occlusion makes the light field non-linear in the emission: flames are optically "
-                             "thin, set Effects(occlusion=False)")
-        if effects.crosstalk:
-            raise ValueError("the exact operator does not model crosstalk (an f-number-matched camera has none); "
-                             "use lf_flame.tomo.operator.EmissionOperator for Effects(crosstalk=True)")
         if precision not in PRECISIONS:
             raise ValueError(f"precision must be one of {PRECISIONS}. Received: {precision!r}")
-        if int(quadrature_nodes) != quadrature_nodes or quadrature_nodes < 1:
-            raise ValueError(f"quadrature_nodes must be a positive integer. Received: {quadrature_nodes!r}")
-        depths = [float(d) for d in np.atleast_1d(np.asarray(depths_mm, dtype=np.float64))]
-        if not depths:
-            raise ValueError("depths_mm is empty: give at least one plane")
-        R, C, N = camera.n_rows, camera.n_cols, camera.pixels_per_lenslet
-        margin = float(margin)
-        gr, gc = round(margin * R), round(margin * C)
-        if not (math.isfinite(margin) and margin > 0) or abs(gr - margin * R) > 1e-9 or abs(gc - margin * C) > 1e-9:
-            raise ValueError(f"margin must be positive and give whole samples on the {R} x {C} lenslet grid "
-                             f"(margin * n_rows, margin * n_cols whole). Received: margin={margin!r}")
-        sizes = [plane_grid(camera, d, margin) for d in depths]      # raises for a plane the camera cannot image
-        zero = np.zeros((gr, gc), np.float32)
-        scene = Scene("operator", tuple(Layer(zero, None, d, (0.0, 0.0), s) for d, s in zip(depths, sizes)), effects)
-        layers, z, _, _ = _stack_layers(camera, scene)               # nearest first
-        order = sorted(range(len(depths)), key=lambda k: depths[k])
-        ky_sorted, kx_sorted = trace_coefficients(camera, layers, z)
-        P = len(depths)
-        inv = np.empty(P, np.int64)
-        inv[order] = np.arange(P)                                    # plane k is kernel layer inv[k]
-        ky = np.concatenate([ky_sorted[:2], ky_sorted[2 + inv]])
-        kx = np.concatenate([kx_sorted[:2], kx_sorted[2 + inv]])
-        cy, ay, ty, dty = self._axis(ky, N, R, "row")
-        cx, ax, tx, dtx = self._axis(kx, N, C, "column")
-
-        # taps of each view and plane, and the canvas no wrap-around reaches
-        def taps(coef):
-            reach = 0.5 * (np.abs(coef[..., 1]) + np.abs(coef[..., 2]))
-            first = np.floor(coef[..., 0] - reach).astype(np.int64)
-            return first, int((np.floor(coef[..., 0] + reach).astype(np.int64) - first).max()) + 1
-        m0y, n_ty = taps(cy)
-        n0x, n_tx = taps(cx)
-        xg, wg = np.polynomial.legendre.leggauss(int(quadrature_nodes))
-        h = np.zeros((N, N, P, n_ty, n_tx))
-        moments = np.zeros((N, N, 6))
-        radius = camera.aperture_diameter_mm / 2 if effects.aperture else -1.0
-        _exact_kernels.kernel_quadrature(cy, ay, ty, m0y, cx, ax, tx, n0x, n_ty, n_tx, radius, bool(effects.cos4), xg, wg, h,
-                           moments)
-
-        # per-pixel cos^4 drift: the pixel's mean cos^4 over the centre's (moment expansion)
-        if effects.cos4:
-            ry = (np.arange(R) - (R - 1) / 2)[None, :] * dty[:, None]          # (N, R) angle shift per row
-            rx = (np.arange(C) - (C - 1) / 2)[None, :] * dtx[:, None]          # (N, C)
-            my, mx, vy, cv, vx = (moments[..., i] for i in range(1, 6))
-            at = _cos4_mean(my[:, :, None, None] + ry[:, None, :, None], mx[:, :, None, None] + rx[None, :, None, :],
-                            vy[..., None, None], cv[..., None, None], vx[..., None, None])
-            centre = _cos4_mean(my, mx, vy, cv, vx)[..., None, None]
-            weights = np.where(moments[..., :1, None] > 0, at / np.where(centre > 0, centre, 1.0), 0.0)
-        else:
-            weights = np.ones((N, N, R, C))
-        weights = np.ascontiguousarray(np.broadcast_to(weights, (N, N, R, C)))
+        ek = exact_kernels(camera, depths_mm, margin=margin, effects=effects, quadrature_nodes=quadrature_nodes)
+        h, weights, m0y, n0x = ek.kernels, ek.weights, ek.tap_origin_y, ek.tap_origin_x
+        (P, gr, gc), (N, _, R, C), (n_ty, n_tx) = ek.dims, ek.dimsd, h.shape[3:]
 
         lr = scipy.fft.next_fast_len(max(gr - int(m0y.min()), R + int((m0y + n_ty - 1).max()), gr), real=True)
         lc = scipy.fft.next_fast_len(max(gc - int(n0x.min()), C + int((n0x + n_tx - 1).max()), gc), real=True)
@@ -248,10 +308,10 @@ class ExactOperator(pylops.LinearOperator):
         self._w = weights.reshape(N * N, R, C).astype(self._real)
 
         self.camera, self.effects, self.precision = camera, effects, precision
-        self.depths_mm = tuple(depths)
-        self.sizes_mm = tuple(tuple(float(v) for v in s) for s in sizes)
+        self.depths_mm = ek.depths_mm
+        self.sizes_mm = ek.sizes_mm
         self.centres_mm = ((0.0, 0.0),) * P
-        self.margin = margin
+        self.margin = ek.margin
         self.rays_per_pixel = self.seed = None
         self.kernels, self.weights = h, weights
         self.tap_origin_y, self.tap_origin_x = m0y, n0x
