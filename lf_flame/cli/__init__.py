@@ -14,7 +14,7 @@ import sys
 
 from ..routes import LEARNED_ROUTES
 from ..simulate.scenes import PAPER_DEPTHS_MM
-from ..tomo.defaults import DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV, SOLVERS
+from ..tomo.defaults import ADMM_TV, DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV, SOLVERS
 from ..tomo.resolution import AXES, CONDITIONS, DEFAULT_FAR_MM, DEFAULT_NEAR_MM, DEFAULT_SPACING_MM, FEATURE_SIZES_MM
 from ._io import RAW_FORMATS
 from .learning import cmd_dataset, cmd_evaluate, cmd_predict, cmd_tables, cmd_train
@@ -184,13 +184,15 @@ def build_parser() -> argparse.ArgumentParser:
                         "--iters, --tv, --saturation, --operator-rays)")
     s.add_argument("--iters", type=int, help="reconstruct-*: iterations (default: the solver's, chosen on validation "
                    "renders)")
-    s.add_argument("--tv", type=float, default=DEFAULT_TV, help="reconstruct-pd-tv: TV weight (default: %(default)s)")
+    s.add_argument("--tv", type=float, default=None,
+                   help=f"reconstruct-pd-tv / -admm: TV weight (default: pd-tv {DEFAULT_TV}, admm {ADMM_TV})")
     s.add_argument("--saturation", type=_level_or_none, default=1.0,
                    help="reconstruct-*: the sensor's clipping level in the views' units: pixels at or above it are "
                         "left out of the fit, counted per frame as n_saturated ('none': fit every pixel; default: "
                         "%(default)s)")
-    s.add_argument("--operator-rays", type=int, default=4,
-                   help="reconstruct-*: rays per pixel of the forward operator (default: %(default)s)")
+    s.add_argument("--operator-rays", type=int, default=None,
+                   help="reconstruct-*: rays per pixel of a traced forward operator (default: the exact operator "
+                        "where the camera is a perfect lenslet grid, else 4 rays)")
     s.add_argument("--calibration", help="real frames: JSON of 'lf-flame calibrate' (frames are decoded)")
     s.add_argument("--white", help="real frames: white image for decoding")
     s.add_argument("--dark", help="real frames: dark frame")
@@ -250,11 +252,14 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--iters", type=int, help="iterations (default: the solver's, chosen on validation renders: "
                    + ", ".join(f"{k} {v}" for k, v in DEFAULT_ITERS.items()) + ")")
     s.add_argument("--damp", type=float, default=0.0, help="LSQR damping (Tikhonov)")
-    s.add_argument("--tv", type=float, default=DEFAULT_TV, help="TV weight of pd-tv")
+    s.add_argument("--tv", type=float, default=None, help=f"TV weight of pd-tv (default: {DEFAULT_TV}) or of admm "
+                   f"(default: {ADMM_TV})")
     s.add_argument("--saturation", type=_level_or_none, default=1.0,
                    help="the sensor's clipping level in the views' units: pixels at or above it are left out of the "
                         "fit ('none': fit every pixel)")
-    s.add_argument("--rays-per-pixel", type=int, default=4, help="rays per pixel of the forward operator")
+    s.add_argument("--rays-per-pixel", type=int, default=None,
+                   help="rays per pixel of a traced forward operator (the reference; default: the exact operator "
+                        "where the camera is a perfect lenslet grid, else 4 rays)")
     s.add_argument("--out", required=True, help="volume.h5 (planes, depths, mm per sample, settings, residuals); "
                                                "the figure goes beside it as .png")
     s.set_defaults(func=cmd_reconstruct)

@@ -35,13 +35,14 @@ def reconstruct_input(a):
 
 
 def run_reconstruction(cam, views, depths, solver, iters=None, *, damp=0.0, tv=None, saturation=1.0,
-                       rays_per_pixel=4, progress=False):
-    """Build the operator of ``cam`` at ``depths`` and solve (:func:`lf_flame.tomo.solvers`)."""
-    from ..tomo.solvers import DEFAULT_TV, reconstruct
-    from ..tomo.operator import EmissionOperator
-    op = EmissionOperator(cam, depths, rays_per_pixel=rays_per_pixel)
-    return op, reconstruct(views, op, solver, iters, damp=damp, tv=DEFAULT_TV if tv is None else tv,
-                           saturation=saturation, progress=progress)
+                       rays_per_pixel=None, progress=False):
+    """Build the operator of ``cam`` at ``depths`` (:func:`lf_flame.tomo.exact.emission_operator`:
+    exact unless ``rays_per_pixel`` is given or the camera needs tracing) and solve
+    (:func:`lf_flame.tomo.solvers.reconstruct`)."""
+    from ..tomo.exact import emission_operator
+    from ..tomo.solvers import reconstruct
+    op = emission_operator(cam, depths, rays_per_pixel=rays_per_pixel)
+    return op, reconstruct(views, op, solver, iters, damp=damp, tv=tv, saturation=saturation, progress=progress)
 
 
 def saturation_note(rec) -> str:

@@ -56,13 +56,15 @@ class SequenceJob:
         ``reconstruct-*`` routes: the solver's iterations (>= 0); None: the solver's default
         (:data:`lf_flame.tomo.solvers.DEFAULT_ITERS`).
     tv : float or None
-        ``reconstruct-pd-tv``: the TV weight (>= 0); None: :data:`~lf_flame.tomo.solvers.DEFAULT_TV`.
+        ``reconstruct-pd-tv`` / ``-admm``: the TV weight (>= 0); None: the solver's default.
     saturation : float or None
         ``reconstruct-*`` routes: the sensor's clipping level in the views' units; pixels at
         or above it are left out of the fit (their count per frame: ``n_saturated``). None:
         every pixel is fitted.
-    operator_rays : int
-        ``reconstruct-*`` routes: rays per pixel of the emission operator (>= 1).
+    operator_rays : int or None
+        ``reconstruct-*`` routes: rays per pixel of a traced emission operator (>= 1); None:
+        the exact operator where the camera allows it
+        (:func:`lf_flame.tomo.exact.emission_operator`).
 
     Raises
     ------
@@ -87,7 +89,7 @@ class SequenceJob:
     iters: int | None = None
     tv: float | None = None
     saturation: float | None = 1.0
-    operator_rays: int = 4
+    operator_rays: int | None = None
     _cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
@@ -108,7 +110,7 @@ class SequenceJob:
             raise ValueError(f"tv must be finite and >= 0. Received: {self.tv!r}")
         if self.saturation is not None and not (math.isfinite(self.saturation) and self.saturation > 0):
             raise ValueError(f"saturation must be a positive finite level or None. Received: {self.saturation!r}")
-        if int(self.operator_rays) != self.operator_rays or self.operator_rays < 1:
+        if self.operator_rays is not None and (int(self.operator_rays) != self.operator_rays or self.operator_rays < 1):
             raise ValueError(f"operator_rays must be a whole number >= 1. Received: {self.operator_rays!r}")
 
     @property
@@ -124,15 +126,16 @@ class SequenceJob:
 
     def reconstruction(self) -> dict | None:
         """The reconstruction's settings, defaults resolved (iterations of the solver's
-        :data:`~lf_flame.tomo.defaults.DEFAULT_ITERS`, TV weight :data:`~lf_flame.tomo.defaults.DEFAULT_TV`);
-        None for shift-and-sum."""
+        :data:`~lf_flame.tomo.defaults.DEFAULT_ITERS`, TV weight :data:`~lf_flame.tomo.defaults.DEFAULT_TV`
+        for pd-tv, :data:`~lf_flame.tomo.defaults.ADMM_TV` for admm, None for the solvers without one); None for shift-and-sum."""
         if self.solver is None:
             return None
-        from ..tomo.defaults import DEFAULT_ITERS, DEFAULT_TV
+        from ..tomo.defaults import ADMM_TV, DEFAULT_ITERS, DEFAULT_TV
         iters = DEFAULT_ITERS.get(self.solver) if self.iters is None else int(self.iters)
-        return dict(solver=self.solver, iters=iters, tv=float(DEFAULT_TV if self.tv is None else self.tv),
+        tv = {"pd-tv": DEFAULT_TV, "admm": ADMM_TV}.get(self.solver) if self.tv is None else float(self.tv)
+        return dict(solver=self.solver, iters=iters, tv=tv,
                     saturation=None if self.saturation is None else float(self.saturation),
-                    operator_rays=int(self.operator_rays))
+                    operator_rays=None if self.operator_rays is None else int(self.operator_rays))
 
     def identity(self) -> dict:
         """What makes the run: a folder holding another identity is not resumed."""
@@ -185,15 +188,16 @@ class SequenceJob:
         return rec.planes, int(rec.settings["n_saturated"])
 
     def operator(self):
-        """The emission operator of the planes (``operator_rays`` rays per pixel), built once
-        per process and kept (with its ray record) while the camera, depths and rays stay."""
-        from ..tomo.operator import EmissionOperator
-        key = (self.camera.to_json(), tuple(float(d) for d in self.depths_mm), int(self.operator_rays))
+        """The emission operator of the planes (:func:`lf_flame.tomo.exact.emission_operator`:
+        exact, or traced at ``operator_rays`` rays per pixel), built once per process and kept
+        (with its spectra or ray record) while the camera, depths and rays stay."""
+        from ..tomo.exact import emission_operator
+        key = (self.camera.to_json(), tuple(float(d) for d in self.depths_mm), self.operator_rays)
         with _OPERATOR_LOCK:
             if _OPERATOR["key"] != key:
                 _OPERATOR.update(key=None, op=None)   # the old one's memory goes first
-                _OPERATOR.update(key=key, op=EmissionOperator(self.camera, list(self.depths_mm),
-                                                              rays_per_pixel=int(self.operator_rays)),
+                _OPERATOR.update(key=key, op=emission_operator(self.camera, list(self.depths_mm),
+                                                               rays_per_pixel=self.operator_rays),
                                  builds=_OPERATOR["builds"] + 1)
             return _OPERATOR["op"]
 

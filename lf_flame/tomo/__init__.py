@@ -21,7 +21,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
     submodules=["defaults", "exact", "files", "fourier", "operator", "resolution", "scoring", "solvers", "truth"],
     submod_attrs={
         "exact": ["QUADRATURE_NODES", "SHIFT_TOLERANCE", "PRECISIONS", "ExactKernels", "exact_kernels",
-                  "ExactOperator"],
+                  "ExactOperator", "emission_operator"],
         "fourier": ["FourierSystem", "fourier_system", "solve_admm"],
         "files": ["save_reconstruction", "load_reconstruction", "plot_reconstruction"],
         "operator": ["ADJOINT_BLOCKS", "RAY_TABLE_MAX_BYTES", "plane_grid", "EmissionOperator",

@@ -375,3 +375,35 @@ class ExactOperator(pylops.LinearOperator):
         planes : ndarray of shape (P, rows, cols), float64; 0 where no pixel sees a sample.
         """
         return normalised_adjoint(self, views)
+
+
+def emission_operator(camera: PlenopticCamera, depths_mm, *, rays_per_pixel: int | None = None,
+                      effects: Effects = FLAME_EFFECTS):
+    """The camera's operator for ``depths_mm``: exact when it can be, traced when asked or needed.
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+    depths_mm : sequence of float
+        Depth offsets (mm) of the planes.
+    rays_per_pixel : int or None
+        None: the :class:`ExactOperator` (float32: its rounding, ~1e-7, is far below any
+        light field's noise) where the camera is a perfect lenslet grid and ``effects`` has no
+        crosstalk, else the traced :class:`~lf_flame.tomo.operator.EmissionOperator` at 4 rays
+        per pixel. A number: the traced operator at that many rays (the reference).
+    effects : Effects
+
+    Returns
+    -------
+    ExactOperator or EmissionOperator
+
+    Raises
+    ------
+    ValueError
+        From the operator chosen (a plane the camera cannot image, no planes ...).
+    """
+    from .operator import EmissionOperator
+    if rays_per_pixel is None and camera.perfect_grid and not effects.crosstalk and not effects.occlusion:
+        return ExactOperator(camera, depths_mm, effects=effects, precision="float32")
+    return EmissionOperator(camera, list(depths_mm), rays_per_pixel=4 if rays_per_pixel is None else int(rays_per_pixel),
+                            effects=effects)

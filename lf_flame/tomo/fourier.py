@@ -21,7 +21,7 @@ What is not diagonal in frequency, and how it is handled (:func:`solve_admm`):
   views (two batches of FFTs); everything between fills runs on the ``P`` planes alone.
   The fills converge slowly where flames stand near the window's edge (their defocused
   light leaves the sensor), so each fill predicts from ``s + momentum (s - s_prev)``
-  (heavy-ball momentum; 0.5 beat FISTA's schedule and 0.4/0.6 on validation renders).
+  (heavy-ball momentum, chosen on validation renders; it beat FISTA's schedule in a probe).
   Dividing by ``w`` (0.97-1.02 on the paper's camera) weights the pixels by ``w^2`` in
   the fit, not as the sensor's noise would: a 3-6 % change of weight at the rim, far
   below the noise's own spread.
@@ -50,7 +50,7 @@ import scipy.fft
 
 from . import _fourier_kernels
 
-from .defaults import ADMM_FILLS, ADMM_INNER, ADMM_LAM, ADMM_MOMENTUM, ADMM_RHO, ADMM_RHO_TV
+from .defaults import ADMM_FILLS, ADMM_INNER, ADMM_LAM, ADMM_MOMENTUM, ADMM_RHO, ADMM_RHO_TV, ADMM_TV
 
 
 class FourierSystem:
@@ -116,7 +116,7 @@ def fourier_system(op, lam: float = ADMM_LAM, rho: float = ADMM_RHO) -> FourierS
 
 
 def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INNER, lam: float = ADMM_LAM,
-               rho: float = ADMM_RHO, tv: float = 0.0, rho_tv: float = ADMM_RHO_TV, momentum: float = ADMM_MOMENTUM,
+               rho: float = ADMM_RHO, tv: float = ADMM_TV, rho_tv: float = ADMM_RHO_TV, momentum: float = ADMM_MOMENTUM,
                callback=None):
     """Non-negative emission on the exact operator's planes by Fourier ADMM with missing data.
 

@@ -20,7 +20,7 @@ from pyproximal.optimization.primal import ProximalGradient
 from pyproximal.optimization.primaldual import PrimalDual
 from tqdm.auto import tqdm
 
-from .defaults import ADMM_LAM, DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV, SOLVERS  # noqa: F401 (re-exported)
+from .defaults import ADMM_LAM, ADMM_TV, DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV, SOLVERS  # noqa: F401 (re-exported)
 from .operator import EmissionOperator, check_views
 
 # ---- solvers ---------------------------------------------------------------------------
@@ -118,8 +118,8 @@ def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters
     iters : int or None
         Iterations; None: :data:`DEFAULT_ITERS`.
     damp, tv : float
-        LSQR's damping and the TV weight (>= 0; pd-tv's, and admm's when given explicitly);
-        ignored by the other solvers.
+        LSQR's damping and the TV weight (>= 0; None: pd-tv's :data:`DEFAULT_TV`, admm's
+        :data:`~lf_flame.tomo.defaults.ADMM_TV`); ignored by the other solvers.
     lam : float
         admm's gradient weight relative to the stack's light (:data:`~lf_flame.tomo.defaults.ADMM_LAM`).
     saturation : float or None
@@ -177,7 +177,7 @@ def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters
         if not isinstance(op, ExactOperator):
             raise ValueError("the admm solver works on the exact operator's per-frequency matrices: give an "
                              "lf_flame.tomo.exact.ExactOperator")
-        admm_tv = tv if tv_given else 0.0
+        admm_tv = tv if tv_given else ADMM_TV
         settings.update(lam=lam, tv=admm_tv)
         planes, residuals, settings["system_s"] = solve_admm(y.reshape(op.dimsd), op, fit.reshape(op.dimsd),
                                                              fills=iters, lam=lam, tv=admm_tv,
