@@ -7,6 +7,8 @@ same map without Monte-Carlo noise (per-view convolutions with kernels by determ
 quadrature, applied by FFT; kernels in :mod:`._exact_kernels`); :mod:`.solvers`
 recovers the emission with PyLops/PyProximal solvers; :mod:`.truth` puts a simulated
 scene's truth on the same grids; :mod:`.scoring` scores planes against it;
+:mod:`.decoded` turns decoded views of a user's camera into the exact operator's data and
+puts a simulated scene's truth in their frame;
 :mod:`.files` saves, loads and draws a reconstruction.
 
 Its public names are importable from here (loaded on first use, as scikit-image does).
@@ -15,8 +17,9 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["defaults", "exact", "files", "operator", "scoring", "solvers", "truth"],
+    submodules=["decoded", "defaults", "exact", "files", "operator", "scoring", "solvers", "truth"],
     submod_attrs={
+        "decoded": ["MIN_WHITE", "white_views", "decoded_problem", "decoded_truth"],
         "exact": ["QUADRATURE_NODES", "SHIFT_TOLERANCE", "PRECISIONS", "ExactOperator"],
         "files": ["save_reconstruction", "load_reconstruction", "plot_reconstruction"],
         "operator": ["ADJOINT_BLOCKS", "RAY_TABLE_MAX_BYTES", "plane_grid", "EmissionOperator",
