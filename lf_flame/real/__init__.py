@@ -19,6 +19,6 @@ __getattr__, __dir__, __all__ = lazy.attach(
                  "calibrate"],
         "decoding": ["check_grid", "view_positions", "hex_to_square", "decode", "clipped_samples", "save_views",
                      "load_views", "load_clipped"],
-        "own_camera": ["PITCH_TOLERANCE", "DecodedFrame", "decoded_frame", "views_camera"],
+        "own_camera": ["PITCH_WARN", "PITCH_TOLERANCE", "DecodedFrame", "decoded_frame", "views_camera"],
     },
 )
