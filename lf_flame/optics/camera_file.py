@@ -75,7 +75,9 @@ def _fit_grid(base: dict, rows, cols):
     free = {k: v for k, v in base.items() if k not in ("sensor_rows", "sensor_cols", "grid_offset_px")}
     off = base["grid_offset_px"]
     while r >= 1 and c >= 1:
-        cam = PlenopticCamera(**free, n_rows=r, n_cols=c)           # centred, sensor just holding it: valid
+        with warnings.catch_warnings():                                # a trial: the chosen camera warns
+            warnings.simplefilter("ignore")
+            cam = PlenopticCamera(**free, n_rows=r, n_cols=c)       # centred, sensor just holding it: valid
         rel = cam.lenslet_image_centres_px() - (cam.sensor_shape[0] / 2, cam.sensor_shape[1] / 2)
         lo, hi = rel.min(axis=(0, 1)) + off - p / 2, rel.max(axis=(0, 1)) + off + p / 2
         over_r = rows is None and bool(lo[0] < -H / 2 or hi[0] > H / 2)
@@ -294,7 +296,7 @@ def decoded_camera(camera: PlenopticCamera, n_views: int, n_rows: int, n_cols: i
     - *Frame.* The equivalent camera is unrotated and its optical axis at the decoded
       grid's centre: its planes are the real ones turned by the grid's rotation about
       the axis, and shifted by the decoded grid's offset from the axis (object space;
-      :func:`lf_flame.real.decoding.decoded_frame`). cos⁴ is taken about the decoded
+      :func:`lf_flame.real.own_camera.decoded_frame`). cos⁴ is taken about the decoded
       grid's centre rather than the real axis; white-image division removes the real
       camera's cos⁴ and vignetting and :func:`lf_flame.tomo.decoded.decoded_problem` puts
       the model's back.
