@@ -21,7 +21,7 @@ each plane's relative L2 error against the truth in the decoded frame
   left out of the fit (decode's mask) or fitted as they are.
 
 Writes ``<out>/own_camera.csv`` and ``<out>/own_camera.md`` (with the command and provenance).
-Usage: ``python experiments/own_camera.py --out results`` (about 3 minutes on 2 cores).
+Usage: ``python experiments/own_camera.py --out results`` (40-80 s on 2 cores).
 """
 from __future__ import annotations
 
