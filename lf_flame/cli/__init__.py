@@ -23,7 +23,7 @@ from .profiles import cmd_profiles
 from .real import cmd_calibrate, cmd_decode
 from .resolution import cmd_resolution
 from .sequence import cmd_sequence, cmd_simulate_sequence
-from .volume import cmd_reconstruct
+from .volume import OWN_CAMERA_ITERS, OWN_CAMERA_SOLVER, cmd_reconstruct
 
 # The commands' modules import only NumPy at the top: each command imports the libraries
 # it uses (PyLops, TensorFlow, Dask, Numba, Matplotlib, SciPy ...) when it runs, so
@@ -116,6 +116,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-white", action="store_true", help="no white-image normalisation")
     s.add_argument("--views", type=int, help="views per axis (default: the pitch rounded down)")
     s.add_argument("--camera-id", help="refuse a calibration of another camera")
+    s.add_argument("--saturation", default="auto",
+                   help="the sensor's clipping level in the raw image's units: the views' samples from pixels at or "
+                        "above it are stored as 'clipped' (reconstruct leaves them out); auto: 1.0 when the raw "
+                        "image's values are at most 1 (the simulator's), else the smallest 2**bits - 1 (bits 8, 10, "
+                        "12, 14, 16) at or above its maximum; 'none': no mask")
     s.add_argument("--out", required=True, help="HDF5 of the views (N, N, R, C)")
     s.set_defaults(func=cmd_decode)
 
@@ -246,17 +251,25 @@ def build_parser() -> argparse.ArgumentParser:
                         "'lf-flame simulate' stored (.npz or .png), else the paper's four planes, "
                         + ", ".join(f"{d:+g}" for d in PAPER_DEPTHS_MM) + " mm")
     s.add_argument("--slope", type=float, action="append", help="plane slope instead of a depth (repeatable)")
-    s.add_argument("--solver", choices=list(SOLVERS), default=DEFAULT_SOLVER,
-                   help="the default is the one chosen on validation renders (make reconstruct); adjoint: plain "
-                        "refocusing through the operator's rays")
+    s.add_argument("--solver", choices=list(SOLVERS),
+                   help=f"the default is the one chosen on validation renders (make reconstruct), with --camera "
+                        f"{OWN_CAMERA_SOLVER}; adjoint: plain refocusing through the operator's rays "
+                        f"(default: {DEFAULT_SOLVER})")
     s.add_argument("--iters", type=int, help="iterations (default: the solver's, chosen on validation renders: "
-                   + ", ".join(f"{k} {v}" for k, v in DEFAULT_ITERS.items()) + ")")
+                   + ", ".join(f"{k} {v}" for k, v in DEFAULT_ITERS.items()) + "; with --camera "
+                   + ", ".join(f"{k} {v}" for k, v in OWN_CAMERA_ITERS.items()) + ")")
     s.add_argument("--damp", type=float, default=0.0, help="LSQR damping (Tikhonov)")
     s.add_argument("--tv", type=float, default=None, help=f"TV weight of pd-tv (default: {DEFAULT_TV}) or of admm "
                    f"(default: {ADMM_TV})")
-    s.add_argument("--saturation", type=_level_or_none, default=1.0,
+    s.add_argument("--saturation", type=_level_or_none, default=argparse.SUPPRESS,
                    help="the sensor's clipping level in the views' units: pixels at or above it are left out of the "
-                        "fit ('none': fit every pixel)")
+                        "fit ('none': fit every pixel; default 1.0). With --camera only 'none' (fit every sample): "
+                        "decoded views carry their clipped samples ('lf-flame decode --saturation')")
+    s.add_argument("--camera", help="camera file (TOML: the datasheet tables of docs/own_camera.md, or a [camera] "
+                   "table): VIEWS.h5 from 'lf-flame decode' is reconstructed with that camera's exact operator on the "
+                   "decoded views; needs --depth or --slope")
+    s.add_argument("--calibration", help="with --camera: the JSON of 'lf-flame calibrate' the views were decoded "
+                   "with (default: the one stored in VIEWS.h5; given, it must be that one)")
     s.add_argument("--rays-per-pixel", type=int, default=None,
                    help="rays per pixel of a traced forward operator (the reference; default: the exact operator "
                         "where the camera is a perfect lenslet grid, else 4 rays)")

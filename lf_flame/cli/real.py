@@ -40,14 +40,42 @@ def _calibration_file(info, kind, override):
 
 def cmd_decode(a):
     from ..real.calibration import GridCalibration, load_image
-    from ..real.decoding import decode, save_views
+    from ..real.decoding import clipped_samples, decode, save_views
     cal = GridCalibration.load(a.calibration)
     raw = load_image(a.raw)
     white = None if a.no_white else _calibration_file(cal.white, "white", a.white)
     dark = _calibration_file(cal.dark, "dark", a.dark)
     t = time.perf_counter()
     views = decode(raw, cal, white, dark, n_views=a.views, camera_id=a.camera_id)
+    level = _saturation_level(a.saturation, raw)
+    clipped = None if level is None else clipped_samples(raw, cal, level, n_views=a.views)
     dt = time.perf_counter() - t
-    save_views(a.out, views, cal, raw=str(Path(a.raw).resolve()), white_normalised=white is not None)
+    extra = {} if level is None else {"saturation": level}
+    save_views(a.out, views, cal, clipped, raw=str(Path(a.raw).resolve()), white_normalised=white is not None,
+               **extra)
+    note = "no clipping level" if level is None else f"{int(clipped.sum())} samples from pixels at or above {level:g}"
     print(f"decoded {Path(a.raw).name} into {views.shape[0]} x {views.shape[1]} views of {views.shape[2]} x "
-          f"{views.shape[3]} lenslets in {dt:.2f} s -> {a.out}")
+          f"{views.shape[3]} lenslets ({note}) in {dt:.2f} s -> {a.out}")
+
+
+def _saturation_level(text, raw):
+    """``decode --saturation``: a level (raw units), None for 'none', or 'auto' (see its help)."""
+    import numpy as np
+    t = str(text).strip().lower()
+    if t == "none":
+        return None
+    if t != "auto":
+        try:
+            v = float(t)
+        except ValueError:
+            raise ValueError(f"--saturation must be a level, 'auto' or 'none'. Received: {text!r}") from None
+        if not (np.isfinite(v) and v > 0):
+            raise ValueError(f"--saturation must be a positive finite level. Received: {text!r}")
+        return v
+    top = float(np.max(raw))
+    if top <= 1.0:
+        return 1.0
+    for bits in (8, 10, 12, 14, 16):
+        if top <= 2 ** bits - 1:
+            return float(2 ** bits - 1)
+    raise ValueError(f"--saturation auto: the raw image reaches {top:g}, past 16-bit counts; give the level")

@@ -2,7 +2,9 @@
 
 :mod:`.calibration` finds the lenslet grid (pitch, rotation, offset, layout) from a white
 image (Dansereau et al., CVPR 2013); :mod:`.decoding` resamples a capture onto that
-grid and writes its sub-aperture views.
+grid and writes its sub-aperture views, with the samples from clipped pixels;
+:mod:`.own_camera` gives the perfect-grid camera of those views (a camera file and the
+calibration checked against each other) and the frame of its planes.
 
 Its public names are importable from here (loaded on first use, as scikit-image does).
 """
@@ -10,11 +12,13 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["calibration", "decoding"],
+    submodules=["calibration", "decoding", "own_camera"],
     submod_attrs={
         "calibration": ["CALIBRATION_FORMAT", "CALIBRATION_VERSION", "CalibrationError", "GridCalibration",
                  "load_image", "file_digest", "lattice_from_autocorrelation", "spot_centres",
                  "calibrate"],
-        "decoding": ["check_grid", "view_positions", "hex_to_square", "decode", "save_views", "load_views"],
+        "decoding": ["check_grid", "view_positions", "hex_to_square", "decode", "clipped_samples", "save_views",
+                     "load_views", "load_clipped"],
+        "own_camera": ["PITCH_WARN", "PITCH_TOLERANCE", "DecodedFrame", "decoded_frame", "views_camera"],
     },
 )

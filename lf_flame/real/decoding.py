@@ -195,9 +195,60 @@ def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | No
     return np.ascontiguousarray(views)
 
 
-def save_views(path, views: np.ndarray, calibration: GridCalibration, **attrs) -> Path:
+def clipped_samples(raw: np.ndarray, calibration: GridCalibration, saturation: float, *,
+                    n_views: int | None = None) -> np.ndarray:
+    """Which decoded samples come from clipped raw pixels: the clipping level in the views' units.
+
+    A sample of :func:`decode` is a bilinear mix of up to four raw pixels; it holds only a
+    lower bound of its light when any of them (with a non-zero weight) is at or above the
+    sensor's clipping level. After white-image division no single level marks such
+    samples (a clipped pixel under a bright white reads 1 / white), so the mask is what
+    carries the level into the views (:func:`lf_flame.tomo.solvers.reconstruct` leaves
+    them out of the fit).
+
+    Parameters
+    ----------
+    raw : ndarray of shape ``calibration.sensor_shape``
+        The raw image as read, before dark subtraction (clipping happens in the sensor).
+    calibration : GridCalibration
+    saturation : float
+        The sensor's clipping level in the raw image's units (1.0 for the simulator's
+        images; ``2**bits - 1`` for integer counts).
+    n_views : int or None
+        As :func:`decode`.
+
+    Returns
+    -------
+    clipped : ndarray of bool, the shape of :func:`decode`'s views (N, N, R, C)
+        Hexagonal grids: a square-lattice sample is clipped when any of the three samples
+        it is interpolated from is (:func:`hex_to_square`).
+
+    Raises
+    ------
+    ValueError
+        A raw image of another shape, NaN or inf, a level that is not a positive finite
+        number, ``n_views`` out of range.
+    """
+    calibration.validate()
+    img = _image("raw image", raw, calibration.sensor_shape)
+    if isinstance(saturation, bool) or not isinstance(saturation, (int, float, np.floating)) or \
+            not (math.isfinite(saturation) and saturation > 0):
+        raise ValueError(f"saturation must be a positive finite level (raw units). Received: {saturation!r}")
+    n_max = int(math.floor(calibration.pitch_px))
+    n = n_max if n_views is None else n_views
+    if int(n) != n or not 1 <= n <= n_max:
+        raise ValueError(f"n_views must be an integer in [1, {n_max}]. Received: n_views={n_views!r}")
+    hit = _sample((img >= saturation).astype(np.float64), view_positions(calibration, int(n)))
+    if calibration.layout == "hex":
+        hit = hex_to_square(hit)
+    return np.ascontiguousarray(hit > 1e-6)
+
+
+def save_views(path, views: np.ndarray, calibration: GridCalibration, clipped: np.ndarray | None = None,
+               **attrs) -> Path:
     """Write decoded views to HDF5 (dataset ``views``, (N, N, R, C) float32; the calibration
-    as JSON in attribute ``calibration``), atomically: a temporary file, then renamed."""
+    as JSON in attribute ``calibration``), atomically: a temporary file, then renamed.
+    ``clipped`` (bool, the views' shape; :func:`clipped_samples`) goes in dataset ``clipped``."""
     import os
 
     import h5py
@@ -206,6 +257,11 @@ def save_views(path, views: np.ndarray, calibration: GridCalibration, **attrs) -
     tmp = p.with_name(p.name + ".partial")
     with h5py.File(tmp, "w") as f:
         f.create_dataset("views", data=np.asarray(views, np.float32), compression="gzip", compression_opts=1)
+        if clipped is not None:
+            if np.shape(clipped) != np.shape(views) or np.asarray(clipped).dtype != bool:
+                raise ValueError(f"clipped must be boolean of the views' shape {np.shape(views)}. Received: "
+                                 f"{np.asarray(clipped).dtype} of shape {np.shape(clipped)}")
+            f.create_dataset("clipped", data=np.asarray(clipped), compression="gzip", compression_opts=1)
         f.attrs["format"] = "lf_flame.decoded_views"
         f.attrs["calibration"] = json.dumps(calibration.to_dict())
         for k, v in attrs.items():
@@ -228,3 +284,11 @@ def load_views(path) -> tuple[np.ndarray, GridCalibration]:
     if views.ndim != 4 or views.shape[0] != views.shape[1]:
         raise ValueError(f"{p}: views of shape {views.shape}, not (N, N, R, C)")
     return views, cal
+
+
+def load_clipped(path) -> np.ndarray | None:
+    """The ``clipped`` mask (bool, (N, N, R, C)) of :func:`save_views`' file, or None when it
+    has none (decoded without a saturation level, or before decoding recorded one)."""
+    import h5py
+    with h5py.File(Path(path), "r") as f:
+        return f["clipped"][...].astype(bool) if "clipped" in f else None

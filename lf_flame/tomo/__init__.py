@@ -10,6 +10,8 @@ recovers the emission with PyLops/PyProximal solvers, and :mod:`.fourier` on the
 operator's per-frequency normal matrices (ADMM; kernels in :mod:`._fourier_kernels`);
 :mod:`.truth` puts a simulated
 scene's truth on the same grids; :mod:`.scoring` scores planes against it;
+:mod:`.decoded` turns decoded views of a user's camera into the exact operator's data and
+puts a simulated scene's truth in their frame;
 :mod:`.files` saves, loads and draws a reconstruction.
 
 Its public names are importable from here (loaded on first use, as scikit-image does).
@@ -18,8 +20,10 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["defaults", "exact", "files", "fourier", "operator", "resolution", "scoring", "solvers", "truth"],
+    submodules=["decoded", "defaults", "exact", "files", "fourier", "operator", "resolution", "scoring", "solvers",
+                "truth"],
     submod_attrs={
+        "decoded": ["MIN_WHITE", "white_views", "decoded_problem", "decoded_truth"],
         "exact": ["QUADRATURE_NODES", "SHIFT_TOLERANCE", "PRECISIONS", "ExactKernels", "exact_kernels",
                   "ExactOperator", "emission_operator"],
         "fourier": ["FourierSystem", "fourier_system", "solve_admm"],

@@ -88,7 +88,7 @@ def lipschitz_bound(op: EmissionOperator) -> float:
 
 
 def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters: int | None = None, *,
-                damp: float = 0.0, tv: float | None = None, lam: float = ADMM_LAM, saturation: float | None = 1.0,
+                damp: float = 0.0, tv: float | None = None, lam: float = ADMM_LAM, saturation=1.0,
                 progress: bool = False, callback=None) -> Reconstruction:
     """Recover the emission on the operator's planes from one light field.
 
@@ -122,11 +122,14 @@ def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters
         :data:`~lf_flame.tomo.defaults.ADMM_TV`); ignored by the other solvers.
     lam : float
         admm's gradient weight relative to the stack's light (:data:`~lf_flame.tomo.defaults.ADMM_LAM`).
-    saturation : float or None
-        The sensor's clipping level in the views' units (1.0: :func:`lf_flame.simulate.tracer.render`'s).
-        A pixel at or above it holds only a lower bound of its light: the iterative solvers
-        leave it out of the fit (weight 0 in ``||W (A x - y)||``; Richardson-Lucy: ratio
-        left out). None: every pixel is fitted. The count is ``settings["n_saturated"]``.
+    saturation : float, ndarray of bool of shape (N, N, R, C), or None
+        The sensor's clipping level in the views' units (1.0: :func:`lf_flame.simulate.tracer.render`'s),
+        or which samples to leave out (True: clipped; decoded views carry it,
+        :func:`lf_flame.real.decoding.clipped_samples`, since white-image division leaves
+        no single level). A pixel at or above the level holds only a lower bound of its
+        light: the iterative solvers leave it out of the fit (weight 0 in ``||W (A x - y)||``;
+        Richardson-Lucy: ratio left out). None: every pixel is fitted. The count is
+        ``settings["n_saturated"]``; ``settings["saturation"]`` is ``"mask"`` for a mask.
     progress : bool
         A tqdm bar over the iterations.
     callback : callable or None
@@ -141,7 +144,8 @@ def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters
     ------
     ValueError
         An unknown solver, negative iterations or weights, views of another camera
-        (shape), NaN or inf in the views, a saturation level that is not positive.
+        (shape), NaN or inf in the views, a saturation level that is not positive, a
+        saturation mask that is not boolean of the views' shape.
     """
     if solver not in SOLVERS:
         raise ValueError(f"solver must be one of {SOLVERS}. Received: {solver!r}")
@@ -150,17 +154,22 @@ def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters
     tv = DEFAULT_TV if tv is None else tv
     if iters < 0 or damp < 0 or tv < 0 or not (math.isfinite(damp) and math.isfinite(tv)):
         raise ValueError(f"iters, damp and tv must be finite and >= 0. Received: {iters}, {damp}, {tv}")
-    if saturation is not None and not (math.isfinite(saturation) and saturation > 0):
-        raise ValueError(f"saturation must be a positive finite level or None. Received: {saturation!r}")
+    mask = np.ndim(saturation) > 0
+    if mask and (np.asarray(saturation).dtype != bool or np.shape(saturation) != tuple(op.dimsd)):
+        raise ValueError(f"a saturation mask must be boolean of the views' shape {tuple(op.dimsd)}. Received: "
+                         f"{np.asarray(saturation).dtype} of shape {np.shape(saturation)}")
+    if not mask and saturation is not None and not (math.isfinite(saturation) and saturation > 0):
+        raise ValueError(f"saturation must be a positive finite level, a mask or None. Received: {saturation!r}")
     y = check_views(views, op).ravel()
     t0 = time.perf_counter()
     n = op.shape[1]
-    fit = np.ones(y.size, bool) if saturation is None else y < saturation   # pixels that carry their light
+    # pixels that carry their light
+    fit = ~np.ravel(saturation) if mask else np.ones(y.size, bool) if saturation is None else y < saturation
     n_sat = int(y.size - fit.sum())
     # the fitted operator and data: W A and W y, W the 0/1 weight of the unsaturated pixels
     A, yw = (op, y) if n_sat == 0 else (pylops.Diagonal(fit.astype(np.float64)) @ op, np.where(fit, y, 0.0))
-    settings = dict(iters=iters, rays_per_pixel=op.rays_per_pixel, seed=op.seed, saturation=saturation,
-                    n_saturated=n_sat)
+    settings = dict(iters=iters, rays_per_pixel=op.rays_per_pixel, seed=op.seed,
+                    saturation="mask" if mask else saturation, n_saturated=n_sat)
     bar = tqdm(total=iters, desc=f"reconstruct ({solver})", unit="it", disable=not progress)
     norm = float(np.linalg.norm(y)) or 1.0
     residuals = []

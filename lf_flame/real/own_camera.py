@@ -1,0 +1,136 @@
+"""Real cameras, stage 3: the camera that decoded views come from.
+
+A camera file (:mod:`lf_flame.optics.camera_file`) says what the optics are; the
+white-image calibration (:mod:`.calibration`) where the lenslet grid lies; decoding
+(:mod:`.decoding`) what views were cut from it. :func:`views_camera` checks that they
+describe one camera and returns the perfect-grid camera of the decoded views
+(:func:`lf_flame.optics.camera_file.decoded_camera`), on which
+:class:`lf_flame.tomo.exact.ExactOperator` is built; :func:`decoded_frame` says where its
+planes lie in the real camera's object space (turned by the grid's rotation, shifted by
+the decoded grid's offset from the optical axis).
+"""
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..optics.camera import PlenopticCamera
+from ..optics.camera_file import decoded_camera
+from .calibration import _H, GridCalibration
+
+#: Relative difference between the lenslet image pitch a camera file implies
+#: (``pitch (1 + g/d) / pixel``) and the calibrated one above which :func:`views_camera`
+#: warns (1 %: 0.1 px on a 10-px pitch), and above which it refuses (5 %): the file's optics
+#: (often the main lens's distance) are not the set-up the white image was taken with. Real
+#: captures' stated optics differ from their calibrated pitch by 0.10-1.79 % (README, "Real
+#: light fields").
+PITCH_WARN, PITCH_TOLERANCE = 0.01, 0.05
+
+
+@dataclass(frozen=True)
+class DecodedFrame:
+    """Where the decoded views' planes lie in the real camera's object space.
+
+    Attributes
+    ----------
+    rotation_deg : float
+        The lenslet grid's rotation (the calibration's): the decoded planes' rows and
+        columns are the object's turned by it (sign of ``grid_rotation_deg``).
+    centre_lenslets : (float, float)
+        The decoded grid's centre minus the optical axis (taken at the sensor's centre),
+        in lenslet pitches along the grid's rows and columns.
+    """
+
+    rotation_deg: float
+    centre_lenslets: tuple[float, float]
+
+    def to_dict(self) -> dict:
+        return {"rotation_deg": self.rotation_deg, "centre_lenslets": list(self.centre_lenslets)}
+
+
+def decoded_frame(calibration: GridCalibration, n_rows: int, n_cols: int) -> DecodedFrame:
+    """The decoded grid's rotation and its centre's offset from the optical axis.
+
+    Parameters
+    ----------
+    calibration : GridCalibration
+    n_rows, n_cols : int
+        The decoded views' lenslet grid (``views.shape[2:]``): the calibration's, or for a
+        hexagonal grid the square lattice of :func:`lf_flame.real.decoding.hex_to_square`.
+
+    Returns
+    -------
+    DecodedFrame
+
+    Raises
+    ------
+    ValueError
+        A grid size that the calibration does not decode to.
+    """
+    calibration.validate()
+    if calibration.layout == "hex":
+        expect = (int(math.floor((calibration.n_rows - 1) * _H)) + 1, calibration.n_cols - 1)
+        mid = np.array([(n_rows - 1) / 2, 0.5 + (n_cols - 1) / 2])   # hex_to_square's lattice, pitches
+    else:
+        expect = (calibration.n_rows, calibration.n_cols)
+        mid = np.array([(n_rows - 1) / 2, (n_cols - 1) / 2])
+    if (n_rows, n_cols) != expect:
+        raise ValueError(f"views of {n_rows} x {n_cols} lenslets were not decoded with this calibration "
+                         f"({calibration.layout} grid decoding to {expect[0]} x {expect[1]})")
+    centre_px = np.asarray(calibration.origin_px) + calibration.matrix @ mid
+    axis_px = np.asarray(calibration.sensor_shape, np.float64) / 2
+    lat = np.linalg.solve(calibration.matrix, centre_px - axis_px)       # pitches along the grid's axes
+    return DecodedFrame(float(calibration.rotation_deg), (float(lat[0]), float(lat[1])))
+
+
+def views_camera(camera: PlenopticCamera, calibration: GridCalibration, views_shape) -> PlenopticCamera:
+    """The perfect-grid camera of views decoded from ``camera`` with ``calibration``.
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+        The real camera (:func:`lf_flame.optics.camera_file.load_camera_file`).
+    calibration : GridCalibration
+        The white-image calibration the views were decoded with.
+    views_shape : (N, N, R, C)
+
+    Returns
+    -------
+    PlenopticCamera
+        :func:`lf_flame.optics.camera_file.decoded_camera` of ``(N, R, C)``; what it
+        leaves out is stated there.
+
+    Raises
+    ------
+    ValueError
+        Another sensor size or layout than the camera's, a calibrated pitch more than
+        :data:`PITCH_TOLERANCE` away from the camera's, views of another shape than the
+        calibration decodes to, or the errors of ``decoded_camera``.
+
+    Warns
+    -----
+    UserWarning
+        A calibrated pitch more than :data:`PITCH_WARN` away from the camera's.
+    """
+    shape = tuple(int(v) for v in views_shape)
+    if len(shape) != 4 or shape[0] != shape[1]:
+        raise ValueError(f"views of shape {shape} are not (N, N, R, C)")
+    if tuple(calibration.sensor_shape) != tuple(camera.sensor_shape):
+        raise ValueError(f"the calibration's sensor is {calibration.sensor_shape[0]} x {calibration.sensor_shape[1]} px, "
+                         f"the camera's {camera.sensor_shape[0]} x {camera.sensor_shape[1]} px: another camera")
+    if calibration.layout != camera.grid_layout:
+        raise ValueError(f"the calibration found a {calibration.layout} lenslet grid, the camera file says "
+                         f"{camera.grid_layout}")
+    off = abs(calibration.pitch_px / camera.grid_pitch - 1)
+    msg = (f"the calibrated lenslet images are {calibration.pitch_px:.3f} px apart, the camera's optics give "
+           f"{camera.grid_pitch:.3f} px (pitch (1 + g/d) / pixel, {100 * off:.2f} % off): check the camera file's "
+           "distances and pixel size against this set-up")
+    if off > PITCH_TOLERANCE:
+        raise ValueError(msg + f" ({100 * PITCH_TOLERANCE:g} % tolerated)")
+    if off > PITCH_WARN:
+        warnings.warn(msg + "; the views' angles are taken from the file", UserWarning, stacklevel=2)
+    decoded_frame(calibration, shape[2], shape[3])                      # views of this calibration
+    return decoded_camera(camera, shape[0], shape[2], shape[3])
