@@ -187,12 +187,12 @@ def timing(cam, rays, cache, chosen, repeats):
     return df
 
 
-def dense(cam, chosen):
+def dense(cam, chosen, plane_counts=DENSE_P):
     rng = np.random.default_rng(R.TEST_SEEDS[0])
     scene = scenes.volume_flame_scene(cam, rng)
     views = raw_to_views(tracer.render(cam, scene, 16, R.TEST_SEEDS[0]), cam.pixels_per_lenslet)
     rows = []
-    for P in DENSE_P:
+    for P in plane_counts:
         depths = list(np.linspace(-15.0, 25.0, P))
         t0 = time.perf_counter()
         op = ExactOperator(cam, depths, precision=PRECISION)
@@ -225,6 +225,7 @@ def main(argv=None):
     ap.add_argument("--rays", type=int, default=400, help="rays per pixel of the scored renders")
     ap.add_argument("--tests", type=int, default=2, help="scored renders per scene kind")
     ap.add_argument("--repeats", type=int, default=12)
+    ap.add_argument("--planes", type=int, nargs="+", default=list(DENSE_P), help="plane counts of the dense stage")
     a = ap.parse_args(argv)
     cam = PAPER_CAMERA
     a.out.mkdir(parents=True, exist_ok=True)
@@ -249,7 +250,7 @@ def main(argv=None):
     if "time" in stages:
         timing(cam, a.rays, a.cache, chosen, a.repeats).to_csv(a.out / "fourier_solver_time.csv", index=False)
     if "dense" in stages:
-        dense(cam, chosen).to_csv(a.out / "fourier_solver_dense.csv", index=False)
+        dense(cam, chosen, a.planes).to_csv(a.out / "fourier_solver_dense.csv", index=False)
     meta.setdefault("wall_s", {})[a.stage] = time.perf_counter() - t_all
     atomic_write_text(meta_path, json.dumps(meta, indent=2, default=str))
     write_md(a.out, meta)
