@@ -36,6 +36,6 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "scoring": ["score_planes"],
         "solvers": ["SOLVERS", "DEFAULT_ITERS", "DEFAULT_TV", "PD_RESIDUAL_EVERY", "DEFAULT_SOLVER",
                  "Reconstruction", "lipschitz_bound", "reconstruct"],
-        "truth": ["resample_layer", "scene_truth"],
+        "truth": ["resample_layer", "scene_truth", "depth_shares"],
     },
 )

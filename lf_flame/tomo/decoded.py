@@ -19,6 +19,7 @@ import numpy as np
 
 from ..simulate.scenes import Scene
 from .exact import ExactOperator
+from .truth import depth_shares
 
 #: Decoded samples where the model's white view is below this fraction of its largest
 #: value are left out of the fit: the rim of the aperture's image, where decoding's own
@@ -134,18 +135,9 @@ def decoded_truth(scene: Scene, op: ExactOperator, rotation_deg: float = 0.0, ce
     t = math.radians(rotation_deg)
     q_r = math.cos(t) * ar + math.sin(t) * ac                   # sensor-frame offsets (rows, cols), pitches
     q_c = -math.sin(t) * ar + math.cos(t) * ac
-    d = np.asarray(op.depths_mm)
-    order = np.argsort(d)
-    ds = d[order]
     truth = np.zeros(op.dims)
     for L in scene.layers:
-        k = int(np.searchsorted(ds, L.depth_offset_mm))
-        if k == 0 or k == len(ds) or np.isclose(ds[min(k, len(ds) - 1)], L.depth_offset_mm):
-            shares = [(order[min(k, len(ds) - 1)], 1.0)]
-        else:
-            f = (L.depth_offset_mm - ds[k - 1]) / (ds[k] - ds[k - 1])
-            shares = [(order[k - 1], 1.0 - f), (order[k], f)]
-        for p, wgt in shares:
+        for p, wgt in depth_shares(op.depths_mm, L.depth_offset_mm):
             scale = cam.mla_pitch_mm * cam.object_distance_mm(op.depths_mm[p]) / cam.mla_distance_mm
             truth[p] += wgt * _cell_means(L, -q_r * scale, q_c * scale, scale / 2)
     return truth

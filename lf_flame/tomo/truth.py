@@ -60,17 +60,32 @@ def scene_truth(scene: Scene, op: EmissionOperator) -> np.ndarray:
     -------
     ndarray of shape ``op.dims`` (P, rows, cols), float64.
     """
-    d = np.asarray(op.depths_mm)
-    order = np.argsort(d)
-    ds = d[order]
     truth = np.zeros(op.dims)
     for L in scene.layers:
-        k = int(np.searchsorted(ds, L.depth_offset_mm))
-        if k == 0 or k == len(ds) or np.isclose(ds[min(k, len(ds) - 1)], L.depth_offset_mm):
-            shares = [(order[min(k, len(ds) - 1)], 1.0)]
-        else:
-            f = (L.depth_offset_mm - ds[k - 1]) / (ds[k] - ds[k - 1])
-            shares = [(order[k - 1], 1.0 - f), (order[k], f)]
-        for p, wgt in shares:
+        for p, wgt in depth_shares(op.depths_mm, L.depth_offset_mm):
             truth[p] += wgt * resample_layer(L, op.dims[1:], op.sizes_mm[p], op.centres_mm[p])
     return truth
+
+
+def depth_shares(depths_mm, depth_mm: float) -> list:
+    """The planes a layer at ``depth_mm`` belongs to, with their shares: the plane at its depth
+    (share 1), the two planes around it linearly in depth, or the nearest plane outside their range.
+
+    Parameters
+    ----------
+    depths_mm : sequence of P float
+        The planes' depths (mm), in any order.
+    depth_mm : float
+
+    Returns
+    -------
+    list of (plane index, share) pairs, shares summing to 1.
+    """
+    d = np.asarray(depths_mm, np.float64)
+    order = np.argsort(d)
+    ds = d[order]
+    k = int(np.searchsorted(ds, depth_mm))
+    if k == 0 or k == len(ds) or np.isclose(ds[min(k, len(ds) - 1)], depth_mm):
+        return [(int(order[min(k, len(ds) - 1)]), 1.0)]
+    f = (depth_mm - ds[k - 1]) / (ds[k] - ds[k - 1])
+    return [(int(order[k - 1]), 1.0 - f), (int(order[k]), f)]
