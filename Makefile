@@ -95,9 +95,11 @@ $(RES)/%/heights_gt.csv: $(DATA)/%/flame.h5 experiments/flame_heights.py lf_flam
 
 # the paper preset's map is committed in results/, the quick one stays in results/quick
 TRADEOFF_OUT := $(if $(filter paper,$(PRESET)),results,$(RES))
+# timed calls per route after the warm-up (latency median, p10, p90); `make tradeoff REPEATS=3` for a quicker map
+REPEATS := 20
 tradeoff: $(MODELS)/varied/flame/train_info.json ## speed-accuracy map of every route and knob -> results/tradeoff.{csv,md,png}
 	$(VENV)/bin/python experiments/tradeoff.py --preset $(PRESET) --data-dir $(DATA)/varied \
-		--model-dir $(MODELS)/varied --out $(TRADEOFF_OUT)
+		--model-dir $(MODELS)/varied --out $(TRADEOFF_OUT) --repeats $(REPEATS)
 
 # each plane's emission from one light field (lf_flame.tomo), scored against the truth; the
 # paper preset's results are committed in results/, the quick one (fewer renders) stays in results/quick

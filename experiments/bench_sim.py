@@ -52,7 +52,24 @@ def _with(scene, **fx):
     return dataclasses.replace(scene, effects=dataclasses.replace(scene.effects, **fx))
 
 
-def run(quick: bool) -> pd.DataFrame:
+#: the benchmark's sections, in the order they run (column ``section`` of the table)
+SECTIONS = ("throughput", "effects", "sampling", "forward vs backward")
+
+
+def run(quick: bool, sections=SECTIONS) -> pd.DataFrame:
+    """The benchmark's rows (one per section, scene, method and setting), measured here.
+
+    ``quick``: the 41 x 41 lenslet camera and fewer repeats and ray counts; ``sections``: the
+    ones of :data:`SECTIONS` to measure (``make tradeoff`` uses only 'effects' and 'sampling').
+
+    Raises
+    ------
+    ValueError
+        ``sections`` names a section that is not in :data:`SECTIONS`.
+    """
+    unknown = set(sections) - set(SECTIONS)
+    if unknown:
+        raise ValueError(f"sections must be among {SECTIONS}. Received: {sorted(unknown)}")
     cam = PlenopticCamera(n_rows=41, n_cols=41) if quick else PAPER_CAMERA
     repeats = 2 if quick else 7
     ref_rpp = 64 if quick else 256
@@ -67,32 +84,37 @@ def run(quick: bool) -> pd.DataFrame:
         rows.append(dict(section=section, scene=scene, method=method, setting=setting, rays_per_pixel=rpp,
                          n_rays=n_rays, ms_median=ms[0], ms_min=ms[1], mray_s=n_rays / ms[0] / 1e3, rmse=rmse))
 
-    # throughput, Numba kernel against the NumPy version of the same chain
-    for name, sc in (("shapes", shapes), ("flame", flame), ("point", point)):
-        for rpp in (1, 4, 16):
-            add("throughput", name, "numba", "scene's effects", rpp, n_px * rpp,
-                _time(lambda: simulate.render(cam, sc, rpp, 0), repeats))
-        add("throughput", name, "numpy", "scene's effects", 4, n_px * 4,
-            _time(lambda: simulate.render_reference(cam, sc, 4, 0), 1))
+    if "throughput" in sections:
+        # throughput, Numba kernel against the NumPy version of the same chain
+        for name, sc in (("shapes", shapes), ("flame", flame), ("point", point)):
+            for rpp in (1, 4, 16):
+                add("throughput", name, "numba", "scene's effects", rpp, n_px * rpp,
+                    _time(lambda: simulate.render(cam, sc, rpp, 0), repeats))
+            add("throughput", name, "numpy", "scene's effects", 4, n_px * 4,
+                _time(lambda: simulate.render_reference(cam, sc, 4, 0), 1))
 
-    # each effect on its own, against none (additive layers, no aperture, no cos^4)
-    bare = _with(shapes, aperture=False, cos4=False, occlusion=False)
-    sets = {"none": {}, "aperture": dict(aperture=True), "cos4": dict(cos4=True), "occlusion": dict(occlusion=True),
-            "crosstalk": dict(crosstalk=True), "shot+read noise": dict(full_well_e=10000.0, read_noise_e=5.0),
-            "12-bit": dict(bit_depth=12), "paper shapes (aperture, cos4, occlusion)":
-            dict(aperture=True, cos4=True, occlusion=True)}
-    for label, fx in sets.items():
-        add("effects", "shapes", "numba", label, 4, n_px * 4,
-            _time(lambda: simulate.render(cam, _with(bare, **fx), 4, 0), repeats))
+    if "effects" in sections:
+        # each effect on its own, against none (additive layers, no aperture, no cos^4)
+        bare = _with(shapes, aperture=False, cos4=False, occlusion=False)
+        sets = {"none": {}, "aperture": dict(aperture=True), "cos4": dict(cos4=True), "occlusion": dict(occlusion=True),
+                "crosstalk": dict(crosstalk=True), "shot+read noise": dict(full_well_e=10000.0, read_noise_e=5.0),
+                "12-bit": dict(bit_depth=12), "paper shapes (aperture, cos4, occlusion)":
+                dict(aperture=True, cos4=True, occlusion=True)}
+        for label, fx in sets.items():
+            add("effects", "shapes", "numba", label, 4, n_px * 4,
+                _time(lambda: simulate.render(cam, _with(bare, **fx), 4, 0), repeats))
 
-    # image error against rays per pixel (noise-free, the scenes' own optical effects)
-    for name, sc in (("shapes", shapes), ("flame", flame)):
-        ref = simulate.render(cam, sc, ref_rpp, 99)
-        for rpp in rpps:
-            raw = simulate.render(cam, sc, rpp, 0)
-            add("sampling", name, "numba", f"reference {ref_rpp} rays/pixel", rpp, n_px * rpp,
-                _time(lambda: simulate.render(cam, sc, rpp, 0), repeats), _rmse(raw, ref))
+    if "sampling" in sections:
+        # image error against rays per pixel (noise-free, the scenes' own optical effects)
+        for name, sc in (("shapes", shapes), ("flame", flame)):
+            ref = simulate.render(cam, sc, ref_rpp, 99)
+            for rpp in rpps:
+                raw = simulate.render(cam, sc, rpp, 0)
+                add("sampling", name, "numba", f"reference {ref_rpp} rays/pixel", rpp, n_px * rpp,
+                    _time(lambda: simulate.render(cam, sc, rpp, 0), repeats), _rmse(raw, ref))
 
+    if "forward vs backward" not in sections:
+        return pd.DataFrame(rows)
     # forward (object -> sensor, scatter) against backward (sensor -> object) tracing
     layer = flame.layers[1]
     one = dataclasses.replace(flame, layers=(layer,), effects=scenes.Effects(aperture=True, cos4=False,
