@@ -141,14 +141,20 @@ def score(cam, rays, cache, chosen, n_tests):
             rows.append(score_planes(rec.planes, truth, cam, depths, scene.objects, time_s=rec.time_s,
                                      route="reconstruct-pd-tv (4-ray operator)",
                                      measure=measure_settings("reconstruct-pd-tv"), **labels))
-            fourier.fourier_system(op, knobs["lam"] + (defaults.ADMM_RHO_TV if knobs["tv"] > 0 else 0.0),
-                                   defaults.ADMM_RHO)   # built before the clock: setup, timed in 'time'
+            admm_system(op, knobs)   # built before the clock: setup, timed in 'time'
             rec = reconstruct(views, op, "admm", int(chosen["fills"]), **knobs)
             rows.append(score_planes(rec.planes, truth, cam, depths, scene.objects, time_s=rec.time_s,
                                      route="reconstruct-admm (exact operator)",
                                      measure=measure_settings("reconstruct-admm"), **labels))
         print(f"  score {kind} {seed} done", flush=True)
     return pd.concat(rows, ignore_index=True), own_errors
+
+
+def admm_system(op, knobs):
+    """The per-frequency factors that ``reconstruct(..., "admm", lam=knobs["lam"], tv=knobs["tv"])`` uses,
+    built now (kept on ``op``): the TV split's penalty joins the gradient weight."""
+    return fourier.fourier_system(op, knobs["lam"] + (defaults.ADMM_RHO_TV if knobs["tv"] > 0 else 0.0),
+                                  defaults.ADMM_RHO)
 
 
 def timing(cam, rays, cache, chosen, repeats):
@@ -158,8 +164,7 @@ def timing(cam, rays, cache, chosen, repeats):
     t0 = time.perf_counter()
     op = ExactOperator(cam, depths, precision=PRECISION)
     op_s = time.perf_counter() - t0
-    system = fourier.fourier_system(op, chosen["lam"] + (defaults.ADMM_RHO_TV if chosen["tv"] > 0 else 0.0),
-                                    defaults.ADMM_RHO)
+    system = admm_system(op, chosen)
     t0 = time.perf_counter()
     mc = EmissionOperator(cam, depths, rays_per_pixel=R.RAYS_OP)
     mc.matvec(np.zeros(mc.shape[1]))   # the ray record is made on first use
@@ -197,9 +202,9 @@ def dense(cam, chosen, plane_counts=DENSE_P):
         t0 = time.perf_counter()
         op = ExactOperator(cam, depths, precision=PRECISION)
         op_s = time.perf_counter() - t0
-        system = fourier.fourier_system(op, chosen["lam"], defaults.ADMM_RHO)
+        system = admm_system(op, chosen)
         t0 = time.perf_counter()
-        reconstruct(views, op, "admm", int(chosen["fills"]), lam=chosen["lam"])
+        reconstruct(views, op, "admm", int(chosen["fills"]), lam=chosen["lam"], tv=chosen["tv"])
         solve_s = time.perf_counter() - t0
         rows.append(dict(planes=P, spacing_mm=40.0 / (P - 1), operator_setup_s=op_s, system_setup_s=system.setup_s,
                          setup_s=op_s + system.setup_s, operator_mb=op.nbytes / 2 ** 20,

@@ -115,6 +115,33 @@ def stage_reconstruct(work: Path) -> tuple[pd.DataFrame, dict]:
     return pd.concat(rows, ignore_index=True), times
 
 
+#: The operators stage's routes: (label, route, rays of a traced operator or None for the exact one).
+OPERATOR_ROUTES = (("pd-tv, 4-ray traced operator (before issue 35)", "reconstruct-pd-tv", 4),
+                   ("pd-tv, exact operator", "reconstruct-pd-tv", None),
+                   ("admm, exact operator", "reconstruct-admm", None))
+
+
+def stage_operators(work: Path, n_frames: int, repeats: int) -> pd.DataFrame:
+    """Frames/s of one worker (Dask, one thread) reconstructing the overlap recording's planes
+    with each of :data:`OPERATOR_ROUTES`, interleaved, ``repeats`` runs each from scratch; the
+    operator's build (once per worker) is part of the task time and reported apart."""
+    seq = flicker_sequence(PAPER_CAMERA, np.random.default_rng(SEED_RECON), "overlap", fps=100.0,
+                           duration_s=n_frames / 100.0)
+    rows = []
+    for rep in range(repeats):
+        for label, route, rays in OPERATOR_ROUTES:
+            job, _ = simulated_job(seq, PAPER_CAMERA, route=route, operator_rays=rays)
+            out = work / f"operators-{rep}-{route}-{rays}"
+            shutil.rmtree(out, ignore_errors=True)
+            s = run(job, out, workers=1, progress=False)
+            busy = s["busy_s"]
+            rows.append(dict(route=label, repeat=rep, n_frames=s["n_frames"], wall_s=s["wall_s"],
+                             frames_per_s=s["frames_per_s"], **{f"{k[:-2]}_ms": 1e3 * v / s["n_frames"]
+                                                                for k, v in busy.items()}))
+            print(rows[-1], flush=True)
+    return pd.DataFrame(rows)
+
+
 def stage_speed(work: Path, n_frames: int, repeats: int) -> tuple[pd.DataFrame, float]:
     seq = flicker_sequence(PAPER_CAMERA, np.random.default_rng(SEED_PAPER), "paper", fps=500.0,
                            duration_s=n_frames / 500.0)
@@ -215,6 +242,19 @@ def report(out: Path) -> None:
                f"{10_000 * per_frame / 60 / 16:.1f} min on 8 such machines (16 workers) if they scale as one "
                "worker does, the frames are where the workers can read them and scheduling stays a small share.",
                ""]
+    if (out / "sequence_operators.csv").exists():
+        op = pd.read_csv(out / "sequence_operators.csv")
+        g = op.groupby("route", sort=False)
+        t = g[[c for c in op.columns if c.endswith("_ms")] + ["frames_per_s"]].median()
+        t.insert(0, "frames_per_s_runs", g.frames_per_s.apply(lambda v: " / ".join(f"{x:.3g}" for x in v)))
+        base = t.frames_per_s.iloc[0]
+        t["x_before"] = t.frames_per_s / base
+        md += ["## Each plane's emission in a recording: the operator before and after issue 35", "",
+               f"The overlap recording's first {int(op.n_frames.iloc[0])} frames (100 frames/s, three planes), "
+               "reconstructed by one Dask worker (one thread), the routes interleaved, each run from scratch "
+               "(`python experiments/sequence.py --stage operators`); the operator is built once per worker, "
+               "inside the first frame's task time. Medians of the runs:", "",
+               t.reset_index().to_markdown(index=False, floatfmt=".3g"), ""]
     md += ["![paper recording](sequence.png)", "", "![overlap recording](sequence_overlap.png)", ""]
     if (out / "sequence_overlap_reconstruct.png").exists():
         md += ["![overlap, each plane's emission](sequence_overlap_reconstruct.png)", ""]
@@ -225,11 +265,12 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--out", default="results")
     p.add_argument("--work", default="data/sequence", help="recordings and per-run folders (not in git)")
-    p.add_argument("--stage", choices=["all", "bars", "speed", "reconstruct", "report"], default="all")
+    p.add_argument("--stage", choices=["all", "bars", "speed", "reconstruct", "operators", "report"], default="all")
     p.add_argument("--fps", type=float, default=500.0)
     p.add_argument("--duration", type=float, default=1.0)
     p.add_argument("--speed-frames", type=int, default=320)
     p.add_argument("--repeats", type=int, default=2)
+    p.add_argument("--operator-frames", type=int, default=8, help="frames of the operators stage")
     a = p.parse_args(argv)
     out, work = Path(a.out), Path(a.work)
     out.mkdir(parents=True, exist_ok=True)
@@ -254,6 +295,10 @@ def main(argv=None):
         meta.update(reconstruct_times=times)
         shutil.copy(work / "overlap-reconstruct-pd-tv" / "sequence.png", out / "sequence_overlap_reconstruct.png")
         meta.update(reconstruct_seed=SEED_RECON)
+    if a.stage == "operators":
+        d = stage_operators(work, a.operator_frames, a.repeats)
+        atomic_write_text(out / "sequence_operators.csv", d.to_csv(index=False, float_format="%.6g"))
+        meta.update(operator_frames=a.operator_frames, operators_seed=SEED_RECON)
     if a.stage != "report":
         meta.setdefault("wall_s", {})[a.stage] = time.perf_counter() - t0
         meta.update(provenance=provenance(), command=" ".join(sys.argv))

@@ -1,9 +1,12 @@
 """The Fourier ADMM solver on the exact operator (lf_flame.tomo.fourier): its kernels, the
 missing data (window, saturated pixels), its planted recovery, and its refusals."""
+import copy
+
 import numpy as np
 import pytest
 
 from lf_flame.optics.camera import PlenopticCamera
+from lf_flame.tomo import _fourier_kernels as K
 from lf_flame.tomo import fourier
 from lf_flame.tomo.exact import ExactOperator
 from lf_flame.tomo.operator import EmissionOperator
@@ -47,23 +50,50 @@ def test_the_numba_sums_are_the_einsums(op):
     rng = np.random.default_rng(0)
     xs = rng.normal(size=S.shape[1:]) + 1j * rng.normal(size=S.shape[1:])
     ys = rng.normal(size=(S.shape[0],) + S.shape[2:]) + 1j * rng.normal(size=(S.shape[0],) + S.shape[2:])
-    np.testing.assert_allclose(fourier._forward(S, xs), np.einsum("vkrf,krf->vrf", S, xs), rtol=1e-10, atol=1e-10)
-    np.testing.assert_allclose(fourier._adjoint(S, ys), np.einsum("vkrf,vrf->krf", S.conj(), ys), rtol=1e-10,
+    np.testing.assert_allclose(K.spectra_forward(S, xs), np.einsum("vkrf,krf->vrf", S, xs), rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(K.spectra_adjoint(S, ys), np.einsum("vkrf,vrf->krf", S.conj(), ys), rtol=1e-10,
                                atol=1e-10)
 
 
-def test_the_per_frequency_matrices_are_the_normal_matrices(op):
+def _gram(op):
+    """``G(f) = H(f)^H H(f)`` the slow way, from the operator's spectra: (Lr, F, P, P)."""
+    return np.einsum("vkrf,vlrf->rfkl", op._spec.conj(), op._spec)
+
+
+def test_the_normal_matrices_from_the_taps_are_those_of_the_spectra(op):
+    G = fourier.normal_matrices(op)
+    ref = _gram(op)
+    P = G.shape[0]
+    low = np.tril_indices(P)
+    np.testing.assert_allclose(G[low[0], low[1]], np.moveaxis(ref[..., low[0], low[1]], -1, 0),
+                               rtol=0, atol=1e-9 * np.abs(ref).max())
+    # a perfect grid is symmetric under a half turn of the views: the matrices are real
+    assert G.dtype == np.float64 and np.abs(ref.imag).max() < 1e-6 * np.abs(ref).max()
+
+
+def test_the_per_frequency_solve_inverts_the_normal_matrices(op):
     """(G + ...)^-1 applied to H^H H x gives back x (lam, rho -> 0): G is H^H H per frequency."""
     system = fourier.FourierSystem(op, lam=0.0, rho=1e-9)
-    P, Lr, F = system.spec.shape[1:]
+    S = system.spec
+    P, Lr, F = S.shape[1:]
     rng = np.random.default_rng(1)
     x = rng.normal(size=(P, Lr, F)) + 1j * rng.normal(size=(P, Lr, F))
-    back = system.solve(fourier._adjoint(system.spec, fourier._forward(system.spec, x)))
+    back = system.solve(K.spectra_adjoint(S, K.spectra_forward(S, x)))
     # frequencies where G is well conditioned (the others carry no light to tell planes apart)
-    cond = np.linalg.cond(np.linalg.inv(system.inverse))
+    cond = np.linalg.cond(_gram(op))
     good = cond < 1e3
     assert good.mean() > 0.2
     np.testing.assert_allclose(back[:, good], x[:, good], rtol=1e-5, atol=1e-5)
+
+
+def test_a_matrix_that_is_not_positive_definite_is_refused(op):
+    bad = np.ones((2, 2, 3))                                  # rank one: its second pivot is 0
+    assert K.cholesky(bad) == 3 and np.isnan(bad[1, 1]).all()
+    broken = copy.copy(op)
+    broken.kernels = op.kernels.copy()
+    broken.kernels[0, 0, 0, 0, 0] = np.nan
+    with pytest.raises(ValueError, match="not positive definite"):
+        fourier.FourierSystem(broken)
 
 
 def test_planted_emission_is_recovered_and_the_fills_are_what_recover_it(op, planted):

@@ -51,3 +51,98 @@ def fill(z, yt, y, w, mask):
                     z[v, r, c] = yt[v, r, c]
         part[v] = acc
     return part.sum()
+
+
+@nb.njit(parallel=True, cache=True)
+def correlate_taps(h, origin_y, origin_x, k, out):
+    """The circular cross-correlations of plane ``k``'s taps with planes ``k, k + 1, ...``, summed over views.
+
+    ``out[l - k, dy, dx] += sum_{u, v, t, t'} h[u, v, k, t] h[u, v, l, t']`` over the tap pairs whose
+    canvas offsets ``(origin_y[u, l] + t'_y) - (origin_y[u, k] + t_y)`` and likewise along
+    columns equal ``(dy, dx)`` modulo the canvas ``out.shape[1:]``. h (N, N, P, Ty, Tx) float64,
+    origin_y, origin_x (N, P) int64, out (P - k, Lr, Lc) float64 (zeroed by the caller).
+    """
+    N, _, P, Ty, Tx = h.shape
+    Lr, Lc = out.shape[1], out.shape[2]
+    for j in nb.prange(P - k):
+        l = k + j
+        for u in range(N):
+            oy = origin_y[u, l] - origin_y[u, k]
+            for v in range(N):
+                ox = origin_x[v, l] - origin_x[v, k]
+                for ty in range(Ty):
+                    for tx in range(Tx):
+                        a = h[u, v, k, ty, tx]
+                        if a == 0.0:
+                            continue
+                        for sy in range(Ty):
+                            dy = (oy + sy - ty) % Lr
+                            for sx in range(Tx):
+                                out[j, dy, (ox + sx - tx) % Lc] += a * h[u, v, l, sy, sx]
+
+
+@nb.njit(parallel=True, cache=True)
+def cholesky(A):
+    """In place, the lower Cholesky factor of the Hermitian positive definite ``A[:, :, m]`` for
+    every ``m``: A (P, P, M), real or complex, its lower triangle read and written. Returns the
+    number of matrices that were not positive definite (their factor holds NaN)."""
+    P, _, M = A.shape
+    n_blocks = (M + 255) // 256
+    bad = np.zeros(n_blocks, np.int64)
+    for b in nb.prange(n_blocks):
+        lo, hi = b * 256, min(M, b * 256 + 256)
+        for j in range(P):
+            for t in range(j):
+                for m in range(lo, hi):
+                    A[j, j, m] -= A[j, t, m] * np.conj(A[j, t, m])
+            for m in range(lo, hi):
+                d = A[j, j, m].real
+                if not d > 0.0:
+                    bad[b] += 1
+                    d = np.nan
+                A[j, j, m] = np.sqrt(d)
+            for i in range(j + 1, P):
+                for t in range(j):
+                    for m in range(lo, hi):
+                        A[i, j, m] -= A[i, t, m] * np.conj(A[j, t, m])
+                for m in range(lo, hi):
+                    A[i, j, m] /= A[j, j, m]
+    return bad.sum()
+
+
+@nb.njit(parallel=True, cache=True)
+def cholesky_solve(L, b):
+    """In place, ``b[:, m] <- (L L^H)^-1 b[:, m]`` for every ``m``: L (P, P, M) the lower
+    factors of :func:`cholesky`, b (P, M) complex."""
+    P, _, M = L.shape
+    n_blocks = (M + 255) // 256
+    for blk in nb.prange(n_blocks):
+        lo, hi = blk * 256, min(M, blk * 256 + 256)
+        for i in range(P):                                   # L y = b
+            for t in range(i):
+                for m in range(lo, hi):
+                    b[i, m] -= L[i, t, m] * b[t, m]
+            for m in range(lo, hi):
+                b[i, m] /= L[i, i, m]
+        for i in range(P - 1, -1, -1):                       # L^H x = y
+            for t in range(i + 1, P):
+                for m in range(lo, hi):
+                    b[i, m] -= np.conj(L[t, i, m]) * b[t, m]
+            for m in range(lo, hi):
+                b[i, m] /= L[i, i, m]
+
+
+def spectra_forward(S, xs):
+    """``sum_k S[v, k] xs[k]`` per frequency: S (V, P, Lr, F), xs (P, Lr, F) -> (V, Lr, F), S's dtype."""
+    V, P = S.shape[:2]
+    out = np.empty((V,) + xs.shape[1:], S.dtype)
+    forward(S.reshape(V, P, -1), np.ascontiguousarray(xs, S.dtype).reshape(P, -1), out.reshape(V, -1))
+    return out
+
+
+def spectra_adjoint(S, ys):
+    """``sum_v conj(S[v, k]) ys[v]`` per frequency: S (V, P, Lr, F), ys (V, Lr, F) -> (P, Lr, F), S's dtype."""
+    V, P = S.shape[:2]
+    out = np.empty((P,) + ys.shape[1:], S.dtype)
+    adjoint(S.reshape(V, P, -1), np.ascontiguousarray(ys, S.dtype).reshape(V, -1), out.reshape(P, -1))
+    return out

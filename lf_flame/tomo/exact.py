@@ -71,7 +71,7 @@ import scipy.fft
 from ..optics.camera import PlenopticCamera
 from ..simulate.scenes import FLAME_EFFECTS, Effects, Layer, Scene
 from ..simulate.tracer import _stack_layers, trace_coefficients
-from . import _exact_kernels
+from . import _exact_kernels, _fourier_kernels
 from .operator import normalised_adjoint, plane_grid
 
 #: Gauss-Legendre nodes per smooth piece of a pixel's ``da`` range (per axis). Against 32
@@ -293,17 +293,18 @@ class ExactOperator(pylops.LinearOperator):
         lr = scipy.fft.next_fast_len(max(gr - int(m0y.min()), R + int((m0y + n_ty - 1).max()), gr), real=True)
         lc = scipy.fft.next_fast_len(max(gc - int(n0x.min()), C + int((n0x + n_tx - 1).max()), gc), real=True)
         cdt = np.complex128 if precision == "float64" else np.complex64
+        # the views with light: a view outside the aperture has no taps and no spectrum
+        lit = np.flatnonzero(np.abs(h).reshape(N * N, -1).max(axis=1) > 0)
         # forward spectrum: conj(DFT of the taps placed at their offsets) = sum h e^{+2 pi i f m / L}
         fr = np.arange(lr)
         fc = np.arange(lc // 2 + 1)
         # phases from whole numbers modulo the canvas: exact whatever the offsets
         er = np.exp(2j * np.pi * ((fr[None, None, :, None] * (m0y[:, :, None, None] + np.arange(n_ty))) % lr) / lr)
         ec = np.exp(2j * np.pi * (((n0x[:, :, None, None] + np.arange(n_tx)[:, None]) * fc) % lc) / lc)
-        spec = np.empty((N, N, P, lr, lc // 2 + 1), cdt)
-        for u in range(N):
-            tmp = np.einsum("krt,vkts->vkrs", er[u], h[u])
-            spec[u] = np.einsum("vkrs,vksf->vkrf", tmp, ec)
-        self._spec = spec.reshape(N * N, P, lr, lc // 2 + 1)
+        spec = np.empty((len(lit), P, lr, lc // 2 + 1), cdt)
+        for i, (u, v) in enumerate(zip(*np.divmod(lit, N))):    # (P, Lr, Ty) @ (P, Ty, Tx) @ (P, Tx, F), BLAS
+            spec[i] = (er[u] @ h[u, v]) @ ec[v]
+        self._spec, self._lit = spec, lit                             # (V', P, Lr, F): lit views only
         self._real = np.float64 if precision == "float64" else np.float32
         self._w = weights.reshape(N * N, R, C).astype(self._real)
 
@@ -346,20 +347,19 @@ class ExactOperator(pylops.LinearOperator):
 
     # ---- application -------------------------------------------------------------------
     def _matvec(self, x):
-        P, gr, gc = self.dims
         N, _, R, C = self.dimsd
         s = self.canvas_shape
         xs = scipy.fft.rfft2(np.reshape(x, self.dims).astype(self._real, copy=False), s=s, workers=self.workers)
-        ys = np.einsum("vkrf,krf->vrf", self._spec, xs)
-        y = scipy.fft.irfft2(ys, s=s, workers=self.workers)[:, :R, :C] * self._w
-        return y.astype(np.float64, copy=False).ravel()
+        ys = _fourier_kernels.spectra_forward(self._spec, xs)
+        y = np.zeros((N * N, R, C), self._real)
+        y[self._lit] = scipy.fft.irfft2(ys, s=s, workers=self.workers)[:, :R, :C]
+        return (y * self._w).astype(np.float64, copy=False).ravel()
 
     def _rmatvec(self, y):
         P, gr, gc = self.dims
         s = self.canvas_shape
-        yw = np.reshape(y, (-1,) + tuple(self.dimsd[2:])).astype(self._real, copy=False) * self._w
-        ys = scipy.fft.rfft2(yw, s=s, workers=self.workers)
-        xs = np.einsum("vkrf,vrf->krf", self._spec, ys.conj()).conj()
+        yw = np.reshape(y, (-1,) + tuple(self.dimsd[2:]))[self._lit].astype(self._real, copy=False) * self._w[self._lit]
+        xs = _fourier_kernels.spectra_adjoint(self._spec, scipy.fft.rfft2(yw, s=s, workers=self.workers))
         x = scipy.fft.irfft2(xs, s=s, workers=self.workers)[:, :gr, :gc]
         return x.astype(np.float64, copy=False).ravel()
 
