@@ -10,12 +10,13 @@ wall times, provenance):
   ``||r_1 - r_2|| / (sqrt 2 ||r_1||)`` from a second render with another seed (the two
   differ by Monte-Carlo noise alone); with shot and read noise at 14 dB on top (measured
   SNR). Kept in ``--cache`` (default ``data/fourier_solver``) and reused.
-- **tune**: the admm knobs (gradient weight, TV weight, momentum, ADMM steps per fill;
-  fills read off one run by its callback) on the validation renders (``VAL_SEEDS``), the
-  score being the worst plane of the worst render (noise-free and 14 dB together), as
-  ``make reconstruct`` chooses; pd-tv (40 it., TV 0.3, 4-ray operator: today's default) on the
+- **tune**: the admm knobs (TV weight, fills read off one run by its callback) on the
+  validation renders (``VAL_SEEDS``), per noise level: the score is the worst plane of the
+  worst noise-free render for the quiet knobs, of the worst render at 14 dB for the noisy
+  ones, and the renders' relative noise is measured for the split between them
+  (``lf_flame.tomo.defaults.ADMM_QUIET_NOISE``); pd-tv (40 it., TV 0.3, 4-ray operator: today's default) on the
   same renders for the record.
-- **score**: the chosen admm, pd-tv and shift-and-sum (``focal_stack``) on the scored
+- **score**: admm at the package's defaults (knobs by the data's noise), pd-tv and shift-and-sum (``focal_stack``) on the scored
   renders (``TEST_SEEDS``) of the paper, varied and overlap scenes, noise-free and at
   14 dB, through :func:`lf_flame.tomo.scoring.score_planes`.
 - **time**: in one run, the median and 90th percentile of ``--repeats`` 4-plane admm solves
@@ -59,9 +60,13 @@ from lf_flame.tomo.truth import scene_truth  # noqa: E402
 
 KINDS = ("paper", "varied", "overlap")
 SNR_DB = 14.0
-#: the admm knobs tried on the validation renders (fills 1..MAX_FILLS read off each run)
-GRID = dict(lam=(0.01, 0.03, 0.1), tv=(0.0, 0.3), momentum=(0.4, 0.5, 0.6), inner=(5, 10))
-MAX_FILLS = 8
+#: the admm knobs tried on the validation renders (fills 1..MAX_FILLS read off each run); the
+#: gradient weight, momentum and steps per fill are those a wider grid chose (lam 0.01-0.1,
+#: momentum 0.4-0.6, 5 or 10 steps: commit 6c031f5's results/fourier_solver_tune.csv)
+GRID = dict(lam=(0.03,), tv=(0.0, 0.1, 0.3, 1.0), momentum=(0.6,), inner=(5,))
+MAX_FILLS = 16
+#: the knobs are chosen per noise level: 'quiet' on the noise-free renders, 'noisy' on those at 14 dB
+REGIMES = {"clean": "quiet", "14dB": "noisy"}
 DENSE_P = (4, 16, 41, 81)
 PRECISION = "float32"   # the solver's: its rounding (1e-7) is far below any render's own error
 
@@ -98,7 +103,8 @@ def tune(cam, rays, cache):
         mc = EmissionOperator(cam, depths, rays_per_pixel=R.RAYS_OP)
         truth = scene_truth(scene, op)
         for noise, views in (("clean", clean), ("14dB", noisy)):
-            labels = dict(scene=kind, seed=seed, noise=noise, own_error=own)
+            labels = dict(scene=kind, seed=seed, noise=noise, own_error=own,
+                          noise_level=fourier.relative_noise(views, views < 1.0))
             t0 = time.perf_counter()
             rec = reconstruct(views, mc, "pd-tv")
             rows.append(dict(labels, route="pd-tv", fills=np.nan, worst=worst_plane(rec.planes, truth),
@@ -111,18 +117,19 @@ def tune(cam, rays, cache):
                                    momentum=mom, callback=cb)
         print(f"  tune {kind} {seed} done", flush=True)
     df = pd.DataFrame(rows)
-    admm = df[df.route == "admm"]
-    score = admm.groupby(["lam", "tv", "momentum", "inner", "fills"]).worst.max().reset_index()
-    # the fewest fills within 10 % of the best score, then the best of those
-    ok = score[score.worst <= 1.1 * score.worst.min()].sort_values(["fills", "inner", "worst"])
-    best = ok.iloc[0].to_dict()
-    return df, score, best
+    best = {}
+    for noise, regime in REGIMES.items():
+        admm = df[(df.route == "admm") & (df.noise == noise)]
+        score = admm.groupby(["lam", "tv", "momentum", "inner", "fills"]).worst.max().reset_index()
+        # the fewest fills within 10 % of the best score, then the best of those
+        ok = score[score.worst <= 1.1 * score.worst.min()].sort_values(["fills", "inner", "worst"])
+        best[regime] = ok.iloc[0].to_dict()
+    return df, best
 
 
-def score(cam, rays, cache, chosen, n_tests):
+def score(cam, rays, cache, n_tests):
     rows, own_errors = [], {}
     mask = aperture_mask(cam.pixels_per_lenslet, "circular")
-    knobs = dict(lam=chosen["lam"], tv=chosen["tv"])
     for kind, seed in itertools.product(KINDS, R.TEST_SEEDS[:n_tests]):
         scene, clean, noisy, own, snr = render_set(cam, kind, seed, rays, cache)
         own_errors[f"{kind}_{seed}"] = own
@@ -141,44 +148,38 @@ def score(cam, rays, cache, chosen, n_tests):
             rows.append(score_planes(rec.planes, truth, cam, depths, scene.objects, time_s=rec.time_s,
                                      route="reconstruct-pd-tv (4-ray operator)",
                                      measure=measure_settings("reconstruct-pd-tv"), **labels))
-            admm_system(op, knobs)   # built before the clock: setup, timed in 'time'
-            rec = reconstruct(views, op, "admm", int(chosen["fills"]), **knobs)
+            rec = reconstruct(views, op, "admm")   # its defaults: the knobs of the data's noise level
             rows.append(score_planes(rec.planes, truth, cam, depths, scene.objects, time_s=rec.time_s,
                                      route="reconstruct-admm (exact operator)",
-                                     measure=measure_settings("reconstruct-admm"), **labels))
+                                     measure=measure_settings("reconstruct-admm"), noise_level=rec.settings["noise"],
+                                     fills=rec.settings["iters"], admm_tv=rec.settings["tv"], **labels))
         print(f"  score {kind} {seed} done", flush=True)
     return pd.concat(rows, ignore_index=True), own_errors
 
 
-def admm_system(op, knobs):
-    """The per-frequency factors that ``reconstruct(..., "admm", lam=knobs["lam"], tv=knobs["tv"])`` uses,
-    built now (kept on ``op``): the TV split's penalty joins the gradient weight."""
-    return fourier.fourier_system(op, knobs["lam"] + (defaults.ADMM_RHO_TV if knobs["tv"] > 0 else 0.0),
-                                  defaults.ADMM_RHO)
-
-
-def timing(cam, rays, cache, chosen, repeats):
-    scene, clean, _, _, _ = render_set(cam, "paper", R.TEST_SEEDS[0], rays, cache)
+def timing(cam, rays, cache, repeats):
+    scene, clean, noisy, _, _ = render_set(cam, "paper", R.TEST_SEEDS[0], rays, cache)
     depths = list(scenes.PAPER_DEPTHS_MM)
     rows = []
     t0 = time.perf_counter()
     op = ExactOperator(cam, depths, precision=PRECISION)
     op_s = time.perf_counter() - t0
-    system = admm_system(op, chosen)
     t0 = time.perf_counter()
     mc = EmissionOperator(cam, depths, rays_per_pixel=R.RAYS_OP)
     mc.matvec(np.zeros(mc.shape[1]))   # the ray record is made on first use
     mc_s = time.perf_counter() - t0
     mask = aperture_mask(cam.pixels_per_lenslet, "circular")
     slopes = [cam.slope_for_depth(d) for d in depths]
-    runs = {"reconstruct-admm (exact operator)": lambda: reconstruct(clean, op, "admm", int(chosen["fills"]),
-                                                                      lam=chosen["lam"], tv=chosen["tv"]),
+    # admm at its defaults: the noise-free render takes the quiet knobs, the one at 14 dB the noisy ones
+    runs = {"reconstruct-admm (exact operator), noise-free": lambda: reconstruct(clean, op, "admm"),
+            "reconstruct-admm (exact operator), 14 dB": lambda: reconstruct(noisy, op, "admm"),
             "reconstruct-pd-tv (4-ray operator)": lambda: reconstruct(clean, mc, "pd-tv"),
             "refocus-shift-sum (focal_stack)": lambda: focal_stack(clean, slopes, mask)}
-    setup = {"reconstruct-admm (exact operator)": op_s + system.setup_s,
-             "reconstruct-pd-tv (4-ray operator)": mc_s, "refocus-shift-sum (focal_stack)": 0.0}
+    setup = {"reconstruct-pd-tv (4-ray operator)": mc_s, "refocus-shift-sum (focal_stack)": 0.0}
     for name, f in runs.items():
-        f()   # warm-up (Numba, threads)
+        rec = f()   # warm-up (Numba, threads; admm's per-frequency factors for its knobs, setup)
+        if "admm" in name:
+            setup[name] = op_s + rec.settings["system_s"]
         t = []
         for _ in range(repeats if "pd-tv" not in name else max(3, repeats // 4)):
             t1 = time.perf_counter()
@@ -192,7 +193,7 @@ def timing(cam, rays, cache, chosen, repeats):
     return df
 
 
-def dense(cam, chosen, plane_counts=DENSE_P):
+def dense(cam, plane_counts=DENSE_P):
     rng = np.random.default_rng(R.TEST_SEEDS[0])
     scene = scenes.volume_flame_scene(cam, rng)
     views = raw_to_views(tracer.render(cam, scene, 16, R.TEST_SEEDS[0]), cam.pixels_per_lenslet)
@@ -202,10 +203,9 @@ def dense(cam, chosen, plane_counts=DENSE_P):
         t0 = time.perf_counter()
         op = ExactOperator(cam, depths, precision=PRECISION)
         op_s = time.perf_counter() - t0
-        system = admm_system(op, chosen)
-        t0 = time.perf_counter()
-        reconstruct(views, op, "admm", int(chosen["fills"]), lam=chosen["lam"], tv=chosen["tv"])
-        solve_s = time.perf_counter() - t0
+        rec = reconstruct(views, op, "admm")   # the 16-ray render is quiet: 8 fills, no TV
+        system = fourier.fourier_system(op, rec.settings["lam"], defaults.ADMM_RHO)   # the one it built
+        solve_s = rec.time_s - rec.settings["system_s"]
         rows.append(dict(planes=P, spacing_mm=40.0 / (P - 1), operator_setup_s=op_s, system_setup_s=system.setup_s,
                          setup_s=op_s + system.setup_s, operator_mb=op.nbytes / 2 ** 20,
                          system_mb=system.nbytes / 2 ** 20, solve_s=solve_s,
@@ -241,21 +241,29 @@ def main(argv=None):
     t_all = time.perf_counter()
     stages = ("tune", "score", "time", "dense") if a.stage == "all" else (a.stage,)
     if "tune" in stages:
-        df, sc, best = tune(cam, a.rays, a.cache)
+        df, best = tune(cam, a.rays, a.cache)
         df.to_csv(a.out / "fourier_solver_tune.csv", index=False)
-        meta["chosen"] = {k: (float(v) if k not in ("inner", "fills") else int(v)) for k, v in best.items()}
-        meta["pd_tv_validation_worst"] = float(df[df.route == "pd-tv"].worst.max())
-        print("chosen", meta["chosen"], "pd-tv validation worst", meta["pd_tv_validation_worst"])
-    chosen = meta.get("chosen") or dict(lam=defaults.ADMM_LAM, tv=0.0, momentum=defaults.ADMM_MOMENTUM,
-                                        inner=defaults.ADMM_INNER, fills=defaults.ADMM_FILLS)
+        meta["chosen"] = {regime: {k: (float(v) if k not in ("inner", "fills") else int(v)) for k, v in b.items()}
+                          for regime, b in best.items()}
+        meta["noise_levels"] = df.groupby("noise").noise_level.agg(["min", "max"]).to_dict("index")
+        meta["pd_tv_validation_worst"] = df[df.route == "pd-tv"].groupby("noise").worst.max().to_dict()
+        print("chosen", meta["chosen"], "noise levels", meta["noise_levels"], "pd-tv validation worst",
+              meta["pd_tv_validation_worst"])
+    if "chosen" in meta:   # what the package's defaults hold against what was chosen
+        q, n = meta["chosen"]["quiet"], meta["chosen"]["noisy"]
+        meta["defaults_hold_the_choice"] = bool(
+            (q["fills"], q["tv"]) == (defaults.ADMM_QUIET["fills"], defaults.ADMM_QUIET["tv"])
+            and (n["fills"], n["tv"]) == (defaults.ADMM_FILLS, defaults.ADMM_TV)
+            and q["lam"] == n["lam"] == defaults.ADMM_LAM
+            and meta["noise_levels"]["clean"]["max"] < defaults.ADMM_QUIET_NOISE < meta["noise_levels"]["14dB"]["min"])
     if "score" in stages:
-        df, own = score(cam, a.rays, a.cache, chosen, a.tests)
+        df, own = score(cam, a.rays, a.cache, a.tests)
         df.to_csv(a.out / "fourier_solver_score.csv", index=False)
         meta["own_errors"] = own
     if "time" in stages:
-        timing(cam, a.rays, a.cache, chosen, a.repeats).to_csv(a.out / "fourier_solver_time.csv", index=False)
+        timing(cam, a.rays, a.cache, a.repeats).to_csv(a.out / "fourier_solver_time.csv", index=False)
     if "dense" in stages:
-        dense(cam, chosen, a.planes).to_csv(a.out / "fourier_solver_dense.csv", index=False)
+        dense(cam, a.planes).to_csv(a.out / "fourier_solver_dense.csv", index=False)
     meta.setdefault("wall_s", {})[a.stage] = time.perf_counter() - t_all
     atomic_write_text(meta_path, json.dumps(meta, indent=2, default=str))
     write_md(a.out, meta)
@@ -266,8 +274,10 @@ def write_md(out: Path, meta):
              f"Renders: ray tracer at {meta['rays']} rays per pixel; their own error against the exact light field "
              f"(two seeds): " + (", ".join(f"{k} {100 * v:.2f} %" for k, v in meta.get("own_errors", {}).items())
                                  or "see the json") + f". Noise: shot + read at {meta['snr_db']:g} dB (measured).",
-             f"Chosen on validation renders: {meta.get('chosen')}; pd-tv's worst validation plane "
-             f"{100 * meta.get('pd_tv_validation_worst', float('nan')):.1f} %.", ""]
+             f"Chosen on validation renders, per noise level: {meta.get('chosen')}; the renders' relative noise "
+             f"(`lf_flame.tomo.fourier.relative_noise`): {meta.get('noise_levels')}; the package's defaults "
+             f"hold the choice: {meta.get('defaults_hold_the_choice')}. pd-tv's worst validation plane: "
+             f"{meta.get('pd_tv_validation_worst')}.", ""]
     p = out / "fourier_solver_score.csv"
     if p.exists():
         parts += ["## Worst plane per render (relative L2 error), scored renders", "",

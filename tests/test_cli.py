@@ -46,12 +46,12 @@ def test_every_option_shows_its_default_in_help(monkeypatch):
 
 def test_help_names_reconstructs_planes_and_solver_defaults(monkeypatch):
     from lf_flame.simulate.scenes import PAPER_DEPTHS_MM
-    from lf_flame.tomo.solvers import DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV
+    from lf_flame.tomo.solvers import DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV, EXACT_SOLVER
     monkeypatch.setenv("COLUMNS", "100000")
     text = _sub_parsers()["reconstruct"].format_help()
     assert ", ".join(f"{d:+g}" for d in PAPER_DEPTHS_MM) + " mm" in text
     assert all(f"{k} {v}" in text for k, v in DEFAULT_ITERS.items())
-    assert f"(default: {DEFAULT_SOLVER})" in text and f"(default: {DEFAULT_TV})" in text
+    assert f"(default: {EXACT_SOLVER}, traced: {DEFAULT_SOLVER})" in text and f"(default: {DEFAULT_TV})" in text
 
 
 def test_importing_the_cli_loads_no_heavy_library():

@@ -105,8 +105,27 @@ def test_planted_emission_is_recovered_and_the_fills_are_what_recover_it(op, pla
     assert rel(full.planes, x).max() < 0.08
     # zero-filled data outside the window (one fill) is far worse: the fills carry the window
     assert rel(one.planes, x).max() > 2 * rel(full.planes, x).max()
-    default = reconstruct(views, op, "admm", saturation=None)
-    assert default.settings["tv"] == fourier.ADMM_TV and default.settings["iters"] == fourier.ADMM_FILLS
+
+
+
+def test_the_noise_estimate_and_the_knobs_it_picks(op, planted):
+    x, views = planted
+    peak = np.percentile(views[6:9, 6:9], 99.9)
+    rng = np.random.default_rng(3)
+    for sigma in (0.003, 0.03):   # white noise of known deviation on smooth emission: measured within 10 %
+        noisy = views + rng.normal(scale=sigma * peak, size=views.shape)
+        assert fourier.relative_noise(noisy) == pytest.approx(sigma, rel=0.1)
+    assert fourier.relative_noise(views) < 0.5 * fourier.ADMM_QUIET_NOISE      # exact light field: quiet
+    assert fourier.relative_noise(np.zeros_like(views)) == 0.0
+    # the defaults follow the noise: the quiet knobs on the exact light field, the noisy ones at 3 %
+    quiet = reconstruct(views, op, "admm", saturation=None).settings
+    assert (quiet["iters"], quiet["tv"]) == (fourier.ADMM_QUIET["fills"], fourier.ADMM_QUIET["tv"])
+    loud = reconstruct(views + rng.normal(scale=0.03 * peak, size=views.shape), op, "admm", saturation=None).settings
+    assert (loud["iters"], loud["tv"]) == (fourier.ADMM_FILLS, fourier.ADMM_TV)
+    assert loud["noise"] > fourier.ADMM_QUIET_NOISE > quiet["noise"]
+    # a knob given is kept, the other still follows the noise
+    mixed = reconstruct(views, op, "admm", 2, saturation=None).settings
+    assert (mixed["iters"], mixed["tv"]) == (2, fourier.ADMM_QUIET["tv"])
 
 
 def test_saturated_pixels_are_left_out(op, planted):
@@ -133,3 +152,10 @@ def test_refusals(camera, op, planted):
         fourier.solve_admm(views, op, np.ones(op.dimsd, bool), momentum=1.0)
     with pytest.raises(ValueError, match="lam"):
         fourier.FourierSystem(op, lam=-1.0)
+
+
+def test_the_default_solver_follows_the_operator(camera, op, planted):
+    _, views = planted
+    assert reconstruct(views, op, iters=1).solver == "admm"
+    traced = EmissionOperator(camera, list(DEPTHS), rays_per_pixel=1)
+    assert reconstruct(views, traced, iters=1).solver == "pd-tv"

@@ -14,7 +14,7 @@ import sys
 
 from ..routes import LEARNED_ROUTES
 from ..simulate.scenes import PAPER_DEPTHS_MM
-from ..tomo.defaults import ADMM_TV, DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV, SOLVERS
+from ..tomo.defaults import ADMM_QUIET, ADMM_TV, DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV, EXACT_SOLVER, SOLVERS
 from ..tomo.resolution import AXES, CONDITIONS, DEFAULT_FAR_MM, DEFAULT_NEAR_MM, DEFAULT_SPACING_MM, FEATURE_SIZES_MM
 from ._io import RAW_FORMATS
 from .learning import cmd_dataset, cmd_evaluate, cmd_predict, cmd_tables, cmd_train
@@ -190,7 +190,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--iters", type=int, help="reconstruct-*: iterations (default: the solver's, chosen on validation "
                    "renders)")
     s.add_argument("--tv", type=float, default=None,
-                   help=f"reconstruct-pd-tv / -admm: TV weight (default: pd-tv {DEFAULT_TV}, admm {ADMM_TV})")
+                   help=f"reconstruct-pd-tv / -admm: TV weight (default: pd-tv {DEFAULT_TV}; admm by each frame's "
+                        f"noise: {ADMM_QUIET['tv']} on quiet data, {ADMM_TV} on noisy)")
     s.add_argument("--saturation", type=_level_or_none, default=1.0,
                    help="reconstruct-*: the sensor's clipping level in the views' units: pixels at or above it are "
                         "left out of the fit, counted per frame as n_saturated ('none': fit every pixel; default: "
@@ -252,15 +253,16 @@ def build_parser() -> argparse.ArgumentParser:
                         + ", ".join(f"{d:+g}" for d in PAPER_DEPTHS_MM) + " mm")
     s.add_argument("--slope", type=float, action="append", help="plane slope instead of a depth (repeatable)")
     s.add_argument("--solver", choices=list(SOLVERS),
-                   help=f"the default is the one chosen on validation renders (make reconstruct), with --camera "
-                        f"{OWN_CAMERA_SOLVER}; adjoint: plain refocusing through the operator's rays "
-                        f"(default: {DEFAULT_SOLVER})")
+                   help=f"the default is the one chosen on validation renders: {EXACT_SOLVER} on the exact operator, "
+                        f"{DEFAULT_SOLVER} on a traced one (--rays-per-pixel, or a camera that needs tracing), "
+                        f"{OWN_CAMERA_SOLVER} with --camera; adjoint: plain refocusing through the operator's rays "
+                        f"(default: {EXACT_SOLVER}, traced: {DEFAULT_SOLVER})")
     s.add_argument("--iters", type=int, help="iterations (default: the solver's, chosen on validation renders: "
                    + ", ".join(f"{k} {v}" for k, v in DEFAULT_ITERS.items()) + "; with --camera "
                    + ", ".join(f"{k} {v}" for k, v in OWN_CAMERA_ITERS.items()) + ")")
     s.add_argument("--damp", type=float, default=0.0, help="LSQR damping (Tikhonov)")
     s.add_argument("--tv", type=float, default=None, help=f"TV weight of pd-tv (default: {DEFAULT_TV}) or of admm "
-                   f"(default: {ADMM_TV})")
+                   f"(default by the light field's noise: {ADMM_QUIET['tv']} on quiet data, {ADMM_TV} on noisy)")
     s.add_argument("--saturation", type=_level_or_none, default=argparse.SUPPRESS,
                    help="the sensor's clipping level in the views' units: pixels at or above it are left out of the "
                         "fit ('none': fit every pixel; default 1.0). With --camera only 'none' (fit every sample): "

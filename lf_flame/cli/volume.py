@@ -42,11 +42,11 @@ def reconstruct_input(a):
     return cam, views, depths, objects
 
 
-def run_reconstruction(cam, views, depths, solver, iters=None, *, damp=0.0, tv=None, saturation=1.0,
+def run_reconstruction(cam, views, depths, solver=None, iters=None, *, damp=0.0, tv=None, saturation=1.0,
                        rays_per_pixel=None, progress=False):
     """Build the operator of ``cam`` at ``depths`` (:func:`lf_flame.tomo.exact.emission_operator`:
     exact unless ``rays_per_pixel`` is given or the camera needs tracing) and solve
-    (:func:`lf_flame.tomo.solvers.reconstruct`)."""
+    (:func:`lf_flame.tomo.solvers.reconstruct`; solver None: the operator's default)."""
     from ..tomo.exact import emission_operator
     from ..tomo.solvers import reconstruct
     op = emission_operator(cam, depths, rays_per_pixel=rays_per_pixel)
@@ -64,7 +64,6 @@ def saturation_note(rec) -> str:
 
 
 def cmd_reconstruct(a):
-    from ..tomo.defaults import DEFAULT_SOLVER
     from ..tomo.files import plot_reconstruction, save_reconstruction
     from ..tomo.truth import scene_truth
     from ..refocus.shift_and_sum import aperture_mask, focal_stack
@@ -72,7 +71,6 @@ def cmd_reconstruct(a):
         return own_camera_reconstruct(a)
     if getattr(a, "calibration", None):
         raise ValueError("--calibration goes with --camera (views decoded from your own camera)")
-    a.solver = a.solver or DEFAULT_SOLVER
     cam, views, depths, objects = reconstruct_input(a)
     op, rec = run_reconstruction(cam, views, depths, a.solver, a.iters, damp=a.damp, tv=a.tv,
                                  saturation=getattr(a, "saturation", 1.0), rays_per_pixel=a.rays_per_pixel,
@@ -87,7 +85,7 @@ def cmd_reconstruct(a):
     fig = out.with_suffix(".png")
     plot_reconstruction(fig, rec, refocused, truth)
     res = f"{rec.residuals[-1]:.4f}" if len(rec.residuals) else "-"
-    print(f"reconstructed {len(depths)} planes ({a.solver}, {rec.settings['iters']} iterations) in {rec.time_s:.2f} s;"
+    print(f"reconstructed {len(depths)} planes ({rec.solver}, {rec.settings['iters']} iterations) in {rec.time_s:.2f} s;"
           f" relative residual {res} -> {out}, {fig}" + ("" if truth is None else " (with the scene's truth)"))
 
 
@@ -109,7 +107,6 @@ def own_camera_reconstruct(a):
     from ..real.own_camera import decoded_frame, views_camera
     from ..refocus.shift_and_sum import aperture_mask, focal_stack
     from ..tomo.decoded import decoded_problem
-    from ..tomo.defaults import DEFAULT_ITERS
     from ..tomo.exact import ExactOperator
     from ..tomo.files import plot_reconstruction, save_reconstruction
     from ..tomo.solvers import reconstruct
@@ -137,7 +134,7 @@ def own_camera_reconstruct(a):
                          "their clipped samples (give the sensor's level to 'lf-flame decode --saturation')")
     clipped = None if level is None else load_clipped(src)
     solver = a.solver or OWN_CAMERA_SOLVER
-    iters = a.iters if a.iters is not None else OWN_CAMERA_ITERS.get(solver, DEFAULT_ITERS[solver])
+    iters = a.iters if a.iters is not None else OWN_CAMERA_ITERS.get(solver)   # None: the solver's default
     op = ExactOperator(vcam, depths)
     data, leave = decoded_problem(views, op, clipped)
     rec = reconstruct(data, op, solver, iters, damp=a.damp, tv=a.tv, saturation=leave, progress=True)
@@ -154,5 +151,5 @@ def own_camera_reconstruct(a):
     fig = out.with_suffix(".png")
     plot_reconstruction(fig, rec, refocused, None)
     res = f"{rec.residuals[-1]:.4f}" if len(rec.residuals) else "-"
-    print(f"reconstructed {len(depths)} planes of {src} with its camera's exact operator ({solver}, {iters} "
-          f"iterations) in {rec.time_s:.2f} s; relative residual {res} -> {out}, {fig}")
+    print(f"reconstructed {len(depths)} planes of {src} with its camera's exact operator ({solver}, "
+          f"{rec.settings['iters']} iterations) in {rec.time_s:.2f} s; relative residual {res} -> {out}, {fig}")

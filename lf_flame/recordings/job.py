@@ -54,9 +54,10 @@ class SequenceJob:
         Frames per task (>= 1).
     iters : int or None
         ``reconstruct-*`` routes: the solver's iterations (>= 0); None: the solver's default
-        (:data:`lf_flame.tomo.solvers.DEFAULT_ITERS`).
+        (:data:`lf_flame.tomo.solvers.DEFAULT_ITERS`; admm: by each frame's noise).
     tv : float or None
-        ``reconstruct-pd-tv`` / ``-admm``: the TV weight (>= 0); None: the solver's default.
+        ``reconstruct-pd-tv`` / ``-admm``: the TV weight (>= 0); None: the solver's default
+        (admm: by each frame's noise, :func:`lf_flame.tomo.fourier.admm_knobs`).
     saturation : float or None
         ``reconstruct-*`` routes: the sensor's clipping level in the views' units; pixels at
         or above it are left out of the fit (their count per frame: ``n_saturated``). None:
@@ -127,15 +128,23 @@ class SequenceJob:
     def reconstruction(self) -> dict | None:
         """The reconstruction's settings, defaults resolved (iterations of the solver's
         :data:`~lf_flame.tomo.defaults.DEFAULT_ITERS`, TV weight :data:`~lf_flame.tomo.defaults.DEFAULT_TV`
-        for pd-tv, :data:`~lf_flame.tomo.defaults.ADMM_TV` for admm, None for the solvers without one); None for shift-and-sum."""
+        for pd-tv, None for the solvers without one); admm's knobs not given stay None (each
+        frame's noise picks them) and ``admm_auto`` holds the rule that picks them. None for
+        shift-and-sum."""
         if self.solver is None:
             return None
-        from ..tomo.defaults import ADMM_TV, DEFAULT_ITERS, DEFAULT_TV
-        iters = DEFAULT_ITERS.get(self.solver) if self.iters is None else int(self.iters)
-        tv = {"pd-tv": DEFAULT_TV, "admm": ADMM_TV}.get(self.solver) if self.tv is None else float(self.tv)
-        return dict(solver=self.solver, iters=iters, tv=tv,
-                    saturation=None if self.saturation is None else float(self.saturation),
-                    operator_rays=None if self.operator_rays is None else int(self.operator_rays))
+        from ..tomo import defaults as D
+        auto = self.solver == "admm" and (self.iters is None or self.tv is None)
+        iters = (None if self.solver == "admm" else D.DEFAULT_ITERS.get(self.solver)) if self.iters is None \
+            else int(self.iters)
+        tv = ({"pd-tv": D.DEFAULT_TV}.get(self.solver)) if self.tv is None else float(self.tv)
+        out = dict(solver=self.solver, iters=iters, tv=tv,
+                   saturation=None if self.saturation is None else float(self.saturation),
+                   operator_rays=None if self.operator_rays is None else int(self.operator_rays))
+        if auto:
+            out["admm_auto"] = dict(quiet_below=D.ADMM_QUIET_NOISE, quiet=dict(D.ADMM_QUIET),
+                                    noisy=dict(fills=D.ADMM_FILLS, tv=D.ADMM_TV))
+        return out
 
     def identity(self) -> dict:
         """What makes the run: a folder holding another identity is not resumed."""

@@ -34,7 +34,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
                        "kernel_response", "normal_matrix", "pair_conditions", "resolution_from_kernels",
                        "depth_resolution", "plot_depth_resolution"],
         "scoring": ["score_planes"],
-        "solvers": ["SOLVERS", "DEFAULT_ITERS", "DEFAULT_TV", "PD_RESIDUAL_EVERY", "DEFAULT_SOLVER",
+        "solvers": ["SOLVERS", "DEFAULT_ITERS", "DEFAULT_TV", "PD_RESIDUAL_EVERY", "DEFAULT_SOLVER", "EXACT_SOLVER",
                  "Reconstruction", "lipschitz_bound", "reconstruct"],
         "truth": ["resample_layer", "scene_truth", "depth_shares"],
     },

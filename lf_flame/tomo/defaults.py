@@ -7,20 +7,35 @@ parser reads them from here, so ``lf-flame --help`` does not import PyLops.
 SOLVERS = ("adjoint", "lsqr", "fista", "pd-tv", "rl", "admm")
 #: Iterations each solver runs unless told: the fewest within 10 % of the solver's best
 #: worst-plane error on validation renders (``results/reconstruct_iters.csv``, ``make reconstruct``).
-DEFAULT_ITERS = {"adjoint": 0, "lsqr": 40, "fista": 30, "pd-tv": 40, "rl": 20, "admm": 4}
+#: admm's: its fills on noisy data (:data:`ADMM_FILLS`; quiet data take :data:`ADMM_QUIET`'s).
+ADMM_FILLS = 4
+DEFAULT_ITERS = {"adjoint": 0, "lsqr": 40, "fista": 30, "pd-tv": 40, "rl": 20, "admm": ADMM_FILLS}
 #: TV weight of "pd-tv" unless told (validation renders, as the iterations).
 DEFAULT_TV = 0.3
-#: The solver whose worst validation render is best (``make reconstruct``): the default of ``lf-flame reconstruct``.
+#: The solver whose worst validation render is best (``make reconstruct``) on the traced operator: the default
+#: of ``lf-flame reconstruct`` where the camera needs tracing (``--rays-per-pixel``, crosstalk, not a perfect grid).
 DEFAULT_SOLVER = "pd-tv"
+#: The default on the exact operator (every perfect lenslet grid): admm, its knobs by the data's noise, beats
+#: pd-tv on every validation render (``results/fourier_solver.md``: worst plane 6.2 % against 10.5 % noise-free,
+#: 13.2 % against 18.6 % at 14 dB) in about a twentieth of its time.
+EXACT_SOLVER = "admm"
 #: Knobs of the "admm" solver (:func:`lf_flame.tomo.fourier.solve_admm`), chosen on validation renders at
 #: 400 rays per pixel (``experiments/exact_operator.py --stage tune``): fills of the missing data (its
 #: iterations), ADMM steps per fill, the gradient weight and the penalties (relative to the stack's light
 #: g0), the fills' momentum, the TV weight (absolute, as pd-tv's).
 #: ``results/fourier_solver.md``: worst validation plane 13.2 % (noise-free and 14 dB) against pd-tv's 18.6 %.
-ADMM_FILLS = 4
 ADMM_INNER = 5
 ADMM_LAM = 0.03
 ADMM_RHO = 0.01
 ADMM_RHO_TV = 1.0
 ADMM_MOMENTUM = 0.6
 ADMM_TV = 0.3
+#: admm's knobs follow the light field's noise unless told (:func:`lf_flame.tomo.fourier.relative_noise`,
+#: the noise's standard deviation over the views' 99.9th percentile): below :data:`ADMM_QUIET_NOISE`
+#: the fills run on without TV (:data:`ADMM_QUIET`), above it :data:`ADMM_FILLS` and :data:`ADMM_TV`
+#: regularise (the early-stopped fills and TV). Chosen per noise level on the validation renders
+#: (``python experiments/fourier_solver.py --stage tune``: noise-free renders at 400 rays measure
+#: 4e-4 to 7e-4, renders at 14 dB 0.03 to 0.04; the split lies between, the validation set holds
+#: no level in between).
+ADMM_QUIET_NOISE = 0.005
+ADMM_QUIET = {"fills": 6, "tv": 0.0}

@@ -50,7 +50,8 @@ import scipy.fft
 
 from . import _fourier_kernels
 
-from .defaults import ADMM_FILLS, ADMM_INNER, ADMM_LAM, ADMM_MOMENTUM, ADMM_RHO, ADMM_RHO_TV, ADMM_TV
+from .defaults import (ADMM_FILLS, ADMM_INNER, ADMM_LAM, ADMM_MOMENTUM, ADMM_QUIET, ADMM_QUIET_NOISE, ADMM_RHO,
+                       ADMM_RHO_TV, ADMM_TV)
 
 
 #: Largest imaginary part of the normal matrices, relative to their largest entry, that is
@@ -155,6 +156,65 @@ class FourierSystem:
         return out
 
 
+#: Immerkaer's mask: the difference of two Laplacians, blind to a plane's first and second
+#: derivatives, whose response to white noise of deviation sigma has deviation 6 sigma.
+_IMMERKAER = np.array([[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]])
+
+
+def relative_noise(views, fit=None) -> float:
+    """The light field's noise: its standard deviation over the views' 99.9th percentile.
+
+    Per central view (the 3 x 3 around the optical axis, lit in any camera), Immerkaer's
+    estimate ``sqrt(pi / 2) mean|I * M| / 6`` (J. Immerkaer, "Fast noise variance
+    estimation", Comput. Vis. Image Underst. 64 (1996)) over the pixels whose 3 x 3
+    neighbourhood is fitted; the median over those views. Smooth emission (flames) barely
+    moves it; sharp edges raise it.
+
+    Parameters
+    ----------
+    views : ndarray of shape (N, N, R, C)
+    fit : ndarray of bool of shape (N, N, R, C) or None
+        The pixels to use (False: saturated); None: all.
+
+    Returns
+    -------
+    float
+        0 for central views without light.
+    """
+    import scipy.ndimage
+    c = views.shape[0] // 2
+    sl = (slice(max(c - 1, 0), c + 2),) * 2
+    v = np.asarray(views[sl], np.float64)
+    flat = v.reshape((-1,) + v.shape[2:])
+    ok = np.ones(flat.shape, bool) if fit is None else np.asarray(fit, bool)[sl].reshape(flat.shape)
+    peak = float(np.percentile(flat, 99.9))
+    if not peak > 0:
+        return 0.0
+    r = np.abs(scipy.ndimage.convolve(flat, _IMMERKAER[None], mode="nearest"))
+    ok = scipy.ndimage.binary_erosion(ok, np.ones((1, 3, 3), bool), border_value=1)
+    sig = [r[i][ok[i]].mean() for i in range(len(flat)) if ok[i].any()]
+    return float(math.sqrt(math.pi / 2) * np.median(sig) / 6 / peak) if sig else 0.0
+
+
+def admm_knobs(views, fit, fills=None, tv=None):
+    """admm's fills and TV weight for these views: those given, the others by their noise.
+
+    Returns
+    -------
+    fills : int
+    tv : float
+    noise : float
+        :func:`relative_noise` of the views (NaN when both knobs were given: not measured).
+    """
+    if fills is not None and tv is not None:
+        return int(fills), float(tv), math.nan
+    noise = relative_noise(views, fit)
+    quiet = noise < ADMM_QUIET_NOISE
+    fills = int(fills) if fills is not None else ADMM_QUIET["fills"] if quiet else ADMM_FILLS
+    tv = float(tv) if tv is not None else ADMM_QUIET["tv"] if quiet else ADMM_TV
+    return fills, tv, noise
+
+
 def fourier_system(op, lam: float = ADMM_LAM, rho: float = ADMM_RHO) -> FourierSystem:
     """The operator's :class:`FourierSystem` for ``(lam, rho)``, built once and kept on ``op``."""
     cache = op.__dict__.setdefault("_fourier_systems", {})
@@ -234,7 +294,8 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     for j in range(1, int(fills) + 1):
         if j > 1:   # predict from the extrapolated planes (heavy-ball momentum on the fills), data where measured
             v = s + momentum * (s - s_prev)
-            z = scipy.fft.irfft2(_fourier_kernels.spectra_forward(S, scipy.fft.rfft2(v, workers=op.workers)), s=canvas, workers=op.workers)
+            hv = _fourier_kernels.spectra_forward(S, scipy.fft.rfft2(v, workers=op.workers))
+            z = scipy.fft.irfft2(hv, s=canvas, workers=op.workers)
         residual = _fourier_kernels.fill(z, yt, y, w, m)
         if j > 1:
             residuals.append(math.sqrt(residual) / norm)

@@ -20,7 +20,8 @@ from pyproximal.optimization.primal import ProximalGradient
 from pyproximal.optimization.primaldual import PrimalDual
 from tqdm.auto import tqdm
 
-from .defaults import ADMM_LAM, ADMM_TV, DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV, SOLVERS  # noqa: F401 (re-exported)
+from .defaults import (ADMM_LAM, ADMM_TV, DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV, EXACT_SOLVER,  # noqa: F401
+                       SOLVERS)   # (re-exported)
 from .operator import EmissionOperator, check_views
 
 # ---- solvers ---------------------------------------------------------------------------
@@ -87,7 +88,7 @@ def lipschitz_bound(op: EmissionOperator) -> float:
     return float(op.rmatvec(np.ones(op.shape[0])).max() * op.matvec(np.ones(op.shape[1])).max())
 
 
-def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters: int | None = None, *,
+def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: int | None = None, *,
                 damp: float = 0.0, tv: float | None = None, lam: float = ADMM_LAM, saturation=1.0,
                 progress: bool = False, callback=None) -> Reconstruction:
     """Recover the emission on the operator's planes from one light field.
@@ -98,8 +99,9 @@ def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters
         Sub-aperture views (:func:`lf_flame.refocus.shift_and_sum.raw_to_views`), radiance units.
     op : EmissionOperator
         The camera and the planes (their depths and grids).
-    solver : str
-        One of :data:`SOLVERS`:
+    solver : str or None
+        One of :data:`SOLVERS`; None: :data:`~lf_flame.tomo.defaults.EXACT_SOLVER` on an
+        :class:`~lf_flame.tomo.exact.ExactOperator`, :data:`DEFAULT_SOLVER` on a traced one.
 
         - ``"adjoint"``: ``A^T y / A^T 1``, plain refocusing through the same rays (no iterations).
         - ``"lsqr"``: damped LSQR (Tikhonov, ``damp``), PyLops; may go negative.
@@ -116,10 +118,15 @@ def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters
           ``lam ||grad x||^2`` (and TV when ``tv > 0``); its iterations are the fills of the
           missing data (:func:`lf_flame.tomo.fourier.solve_admm`).
     iters : int or None
-        Iterations; None: :data:`DEFAULT_ITERS`.
+        Iterations; None: :data:`DEFAULT_ITERS`, admm's by the data's noise (below).
     damp, tv : float
-        LSQR's damping and the TV weight (>= 0; None: pd-tv's :data:`DEFAULT_TV`, admm's
-        :data:`~lf_flame.tomo.defaults.ADMM_TV`); ignored by the other solvers.
+        LSQR's damping and the TV weight (>= 0; None: pd-tv's :data:`DEFAULT_TV`, admm's by
+        the data's noise); ignored by the other solvers. admm with ``iters`` or ``tv`` None
+        measures the views' relative noise (:func:`lf_flame.tomo.fourier.relative_noise`,
+        ``settings["noise"]``) and takes the knobs it was not given from
+        :data:`~lf_flame.tomo.defaults.ADMM_QUIET` below
+        :data:`~lf_flame.tomo.defaults.ADMM_QUIET_NOISE`, else
+        :data:`~lf_flame.tomo.defaults.ADMM_FILLS` and :data:`~lf_flame.tomo.defaults.ADMM_TV`.
     lam : float
         admm's gradient weight relative to the stack's light (:data:`~lf_flame.tomo.defaults.ADMM_LAM`).
     saturation : float, ndarray of bool of shape (N, N, R, C), or None
@@ -147,10 +154,13 @@ def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters
         (shape), NaN or inf in the views, a saturation level that is not positive, a
         saturation mask that is not boolean of the views' shape.
     """
+    if solver is None:
+        from .exact import ExactOperator
+        solver = EXACT_SOLVER if isinstance(op, ExactOperator) else DEFAULT_SOLVER
     if solver not in SOLVERS:
         raise ValueError(f"solver must be one of {SOLVERS}. Received: {solver!r}")
+    iters_given, tv_given = iters is not None, tv is not None
     iters = DEFAULT_ITERS[solver] if iters is None else int(iters)
-    tv_given = tv is not None
     tv = DEFAULT_TV if tv is None else tv
     if iters < 0 or damp < 0 or tv < 0 or not (math.isfinite(damp) and math.isfinite(tv)):
         raise ValueError(f"iters, damp and tv must be finite and >= 0. Received: {iters}, {damp}, {tv}")
@@ -182,12 +192,13 @@ def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters
             callback(count[0], np.ravel(x))
     if solver == "admm":
         from .exact import ExactOperator
-        from .fourier import solve_admm
+        from .fourier import admm_knobs, solve_admm
         if not isinstance(op, ExactOperator):
             raise ValueError("the admm solver works on the exact operator's per-frequency matrices: give an "
                              "lf_flame.tomo.exact.ExactOperator")
-        admm_tv = tv if tv_given else ADMM_TV
-        settings.update(lam=lam, tv=admm_tv)
+        iters, admm_tv, noise = admm_knobs(y.reshape(op.dimsd), fit.reshape(op.dimsd),
+                                           iters if iters_given else None, tv if tv_given else None)
+        settings.update(iters=iters, lam=lam, tv=admm_tv, noise=noise)
         planes, residuals, settings["system_s"] = solve_admm(y.reshape(op.dimsd), op, fit.reshape(op.dimsd),
                                                              fills=iters, lam=lam, tv=admm_tv,
                                                              callback=lambda j, x: step(x))
