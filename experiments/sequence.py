@@ -253,7 +253,8 @@ def report(out: Path) -> None:
                f"The overlap recording's first {int(op.n_frames.iloc[0])} frames (100 frames/s, three planes), "
                "reconstructed by one Dask worker (one thread), the routes interleaved, each run from scratch "
                "(`python experiments/sequence.py --stage operators`); the operator is built once per worker, "
-               "inside the first frame's task time. Medians of the runs:", "",
+               "inside the first frame's task time (`refocus_ms`: the planes' work, here the solve). The machine "
+               "was shared with other jobs: compare the rows of one run. Medians of the runs:", "",
                t.reset_index().to_markdown(index=False, floatfmt=".3g"), ""]
     md += ["![paper recording](sequence.png)", "", "![overlap recording](sequence_overlap.png)", ""]
     if (out / "sequence_overlap_reconstruct.png").exists():
