@@ -284,7 +284,7 @@ def test_reconstruction_settings_reach_the_solver_and_the_run_identity(small_seq
     frame are counted in its rows."""
     from lf_flame.tomo.operator import EmissionOperator
     from lf_flame.tomo.solvers import DEFAULT_ITERS, DEFAULT_TV, reconstruct
-    from lf_flame.tomo.defaults import ADMM_QUIET
+    from lf_flame.tomo.defaults import ADMM_FILLS, ADMM_QUIET, ADMM_TV
     frames = np.stack(list(SimulatedSource(small_seq, PAPER_CAMERA, 1).frames(0, 2)))
     frames = np.clip(3.0 * frames, 0.0, 1.0)   # overexposed: clipped pixels
     _write_h5(tmp_path / "bright.h5", frames, fps=100.0)
@@ -304,11 +304,15 @@ def test_reconstruction_settings_reach_the_solver_and_the_run_identity(small_seq
         assert dataclasses.replace(job, **change).identity() != job.identity(), change
     default = dataclasses.replace(job, iters=None, tv=None).identity()["reconstruction"]
     assert (default["iters"], default["tv"]) == (DEFAULT_ITERS["pd-tv"], DEFAULT_TV)
-    # admm's knobs follow each frame's noise: the rule that picks them is part of the identity
+    # admm's knobs not given follow the first frame's noise, once for the whole recording
+    from lf_flame.tomo.fourier import admm_knobs
     admm = dataclasses.replace(job, route="reconstruct-admm", iters=None, tv=None, operator_rays=None)
-    assert admm.reconstruction()["iters"] is None and admm.reconstruction()["tv"] is None
-    assert admm.identity()["reconstruction"]["admm_auto"]["quiet"] == ADMM_QUIET
-    assert "admm_auto" not in dataclasses.replace(admm, iters=3, tv=0.1).identity()["reconstruction"]
+    r = admm.identity()["reconstruction"]
+    v0 = admm.views(frames[0])
+    assert (r["iters"], r["tv"]) == admm_knobs(v0, v0 < 0.9)[:2] and r["admm_noise"] > 0
+    assert (r["iters"], r["tv"]) in ((ADMM_QUIET["fills"], ADMM_QUIET["tv"]), (ADMM_FILLS, ADMM_TV))
+    given = dataclasses.replace(admm, iters=3, tv=0.1).identity()["reconstruction"]
+    assert (given["iters"], given["tv"]) == (3, 0.1) and "admm_noise" not in given
     assert simulated_job(small_seq, PAPER_CAMERA)[0].identity()["reconstruction"] is None
 
 

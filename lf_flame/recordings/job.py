@@ -54,10 +54,10 @@ class SequenceJob:
         Frames per task (>= 1).
     iters : int or None
         ``reconstruct-*`` routes: the solver's iterations (>= 0); None: the solver's default
-        (:data:`lf_flame.tomo.solvers.DEFAULT_ITERS`; admm: by each frame's noise).
+        (:data:`lf_flame.tomo.solvers.DEFAULT_ITERS`; admm: by the first frame's noise).
     tv : float or None
         ``reconstruct-pd-tv`` / ``-admm``: the TV weight (>= 0); None: the solver's default
-        (admm: by each frame's noise, :func:`lf_flame.tomo.fourier.admm_knobs`).
+        (admm: by the first frame's noise, :meth:`reconstruction`).
     saturation : float or None
         ``reconstruct-*`` routes: the sensor's clipping level in the views' units; pixels at
         or above it are left out of the fit (their count per frame: ``n_saturated``). None:
@@ -128,22 +128,26 @@ class SequenceJob:
     def reconstruction(self) -> dict | None:
         """The reconstruction's settings, defaults resolved (iterations of the solver's
         :data:`~lf_flame.tomo.defaults.DEFAULT_ITERS`, TV weight :data:`~lf_flame.tomo.defaults.DEFAULT_TV`
-        for pd-tv, None for the solvers without one); admm's knobs not given stay None (each
-        frame's noise picks them) and ``admm_auto`` holds the rule that picks them. None for
-        shift-and-sum."""
+        for pd-tv, None for the solvers without one); None for shift-and-sum. admm's knobs
+        not given are chosen once for the recording by its first frame's noise
+        (:func:`lf_flame.tomo.fourier.admm_knobs`; ``admm_noise``), so that every frame is
+        solved alike."""
         if self.solver is None:
             return None
         from ..tomo import defaults as D
-        auto = self.solver == "admm" and (self.iters is None or self.tv is None)
-        iters = (None if self.solver == "admm" else D.DEFAULT_ITERS.get(self.solver)) if self.iters is None \
-            else int(self.iters)
+        iters = D.DEFAULT_ITERS.get(self.solver) if self.iters is None else int(self.iters)
         tv = ({"pd-tv": D.DEFAULT_TV}.get(self.solver)) if self.tv is None else float(self.tv)
         out = dict(solver=self.solver, iters=iters, tv=tv,
                    saturation=None if self.saturation is None else float(self.saturation),
                    operator_rays=None if self.operator_rays is None else int(self.operator_rays))
-        if auto:
-            out["admm_auto"] = dict(quiet_below=D.ADMM_QUIET_NOISE, quiet=dict(D.ADMM_QUIET),
-                                    noisy=dict(fills=D.ADMM_FILLS, tv=D.ADMM_TV))
+        if self.solver == "admm" and (self.iters is None or self.tv is None):
+            key = ("admm", self.iters, self.tv, self.saturation)
+            if key not in self._cache:
+                from ..tomo.fourier import admm_knobs
+                views = self.views(np.asarray(next(iter(self.source.frames(0, 1))), np.float64))
+                fit = None if self.saturation is None else views < self.saturation
+                self._cache[key] = admm_knobs(views, fit, self.iters, self.tv)
+            out["iters"], out["tv"], out["admm_noise"] = self._cache[key]
         return out
 
     def identity(self) -> dict:
