@@ -84,22 +84,25 @@ def model_ratio(sensor: ColourSensor, temperature_k, channels=("R", "G"), alpha:
     return s[..., a] / s[..., b]
 
 
-def blackbody_ratio(raw: np.ndarray, sensor: ColourSensor, channels=("R", "G"), lit: float = 0.5,
-                    centre_fraction: float = 0.5) -> float:
+def blackbody_ratio(raw: np.ndarray, sensor: ColourSensor, pixels_per_lenslet: int, channels=("R", "G"),
+                    radius: float = 0.4, centre_fraction: float = 0.5) -> float:
     """Ratio of two channels' mean signal in a raw image of a uniform (blackbody) target.
 
     The mean of each channel's pixels over the central ``centre_fraction`` of the sensor
-    (each axis) among pixels above ``lit`` x the image's 99th percentile (inside the
-    lenslet images' aperture discs). With an odd number of pixels per lenslet the CFA's
-    phase alternates from lenslet to lenslet, so both channels sample every position under
-    the lenslets alike and the vignetting cancels in the ratio.
+    (each axis) among the pixels within ``radius`` x N of their lenslet image's centre
+    (inside the aperture disc; chosen by position, not by value, so noise does not bias the
+    choice). With an odd number N of pixels per lenslet the CFA's phase alternates from
+    lenslet to lenslet, so both channels sample every position under the lenslets alike and
+    the vignetting cancels in the ratio.
 
     Parameters
     ----------
-    raw : ndarray of shape (rows, cols)
+    raw : ndarray of shape (R * N, C * N)
     sensor : ColourSensor
+    pixels_per_lenslet : int
+        ``N`` (a perfect lenslet grid).
     channels : (str, str)
-    lit, centre_fraction : float
+    radius, centre_fraction : float
 
     Returns
     -------
@@ -108,23 +111,25 @@ def blackbody_ratio(raw: np.ndarray, sensor: ColourSensor, channels=("R", "G"), 
     Raises
     ------
     ValueError
-        A raw image that is not 2-D or finite, or a channel with no lit pixel.
+        A raw image that is not 2-D, finite and a grid of N x N lenslet images, or a
+        channel with no pixel or no signal.
     """
     raw = np.asarray(raw, float)
-    if raw.ndim != 2 or not np.all(np.isfinite(raw)):
-        raise ValueError(f"raw must be a finite 2-D image. Received shape {raw.shape}")
+    n = int(pixels_per_lenslet)
+    if raw.ndim != 2 or not np.all(np.isfinite(raw)) or n < 1 or raw.shape[0] % n or raw.shape[1] % n:
+        raise ValueError(f"raw must be a finite 2-D grid of {n} x {n} lenslet images. Received shape {raw.shape}")
     a, b = _channel_index(channels)
     chan = sensor.channel_map(raw.shape)
     H, W = raw.shape
-    box = np.zeros(raw.shape, bool)
+    i, j = np.mgrid[0:H, 0:W]
+    c0 = (n - 1) / 2
+    disc = (i % n - c0) ** 2 + (j % n - c0) ** 2 <= (radius * n) ** 2
     mh, mw = int(H * (1 - centre_fraction) / 2), int(W * (1 - centre_fraction) / 2)
-    box[mh:H - mh, mw:W - mw] = True
+    box = (i >= mh) & (i < H - mh) & (j >= mw) & (j < W - mw)
     means = []
     for c in (a, b):
-        sel = box & (chan == c)
-        v = raw[sel]
-        v = v[v > lit * np.percentile(v, 99)] if v.size else v
-        if v.size == 0:
+        v = raw[box & disc & (chan == c)]
+        if v.size == 0 or v.mean() <= 0:
             raise ValueError(f"no lit pixel of channel {CHANNELS[c]} in the blackbody image")
         means.append(float(v.mean()))
     return means[0] / means[1]
