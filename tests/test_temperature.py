@@ -1,5 +1,4 @@
 """Colour sensor, colour renders and two-colour pyrometry (issue 37), on a small camera."""
-import dataclasses
 import json
 
 import numpy as np
