@@ -21,7 +21,7 @@ HELDOUT_paper := 20
 HELDOUT_quick := 4
 HELDOUT_SEED := 770077
 
-.PHONY: help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution sequence new-user heights test clean-quick
+.PHONY: temperature help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution sequence new-user heights test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -51,6 +51,9 @@ dataset: $(DATA)/slopes.json ## render the datasets of both regimes (resumable; 
 else
 dataset: $(foreach r,$(REGIMES),$(foreach s,$(SCENES),$(DATA)/$(r)/$(s).h5)) ## render the datasets of both regimes (resumable; SHARD=i/N renders shard i of N)
 endif
+
+temperature: $(STAMP) ## two-colour pyrometry with a colour (Bayer) light-field camera -> results/temperature.{csv,md,json}, results/temperature_calibration.json
+	$(VENV)/bin/python experiments/temperature.py --out results $(if $(filter quick,$(PRESET)),--quick,)
 
 bench-sim: $(STAMP) ## simulator benchmark -> results/bench_sim.{csv,md,json}
 	$(VENV)/bin/python experiments/bench_sim.py --out results

@@ -3,7 +3,7 @@
 :mod:`.diagnostics` measures a flame on one plane (height, base, widths, radial
 profiles, in mm) with flags for heights it cannot trust; :mod:`.scoring` scores focal
 stacks' diagnostics against a scene's truth; :mod:`.metrics` SSIM and PSNR per plane
-(scikit-image).
+(scikit-image); :mod:`.pyrometry` two-colour temperature from two channels' emission.
 
 Its public names are importable from here (loaded on first use, as scikit-image does).
 """
@@ -11,7 +11,7 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["diagnostics", "metrics", "scoring"],
+    submodules=["diagnostics", "metrics", "pyrometry", "scoring"],
     submod_attrs={
         "diagnostics": ["SEGMENT_FRACTION", "EDGE_FIT_RANGE", "TAIL_FALL", "PEDESTAL_GAP", "TIP_PEDESTAL_MM",
                  "FLAGS", "MIN_AREA_LENSLETS", "RADIAL_FRACTIONS", "EMISSION_MEASURE",
@@ -19,6 +19,9 @@ __getattr__, __dir__, __all__ = lazy.attach(
                  "lenslet_to_object_mm", "RadialProfile", "FlameMeasurement", "measure_flame",
                  "flame_truth", "plot_profiles"],
         "metrics": ["ssim_per_plane", "psnr_per_plane", "mean_ssim"],
+        "pyrometry": ["T_RANGE_K", "MIN_FRACTION", "TemperatureCalibration", "model_ratio", "blackbody_ratio",
+                 "fit_calibration", "lookup_table", "ratio_to_temperature", "temperature_planes",
+                 "wien_temperature", "write_calibration", "load_calibration"],
         "scoring": ["measure_stack", "score_stacks", "error_table"],
     },
 )

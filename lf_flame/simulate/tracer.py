@@ -115,7 +115,8 @@ def trace_coefficients(camera: PlenopticCamera, layers, z) -> tuple[np.ndarray, 
     return ky, kx
 
 
-def render(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16, seed: int = 0) -> np.ndarray:
+def render(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16, seed: int = 0, *,
+           sensor: bool = True) -> np.ndarray:
     """Render the raw sensor image of ``scene`` seen by ``camera``.
 
     Parameters
@@ -129,6 +130,10 @@ def render(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16, seed
         randomised quasi-Monte Carlo). Error against ray count: ``make bench-sim``.
     seed : int
         Seeds the ray samples and the sensor noise; same seed, bit-identical image.
+    sensor : bool
+        Apply the sensor model (:func:`apply_sensor`: noise, clipping, quantisation); False
+        returns the noise-free mean radiance, unclipped (a colour render's channels,
+        :func:`lf_flame.simulate.colour.render_colour`, get the sensor once, on the mosaic).
 
     Returns
     -------
@@ -157,8 +162,8 @@ def render(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16, seed
         H, W = camera.sensor_shape
         i, j = np.mgrid[0:H, 0:W]
         pts = np.stack([i.ravel() + 0.5, j.ravel() + 0.5], axis=-1)
-        out = render_points(camera, scene, pts, (i * W + j).ravel(), rays_per_pixel, seed)
-        return apply_sensor(out.reshape(H, W), fx, seed)
+        out = render_points(camera, scene, pts, (i * W + j).ravel(), rays_per_pixel, seed).reshape(H, W)
+        return apply_sensor(out, fx, seed) if sensor else out
     layers, z, rad, alpha = _stack_layers(camera, scene)
     ky, kx = trace_coefficients(camera, layers, z)
     out = np.empty(camera.sensor_shape, dtype=np.float32)
@@ -166,7 +171,7 @@ def render(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16, seed
                              bool(fx.occlusion), camera.aperture_diameter_mm / 2 if fx.aperture else -1.0,
                              bool(fx.cos4), 3 if fx.crosstalk else 1, int(rays_per_pixel), int(seed), out,
                              False, _UNUSED, _UNUSED, False, *NO_TABLE)
-    return apply_sensor(out, fx, seed)
+    return apply_sensor(out, fx, seed) if sensor else out
 
 
 def _axis_basis(camera: PlenopticCamera, z, tex_offset, tex_scale) -> np.ndarray:

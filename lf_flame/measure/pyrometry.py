@@ -1,0 +1,326 @@
+"""Two-colour pyrometry: a blackbody calibration and the ratio of two channels to temperature (issue 37).
+
+A channel's recorded signal is ``g_c ∫ S_c(λ) ε(λ) B(λ, T) dλ``
+(:func:`lf_flame.optics.colour.band_integrals`). The ratio of two channels,
+``R = (g_a / g_b) · I_a(T) / I_b(T)``, depends on temperature alone once the gain ratio
+``g_a / g_b`` is known; images of a blackbody furnace at known temperatures give it
+(:func:`fit_calibration`), and a lookup of the band-integrated ratio over T inverts it
+(:func:`ratio_to_temperature`) — not the monochromatic Wien formula
+(:func:`wien_temperature`), whose difference is reported by ``make temperature``.
+
+A calibration is bound to the camera it was made with (sensitivities' name, CFA pattern
+and phase, channels): :func:`load_calibration` refuses one from another camera or CFA, or
+one whose ratio is not strictly monotonic in T (no unique temperature).
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..optics.colour import ALPHA_SOOT, CHANNELS, ColourSensor, band_integrals
+
+#: temperatures (K) the lookup covers, and its step
+T_RANGE_K = (1000.0, 3200.0)
+T_STEP_K = 1.0
+#: pixels below this fraction of their plane's peak emission get no temperature
+MIN_FRACTION = 0.1
+C2_M_K = 1.438777e-2   # second radiation constant, m K (CODATA 2018)
+
+
+@dataclass(frozen=True)
+class TemperatureCalibration:
+    """A two-colour calibration.
+
+    Attributes
+    ----------
+    sensor_name, pattern : str
+    phase : (int, int)
+        The camera it was made with (:class:`~lf_flame.optics.colour.ColourSensor`).
+    channels : (str, str)
+        Numerator and denominator channels of the ratio, e.g. ``("R", "G")``.
+    gain_ratio : float
+        Recorded ratio over the model's band-integrated ratio (``g_a / g_b``).
+    fit_temperatures_k : tuple of float
+        The blackbody temperatures fitted (K).
+    fit_residuals_k : tuple of float
+        Each fitted image's temperature error after the fit (K).
+    """
+
+    sensor_name: str
+    pattern: str
+    phase: tuple
+    channels: tuple
+    gain_ratio: float
+    fit_temperatures_k: tuple
+    fit_residuals_k: tuple
+
+    def check_sensor(self, sensor: ColourSensor) -> None:
+        """Raise ValueError unless ``sensor`` is the camera (sensitivities, CFA, phase) of this calibration."""
+        mine = (self.sensor_name, self.pattern, tuple(self.phase))
+        theirs = (sensor.name, sensor.pattern, tuple(sensor.phase))
+        if mine != theirs:
+            raise ValueError(f"this temperature calibration was made for sensor {mine[0]!r}, CFA {mine[1]} phase "
+                             f"{mine[2]}; the images are from sensor {theirs[0]!r}, CFA {theirs[1]} phase {theirs[2]}: "
+                             "calibrate this camera with its own blackbody images")
+
+
+def _channel_index(channels) -> tuple[int, int]:
+    if len(channels) != 2 or any(c not in CHANNELS for c in channels) or channels[0] == channels[1]:
+        raise ValueError(f"channels must be two different of {CHANNELS}. Received: {channels!r}")
+    return CHANNELS.index(channels[0]), CHANNELS.index(channels[1])
+
+
+def model_ratio(sensor: ColourSensor, temperature_k, channels=("R", "G"), alpha: float = ALPHA_SOOT) -> np.ndarray:
+    """Band-integrated ratio ``I_a(T) / I_b(T)`` of the sensor's sensitivities, no gains
+    (shape of ``temperature_k``)."""
+    a, b = _channel_index(channels)
+    s = band_integrals(sensor, temperature_k, alpha)
+    return s[..., a] / s[..., b]
+
+
+def blackbody_ratio(raw: np.ndarray, sensor: ColourSensor, pixels_per_lenslet: int, channels=("R", "G"),
+                    radius: float = 0.4, centre_fraction: float = 0.5) -> float:
+    """Ratio of two channels' mean signal in a raw image of a uniform (blackbody) target.
+
+    The mean of each channel's pixels over the central ``centre_fraction`` of the sensor
+    (each axis) among the pixels within ``radius`` x N of their lenslet image's centre
+    (inside the aperture disc; chosen by position, not by value, so noise does not bias the
+    choice). With an odd number N of pixels per lenslet the CFA's phase alternates from
+    lenslet to lenslet, so both channels sample every position under the lenslets alike and
+    the vignetting cancels in the ratio.
+
+    Parameters
+    ----------
+    raw : ndarray of shape (R * N, C * N)
+    sensor : ColourSensor
+    pixels_per_lenslet : int
+        ``N`` (a perfect lenslet grid).
+    channels : (str, str)
+    radius, centre_fraction : float
+
+    Returns
+    -------
+    float: mean of channel a over mean of channel b.
+
+    Raises
+    ------
+    ValueError
+        A raw image that is not 2-D, finite and a grid of N x N lenslet images, or a
+        channel with no pixel or no signal.
+    """
+    raw = np.asarray(raw, float)
+    n = int(pixels_per_lenslet)
+    if raw.ndim != 2 or not np.all(np.isfinite(raw)) or n < 1 or raw.shape[0] % n or raw.shape[1] % n:
+        raise ValueError(f"raw must be a finite 2-D grid of {n} x {n} lenslet images. Received shape {raw.shape}")
+    a, b = _channel_index(channels)
+    chan = sensor.channel_map(raw.shape)
+    H, W = raw.shape
+    i, j = np.mgrid[0:H, 0:W]
+    c0 = (n - 1) / 2
+    disc = (i % n - c0) ** 2 + (j % n - c0) ** 2 <= (radius * n) ** 2
+    mh, mw = int(H * (1 - centre_fraction) / 2), int(W * (1 - centre_fraction) / 2)
+    box = (i >= mh) & (i < H - mh) & (j >= mw) & (j < W - mw)
+    means = []
+    for c in (a, b):
+        v = raw[box & disc & (chan == c)]
+        if v.size == 0 or v.mean() <= 0:
+            raise ValueError(f"no lit pixel of channel {CHANNELS[c]} in the blackbody image")
+        means.append(float(v.mean()))
+    return means[0] / means[1]
+
+
+def fit_calibration(sensor: ColourSensor, temperatures_k, ratios, channels=("R", "G")) -> TemperatureCalibration:
+    """The gain ratio from blackbody images at known temperatures.
+
+    ``log(gain_ratio)`` is the mean of ``log(ratio / model_ratio(T, alpha=0))`` over the
+    images (least squares in log), the model being the sensor's band-integrated
+    blackbody ratio (:func:`model_ratio`; unit emissivity).
+
+    Parameters
+    ----------
+    sensor : ColourSensor
+        The camera's model: sensitivities, CFA, phase (its gains are not used: unknown).
+    temperatures_k : sequence of float, K
+    ratios : sequence of float
+        Measured channel ratios (:func:`blackbody_ratio`), one per temperature.
+    channels : (str, str)
+
+    Returns
+    -------
+    TemperatureCalibration, with each fitted image's temperature residual (K).
+
+    Raises
+    ------
+    ValueError
+        Fewer than one image, lengths that differ, non-positive ratios or temperatures.
+    """
+    t = np.asarray(temperatures_k, float)
+    r = np.asarray(ratios, float)
+    if t.ndim != 1 or t.shape != r.shape or t.size < 1:
+        raise ValueError(f"one ratio per temperature is needed. Received: {t.shape} and {r.shape}")
+    if np.any(~np.isfinite(r)) or np.any(r <= 0) or np.any(t <= 0):
+        raise ValueError("ratios and temperatures must be finite and > 0")
+    g = float(np.exp(np.mean(np.log(r / model_ratio(sensor, t, channels, alpha=0.0)))))
+    cal = TemperatureCalibration(sensor.name, sensor.pattern, tuple(int(p) for p in sensor.phase), tuple(channels),
+                                 g, tuple(float(x) for x in t), ())
+    res = ratio_to_temperature(r, cal, sensor, alpha=0.0) - t
+    return TemperatureCalibration(**{**asdict(cal), "fit_residuals_k": tuple(float(x) for x in res)})
+
+
+def lookup_table(cal: TemperatureCalibration, sensor: ColourSensor, alpha: float = ALPHA_SOOT):
+    """``(T, recorded ratio)`` over :data:`T_RANGE_K` every :data:`T_STEP_K`: the inverse's table.
+
+    Raises
+    ------
+    ValueError
+        A sensor that is not the calibration's, a gain ratio that is not positive and
+        finite, or a ratio that is not strictly monotonic over the range (no unique
+        temperature for a ratio).
+    """
+    cal.check_sensor(sensor)
+    if not (math.isfinite(cal.gain_ratio) and cal.gain_ratio > 0):
+        raise ValueError(f"the calibration's gain ratio must be positive and finite. Received: {cal.gain_ratio!r}")
+    t = np.arange(T_RANGE_K[0], T_RANGE_K[1] + T_STEP_K / 2, T_STEP_K)
+    r = cal.gain_ratio * model_ratio(sensor, t, cal.channels, alpha)
+    d = np.diff(r)
+    if not (np.all(d > 0) or np.all(d < 0)):
+        raise ValueError(f"the ratio {cal.channels[0]}/{cal.channels[1]} of sensor {sensor.name!r} is not strictly "
+                         f"monotonic over {T_RANGE_K} K: it cannot be inverted to a temperature")
+    return t, r
+
+
+def ratio_to_temperature(ratio, cal: TemperatureCalibration, sensor: ColourSensor,
+                         alpha: float = ALPHA_SOOT) -> np.ndarray:
+    """Temperature (K) of each recorded channel ratio, by the band-integrated lookup.
+
+    Linear interpolation in the table of :func:`lookup_table` (1 K steps); a ratio outside
+    the table's range, or not finite and positive, gives NaN.
+
+    Parameters
+    ----------
+    ratio : ndarray of any shape
+        Recorded ratio of the calibration's channels (gains included).
+    cal : TemperatureCalibration
+    sensor : ColourSensor
+    alpha : float
+        Emissivity exponent of the source: 0 for a blackbody, :data:`ALPHA_SOOT` for soot.
+
+    Returns
+    -------
+    ndarray of the shape of ``ratio``, K (NaN where no temperature).
+
+    Raises
+    ------
+    ValueError
+        The errors of :func:`lookup_table`.
+    """
+    t, r = lookup_table(cal, sensor, alpha)
+    if r[-1] < r[0]:
+        t, r = t[::-1], r[::-1]
+    x = np.asarray(ratio, float)
+    ok = np.isfinite(x) & (x >= r[0]) & (x <= r[-1])
+    out = np.full(x.shape, np.nan)
+    out[ok] = np.interp(x[ok], r, t)
+    return out
+
+
+def temperature_planes(emission_a, emission_b, cal: TemperatureCalibration, sensor: ColourSensor,
+                       alpha: float = ALPHA_SOOT, min_fraction: float = MIN_FRACTION):
+    """Each plane's temperature map from two channels' emission, with the pixels masked.
+
+    Parameters
+    ----------
+    emission_a, emission_b : ndarray of shape (P, rows, cols)
+        Emission of the calibration's numerator and denominator channels per plane
+        (reconstructed or refocused; recorded units).
+    cal, sensor, alpha
+        As :func:`ratio_to_temperature`.
+    min_fraction : float
+        A pixel whose summed emission ``a + b`` is below this fraction of its plane's peak
+        gets no temperature (masked), nor does one whose ratio has no temperature.
+
+    Returns
+    -------
+    temperature : ndarray (P, rows, cols), K, NaN where masked
+    valid : ndarray (P, rows, cols), bool
+    n_masked : ndarray (P,), int: pixels above the emission threshold left without a
+        temperature (ratio out of the table), per plane.
+
+    Raises
+    ------
+    ValueError
+        Shapes that differ or are not 3-D, ``min_fraction`` outside [0, 1), and the errors
+        of :func:`lookup_table`.
+    """
+    a, b = np.asarray(emission_a, float), np.asarray(emission_b, float)
+    if a.shape != b.shape or a.ndim != 3:
+        raise ValueError(f"two (P, rows, cols) emission stacks are needed. Received: {a.shape} and {b.shape}")
+    if not (0 <= min_fraction < 1):
+        raise ValueError(f"min_fraction must be in [0, 1). Received: {min_fraction}")
+    tot = a + b
+    bright = tot >= min_fraction * tot.reshape(len(tot), -1).max(axis=1)[:, None, None]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(bright & (b > 0) & (a > 0), a / b, np.nan)
+    temp = ratio_to_temperature(ratio, cal, sensor, alpha)
+    valid = bright & np.isfinite(temp)
+    return np.where(valid, temp, np.nan), valid, (bright & ~valid).reshape(len(a), -1).sum(axis=1)
+
+
+def wien_temperature(ratio, cal: TemperatureCalibration, sensor: ColourSensor, alpha: float = ALPHA_SOOT):
+    """The monochromatic (Wien) two-colour temperature of a recorded ratio, K.
+
+    Each channel as one wavelength, its sensitivity's centroid ``λ_c = ∫ λ S_c / ∫ S_c``:
+    ``1/T = ((5 + alpha) ln(λ_b/λ_a) - ln(R / g) + ln(s_a / s_b)) / (c2 (1/λ_a - 1/λ_b))``
+    with ``s_c = ∫ S_c dλ`` the band's width (so a band integral is ``s_c`` times the
+    spectrum at ``λ_c``). For comparison with :func:`ratio_to_temperature` only.
+    """
+    a, b = _channel_index(cal.channels)
+    wl, s = sensor.wavelengths_nm * 1e-9, sensor.sensitivities
+    lam = [np.trapezoid(wl * s[:, c], wl) / np.trapezoid(s[:, c], wl) for c in (a, b)]
+    width = [np.trapezoid(s[:, c], wl) for c in (a, b)]
+    la, lb = lam
+    g = np.log(np.asarray(ratio, float) / cal.gain_ratio) - math.log(width[0] / width[1])
+    # R/g = (lb/la)^(5+alpha) exp(-c2/T (1/la - 1/lb)) · width ratio
+    inv_t = ((5 + alpha) * math.log(lb / la) - g) / (C2_M_K * (1 / la - 1 / lb))
+    return 1.0 / inv_t
+
+
+def write_calibration(path, cal: TemperatureCalibration) -> Path:
+    """Write ``cal`` as JSON atomically (a temporary file in the same folder, then renamed)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w") as f:
+            json.dump(dict(asdict(cal), kind="lf_flame two-colour temperature calibration"), f, indent=2)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def load_calibration(path, sensor: ColourSensor | None = None) -> TemperatureCalibration:
+    """Read a calibration written by :func:`write_calibration`.
+
+    With ``sensor``, refuse (ValueError) a calibration made with another camera or CFA
+    (:meth:`TemperatureCalibration.check_sensor`) or whose ratio is not strictly monotonic
+    (:func:`lookup_table`). Raises ValueError for a file that is not such a calibration.
+    """
+    d = json.loads(Path(path).read_text())
+    if d.pop("kind", None) != "lf_flame two-colour temperature calibration":
+        raise ValueError(f"{path} is not an lf_flame temperature calibration")
+    try:
+        cal = TemperatureCalibration(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
+    except TypeError as e:
+        raise ValueError(f"{path}: malformed temperature calibration ({e})") from None
+    _channel_index(cal.channels)
+    if sensor is not None:
+        lookup_table(cal, sensor)
+    return cal

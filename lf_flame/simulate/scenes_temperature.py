@@ -1,0 +1,180 @@
+"""The paper's four flames with a temperature field and soot: colour scenes for pyrometry (issue 37).
+
+Each flame of :func:`lf_flame.simulate.scenes.flame_scene` (same heights, positions and
+luminous profile) gets a temperature per texel and a soot column, and its emission in each
+colour channel is ``exposure · g_c · soot · ∫ S_c(λ) (λ/λ0)^-1.39 B(λ, T) dλ``
+(:func:`lf_flame.optics.colour.band_integrals`). Layers stay planar (a flame is a sheet of
+projected emission at its depth, as in the monochrome scenes), so the truth of a plane is its
+temperature map and its emission per channel.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..optics.camera import PlenopticCamera
+from ..optics.colour import ALPHA_SOOT, ColourSensor, band_integrals
+from .scenes import PAPER_DEPTHS_MM, Scene, _layer_grid, flame_luminosity, flame_scene
+
+#: Sheath (hottest) temperature of each of the paper's four flames, K, in the order of
+#: :data:`~lf_flame.simulate.scenes.PAPER_DEPTHS_MM`: each flame its own field, within the
+#: 1,500-2,100 K of laminar hydrocarbon diffusion flames' soot (issue 37).
+FLAME_PEAK_K = (2100.0, 1950.0, 2050.0, 1850.0)
+#: The temperature the field falls towards in the cool core and the tip, K.
+FLAME_BASE_K = 1500.0
+#: Relative position (of the local half-width) and width of the hot sheath.
+SHEATH_XI, SHEATH_WIDTH = 0.82, 0.25
+#: Fraction of the sheath's excess temperature lost from base to tip (radiative cooling).
+TIP_COOLING = 0.4
+
+
+def flame_temperature(eta, xi, peak_k: float, base_k: float = FLAME_BASE_K):
+    """Temperature (K) of a laminar diffusion flame in normalised coordinates.
+
+    ``eta`` = height / flame height, ``xi`` = lateral offset / local half-width (as
+    :func:`lf_flame.simulate.scenes.flame_luminosity`). Hottest on the luminous sheath
+    (``|xi|`` = :data:`SHEATH_XI`, the middle of the luminous annulus 0.65-1), cooler in the
+    fuel-rich core and towards the tip:
+
+        T = base + (peak - base) · (0.5 + 0.5 exp(-((|xi| - 0.82) / 0.25)²)) · (1 - 0.4 eta)
+
+    A model of the shape that measurements of laminar ethylene diffusion flames report (soot
+    hottest in the annular reaction zone low in the flame, cooling along the height as soot
+    radiates: Santoro, Semerjian & Dobbins, Combust. Flame 51 (1983) 203-218), with the
+    1,500-2,100 K range of issue 37; it is not a fit to data. At ``peak`` 2,100 K it spans
+    about 1,680-2,100 K over the flame.
+
+    Returns
+    -------
+    ndarray broadcast from ``eta`` and ``xi``, K.
+
+    Raises
+    ------
+    ValueError
+        ``peak_k`` not above ``base_k`` or either not positive.
+    """
+    if not (0 < base_k < peak_k):
+        raise ValueError(f"need 0 < base_k < peak_k. Received: base_k={base_k}, peak_k={peak_k}")
+    eta = np.clip(np.asarray(eta, float), 0.0, 1.0)
+    xi = np.abs(np.asarray(xi, float))
+    radial = 0.5 + 0.5 * np.exp(-((xi - SHEATH_XI) / SHEATH_WIDTH) ** 2)
+    return base_k + (peak_k - base_k) * radial * (1.0 - TIP_COOLING * eta)
+
+
+@dataclass(frozen=True)
+class ColourFlameScene:
+    """Flames with temperature: the geometry, and per layer the truth.
+
+    Attributes
+    ----------
+    scene : Scene
+        Layers (geometry; their radiance is the green channel's) and effects.
+    channel_radiance : tuple of ndarray of shape (3, rows, cols), float32
+        Per layer, the recorded emission of channels R, G, B (gains and exposure included;
+        1 saturates the sensor).
+    temperature_k : tuple of ndarray of shape (rows, cols), float64
+        Per layer, the temperature of each texel (K; meaningful where soot > 0).
+    soot : tuple of ndarray of shape (rows, cols), float64
+        Per layer, the soot column (relative, peak 1).
+    exposure : float
+        The scale that brings the brightest texel of any channel to ``peak``.
+    """
+
+    scene: Scene
+    channel_radiance: tuple
+    temperature_k: tuple
+    soot: tuple
+    exposure: float
+
+
+def colour_flame_scene(camera: PlenopticCamera, sensor: ColourSensor, rng: np.random.Generator | None = None, *,
+                       peaks_k=FLAME_PEAK_K, base_k: float = FLAME_BASE_K, alpha: float = ALPHA_SOOT,
+                       peak: float = 0.8, depths_mm=PAPER_DEPTHS_MM, texels_per_lenslet: float = 3.0,
+                       regime: str = "paper") -> ColourFlameScene:
+    """The paper's four flames, each with its own temperature field, seen by a colour sensor.
+
+    Geometry and soot are those of :func:`lf_flame.simulate.scenes.flame_scene` (``rng``
+    None: the nominal flames; else drawn in ``regime``, which must have no sway); flame
+    ``k`` has temperature :func:`flame_temperature` with sheath ``peaks_k[k]``.
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+    sensor : ColourSensor
+        Its sensitivities and gains make the channels' emission.
+    rng : numpy.random.Generator or None
+    peaks_k : sequence of four float, K
+    base_k : float, K
+    alpha : float
+        Soot emissivity exponent (:data:`~lf_flame.optics.colour.ALPHA_SOOT`).
+    peak : float
+        Emission of the brightest texel of any channel (exposure; 1 saturates).
+    depths_mm : sequence of four float
+    texels_per_lenslet : float
+    regime : str
+        ``"paper"`` (heights only vary) is the one supported with ``rng``.
+
+    Returns
+    -------
+    ColourFlameScene
+
+    Raises
+    ------
+    ValueError
+        Not four peak temperatures, a peak below ``base_k``, ``peak`` not in (0, 1], or a
+        regime with sway.
+    """
+    if len(peaks_k) != len(depths_mm):
+        raise ValueError(f"one peak temperature per flame is needed: {len(depths_mm)} flames, {len(peaks_k)} given")
+    if not (0 < peak <= 1):
+        raise ValueError(f"peak must be in (0, 1]. Received: {peak}")
+    if rng is not None and regime != "paper":
+        raise ValueError(f"colour flames support regime 'paper' (no sway). Received: {regime!r}")
+    mono = flame_scene(camera, rng if rng is not None else np.random.default_rng(0), vary=rng is not None,
+                       regime=regime, depths_mm=depths_mm, texels_per_lenslet=texels_per_lenslet)
+    temps, soots = [], []
+    for L, obj, pk in zip(mono.layers, mono.objects, peaks_k):
+        y, x, _, _ = _layer_grid(camera, L.depth_offset_mm, texels_per_lenslet, 1.2)
+        H = obj["height_mm"]
+        eta = (y - obj["base_y_mm"]) / H
+        half_w = 0.07 * H * np.sqrt(np.clip(1.0 - eta, 0.0, 1.0)) + 1e-9
+        xi = (x - obj["centre_x_mm"]) / half_w
+        soot = obj["radiance"] * flame_luminosity(eta, xi)
+        temps.append(np.broadcast_to(flame_temperature(eta, xi, float(pk), base_k), soot.shape).copy())
+        soots.append(soot)
+    rad = [s[None] * np.moveaxis(band_integrals(sensor, t, alpha, gains=True), -1, 0) for s, t in zip(soots, temps)]
+    exposure = peak / max(float(r.max()) for r in rad)
+    chans = tuple((r * exposure).astype(np.float32) for r in rad)
+    layers = tuple(dataclasses.replace(L, radiance=c[1]) for L, c in zip(mono.layers, chans))
+    objects = tuple(dict(o, peak_k=float(pk), base_k=float(base_k)) for o, pk in zip(mono.objects, peaks_k))
+    scene = Scene("colour_flame", layers, mono.effects, objects)
+    return ColourFlameScene(scene, chans, tuple(temps), tuple(soots), exposure)
+
+
+def blackbody_channels(sensor: ColourSensor, temperature_k: float, peak: float = 0.8) -> np.ndarray:
+    """Recorded emission (3,) of channels R, G, B of a blackbody (unit emissivity) at
+    ``temperature_k`` K, gains included, scaled so the brightest channel is ``peak`` (an
+    exposure set for the furnace, the same for all channels)."""
+    s = band_integrals(sensor, float(temperature_k), alpha=0.0, gains=True)
+    return s * (peak / s.max())
+
+
+def furnace_scene(camera: PlenopticCamera, sensor: ColourSensor, temperature_k: float, peak: float = 0.8,
+                  effects=None):
+    """A blackbody furnace's opening filling the field at the focal plane (a flat-field target).
+
+    Returns ``(scene, channel_radiance)`` for :func:`lf_flame.simulate.colour.render_colour`:
+    one uniform layer three times the field at depth 0 (as
+    :func:`lf_flame.simulate.scenes.white_scene`) and its (3, 2, 2) channel emission
+    (:func:`blackbody_channels`). ``effects`` (default: aperture and cos⁴, noise-free)
+    replaces the scene's effects.
+    """
+    from .scenes import white_scene
+
+    ch = blackbody_channels(sensor, temperature_k, peak)
+    scene = white_scene(camera, 1.0)
+    if effects is not None:
+        scene = dataclasses.replace(scene, effects=effects)
+    return scene, [np.broadcast_to(ch[:, None, None], (3,) + scene.layers[0].radiance.shape).astype(np.float32)]

@@ -1,0 +1,146 @@
+"""Colour sensor, colour renders and two-colour pyrometry (issue 37), on a small camera."""
+import json
+
+import numpy as np
+import pytest
+from scipy.special import gamma, gammainc
+
+from lf_flame.measure import pyrometry as P
+from lf_flame.optics.camera import PlenopticCamera
+from lf_flame.optics.colour import LAMBDA0_NM, ColourSensor, band_integrals, cfa_channels, library_sensor
+from lf_flame.refocus.shift_and_sum import raw_to_views
+from lf_flame.simulate import tracer
+from lf_flame.simulate.colour import render_colour
+from lf_flame.simulate.scenes import Effects, Layer, Scene
+from lf_flame.simulate.scenes_temperature import furnace_scene
+from lf_flame.tomo.exact import ExactOperator
+from lf_flame.tomo.solvers import reconstruct
+
+CAM = PlenopticCamera(n_rows=21, n_cols=21)
+GAINS = (1.0, 1.3, 0.7)
+
+
+def test_cfa_phase():
+    ch = cfa_channels((4, 4), "RGGB", (0, 0))
+    assert ch[0, 0] == 0 and ch[0, 1] == 1 and ch[1, 0] == 1 and ch[1, 1] == 2 and ch[2, 2] == 0
+    assert cfa_channels((2, 2), "RGGB", (1, 1))[0, 0] == 2
+    # phase is (row, col): (1, 0) puts pixel (0, 1) on B, (0, 1) puts it on R
+    assert cfa_channels((2, 2), "RGGB", (1, 0))[0, 1] == 2
+    assert cfa_channels((2, 2), "RGGB", (0, 1))[0, 1] == 0
+    # a render of red light alone lights only the red pixels (rows and columns even)
+    sensor = library_sensor(phase=(0, 0))
+    scene, ch3 = furnace_scene(CAM, sensor, 2000.0)
+    ch3 = [np.stack([ch3[0][0], 0 * ch3[0][1], 0 * ch3[0][2]])]
+    raw = render_colour(CAM, scene, ch3, sensor, 2, 0)
+    lit = raw > 0
+    assert lit[0::2, 0::2].any() and not lit[1::2, :].any() and not lit[:, 1::2].any()
+    with pytest.raises(ValueError, match="phase"):
+        cfa_channels((2, 2), "RGGB", (2, 0))
+
+
+def _closed_form(l1_nm, l2_nm, t, alpha, terms=6):
+    """∫ (λ/λ0)^-α (c1/π) λ^-5 / (exp(c2/λT) - 1) dλ over [l1, l2] (m), by x = c2/(λT) and
+    1/(e^x - 1) = Σ e^{-nx}: each term a regularised incomplete gamma function."""
+    c1, c2 = 3.741771e-16, 0.014388      # colour-science's planck_law constants
+    s = 4.0 + alpha
+    a, b = c2 / (l2_nm * 1e-9 * t), c2 / (l1_nm * 1e-9 * t)
+    series = sum(n ** -s * gamma(s) * (gammainc(s, n * b) - gammainc(s, n * a)) for n in range(1, terms + 1))
+    return c1 / np.pi * (LAMBDA0_NM * 1e-9) ** alpha * (t / c2) ** s * series
+
+
+@pytest.mark.parametrize("alpha", [0.0, 1.39])
+@pytest.mark.parametrize("t", [1500.0, 2500.0])
+def test_band_integration_against_closed_form(alpha, t):
+    wl = np.arange(500.0, 601.0, 1.0)                       # a flat band 500-600 nm in every channel
+    flat = ColourSensor("flat", "RGGB", (0, 0), wl, np.ones((len(wl), 3)))
+    got = band_integrals(flat, t, alpha)
+    want = _closed_form(500.0, 600.0, t, alpha)
+    np.testing.assert_allclose(got, want, rtol=1e-4)
+
+
+def _scene(fx):
+    r = np.zeros((30, 30), np.float32)
+    r[8:22, 10:20] = 0.7
+    h, w = CAM.field_of_view_mm(0.0)
+    return Scene("blob", (Layer(r, None, 0.0, (0.0, 0.0), (h, w)),), fx)
+
+
+def test_monochrome_unchanged_and_colour_of_equal_channels_is_monochrome():
+    fx = Effects(aperture=True, cos4=True, occlusion=False, full_well_e=500.0, read_noise_e=2.0, bit_depth=12)
+    scene = _scene(fx)
+    mono = tracer.render(CAM, scene, 4, 3)
+    # the default path is the noise-free render with the sensor applied, bit for bit
+    assert np.array_equal(mono, tracer.apply_sensor(tracer.render(CAM, scene, 4, 3, sensor=False), fx, 3))
+    # three equal channels: the colour render is the monochrome one, noise included
+    sensor = library_sensor()
+    col = render_colour(CAM, scene, [np.stack([scene.layers[0].radiance] * 3)], sensor, 4, 3)
+    assert np.array_equal(col, mono)
+
+
+def _calibrate(sensor, model, temps=(1400.0, 1800.0, 2200.0, 2600.0)):
+    ratios = []
+    for t in temps:
+        sc, ch = furnace_scene(CAM, sensor, t)
+        ratios.append(P.blackbody_ratio(render_colour(CAM, sc, ch, sensor, 2, 1), model, CAM.pixels_per_lenslet))
+    return P.fit_calibration(model, temps, ratios)
+
+
+def test_calibration_round_trip(tmp_path):
+    sensor, model = library_sensor(gains=GAINS), library_sensor()
+    cal = _calibrate(sensor, model)
+    assert cal.gain_ratio == pytest.approx(GAINS[0] / GAINS[1], rel=1e-3)
+    path = P.write_calibration(tmp_path / "bb.json", cal)
+    assert [p.name for p in tmp_path.iterdir()] == ["bb.json"]      # no temporary file left
+    back = P.load_calibration(path, model)
+    assert back == cal
+    for t in (1550.0, 1950.0, 2450.0):                                # not fitted
+        sc, ch = furnace_scene(CAM, sensor, t)
+        r = P.blackbody_ratio(render_colour(CAM, sc, ch, sensor, 2, 5), model, CAM.pixels_per_lenslet)
+        assert abs(float(P.ratio_to_temperature(r, back, model, alpha=0.0)) - t) < 5.0
+
+
+def test_wrong_calibration_refused(tmp_path):
+    nikon = library_sensor()
+    cal = P.fit_calibration(nikon, [2000.0], [float(P.model_ratio(nikon, 2000.0, alpha=0.0))])
+    path = P.write_calibration(tmp_path / "bb.json", cal)
+    with pytest.raises(ValueError, match="made for sensor"):
+        P.load_calibration(path, library_sensor("Sigma SDMerill (NPL)"))
+    with pytest.raises(ValueError, match="phase"):
+        P.load_calibration(path, library_sensor(phase=(1, 1)))
+    # channels whose ratio does not change with T: no unique temperature
+    grey = ColourSensor(nikon.name, "RGGB", (0, 0), nikon.wavelengths_nm, nikon.sensitivities[:, [1, 1, 2]])
+    with pytest.raises(ValueError, match="not strictly monotonic"):
+        P.ratio_to_temperature(1.0, cal, grey)
+    d = json.loads(path.read_text())
+    d["kind"] = "something else"
+    (tmp_path / "other.json").write_text(json.dumps(d))
+    with pytest.raises(ValueError, match="not an lf_flame temperature calibration"):
+        P.load_calibration(tmp_path / "other.json")
+
+
+def test_temperature_recovered_on_a_planted_plane():
+    """A hot rectangle (1900 K) beside a cooler one (1750 K) on the focal plane, in colour,
+    reconstructed per channel from its own pixels (CFA mask) by admm: both temperatures back
+    within 25 K (the masked reconstructions' ratio is biased by about 1 %, +10-15 K here:
+    results/temperature.md)."""
+    sensor, model = library_sensor(gains=GAINS), library_sensor()
+    cal = P.TemperatureCalibration(model.name, "RGGB", (0, 0), ("R", "G"), GAINS[0] / GAINS[1], (), ())
+    soot = np.zeros((42, 42))
+    temp = np.full((42, 42), 1750.0)
+    soot[10:32, 8:18] = 1.0
+    soot[10:32, 24:34] = 1.0
+    temp[:, 21:] = 1900.0
+    ch = soot[None] * np.moveaxis(band_integrals(sensor, temp, gains=True), -1, 0)
+    ch = (ch * 0.8 / ch.max()).astype(np.float32)
+    h, w = CAM.field_of_view_mm(0.0)
+    scene = Scene("planted", (Layer(ch[1], None, 0.0, (0.0, 0.0), (h, w)),), Effects(occlusion=False))
+    raw = render_colour(CAM, scene, [ch], sensor, 16, 2)
+    views = raw_to_views(raw, CAM.pixels_per_lenslet)
+    chan = raw_to_views(sensor.channel_map(raw.shape).astype(np.float32), CAM.pixels_per_lenslet).astype(int)
+    op = ExactOperator(CAM, [0.0])
+    rec = [reconstruct(views, op, "admm", 25, saturation=chan != c).planes.reshape(op.dims) for c in (0, 1)]
+    t, valid, _ = P.temperature_planes(rec[0], rec[1], cal, model)
+    left, right = t[0][5:16, 5:8], t[0][5:16, 13:16]          # lenslets inside each rectangle
+    assert np.nanmedian(left) == pytest.approx(1750.0, abs=25.0)
+    assert np.nanmedian(right) == pytest.approx(1900.0, abs=25.0)
+    assert valid[0].sum() < valid[0].size                       # the dark background is masked
