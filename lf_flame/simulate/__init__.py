@@ -1,7 +1,8 @@
 """Simulation: scenes and the ray tracer that renders their raw light-field images.
 
 :mod:`.scenes` builds layered scenes (the paper's shapes and flames at four depths, overlaps,
-volumes, points); :mod:`.scenes_time` flickering flames over time; :mod:`.tracer` renders
+volumes, points); :mod:`.scenes_depth` flames at random depths and one behind
+another (issue 36); :mod:`.scenes_time` flickering flames over time; :mod:`.tracer` renders
 them by tracing rays backward through the camera's ray transfer matrices, with the
 Numba kernels in :mod:`._kernels`. Only the effects a scene asks for are simulated
 (:class:`~.scenes.Effects`).
@@ -12,12 +13,14 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["scenes", "scenes_time", "tracer"],
+    submodules=["scenes", "scenes_depth", "scenes_time", "tracer"],
     submod_attrs={
         "scenes": ["PAPER_DEPTHS_MM", "SHAPE_AT_DEPTH", "FLAME_HEIGHT_MEAN_MM", "FLAME_HEIGHT_SD_MM",
                  "REGIMES", "PAPER_RELATIVE_SD", "Effects", "Layer", "Scene", "shapes_scene",
                  "flame_luminosity", "flame_scene", "FLAME_EFFECTS", "overlap_scene",
                  "volume_flame_scene", "point_scene", "white_scene", "SCENES"],
+        "scenes_depth": ["DEPTH_RANGE_MM", "HEIGHT_RANGE_MM", "MIN_HALF_WIDTH_MM", "random_depth_scene",
+                         "behind_scene"],
         "scenes_time": ["FlickerFlame", "FlameSequence", "SEQUENCE_KINDS", "flicker_sequence"],
         "tracer": ["NO_TABLE", "content_box", "backward_chain", "trace_coefficients", "render",
                  "render_points", "render_views", "render_reference", "apply_sensor"],
