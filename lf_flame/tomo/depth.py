@@ -10,7 +10,8 @@ Whole flames are not depth-resolved by the data's normal matrices alone (NOTES.m
    (:class:`lf_flame.refocus.shift_and_sum.FourierSlice`, which has no whole-lenslet bias);
    per slope the local Tenengrad energy (squared Sobel gradient, Krotkov 1987) smoothed
    over ``sigma`` lenslets. Each pixel of a region votes for the slope of its largest
-   energy, with the energy's contrast over the curve's median as weight.
+   energy, if that energy's contrast over the curve's median is at least ``vote_floor`` of the
+   region's (so a dim flame in front of a bright one has as many votes as lenslets it is sharp in).
 3. **Depths per region.** Peaks of the region's vote histogram (several where flames stand
    one behind another, :func:`scipy.signal.find_peaks`); per peak the energy summed over the
    pixels that voted for it, and the slope of its maximum refined by a parabola through the
@@ -135,7 +136,8 @@ def _half_width(curve, i):
 
 
 def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM, slope_step: float = SLOPE_STEP,
-                threshold: float = 0.12, sigma: float = 1.5, min_pixels: int = 6, peak_fraction: float = 0.15,
+                threshold: float = 0.12, sigma: float = 1.5, min_pixels: int = 6, peak_fraction: float = 0.1,
+                vote_floor: float = 0.02,
                 min_separation_mm: float = 2.5, merge_mm: float = MERGE_MM) -> FoundDepths:
     """The depths that hold emission, per lateral region, several per region where flames stand one behind another.
 
@@ -157,6 +159,9 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
         Regions (and a region's depths) with fewer voting lenslets are dropped, >= 1.
     peak_fraction : float
         A region's second and later depths need this fraction of its largest vote peak, in (0, 1].
+    vote_floor : float
+        A lenslet votes if its focus contrast (largest energy over the median) is at least this
+        fraction of the region's 99th percentile, in [0, 1).
     min_separation_mm : float
         Depths of one region closer than this are one peak (mm), >= 0.
     merge_mm : float
@@ -181,6 +186,7 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
     for name, val, ok in (("slope_step", slope_step, slope_step > 0), ("threshold", threshold, 0 < threshold < 1),
                           ("sigma", sigma, sigma > 0), ("min_pixels", min_pixels, min_pixels >= 1),
                           ("peak_fraction", peak_fraction, 0 < peak_fraction <= 1),
+                          ("vote_floor", vote_floor, 0 <= vote_floor < 1),
                           ("min_separation_mm", min_separation_mm, min_separation_mm >= 0),
                           ("merge_mm", merge_mm, merge_mm >= 0)):
         if not (math.isfinite(float(val)) and ok):
@@ -217,7 +223,10 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
         reg = labels == lab
         if not reg.any():
             continue
-        hist = np.bincount(best[reg], weights=contrast[reg], minlength=len(slopes))
+        # one vote per lenslet whose focus stands out (contrast above vote_floor of the region's 99th percentile):
+        # a dim flame in front of a bright one gets as many votes as lenslets it is sharp in
+        sure = reg & (contrast >= vote_floor * np.percentile(contrast[reg], 99))
+        hist = np.bincount(best[sure], minlength=len(slopes)).astype(np.float64)
         hist = ndimage.gaussian_filter1d(hist, 1.0, mode="constant")
         peaks, _ = signal.find_peaks(np.concatenate([[0.0], hist, [0.0]]), distance=sep_bins,
                                      height=peak_fraction * hist.max())
@@ -227,7 +236,7 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
             continue
         owner = np.abs(peaks[:, None] - np.arange(len(slopes))[None, :]).argmin(axis=0)   # nearest peak per bin
         for q, p in enumerate(peaks):
-            voters = reg & (owner[best] == q) & (np.abs(best - p) <= sep_bins)
+            voters = sure & (owner[best] == q) & (np.abs(best - p) <= sep_bins)
             if voters.sum() < min_pixels:
                 continue
             c_ten = ten[:, voters].sum(axis=1)
