@@ -115,3 +115,34 @@ def test_refusals(cam, planted):
         random_depth_scene(cam, np.random.default_rng(0), height_range=(3.0, 1.0))
     with pytest.raises(ValueError, match="planes"):
         score_flames(np.zeros((2, 5, 5)), [0.0, 1.0], scene, cam)
+
+
+def test_cli_reconstruct_finds_the_planes_by_default(cam, planted, tmp_path, capsys):
+    import json
+
+    import h5py
+
+    from lf_flame.cli import main
+    from lf_flame.refocus.shift_and_sum import views_to_raw
+    scene, views = planted
+    raw = tmp_path / "lf.npz"
+    np.savez(raw, raw=views_to_raw(views), camera=cam.to_json())
+    out = tmp_path / "auto.h5"
+    assert main(["reconstruct", str(raw), "--out", str(out)]) == 0          # no planes given: --depths auto
+    assert "found 2 depths" in capsys.readouterr().out
+    true = sorted(o["depth_offset_mm"] for o in scene.objects)
+    with h5py.File(out) as f:
+        assert f.attrs["depths_from"] == "auto" and f.attrs["solver"] == "admm"
+        found = json.loads(f.attrs["found_depths"])
+        np.testing.assert_allclose(sorted(r["depth_mm"] for r in found), true, atol=0.3)
+        assert all(r["uncertainty_mm"] > 0 for r in found)
+        np.testing.assert_allclose(sorted(f["depths_mm"][...]), true, atol=0.3)
+    assert main(["reconstruct", str(raw), "--depths", "1.5,-2", "--solver", "adjoint", "--out", str(out)]) == 0
+    with h5py.File(out) as f:
+        np.testing.assert_allclose(f["depths_mm"][...], [1.5, -2.0])
+        assert "found_depths" not in f.attrs
+    capsys.readouterr()
+    assert main(["reconstruct", str(raw), "--depths", "auto", "--depth", "0", "--out", str(out)]) == 2
+    assert "one way" in capsys.readouterr().err
+    assert main(["reconstruct", str(raw), "--depths", "near", "--out", str(out)]) == 2
+    assert "--depths takes" in capsys.readouterr().err
