@@ -23,7 +23,8 @@ Routes, on the same renders, each scored by :func:`lf_flame.tomo.scoring.score_f
   refocused image at that slope its "emission" (share not defined).
 
 Writes ``<out>/depth.csv`` (one row per flame, route, noise), ``depth.md`` (the bars),
-``depth.json`` (settings, own errors, wall time, provenance), ``depth.png`` (depth errors).
+``depth.json`` (settings, own errors, wall time, provenance), ``depth.png`` (depth errors);
+with ``--variant V`` (other knobs of the auto route's solve) ``depth_V.*``.
 
 Usage: ``python experiments/depth.py --out results [--quick] [--scenes 100] [--behind 5] [--rays 150]``
 (each scene's rows are kept in ``--cache``, default ``data/depth``: a rerun resumes).
@@ -72,10 +73,14 @@ def add_noise(raw, snr_db, seed):
     return noisy.astype(np.float32), snr
 
 
-def routes(cam, scene, views, fixed_op, mask, labels):
+#: ``--variant``: the knobs of the auto route's solve (:func:`lf_flame.tomo.depth.find_planes`)
+VARIANTS = {"default": {}, "support": dict(support=True, solve=dict(lam=0.01, tv=0.0))}
+
+
+def routes(cam, scene, views, fixed_op, mask, labels, variant="default"):
     rows = []
     t0 = time.perf_counter()
-    found, _, rec = find_planes(views, cam)
+    found, _, rec = find_planes(views, cam, **VARIANTS[variant])
     t_auto = time.perf_counter() - t0
     rows.append(score_flames(rec.planes, found.planes_mm, scene, cam, found=list(zip(found.depths_mm, found.masks)),
                              time_s=t_auto, route="auto", find_s=found.time_s, solve_s=rec.time_s,
@@ -106,7 +111,7 @@ def routes(cam, scene, views, fixed_op, mask, labels):
     return rows
 
 
-def run(cam, n_scenes, n_behind, rays, cache: Path):
+def run(cam, n_scenes, n_behind, rays, cache: Path, variant="default"):
     mask = aperture_mask(cam.pixels_per_lenslet, "circular")
     fixed_op = emission_operator(cam, list(PAPER_DEPTHS_MM))
     jobs = [("behind", SEED0 + 50_000 + 100 * int(sep) + i, sep) for sep in SEPARATIONS_MM for i in range(n_behind)]
@@ -116,7 +121,7 @@ def run(cam, n_scenes, n_behind, rays, cache: Path):
     for i, (kind, seed, sep) in enumerate(jobs):
         rng = np.random.default_rng(seed)
         scene = random_depth_scene(cam, rng) if kind == "random" else behind_scene(cam, rng, sep)
-        part = cache / f"{kind}_{seed}_{rays}.csv"
+        part = cache / f"{kind}_{seed}_{rays}{'' if variant == 'default' else '_' + variant}.csv"
         if part.exists():
             rows.append(pd.read_csv(part))
             continue
@@ -130,7 +135,7 @@ def run(cam, n_scenes, n_behind, rays, cache: Path):
             views = raw_to_views(r, cam.pixels_per_lenslet)
             out += routes(cam, scene, views, fixed_op, mask,
                           dict(kind=kind, seed=seed, separation_mm=sep if sep else np.nan, noise=noise,
-                               snr_db=snr if noise != "clean" else np.inf))
+                               snr_db=snr if noise != "clean" else np.inf), variant)
         df = pd.concat(out, ignore_index=True)
         df.to_csv(part, index=False)
         rows.append(df)
@@ -167,11 +172,13 @@ def bars(df: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(out)
 
 
-def write_report(out: Path, df, tb, own, settings, wall, prov):
+def write_report(out: Path, df, tb, own, settings, wall, prov, stem="depth"):
     auto = df[df.route == "auto"]
     per = auto.groupby(["seed", "noise"]).first()
     cov = auto.dropna(subset=["depth_err_mm", "uncertainty_mm"])
     lines = ["# Find the planes: flames at random depths (issue 36, step 1)", "",
+             f"Auto route's solve: variant `{settings['variant']}` {settings['auto_knobs']} "
+             "(`lf_flame.tomo.depth.find_planes`).", "",
              f"`python experiments/depth.py {settings['argv']}`; {settings['n_scenes']} random-depth scenes "
              f"({int((df.kind == 'random').sum() / 6)} flames), {settings['n_behind']} behind scenes per separation "
              f"{list(SEPARATIONS_MM)} mm; paper camera; renders at {settings['rays']} rays per pixel, own error "
@@ -196,12 +203,12 @@ def write_report(out: Path, df, tb, own, settings, wall, prov):
              auto.reindex(auto.depth_err_mm.abs().sort_values(ascending=False, na_position="first").index).head(8)[
                  ["kind", "seed", "noise", "flame", "depth_mm_true", "height_mm", "depth_err_mm", "rel_err",
                   "share_near", "uncertainty_mm"]].to_markdown(index=False, floatfmt=".3g"), ""]
-    atomic_write_text(out / "depth.md", "\n".join(lines))
-    atomic_write_text(out / "depth.json", json.dumps(dict(settings=settings, own_error=own, wall_s=wall,
+    atomic_write_text(out / f"{stem}.md", "\n".join(lines))
+    atomic_write_text(out / f"{stem}.json", json.dumps(dict(settings=settings, own_error=own, wall_s=wall,
                                                           provenance=prov), indent=1, default=str))
 
 
-def plot(out: Path, df):
+def plot(out: Path, df, stem="depth"):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -217,7 +224,7 @@ def plot(out: Path, df):
     ax[1].axhline(0.1, color="g", lw=0.8)
     ax[1].legend(fontsize=6)
     fig.tight_layout()
-    fig.savefig(out / "depth.png", dpi=110)
+    fig.savefig(out / f"{stem}.png", dpi=110)
     plt.close(fig)
 
 
@@ -229,20 +236,24 @@ def main(argv=None):
     ap.add_argument("--behind", type=int, default=5)
     ap.add_argument("--rays", type=int, default=150)
     ap.add_argument("--cache", default="data/depth")
+    ap.add_argument("--variant", choices=list(VARIANTS), default="default",
+                    help="knobs of the auto route's solve; not 'default': files depth_VARIANT.*")
     a = ap.parse_args(argv)
     if a.quick:
         a.scenes, a.behind, a.rays = 6, 1, 100
     out = Path(a.out)
     t0 = time.perf_counter()
-    df, own = run(PAPER_CAMERA, a.scenes, a.behind, a.rays, Path(a.cache))
+    df, own = run(PAPER_CAMERA, a.scenes, a.behind, a.rays, Path(a.cache), a.variant)
     wall = time.perf_counter() - t0
     tb = bars(df)
     out.mkdir(parents=True, exist_ok=True)
-    df.to_csv(out / "depth.csv", index=False)
+    stem = "depth" if a.variant == "default" else f"depth_{a.variant}"
+    df.to_csv(out / f"{stem}.csv", index=False)
     settings = dict(argv=" ".join(argv if argv is not None else __import__("sys").argv[1:]), n_scenes=a.scenes,
-                    n_behind=a.behind, rays=a.rays, seed0=SEED0, snr_db=SNR_DB, read_e=READ_E)
-    write_report(out, df, tb, own, settings, wall, provenance())
-    plot(out, df)
+                    n_behind=a.behind, rays=a.rays, seed0=SEED0, snr_db=SNR_DB, read_e=READ_E,
+                    variant=a.variant, auto_knobs=VARIANTS[a.variant])
+    write_report(out, df, tb, own, settings, wall, provenance(), stem)
+    plot(out, df, stem)
     print(tb.to_string())
 
 

@@ -146,3 +146,19 @@ def test_cli_reconstruct_finds_the_planes_by_default(cam, planted, tmp_path, cap
     assert "one way" in capsys.readouterr().err
     assert main(["reconstruct", str(raw), "--depths", "near", "--out", str(out)]) == 2
     assert "--depths takes" in capsys.readouterr().err
+
+
+def test_support_holds_each_plane_to_its_regions(cam, planted):
+    from lf_flame.tomo.depth import plane_support
+    from lf_flame.tomo.solvers import reconstruct
+    scene, views = planted
+    found, op, rec = find_planes(views, cam, support=True, solve=dict(lam=0.01, tv=0.0))
+    sup = plane_support(found)
+    assert sup.shape == rec.planes.shape and not np.any(sup[0] & sup[1])     # two regions, one plane each
+    assert np.all(rec.planes[~sup] == 0) and np.all(rec.planes[sup].sum() > 0)
+    df = score_flames(rec.planes, found.planes_mm, scene, cam, found=list(zip(found.depths_mm, found.masks)))
+    assert df.share_near.min() > 0.99 and df.rel_err.max() < 0.2, df[["rel_err", "share_near"]]
+    with pytest.raises(ValueError, match="support"):
+        reconstruct(views, op, "admm", support=sup[:1])
+    with pytest.raises(ValueError, match="admm only"):
+        reconstruct(views, op, "fista", support=sup)

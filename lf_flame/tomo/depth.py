@@ -44,6 +44,8 @@ DEPTH_RANGE_MM = (-15.0, 25.0)
 SLOPE_STEP = 0.04
 #: Found depths closer than this (mm) are solved as one plane.
 MERGE_MM = 1.0
+#: Lenslets a region is grown by to make its planes' support (:func:`plane_support`).
+SUPPORT_DILATION = 3
 
 
 @dataclass
@@ -292,11 +294,41 @@ def merge_depths(depths_mm, weights, merge_mm: float = MERGE_MM):
     return planes, plane_of
 
 
-def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturation=1.0, **find_kw):
+def plane_support(found: FoundDepths, dilation: int = SUPPORT_DILATION) -> np.ndarray:
+    """Where each plane may hold emission: the regions its found depths were found in, dilated.
+
+    Parameters
+    ----------
+    found : FoundDepths
+    dilation : int
+        Lenslets the regions are grown by (>= 0).
+
+    Returns
+    -------
+    ndarray of bool, shape (P, R, C)
+    """
+    if int(dilation) != dilation or dilation < 0:
+        raise ValueError(f"dilation must be an integer >= 0. Received: {dilation!r}")
+    out = np.zeros((len(found.planes_mm),) + found.labels.shape, bool)
+    for p, lab in zip(found.plane_of, found.region):
+        out[p] |= found.labels == lab
+    if dilation:
+        out = np.array([ndimage.binary_dilation(m, iterations=int(dilation)) for m in out]).reshape(out.shape)
+    return out
+
+
+def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturation=1.0, support: bool = False,
+                dilation: int = SUPPORT_DILATION, solve=None, **find_kw):
     """Found depths (:func:`find_depths`) and the emission on their planes.
 
     The planes' emission is ``reconstruct(views, emission_operator(camera, planes_mm), solver)``
-    (:func:`lf_flame.tomo.solvers.reconstruct`, :func:`lf_flame.tomo.exact.emission_operator`).
+    (:func:`lf_flame.tomo.solvers.reconstruct`, :func:`lf_flame.tomo.exact.emission_operator`),
+    with ``support`` (admm) each plane's emission held to the regions its depths were found
+    in (:func:`plane_support`): a flame's light cannot leak onto a plane found for another
+    region, the prior of few depths per line of sight. ``solve``: more keywords of
+    ``reconstruct`` (``iters``, ``lam``, ``tv``). ``experiments/depth.py --variant support``
+    measures ``support=True, solve=dict(lam=0.01, tv=0.0)`` (TV 0.3 flattens flames a few
+    lenslets wide; chosen on validation renders, seeds 100-107).
 
     Returns
     -------
@@ -316,5 +348,6 @@ def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturat
     if not len(found.planes_mm):
         raise ValueError("no emission found in the views: lower threshold or check the light field")
     op = emission_operator(camera, [float(d) for d in found.planes_mm])
-    rec = reconstruct(np.asarray(views, np.float64), op, solver, saturation=saturation)
+    sup = plane_support(found, dilation) if support and solver == "admm" else None
+    rec = reconstruct(np.asarray(views, np.float64), op, solver, saturation=saturation, support=sup, **(solve or {}))
     return found, op, rec

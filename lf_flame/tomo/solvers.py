@@ -89,7 +89,7 @@ def lipschitz_bound(op: EmissionOperator) -> float:
 
 def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters: int | None = None, *,
                 damp: float = 0.0, tv: float | None = None, lam: float = ADMM_LAM, saturation=1.0,
-                progress: bool = False, callback=None) -> Reconstruction:
+                progress: bool = False, callback=None, support=None) -> Reconstruction:
     """Recover the emission on the operator's planes from one light field.
 
     Parameters
@@ -135,6 +135,8 @@ def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters
     callback : callable or None
         ``callback(k, x)`` after iteration ``k`` (1-based) with the iterate ``x`` (flat,
         read-only use): error-against-iterations curves from one run.
+    support : ndarray of bool of shape (P, rows, cols) or None
+        admm only: where each plane may hold emission (:func:`lf_flame.tomo.fourier.solve_admm`).
 
     Returns
     -------
@@ -180,6 +182,8 @@ def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters
         bar.update()
         if callback is not None:
             callback(count[0], np.ravel(x))
+    if support is not None and solver != "admm":
+        raise ValueError(f"a support is for the admm only. Received solver={solver!r}")
     if solver == "admm":
         from .exact import ExactOperator
         from .fourier import solve_admm
@@ -189,7 +193,7 @@ def reconstruct(views, op: EmissionOperator, solver: str = DEFAULT_SOLVER, iters
         admm_tv = tv if tv_given else ADMM_TV
         settings.update(lam=lam, tv=admm_tv)
         planes, residuals, settings["system_s"] = solve_admm(y.reshape(op.dimsd), op, fit.reshape(op.dimsd),
-                                                             fills=iters, lam=lam, tv=admm_tv,
+                                                             fills=iters, lam=lam, tv=admm_tv, support=support,
                                                              callback=lambda j, x: step(x))
         x = planes.ravel()
     elif solver == "adjoint":
