@@ -21,7 +21,7 @@ HELDOUT_paper := 20
 HELDOUT_quick := 4
 HELDOUT_SEED := 770077
 
-.PHONY: temperature help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution sequence new-user heights test clean-quick
+.PHONY: temperature help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution depth sequence new-user heights test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -108,6 +108,7 @@ tradeoff: $(MODELS)/varied/flame/train_info.json ## speed-accuracy map of every 
 # paper preset's results are committed in results/, the quick one (fewer renders) stays in results/quick
 RECON_ARGS_paper := --tests 2 --tail 200
 RECON_ARGS_quick := --tests 1 --tail 8
+DEPTH_ARGS_quick := --quick
 # flame recordings over time (lf_flame.recordings): each plane's flicker frequency, the overlap, and the
 # per-frame cost serially and on Dask; `--stage reconstruct` (about 30 min) adds the overlap's emission route
 sequence: $(STAMP) ## flame recordings: per-plane flicker spectra, serial and Dask frames/s -> results/sequence.{csv,md,json,png}
@@ -125,6 +126,11 @@ reconstruct: $(STAMP) ## 3-D emission reconstruction, every solver against refoc
 # the camera's depth-resolution map (lf_flame.tomo.resolution; about 1.5 min on 2 cores)
 resolution: $(STAMP) ## smallest resolvable plane spacing against feature size -> results/depth_resolution.{csv,md,png}
 	$(VENV)/bin/python experiments/depth_resolution.py --out $(TRADEOFF_OUT)
+
+# find the planes (issue 36): flames at random depths, found and reconstructed, beside the baselines (about 50 min
+# on 2 cores for 100 scenes; each scene's rows cached in data/depth, so a rerun resumes)
+depth: $(STAMP) ## flames at unknown depths: depth, emission and share errors per flame -> results/depth.{csv,md,json,png}
+	$(VENV)/bin/python experiments/depth.py --out $(TRADEOFF_OUT) $(DEPTH_ARGS_$(PRESET))
 
 # the stem is REGIME/table_SCENE
 $(RES)/%.md: $(MODELS)/$$(*D)/$$(subst table_,,$$(*F))/train_info.json

@@ -82,7 +82,7 @@ def test_reconstruct_prints_the_saturated_pixels_it_leaves_out(small_flame, caps
     assert 0 < n_sat < raw.size
     out = small_flame / "sat.h5"
     assert main(["reconstruct", str(small_flame / "flame.npz"), "--solver", "fista", "--iters", "1",
-                 "--rays-per-pixel", "1", "--saturation", str(level), "--out", str(out)]) == 0
+                 "--rays-per-pixel", "1", "--saturation", str(level), "--depths", "scene", "--out", str(out)]) == 0
     assert f"{n_sat} saturated pixels (at or above 0.5) left out of the fit" in capsys.readouterr().out
     with h5py.File(out) as f:
         assert json.loads(f.attrs["settings"])["n_saturated"] == n_sat
@@ -97,7 +97,7 @@ def test_simulates_png_reads_back_with_its_camera_and_reconstructs(small_flame, 
     assert cam_png == cam_npz and raw_png.shape == raw_npz.shape
     assert np.max(np.abs(raw_png - np.clip(raw_npz, 0, 1))) <= 0.5 / 65535 + 1e-7
     assert main(["reconstruct", str(small_flame / "flame.png"), "--solver", "adjoint", "--rays-per-pixel", "1",
-                 "--out", str(small_flame / "png.h5")]) == 0
+                 "--depths", "scene", "--out", str(small_flame / "png.h5")]) == 0
     out = capsys.readouterr().out
     assert "reconstructed 4 planes" in out and "(with the scene's truth)" in out
     assert (small_flame / "png.png").stat().st_size > 10_000

@@ -248,9 +248,15 @@ def build_parser() -> argparse.ArgumentParser:
                        "the simulator as the forward operator) -> HDF5 and a figure")
     s.add_argument("raw", help=RAW_FORMATS + ", or views .h5 from 'lf-flame decode'")
     s.add_argument("--depth", type=float, action="append",
-                   help="plane depth (mm from the focal plane; repeatable). Default: the depths of the objects that "
-                        "'lf-flame simulate' stored (.npz or .png), else the paper's four planes, "
-                        + ", ".join(f"{d:+g}" for d in PAPER_DEPTHS_MM) + " mm")
+                   help="plane depth (mm from the focal plane; repeatable). Default: --depths auto")
+    s.add_argument("--depths", default=None,
+                   help="the planes: 'auto' (the default when neither --depth nor --slope is given) finds the depths "
+                        "that hold emission from the views (depth from focus per region, several per region where "
+                        "flames stand one behind another; lf_flame.tomo.depth) and solves on them, with admm unless "
+                        "--solver says otherwise, writing each found depth and its uncertainty into the HDF5; "
+                        "'scene': the depths of the objects that 'lf-flame simulate' stored (.npz or .png); 'paper': "
+                        "the paper's four planes, " + ", ".join(f"{d:+g}" for d in PAPER_DEPTHS_MM) + " mm; or "
+                        "depths in mm separated by commas")
     s.add_argument("--slope", type=float, action="append", help="plane slope instead of a depth (repeatable)")
     s.add_argument("--solver", choices=list(SOLVERS),
                    help=f"the default is the one chosen on validation renders: {EXACT_SOLVER} on the exact operator, "

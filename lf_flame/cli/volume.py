@@ -1,5 +1,6 @@
 """The ``reconstruct`` command: each plane's emission from one light field
-(:mod:`lf_flame.tomo`), written to HDF5 with a figure.
+(:mod:`lf_flame.tomo`), written to HDF5 with a figure. Without planes given (``--depths auto``)
+the depths holding emission are found first (:mod:`lf_flame.tomo.depth`).
 """
 from __future__ import annotations
 
@@ -29,17 +30,48 @@ def reconstruct_input(a):
                          f"{cam.n_cols}; give the .npz that 'lf-flame simulate' writes, which stores its camera, or, "
                          "for views decoded by 'lf-flame decode', their camera file (--camera cam.toml)")
     objects = _raw_objects(a.raw)
-    if getattr(a, "depth", None) and getattr(a, "slope", None):
-        raise ValueError("give the planes as --depth or as --slope, not both")
+    given = [k for k in ("depth", "slope", "depths") if getattr(a, k, None)]
+    if len(given) > 1:
+        raise ValueError("give the planes one way: --depth, --slope or --depths, not " + " and ".join(
+            f"--{k}" for k in given))
+    spec = str(getattr(a, "depths", None) or "").strip().lower()
     if getattr(a, "depth", None):
         depths = list(a.depth)
     elif getattr(a, "slope", None):
         depths = [cam.depth_for_slope(s) for s in a.slope]
-    elif objects and all("depth_offset_mm" in o for o in objects):
+    elif spec == "scene":
+        if not (objects and all("depth_offset_mm" in o for o in objects)):
+            raise ValueError(f"--depths scene: {a.raw} stores no objects with depths (only what 'lf-flame simulate' "
+                             "writes, .npz or .png, does)")
         depths = [float(o["depth_offset_mm"]) for o in objects]
-    else:
+    elif spec == "paper":
         depths = list(PAPER_DEPTHS_MM)
+    elif spec in ("", "auto"):
+        depths = "auto"
+    else:
+        try:
+            depths = [float(v) for v in spec.split(",")]
+        except ValueError:
+            raise ValueError(f"--depths takes auto, scene, paper or depths in mm separated by commas. Received: "
+                             f"{a.depths!r}") from None
     return cam, views, depths, objects
+
+
+def found_planes(cam, views):
+    """``--depths auto``: the depths holding emission (:func:`lf_flame.tomo.depth.find_depths`), printed,
+    and their record for the HDF5 (each found depth, its uncertainty, peak width, plane and region)."""
+    from ..tomo.depth import find_depths
+    found = find_depths(views, cam)
+    if not len(found.planes_mm):
+        raise ValueError("--depths auto found no emission in the views; give the planes (--depth or --depths)")
+    record = [dict(depth_mm=float(d), uncertainty_mm=float(u), width_mm=float(w), plane_mm=float(found.planes_mm[p]),
+                   region=int(r), lenslets=int(m.sum()))
+              for d, u, w, p, r, m in zip(found.depths_mm, found.uncertainty_mm, found.width_mm, found.plane_of,
+                                          found.region, found.masks)]
+    print(f"found {len(record)} depths in {found.time_s:.2f} s: " + ", ".join(
+        f"{r['depth_mm']:+.2f} +- {r['uncertainty_mm']:.2f} mm" for r in record)
+        + f" -> {len(found.planes_mm)} planes")
+    return [float(d) for d in found.planes_mm], record
 
 
 def run_reconstruction(cam, views, depths, solver=None, iters=None, *, damp=0.0, tv=None, saturation=1.0,
@@ -72,12 +104,16 @@ def cmd_reconstruct(a):
     if getattr(a, "calibration", None):
         raise ValueError("--calibration goes with --camera (views decoded from your own camera)")
     cam, views, depths, objects = reconstruct_input(a)
+    extra = {}
+    if depths == "auto":
+        depths, found = found_planes(cam, views)
+        extra = dict(depths_from="auto", found_depths=found)
     op, rec = run_reconstruction(cam, views, depths, a.solver, a.iters, damp=a.damp, tv=a.tv,
                                  saturation=getattr(a, "saturation", 1.0), rays_per_pixel=a.rays_per_pixel,
                                  progress=True)
     print(saturation_note(rec))
     out = Path(a.out)
-    save_reconstruction(out, rec, source=str(a.raw), camera=cam.to_json())
+    save_reconstruction(out, rec, source=str(a.raw), camera=cam.to_json(), **extra)
     n = cam.pixels_per_lenslet
     refocused = focal_stack(views, [cam.slope_for_depth(d) for d in depths], aperture_mask(n, "circular"))
     scene = _raw_scene(a.raw, cam)
@@ -121,6 +157,8 @@ def own_camera_reconstruct(a):
     frame = decoded_frame(cal, *views.shape[2:])
     if getattr(a, "depth", None) and getattr(a, "slope", None):
         raise ValueError("give the planes as --depth or as --slope, not both")
+    if getattr(a, "depths", None):
+        raise ValueError("with --camera give the planes as --depth or --slope (--depths is for simulated light fields)")
     if getattr(a, "depth", None):
         depths = list(a.depth)
     elif getattr(a, "slope", None):

@@ -8,7 +8,8 @@ quadrature, applied by FFT; kernels in :mod:`._exact_kernels`); :mod:`.resolutio
 camera's depth-resolution map from that map's per-frequency normal matrices; :mod:`.solvers`
 recovers the emission with PyLops/PyProximal solvers, and :mod:`.fourier` on the exact
 operator's per-frequency normal matrices (ADMM; kernels in :mod:`._fourier_kernels`);
-:mod:`.truth` puts a simulated
+:mod:`.depth` finds the depths that hold emission (depth from focus per region)
+and solves on them; :mod:`.truth` puts a simulated
 scene's truth on the same grids; :mod:`.scoring` scores planes against it;
 :mod:`.decoded` turns decoded views of a user's camera into the exact operator's data and
 puts a simulated scene's truth in their frame;
@@ -20,10 +21,12 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["decoded", "defaults", "exact", "files", "fourier", "operator", "resolution", "scoring", "solvers",
+    submodules=["decoded", "defaults", "depth", "exact", "files", "fourier", "operator", "resolution", "scoring", "solvers",
                 "truth"],
     submod_attrs={
         "decoded": ["MIN_WHITE", "white_views", "decoded_problem", "decoded_truth"],
+        "depth": ["DEPTH_RANGE_MM", "SLOPE_STEP", "MERGE_MM", "FoundDepths", "find_depths", "merge_depths",
+                  "find_planes"],
         "exact": ["QUADRATURE_NODES", "SHIFT_TOLERANCE", "PRECISIONS", "ExactKernels", "exact_kernels",
                   "ExactOperator", "emission_operator"],
         "fourier": ["FourierSystem", "fourier_system", "solve_admm"],
@@ -33,7 +36,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "resolution": ["FEATURE_SIZES_MM", "CONDITIONS", "AXES", "MAX_PLANES", "DepthResolution", "stack_depths",
                        "kernel_response", "normal_matrix", "pair_conditions", "resolution_from_kernels",
                        "depth_resolution", "plot_depth_resolution"],
-        "scoring": ["score_planes"],
+        "scoring": ["score_planes", "score_flames"],
         "solvers": ["SOLVERS", "DEFAULT_ITERS", "DEFAULT_TV", "PD_RESIDUAL_EVERY", "DEFAULT_SOLVER", "EXACT_SOLVER",
                  "Reconstruction", "lipschitz_bound", "reconstruct"],
         "truth": ["resample_layer", "scene_truth", "depth_shares"],

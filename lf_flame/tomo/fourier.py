@@ -227,7 +227,7 @@ def fourier_system(op, lam: float = ADMM_LAM, rho: float = ADMM_RHO) -> FourierS
 
 def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INNER, lam: float = ADMM_LAM,
                rho: float = ADMM_RHO, tv: float = ADMM_TV, rho_tv: float = ADMM_RHO_TV, momentum: float = ADMM_MOMENTUM,
-               callback=None):
+               support=None, callback=None):
     """Non-negative emission on the exact operator's planes by Fourier ADMM with missing data.
 
     Parameters
@@ -249,6 +249,10 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         ``pd-tv``; 0: none) and its split's penalty relative to ``g0``.
     momentum : float
         In [0, 1): each fill predicts the missing data from ``s + momentum (s - s_prev)``.
+    support : ndarray of bool, shape (P, rows, cols), or None
+        Where each plane may hold emission (the non-negativity projection also zeroes the
+        rest): the lateral footprints of the flames found at each depth
+        (:func:`lf_flame.tomo.depth.find_planes`). None: everywhere.
     callback : callable or None
         ``callback(j, x)`` after fill ``j`` (1-based) with the planes (flat).
 
@@ -264,8 +268,12 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     Raises
     ------
     ValueError
-        Fills or inner iterations below 1, a momentum outside [0, 1), negative weights.
+        Fills or inner iterations below 1, a momentum outside [0, 1), negative weights, a
+        support that is not boolean of the planes' shape.
     """
+    if support is not None and (np.asarray(support).dtype != bool or np.shape(support) != tuple(op.dims)):
+        raise ValueError(f"support must be boolean of the planes' shape {tuple(op.dims)}. Received: "
+                         f"{np.asarray(support).dtype} of shape {np.shape(support)}")
     if int(fills) != fills or fills < 1 or int(inner) != inner or inner < 1:
         raise ValueError(f"fills and inner must be integers >= 1. Received: fills={fills!r}, inner={inner!r}")
     if not 0 <= momentum < 1 or not (tv >= 0 and rho_tv > 0 and math.isfinite(tv) and math.isfinite(rho_tv)):
@@ -309,6 +317,8 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
                                  s=canvas, workers=op.workers)
             s_new = np.zeros_like(s)
             s_new[:, :gr, :gc] = np.maximum(x[:, :gr, :gc] + d[:, :gr, :gc], 0)
+            if support is not None:
+                s_new[:, :gr, :gc] *= support
             d += x - s_new
             s = s_new
             if tv > 0:   # isotropic shrinkage of the gradient (the TV split), then its dual

@@ -1,4 +1,5 @@
-"""Scores of reconstructed planes against the truth: relative error, SSIM, PSNR, diagnostics."""
+"""Scores of reconstructed planes against the truth: relative error, SSIM, PSNR, diagnostics; per flame
+at unknown depths, the depth error, emission error and share of emission near the true depth."""
 from __future__ import annotations
 
 import numpy as np
@@ -54,3 +55,106 @@ def score_planes(planes, truth, camera: PlenopticCamera, depths_mm, objects=None
         df = pd.concat([df, h[keep].reset_index(drop=True)], axis=1)
     df["time_s"] = time_s
     return df
+
+
+def _flame_truth(layer, camera, depth_mm, shape):
+    """A flame's emission on the grid of a plane at ``depth_mm`` (:func:`resample_layer`)."""
+    from .operator import plane_grid
+    from .truth import resample_layer
+    return resample_layer(layer, shape, plane_grid(camera, depth_mm))
+
+
+def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=None, emission: bool = True,
+                 near_mm: float = 1.0, time_s=float("nan"), **labels):
+    """The one scoring function of every route to flames at unknown depths, per flame (issue 36).
+
+    Each flame of ``scene`` (layer ``k`` is flame ``k``, :mod:`lf_flame.simulate.scenes_depth`) is
+    scored in its region ``M`` (its true emission above 2 % of its peak on its own plane,
+    dilated by 2 samples):
+
+    - **depth**: with ``found``, the found depth whose footprint meets ``M`` nearest the
+      flame's true depth, each found depth given to at most one flame (greedy, nearest
+      first); none: the flame is missed (NaN). Without ``found`` (fixed planes), the plane
+      holding most of the route's non-negative emission in ``M``.
+    - **emission error**: ``||x_p - t_p|| / ||t_p||`` in ``M`` on the plane ``p`` nearest
+      that depth, ``t_p`` the flame's truth resampled onto that plane's grid.
+    - **share within ±near_mm**: the route's non-negative emission in ``M`` on planes
+      within ``near_mm`` of the flame's true depth, over that on all planes but those
+      within ``near_mm`` of another flame whose region meets ``M`` (its own light).
+
+    Parameters
+    ----------
+    planes : ndarray of shape (P, R, C)
+        A route's emission (or refocused images, ``emission=False``) on each plane.
+    depths_mm : sequence of P float
+        The planes' depths (mm).
+    scene : Scene
+        Its layers are the flames, ``scene.objects[k]["depth_offset_mm"]`` their depths.
+    camera : PlenopticCamera
+    found : sequence of (depth_mm, mask (R, C) bool) or None
+        A route's depths and their lateral footprints.
+    emission : bool
+        False for refocused images: the share is not defined (NaN).
+    near_mm : float
+    time_s : float
+        The route's wall time for the light field.
+    **labels
+        Columns added to every row.
+
+    Returns
+    -------
+    DataFrame, one row per flame: labels, ``flame``, ``depth_mm_true``, ``height_mm``,
+    ``depth_mm`` (found; NaN: missed), ``depth_err_mm`` (signed), ``plane_mm``,
+    ``rel_err``, ``share_near``, ``time_s``.
+
+    Raises
+    ------
+    ValueError
+        Planes not (P, R, C) of the camera's grid, or as many depths as planes; a scene whose
+        layers and objects differ in number.
+    """
+    import pandas as pd
+    from scipy import ndimage
+    x = np.asarray(planes, np.float64)
+    d = np.asarray(depths_mm, np.float64)
+    if x.ndim != 3 or x.shape[1:] != (camera.n_rows, camera.n_cols) or len(d) != len(x):
+        raise ValueError(f"planes {x.shape} must be (P, {camera.n_rows}, {camera.n_cols}) with P = {len(d)} depths")
+    if len(scene.layers) != len(scene.objects):
+        raise ValueError(f"scene has {len(scene.layers)} layers but {len(scene.objects)} objects: one per flame")
+    shape = x.shape[1:]
+    xp = np.clip(x, 0.0, None)
+    true_d = [float(o["depth_offset_mm"]) for o in scene.objects]
+    regions = []
+    for L, dz in zip(scene.layers, true_d):
+        t = _flame_truth(L, camera, dz, shape)
+        regions.append(ndimage.binary_dilation(t > 0.02 * t.max(), iterations=2))
+    est = [np.nan] * len(true_d)
+    if found is not None:
+        pairs = sorted((abs(fd - true_d[k]), k, j) for j, (fd, fm) in enumerate(found)
+                       for k in range(len(true_d)) if np.any(np.asarray(fm, bool) & regions[k]))
+        used_f, used_j = set(), set()
+        for _, k, j in pairs:
+            if k not in used_f and j not in used_j:
+                est[k] = float(found[j][0])
+                used_f.add(k)
+                used_j.add(j)
+    else:
+        for k, M in enumerate(regions):
+            est[k] = float(d[int(np.argmax(xp[:, M].sum(axis=1)))])
+    rows = []
+    for k, (L, dz, M) in enumerate(zip(scene.layers, true_d, regions)):
+        row = dict(labels, flame=k, depth_mm_true=dz, height_mm=float(scene.objects[k].get("height_mm", np.nan)),
+                   depth_mm=est[k], depth_err_mm=est[k] - dz, plane_mm=np.nan, rel_err=np.nan, share_near=np.nan,
+                   time_s=time_s)
+        if np.isfinite(est[k]):
+            p = int(np.argmin(np.abs(d - est[k])))
+            t = _flame_truth(L, camera, float(d[p]), shape)
+            row.update(plane_mm=float(d[p]), rel_err=float(np.linalg.norm((x[p] - t)[M]) / np.linalg.norm(t[M])))
+        if emission:
+            others = [true_d[g] for g in range(len(true_d)) if g != k and np.any(regions[g] & M)]
+            keep = np.array([not any(abs(dp - o) <= near_mm for o in others) for dp in d])
+            light = xp[:, M].sum(axis=1)
+            den = light[keep].sum()
+            row["share_near"] = float(light[np.abs(d - dz) <= near_mm].sum() / den) if den > 0 else 0.0
+        rows.append(row)
+    return pd.DataFrame(rows)

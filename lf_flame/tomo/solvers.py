@@ -90,7 +90,7 @@ def lipschitz_bound(op: EmissionOperator) -> float:
 
 def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: int | None = None, *,
                 damp: float = 0.0, tv: float | None = None, lam: float = ADMM_LAM, saturation=1.0,
-                progress: bool = False, callback=None) -> Reconstruction:
+                progress: bool = False, callback=None, support=None) -> Reconstruction:
     """Recover the emission on the operator's planes from one light field.
 
     Parameters
@@ -142,6 +142,8 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
     callback : callable or None
         ``callback(k, x)`` after iteration ``k`` (1-based) with the iterate ``x`` (flat,
         read-only use): error-against-iterations curves from one run.
+    support : ndarray of bool of shape (P, rows, cols) or None
+        admm only: where each plane may hold emission (:func:`lf_flame.tomo.fourier.solve_admm`).
 
     Returns
     -------
@@ -190,6 +192,8 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         bar.update()
         if callback is not None:
             callback(count[0], np.ravel(x))
+    if support is not None and solver != "admm":
+        raise ValueError(f"a support is for the admm only. Received solver={solver!r}")
     if solver == "admm":
         from .exact import ExactOperator
         from .fourier import admm_knobs, solve_admm
@@ -200,7 +204,7 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
                                            iters if iters_given else None, tv if tv_given else None)
         settings.update(iters=iters, lam=lam, tv=admm_tv, noise=noise)
         planes, residuals, settings["system_s"] = solve_admm(y.reshape(op.dimsd), op, fit.reshape(op.dimsd),
-                                                             fills=iters, lam=lam, tv=admm_tv,
+                                                             fills=iters, lam=lam, tv=admm_tv, support=support,
                                                              callback=lambda j, x: step(x))
         x = planes.ravel()
     elif solver == "adjoint":

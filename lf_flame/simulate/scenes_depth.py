@@ -1,0 +1,167 @@
+"""Scenes of flames at depths nobody gave (issue 36): random continuous depths, flames behind one another.
+
+:func:`random_depth_scene` draws 2-4 flame-like emitters at continuous random depths
+(never on a grid), random heights and lateral positions; :func:`behind_scene` stands two
+flames in the same columns a given distance apart in depth. Each flame is one layer of
+:func:`lf_flame.simulate.scenes.flame_luminosity` (a luminous sheath about a dark core), so
+the truth of flame ``k`` is ``scene.layers[k]`` at ``scene.objects[k]["depth_offset_mm"]``.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..optics.camera import PlenopticCamera
+from .scenes import FLAME_EFFECTS, Layer, Scene, _layer_grid, _roi, flame_luminosity
+
+#: Depth range (mm from the focal plane) of the paper camera's usable slopes (about -1.9 .. +2.8).
+DEPTH_RANGE_MM = (-15.0, 25.0)
+#: Flame heights (mm) drawn log-uniformly, capped at 85 % of the field's height at the flame's depth.
+HEIGHT_RANGE_MM = (2.0, 25.0)
+#: Smallest half-width of a flame's base (mm): 7-12 % of its height, but never below this
+#: (about 3 lenslet footprints at the focal plane of the paper camera), so a flame is resolved.
+MIN_HALF_WIDTH_MM = 0.4
+
+
+def _flame(camera, dz, H, half_w0, cx, base_y, level, texels_per_lenslet, name):
+    """One flame layer (the field x 1.2) and its object record."""
+    y, x, (h, w), _ = _layer_grid(camera, dz, texels_per_lenslet, 1.2)
+    eta = (y - base_y) / H
+    half_w = half_w0 * np.sqrt(np.clip(1.0 - eta, 0.0, 1.0)) + 1e-9
+    lum = (level * flame_luminosity(eta, (x - cx) / half_w)).astype(np.float32)
+    obj = dict(name=name, depth_offset_mm=float(dz), height_mm=float(H), half_width_mm=float(half_w0),
+               centre_x_mm=float(cx), base_y_mm=float(base_y), radiance=float(level),
+               roi=_roi(camera, dz, base_y, base_y + H, cx - half_w0, cx + half_w0))
+    return Layer(radiance=lum, alpha=None, depth_offset_mm=float(dz), centre_mm=(0.0, 0.0), size_mm=(h, w)), obj
+
+
+def _check(camera, depth_range, n_flames):
+    lo, hi = (float(v) for v in depth_range)
+    if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
+        raise ValueError(f"depth_range must be two finite depths, low < high. Received: {depth_range!r}")
+    for d in (lo, hi):
+        camera.image_distance_mm(camera.object_distance_mm(d))   # raises for a depth the camera cannot image
+    if n_flames is not None and not (isinstance(n_flames, (int, np.integer)) and 1 <= n_flames <= 4):
+        raise ValueError(f"n_flames must be an integer from 1 to 4 (or None: 2-4 drawn). Received: {n_flames!r}")
+    return lo, hi
+
+
+def random_depth_scene(camera: PlenopticCamera, rng: np.random.Generator, *, n_flames: int | None = None,
+                       depth_range=DEPTH_RANGE_MM, height_range=HEIGHT_RANGE_MM,
+                       texels_per_lenslet: float = 3.0, max_tries: int = 500) -> Scene:
+    """Flames at continuous random depths, heights and lateral positions, each in its own part of the image.
+
+    Per flame: depth ``U(depth_range)`` (continuous: never on a grid); height
+    log-uniform in ``height_range`` capped at 85 % of the field's height at that depth;
+    half-width of the base ``U(0.07, 0.12)`` of the height, at least
+    :data:`MIN_HALF_WIDTH_MM`; base and centre uniform over the field (the flame inside
+    the central 90 %); peak radiance ``U(0.5, 1.0)``. A flame whose box (in lenslets,
+    with a 3-lenslet margin) meets an earlier one's is drawn again, so the flames stand
+    apart in the image: flames in the same columns are :func:`behind_scene`.
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+    rng : numpy.random.Generator
+        Source of every draw (the scene's own seed).
+    n_flames : int or None
+        1-4; None draws 2-4.
+    depth_range : (float, float)
+        Depths (mm from the focal plane, positive farther) the flames are drawn in.
+    height_range : (float, float)
+        Heights (mm), positive, low < high.
+    texels_per_lenslet : float
+    max_tries : int
+        Draws per flame before giving up.
+
+    Returns
+    -------
+    Scene
+        ``name="depth"``, one layer and one object per flame (``depth_offset_mm``,
+        ``height_mm``, ``half_width_mm``, ``centre_x_mm``, ``base_y_mm``, ``radiance``,
+        ``roi`` = (row0, row1, col0, col1) lenslets), in drawing order.
+
+    Raises
+    ------
+    ValueError
+        A bad depth or height range, a depth the camera cannot image, a bad ``n_flames``,
+        or no room for the flames after ``max_tries`` draws.
+    """
+    lo, hi = _check(camera, depth_range, n_flames)
+    h_lo, h_hi = (float(v) for v in height_range)
+    if not (math.isfinite(h_lo) and math.isfinite(h_hi) and 0 < h_lo < h_hi):
+        raise ValueError(f"height_range must be two positive heights, low < high. Received: {height_range!r}")
+    n = int(rng.integers(2, 5)) if n_flames is None else int(n_flames)
+    layers, objects, boxes = [], [], []
+    for k in range(n):
+        for _ in range(max_tries):
+            dz = float(rng.uniform(lo, hi))
+            fh, fw = camera.field_of_view_mm(dz)
+            H = float(math.exp(rng.uniform(math.log(h_lo), math.log(min(h_hi, 0.85 * fh)))))
+            hw = max(float(rng.uniform(0.07, 0.12)) * H, MIN_HALF_WIDTH_MM)
+            base = float(rng.uniform(-0.45 * fh, 0.45 * fh - H))
+            cx = float(rng.uniform(-0.45 * fw + hw, 0.45 * fw - hw))
+            level = float(rng.uniform(0.5, 1.0))
+            roi = _roi(camera, dz, base, base + H, cx - hw, cx + hw)
+            if all(roi[1] <= b[0] or b[1] <= roi[0] or roi[3] <= b[2] or b[3] <= roi[2] for b in boxes):
+                break
+        else:
+            raise ValueError(f"no room for flame {k + 1} of {n} after {max_tries} draws")
+        boxes.append(roi)
+        layer, obj = _flame(camera, dz, H, hw, cx, base, level, texels_per_lenslet, f"flame_{k}")
+        layers.append(layer)
+        objects.append(obj)
+    return Scene("depth", tuple(layers), FLAME_EFFECTS, tuple(objects))
+
+
+def behind_scene(camera: PlenopticCamera, rng: np.random.Generator, separation_mm: float, *,
+                 depth_range=DEPTH_RANGE_MM, texels_per_lenslet: float = 3.0) -> Scene:
+    """Two flames in the same columns, ``separation_mm`` apart in depth (one behind the other).
+
+    The far flame: depth ``U(lo, hi - separation)`` + separation, height ``U(0.5, 0.8)`` of
+    the field's height, radiance ``U(0.7, 1.0)``; the near flame: ``U(0.4, 0.7)`` of the far
+    one's height, radiance ``U(0.5, 1.0)``. Both centred on the same column (lateral
+    offset ``U(-0.3, 0.3)`` mm between them), bases near the bottom of the field;
+    half-widths 8 % of the height, at least :data:`MIN_HALF_WIDTH_MM`.
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+    rng : numpy.random.Generator
+    separation_mm : float
+        Depth between the two flames (mm), positive and below the range's span.
+    depth_range : (float, float)
+    texels_per_lenslet : float
+
+    Returns
+    -------
+    Scene
+        ``name="behind"``, the far flame first (objects as :func:`random_depth_scene`'s).
+
+    Raises
+    ------
+    ValueError
+        A separation that is not positive or does not fit in ``depth_range``; a bad range.
+    """
+    lo, hi = _check(camera, depth_range, None)
+    sep = float(separation_mm)
+    if not (math.isfinite(sep) and 0 < sep < hi - lo):
+        raise ValueError(f"separation_mm must be positive and below the depth range's span {hi - lo:g} mm. "
+                         f"Received: {separation_mm!r}")
+    near = float(rng.uniform(lo, hi - sep))
+    far = near + sep
+    cx = float(rng.uniform(-0.15, 0.15)) * camera.field_of_view_mm(0.0)[1]
+    layers, objects = [], []
+    fh = camera.field_of_view_mm(far)[0]
+    H_far = float(rng.uniform(0.5, 0.8)) * fh
+    H_near = float(rng.uniform(0.4, 0.7)) * H_far
+    spec = ((far, H_far, float(rng.uniform(0.7, 1.0)), cx), (near, H_near, float(rng.uniform(0.5, 1.0)),
+                                                               cx + float(rng.uniform(-0.3, 0.3))))
+    for k, (dz, H, level, x) in enumerate(spec):
+        base = -0.42 * camera.field_of_view_mm(dz)[0]
+        layer, obj = _flame(camera, dz, H, max(0.08 * H, MIN_HALF_WIDTH_MM), x, base, level, texels_per_lenslet,
+                            ("far", "near")[k])
+        layers.append(layer)
+        objects.append(obj)
+    return Scene("behind", tuple(layers), FLAME_EFFECTS, tuple(objects))

@@ -1,0 +1,164 @@
+"""Find the planes (lf_flame.tomo.depth), its scenes (lf_flame.simulate.scenes_depth) and score_flames."""
+import numpy as np
+import pytest
+
+from lf_flame.optics.camera import PlenopticCamera
+from lf_flame.refocus.shift_and_sum import raw_to_views
+from lf_flame.simulate import tracer
+from lf_flame.simulate.scenes_depth import behind_scene, random_depth_scene
+from lf_flame.tomo.depth import find_depths, find_planes, merge_depths
+from lf_flame.tomo.operator import plane_grid
+from lf_flame.tomo.scoring import score_flames
+from lf_flame.tomo.truth import resample_layer
+
+
+@pytest.fixture(scope="module")
+def cam():
+    return PlenopticCamera(n_rows=60, n_cols=40)
+
+
+def _views(cam, scene, seed, rays=32):
+    return raw_to_views(tracer.render(cam, scene, rays, seed), cam.pixels_per_lenslet)
+
+
+@pytest.fixture(scope="module")
+def planted(cam):
+    scene = random_depth_scene(cam, np.random.default_rng(7), n_flames=2, height_range=(2.0, 5.0))
+    return scene, _views(cam, scene, 7)
+
+
+@pytest.fixture(scope="module")
+def behind(cam):
+    scene = behind_scene(cam, np.random.default_rng(3), 5.0)
+    return scene, _views(cam, scene, 3)
+
+
+def test_planted_depths_found(cam, planted):
+    scene, views = planted
+    found = find_depths(views, cam)
+    true = sorted(o["depth_offset_mm"] for o in scene.objects)
+    assert abs(true[1] - true[0]) > 1.0                    # two depths, not on any grid
+    assert len(found.depths_mm) == 2, found.depths_mm
+    np.testing.assert_allclose(found.depths_mm, true, atol=0.3)
+    assert np.all(found.uncertainty_mm > 0) and np.all(np.isfinite(found.uncertainty_mm))
+    assert len(found.planes_mm) == 2 and found.masks.shape == (2, cam.n_rows, cam.n_cols)
+
+
+def test_two_flames_behind_one_another_both_found(cam, behind):
+    scene, views = behind
+    found = find_depths(views, cam)
+    true = sorted(o["depth_offset_mm"] for o in scene.objects)
+    assert len(found.depths_mm) == 2, found.depths_mm
+    np.testing.assert_allclose(found.depths_mm, true, atol=0.5)
+    assert found.region[0] == found.region[1]              # one region, two depths
+
+
+def test_find_planes_emission_scored(cam, behind):
+    scene, views = behind
+    found, op, rec = find_planes(views, cam)
+    df = score_flames(rec.planes, found.planes_mm, scene, cam, found=list(zip(found.depths_mm, found.masks)))
+    assert len(df) == 2 and df.depth_err_mm.abs().max() < 0.5
+    assert df.rel_err.max() < 0.2, df.rel_err.values
+    assert df.share_near.min() > 0.9
+
+
+def test_score_flames_truth_and_off_planes(cam, planted):
+    scene, _ = planted
+    depths = [o["depth_offset_mm"] for o in scene.objects]
+    truth = np.array([resample_layer(L, (cam.n_rows, cam.n_cols), plane_grid(cam, d)) for L, d in zip(scene.layers,
+                                                                                                          depths)])
+    df = score_flames(truth, depths, scene, cam)
+    np.testing.assert_allclose(df.depth_err_mm, 0.0, atol=1e-12)
+    np.testing.assert_allclose(df.rel_err, 0.0, atol=1e-9)
+    np.testing.assert_allclose(df.share_near, 1.0)
+    off = [d + 2.0 for d in depths]                         # the same images 2 mm off: no share within 1 mm
+    df = score_flames(truth, off, scene, cam)
+    np.testing.assert_allclose(df.depth_err_mm, 2.0)
+    np.testing.assert_allclose(df.share_near, 0.0)
+    # a found depth whose footprint misses the flame does not count for it
+    empty = np.zeros((cam.n_rows, cam.n_cols), bool)
+    df = score_flames(truth, depths, scene, cam, found=[(depths[0], empty)])
+    assert df.depth_mm.isna().all()
+
+
+def test_merge_depths():
+    planes, of = merge_depths(np.array([0.0, 0.5, 3.0]), np.array([1.0, 3.0, 1.0]), 1.0)
+    np.testing.assert_allclose(planes, [0.375, 3.0])
+    np.testing.assert_array_equal(of, [0, 0, 1])
+    with pytest.raises(ValueError, match="ascending"):
+        merge_depths(np.array([1.0, 0.0]), np.array([1.0, 1.0]))
+
+
+def test_refusals(cam, planted):
+    scene, views = planted
+    with pytest.raises(ValueError, match="shape"):
+        find_depths(views[:, :, :-1], cam)
+    bad = views.copy()
+    bad[0, 0, 0, 0] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        find_depths(bad, cam)
+    with pytest.raises(ValueError, match="no light"):
+        find_depths(np.zeros_like(views), cam)
+    with pytest.raises(ValueError, match="depth_range_mm"):
+        find_depths(views, cam, depth_range_mm=(5.0, -5.0))
+    with pytest.raises(ValueError, match="cannot image|no real|infinity"):
+        find_depths(views, cam, depth_range_mm=(-200.0, 5.0))
+    with pytest.raises(ValueError, match="threshold"):
+        find_depths(views, cam, threshold=1.5)
+    with pytest.raises(ValueError, match="PlenopticCamera"):
+        find_depths(views, "paper")
+    with pytest.raises(ValueError, match="n_flames"):
+        random_depth_scene(cam, np.random.default_rng(0), n_flames=5)
+    with pytest.raises(ValueError, match="separation_mm"):
+        behind_scene(cam, np.random.default_rng(0), 50.0)
+    with pytest.raises(ValueError, match="height_range"):
+        random_depth_scene(cam, np.random.default_rng(0), height_range=(3.0, 1.0))
+    with pytest.raises(ValueError, match="planes"):
+        score_flames(np.zeros((2, 5, 5)), [0.0, 1.0], scene, cam)
+
+
+def test_cli_reconstruct_finds_the_planes_by_default(cam, planted, tmp_path, capsys):
+    import json
+
+    import h5py
+
+    from lf_flame.cli import main
+    from lf_flame.refocus.shift_and_sum import views_to_raw
+    scene, views = planted
+    raw = tmp_path / "lf.npz"
+    np.savez(raw, raw=views_to_raw(views), camera=cam.to_json())
+    out = tmp_path / "auto.h5"
+    assert main(["reconstruct", str(raw), "--out", str(out)]) == 0          # no planes given: --depths auto
+    assert "found 2 depths" in capsys.readouterr().out
+    true = sorted(o["depth_offset_mm"] for o in scene.objects)
+    with h5py.File(out) as f:
+        assert f.attrs["depths_from"] == "auto" and f.attrs["solver"] == "admm"
+        found = json.loads(f.attrs["found_depths"])
+        np.testing.assert_allclose(sorted(r["depth_mm"] for r in found), true, atol=0.3)
+        assert all(r["uncertainty_mm"] > 0 for r in found)
+        np.testing.assert_allclose(sorted(f["depths_mm"][...]), true, atol=0.3)
+    assert main(["reconstruct", str(raw), "--depths", "1.5,-2", "--solver", "adjoint", "--out", str(out)]) == 0
+    with h5py.File(out) as f:
+        np.testing.assert_allclose(f["depths_mm"][...], [1.5, -2.0])
+        assert "found_depths" not in f.attrs
+    capsys.readouterr()
+    assert main(["reconstruct", str(raw), "--depths", "auto", "--depth", "0", "--out", str(out)]) == 2
+    assert "one way" in capsys.readouterr().err
+    assert main(["reconstruct", str(raw), "--depths", "near", "--out", str(out)]) == 2
+    assert "--depths takes" in capsys.readouterr().err
+
+
+def test_support_holds_each_plane_to_its_regions(cam, planted):
+    from lf_flame.tomo.depth import plane_support
+    from lf_flame.tomo.solvers import reconstruct
+    scene, views = planted
+    found, op, rec = find_planes(views, cam, support=True, solve=dict(lam=0.01, tv=0.0))
+    sup = plane_support(found)
+    assert sup.shape == rec.planes.shape and not np.any(sup[0] & sup[1])     # two regions, one plane each
+    assert np.all(rec.planes[~sup] == 0) and np.all(rec.planes[sup].sum() > 0)
+    df = score_flames(rec.planes, found.planes_mm, scene, cam, found=list(zip(found.depths_mm, found.masks)))
+    assert df.share_near.min() > 0.99 and df.rel_err.max() < 0.2, df[["rel_err", "share_near"]]
+    with pytest.raises(ValueError, match="support"):
+        reconstruct(views, op, "admm", support=sup[:1])
+    with pytest.raises(ValueError, match="admm only"):
+        reconstruct(views, op, "fista", support=sup)
