@@ -110,26 +110,47 @@ def cholesky(A):
     return bad.sum()
 
 
+#: Frequencies per block of the packed factors: each block's factors lie together in memory.
+BLOCK = 256
+
+
 @nb.njit(parallel=True, cache=True)
 def cholesky_solve(L, b):
-    """In place, ``b[:, m] <- (L L^H)^-1 b[:, m]`` for every ``m``: L (P, P, M) the lower
-    factors of :func:`cholesky`, b (P, M) complex."""
-    P, _, M = L.shape
-    n_blocks = (M + 255) // 256
-    for blk in nb.prange(n_blocks):
-        lo, hi = blk * 256, min(M, blk * 256 + 256)
+    """In place, ``b[:, m] <- (L L^H)^-1 b[:, m]`` for every ``m``: L (n_blocks, P (P + 1) / 2,
+    BLOCK) the lower factors of :func:`cholesky` packed by :func:`pack_lower`, b (P, M) complex."""
+    P, M = b.shape
+    for blk in nb.prange(L.shape[0]):
+        lo, hi = blk * BLOCK, min(M, blk * BLOCK + BLOCK)
+        Lb = L[blk]
         for i in range(P):                                   # L y = b
+            row = i * (i + 1) // 2
             for t in range(i):
                 for m in range(lo, hi):
-                    b[i, m] -= L[i, t, m] * b[t, m]
+                    b[i, m] -= Lb[row + t, m - lo] * b[t, m]
             for m in range(lo, hi):
-                b[i, m] /= L[i, i, m]
+                b[i, m] /= Lb[row + i, m - lo]
         for i in range(P - 1, -1, -1):                       # L^H x = y
             for t in range(i + 1, P):
+                e = t * (t + 1) // 2 + i
                 for m in range(lo, hi):
-                    b[i, m] -= np.conj(L[t, i, m]) * b[t, m]
+                    b[i, m] -= np.conj(Lb[e, m - lo]) * b[t, m]
             for m in range(lo, hi):
-                b[i, m] /= L[i, i, m]
+                b[i, m] /= Lb[i * (i + 1) // 2 + i, m - lo]
+
+
+def pack_lower(A, dtype):
+    """The lower triangles of ``A`` (P, P, M), packed by rows (entry ``(i, t)``, ``t <= i``, at
+    ``i (i + 1) / 2 + t``) in blocks of :data:`BLOCK` frequencies: (n_blocks, P (P + 1) / 2,
+    BLOCK) of ``dtype``, the last block padded with ones."""
+    P, _, M = A.shape
+    n_blocks = (M + BLOCK - 1) // BLOCK
+    out = np.ones((n_blocks, P * (P + 1) // 2, BLOCK), dtype)
+    for j in range(P):                                       # a row at a time: no full-size temporary
+        sel = slice(j * (j + 1) // 2, (j + 1) * (j + 2) // 2)
+        for k in range(n_blocks):
+            part = A[j, :j + 1, k * BLOCK:(k + 1) * BLOCK]
+            out[k, sel, :part.shape[1]] = part
+    return out
 
 
 def spectra_forward(S, xs):

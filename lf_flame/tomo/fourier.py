@@ -108,9 +108,12 @@ class FourierSystem:
     ----------
     g0 : float
         Mean of ``G``'s diagonal at zero frequency.
-    factor : ndarray of shape (P, P, Lr, Lc // 2 + 1), float64 or complex128
-        The lower Cholesky factors (:func:`normal_matrices`: real where ``G`` is), frequency
-        last, so that the factorisation and the solves run over frequencies in SIMD lanes.
+    factor : ndarray of shape (n_blocks, P (P + 1) / 2, BLOCK)
+        The lower Cholesky factors, computed in float64 (complex128 where ``G`` is complex),
+        packed by rows in blocks of frequencies (:func:`~lf_flame.tomo._fourier_kernels.pack_lower`:
+        a block's factors lie together in memory) and kept in the operator's precision
+        (float32 on a float32 operator: a solve reads them at every ADMM step, so their
+        memory is the solves' time); frequency last, in SIMD lanes.
     spec : ndarray of shape (V', P, Lr, Lc // 2 + 1)
         The operator's spectra of its lit views (``op``'s own array, not a copy).
     lit : ndarray of int
@@ -143,16 +146,18 @@ class FourierSystem:
         if bad:
             raise ValueError(f"{bad} of the per-frequency normal matrices are not positive definite: the operator's "
                              "kernels hold NaN or infinite taps")
-        self.factor = G
+        real = np.float32 if op._spec.dtype == np.complex64 else np.float64
+        self.factor = _fourier_kernels.pack_lower(G.reshape(P, P, -1), real if G.dtype == np.float64 else
+                                                  np.result_type(real, np.complex64))
+        del G
         self.lam, self.rho = float(lam), float(rho)
-        self.nbytes = int(G.nbytes)
+        self.nbytes = int(self.factor.nbytes)
         self.setup_s = time.perf_counter() - t0
 
     def solve(self, rhs):
         """``(G + lam |D|^2 + rho)^-1 rhs`` per frequency; rhs and result of shape (P, Lr, F), complex."""
         out = np.array(rhs, dtype=np.result_type(rhs.dtype, np.complex64), order="C")
-        _fourier_kernels.cholesky_solve(self.factor.reshape(self.factor.shape[0], self.factor.shape[1], -1),
-                                        out.reshape(len(out), -1))
+        _fourier_kernels.cholesky_solve(self.factor, out.reshape(len(out), -1))
         return out
 
 
