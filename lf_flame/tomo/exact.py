@@ -272,8 +272,10 @@ class ExactOperator(pylops.LinearOperator):
     Notes
     -----
     Measured on the paper's camera, 4 planes (shared 2-core machine, noisy; ``python
-    experiments/exact_operator.py``, ``results/exact_operator.md``): setup 2.3 s (float64)
-    / 1.8 s (float32), memory 217 / 123 MB (the spectra: ``N^2 P Lr (Lc/2 + 1)`` complex
+    experiments/exact_operator.py``, ``results/exact_operator.md``; the cost figures predate
+    the lit-view spectra built by BLAS and the Numba sums, which lowered them: a float32
+    setup of 0.7 s in ``results/fourier_solver_dense.csv``): setup 2.3 s (float64)
+    / 1.8 s (float32), memory 217 / 123 MB (the spectra: ``N^2 P Lr (Lc/2 + 1)`` complex, now of the lit views only,
     numbers on a 200 x 108 canvas); one ``A`` 180 / 115 ms and one ``A^T`` 213 / 127 ms
     (medians), beside the 4-ray recorded Monte-Carlo operator's 133 and 127 ms, its record
     6.6 s and 251 MB. On a flame scene its light field differs from a 1,024-ray traced
