@@ -204,7 +204,7 @@ def dense(cam, plane_counts=DENSE_P):
         op = ExactOperator(cam, depths, precision=PRECISION)
         op_s = time.perf_counter() - t0
         rec = reconstruct(views, op, "admm")   # the 16-ray render is quiet: 8 fills, no TV
-        system = fourier.fourier_system(op, rec.settings["lam"], defaults.ADMM_RHO)   # the one it built
+        system = fourier.admm_system(op, rec.settings["lam"], rec.settings["tv"])   # the one it built
         solve_s = rec.time_s - rec.settings["system_s"]
         rows.append(dict(planes=P, spacing_mm=40.0 / (P - 1), operator_setup_s=op_s, system_setup_s=system.setup_s,
                          setup_s=op_s + system.setup_s, operator_mb=op.nbytes / 2 ** 20,

@@ -136,7 +136,7 @@ class SequenceJob:
             return None
         from ..tomo import defaults as D
         iters = D.DEFAULT_ITERS.get(self.solver) if self.iters is None else int(self.iters)
-        tv = ({"pd-tv": D.DEFAULT_TV}.get(self.solver)) if self.tv is None else float(self.tv)
+        tv = (D.DEFAULT_TV if self.solver == "pd-tv" else None) if self.tv is None else float(self.tv)
         out = dict(solver=self.solver, iters=iters, tv=tv,
                    saturation=None if self.saturation is None else float(self.saturation),
                    operator_rays=None if self.operator_rays is None else int(self.operator_rays))

@@ -434,15 +434,17 @@ _FLAME_KEYS = ("name", "depth_offset_mm", "height_template_mm", "height_mm", "ce
 FLAME_EFFECTS = Effects(aperture=True, cos4=True, occlusion=False)
 
 
-def _flame_layer(camera, dz, H, cx, base_y, level, sway, phase, texels_per_lenslet):
-    """One flame of height ``H`` (mm), centre ``cx`` and base ``base_y`` (mm) at depth ``dz``:
-    its layer (the field x 1.2) and its object record (see :func:`flame_scene`)."""
+def _flame_layer(camera, dz, H, cx, base_y, level, sway, phase, texels_per_lenslet, half_width_mm=None):
+    """One flame of height ``H`` (mm), centre ``cx`` and base ``base_y`` (mm) at depth ``dz``,
+    its base's half-width ``half_width_mm`` (None: 0.07 H): its layer (the field x 1.2) and its
+    object record (see :func:`flame_scene`)."""
     y, x, (h, w), texel = _layer_grid(camera, dz, texels_per_lenslet, 1.2)
     eta = (y - base_y) / H
-    half_w = 0.07 * H * np.sqrt(np.clip(1.0 - eta, 0.0, 1.0)) + 1e-9
+    hw0 = 0.07 * H if half_width_mm is None else half_width_mm
+    half_w = hw0 * np.sqrt(np.clip(1.0 - eta, 0.0, 1.0)) + 1e-9
     centre = cx + sway * H * eta ** 2 * np.sin(2 * math.pi * eta / 0.6 + phase)
     lum = (level * flame_luminosity(eta, (x - centre) / half_w)).astype(np.float32)
-    hw = 0.07 * H + sway * H
+    hw = hw0 + sway * H
     obj = dict(name=f"flame_{dz:+.0f}mm", depth_offset_mm=dz, height_mm=H, centre_x_mm=cx, base_y_mm=base_y,
                radiance=level, sway=sway, phase=phase, roi=_roi(camera, dz, base_y, base_y + H, cx - hw, cx + hw))
     return Layer(radiance=lum, alpha=None, depth_offset_mm=dz, centre_mm=(0.0, 0.0), size_mm=(h, w)), obj

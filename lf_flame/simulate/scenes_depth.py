@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from ..optics.camera import PlenopticCamera
-from .scenes import FLAME_EFFECTS, Layer, Scene, _layer_grid, _roi, flame_luminosity
+from .scenes import FLAME_EFFECTS, Scene, _flame_layer, _roi
 
 #: Depth range (mm from the focal plane) of the paper camera's usable slopes (about -1.9 .. +2.8).
 DEPTH_RANGE_MM = (-15.0, 25.0)
@@ -25,15 +25,12 @@ MIN_HALF_WIDTH_MM = 0.4
 
 
 def _flame(camera, dz, H, half_w0, cx, base_y, level, texels_per_lenslet, name):
-    """One flame layer (the field x 1.2) and its object record."""
-    y, x, (h, w), _ = _layer_grid(camera, dz, texels_per_lenslet, 1.2)
-    eta = (y - base_y) / H
-    half_w = half_w0 * np.sqrt(np.clip(1.0 - eta, 0.0, 1.0)) + 1e-9
-    lum = (level * flame_luminosity(eta, (x - cx) / half_w)).astype(np.float32)
-    obj = dict(name=name, depth_offset_mm=float(dz), height_mm=float(H), half_width_mm=float(half_w0),
-               centre_x_mm=float(cx), base_y_mm=float(base_y), radiance=float(level),
-               roi=_roi(camera, dz, base_y, base_y + H, cx - half_w0, cx + half_w0))
-    return Layer(radiance=lum, alpha=None, depth_offset_mm=float(dz), centre_mm=(0.0, 0.0), size_mm=(h, w)), obj
+    """One upright flame layer (:func:`~lf_flame.simulate.scenes._flame_layer`, no sway) and its
+    object record, named ``name``, with its base's half-width."""
+    layer, obj = _flame_layer(camera, float(dz), float(H), float(cx), float(base_y), float(level), 0.0, 0.0,
+                              texels_per_lenslet, half_width_mm=float(half_w0))
+    obj.update(name=name, half_width_mm=float(half_w0))
+    return layer, obj
 
 
 def _check(camera, depth_range, n_flames):

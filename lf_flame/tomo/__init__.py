@@ -29,7 +29,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
                   "find_planes"],
         "exact": ["QUADRATURE_NODES", "SHIFT_TOLERANCE", "PRECISIONS", "ExactKernels", "exact_kernels",
                   "ExactOperator", "emission_operator"],
-        "fourier": ["FourierSystem", "fourier_system", "solve_admm"],
+        "fourier": ["FourierSystem", "fourier_system", "admm_system", "solve_admm"],
         "files": ["save_reconstruction", "load_reconstruction", "plot_reconstruction"],
         "operator": ["ADJOINT_BLOCKS", "RAY_TABLE_MAX_BYTES", "plane_grid", "EmissionOperator",
                      "normalised_adjoint", "check_views"],

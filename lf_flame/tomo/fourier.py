@@ -230,6 +230,13 @@ def fourier_system(op, lam: float = ADMM_LAM, rho: float = ADMM_RHO) -> FourierS
     return cache[key]
 
 
+def admm_system(op, lam: float = ADMM_LAM, tv: float = ADMM_TV, rho: float = ADMM_RHO,
+                rho_tv: float = ADMM_RHO_TV) -> FourierSystem:
+    """The :class:`FourierSystem` that :func:`solve_admm` uses for these knobs (kept on ``op``):
+    with TV on, its split's penalty ``rho_tv`` joins ``lam`` in the same per-frequency matrix."""
+    return fourier_system(op, lam + (rho_tv if tv > 0 else 0.0), rho)
+
+
 def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INNER, lam: float = ADMM_LAM,
                rho: float = ADMM_RHO, tv: float = ADMM_TV, rho_tv: float = ADMM_RHO_TV, momentum: float = ADMM_MOMENTUM,
                support=None, callback=None):
@@ -284,10 +291,9 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     if not 0 <= momentum < 1 or not (tv >= 0 and rho_tv > 0 and math.isfinite(tv) and math.isfinite(rho_tv)):
         raise ValueError(f"momentum must be in [0, 1), tv >= 0 and rho_tv > 0, finite. Received: momentum={momentum!r}, "
                          f"tv={tv!r}, rho_tv={rho_tv!r}")
-    smooth = lam + (rho_tv if tv > 0 else 0.0)
-    built = (float(smooth), float(rho)) in op.__dict__.get("_fourier_systems", {})
-    system = fourier_system(op, smooth, rho)
-    system_s = 0.0 if built else system.setup_s
+    kept = list(op.__dict__.get("_fourier_systems", {}).values())
+    system = admm_system(op, lam, tv, rho, rho_tv)
+    system_s = 0.0 if any(system is k for k in kept) else system.setup_s
     P, gr, gc = op.dims
     N, _, R, C = op.dimsd
     canvas = op.canvas_shape
