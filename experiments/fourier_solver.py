@@ -14,9 +14,13 @@ wall times, provenance):
   validation renders (``VAL_SEEDS``), per noise level: the score is the worst plane of the
   worst noise-free render for the quiet knobs, of the worst render at 14 dB for the noisy
   ones, and the renders' relative noise is measured for the split between them
-  (``lf_flame.tomo.defaults.ADMM_QUIET_NOISE``); pd-tv (40 it., TV 0.3, 4-ray operator: today's default) on the
-  same renders for the record.
-- **score**: admm at the package's defaults (knobs by the data's noise), pd-tv and shift-and-sum (``focal_stack``) on the scored
+  (``lf_flame.tomo.defaults.ADMM_QUIET_NOISE``); on both planes' grids, the lenslet grid and
+  2 x 2 samples per lenslet (``ExactOperator(subsamples=2)``, scored binned back to the
+  lenslets, against the same truth), the finer grid taken per noise level where it beats the
+  lenslet grid by ``FINE_GAIN``; pd-tv (40 it., TV 0.3, 4-ray operator) on the same renders
+  for the record.
+- **score**: admm at the package's defaults (its grid, knobs by the data's noise) and on the
+  lenslet grid, pd-tv and shift-and-sum (``focal_stack``) on the scored
   renders (``TEST_SEEDS``) of the paper, varied and overlap scenes, noise-free and at
   14 dB, through :func:`lf_flame.tomo.scoring.score_planes`.
 - **time**: in one run, the median and 90th percentile of ``--repeats`` 4-plane admm solves
@@ -56,7 +60,7 @@ from lf_flame.tomo.exact import ExactOperator  # noqa: E402
 from lf_flame.tomo.operator import EmissionOperator  # noqa: E402
 from lf_flame.tomo.scoring import score_planes  # noqa: E402
 from lf_flame.tomo.solvers import reconstruct  # noqa: E402
-from lf_flame.tomo.truth import scene_truth  # noqa: E402
+from lf_flame.tomo.truth import bin_planes, scene_truth  # noqa: E402
 
 KINDS = ("paper", "varied", "overlap")
 SNR_DB = 14.0
@@ -64,6 +68,11 @@ SNR_DB = 14.0
 #: gradient weight, momentum and steps per fill are those a wider grid chose (lam 0.01-0.1,
 #: momentum 0.4-0.6, 5 or 10 steps: commit 6c031f5's results/fourier_solver_tune.csv)
 GRID = dict(lam=(0.03,), tv=(0.0, 0.1, 0.3, 1.0), momentum=(0.6,), inner=(5,))
+#: the same on the 2 x 2 grid per lenslet (``ExactOperator(subsamples=2)``): four times the unknowns
+#: want a weaker gradient weight (a probe: lam 0.003 at 2.0-2.6 % where 0.03 stops at 3.4 %)
+GRID_FINE = dict(lam=(0.01, 0.003, 0.001), tv=(0.0, 0.1, 0.3), momentum=(0.6,), inner=(5,))
+#: the finer grid is taken for a noise level only where it beats the lenslet grid's best by this factor
+FINE_GAIN = 0.9
 MAX_FILLS = 16
 #: the knobs are chosen per noise level: 'quiet' on the noise-free renders, 'noisy' on those at 14 dB
 REGIMES = {"clean": "quiet", "14dB": "noisy"}
@@ -99,9 +108,10 @@ def tune(cam, rays, cache):
     for kind, seed in itertools.product(KINDS, R.VAL_SEEDS):
         scene, clean, noisy, own, snr = render_set(cam, kind, seed, rays, cache)
         depths = R.planes_of(kind, scene)
-        op = ExactOperator(cam, depths, precision=PRECISION)
+        ops = {1: ExactOperator(cam, depths, precision=PRECISION),
+               2: ExactOperator(cam, depths, precision=PRECISION, subsamples=2)}
         mc = EmissionOperator(cam, depths, rays_per_pixel=R.RAYS_OP)
-        truth = scene_truth(scene, op)
+        truth = scene_truth(scene, ops[1])
         for noise, views in (("clean", clean), ("14dB", noisy)):
             labels = dict(scene=kind, seed=seed, noise=noise, own_error=own,
                           noise_level=fourier.relative_noise(views, views < 1.0))
@@ -109,21 +119,26 @@ def tune(cam, rays, cache):
             rec = reconstruct(views, mc, "pd-tv")
             rows.append(dict(labels, route="pd-tv", fills=np.nan, worst=worst_plane(rec.planes, truth),
                              time_s=time.perf_counter() - t0))
-            for lam, tv, mom, inner in itertools.product(*GRID.values()):
-                def cb(j, x):
-                    rows.append(dict(labels, route="admm", lam=lam, tv=tv, momentum=mom, inner=inner, fills=j,
-                                     worst=worst_plane(x, truth)))
-                fourier.solve_admm(views, op, views < 1.0, fills=MAX_FILLS, inner=inner, lam=lam, tv=tv,
-                                   momentum=mom, callback=cb)
+            for sub, grid in ((1, GRID), (2, GRID_FINE)):
+                op = ops[sub]
+                for lam, tv, mom, inner in itertools.product(*grid.values()):
+                    def cb(j, x):
+                        rows.append(dict(labels, route="admm", subsamples=sub, lam=lam, tv=tv, momentum=mom,
+                                         inner=inner, fills=j,
+                                         worst=worst_plane(bin_planes(x.reshape(op.dims), sub), truth)))
+                    fourier.solve_admm(views, op, views < 1.0, fills=MAX_FILLS, inner=inner, lam=lam, tv=tv,
+                                       momentum=mom, callback=cb)
         print(f"  tune {kind} {seed} done", flush=True)
     df = pd.DataFrame(rows)
     best = {}
     for noise, regime in REGIMES.items():
-        admm = df[(df.route == "admm") & (df.noise == noise)]
-        score = admm.groupby(["lam", "tv", "momentum", "inner", "fills"]).worst.max().reset_index()
-        # the fewest fills within 10 % of the best score, then the best of those
-        ok = score[score.worst <= 1.1 * score.worst.min()].sort_values(["fills", "inner", "worst"])
-        best[regime] = ok.iloc[0].to_dict()
+        for sub in (1, 2):
+            admm = df[(df.route == "admm") & (df.noise == noise) & (df.subsamples == sub)]
+            score = admm.groupby(["lam", "tv", "momentum", "inner", "fills"]).worst.max().reset_index()
+            # the fewest fills within 10 % of the best score, then the best of those
+            ok = score[score.worst <= 1.1 * score.worst.min()].sort_values(["fills", "inner", "worst"])
+            best[f"{regime}_{sub}"] = ok.iloc[0].to_dict()
+        best[f"{regime}_subsamples"] = 2 if best[f"{regime}_2"]["worst"] < FINE_GAIN * best[f"{regime}_1"]["worst"] else 1
     return df, best
 
 
@@ -137,6 +152,7 @@ def score(cam, rays, cache, n_tests):
         op = ExactOperator(cam, depths, precision=PRECISION)
         mc = EmissionOperator(cam, depths, rays_per_pixel=R.RAYS_OP)
         truth = scene_truth(scene, op)
+        fine = ExactOperator(cam, depths, precision=PRECISION, subsamples=2)
         for noise, views in (("clean", clean), ("14dB", noisy)):
             labels = dict(scene=kind, seed=seed, noise=noise, snr_measured_db=snr if noise != "clean" else np.inf,
                           own_error=own)
@@ -148,11 +164,15 @@ def score(cam, rays, cache, n_tests):
             rows.append(score_planes(rec.planes, truth, cam, depths, scene.objects, time_s=rec.time_s,
                                      route="reconstruct-pd-tv (4-ray operator)",
                                      measure=measure_settings("reconstruct-pd-tv"), **labels))
-            rec = reconstruct(views, op, "admm")   # its defaults: the knobs of the data's noise level
-            rows.append(score_planes(rec.planes, truth, cam, depths, scene.objects, time_s=rec.time_s,
-                                     route="reconstruct-admm (exact operator)",
-                                     measure=measure_settings("reconstruct-admm"), noise_level=rec.settings["noise"],
-                                     fills=rec.settings["iters"], admm_tv=rec.settings["tv"], **labels))
+            # its defaults: the grid and the knobs of the data's noise level (as lf-flame reconstruct)
+            for name, o in (("reconstruct-admm (exact operator)", fine if fourier.admm_subsamples(len(depths)) == 2 else op),
+                            ("reconstruct-admm (exact operator, lenslet grid)", op)):
+                rec = reconstruct(views, o, "admm")
+                rows.append(score_planes(bin_planes(rec.planes, o.subsamples), truth, cam, depths, scene.objects,
+                                         time_s=rec.time_s, route=name, measure=measure_settings("reconstruct-admm"),
+                                         noise_level=rec.settings["noise"], fills=rec.settings["iters"],
+                                         admm_tv=rec.settings["tv"], admm_lam=rec.settings["lam"],
+                                         subsamples=o.subsamples, **labels))
         print(f"  score {kind} {seed} done", flush=True)
     return pd.concat(rows, ignore_index=True), own_errors
 
@@ -170,16 +190,21 @@ def timing(cam, rays, cache, repeats):
     mc_s = time.perf_counter() - t0
     mask = aperture_mask(cam.pixels_per_lenslet, "circular")
     slopes = [cam.slope_for_depth(d) for d in depths]
-    # admm at its defaults: the noise-free render takes the quiet knobs, the one at 14 dB the noisy ones
-    runs = {"reconstruct-admm (exact operator), noise-free": lambda: reconstruct(clean, op, "admm"),
-            "reconstruct-admm (exact operator), 14 dB": lambda: reconstruct(noisy, op, "admm"),
+    # admm at its defaults (2 x 2 grid) and on the lenslet grid: quiet knobs noise-free, noisy ones at 14 dB
+    t0 = time.perf_counter()
+    fine = ExactOperator(cam, depths, precision=PRECISION, subsamples=2)
+    fine_s = time.perf_counter() - t0
+    runs = {"reconstruct-admm (exact operator), noise-free": lambda: reconstruct(clean, fine, "admm"),
+            "reconstruct-admm (exact operator), 14 dB": lambda: reconstruct(noisy, fine, "admm"),
+            "reconstruct-admm (exact operator, lenslet grid), noise-free": lambda: reconstruct(clean, op, "admm"),
+            "reconstruct-admm (exact operator, lenslet grid), 14 dB": lambda: reconstruct(noisy, op, "admm"),
             "reconstruct-pd-tv (4-ray operator)": lambda: reconstruct(clean, mc, "pd-tv"),
             "refocus-shift-sum (focal_stack)": lambda: focal_stack(clean, slopes, mask)}
     setup = {"reconstruct-pd-tv (4-ray operator)": mc_s, "refocus-shift-sum (focal_stack)": 0.0}
     for name, f in runs.items():
         rec = f()   # warm-up (Numba, threads; admm's per-frequency factors for its knobs, setup)
         if "admm" in name:
-            setup[name] = op_s + rec.settings["system_s"]
+            setup[name] = (op_s if "lenslet grid" in name else fine_s) + rec.settings["system_s"]
         t = []
         for _ in range(repeats if "pd-tv" not in name else max(3, repeats // 4)):
             t1 = time.perf_counter()
@@ -236,25 +261,28 @@ def main(argv=None):
     a.out.mkdir(parents=True, exist_ok=True)
     meta_path = a.out / "fourier_solver.json"
     meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
-    meta.update(rays=a.rays, precision=PRECISION, grid=GRID, max_fills=MAX_FILLS, val_seeds=R.VAL_SEEDS,
+    meta.update(rays=a.rays, precision=PRECISION, grid=GRID, grid_fine=GRID_FINE, fine_gain=FINE_GAIN,
+                max_fills=MAX_FILLS, val_seeds=R.VAL_SEEDS,
                 test_seeds=R.TEST_SEEDS[:a.tests], snr_db=SNR_DB, provenance=provenance())
     t_all = time.perf_counter()
     stages = ("tune", "score", "time", "dense") if a.stage == "all" else (a.stage,)
     if "tune" in stages:
         df, best = tune(cam, a.rays, a.cache)
         df.to_csv(a.out / "fourier_solver_tune.csv", index=False)
-        meta["chosen"] = {regime: {k: (float(v) if k not in ("inner", "fills") else int(v)) for k, v in b.items()}
-                          for regime, b in best.items()}
+        meta["chosen"] = {key: int(b) if isinstance(b, int) else
+                          {k: (float(v) if k not in ("inner", "fills") else int(v)) for k, v in b.items()}
+                          for key, b in best.items()}
         meta["noise_levels"] = df.groupby("noise").noise_level.agg(["min", "max"]).to_dict("index")
         meta["pd_tv_validation_worst"] = df[df.route == "pd-tv"].groupby("noise").worst.max().to_dict()
         print("chosen", meta["chosen"], "noise levels", meta["noise_levels"], "pd-tv validation worst",
               meta["pd_tv_validation_worst"])
     if "chosen" in meta:   # what the package's defaults hold against what was chosen
-        q, n = meta["chosen"]["quiet"], meta["chosen"]["noisy"]
+        c = meta["chosen"]
         meta["defaults_hold_the_choice"] = bool(
-            (q["fills"], q["tv"]) == (defaults.ADMM_QUIET["fills"], defaults.ADMM_QUIET["tv"])
-            and (n["fills"], n["tv"]) == (defaults.ADMM_FILLS, defaults.ADMM_TV)
-            and q["lam"] == n["lam"] == defaults.ADMM_LAM
+            all((c[f"{regime}_{sub}"]["fills"], c[f"{regime}_{sub}"]["tv"], c[f"{regime}_{sub}"]["lam"])
+                == tuple(defaults.ADMM_KNOBS[sub, regime][k] for k in ("fills", "tv", "lam"))
+                and c[f"{regime}_subsamples"] == defaults.ADMM_SUBSAMPLES
+                for regime in ("quiet", "noisy") for sub in (1, 2))
             and meta["noise_levels"]["clean"]["max"] < defaults.ADMM_QUIET_NOISE < meta["noise_levels"]["14dB"]["min"])
     if "score" in stages:
         df, own = score(cam, a.rays, a.cache, a.tests)

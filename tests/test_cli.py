@@ -141,3 +141,20 @@ def test_volume_figure_draws_each_plane_at_its_depth_and_height():
     np.testing.assert_allclose(X[0, [0, -1]], [depths[0] - 0.5, depths[-1] + 1.0])
     height = Y[0] - Y[-1]                     # top minus bottom edge at each depth edge
     np.testing.assert_allclose(np.interp(depths, X[0], height), 10 * h, rtol=1e-9)
+
+
+def test_reconstruct_takes_the_finer_grid_by_default_and_the_lenslet_grid_when_asked(small_flame, capsys):
+    """admm's default grid is 2 x 2 samples per lenslet (planes of twice the rows and columns in
+    the HDF5); ``--subsamples 1`` keeps the lenslet grid; a traced operator always does."""
+    shapes = {}
+    for args in (["--subsamples", "auto"], ["--subsamples", "1"], ["--solver", "fista", "--rays-per-pixel", "1"]):
+        out = small_flame / "sub.h5"
+        assert main(["reconstruct", str(small_flame / "flame.npz"), "--iters", "2", "--depths", "scene", *args,
+                     "--out", str(out)]) == 0
+        printed = capsys.readouterr().out
+        with h5py.File(out) as f:
+            shapes[args[1]] = f["planes"].shape
+            assert ("2 x 2 samples per lenslet" in printed) == (f["planes"].shape[1] == 82)
+    assert shapes == {"auto": (4, 82, 82), "1": (4, 41, 41), "fista": (4, 41, 41)}
+    with pytest.raises(SystemExit):
+        main(["reconstruct", str(small_flame / "flame.npz"), "--subsamples", "3", "--out", str(small_flame / "x.h5")])

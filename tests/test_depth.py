@@ -154,6 +154,7 @@ def test_support_holds_each_plane_to_its_regions(cam, planted):
     scene, views = planted
     found, op, rec = find_planes(views, cam, support=True, solve=dict(lam=0.01, tv=0.0))
     sup = plane_support(found)
+    sup = sup.repeat(op.subsamples, axis=1).repeat(op.subsamples, axis=2)           # on the planes' grid
     assert sup.shape == rec.planes.shape and not np.any(sup[0] & sup[1])     # two regions, one plane each
     assert np.all(rec.planes[~sup] == 0) and np.all(rec.planes[sup].sum() > 0)
     df = score_flames(rec.planes, found.planes_mm, scene, cam, found=list(zip(found.depths_mm, found.masks)))

@@ -118,14 +118,23 @@ def test_the_noise_estimate_and_the_knobs_it_picks(op, planted):
     assert fourier.relative_noise(views) < 0.5 * fourier.ADMM_QUIET_NOISE      # exact light field: quiet
     assert fourier.relative_noise(np.zeros_like(views)) == 0.0
     # the defaults follow the noise: the quiet knobs on the exact light field, the noisy ones at 3 %
+    knobs = fourier.ADMM_KNOBS
     quiet = reconstruct(views, op, "admm", saturation=None).settings
-    assert (quiet["iters"], quiet["tv"]) == (fourier.ADMM_QUIET["fills"], fourier.ADMM_QUIET["tv"])
-    loud = reconstruct(views + rng.normal(scale=0.03 * peak, size=views.shape), op, "admm", saturation=None).settings
-    assert (loud["iters"], loud["tv"]) == (fourier.ADMM_FILLS, fourier.ADMM_TV)
+    assert (quiet["iters"], quiet["tv"], quiet["lam"]) == tuple(knobs[1, "quiet"][k] for k in ("fills", "tv", "lam"))
+    loud_views = views + rng.normal(scale=0.03 * peak, size=views.shape)
+    loud = reconstruct(loud_views, op, "admm", saturation=None).settings
+    assert (loud["iters"], loud["tv"], loud["lam"]) == tuple(knobs[1, "noisy"][k] for k in ("fills", "tv", "lam"))
     assert loud["noise"] > fourier.ADMM_QUIET_NOISE > quiet["noise"]
-    # a knob given is kept, the other still follows the noise
+    # a knob given is kept, the others still follow the noise
     mixed = reconstruct(views, op, "admm", 2, saturation=None).settings
-    assert (mixed["iters"], mixed["tv"]) == (2, fourier.ADMM_QUIET["tv"])
+    assert (mixed["iters"], mixed["tv"]) == (2, knobs[1, "quiet"]["tv"])
+    # the finer grid has its own knobs; the routes take it on all but dense stacks
+    assert fourier.admm_knobs(views, None, subsamples=2)[:3] == tuple(knobs[2, "quiet"][k] for k in ("fills", "tv", "lam"))
+    assert fourier.admm_knobs(loud_views, None, subsamples=2)[:3] == tuple(knobs[2, "noisy"][k] for k in ("fills", "tv", "lam"))
+    assert fourier.admm_subsamples(4) == fourier.ADMM_SUBSAMPLES == 2
+    assert fourier.admm_subsamples(fourier.SUBSAMPLES_MAX_PLANES + 1) == 1
+    with pytest.raises(ValueError, match="subsamples"):
+        fourier.admm_knobs(views, None, subsamples=3)
 
 
 def test_saturated_pixels_are_left_out(op, planted):

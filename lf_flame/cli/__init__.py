@@ -14,7 +14,8 @@ import sys
 
 from ..routes import LEARNED_ROUTES
 from ..simulate.scenes import PAPER_DEPTHS_MM
-from ..tomo.defaults import ADMM_QUIET, ADMM_TV, DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV, EXACT_SOLVER, SOLVERS
+from ..tomo.defaults import (ADMM_KNOBS, ADMM_QUIET, ADMM_SUBSAMPLES, ADMM_TV, DEFAULT_ITERS, DEFAULT_SOLVER,
+                              DEFAULT_TV, EXACT_SOLVER, SOLVERS, SUBSAMPLES_MAX_PLANES)
 from ..tomo.resolution import AXES, CONDITIONS, DEFAULT_FAR_MM, DEFAULT_NEAR_MM, DEFAULT_SPACING_MM, FEATURE_SIZES_MM
 from ._io import RAW_FORMATS
 from .learning import cmd_dataset, cmd_evaluate, cmd_predict, cmd_tables, cmd_train
@@ -50,6 +51,15 @@ class _Parser(argparse.ArgumentParser):
 def _level_or_none(text: str):
     """A sensor level for ``--saturation``, or None for 'none'."""
     return None if text.lower() == "none" else float(text)
+
+
+def _subsamples(text: str):
+    """``--subsamples``: 1 or 2, or None for 'auto'."""
+    if text.lower() == "auto":
+        return None
+    if text not in ("1", "2"):
+        raise argparse.ArgumentTypeError(f"--subsamples takes auto, 1 or 2. Received: {text!r}")
+    return int(text)
 
 
 def _sequence_scene_args(s, simulate_only=False):
@@ -268,7 +278,15 @@ def build_parser() -> argparse.ArgumentParser:
                    + ", ".join(f"{k} {v}" for k, v in OWN_CAMERA_ITERS.items()) + ")")
     s.add_argument("--damp", type=float, default=0.0, help="LSQR damping (Tikhonov)")
     s.add_argument("--tv", type=float, default=None, help=f"TV weight of pd-tv (default: {DEFAULT_TV}) or of admm "
-                   f"(default by the light field's noise: {ADMM_QUIET['tv']} on quiet data, {ADMM_TV} on noisy)")
+                   f"(default by the light field's noise and the grid: on {ADMM_SUBSAMPLES} x {ADMM_SUBSAMPLES} samples "
+                   f"per lenslet {ADMM_KNOBS[ADMM_SUBSAMPLES, 'quiet']['tv']} on quiet data, "
+                   f"{ADMM_KNOBS[ADMM_SUBSAMPLES, 'noisy']['tv']} on noisy; on the lenslet grid "
+                   f"{ADMM_QUIET['tv']} and {ADMM_TV})")
+    s.add_argument("--subsamples", type=_subsamples, default=None,
+                   help="samples per lenslet and axis of the planes' grid on the exact operator: 1 (the lenslet grid) "
+                        "or 2 (detail finer than a lenslet, seen off focus in the views' parallax; 4x the unknowns). "
+                        f"Default 'auto': {ADMM_SUBSAMPLES} for admm on at most {SUBSAMPLES_MAX_PLANES} planes, "
+                        "else 1")
     s.add_argument("--saturation", type=_level_or_none, default=argparse.SUPPRESS,
                    help="the sensor's clipping level in the views' units: pixels at or above it are left out of the "
                         "fit ('none': fit every pixel; default 1.0). With --camera only 'none' (fit every sample): "

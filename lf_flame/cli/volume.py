@@ -75,13 +75,20 @@ def found_planes(cam, views):
 
 
 def run_reconstruction(cam, views, depths, solver=None, iters=None, *, damp=0.0, tv=None, saturation=1.0,
-                       rays_per_pixel=None, progress=False):
+                       rays_per_pixel=None, progress=False, subsamples=None):
     """Build the operator of ``cam`` at ``depths`` (:func:`lf_flame.tomo.exact.emission_operator`:
     exact unless ``rays_per_pixel`` is given or the camera needs tracing) and solve
-    (:func:`lf_flame.tomo.solvers.reconstruct`; solver None: the operator's default)."""
+    (:func:`lf_flame.tomo.solvers.reconstruct`; solver None: the operator's default). The
+    exact operator's grid: ``subsamples`` samples per lenslet; None: admm's
+    (:func:`lf_flame.tomo.fourier.admm_subsamples`), 1 for the other solvers."""
+    from ..tomo.defaults import EXACT_SOLVER
     from ..tomo.exact import emission_operator
+    from ..tomo.fourier import admm_subsamples
     from ..tomo.solvers import reconstruct
-    op = emission_operator(cam, depths, rays_per_pixel=rays_per_pixel)
+    if subsamples is None:
+        admm = rays_per_pixel is None and (solver or EXACT_SOLVER) == "admm"
+        subsamples = admm_subsamples(len(depths)) if admm else 1
+    op = emission_operator(cam, depths, rays_per_pixel=rays_per_pixel, subsamples=subsamples)
     return op, reconstruct(views, op, solver, iters, damp=damp, tv=tv, saturation=saturation, progress=progress)
 
 
@@ -110,18 +117,22 @@ def cmd_reconstruct(a):
         extra = dict(depths_from="auto", found_depths=found)
     op, rec = run_reconstruction(cam, views, depths, a.solver, a.iters, damp=a.damp, tv=a.tv,
                                  saturation=getattr(a, "saturation", 1.0), rays_per_pixel=a.rays_per_pixel,
-                                 progress=True)
+                                 progress=True, subsamples=getattr(a, "subsamples", None))
     print(saturation_note(rec))
     out = Path(a.out)
     save_reconstruction(out, rec, source=str(a.raw), camera=cam.to_json(), **extra)
     n = cam.pixels_per_lenslet
     refocused = focal_stack(views, [cam.slope_for_depth(d) for d in depths], aperture_mask(n, "circular"))
+    sub = getattr(op, "subsamples", 1)
+    refocused = np.repeat(np.repeat(refocused, sub, axis=1), sub, axis=2)      # on the planes' grid
     scene = _raw_scene(a.raw, cam)
     truth = None if scene is None else scene_truth(scene, op)
     fig = out.with_suffix(".png")
     plot_reconstruction(fig, rec, refocused, truth)
     res = f"{rec.residuals[-1]:.4f}" if len(rec.residuals) else "-"
-    print(f"reconstructed {len(depths)} planes ({rec.solver}, {rec.settings['iters']} iterations) in {rec.time_s:.2f} s;"
+    grid = f", {sub} x {sub} samples per lenslet" if sub > 1 else ""
+    print(f"reconstructed {len(depths)} planes ({rec.solver}, {rec.settings['iters']} iterations{grid}) in "
+          f"{rec.time_s:.2f} s;"
           f" relative residual {res} -> {out}, {fig}" + ("" if truth is None else " (with the scene's truth)"))
 
 

@@ -29,7 +29,8 @@ __getattr__, __dir__, __all__ = lazy.attach(
                   "find_planes"],
         "exact": ["QUADRATURE_NODES", "SHIFT_TOLERANCE", "PRECISIONS", "ExactKernels", "exact_kernels",
                   "ExactOperator", "emission_operator"],
-        "fourier": ["FourierSystem", "fourier_system", "admm_system", "solve_admm"],
+        "fourier": ["FourierSystem", "fourier_system", "admm_system", "solve_admm", "admm_knobs", "admm_subsamples",
+                    "relative_noise"],
         "files": ["save_reconstruction", "load_reconstruction", "plot_reconstruction"],
         "operator": ["ADJOINT_BLOCKS", "RAY_TABLE_MAX_BYTES", "plane_grid", "EmissionOperator",
                      "normalised_adjoint", "check_views"],
@@ -39,6 +40,6 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "scoring": ["score_planes", "score_flames"],
         "solvers": ["SOLVERS", "DEFAULT_ITERS", "DEFAULT_TV", "PD_RESIDUAL_EVERY", "DEFAULT_SOLVER", "EXACT_SOLVER",
                  "Reconstruction", "lipschitz_bound", "reconstruct"],
-        "truth": ["resample_layer", "scene_truth", "depth_shares"],
+        "truth": ["resample_layer", "scene_truth", "depth_shares", "bin_planes"],
     },
 )

@@ -38,7 +38,8 @@ def white_views(op: ExactOperator) -> np.ndarray:
     -------
     ndarray of shape (N, N, R, C), float64
     """
-    per_view = op.kernels.sum(axis=(3, 4)).mean(axis=2)          # (N, N): the same on every plane
+    # (N, N): the same on every plane; a plane's s^2 phase kernels share its taps
+    per_view = op.kernels.sum(axis=(3, 4)).mean(axis=2) * op.subsamples ** 2
     return op.weights * per_view[:, :, None, None]
 
 

@@ -39,3 +39,19 @@ ADMM_TV = 0.3
 #: no level in between).
 ADMM_QUIET_NOISE = 0.005
 ADMM_QUIET = {"fills": 6, "tv": 0.0}
+#: admm's knobs per planes' grid (samples per lenslet footprint and axis,
+#: :class:`~lf_flame.tomo.exact.ExactOperator`'s ``subsamples``) and noise level, chosen on the
+#: validation renders as above (``--stage tune`` tries both grids: ``results/fourier_solver.md``).
+ADMM_KNOBS = {(1, "quiet"): dict(ADMM_QUIET, lam=ADMM_LAM),
+              (1, "noisy"): {"fills": ADMM_FILLS, "tv": ADMM_TV, "lam": ADMM_LAM},
+              (2, "quiet"): {"fills": 11, "tv": 0.0, "lam": 0.003},
+              (2, "noisy"): {"fills": 4, "tv": 0.1, "lam": 0.01}}
+#: The planes' grid of the routes that build their operator (``lf-flame reconstruct``,
+#: :func:`lf_flame.tomo.depth.find_planes`): a light field carries detail finer than a lenslet in
+#: its views' parallax off focus, and the 2 x 2 grid beat the lenslet grid on the validation
+#: renders at both noise levels (worst plane 2.3 % against 6.2 % noise-free, 11.4 % against 13.2 %
+#: at 14 dB), at about twice the time per solve ...
+ADMM_SUBSAMPLES = 2
+#: ... for stacks of at most this many planes (the per-frequency matrices grow as (P s^2)^2: at 16
+#: planes on the 2 x 2 grid they are 64 x 64, some 350 MB on the paper's camera in float32)
+SUBSAMPLES_MAX_PLANES = 16

@@ -318,7 +318,7 @@ def plane_support(found: FoundDepths, dilation: int = SUPPORT_DILATION) -> np.nd
 
 
 def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturation=1.0, support: bool = False,
-                dilation: int = SUPPORT_DILATION, solve=None, **find_kw):
+                dilation: int = SUPPORT_DILATION, solve=None, subsamples: int | None = None, **find_kw):
     """Found depths (:func:`find_depths`) and the emission on their planes.
 
     The planes' emission is ``reconstruct(views, emission_operator(camera, planes_mm), solver)``
@@ -328,14 +328,16 @@ def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturat
     region, the prior of few depths per line of sight. ``solve``: more keywords of
     ``reconstruct`` (``iters``, ``lam``, ``tv``). ``experiments/depth.py --variant support``
     measures ``support=True, solve=dict(lam=0.01, tv=0.0)`` (TV 0.3 flattens flames a few
-    lenslets wide; chosen on validation renders, seeds 100-107).
+    lenslets wide; chosen on validation renders, seeds 100-107). ``subsamples``: samples per
+    lenslet and axis of the planes' grid; None: admm's
+    (:func:`lf_flame.tomo.fourier.admm_subsamples`), 1 for the other solvers.
 
     Returns
     -------
     found : FoundDepths
     op : the operator of the planes
     rec : Reconstruction
-        Its ``planes`` (P, R, C) on ``found.planes_mm``; ``rec.time_s`` the solve's wall time.
+        Its ``planes`` (P, s R, s C) on ``found.planes_mm``; ``rec.time_s`` the solve's wall time.
 
     Raises
     ------
@@ -347,7 +349,11 @@ def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturat
     found = find_depths(views, camera, **find_kw)
     if not len(found.planes_mm):
         raise ValueError("no emission found in the views: lower threshold or check the light field")
-    op = emission_operator(camera, [float(d) for d in found.planes_mm])
-    sup = plane_support(found, dilation) if support and solver == "admm" else None
+    if subsamples is None:
+        from .fourier import admm_subsamples
+        subsamples = admm_subsamples(len(found.planes_mm)) if solver == "admm" else 1
+    op = emission_operator(camera, [float(d) for d in found.planes_mm], subsamples=subsamples)
+    s = getattr(op, "subsamples", 1)
+    sup = plane_support(found, dilation).repeat(s, axis=1).repeat(s, axis=2) if support and solver == "admm" else None
     rec = reconstruct(np.asarray(views, np.float64), op, solver, saturation=saturation, support=sup, **(solve or {}))
     return found, op, rec

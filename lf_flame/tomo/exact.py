@@ -115,9 +115,12 @@ class ExactKernels:
         Each plane's grid frame (height, width) in mm; its sample is ``height / dims[1]`` mm.
     margin : float
     dims : (P, rows, cols)
-        Model shape.
+        Model shape: ``subsamples`` times the lenslet grid per axis.
     dimsd : (N, N, R, C)
         Data shape (views).
+    subsamples : int
+        Samples per lenslet footprint and axis; above 1 ``kernels`` (and the tap origins)
+        hold ``P subsamples^2`` phase kernels on the lenslet grid (:func:`_phase_kernels`).
     """
 
     kernels: np.ndarray
@@ -129,14 +132,17 @@ class ExactKernels:
     margin: float
     dims: tuple
     dimsd: tuple
+    subsamples: int = 1
 
 
 def exact_kernels(camera: PlenopticCamera, depths_mm, *, margin: float = 1.0, effects: Effects = FLAME_EFFECTS,
-                  quadrature_nodes: int = QUADRATURE_NODES) -> ExactKernels:
+                  quadrature_nodes: int = QUADRATURE_NODES, subsamples: int = 1) -> ExactKernels:
     """The exact map's kernels by quadrature of the tracer's ray chain (module docstring).
 
     What :class:`ExactOperator` builds its spectra from; parameters as there. Used alone
-    where only the kernels are needed (:mod:`lf_flame.tomo.resolution`).
+    where only the kernels are needed (:mod:`lf_flame.tomo.resolution`). With
+    ``subsamples = s > 1`` the texel coordinates are those of the ``s``-times finer grid
+    and the kernels are regrouped by phase (:func:`_phase_kernels`).
 
     Returns
     -------
@@ -158,6 +164,9 @@ def exact_kernels(camera: PlenopticCamera, depths_mm, *, margin: float = 1.0, ef
                          "use lf_flame.tomo.operator.EmissionOperator for Effects(crosstalk=True)")
     if int(quadrature_nodes) != quadrature_nodes or quadrature_nodes < 1:
         raise ValueError(f"quadrature_nodes must be a positive integer. Received: {quadrature_nodes!r}")
+    if int(subsamples) != subsamples or subsamples < 1:
+        raise ValueError(f"subsamples must be a positive integer. Received: {subsamples!r}")
+    sub = int(subsamples)
     depths = [float(d) for d in np.atleast_1d(np.asarray(depths_mm, dtype=np.float64))]
     if not depths:
         raise ValueError("depths_mm is empty: give at least one plane")
@@ -180,6 +189,7 @@ def exact_kernels(camera: PlenopticCamera, depths_mm, *, margin: float = 1.0, ef
     kx = np.concatenate([kx_sorted[:2], kx_sorted[2 + inv]])
     cy, ay, ty, dty = ExactOperator._axis(ky, N, R, "row")
     cx, ax, tx, dtx = ExactOperator._axis(kx, N, C, "column")
+    cy, cx = cy * sub, cx * sub                                  # texel coordinates on the finer grid
 
     # taps of each view and plane, and the canvas no wrap-around reaches
     def taps(coef):
@@ -207,8 +217,45 @@ def exact_kernels(camera: PlenopticCamera, depths_mm, *, margin: float = 1.0, ef
     else:
         weights = np.ones((N, N, R, C))
     weights = np.ascontiguousarray(np.broadcast_to(weights, (N, N, R, C)))
+    if sub > 1:
+        h, m0y, n0x = _phase_kernels(h, m0y, n0x, sub)
     return ExactKernels(h, m0y, n0x, weights, tuple(depths), tuple(tuple(float(v) for v in s) for s in sizes),
-                        margin, (P, gr, gc), (N, N, R, C))
+                        margin, (P, sub * gr, sub * gc), (N, N, R, C), sub)
+
+
+def _phase_kernels(h, m0y, n0x, s):
+    """Fine-grid kernels regrouped into ``s^2`` phase kernels per plane on the lenslet grid.
+
+    On the ``s``-times finer grid a pixel of lenslet ``r`` reads fine sample
+    ``s r + m0 + m``; writing ``m0 + m = s Q + a`` it reads sample ``r + Q`` of the phase
+    image ``x_a[r] = x_fine[s r + a]``. So each phase ``(a, b)`` of plane ``k`` is one more
+    plane of the lenslet-grid convolution, with the taps of that residue: the polyphase
+    decomposition (Vaidyanathan, *Multirate Systems and Filter Banks*, 1993, ch. 4).
+
+    Parameters
+    ----------
+    h : ndarray of shape (N, N, P, Ty, Tx)
+        Taps on the fine grid; ``m0y`` (N, P) and ``n0x`` (N, P) their origins (fine samples).
+    s : int
+
+    Returns
+    -------
+    kernels : ndarray of shape (N, N, P s^2, Ty', Tx')
+        Plane index ``k s^2 + a s + b`` (``a`` the row phase, ``b`` the column phase).
+    tap_origin_y, tap_origin_x : ndarray of shape (N, P s^2), int64
+        In lenslets, the same for every phase of a plane.
+    """
+    N, _, P, Tyf, Txf = h.shape
+    q0y, q0x = m0y // s, n0x // s
+    Ty, Tx = (Tyf + s - 2) // s + 1, (Txf + s - 2) // s + 1
+    qy = m0y[:, :, None] + np.arange(Tyf)                        # (N, P, Tyf) fine sample read
+    qx = n0x[:, :, None] + np.arange(Txf)
+    ay, Qy = qy % s, qy // s - q0y[:, :, None]
+    bx, Qx = qx % s, qx // s - q0x[:, :, None]
+    u, v, k, m, n = np.ix_(*(np.arange(d) for d in h.shape))
+    out = np.zeros((N, N, P, s, s, Ty, Tx))
+    out[u, v, k, ay[u, k, m], bx[v, k, n], Qy[u, k, m], Qx[v, k, n]] = h
+    return (out.reshape(N, N, P * s * s, Ty, Tx), np.repeat(q0y, s * s, axis=1), np.repeat(q0x, s * s, axis=1))
 
 
 # ---- the operator ----------------------------------------------------------------------------
@@ -239,17 +286,28 @@ class ExactOperator(pylops.LinearOperator):
         Gauss-Legendre nodes per smooth piece of a pixel (:data:`QUADRATURE_NODES`).
     workers : int or None
         Threads of SciPy's FFTs; None: all cores.
+    subsamples : int
+        Samples per lenslet footprint and axis of the planes' grids (default 1). Off focus
+        the views see a plane at sub-lenslet shifts (their parallax), so a light field
+        carries detail finer than a lenslet there; ``2`` models it (a 2 x 2 grid per lenslet,
+        applied as ``4 P`` phase planes of the same convolutions: :func:`_phase_kernels`),
+        at ``subsamples^2`` times the unknowns. At focus every view sees a sample's whole
+        footprint, so there only the phases' sum is measured.
 
     Attributes
     ----------
     dims : (P, rows, cols)
-        Model shape (plane as ``depths_mm``, rows down, columns right).
+        Model shape (plane as ``depths_mm``, rows down, columns right): ``subsamples``
+        times the lenslet grid per axis.
+    phase_dims : (P subsamples^2, rows / subsamples, cols / subsamples)
+        The planes as the convolutions see them (:meth:`to_phases`).
     dimsd : (N, N, R, C)
         Data shape: the views of :func:`lf_flame.refocus.shift_and_sum.raw_to_views`.
-    kernels : ndarray of shape (N, N, P, Ty, Tx), float64
-        The taps ``h``; tap ``(m, n)`` reads the plane at offset ``(tap_origin_y[u, k] + m,
-        tap_origin_x[v, k] + n)`` samples from the pixel's lenslet.
-    tap_origin_y, tap_origin_x : ndarray of shape (N, P), int64
+    kernels : ndarray of shape (N, N, P', Ty, Tx), float64
+        The taps ``h`` of the ``P' = phase_dims[0]`` phase planes; tap ``(m, n)`` reads the
+        phase plane at offset ``(tap_origin_y[u, k] + m, tap_origin_x[v, k] + n)`` lenslets
+        from the pixel's lenslet.
+    tap_origin_y, tap_origin_x : ndarray of shape (N, P'), int64
     weights : ndarray of shape (N, N, R, C), float64
         The per-pixel cos^4 drift ``w`` (1 without cos^4).
     canvas_shape : (int, int)
@@ -266,7 +324,7 @@ class ExactOperator(pylops.LinearOperator):
     ValueError
         A non-perfect lenslet grid, occlusion or crosstalk on, no planes, a plane the
         camera cannot image, a margin that does not give whole samples, an unknown
-        precision, fewer than 1 quadrature node, or a camera whose chain is not
+        precision, fewer than 1 quadrature node or subsample, or a camera whose chain is not
         shift-invariant across lenslets (message names the deviation).
 
     Notes
@@ -284,13 +342,16 @@ class ExactOperator(pylops.LinearOperator):
     """
 
     def __init__(self, camera: PlenopticCamera, depths_mm, *, margin: float = 1.0, effects: Effects = FLAME_EFFECTS,
-                 precision: str = "float64", quadrature_nodes: int = QUADRATURE_NODES, workers: int | None = None):
+                 precision: str = "float64", quadrature_nodes: int = QUADRATURE_NODES, workers: int | None = None,
+                 subsamples: int = 1):
         t_start = time.perf_counter()
         if precision not in PRECISIONS:
             raise ValueError(f"precision must be one of {PRECISIONS}. Received: {precision!r}")
-        ek = exact_kernels(camera, depths_mm, margin=margin, effects=effects, quadrature_nodes=quadrature_nodes)
+        ek = exact_kernels(camera, depths_mm, margin=margin, effects=effects, quadrature_nodes=quadrature_nodes,
+                           subsamples=subsamples)
         h, weights, m0y, n0x = ek.kernels, ek.weights, ek.tap_origin_y, ek.tap_origin_x
-        (P, gr, gc), (N, _, R, C), (n_ty, n_tx) = ek.dims, ek.dimsd, h.shape[3:]
+        sub = ek.subsamples
+        (N, _, R, C), (P, gr, gc), (n_ty, n_tx) = ek.dimsd, (h.shape[2], ek.dims[1] // sub, ek.dims[2] // sub), h.shape[3:]
 
         lr = scipy.fft.next_fast_len(max(gr - int(m0y.min()), R + int((m0y + n_ty - 1).max()), gr), real=True)
         lc = scipy.fft.next_fast_len(max(gc - int(n0x.min()), C + int((n0x + n_tx - 1).max()), gc), real=True)
@@ -313,14 +374,15 @@ class ExactOperator(pylops.LinearOperator):
         self.camera, self.effects, self.precision = camera, effects, precision
         self.depths_mm = ek.depths_mm
         self.sizes_mm = ek.sizes_mm
-        self.centres_mm = ((0.0, 0.0),) * P
+        self.centres_mm = ((0.0, 0.0),) * len(ek.depths_mm)
         self.margin = ek.margin
         self.rays_per_pixel = self.seed = None
         self.kernels, self.weights = h, weights
         self.tap_origin_y, self.tap_origin_x = m0y, n0x
         self.canvas_shape = (lr, lc)
         self.workers = os.cpu_count() if workers is None else int(workers)
-        super().__init__(dtype=np.float64, dims=(P, gr, gc), dimsd=(N, N, R, C))
+        self.subsamples, self.phase_dims = sub, (P, gr, gc)
+        super().__init__(dtype=np.float64, dims=ek.dims, dimsd=(N, N, R, C))
         self.nbytes = int(self._spec.nbytes + self._w.nbytes + h.nbytes + weights.nbytes)
         self.setup_s = time.perf_counter() - t_start
 
@@ -348,22 +410,42 @@ class ExactOperator(pylops.LinearOperator):
         return coef, height, angle, np.asarray(step, np.float64)
 
     # ---- application -------------------------------------------------------------------
+    def to_phases(self, x) -> np.ndarray:
+        """Planes ``(P, s rows, s cols)`` as their phase images ``(P s^2, rows, cols)`` on the lenslet grid.
+
+        Phase ``(a, b)`` of plane ``k`` is entry ``k s^2 + a s + b``: ``x[k, a::s, b::s]``
+        (:func:`_phase_kernels`). The identity (a view) when ``subsamples`` is 1.
+        """
+        s, (P, gr, gc) = self.subsamples, self.phase_dims
+        x = np.reshape(x, self.dims)
+        if s == 1:
+            return x
+        return x.reshape(-1, gr, s, gc, s).transpose(0, 2, 4, 1, 3).reshape(P, gr, gc)
+
+    def from_phases(self, xp) -> np.ndarray:
+        """The inverse of :meth:`to_phases`: phase images ``(P s^2, rows, cols)`` as planes ``self.dims``."""
+        s, (P, gr, gc) = self.subsamples, self.phase_dims
+        xp = np.reshape(xp, (P, gr, gc))
+        if s == 1:
+            return xp
+        return xp.reshape(-1, s, s, gr, gc).transpose(0, 3, 1, 4, 2).reshape(self.dims)
+
     def _matvec(self, x):
         N, _, R, C = self.dimsd
         s = self.canvas_shape
-        xs = scipy.fft.rfft2(np.reshape(x, self.dims).astype(self._real, copy=False), s=s, workers=self.workers)
+        xs = scipy.fft.rfft2(self.to_phases(x).astype(self._real, copy=False), s=s, workers=self.workers)
         ys = _fourier_kernels.spectra_forward(self._spec, xs)
         y = np.zeros((N * N, R, C), self._real)
         y[self._lit] = scipy.fft.irfft2(ys, s=s, workers=self.workers)[:, :R, :C]
         return (y * self._w).astype(np.float64, copy=False).ravel()
 
     def _rmatvec(self, y):
-        P, gr, gc = self.dims
+        P, gr, gc = self.phase_dims
         s = self.canvas_shape
         yw = np.reshape(y, (-1,) + tuple(self.dimsd[2:]))[self._lit].astype(self._real, copy=False) * self._w[self._lit]
         xs = _fourier_kernels.spectra_adjoint(self._spec, scipy.fft.rfft2(yw, s=s, workers=self.workers))
         x = scipy.fft.irfft2(xs, s=s, workers=self.workers)[:, :gr, :gc]
-        return x.astype(np.float64, copy=False).ravel()
+        return self.from_phases(x).astype(np.float64, copy=False).ravel()
 
     def normalised_adjoint(self, views) -> np.ndarray:
         """``A^T y / A^T 1``: each sample's weighted mean over the pixels that see it, a refocused stack.
@@ -380,7 +462,7 @@ class ExactOperator(pylops.LinearOperator):
 
 
 def emission_operator(camera: PlenopticCamera, depths_mm, *, rays_per_pixel: int | None = None,
-                      effects: Effects = FLAME_EFFECTS):
+                      effects: Effects = FLAME_EFFECTS, subsamples: int = 1):
     """The camera's operator for ``depths_mm``: exact when it can be, traced when asked or needed.
 
     Parameters
@@ -394,6 +476,9 @@ def emission_operator(camera: PlenopticCamera, depths_mm, *, rays_per_pixel: int
         crosstalk, else the traced :class:`~lf_flame.tomo.operator.EmissionOperator` at 4 rays
         per pixel. A number: the traced operator at that many rays (the reference).
     effects : Effects
+    subsamples : int
+        The exact operator's samples per lenslet and axis (:class:`ExactOperator`); a
+        traced operator keeps one per lenslet.
 
     Returns
     -------
@@ -406,6 +491,6 @@ def emission_operator(camera: PlenopticCamera, depths_mm, *, rays_per_pixel: int
     """
     from .operator import EmissionOperator
     if rays_per_pixel is None and camera.perfect_grid and not effects.crosstalk and not effects.occlusion:
-        return ExactOperator(camera, depths_mm, effects=effects, precision="float32")
+        return ExactOperator(camera, depths_mm, effects=effects, precision="float32", subsamples=subsamples)
     return EmissionOperator(camera, list(depths_mm), rays_per_pixel=4 if rays_per_pixel is None else int(rays_per_pixel),
                             effects=effects)

@@ -50,8 +50,8 @@ import scipy.fft
 
 from . import _fourier_kernels
 
-from .defaults import (ADMM_FILLS, ADMM_INNER, ADMM_LAM, ADMM_MOMENTUM, ADMM_QUIET, ADMM_QUIET_NOISE, ADMM_RHO,
-                       ADMM_RHO_TV, ADMM_TV)
+from .defaults import (ADMM_FILLS, ADMM_INNER, ADMM_KNOBS, ADMM_LAM, ADMM_MOMENTUM, ADMM_QUIET_NOISE, ADMM_RHO,
+                       ADMM_RHO_TV, ADMM_SUBSAMPLES, ADMM_TV, SUBSAMPLES_MAX_PLANES)
 
 
 #: Largest imaginary part of the normal matrices, relative to their largest entry, that is
@@ -201,23 +201,45 @@ def relative_noise(views, fit=None) -> float:
     return float(math.sqrt(math.pi / 2) * np.median(sig) / 6 / peak) if sig else 0.0
 
 
-def admm_knobs(views, fit, fills=None, tv=None):
-    """admm's fills and TV weight for these views: those given, the others by their noise.
+def admm_knobs(views, fit, fills=None, tv=None, lam=None, subsamples: int = 1):
+    """admm's fills, TV and gradient weights for these views: those given, the others by their noise.
+
+    The knobs not given come from :data:`~lf_flame.tomo.defaults.ADMM_KNOBS` for the
+    planes' grid (``subsamples``) and the light field's noise level (quiet below
+    :data:`~lf_flame.tomo.defaults.ADMM_QUIET_NOISE`).
 
     Returns
     -------
     fills : int
-    tv : float
+    tv, lam : float
     noise : float
-        :func:`relative_noise` of the views (NaN when both knobs were given: not measured).
+        :func:`relative_noise` of the views (NaN when every knob was given: not measured).
+
+    Raises
+    ------
+    ValueError
+        A grid the knobs were not chosen for.
     """
-    if fills is not None and tv is not None:
-        return int(fills), float(tv), math.nan
-    noise = relative_noise(views, fit)
-    quiet = noise < ADMM_QUIET_NOISE
-    fills = int(fills) if fills is not None else ADMM_QUIET["fills"] if quiet else ADMM_FILLS
-    tv = float(tv) if tv is not None else ADMM_QUIET["tv"] if quiet else ADMM_TV
-    return fills, tv, noise
+    if (subsamples, "quiet") not in ADMM_KNOBS:
+        raise ValueError(f"admm's knobs were chosen for subsamples in {sorted({k for k, _ in ADMM_KNOBS})}; give "
+                         f"fills, tv and lam for subsamples={subsamples!r}")
+    noise = math.nan if None not in (fills, tv, lam) else relative_noise(views, fit)
+    knobs = ADMM_KNOBS[subsamples, noise_regime(noise)]
+    return (int(knobs["fills"] if fills is None else fills), float(knobs["tv"] if tv is None else tv),
+            float(knobs["lam"] if lam is None else lam), noise)
+
+
+def noise_regime(noise: float) -> str:
+    """``"quiet"`` below :data:`~lf_flame.tomo.defaults.ADMM_QUIET_NOISE` of relative noise, else ``"noisy"``."""
+    return "quiet" if noise < ADMM_QUIET_NOISE else "noisy"
+
+
+def admm_subsamples(n_planes: int) -> int:
+    """The planes' grid (samples per lenslet and axis) of the routes that build their operator:
+    :data:`~lf_flame.tomo.defaults.ADMM_SUBSAMPLES`, or 1 for stacks of more than
+    :data:`~lf_flame.tomo.defaults.SUBSAMPLES_MAX_PLANES` planes (the per-frequency matrices
+    grow as ``(P s^2)^2``: dense stacks stay on the lenslet grid)."""
+    return 1 if n_planes > SUBSAMPLES_MAX_PLANES else ADMM_SUBSAMPLES
 
 
 def fourier_system(op, lam: float = ADMM_LAM, rho: float = ADMM_RHO) -> FourierSystem:
@@ -294,9 +316,11 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     kept = list(op.__dict__.get("_fourier_systems", {}).values())
     system = admm_system(op, lam, tv, rho, rho_tv)
     system_s = 0.0 if any(system is k for k in kept) else system.setup_s
-    P, gr, gc = op.dims
+    P, gr, gc = op.phase_dims                                        # the lenslet grid's planes (phases)
     N, _, R, C = op.dimsd
     canvas = op.canvas_shape
+    if support is not None:
+        support = op.to_phases(support)
     real = np.float32 if system.spec.dtype == np.complex64 else np.float64
     w = op._w[system.lit]                                             # (V', R, C)
     y = np.asarray(views, np.float64).reshape(N * N, R, C)[system.lit]
@@ -339,8 +363,8 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
                 gy, gx = shrink * vy, shrink * vx
                 ey, ex = vy - gy, vx - gx
         if callback is not None:
-            callback(j, s[:, :gr, :gc].astype(np.float64).ravel())
-    return s[:, :gr, :gc].astype(np.float64), residuals, system_s
+            callback(j, op.from_phases(s[:, :gr, :gc]).astype(np.float64).ravel())
+    return op.from_phases(s[:, :gr, :gc]).astype(np.float64), residuals, system_s
 
 
 def _grad_adjoint(gy, gx):

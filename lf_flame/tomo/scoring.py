@@ -110,15 +110,22 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
     Raises
     ------
     ValueError
-        Planes not (P, R, C) of the camera's grid, or as many depths as planes; a scene whose
+        Planes not (P, R, C) of the camera's lenslet grid (or ``(P, s R, s C)``, an
+        :class:`~lf_flame.tomo.exact.ExactOperator`'s with ``subsamples = s``: averaged to the
+        lenslets, :func:`~lf_flame.tomo.truth.bin_planes`), or not as many depths as planes; a scene whose
         layers and objects differ in number.
     """
     import pandas as pd
     from scipy import ndimage
+    from .truth import bin_planes
     x = np.asarray(planes, np.float64)
     d = np.asarray(depths_mm, np.float64)
+    sub = x.shape[1] // camera.n_rows if x.ndim == 3 else 0
+    if sub > 1 and x.shape[1:] == (sub * camera.n_rows, sub * camera.n_cols):
+        x = bin_planes(x, sub)                     # a finer grid, scored on the lenslets
     if x.ndim != 3 or x.shape[1:] != (camera.n_rows, camera.n_cols) or len(d) != len(x):
-        raise ValueError(f"planes {x.shape} must be (P, {camera.n_rows}, {camera.n_cols}) with P = {len(d)} depths")
+        raise ValueError(f"planes {x.shape} must be (P, {camera.n_rows}, {camera.n_cols}) (or s times as many rows "
+                         f"and columns) with P = {len(d)} depths")
     if len(scene.layers) != len(scene.objects):
         raise ValueError(f"scene has {len(scene.layers)} layers but {len(scene.objects)} objects: one per flame")
     shape = x.shape[1:]

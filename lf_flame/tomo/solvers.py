@@ -20,7 +20,7 @@ from pyproximal.optimization.primal import ProximalGradient
 from pyproximal.optimization.primaldual import PrimalDual
 from tqdm.auto import tqdm
 
-from .defaults import (ADMM_LAM, ADMM_TV, DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV, EXACT_SOLVER,  # noqa: F401
+from .defaults import (ADMM_TV, DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV, EXACT_SOLVER,  # noqa: F401
                        SOLVERS)   # (re-exported)
 from .operator import EmissionOperator, check_views
 
@@ -89,7 +89,7 @@ def lipschitz_bound(op: EmissionOperator) -> float:
 
 
 def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: int | None = None, *,
-                damp: float = 0.0, tv: float | None = None, lam: float = ADMM_LAM, saturation=1.0,
+                damp: float = 0.0, tv: float | None = None, lam: float | None = None, saturation=1.0,
                 progress: bool = False, callback=None, support=None) -> Reconstruction:
     """Recover the emission on the operator's planes from one light field.
 
@@ -121,14 +121,13 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         Iterations; None: :data:`DEFAULT_ITERS`, admm's by the data's noise (below).
     damp, tv : float
         LSQR's damping and the TV weight (>= 0; None: pd-tv's :data:`DEFAULT_TV`, admm's by
-        the data's noise); ignored by the other solvers. admm with ``iters`` or ``tv`` None
-        measures the views' relative noise (:func:`lf_flame.tomo.fourier.relative_noise`,
+        the data's noise); ignored by the other solvers. admm with ``iters``, ``tv`` or ``lam``
+        None measures the views' relative noise (:func:`lf_flame.tomo.fourier.relative_noise`,
         ``settings["noise"]``) and takes the knobs it was not given from
-        :data:`~lf_flame.tomo.defaults.ADMM_QUIET` below
-        :data:`~lf_flame.tomo.defaults.ADMM_QUIET_NOISE`, else
-        :data:`~lf_flame.tomo.defaults.ADMM_FILLS` and :data:`~lf_flame.tomo.defaults.ADMM_TV`.
-    lam : float
-        admm's gradient weight relative to the stack's light (:data:`~lf_flame.tomo.defaults.ADMM_LAM`).
+        :data:`~lf_flame.tomo.defaults.ADMM_KNOBS` for the operator's grid (``op.subsamples``)
+        and the noise level (:func:`lf_flame.tomo.fourier.admm_knobs`).
+    lam : float or None
+        admm's gradient weight relative to the stack's light; None: by the noise (above).
     saturation : float, ndarray of bool of shape (N, N, R, C), or None
         The sensor's clipping level in the views' units (1.0: :func:`lf_flame.simulate.tracer.render`'s),
         or which samples to leave out (True: clipped; decoded views carry it,
@@ -200,9 +199,10 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         if not isinstance(op, ExactOperator):
             raise ValueError("the admm solver works on the exact operator's per-frequency matrices: give an "
                              "lf_flame.tomo.exact.ExactOperator")
-        iters, admm_tv, noise = admm_knobs(y.reshape(op.dimsd), fit.reshape(op.dimsd),
-                                           iters if iters_given else None, tv if tv_given else None)
-        settings.update(iters=iters, lam=lam, tv=admm_tv, noise=noise)
+        iters, admm_tv, lam, noise = admm_knobs(y.reshape(op.dimsd), fit.reshape(op.dimsd),
+                                                iters if iters_given else None, tv if tv_given else None, lam,
+                                                op.subsamples)
+        settings.update(iters=iters, lam=lam, tv=admm_tv, noise=noise, subsamples=op.subsamples)
         planes, residuals, settings["system_s"] = solve_admm(y.reshape(op.dimsd), op, fit.reshape(op.dimsd),
                                                              fills=iters, lam=lam, tv=admm_tv, support=support,
                                                              callback=lambda j, x: step(x))

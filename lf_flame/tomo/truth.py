@@ -89,3 +89,34 @@ def depth_shares(depths_mm, depth_mm: float) -> list:
         return [(int(order[min(k, len(ds) - 1)]), 1.0)]
     f = (depth_mm - ds[k - 1]) / (ds[k] - ds[k - 1])
     return [(int(order[k - 1]), 1.0 - f), (int(order[k]), f)]
+
+
+def bin_planes(planes, subsamples: int) -> np.ndarray:
+    """Planes on a grid of ``subsamples x subsamples`` samples per lenslet, averaged back to one per lenslet.
+
+    What an :class:`~lf_flame.tomo.exact.ExactOperator` with ``subsamples > 1`` recovers,
+    on the lenslet grid of the plain operator and its truth (:func:`scene_truth`), so that
+    both grids are scored against the same truth: each lenslet's value is the mean of its
+    samples, as each truth sample is the mean of the emission over its footprint.
+
+    Parameters
+    ----------
+    planes : ndarray of shape (P, s rows, s cols)
+    subsamples : int
+        ``s``, >= 1 (1: returned as float64, unchanged).
+
+    Returns
+    -------
+    ndarray of shape (P, rows, cols), float64
+
+    Raises
+    ------
+    ValueError
+        A grid that is not a whole number of ``s x s`` blocks.
+    """
+    x = np.asarray(planes, np.float64)
+    s = int(subsamples)
+    if s < 1 or x.ndim != 3 or x.shape[1] % s or x.shape[2] % s:
+        raise ValueError(f"planes of shape {x.shape} are not (P, rows, cols) in whole {subsamples} x {subsamples} blocks")
+    P, r, c = x.shape
+    return x.reshape(P, r // s, s, c // s, s).mean(axis=(2, 4))
