@@ -9,30 +9,34 @@ import numpy as np
 
 @nb.njit(parallel=True, cache=True, fastmath=False)
 def forward(S, xs, out):
-    """``out[v, m] = sum_k S[v, k, m] xs[k, m]``: S (V, P, M), xs (P, M), out (V, M), complex."""
+    """``out[v, m] = sum_k S[v, k, m] xs[k, m]``: S (V, P, M), xs (P, M), out (V, M), complex.
+
+    Threads over views; per view the planes one after another, each a contiguous pass over
+    the frequencies that the compiler vectorises (3x faster than summing the planes per
+    frequency in an A/B on the 16-plane 2 x 2 grid's spectra)."""
     V, P, M = S.shape
     for v in nb.prange(V):
         for m in range(M):
-            acc = S[v, 0, m] * xs[0, m]
-            for k in range(1, P):
-                acc += S[v, k, m] * xs[k, m]
-            out[v, m] = acc
+            out[v, m] = S[v, 0, m] * xs[0, m]
+        for k in range(1, P):
+            for m in range(M):
+                out[v, m] += S[v, k, m] * xs[k, m]
 
 
 @nb.njit(parallel=True, cache=True, fastmath=False)
 def adjoint(S, ys, out):
-    """``out[k, m] = sum_v conj(S[v, k, m]) ys[v, m]``: S (V, P, M), ys (V, M), out (P, M), complex."""
+    """``out[k, m] = sum_v conj(S[v, k, m]) ys[v, m]``: S (V, P, M), ys (V, M), out (P, M), complex.
+
+    Threads over planes; per plane the views one after another, each a contiguous, vectorised
+    pass over the frequencies (3x faster than blocks of 256 frequencies holding every plane,
+    in the same A/B; splitting the frequencies into chunks per thread made it 1.7-2.3x slower)."""
     V, P, M = S.shape
-    n_blocks = (M + 255) // 256
-    for b in nb.prange(n_blocks):
-        lo, hi = b * 256, min(M, b * 256 + 256)
-        for k in range(P):
-            for m in range(lo, hi):
-                out[k, m] = 0
+    for k in nb.prange(P):
+        for m in range(M):
+            out[k, m] = 0
         for v in range(V):
-            for k in range(P):
-                for m in range(lo, hi):
-                    out[k, m] += np.conj(S[v, k, m]) * ys[v, m]
+            for m in range(M):
+                out[k, m] += np.conj(S[v, k, m]) * ys[v, m]
 
 
 @nb.njit(parallel=True, cache=True)
