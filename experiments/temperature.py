@@ -44,27 +44,24 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy.ndimage import gaussian_filter
 
 from lf_flame.config import atomic_write_text, provenance
 from lf_flame.measure import pyrometry as P
 from lf_flame.optics.camera import PAPER_CAMERA
 from lf_flame.optics.colour import library_sensor, mosaic
-from lf_flame.refocus.shift_and_sum import aperture_mask, focal_stack, raw_to_views
+from lf_flame.refocus.shift_and_sum import raw_to_views
 from lf_flame.simulate import tracer
 from lf_flame.simulate.colour import render_colour
 from lf_flame.simulate.scenes_temperature import FLAME_PEAK_K, colour_flame_scene, furnace_scene
+from lf_flame.tomo.colour import (CFA_FILLS as FILLS, CFA_LAM as LAM, CFA_TV as TV, SMOOTH_SIGMA, admm_channel,
+                                  channel_emission, channel_views, colour_truth, smooth_planes)
 from lf_flame.tomo.exact import ExactOperator
-from lf_flame.tomo.solvers import reconstruct
-from lf_flame.tomo.truth import resample_layer
 
 GAINS = (1.0, 1.25, 0.8)
 FIT_K = (1400.0, 1700.0, 2000.0, 2300.0, 2600.0)
 CHECK_K = (1550.0, 1950.0, 2450.0)
 SNR_DB = 14.0
 READ_E = 2.0
-FILLS, LAM, TV = 25, 0.01, 0.0      # admm: converged by 25 fills on the nominal scene (12-300 tried)
-SMOOTH_SIGMA = 0.7                   # lenslets
 SEED0 = 937000
 #: furnace exposure: brightest channel at this fraction of saturation, so that 14 dB noise (about 20 %
 #: per pixel) seldom reaches the clipping level, which would bias the brighter channel low
@@ -119,27 +116,6 @@ def calibrate(cam, sensor, model, rays, seed, out):
     return cal, rows
 
 
-def truth_planes(cs, op):
-    truth = np.zeros((3,) + tuple(op.dims))
-    for k, L in enumerate(cs.scene.layers):
-        for c in range(3):
-            truth[c, k] = resample_layer(dataclasses.replace(L, radiance=cs.channel_radiance[k][c]), op.dims[1:],
-                                         op.sizes_mm[k], op.centres_mm[k])
-    return truth
-
-
-def admm_channel(views, op, fit):
-    s = float(views[fit].max())
-    rec = reconstruct(views / s, op, "admm", FILLS, lam=LAM, tv=TV, saturation=~fit)
-    return rec.planes.reshape(op.dims) * s
-
-
-def refocus_channel(views, m, slopes, mask):
-    num = focal_stack(views * m, slopes, mask)
-    den = focal_stack(m.astype(np.float32), slopes, mask)
-    return np.where(den > 0, num / np.maximum(den, 1e-12), 0.0)
-
-
 def score(route, noise, scene_id, a, b, Tt, vt, cal, model, **extra):
     Tr, valid, _ = P.temperature_planes(a, b, cal, model)
     rows = []
@@ -155,14 +131,9 @@ def score(route, noise, scene_id, a, b, Tt, vt, cal, model, **extra):
     return rows
 
 
-def smooth(x):
-    return np.stack([gaussian_filter(p, SMOOTH_SIGMA) for p in x])
-
-
 def flames(cam, sensor, model, cal, n_scenes, rays, log):
     rows, info = [], []
     ops = {}
-    mask = aperture_mask(cam.pixels_per_lenslet, "circular")
     for i in range(n_scenes):
         seed = SEED0 + i
         cs = colour_flame_scene(cam, sensor, None if i == 0 else np.random.default_rng(seed))
@@ -190,20 +161,21 @@ def flames(cam, sensor, model, cal, n_scenes, rays, log):
                          full_well_e=fw, snr_db=snr_all, snr_db_per_channel=snr, render_s=time.perf_counter() - t0,
                          heights_mm=[o["height_mm"] for o in cs.scene.objects]))
         log(f"  scene {i}: own error {own:.4f}, SNR {snr_all:.2f} dB {snr}")
-        truth = truth_planes(cs, op)
+        truth = colour_truth(cs.channel_radiance, cs.scene.layers, op)
         Tt, vt, _ = P.temperature_planes(truth[0], truth[1], cal, model)
-        chan_v = raw_to_views(chan_raw.astype(np.float32), cam.pixels_per_lenslet).astype(np.int8)
+        chan_v = channel_views(clean.shape, sensor, cam.pixels_per_lenslet)
         slopes = [cam.slope_for_depth(d) for d in depths]
         for noise, raw in (("clean", clean), (f"{SNR_DB:g}dB", noisy)):
             views = raw_to_views(raw, cam.pixels_per_lenslet)
             lab = dict(snr_db=snr_all if noise != "clean" else np.inf, own_error=own)
             t0 = time.perf_counter()
-            rec = [admm_channel(views, op, (chan_v == c) & (views < 1)) for c in (0, 1)]
+            rec = channel_emission("admm-cfa", views, chan_v, (0, 1), op=op)
             rows += score("admm-cfa", noise, i, rec[0], rec[1], Tt, vt, cal, model, time_s=time.perf_counter() - t0,
                           **lab)
-            rows += score("admm-cfa-smooth", noise, i, smooth(rec[0]), smooth(rec[1]), Tt, vt, cal, model, **lab)
+            rows += score("admm-cfa-smooth", noise, i, smooth_planes(rec[0]), smooth_planes(rec[1]), Tt, vt, cal,
+                          model, **lab)
             t0 = time.perf_counter()
-            fs = [refocus_channel(views, chan_v == c, slopes, mask) for c in (0, 1)]
+            fs = channel_emission("refocus-cfa", views, chan_v, (0, 1), slopes=slopes)
             rows += score("refocus-cfa", noise, i, fs[0], fs[1], Tt, vt, cal, model, time_s=time.perf_counter() - t0,
                           **lab)
             if noise == "clean":
