@@ -52,8 +52,9 @@ else
 dataset: $(foreach r,$(REGIMES),$(foreach s,$(SCENES),$(DATA)/$(r)/$(s).h5)) ## render the datasets of both regimes (resumable; SHARD=i/N renders shard i of N)
 endif
 
-temperature: $(STAMP) ## two-colour pyrometry with a colour (Bayer) light-field camera -> results/temperature.{csv,md,json}, results/temperature_calibration.json
-	$(VENV)/bin/python experiments/temperature.py --out results $(if $(filter quick,$(PRESET)),--quick,)
+temperature: $(STAMP) ## two-colour pyrometry with a colour (Bayer) light-field camera -> results/temperature{,_behind}.{csv,md,json}, results/temperature_calibration.json
+	$(VENV)/bin/python experiments/temperature.py --out results --stage flames $(if $(filter quick,$(PRESET)),--quick,)
+	$(VENV)/bin/python experiments/temperature.py --out results --stage behind $(if $(filter quick,$(PRESET)),--quick,)
 
 bench-sim: $(STAMP) ## simulator benchmark -> results/bench_sim.{csv,md,json}
 	$(VENV)/bin/python experiments/bench_sim.py --out results

@@ -31,7 +31,14 @@ blackbody check), ``<out>/temperature.md`` (the bars and the table), ``<out>/tem
   masks. The truth temperature of a grid cell is the lookup of its true R/G emission ratio
   (the area-weighted truth of :func:`lf_flame.tomo.truth.resample_layer`).
 
-Usage: ``python experiments/temperature.py --out results [--quick]``.
+- **Behind** (``--stage behind``): two flames in the same columns, one behind the other, at
+  different temperatures (``colour_behind_scene``, sheath peaks ``BEHIND_PEAK_K``), depth
+  separations :data:`BEHIND_SEPARATIONS_MM` alternating over ``--behind-scenes`` seeds; the
+  same routes, scored per plane over all its bright pixels and over those where the other
+  flame is bright on the same lenslet (where refocusing mixes them); written to
+  ``<out>/temperature_behind.{csv,md,json}``.
+
+Usage: ``python experiments/temperature.py --out results [--quick] [--stage all|flames|behind]``.
 """
 from __future__ import annotations
 
@@ -44,31 +51,32 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy.ndimage import gaussian_filter
 
 from lf_flame.config import atomic_write_text, provenance
 from lf_flame.measure import pyrometry as P
 from lf_flame.optics.camera import PAPER_CAMERA
 from lf_flame.optics.colour import library_sensor, mosaic
-from lf_flame.refocus.shift_and_sum import aperture_mask, focal_stack, raw_to_views
+from lf_flame.refocus.shift_and_sum import raw_to_views
 from lf_flame.simulate import tracer
 from lf_flame.simulate.colour import render_colour
-from lf_flame.simulate.scenes_temperature import FLAME_PEAK_K, colour_flame_scene, furnace_scene
+from lf_flame.simulate.scenes_temperature import (BEHIND_PEAK_K, FLAME_PEAK_K, colour_behind_scene, colour_flame_scene,
+                                                  furnace_scene)
+from lf_flame.tomo.colour import (CFA_FILLS as FILLS, CFA_LAM as LAM, CFA_TV as TV, SMOOTH_SIGMA, admm_channel,
+                                  channel_emission, channel_views, colour_truth, smooth_planes)
 from lf_flame.tomo.exact import ExactOperator
-from lf_flame.tomo.solvers import reconstruct
-from lf_flame.tomo.truth import resample_layer
 
 GAINS = (1.0, 1.25, 0.8)
 FIT_K = (1400.0, 1700.0, 2000.0, 2300.0, 2600.0)
 CHECK_K = (1550.0, 1950.0, 2450.0)
 SNR_DB = 14.0
 READ_E = 2.0
-FILLS, LAM, TV = 25, 0.01, 0.0      # admm: converged by 25 fills on the nominal scene (12-300 tried)
-SMOOTH_SIGMA = 0.7                   # lenslets
 SEED0 = 937000
 #: furnace exposure: brightest channel at this fraction of saturation, so that 14 dB noise (about 20 %
 #: per pixel) seldom reaches the clipping level, which would bias the brighter channel low
 FURNACE_PEAK = 0.5
+#: two flames one behind another: seeds and depth separations (mm), alternating
+BEHIND_SEED0 = 937200
+BEHIND_SEPARATIONS_MM = (10.0, 20.0)
 BARS = dict(p90_clean=30.0, worst_clean=80.0, p90_noisy=60.0, blackbody=5.0)
 
 
@@ -119,27 +127,6 @@ def calibrate(cam, sensor, model, rays, seed, out):
     return cal, rows
 
 
-def truth_planes(cs, op):
-    truth = np.zeros((3,) + tuple(op.dims))
-    for k, L in enumerate(cs.scene.layers):
-        for c in range(3):
-            truth[c, k] = resample_layer(dataclasses.replace(L, radiance=cs.channel_radiance[k][c]), op.dims[1:],
-                                         op.sizes_mm[k], op.centres_mm[k])
-    return truth
-
-
-def admm_channel(views, op, fit):
-    s = float(views[fit].max())
-    rec = reconstruct(views / s, op, "admm", FILLS, lam=LAM, tv=TV, saturation=~fit)
-    return rec.planes.reshape(op.dims) * s
-
-
-def refocus_channel(views, m, slopes, mask):
-    num = focal_stack(views * m, slopes, mask)
-    den = focal_stack(m.astype(np.float32), slopes, mask)
-    return np.where(den > 0, num / np.maximum(den, 1e-12), 0.0)
-
-
 def score(route, noise, scene_id, a, b, Tt, vt, cal, model, **extra):
     Tr, valid, _ = P.temperature_planes(a, b, cal, model)
     rows = []
@@ -155,14 +142,52 @@ def score(route, noise, scene_id, a, b, Tt, vt, cal, model, **extra):
     return rows
 
 
-def smooth(x):
-    return np.stack([gaussian_filter(p, SMOOTH_SIGMA) for p in x])
+def render_scene(cam, cs, sensor, rays, seed):
+    """Each channel rendered twice (own error), mosaicked, clipped; and at 14 dB. Returns a dict."""
+    t0 = time.perf_counter()
+    chans, other = [], []
+    for c in range(3):
+        layers = tuple(dataclasses.replace(L, radiance=cs.channel_radiance[k][c])
+                       for k, L in enumerate(cs.scene.layers))
+        sc = dataclasses.replace(cs.scene, layers=layers)
+        chans.append(tracer.render(cam, sc, rays, seed, sensor=False))
+        other.append(tracer.render(cam, sc, rays, seed + 7, sensor=False))
+    chans, other = np.stack(chans), np.stack(other)
+    own = float(np.linalg.norm(chans - other) / (np.sqrt(2) * np.linalg.norm(chans)))
+    clean = tracer.apply_sensor(mosaic(chans, sensor), cs.scene.effects, seed)   # clipping only
+    noisy, fw = add_noise(clean, cs.scene.effects, seed)
+    snr = snr_per_channel(clean, noisy, sensor.channel_map(clean.shape))
+    snr_all = float(10 * np.log10(np.sum(clean.astype(float) ** 2) / np.sum((noisy - clean.astype(float)) ** 2)))
+    return dict(chans=chans, own=own, clean=clean, noisy=noisy, fw=fw, snr=snr, snr_all=snr_all,
+                render_s=time.perf_counter() - t0)
+
+
+def route_rows(cam, sensor, op, depths, r, scorer, log, tag):
+    """Every route on the clean and the 14 dB render; ``scorer(route, noise, a, b, **extra)`` -> rows."""
+    rows = []
+    chan_v = channel_views(r["clean"].shape, sensor, cam.pixels_per_lenslet)
+    slopes = [cam.slope_for_depth(d) for d in depths]
+    for noise, raw in (("clean", r["clean"]), (f"{SNR_DB:g}dB", r["noisy"])):
+        views = raw_to_views(raw, cam.pixels_per_lenslet)
+        lab = dict(snr_db=r["snr_all"] if noise != "clean" else np.inf, own_error=r["own"])
+        t0 = time.perf_counter()
+        rec = channel_emission("admm-cfa", views, chan_v, (0, 1), op=op)
+        rows += scorer("admm-cfa", noise, rec[0], rec[1], time_s=time.perf_counter() - t0, **lab)
+        rows += scorer("admm-cfa-smooth", noise, smooth_planes(rec[0]), smooth_planes(rec[1]), **lab)
+        t0 = time.perf_counter()
+        fs = channel_emission("refocus-cfa", views, chan_v, (0, 1), slopes=slopes)
+        rows += scorer("refocus-cfa", noise, fs[0], fs[1], time_s=time.perf_counter() - t0, **lab)
+        if noise == "clean":
+            full = [admm_channel(raw_to_views(r["chans"][c], cam.pixels_per_lenslet), op,
+                                 raw_to_views(r["chans"][c], cam.pixels_per_lenslet) < 1) for c in (0, 1)]
+            rows += scorer("admm-full (no CFA, reference)", noise, full[0], full[1], **lab)
+        log(f"  {tag} {noise} done")
+    return rows
 
 
 def flames(cam, sensor, model, cal, n_scenes, rays, log):
     rows, info = [], []
     ops = {}
-    mask = aperture_mask(cam.pixels_per_lenslet, "circular")
     for i in range(n_scenes):
         seed = SEED0 + i
         cs = colour_flame_scene(cam, sensor, None if i == 0 else np.random.default_rng(seed))
@@ -171,47 +196,86 @@ def flames(cam, sensor, model, cal, n_scenes, rays, log):
         if key not in ops:
             ops[key] = ExactOperator(cam, depths, precision="float32")
         op = ops[key]
-        t0 = time.perf_counter()
-        chans, other = [], []
-        for c in range(3):
-            layers = tuple(dataclasses.replace(L, radiance=cs.channel_radiance[k][c])
-                           for k, L in enumerate(cs.scene.layers))
-            sc = dataclasses.replace(cs.scene, layers=layers)
-            chans.append(tracer.render(cam, sc, rays, seed, sensor=False))
-            other.append(tracer.render(cam, sc, rays, seed + 7, sensor=False))
-        chans, other = np.stack(chans), np.stack(other)
-        own = float(np.linalg.norm(chans - other) / (np.sqrt(2) * np.linalg.norm(chans)))
-        clean = tracer.apply_sensor(mosaic(chans, sensor), cs.scene.effects, seed)   # clipping only
-        noisy, fw = add_noise(clean, cs.scene.effects, seed)
-        chan_raw = sensor.channel_map(clean.shape)
-        snr = snr_per_channel(clean, noisy, chan_raw)
-        snr_all = float(10 * np.log10(np.sum(clean.astype(float) ** 2) / np.sum((noisy - clean.astype(float)) ** 2)))
-        info.append(dict(scene=i, seed=seed, peaks_k=list(FLAME_PEAK_K), depths_mm=depths, own_error=own,
-                         full_well_e=fw, snr_db=snr_all, snr_db_per_channel=snr, render_s=time.perf_counter() - t0,
-                         heights_mm=[o["height_mm"] for o in cs.scene.objects]))
-        log(f"  scene {i}: own error {own:.4f}, SNR {snr_all:.2f} dB {snr}")
-        truth = truth_planes(cs, op)
+        r = render_scene(cam, cs, sensor, rays, seed)
+        info.append(dict(scene=i, seed=seed, peaks_k=list(FLAME_PEAK_K), depths_mm=depths, own_error=r["own"],
+                         full_well_e=r["fw"], snr_db=r["snr_all"], snr_db_per_channel=r["snr"],
+                         render_s=r["render_s"], heights_mm=[o["height_mm"] for o in cs.scene.objects]))
+        log(f"  scene {i}: own error {r['own']:.4f}, SNR {r['snr_all']:.2f} dB {r['snr']}")
+        truth = colour_truth(cs.channel_radiance, cs.scene.layers, op)
         Tt, vt, _ = P.temperature_planes(truth[0], truth[1], cal, model)
-        chan_v = raw_to_views(chan_raw.astype(np.float32), cam.pixels_per_lenslet).astype(np.int8)
-        slopes = [cam.slope_for_depth(d) for d in depths]
-        for noise, raw in (("clean", clean), (f"{SNR_DB:g}dB", noisy)):
-            views = raw_to_views(raw, cam.pixels_per_lenslet)
-            lab = dict(snr_db=snr_all if noise != "clean" else np.inf, own_error=own)
-            t0 = time.perf_counter()
-            rec = [admm_channel(views, op, (chan_v == c) & (views < 1)) for c in (0, 1)]
-            rows += score("admm-cfa", noise, i, rec[0], rec[1], Tt, vt, cal, model, time_s=time.perf_counter() - t0,
-                          **lab)
-            rows += score("admm-cfa-smooth", noise, i, smooth(rec[0]), smooth(rec[1]), Tt, vt, cal, model, **lab)
-            t0 = time.perf_counter()
-            fs = [refocus_channel(views, chan_v == c, slopes, mask) for c in (0, 1)]
-            rows += score("refocus-cfa", noise, i, fs[0], fs[1], Tt, vt, cal, model, time_s=time.perf_counter() - t0,
-                          **lab)
-            if noise == "clean":
-                full = [admm_channel(raw_to_views(chans[c], cam.pixels_per_lenslet), op,
-                                     raw_to_views(chans[c], cam.pixels_per_lenslet) < 1) for c in (0, 1)]
-                rows += score("admm-full (no CFA, reference)", noise, i, full[0], full[1], Tt, vt, cal, model, **lab)
-            log(f"  scene {i} {noise} done")
+
+        def scorer(route, noise, a, b, **extra):
+            return score(route, noise, i, a, b, Tt, vt, cal, model, **extra)
+
+        rows += route_rows(cam, sensor, op, depths, r, scorer, log, f"scene {i}")
     return rows, info
+
+
+def behind(cam, sensor, model, cal, n_scenes, rays, log):
+    """Two flames in the same columns at different temperatures: scored per plane over all its bright
+    pixels and over those where the other flame is bright on the same lenslet (refocusing mixes them)."""
+    rows, info = [], []
+    for i in range(n_scenes):
+        seed = BEHIND_SEED0 + i
+        sep = BEHIND_SEPARATIONS_MM[i % len(BEHIND_SEPARATIONS_MM)]
+        cs = colour_behind_scene(cam, sensor, np.random.default_rng(seed), sep)
+        depths = [float(o["depth_offset_mm"]) for o in cs.scene.objects]
+        op = ExactOperator(cam, depths, precision="float32")
+        r = render_scene(cam, cs, sensor, rays, seed)
+        truth = colour_truth(cs.channel_radiance, cs.scene.layers, op)
+        Tt, vt, _ = P.temperature_planes(truth[0], truth[1], cal, model)
+        mixed = vt & vt[::-1]
+        info.append(dict(scene=i, seed=seed, separation_mm=sep, peaks_k=list(BEHIND_PEAK_K), depths_mm=depths,
+                         heights_mm=[o["height_mm"] for o in cs.scene.objects], own_error=r["own"],
+                         full_well_e=r["fw"], snr_db=r["snr_all"], snr_db_per_channel=r["snr"],
+                         render_s=r["render_s"], n_mixed=[int(m.sum()) for m in mixed]))
+        log(f"  behind {i} ({sep:g} mm, depths {[round(d, 2) for d in depths]}): own error {r['own']:.4f}, SNR "
+            f"{r['snr_all']:.2f} dB, mixed pixels {[int(m.sum()) for m in mixed]}")
+
+        def scorer(route, noise, a, b, **extra):
+            out = []
+            for region, v in (("mixed", mixed), ("all", vt)):
+                out += [dict(x, region=region, separation_mm=sep, depth_mm=depths[x["plane"]])
+                        for x in score(route, noise, i, a, b, Tt, v, cal, model, **extra)]
+            return out
+
+        rows += route_rows(cam, sensor, op, depths, r, scorer, log, f"behind {i}")
+    return rows, info
+
+
+def write_behind(out, df, info, cal_note, args, wall, prov):
+    df.to_csv(out / "temperature_behind.csv", index=False)
+    cols = ["route", "noise", "scene", "plane", "region", "n_truth", "n_masked", "median_k", "p90_k", "worst_k"]
+    g = df.groupby(["route", "noise", "region"]).agg(p90_worst_plane=("p90_k", "max"), worst=("worst_k", "max"),
+                                                     median_median=("median_k", "median"),
+                                                     masked=("n_masked", "sum"), truth=("n_truth", "sum")).reset_index()
+    lines = ["# Two-colour pyrometry: two flames one behind another (issue 37)", "",
+             f"Command: `python experiments/temperature.py --stage behind --out {args.out}"
+             f"{' --quick' if args.quick else ''}` (also `make temperature`); wall time {wall:.0f} s; commit "
+             f"{prov.get('git_commit')}. {cal_note}", "",
+             f"Scenes: `colour_behind_scene` (the geometry of `scenes_depth.behind_scene`: two flames in the same "
+             f"columns, far one taller), sheath peaks far/near {BEHIND_PEAK_K} K, separations "
+             f"{[x['separation_mm'] for x in info]} mm, seeds {[x['seed'] for x in info]}, depths "
+             f"{[[round(d, 2) for d in x['depths_mm']] for x in info]} mm (far, near), rays/pixel {args.rays}, own "
+             f"error {[round(x['own_error'], 4) for x in info]}; 14 dB: measured SNR "
+             f"{[round(x['snr_db'], 2) for x in info]} dB, per channel "
+             f"{[{k: round(v, 2) for k, v in x['snr_db_per_channel'].items()} for x in info]}.", "",
+             "Per plane (0 far, 1 near) over its pixels with >= 10 % of its true peak R+G emission (`all`), and "
+             "over those where the other flame is also >= 10 % of its peak on the same lenslet (`mixed`: where "
+             "refocusing mixes the two): |T - T_true| (K) over the pixels the route reports; `n_masked`: truth "
+             "pixels left without a temperature. Routes as in temperature.md.", "",
+             df[cols].to_markdown(index=False, floatfmt=".1f"), "", "## Bar: each plane within 50 K p90 where "
+             "refocusing mixes them", "", g.to_markdown(index=False, floatfmt=".1f"), ""]
+    for (route, noise), r in g[g.region == "mixed"].groupby(["route", "noise"]):
+        v = float(r.p90_worst_plane.iloc[0])
+        lines.append(f"- `{route}` {noise}: worst plane's p90 over the mixed pixels {v:.0f} K (bar 50) -> "
+                     f"**{'met' if v <= 50 else 'NOT met'}**")
+    lines.append("")
+    atomic_write_text(out / "temperature_behind.md", "\n".join(lines))
+    atomic_write_text(out / "temperature_behind.json", json.dumps(dict(
+        provenance=prov, wall_time_s=wall, rays_per_pixel=args.rays, scenes=info, gains=GAINS, snr_db=SNR_DB,
+        read_noise_e=READ_E, admm=dict(fills=FILLS, lam=LAM, tv=TV), smooth_sigma_lenslets=SMOOTH_SIGMA,
+        calibration=cal_note), indent=2, default=str))
 
 
 def wien_difference(cal, model):
@@ -230,7 +294,8 @@ def write_report(out, df, info, cal, wien, args, wall, prov):
     bb = df[df.kind == "blackbody"]
     fl = df[df.kind == "flame"]
     lines = ["# Two-colour pyrometry with a colour light-field camera (issue 37)", "",
-             f"Command: `python experiments/temperature.py --out {args.out}{' --quick' if args.quick else ''}` "
+             f"Command: `python experiments/temperature.py --out {args.out}"
+             f"{' --stage ' + args.stage if args.stage != 'all' else ''}{' --quick' if args.quick else ''}` "
              f"(`make temperature`); wall time {wall:.0f} s; commit {prov.get('git_commit', prov.get('commit'))}.",
              "Camera: the paper's, RGGB CFA phase (0, 0) (pixel (0, 0) red), Nikon 5100 (NPL) sensitivities "
              f"(colour-science), channel gains {GAINS} (unknown to the pyrometer); R/G ratio; soot emissivity "
@@ -271,7 +336,8 @@ def write_report(out, df, info, cal, wien, args, wall, prov):
         ok = (("clean" not in r.index or (r.loc["clean", "p90_worst_plane"] <= 30 and r.loc["clean", "worst"] <= 80))
               and (nz not in r.index or r.loc[nz, "p90_worst_plane"] <= 60))
         lines.append(f"- `{route}`: {'; '.join(msg)} -> **{'met' if ok else 'NOT met'}** (worst plane of all scenes)")
-    lines += ["", "Not measured here: the bar on two flames one behind another, and per voxel (issue 37's Goal).", ""]
+    lines += ["", "Two flames one behind another: `temperature_behind.md` (`--stage behind`). Not measured here: per "
+              "voxel (issue 37's Goal).", ""]
     atomic_write_text(out / "temperature.md", "\n".join(lines))
     atomic_write_text(out / "temperature.json", json.dumps(dict(
         provenance=prov, wall_time_s=wall, rays_per_pixel=args.rays, scenes=info, gains=GAINS, fit_k=FIT_K,
@@ -285,7 +351,12 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="one scene at 16 rays/pixel (minutes)")
     ap.add_argument("--rays", type=int, default=None, help="rays per pixel (default 400; --quick 16)")
     ap.add_argument("--scenes", type=int, default=None, help="flame scenes (default 2; --quick 1)")
+    ap.add_argument("--stage", choices=["all", "flames", "behind"], default="all",
+                    help="flames: calibration and the paper's four flames (temperature.*); behind: two flames one "
+                         "behind another (temperature_behind.*; the calibration in --out if there, else fitted)")
+    ap.add_argument("--behind-scenes", type=int, default=None, help="behind scenes (default 4; --quick 1)")
     args = ap.parse_args(argv)
+    n_behind = args.behind_scenes or (1 if args.quick else 4)
     args.rays = args.rays or (16 if args.quick else 400)
     n_scenes = args.scenes or (1 if args.quick else 2)
     args.out.mkdir(parents=True, exist_ok=True)
@@ -297,13 +368,25 @@ def main(argv=None):
     def log(msg):
         print(msg, flush=True)
 
-    cal, bb_rows = calibrate(cam, sensor, model, args.rays, SEED0, args.out)
-    log(f"calibration: gain ratio {cal.gain_ratio:.5f}; checks {[round(r['error_k'], 3) for r in bb_rows]} K")
-    wien = wien_difference(cal, model)
-    rows, info = flames(cam, sensor, model, cal, n_scenes, args.rays, log)
-    df = pd.DataFrame(bb_rows + rows)
-    write_report(args.out, df, info, cal, wien, args, time.perf_counter() - t0, provenance())
-    print((args.out / "temperature.md").read_text())
+    calfile = args.out / "temperature_calibration.json"
+    if args.stage == "behind" and calfile.is_file():
+        cal = P.load_calibration(calfile, model)
+        cal_note = f"Calibration: {calfile.name} (written by the flames stage), gain ratio {cal.gain_ratio:.5f}."
+    else:
+        cal, bb_rows = calibrate(cam, sensor, model, args.rays, SEED0, args.out)
+        log(f"calibration: gain ratio {cal.gain_ratio:.5f}; checks {[round(r['error_k'], 3) for r in bb_rows]} K")
+        cal_note = f"Calibration: fitted in this run, gain ratio {cal.gain_ratio:.5f}."
+    if args.stage in ("all", "flames"):
+        wien = wien_difference(cal, model)
+        rows, info = flames(cam, sensor, model, cal, n_scenes, args.rays, log)
+        df = pd.DataFrame(bb_rows + rows)
+        write_report(args.out, df, info, cal, wien, args, time.perf_counter() - t0, provenance())
+        print((args.out / "temperature.md").read_text())
+    if args.stage in ("all", "behind"):
+        t1 = time.perf_counter()
+        rows, info = behind(cam, sensor, model, cal, n_behind, args.rays, log)
+        write_behind(args.out, pd.DataFrame(rows), info, cal_note, args, time.perf_counter() - t1, provenance())
+        print((args.out / "temperature_behind.md").read_text())
     return 0
 
 

@@ -144,3 +144,24 @@ def test_temperature_recovered_on_a_planted_plane():
     assert np.nanmedian(left) == pytest.approx(1750.0, abs=25.0)
     assert np.nanmedian(right) == pytest.approx(1900.0, abs=25.0)
     assert valid[0].sum() < valid[0].size                       # the dark background is masked
+
+
+def test_colour_behind_scene():
+    """Two flames in the same columns, far first, each its own sheath temperature; channels by band integrals."""
+    from lf_flame.simulate.scenes_temperature import BEHIND_PEAK_K, colour_behind_scene
+    sensor = library_sensor(gains=GAINS)
+    cs = colour_behind_scene(CAM, sensor, np.random.default_rng(3), 10.0)
+    far, near = cs.scene.objects
+    assert far["depth_offset_mm"] - near["depth_offset_mm"] == pytest.approx(10.0)
+    assert abs(far["centre_x_mm"] - near["centre_x_mm"]) <= 0.3
+    for k, pk in enumerate(BEHIND_PEAK_K):
+        hot = cs.temperature_k[k][cs.soot[k] > 0]
+        assert pk - 30 < hot.max() <= pk + 1e-9
+        assert cs.scene.objects[k]["peak_k"] == pk
+        i = np.unravel_index(np.argmax(cs.soot[k]), cs.soot[k].shape)
+        s = band_integrals(sensor, cs.temperature_k[k][i], gains=True)
+        r = cs.channel_radiance[k][:, i[0], i[1]]
+        assert r[0] / r[1] == pytest.approx(s[0] / s[1], rel=1e-5)
+    assert max(float(c.max()) for c in cs.channel_radiance) == pytest.approx(0.8, rel=1e-6)
+    with pytest.raises(ValueError, match="two peak temperatures"):
+        colour_behind_scene(CAM, sensor, np.random.default_rng(3), 10.0, peaks_k=(2000.0,))

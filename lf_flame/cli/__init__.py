@@ -4,6 +4,7 @@ The argument parser and :func:`main`; the commands, one module per stage:
 :mod:`.optics` (simulate, refocus, slopes), :mod:`.real` (calibrate, decode),
 :mod:`.learning` (dataset, train, predict, evaluate, tables), :mod:`.volume` (reconstruct),
 :mod:`.resolution` (the camera's depth-resolution map),
+:mod:`.temperature` (calibrate-temperature, temperature: two-colour pyrometry),
 :mod:`.profiles` and :mod:`.sequence` (recordings over time);
 :mod:`._io` reads and writes their files.
 """
@@ -24,6 +25,7 @@ from .profiles import cmd_profiles
 from .real import cmd_calibrate, cmd_decode
 from .resolution import cmd_resolution
 from .sequence import cmd_sequence, cmd_simulate_sequence
+from .temperature import cmd_calibrate_temperature, cmd_temperature
 from .volume import OWN_CAMERA_ITERS, OWN_CAMERA_SOLVER, cmd_reconstruct
 
 # The commands' modules import only NumPy at the top: each command imports the libraries
@@ -302,6 +304,51 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True, help="volume.h5 (planes, depths, mm per sample, settings, residuals); "
                                                "the figure goes beside it as .png")
     s.set_defaults(func=cmd_reconstruct)
+
+    def sensor_args(s, calibration_default):
+        s.add_argument("--sensor", help="camera sensitivities (a name of colour-science's MSDS_CAMERA_SENSITIVITIES, "
+                       "e.g. 'Nikon 5100 (NPL)'); default: the image's stored sensor record"
+                       + (", else the calibration's" if calibration_default else "") + ", else Nikon 5100 (NPL)")
+        s.add_argument("--cfa", choices=["RGGB", "BGGR", "GRBG", "GBRG"], help="colour filter array (default: as "
+                       "--sensor)")
+        s.add_argument("--cfa-phase", type=int, nargs=2, metavar=("ROW", "COL"),
+                       help="tile row and column (0 or 1) of pixel (0, 0) (default: as --sensor, else 0 0)")
+
+    s = sub.add_parser("calibrate-temperature", help="two-colour temperature calibration (the channels' gain "
+                       "ratio) from raw images of a blackbody (furnace) at known temperatures -> JSON")
+    s.add_argument("images", nargs="+", help="raw colour images of a blackbody filling the field: " + RAW_FORMATS)
+    s.add_argument("--temperature", type=float, action="append", help="each image's temperature, K, in the images' "
+                   "order (repeatable; one per image)")
+    s.add_argument("--channels", default="R,G", help="numerator and denominator channels of the ratio")
+    sensor_args(s, False)
+    s.add_argument("--out", required=True, help="calibration JSON (read by 'lf-flame temperature')")
+    s.set_defaults(func=cmd_calibrate_temperature)
+
+    s = sub.add_parser("temperature", help="each plane's temperature map (K) from one colour light field by "
+                       "two-colour pyrometry -> HDF5 and a figure")
+    s.add_argument("raw", help="raw colour image (the CFA's mosaic): " + RAW_FORMATS)
+    s.add_argument("--calibration", required=True, help="JSON of 'lf-flame calibrate-temperature'; refused when "
+                   "made for another sensor or CFA")
+    s.add_argument("--depth", type=float, action="append", help="plane depth (mm from the focal plane; repeatable). "
+                   "Default: --depths auto")
+    s.add_argument("--depths", default=None, help="'auto' (default): the depths holding emission found by depth from "
+                   "focus on the calibration's two channels interpolated and summed; 'scene', 'paper', or depths in "
+                   "mm separated by commas (as 'lf-flame reconstruct')")
+    s.add_argument("--slope", type=float, action="append", help="plane slope instead of a depth (repeatable)")
+    s.add_argument("--route", choices=["admm-cfa-smooth", "admm-cfa", "refocus-cfa"], default="admm-cfa-smooth",
+                   help="each channel's emission: the exact operator's admm on its own pixels (the CFA as a "
+                        "missing-data mask), then smoothed by 0.7 lenslet; the same unsmoothed; or each channel's "
+                        "pixels refocused (results/temperature.md)")
+    s.add_argument("--min-fraction", type=float, default=0.1, help="pixels whose two channels' emission is below this "
+                   "fraction of their plane's peak get no temperature (counted as dim)")
+    s.add_argument("--alpha", type=float, default=1.39, help="emissivity exponent of the source, eps ~ lambda^-alpha "
+                   "(soot: 1.39, Hottel & Broughton; 0: a blackbody)")
+    s.add_argument("--saturation", type=_level_or_none, default=1.0, help="the sensor's clipping level: pixels at "
+                   "or above it are left out of the fit ('none': fit every pixel)")
+    sensor_args(s, True)
+    s.add_argument("--out", required=True, help="T.h5: temperature_k, valid, dim (plane, row, col), emission, "
+                   "depths_mm, counts, provenance; the figure goes beside it as .png")
+    s.set_defaults(func=cmd_temperature)
 
     s = sub.add_parser("resolution", help="the camera's depth-resolution map: the smallest plane spacing that "
                        "the light field resolves against feature size, at stated condition numbers (from the exact "

@@ -13,8 +13,9 @@ import numpy as np
 RAW_FORMATS = (".npz from 'lf-flame simulate' (key 'raw'), .npy, a PNG or TIFF image (integers scaled to [0, 1]; "
                "'simulate --out RAW.png' stores its camera and objects in the PNG, other images and .npy get the "
                "paper's camera), or DATASET.h5:INDEX")
-#: What ``simulate`` stores beside the raw image (JSON strings): arrays of its .npz, text of its PNG (``lf_flame.KEY``).
-META_KEYS = ("camera", "objects", "scene")
+#: What ``simulate`` stores beside the raw image (JSON strings): arrays of its .npz, text of its PNG (``lf_flame.KEY``);
+#: ``sensor`` (a colour image's sensitivities' name, CFA pattern and phase) is read by the temperature commands.
+META_KEYS = ("camera", "objects", "scene", "sensor")
 #: Image files read as a raw image (scikit-image).
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff")
 

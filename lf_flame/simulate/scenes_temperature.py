@@ -144,13 +144,78 @@ def colour_flame_scene(camera: PlenopticCamera, sensor: ColourSensor, rng: np.ra
         soot = obj["radiance"] * flame_luminosity(eta, xi)
         temps.append(np.broadcast_to(flame_temperature(eta, xi, float(pk), base_k), soot.shape).copy())
         soots.append(soot)
+    return _in_colour(mono, "colour_flame", temps, soots, sensor, alpha, peak, peaks_k, base_k)
+
+
+def _in_colour(mono: Scene, name, temps, soots, sensor, alpha, peak, peaks_k, base_k) -> ColourFlameScene:
+    """A monochrome scene's layers as soot with temperature: each channel's emission, one exposure."""
     rad = [s[None] * np.moveaxis(band_integrals(sensor, t, alpha, gains=True), -1, 0) for s, t in zip(soots, temps)]
     exposure = peak / max(float(r.max()) for r in rad)
     chans = tuple((r * exposure).astype(np.float32) for r in rad)
     layers = tuple(dataclasses.replace(L, radiance=c[1]) for L, c in zip(mono.layers, chans))
     objects = tuple(dict(o, peak_k=float(pk), base_k=float(base_k)) for o, pk in zip(mono.objects, peaks_k))
-    scene = Scene("colour_flame", layers, mono.effects, objects)
-    return ColourFlameScene(scene, chans, tuple(temps), tuple(soots), exposure)
+    return ColourFlameScene(Scene(name, layers, mono.effects, objects), chans, tuple(temps), tuple(soots), exposure)
+
+
+#: Sheath temperatures (K) of the far and the near flame of :func:`colour_behind_scene`.
+BEHIND_PEAK_K = (2050.0, 1800.0)
+
+
+def colour_behind_scene(camera: PlenopticCamera, sensor: ColourSensor, rng: np.random.Generator,
+                        separation_mm: float, *, peaks_k=BEHIND_PEAK_K, base_k: float = FLAME_BASE_K,
+                        alpha: float = ALPHA_SOOT, peak: float = 0.8, texels_per_lenslet: float = 3.0,
+                        depth_range=None) -> ColourFlameScene:
+    """Two flames in the same columns, one behind the other, each with its own temperature field.
+
+    The geometry and soot of :func:`lf_flame.simulate.scenes_depth.behind_scene` (far flame
+    first; ``rng`` draws depths, heights, radiance and lateral offsets), each flame's
+    temperature :func:`flame_temperature` with sheath ``peaks_k`` (far, near) in its own
+    normalised coordinates (base half-width as drawn there), emission per channel as
+    :func:`colour_flame_scene`'s.
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+    sensor : ColourSensor
+    rng : numpy.random.Generator
+    separation_mm : float
+        Depth between the flames, mm (as :func:`~lf_flame.simulate.scenes_depth.behind_scene`).
+    peaks_k : (float, float), K
+        Sheath temperature of the far and the near flame.
+    base_k, alpha, peak, texels_per_lenslet
+        As :func:`colour_flame_scene`.
+    depth_range : (float, float) or None
+        Depths the pair is drawn in (None: behind_scene's default).
+
+    Returns
+    -------
+    ColourFlameScene
+        ``scene.name == "colour_behind"``, two layers, far first.
+
+    Raises
+    ------
+    ValueError
+        Not two peak temperatures, a peak not above ``base_k``, ``peak`` outside (0, 1], and
+        the errors of ``behind_scene``.
+    """
+    from .scenes_depth import DEPTH_RANGE_MM, behind_scene
+    if len(peaks_k) != 2:
+        raise ValueError(f"two peak temperatures (far, near) are needed. Received: {peaks_k!r}")
+    if not (0 < peak <= 1):
+        raise ValueError(f"peak must be in (0, 1]. Received: {peak}")
+    mono = behind_scene(camera, rng, separation_mm, depth_range=depth_range or DEPTH_RANGE_MM,
+                        texels_per_lenslet=texels_per_lenslet)
+    temps, soots = [], []
+    for L, obj, pk in zip(mono.layers, mono.objects, peaks_k):
+        y, x, _, _ = _layer_grid(camera, L.depth_offset_mm, texels_per_lenslet, 1.2)
+        H = obj["height_mm"]
+        eta = (y - obj["base_y_mm"]) / H
+        half_w = obj["half_width_mm"] * np.sqrt(np.clip(1.0 - eta, 0.0, 1.0)) + 1e-9
+        xi = (x - obj["centre_x_mm"]) / half_w
+        soot = np.asarray(L.radiance, float)
+        temps.append(np.broadcast_to(flame_temperature(eta, xi, float(pk), base_k), soot.shape).copy())
+        soots.append(soot)
+    return _in_colour(mono, "colour_behind", temps, soots, sensor, alpha, peak, peaks_k, base_k)
 
 
 def blackbody_channels(sensor: ColourSensor, temperature_k: float, peak: float = 0.8) -> np.ndarray:

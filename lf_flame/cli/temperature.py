@@ -1,0 +1,176 @@
+"""The temperature commands (issue 37): ``calibrate-temperature`` (a blackbody calibration of
+two colour channels from furnace images) and ``temperature`` (each plane's temperature map from
+one colour light field, :mod:`lf_flame.tomo.colour` and :mod:`lf_flame.measure.pyrometry`),
+written to HDF5 with a figure.
+
+The colour sensor of an image (sensitivities, CFA pattern and phase) is, in order: the
+``--sensor``/``--cfa``/``--cfa-phase`` options, the ``sensor`` record stored beside the raw
+image (``.npz`` key or PNG text ``lf_flame.sensor``), the calibration's (``temperature``
+only, said so), else colour-science's Nikon 5100 behind an RGGB CFA of phase (0, 0).
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ._io import _load_raw, _raw_meta
+
+#: what the ``temperature`` HDF5 holds (its datasets)
+TEMPERATURE_DATASETS = ("temperature_k", "valid", "dim", "emission", "depths_mm", "sample_mm", "n_masked", "n_dim")
+
+
+def _sensor(path, a, cal=None):
+    """The colour sensor of the image at ``path`` and a phrase saying where it came from."""
+    from ..optics.colour import DEFAULT_SENSITIVITIES, library_sensor
+    meta = _raw_meta(path)
+    rec = json.loads(meta["sensor"]) if "sensor" in meta else {}
+    given = {k: v for k, v in (("name", a.sensor), ("pattern", a.cfa),
+                               ("phase", None if a.cfa_phase is None else tuple(a.cfa_phase))) if v is not None}
+    if rec:
+        where = f"stored in {path}"
+    elif cal is not None:
+        rec = dict(name=cal.sensor_name, pattern=cal.pattern, phase=tuple(cal.phase))
+        where = f"{path} records none: the calibration's"
+    else:
+        rec = dict(name=DEFAULT_SENSITIVITIES, pattern="RGGB", phase=(0, 0))
+        where = f"{path} records none: the default"
+    if given:
+        where = "given" + ("" if len(given) == 3 else f" ({', '.join(given)}; the rest {where})")
+    rec = {**rec, **given}
+    return library_sensor(rec["name"], rec["pattern"], tuple(rec["phase"])), where
+
+
+def _channels(text: str):
+    ch = tuple(c.strip().upper() for c in str(text).split(","))
+    from ..optics.colour import CHANNELS
+    if len(ch) != 2 or any(c not in CHANNELS for c in ch) or ch[0] == ch[1]:
+        raise ValueError(f"--channels takes two different channels of {', '.join(CHANNELS)} as A,B. Received: {text!r}")
+    return ch
+
+
+def cmd_calibrate_temperature(a):
+    """``calibrate-temperature BB... --temperature T... --out bb.json``."""
+    from ..measure.pyrometry import blackbody_ratio, fit_calibration, write_calibration
+    from ..optics.camera import PAPER_CAMERA
+    temps = list(a.temperature or [])
+    if len(temps) != len(a.images):
+        raise ValueError(f"one --temperature per blackbody image is needed: {len(a.images)} images, {len(temps)} "
+                         "temperatures")
+    channels = _channels(a.channels)
+    ratios, sensor0 = [], None
+    for path, t in zip(a.images, temps):
+        raw, cam = _load_raw(path)
+        sensor, where = _sensor(path, a)
+        if sensor0 is not None and (sensor.name, sensor.pattern, sensor.phase) != (
+                sensor0.name, sensor0.pattern, sensor0.phase):
+            raise ValueError(f"{path} is from sensor {sensor.name!r} {sensor.pattern} phase {sensor.phase}, the first "
+                             f"image from {sensor0.name!r} {sensor0.pattern} phase {sensor0.phase}: one camera per "
+                             "calibration")
+        sensor0 = sensor
+        r = blackbody_ratio(raw, sensor, (cam or PAPER_CAMERA).pixels_per_lenslet, channels)
+        ratios.append(r)
+        print(f"{path}: {t:g} K, {channels[0]}/{channels[1]} = {r:.5f} (sensor {sensor.name}, {sensor.pattern} "
+              f"phase {sensor.phase}: {where})")
+    cal = fit_calibration(sensor0, temps, ratios, channels)
+    out = write_calibration(a.out, cal)
+    print(f"gain ratio {cal.gain_ratio:.5f}; fit residuals " + ", ".join(f"{x:+.2f}" for x in cal.fit_residuals_k)
+          + f" K -> {out}")
+
+
+def plot_temperature(path, temperature_k, depths_mm, valid) -> None:
+    """Each plane's temperature map side by side, one colour bar in K; masked pixels grey."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    P = len(temperature_k)
+    t = np.asarray(temperature_k, float)
+    lo, hi = (np.nanpercentile(t, [1, 99]) if np.isfinite(t).any() else (1500.0, 2500.0))
+    fig, axes = plt.subplots(1, P, figsize=(2.6 * P + 1.2, 4.2), squeeze=False, constrained_layout=True)
+    cmap = matplotlib.colormaps["inferno"].with_extremes(bad="0.6")
+    for k, ax in enumerate(axes[0]):
+        im = ax.imshow(np.ma.masked_invalid(t[k]), cmap=cmap, vmin=lo, vmax=max(hi, lo + 1), interpolation="nearest")
+        ax.set_title(f"{depths_mm[k]:+.1f} mm\n{int(valid[k].sum())} px with T", fontsize=9)
+        ax.set_xticks([])
+        ax.set_yticks([])
+    fig.colorbar(im, ax=axes[0].tolist(), label="temperature (K)")
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def cmd_temperature(a):
+    """``temperature RAW --calibration bb.json [--depths ...|auto] --out T.h5``."""
+    import time
+
+    import h5py
+
+    from ..config import provenance
+    from ..measure.pyrometry import load_calibration, temperature_planes
+    from ..optics.colour import CHANNELS
+    from ..tomo.colour import channel_emission, channel_sum_views, channel_views
+    from ..tomo.exact import ExactOperator
+    from .volume import found_planes, reconstruct_input
+    src = str(a.raw)
+    if src.endswith(".h5") and ".h5:" not in src:
+        raise ValueError(f"{src}: temperature reads a raw colour image (the CFA's mosaic), not decoded views")
+    cal = load_calibration(a.calibration)
+    sensor, where = _sensor(src, a, cal)
+    cal.check_sensor(sensor)
+    cal = load_calibration(a.calibration, sensor)      # also refuses a ratio with no unique temperature
+    print(f"sensor {sensor.name}, {sensor.pattern} phase {sensor.phase} ({where}); calibration "
+          f"{cal.channels[0]}/{cal.channels[1]}, gain ratio {cal.gain_ratio:.5f}")
+    t0 = time.perf_counter()
+    cam, views, depths, _ = reconstruct_input(a)
+    n = cam.pixels_per_lenslet
+    chan = channel_views((views.shape[2] * n, views.shape[3] * n), sensor, n)
+    ch = tuple(CHANNELS.index(c) for c in cal.channels)
+    extra = {}
+    if depths == "auto":
+        depths, found = found_planes(cam, channel_sum_views(views, chan, ch))
+        extra = dict(depths_from="auto (channel sum)", found_depths=found)
+    op = None if a.route == "refocus-cfa" else ExactOperator(cam, depths, precision="float32")
+    emission = channel_emission(a.route, views, chan, ch, op=op, slopes=[cam.slope_for_depth(d) for d in depths],
+                                saturation=a.saturation)
+    temp, valid, n_masked = temperature_planes(emission[0], emission[1], cal, sensor, a.alpha, a.min_fraction)
+    tot = emission[0] + emission[1]
+    dim = tot < a.min_fraction * tot.reshape(len(tot), -1).max(axis=1)[:, None, None]
+    n_dim = dim.reshape(len(dim), -1).sum(axis=1)
+    sample = np.array([np.asarray(cam.field_of_view_mm(d)) / (cam.n_rows, cam.n_cols) for d in depths])
+    wall = time.perf_counter() - t0
+    out = Path(a.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.name + ".part")
+    with h5py.File(tmp, "w") as f:
+        f["temperature_k"] = temp.astype(np.float32)
+        f["temperature_k"].attrs.update(units="K", masked="NaN: no temperature (see valid, dim)")
+        f["valid"] = valid
+        f["dim"] = dim
+        f["emission"] = np.stack(emission).astype(np.float32)
+        f["emission"].attrs["channels"] = json.dumps(list(cal.channels))
+        f["depths_mm"] = np.asarray(depths, float)
+        f["sample_mm"] = sample
+        f["n_masked"] = np.asarray(n_masked, np.int64)
+        f["n_dim"] = np.asarray(n_dim, np.int64)
+        attrs = dict(kind="lf_flame temperature", source=src, calibration=json.dumps(
+            dict(path=str(a.calibration), **{k: getattr(cal, k) for k in cal.__dataclass_fields__})),
+                     sensor=json.dumps(dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase),
+                                            where=where)),
+                     route=a.route, alpha=float(a.alpha), min_fraction=float(a.min_fraction),
+                     saturation="none" if a.saturation is None else float(a.saturation), camera=cam.to_json(),
+                     time_s=wall, provenance=json.dumps(provenance()),
+                     axes="temperature_k, valid, dim: (plane, lenslet row, lenslet col); emission: (channel, plane, "
+                          "row, col); sample_mm: (plane, [height, width]) mm per lenslet sample",
+                     **{k: json.dumps(v, default=float) for k, v in extra.items()})
+        for k, v in attrs.items():
+            f.attrs[k] = v
+    tmp.replace(out)
+    fig = out.with_suffix(".png")
+    plot_temperature(fig, temp, depths, valid)
+    for k, d in enumerate(depths):
+        v = temp[k][valid[k]]
+        stats = (f"median {np.median(v):.0f} K, p10-p90 {np.percentile(v, 10):.0f}-{np.percentile(v, 90):.0f} K"
+                 if v.size else "no temperature")
+        print(f"plane {k} ({d:+.2f} mm): {int(valid[k].sum())} px with a temperature, {stats}; {int(n_masked[k])} "
+              f"bright px masked (ratio out of the table), {int(n_dim[k])} px below {a.min_fraction:g} of the peak")
+    print(f"temperature of {len(depths)} planes ({a.route}) in {wall:.1f} s -> {out}, {fig}")

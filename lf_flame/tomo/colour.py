@@ -1,0 +1,260 @@
+"""Each colour channel's emission on planes from one colour (Bayer) light field (issue 37, step 3).
+
+A colour plenoptic camera records one channel per pixel (the colour filter array). Split
+into sub-aperture views, each view sample keeps the channel of the pixel it came from
+(:func:`channel_views`), so each channel's data are its own samples and the others are
+missing. Routes from those samples to each plane's emission in two channels, whose ratio
+:func:`lf_flame.measure.pyrometry.temperature_planes` turns into temperature:
+
+- ``admm-cfa``: the exact operator's admm (:func:`lf_flame.tomo.solvers.reconstruct`) on
+  each channel's own samples, the other channels' samples left out of the fit as missing
+  data (the ``saturation`` mask), as are clipped samples (:func:`admm_channel`);
+- ``admm-cfa-smooth``: the same, both channels smoothed by a Gaussian of
+  :data:`SMOOTH_SIGMA` lenslets before the ratio;
+- ``refocus-cfa``: each channel's samples refocused by shift-and-sum at the planes' slopes,
+  the mean over the views that hold that channel (:func:`refocus_channel`): the focal-stack
+  ratio baseline.
+
+:func:`channel_sum_views` equalises and interpolates the channels into one monochrome light
+field without the CFA's checkerboard, for depth from focus (:func:`lf_flame.tomo.depth.find_depths`).
+:func:`colour_truth` puts a colour scene's per-channel truth on the planes' grids.
+``experiments/temperature.py`` measures the routes; ``lf-flame temperature`` runs them.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..optics.colour import ColourSensor
+from ..refocus.shift_and_sum import aperture_mask, focal_stack, raw_to_views
+from .solvers import reconstruct
+from .truth import resample_layer
+
+#: The routes from a colour light field to two channels' emission per plane.
+CFA_ROUTES = ("admm-cfa", "admm-cfa-smooth", "refocus-cfa")
+#: admm on each channel's samples: converged by 25 fills on the nominal scene (12-300 tried,
+#: ``experiments/temperature.py``); lam and tv as measured there.
+CFA_FILLS, CFA_LAM, CFA_TV = 25, 0.01, 0.0
+#: Gaussian (lenslets) of ``admm-cfa-smooth``.
+SMOOTH_SIGMA = 0.7
+
+
+def channel_views(shape, sensor: ColourSensor, pixels_per_lenslet: int) -> np.ndarray:
+    """Channel index (0 R, 1 G, 2 B) of each view sample of a raw image of ``shape``.
+
+    Parameters
+    ----------
+    shape : (int, int)
+        The raw image's rows and columns, ``(R * N, C * N)``.
+    sensor : ColourSensor
+        Its CFA pattern and phase.
+    pixels_per_lenslet : int
+        ``N``.
+
+    Returns
+    -------
+    ndarray of shape (N, N, R, C), int8: views' axes as
+    :func:`lf_flame.refocus.shift_and_sum.raw_to_views`.
+
+    Raises
+    ------
+    ValueError
+        A shape that is not a grid of N x N lenslet images.
+    """
+    n = int(pixels_per_lenslet)
+    if len(shape) != 2 or n < 1 or shape[0] % n or shape[1] % n:
+        raise ValueError(f"a raw image of {n} x {n} lenslet images is needed. Received shape {tuple(shape)}")
+    return raw_to_views(sensor.channel_map(shape).astype(np.float32), n).astype(np.int8)
+
+
+def admm_channel(views: np.ndarray, op, fit: np.ndarray, *, fills: int = CFA_FILLS, lam: float = CFA_LAM,
+                 tv: float = CFA_TV) -> np.ndarray:
+    """One channel's emission per plane by admm on its own samples.
+
+    The views are scaled by the largest fitted sample (so admm's ``lam`` does not depend on
+    exposure), solved with the samples outside ``fit`` left out, and scaled back.
+
+    Parameters
+    ----------
+    views : ndarray of shape (N, N, R, C)
+        The colour light field (every channel's samples).
+    op : lf_flame.tomo.exact.ExactOperator
+        The planes' operator (``op.dims`` = (P, rows, cols)).
+    fit : ndarray of shape (N, N, R, C), bool
+        The samples of this channel that are fitted (its own, not clipped).
+    fills, lam, tv
+        admm's iterations and weights (:func:`lf_flame.tomo.solvers.reconstruct`).
+
+    Returns
+    -------
+    ndarray of shape (P, rows, cols): the channel's emission, the views' units.
+
+    Raises
+    ------
+    ValueError
+        ``fit`` not of the views' shape, or no fitted sample with signal.
+    """
+    fit = np.asarray(fit, bool)
+    if fit.shape != views.shape:
+        raise ValueError(f"fit mask of shape {fit.shape} for views of shape {views.shape}")
+    s = float(views[fit].max()) if fit.any() else 0.0
+    if not s > 0:
+        raise ValueError("this channel has no sample with signal to fit")
+    rec = reconstruct(views / s, op, "admm", fills, lam=lam, tv=tv, saturation=~fit)
+    return rec.planes.reshape(op.dims) * s
+
+
+def refocus_channel(views: np.ndarray, own: np.ndarray, slopes, mask: np.ndarray) -> np.ndarray:
+    """One channel refocused at ``slopes``: per pixel the mean over the views holding that channel there.
+
+    Shift-and-sum of ``views * own`` over shift-and-sum of ``own`` (bilinear,
+    :func:`lf_flame.refocus.shift_and_sum.focal_stack`); 0 where no view holds the channel.
+
+    Parameters
+    ----------
+    views : ndarray of shape (N, N, R, C)
+    own : ndarray of shape (N, N, R, C), bool: the channel's samples
+    slopes : sequence of float, lenslets per view
+    mask : ndarray of shape (N, N), bool: the views summed (the aperture)
+
+    Returns
+    -------
+    ndarray of shape (len(slopes), R, C)
+    """
+    m = np.asarray(own, bool)
+    num = focal_stack(views * m, slopes, mask)
+    den = focal_stack(m.astype(np.float32), slopes, mask)
+    return np.where(den > 0, num / np.maximum(den, 1e-12), 0.0)
+
+
+def smooth_planes(planes: np.ndarray, sigma: float = SMOOTH_SIGMA) -> np.ndarray:
+    """Each plane of (P, rows, cols) smoothed by a Gaussian of ``sigma`` samples (lenslets)."""
+    from scipy.ndimage import gaussian_filter
+    return np.stack([gaussian_filter(p, sigma) for p in planes])
+
+
+def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, *, op=None, slopes=None,
+                     saturation: float | None = 1.0):
+    """Two channels' emission per plane from a colour light field by one of :data:`CFA_ROUTES`.
+
+    Parameters
+    ----------
+    route : str
+        One of :data:`CFA_ROUTES`.
+    views : ndarray of shape (N, N, R, C)
+        The colour light field (:func:`lf_flame.refocus.shift_and_sum.raw_to_views` of the raw mosaic).
+    chan : ndarray of shape (N, N, R, C), int
+        Each sample's channel (:func:`channel_views`).
+    channels : (int, int)
+        Channel indices (0 R, 1 G, 2 B) of the ratio's numerator and denominator.
+    op : ExactOperator
+        The planes' operator (admm routes).
+    slopes : sequence of float
+        The planes' slopes, lenslets per view (``refocus-cfa``).
+    saturation : float or None
+        Clipping level: admm leaves samples at or above it out of the fit (None: none).
+
+    Returns
+    -------
+    (a, b) : two ndarrays of shape (P, R, C): the channels' emission, the views' units.
+
+    Raises
+    ------
+    ValueError
+        An unknown route, a missing ``op``/``slopes``, a channel mask of another shape, and
+        the errors of :func:`admm_channel`.
+    """
+    if route not in CFA_ROUTES:
+        raise ValueError(f"unknown route {route!r}; one of {CFA_ROUTES}")
+    chan = np.asarray(chan)
+    if chan.shape != views.shape:
+        raise ValueError(f"channel map of shape {chan.shape} for views of shape {views.shape}")
+    if route == "refocus-cfa":
+        if slopes is None:
+            raise ValueError("refocus-cfa needs the planes' slopes")
+        mask = aperture_mask(views.shape[0], "circular")
+        return tuple(refocus_channel(views, chan == c, slopes, mask) for c in channels)
+    if op is None:
+        raise ValueError(f"{route} needs the planes' operator")
+    ok = np.ones(views.shape, bool) if saturation is None else views < saturation
+    rec = [admm_channel(views, op, (chan == c) & ok) for c in channels]
+    if route == "admm-cfa-smooth":
+        rec = [smooth_planes(r) for r in rec]
+    return rec[0], rec[1]
+
+
+def channel_sum_views(views: np.ndarray, chan: np.ndarray, channels=(0, 1), sigma: float = 0.7) -> np.ndarray:
+    """One monochrome light field from a colour one, without the CFA's checkerboard: for depth from focus.
+
+    Per channel of ``channels``, its samples are interpolated over each view's lenslets by
+    normalised convolution (a Gaussian of ``sigma`` lenslets: ``G(v m) / G(m)``), scaled by
+    the channel's mean sample, and the channels present at a sample averaged. With an odd
+    number of pixels per lenslet every view holds every channel on alternate lenslets; with
+    an even number a view holds one channel, which is then that view's value.
+
+    Parameters
+    ----------
+    views, chan : ndarray of shape (N, N, R, C)
+    channels : sequence of int
+    sigma : float, lenslets
+
+    Returns
+    -------
+    ndarray of shape (N, N, R, C), float32, about 1 where the channels are at their mean.
+
+    Raises
+    ------
+    ValueError
+        Shapes that differ, or a channel with no signal.
+    """
+    from scipy.ndimage import gaussian_filter
+    v = np.asarray(views, np.float64)
+    if np.shape(chan) != v.shape:
+        raise ValueError(f"channel map of shape {np.shape(chan)} for views of shape {v.shape}")
+    num = np.zeros_like(v)
+    cnt = np.zeros_like(v)
+    for c in channels:
+        m = np.asarray(chan) == c
+        mean = float(v[m].mean()) if m.any() else 0.0
+        if not mean > 0:
+            raise ValueError(f"channel {c} has no signal")
+        a = gaussian_filter(v * m, (0, 0, sigma, sigma))
+        b = gaussian_filter(m.astype(np.float64), (0, 0, sigma, sigma))
+        has = b > 1e-3
+        num += np.where(has, a / np.maximum(b, 1e-3), 0.0) / mean
+        cnt += has
+    return (num / np.maximum(cnt, 1)).astype(np.float32)
+
+
+def colour_truth(channel_radiance, layers, op) -> np.ndarray:
+    """A colour scene's emission per channel on the planes' grids.
+
+    Parameters
+    ----------
+    channel_radiance : sequence of ndarray of shape (3, rows, cols)
+        Per layer, channels R, G, B (:class:`lf_flame.simulate.scenes_temperature.ColourFlameScene`).
+    layers : sequence of Layer
+        The scene's layers, one per plane of ``op`` in its order.
+    op : ExactOperator
+        Its ``dims``, ``sizes_mm`` and ``centres_mm`` give the grids.
+
+    Returns
+    -------
+    ndarray of shape (3, P, rows, cols): the area-weighted truth
+    (:func:`lf_flame.tomo.truth.resample_layer`).
+
+    Raises
+    ------
+    ValueError
+        Not one layer per plane.
+    """
+    if len(layers) != op.dims[0] or len(channel_radiance) != len(layers):
+        raise ValueError(f"one layer and channel radiance per plane is needed: {op.dims[0]} planes, {len(layers)} "
+                         f"layers, {len(channel_radiance)} radiances")
+    truth = np.zeros((3,) + tuple(op.dims))
+    for k, L in enumerate(layers):
+        for c in range(3):
+            truth[c, k] = resample_layer(dataclasses.replace(L, radiance=channel_radiance[k][c]), op.dims[1:],
+                                         op.sizes_mm[k], op.centres_mm[k])
+    return truth

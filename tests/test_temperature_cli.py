@@ -1,0 +1,132 @@
+"""``lf-flame calibrate-temperature`` and ``lf-flame temperature`` (issue 37) on a small colour camera."""
+import json
+
+import h5py
+import numpy as np
+import pytest
+
+from lf_flame.cli import main
+from lf_flame.optics.camera import PlenopticCamera
+from lf_flame.optics.colour import band_integrals, library_sensor
+from lf_flame.refocus.shift_and_sum import raw_to_views
+from lf_flame.simulate.colour import render_colour
+from lf_flame.simulate.scenes import Effects, Layer, Scene
+from lf_flame.simulate.scenes_temperature import furnace_scene
+from lf_flame.tomo.colour import channel_sum_views, channel_views
+
+CAM = PlenopticCamera(n_rows=21, n_cols=21)
+GAINS = (1.0, 1.3, 0.7)
+COOL, HOT = 1750.0, 1900.0
+
+
+def _save(path, raw, sensor):
+    np.savez(path, raw=raw, camera=json.dumps(CAM.to_dict()),
+             sensor=json.dumps(dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase))))
+    return str(path)
+
+
+def _planted(sensor, seed=2):
+    """A cooler rectangle (left) and a hotter one (right) of soot on the focal plane."""
+    soot = np.zeros((42, 42))
+    temp = np.full((42, 42), COOL)
+    soot[10:32, 8:18] = 1.0
+    soot[10:32, 24:34] = 1.0
+    temp[:, 21:] = HOT
+    ch = soot[None] * np.moveaxis(band_integrals(sensor, temp, gains=True), -1, 0)
+    ch = (ch * 0.8 / ch.max()).astype(np.float32)
+    h, w = CAM.field_of_view_mm(0.0)
+    scene = Scene("planted", (Layer(ch[1], None, 0.0, (0.0, 0.0), (h, w)),), Effects(occlusion=False))
+    return render_colour(CAM, scene, [ch], sensor, 16, seed)
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("temperature")
+    sensor = library_sensor(gains=GAINS)
+    bb = []
+    for t in (1600.0, 2000.0, 2400.0):
+        sc, ch = furnace_scene(CAM, sensor, t)
+        bb.append(_save(d / f"bb{t:.0f}.npz", render_colour(CAM, sc, ch, sensor, 2, 0), sensor))
+    flame = _save(d / "flame.npz", _planted(sensor), sensor)
+    cal = str(d / "bb.json")
+    args = ["calibrate-temperature", *bb]
+    for t in (1600, 2000, 2400):
+        args += ["--temperature", str(t)]
+    assert main(args + ["--out", cal]) == 0
+    return dict(dir=d, bb=bb, flame=flame, cal=cal, sensor=sensor)
+
+
+def test_calibrate_temperature_finds_the_gain_ratio(files):
+    d = json.loads(open(files["cal"]).read())
+    assert d["gain_ratio"] == pytest.approx(GAINS[0] / GAINS[1], rel=1e-3)
+    assert d["channels"] == ["R", "G"] and d["sensor_name"] == files["sensor"].name
+    assert max(abs(r) for r in d["fit_residuals_k"]) < 1.0
+    # one temperature per image
+    assert main(["calibrate-temperature", *files["bb"], "--temperature", "1600", "--out",
+                 str(files["dir"] / "x.json")]) == 2
+
+
+def test_temperature_round_trip(files, capsys):
+    out = files["dir"] / "T.h5"
+    assert main(["temperature", files["flame"], "--calibration", files["cal"], "--depths", "0", "--out",
+                 str(out)]) == 0
+    assert out.with_suffix(".png").stat().st_size > 0
+    with h5py.File(out, "r") as f:
+        t, valid, dim = f["temperature_k"][:], f["valid"][:], f["dim"][:]
+        assert f["temperature_k"].attrs["units"] == "K"
+        assert list(f["depths_mm"][:]) == [0.0]
+        assert json.loads(f.attrs["provenance"])["versions"]
+        n_masked, n_dim = f["n_masked"][:], f["n_dim"][:]
+    assert t.shape == (1, 21, 21)
+    # masked pixels carry no temperature; dim ones are masked; the counts are the masks'
+    assert np.array_equal(np.isfinite(t), valid)
+    assert not (valid & dim).any() and dim.any()
+    assert n_dim[0] == dim.sum() and n_masked[0] == (~valid & ~dim).sum()
+    # each rectangle's temperature (lenslets inside it), in K
+    assert np.nanmedian(t[0][5:16, 5:8]) == pytest.approx(COOL, abs=25.0)
+    assert np.nanmedian(t[0][5:16, 13:16]) == pytest.approx(HOT, abs=25.0)
+    assert np.isnan(t[0][0:3, :]).all()                   # the dark background
+
+
+def test_temperature_auto_depth_and_refocus_route(files):
+    out = files["dir"] / "Tauto.h5"
+    assert main(["temperature", files["flame"], "--calibration", files["cal"], "--route", "refocus-cfa",
+                 "--out", str(out)]) == 0
+    with h5py.File(out, "r") as f:
+        depths, t = f["depths_mm"][:], f["temperature_k"][:]
+        found = json.loads(f.attrs["found_depths"])
+    assert len(depths) == 1 and abs(depths[0]) < 0.5 and len(found) == 1
+    assert np.nanmedian(t[0][5:16, 13:16]) == pytest.approx(HOT, abs=25.0)
+
+
+def test_wrong_calibration_refused(files, capsys):
+    out = str(files["dir"] / "never.h5")
+    sigma = library_sensor("Sigma SDMerill (NPL)")
+    other = _save(files["dir"] / "sigma.npz", np.load(files["flame"])["raw"], sigma)
+    assert main(["temperature", other, "--calibration", files["cal"], "--depths", "0", "--out", out]) == 2
+    assert "made for sensor 'Nikon 5100 (NPL)'" in capsys.readouterr().err
+    # the CFA's phase given on the command line, not the calibration's
+    assert main(["temperature", files["flame"], "--calibration", files["cal"], "--cfa-phase", "1", "1", "--depths",
+                 "0", "--out", out]) == 2
+    assert "phase (1, 1)" in capsys.readouterr().err
+    # a calibration of one channel against itself
+    d = json.loads(open(files["cal"]).read())
+    d["channels"] = ["G", "G"]
+    bad = files["dir"] / "bad.json"
+    bad.write_text(json.dumps(d))
+    assert main(["temperature", files["flame"], "--calibration", str(bad), "--depths", "0", "--out", out]) == 2
+    assert "two different" in capsys.readouterr().err
+    assert not (files["dir"] / "never.h5").exists()
+
+
+def test_channel_sum_has_no_cfa_checkerboard():
+    """A uniform furnace: the mosaic's views alternate R/G/B from lenslet to lenslet; the channel sum is flat."""
+    sensor = library_sensor(gains=GAINS)
+    sc, ch = furnace_scene(CAM, sensor, 2000.0)
+    raw = render_colour(CAM, sc, ch, sensor, 2, 0)
+    views = raw_to_views(raw, CAM.pixels_per_lenslet)
+    chan = channel_views(raw.shape, sensor, CAM.pixels_per_lenslet)
+    v = views[7, 7, 5:16, 5:16]                             # the central view, central lenslets
+    assert v.std() / v.mean() > 0.1
+    s = channel_sum_views(views, chan)[7, 7, 5:16, 5:16]
+    assert s.std() / s.mean() < 0.01
