@@ -9,7 +9,8 @@ camera's depth-resolution map from that map's per-frequency normal matrices; :mo
 recovers the emission with PyLops/PyProximal solvers, and :mod:`.fourier` on the exact
 operator's per-frequency normal matrices (ADMM; kernels in :mod:`._fourier_kernels`);
 :mod:`.depth` finds the depths that hold emission (depth from focus per region)
-and solves on them; :mod:`.truth` puts a simulated
+and solves on them; :mod:`.axisymmetric` an axisymmetric flame's emission e(r, y) revolved onto a
+dense stack (its axis searched on the data residual); :mod:`.truth` puts a simulated
 scene's truth on the same grids; :mod:`.scoring` scores planes against it;
 :mod:`.decoded` turns decoded views of a user's camera into the exact operator's data and
 puts a simulated scene's truth in their frame;
@@ -21,9 +22,11 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["decoded", "defaults", "depth", "exact", "files", "fourier", "operator", "resolution", "scoring", "solvers",
+    submodules=["axisymmetric", "decoded", "defaults", "depth", "exact", "files", "fourier", "operator", "resolution", "scoring", "solvers",
                 "truth"],
     submod_attrs={
+        "axisymmetric": ["AXI_LAM", "AXI_FILLS", "AXI_INNER", "RevolveOperator", "AxisymmetricVolume",
+                         "axis_x_from_views", "solve_axisymmetric"],
         "decoded": ["MIN_WHITE", "white_views", "decoded_problem", "decoded_truth"],
         "depth": ["DEPTH_RANGE_MM", "SLOPE_STEP", "MERGE_MM", "FoundDepths", "find_depths", "merge_depths",
                   "find_planes"],
