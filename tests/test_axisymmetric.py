@@ -75,7 +75,7 @@ def test_axis_x_from_a_rendered_view():
 
 
 def test_bad_input_is_refused(op):
-    with pytest.raises(ValueError, match="r_max_mm"):
+    with pytest.raises(ValueError, match="r_max_mm must be positive"):
         RevolveOperator(op, 0.0, 0.0, -1.0)
     with pytest.raises(ValueError, match="finite"):
         RevolveOperator(op, float("nan"), 0.0, 1.0)
