@@ -41,9 +41,10 @@ from .fourier import normal_matrices
 
 #: Smoothness weight of :func:`solve_axisymmetric`, relative to the mean diagonal of ``R^T G R``.
 AXI_LAM = 1e-3
-#: Fills of the missing data (outer iterations) and FISTA steps per fill of a final solve.
+#: Fills of the missing data (outer iterations) and FISTA steps per fill of a final solve. 100 steps: a filled
+#: core converges slowly near the axis (25 steps left a core 15.9 % off with its true axis, 100 steps 6.7 %).
 AXI_FILLS = 8
-AXI_INNER = 25
+AXI_INNER = 100
 #: ... and of each solve of the axis search (a shorter one: only the residual's minimum matters).
 SEARCH_FILLS = 3
 SEARCH_INNER = 15
