@@ -21,7 +21,7 @@ HELDOUT_paper := 20
 HELDOUT_quick := 4
 HELDOUT_SEED := 770077
 
-.PHONY: temperature help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution depth sequence new-user heights test clean-quick
+.PHONY: temperature help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution depth volume sequence new-user heights test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -132,6 +132,11 @@ resolution: $(STAMP) ## smallest resolvable plane spacing against feature size -
 # on 2 cores for 100 scenes; each scene's rows cached in data/depth, so a rerun resumes)
 depth: $(STAMP) ## flames at unknown depths: depth, emission and share errors per flame -> results/depth.{csv,md,json,png}
 	$(VENV)/bin/python experiments/depth.py --out $(TRADEOFF_OUT) $(DEPTH_ARGS_$(PRESET))
+
+# axisymmetric volumetric flames (issue 36, step 2): the axisymmetric prior beside the dense admm stack and
+# shift-and-sum, noise-free and at 14 dB (about 15-20 min on 2 cores; renders cached in data/volume)
+volume: $(STAMP) ## axisymmetric volumes: 3-D, projection and depth-centroid errors -> results/volume.{csv,md,json,png}
+	$(VENV)/bin/python experiments/volume.py --out $(TRADEOFF_OUT)
 
 # the stem is REGIME/table_SCENE
 $(RES)/%.md: $(MODELS)/$$(*D)/$$(subst table_,,$$(*F))/train_info.json

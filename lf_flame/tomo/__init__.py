@@ -10,7 +10,9 @@ recovers the emission with PyLops/PyProximal solvers, and :mod:`.fourier` on the
 operator's per-frequency normal matrices (ADMM; kernels in :mod:`._fourier_kernels`);
 :mod:`.depth` finds the depths that hold emission (depth from focus per region)
 and solves on them; :mod:`.colour` recovers two colour channels' emission per plane
-from a colour (Bayer) light field, for two-colour pyrometry; :mod:`.truth` puts a simulated
+from a colour (Bayer) light field, for two-colour pyrometry; :mod:`.axisymmetric` an
+axisymmetric flame's emission e(r, y) revolved onto a dense stack (its axis searched on the
+data residual); :mod:`.truth` puts a simulated
 scene's truth on the same grids; :mod:`.scoring` scores planes against it;
 :mod:`.decoded` turns decoded views of a user's camera into the exact operator's data and
 puts a simulated scene's truth in their frame;
@@ -22,9 +24,11 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["colour", "decoded", "defaults", "depth", "exact", "files", "fourier", "operator", "resolution", "scoring", "solvers",
-                "truth"],
+    submodules=["axisymmetric", "colour", "decoded", "defaults", "depth", "exact", "files", "fourier", "operator",
+                "resolution", "scoring", "solvers", "truth"],
     submod_attrs={
+        "axisymmetric": ["AXI_LAM", "AXI_FILLS", "AXI_INNER", "RevolveOperator", "AxisymmetricVolume",
+                         "axis_x_from_views", "solve_axisymmetric"],
         "colour": ["CFA_ROUTES", "CFA_FILLS", "CFA_LAM", "CFA_TV", "SMOOTH_SIGMA", "channel_views", "admm_channel",
                    "refocus_channel", "smooth_planes", "channel_emission", "channel_sum_views", "colour_truth"],
         "decoded": ["MIN_WHITE", "white_views", "decoded_problem", "decoded_truth"],

@@ -1,0 +1,448 @@
+"""Axisymmetric volumes: a laminar flame's emission ``e(r, y)`` about a vertical axis (issue 36, step 2).
+
+A dense stack of planes does not resolve a whole flame in depth from the data alone
+(README, "The camera's depth resolution"). A laminar flame is axisymmetric: its emission
+is a function ``e(r, y)`` of the height ``y`` and the distance ``r`` from a vertical axis
+at lateral position ``x0`` and depth ``z0``. That prior turns the ``P x rows x cols`` stack
+into ``rows x n_r`` unknowns that every plane shares (the onion-peeling / Abel model of
+flame tomography; e.g. Dasch, Appl. Opt. 31 (1992), here composed with the light-field map).
+
+- :class:`RevolveOperator` (``R``): ``e`` on radial nodes ``r_j = j dr`` (linear "hat"
+  interpolation in ``r``) and on the rows of the grid at the axis's depth (linear in
+  height), revolved onto the planes of an exact operator: each voxel reads ``e`` at its
+  distance from the axis, ``sqrt((x - x0)^2 + (z - z0)^2)``, and its height. A sparse
+  matrix (at most four entries per voxel); ``R^T`` its exact transpose.
+- :func:`solve_axisymmetric`: non-negative least squares on ``e`` with a small
+  smoothness ``lam ||D e||^2`` (first differences along ``r`` and ``y``), by projected
+  FISTA (Beck & Teboulle, SIAM J. Imaging Sci. 2 (2009)) on the exact operator's
+  per-frequency normal matrices ``G(f)`` (:func:`lf_flame.tomo.fourier.normal_matrices`),
+  with the sensor window's and saturated pixels' missing data filled from the prediction
+  as :func:`lf_flame.tomo.fourier.solve_admm` does (each *fill* one ``H`` and one ``H^H``
+  over the views; the FISTA steps between fills run on the planes alone).
+- **The axis.** ``x0`` from the central view's (a pinhole image's) column centroid at the
+  axis's depth; ``z0`` searched by :func:`scipy.optimize.minimize_scalar` (bounded) on the
+  data residual of a shorter solve, about a start from
+  :func:`lf_flame.tomo.depth.find_depths` (the found depths' vote-weighted mean) unless given.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import pylops
+import scipy.fft
+import scipy.sparse
+from scipy import optimize
+
+from . import _fourier_kernels
+from .fourier import normal_matrices
+
+#: Smoothness weight of :func:`solve_axisymmetric`, relative to the mean diagonal of ``R^T G R``.
+AXI_LAM = 1e-3
+#: Fills of the missing data (outer iterations) and FISTA steps per fill of a final solve. 100 steps: a filled
+#: core converges slowly near the axis (25 steps left a core 15.9 % off with its true axis, 100 steps 6.7 %).
+AXI_FILLS = 8
+AXI_INNER = 100
+#: ... and of each solve of the axis search (a shorter one: only the residual's minimum matters).
+SEARCH_FILLS = 3
+SEARCH_INNER = 15
+#: Half width (mm) of the bracket the axis depth is searched in about its start, and the search's tolerance.
+SEARCH_HALF_WIDTH_MM = 3.0
+SEARCH_TOL_MM = 0.05
+
+
+def _grid_coordinates(op, p):
+    """Row heights (rows,) and column positions (cols,) in mm of plane ``p`` of ``op`` (y up, x right)."""
+    _, gr, gc = op.dims
+    h, w = op.sizes_mm[p]
+    cy, cx = op.centres_mm[p] if hasattr(op, "centres_mm") else (0.0, 0.0)
+    return cy + (0.5 - (np.arange(gr) + 0.5) / gr) * h, cx + ((np.arange(gc) + 0.5) / gc - 0.5) * w
+
+
+def _frame_at(op, depth_mm):
+    """Frame (height, width) in mm of the planes' grid at ``depth_mm``, linear in depth between the planes."""
+    d = np.asarray(op.depths_mm, np.float64)
+    order = np.argsort(d)
+    hs = np.array([s[0] for s in op.sizes_mm])[order]
+    ws = np.array([s[1] for s in op.sizes_mm])[order]
+    if len(d) == 1:
+        return float(hs[0]), float(ws[0])
+    ds = d[order]
+    # the frame is proportional to the object distance: linear in depth, extrapolated as such
+    fh = np.polyfit(ds, hs, 1)
+    fw = np.polyfit(ds, ws, 1)
+    return float(np.polyval(fh, depth_mm)), float(np.polyval(fw, depth_mm))
+
+
+class RevolveOperator(pylops.LinearOperator):
+    """An axisymmetric emission ``e(y, r)`` revolved onto a stack of planes (module docstring).
+
+    Parameters
+    ----------
+    op : ExactOperator or EmissionOperator
+        Its planes (``dims`` (P, rows, cols), ``depths_mm``, ``sizes_mm``, ``centres_mm``) are the target grid.
+    axis_x_mm, axis_z_mm : float
+        The vertical axis: lateral position (mm, x right, 0 on the optical axis) and depth
+        (mm from the focal plane, positive farther).
+    r_max_mm : float
+        Outermost radial node (mm): the emission is zero beyond it.
+    dr_mm : float or None
+        Radial node spacing (mm); None: one lateral sample of the grid at the axis's depth.
+
+    Attributes
+    ----------
+    dims : (rows, n_r)
+        Model: ``e[i, j]`` at height ``heights_mm[i]`` (the rows of the grid at the axis's
+        depth, row 0 the top) and radius ``radii_mm[j] = j dr_mm``; the planes' units (the
+        emission a plane sample at that radius and height holds).
+    dimsd : (P, rows, cols)
+        The planes of ``op``.
+    radii_mm, heights_mm : ndarray
+    matrix : scipy.sparse.csr_matrix of shape (P rows cols, rows n_r)
+
+    Raises
+    ------
+    ValueError
+        Non-finite axis, a non-positive or non-finite ``r_max_mm`` or ``dr_mm``, fewer than
+        two radial nodes, an axis whose cylinder misses every plane sample.
+    """
+
+    def __init__(self, op, axis_x_mm: float, axis_z_mm: float, r_max_mm: float, dr_mm: float | None = None):
+        x0, z0, rmax = float(axis_x_mm), float(axis_z_mm), float(r_max_mm)
+        if not (math.isfinite(x0) and math.isfinite(z0)):
+            raise ValueError(f"the axis must be finite. Received: x0={axis_x_mm!r}, z0={axis_z_mm!r}")
+        if not (math.isfinite(rmax) and rmax > 0):
+            raise ValueError(f"r_max_mm must be positive and finite. Received: {r_max_mm!r}")
+        P, gr, gc = op.dims
+        h_ref, w_ref = _frame_at(op, z0)
+        dr = w_ref / gc if dr_mm is None else float(dr_mm)
+        if not (math.isfinite(dr) and dr > 0):
+            raise ValueError(f"dr_mm must be positive and finite. Received: {dr_mm!r}")
+        n_r = int(math.floor(rmax / dr + 1e-9)) + 1
+        if n_r < 2:
+            raise ValueError(f"r_max_mm={rmax:g} gives fewer than two radial nodes at dr={dr:g} mm")
+        self.radii_mm = np.arange(n_r) * dr
+        self.heights_mm = (0.5 - (np.arange(gr) + 0.5) / gr) * h_ref
+        rows, cols, vals = [], [], []
+        for p in range(P):
+            ys, xs = _grid_coordinates(op, p)
+            r = np.hypot(xs - x0, op.depths_mm[p] - z0)                 # (cols,)
+            rf = r / dr
+            j0 = np.floor(rf).astype(np.int64)
+            t = rf - j0
+            fi = (0.5 - ys / h_ref) * gr - 0.5                           # fractional row of e, (rows,)
+            i0 = np.floor(fi).astype(np.int64)
+            s = fi - i0
+            vox = (p * gr + np.arange(gr)[:, None]) * gc + np.arange(gc)[None, :]
+            for di, wi in ((0, 1.0 - s), (1, s)):
+                ii = i0 + di
+                for dj, wj in ((0, 1.0 - t), (1, t)):
+                    jj = j0 + dj
+                    wgt = wi[:, None] * wj[None, :]
+                    ok = ((ii >= 0) & (ii < gr))[:, None] & (jj < n_r)[None, :] & (wgt > 0)
+                    rows.append(vox[ok])
+                    cols.append((np.broadcast_to(ii[:, None], ok.shape) * n_r + jj[None, :])[ok])
+                    vals.append(wgt[ok])
+        rows, cols, vals = (np.concatenate(a) for a in (rows, cols, vals))
+        if not len(vals):
+            raise ValueError(f"an axis at x0={x0:g} mm, z0={z0:g} mm with r_max={rmax:g} mm reaches no plane sample")
+        self.matrix = scipy.sparse.csr_matrix((vals, (rows, cols)), shape=(P * gr * gc, gr * n_r))
+        self._mt = self.matrix.T.tocsr()
+        self.axis_x_mm, self.axis_z_mm, self.r_max_mm, self.dr_mm = x0, z0, float(self.radii_mm[-1]), dr
+        super().__init__(dtype=np.float64, dims=(gr, n_r), dimsd=(P, gr, gc))
+
+    def _matvec(self, e):
+        return self.matrix @ np.ravel(e)
+
+    def _rmatvec(self, x):
+        return self._mt @ np.ravel(x)
+
+
+# ---- the solver ------------------------------------------------------------------------------
+@dataclass
+class AxisymmetricVolume:
+    """What :func:`solve_axisymmetric` returns.
+
+    Attributes
+    ----------
+    emission : ndarray of shape (rows, n_r), float64
+        ``e`` at ``heights_mm`` x ``radii_mm`` (the planes' units), non-negative.
+    radii_mm, heights_mm : ndarray
+    volume : ndarray of shape (P, rows, cols), float64
+        ``e`` revolved onto the operator's planes.
+    axis_x_mm, axis_z_mm : float
+        The axis used (given or found).
+    residual : float
+        ``||M (w H R e - y)|| / ||M y||`` on the fitted pixels ``M``.
+    search : list of (float, float)
+        Each axis depth tried by the search (mm) and its residual (empty when ``z0`` was given).
+    time_s : float
+        Wall time, seconds (normal matrices, search and solve).
+    """
+
+    emission: np.ndarray
+    radii_mm: np.ndarray
+    heights_mm: np.ndarray
+    volume: np.ndarray
+    axis_x_mm: float
+    axis_z_mm: float
+    residual: float
+    search: list = field(default_factory=list)
+    time_s: float = float("nan")
+
+
+class _Normal:
+    """The exact operator's per-frequency normal matrices, full, frequencies first, for ``G x`` on planes."""
+
+    def __init__(self, op):
+        G = normal_matrices(op)                                      # (P, P, Lr, F), lower triangle
+        P = G.shape[0]
+        iu = np.triu_indices(P, 1)
+        G[iu[0], iu[1]] = np.conj(G[iu[1], iu[0]])
+        real = np.float32 if op._spec.dtype == np.complex64 else np.float64
+        dt = real if G.dtype == np.float64 else np.result_type(real, np.complex64)
+        self.G = np.ascontiguousarray(G.reshape(P, P, -1).transpose(2, 0, 1), dt)   # (Lr F, P, P)
+        self.g0 = float(np.mean(np.diagonal(G[:, :, 0, 0]).real))
+        self.shape = G.shape[2:]
+
+    def apply(self, xs):
+        """``G(f) xs(f)`` for spectra ``xs`` (P, Lr, F)."""
+        P = xs.shape[0]
+        if np.iscomplexobj(self.G):
+            flat = np.ascontiguousarray(xs.reshape(P, -1).T).astype(self.G.dtype)
+            return np.matmul(self.G, flat[:, :, None])[:, :, 0].T.reshape(xs.shape)
+        # real G (every perfect grid): real and imaginary parts as two columns of one real product
+        cdt = np.complex64 if self.G.dtype == np.float32 else np.complex128
+        flat = np.ascontiguousarray(xs.reshape(P, -1).T, cdt)
+        out = np.matmul(self.G, flat.view(self.G.dtype).reshape(len(flat), P, 2))
+        return np.ascontiguousarray(out.view(cdt).reshape(len(flat), P).T).reshape(xs.shape)
+
+
+def _difference_operator(rows, n_r):
+    """First differences of ``e`` (rows, n_r) along the height and the radius, stacked (sparse)."""
+    dy = scipy.sparse.kron(scipy.sparse.diags([-1.0, 1.0], [0, 1], shape=(rows - 1, rows)), scipy.sparse.eye(n_r))
+    dx = scipy.sparse.kron(scipy.sparse.eye(rows), scipy.sparse.diags([-1.0, 1.0], [0, 1], shape=(n_r - 1, n_r)))
+    return scipy.sparse.vstack([dy, dx]).tocsr()
+
+
+def _check(views, op, fit):
+    N, _, R, C = op.dimsd
+    v = np.asarray(views, np.float64)
+    if v.shape != tuple(op.dimsd):
+        raise ValueError(f"views must have the operator's data shape {tuple(op.dimsd)}. Received: {v.shape}")
+    if not np.all(np.isfinite(v)):
+        raise ValueError("views hold NaN or infinite values")
+    if not hasattr(op, "_spec"):
+        raise ValueError("solve_axisymmetric needs an ExactOperator (lf_flame.tomo.exact): its normal matrices")
+    if op.subsamples != 1:
+        raise ValueError(f"solve_axisymmetric works on the lenslet grid: give an ExactOperator with subsamples=1. "
+                         f"Received subsamples={op.subsamples}")
+    f = v < 1.0 if fit is None else np.asarray(fit)
+    if f.shape != v.shape or f.dtype != bool:
+        raise ValueError(f"fit must be boolean of the views' shape {v.shape}. Received: {f.dtype} of shape {f.shape}")
+    return v, f
+
+
+def _fit_emission(op, normal, yt, y, w, m, lit, revolve, lam, fills, inner, e0=None):
+    """Projected FISTA on ``e`` between fills of the missing data; returns (e, residual)."""
+    P, gr, gc = op.dims
+    canvas = op.canvas_shape
+    S = op._spec
+    real = np.float32 if S.dtype == np.complex64 else np.float64
+    D = _difference_operator(*revolve.dims)
+    norm = float(np.linalg.norm(np.where(m, y, 0.0))) or 1.0
+
+    def planes(e):
+        x = np.zeros((P,) + canvas, real)
+        x[:, :gr, :gc] = (revolve.matrix @ e).reshape(P, gr, gc)
+        return x
+
+    def normal_e(e):                                                 # R^T G R e, planes cropped to the grid
+        gx = scipy.fft.irfft2(normal.apply(scipy.fft.rfft2(planes(e), workers=op.workers)), s=canvas,
+                              workers=op.workers)
+        return revolve._mt @ gx[:, :gr, :gc].astype(np.float64).ravel()
+
+    # Lipschitz constant of the data term on e (power iteration), and the smoothness weight
+    rng = np.random.default_rng(0)
+    v = rng.random(revolve.shape[1])
+    for _ in range(12):
+        v = normal_e(v)
+        v /= np.linalg.norm(v) or 1.0
+    L_data = float(v @ normal_e(v))
+    diag = np.asarray(revolve.matrix.power(2).sum(axis=0)).ravel()
+    lam_abs = lam * normal.g0 * float(diag[diag > 0].mean())
+    L = 1.05 * L_data + 8.0 * lam_abs
+    e = np.zeros(revolve.shape[1]) if e0 is None else np.maximum(np.asarray(e0, np.float64), 0.0)
+    z = np.zeros((len(lit),) + canvas, real)
+    residual = float("nan")
+    for j in range(int(fills) + 1):
+        if j > 0 or e0 is not None:                                  # predict the missing data from e
+            hv = _fourier_kernels.spectra_forward(S, scipy.fft.rfft2(planes(e), workers=op.workers))
+            z = scipy.fft.irfft2(hv, s=canvas, workers=op.workers)
+        res2 = _fourier_kernels.fill(z, yt, y, w, m)
+        if j > 0 or e0 is not None:
+            residual = math.sqrt(res2) / norm
+        if j == int(fills):
+            break
+        b = scipy.fft.irfft2(_fourier_kernels.spectra_adjoint(S, scipy.fft.rfft2(z, workers=op.workers)), s=canvas,
+                             workers=op.workers)[:, :gr, :gc]
+        rtb = revolve._mt @ b.astype(np.float64).ravel()
+        u, t = e.copy(), 1.0
+        for _ in range(int(inner)):
+            grad = normal_e(u) - rtb + lam_abs * (D.T @ (D @ u))
+            e_new = np.maximum(u - grad / L, 0.0)
+            t_new = 0.5 * (1.0 + math.sqrt(1.0 + 4.0 * t * t))
+            u = e_new + ((t - 1.0) / t_new) * (e_new - e)
+            e, t = e_new, t_new
+    return e, residual
+
+
+def axis_x_from_views(views, op, axis_z_mm: float, fit=None) -> float:
+    """Lateral position (mm) of a vertical axis of symmetry: the central view's column centroid at depth ``axis_z_mm``.
+
+    The central sub-aperture view is a pinhole image: its column ``c`` sees the plane
+    sample ``c`` at every depth, so the centroid column of an axisymmetric flame's image is
+    its axis's, and the axis's position is that column's on the grid at the axis's depth.
+
+    Parameters
+    ----------
+    views : ndarray of shape (N, N, R, C)
+    op : ExactOperator
+    axis_z_mm : float
+    fit : ndarray of bool or None
+        Pixels to use (saturated ones still count: they bound the light from below).
+
+    Returns
+    -------
+    float
+        x0 in mm (x right, 0 on the optical axis).
+
+    Raises
+    ------
+    ValueError
+        A central view without light.
+    """
+    c = views.shape[0] // 2
+    img = np.clip(np.asarray(views[c, c], np.float64), 0.0, None)
+    prof = img.sum(axis=0)
+    prof = np.where(prof > 0.05 * prof.max(), prof, 0.0) if prof.max() > 0 else prof
+    if not prof.sum() > 0:
+        raise ValueError("the central view holds no light: no axis to find")
+    cbar = float(np.sum(np.arange(len(prof)) * prof) / prof.sum())
+    _, w = _frame_at(op, axis_z_mm)
+    gc = op.dims[2]
+    return ((cbar + 0.5) / gc - 0.5) * w
+
+
+def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, axis_z_mm: float | None = None,
+                       r_max_mm: float | None = None, dr_mm: float | None = None, lam: float = AXI_LAM,
+                       fills: int = AXI_FILLS, inner: int = AXI_INNER, search_half_width_mm: float = SEARCH_HALF_WIDTH_MM,
+                       search_fills: int = SEARCH_FILLS, search_inner: int = SEARCH_INNER,
+                       search_tol_mm: float = SEARCH_TOL_MM, start_z_mm: float | None = None, camera=None,
+                       normal=None) -> AxisymmetricVolume:
+    """An axisymmetric flame's emission ``e(r, y)`` and its volume from one light field (module docstring).
+
+    Parameters
+    ----------
+    views : ndarray of shape (N, N, R, C)
+        The light field (radiance units), :func:`lf_flame.refocus.shift_and_sum.raw_to_views`.
+    op : ExactOperator
+        The dense stack the volume is returned on (its planes should span the flame).
+    fit : ndarray of bool of shape (N, N, R, C) or None
+        Pixels to fit (False: saturated, left out); None: ``views < 1``.
+    axis_x_mm, axis_z_mm : float or None
+        The axis (mm); None: found (``x0`` by :func:`axis_x_from_views`, ``z0`` by the search).
+    r_max_mm : float or None
+        Outermost radius (mm); None: 0.6 x the width of the central view's lit columns at
+        the axis's depth (a flame's half width with a margin).
+    dr_mm : float or None
+        Radial node spacing (:class:`RevolveOperator`).
+    lam : float
+        Weight of ``||D e||^2`` (first differences in ``y`` and ``r``) relative to the mean
+        diagonal of ``R^T G R`` (>= 0).
+    fills, inner : int
+        Fills of the missing data and FISTA steps per fill of the final solve (>= 1).
+    search_half_width_mm, search_fills, search_inner, search_tol_mm : float, int, int, float
+        The axis depth's search: bracket ``start ± half width`` (mm), each trial's shorter solve,
+        the tolerance (mm).
+    start_z_mm : float or None
+        Start of the search; None: the vote-weighted mean of :func:`lf_flame.tomo.depth.find_depths`
+        (needs ``camera``).
+    camera : PlenopticCamera or None
+        For :func:`~lf_flame.tomo.depth.find_depths`; None: ``op.camera``.
+    normal : object or None
+        Normal matrices from an earlier call (``result``'s operator cache); None: computed
+        (and kept on ``op``).
+
+    Returns
+    -------
+    AxisymmetricVolume
+
+    Raises
+    ------
+    ValueError
+        Views not of the operator's shape or not finite; not an exact operator; a fit mask
+        not boolean of the views' shape; iterations below 1; a negative or non-finite
+        ``lam``; a non-positive search width or tolerance; a radius or axis the
+        :class:`RevolveOperator` refuses.
+    """
+    t0 = time.perf_counter()
+    v, f = _check(views, op, fit)
+    for name, k in (("fills", fills), ("inner", inner), ("search_fills", search_fills), ("search_inner", search_inner)):
+        if int(k) != k or k < 1:
+            raise ValueError(f"{name} must be an integer >= 1. Received: {k!r}")
+    if not (math.isfinite(lam) and lam >= 0):
+        raise ValueError(f"lam must be finite and >= 0. Received: {lam!r}")
+    if not (search_half_width_mm > 0 and search_tol_mm > 0):
+        raise ValueError(f"search_half_width_mm and search_tol_mm must be > 0. Received: {search_half_width_mm!r}, "
+                         f"{search_tol_mm!r}")
+    N, _, R, C = op.dimsd
+    if normal is None:
+        normal = op.__dict__.get("_axisymmetric_normal") or _Normal(op)
+        op.__dict__["_axisymmetric_normal"] = normal
+    lit = op._lit
+    canvas = op.canvas_shape
+    real = np.float32 if op._spec.dtype == np.complex64 else np.float64
+    w = op._w[lit]
+    y = v.reshape(N * N, R, C)[lit]
+    m = f.reshape(N * N, R, C)[lit] & (w > 0)
+    yt = np.where(m, y / np.where(w > 0, w, 1.0), 0.0).astype(real)
+    del canvas
+
+    def revolve_at(z0):
+        x0 = axis_x_from_views(v, op, z0, f) if axis_x_mm is None else float(axis_x_mm)
+        rmax = r_max_mm
+        if rmax is None:
+            c = N // 2
+            prof = np.clip(v[c, c], 0, None).sum(axis=0)
+            lit_cols = np.flatnonzero(prof > 0.05 * prof.max())
+            _, wz = _frame_at(op, z0)
+            rmax = 0.6 * (lit_cols[-1] - lit_cols[0] + 1) * wz / op.dims[2]
+        return RevolveOperator(op, x0, z0, rmax, dr_mm)
+
+    search = []
+    if axis_z_mm is None:
+        if start_z_mm is None:
+            from .depth import find_depths
+            found = find_depths(v, camera if camera is not None else op.camera)
+            if not len(found.depths_mm):
+                raise ValueError("find_depths found no flame in the views: give axis_z_mm or start_z_mm")
+            start_z_mm = float(np.average(found.depths_mm, weights=np.maximum(found.weight, 1e-12)))
+
+        def trial(z0):
+            rev = revolve_at(z0)
+            _, res = _fit_emission(op, normal, yt, y, w, m, lit, rev, lam, search_fills, search_inner)
+            search.append((float(z0), float(res)))
+            return res
+        lo, hi = start_z_mm - search_half_width_mm, start_z_mm + search_half_width_mm
+        best = optimize.minimize_scalar(trial, bounds=(lo, hi), method="bounded",
+                                        options=dict(xatol=search_tol_mm))
+        axis_z_mm = float(best.x)
+    rev = revolve_at(float(axis_z_mm))
+    e, res = _fit_emission(op, normal, yt, y, w, m, lit, rev, lam, fills, inner)
+    return AxisymmetricVolume(emission=e.reshape(rev.dims), radii_mm=rev.radii_mm, heights_mm=rev.heights_mm,
+                              volume=(rev.matrix @ e).reshape(op.dims), axis_x_mm=rev.axis_x_mm,
+                              axis_z_mm=float(axis_z_mm), residual=float(res), search=search,
+                              time_s=time.perf_counter() - t0)

@@ -1,0 +1,100 @@
+"""Axisymmetric volumes (lf_flame.tomo.axisymmetric): the revolve operator, the solve, the axis search, bad input."""
+import numpy as np
+import pylops
+import pytest
+
+from lf_flame.optics.camera import PlenopticCamera
+from lf_flame.simulate.scenes_volume import axisymmetric_flame_scene
+from lf_flame.tomo.axisymmetric import RevolveOperator, axis_x_from_views, solve_axisymmetric
+from lf_flame.tomo.exact import ExactOperator
+
+AXIS = (0.3, 0.2)           # x0, z0 (mm)
+R_MAX = 2.0
+
+
+@pytest.fixture(scope="module")
+def op():
+    cam = PlenopticCamera(n_rows=41, n_cols=41)                   # a 5.4 mm field
+    return ExactOperator(cam, list(np.arange(-3.0, 3.01, 0.5)), precision="float64")
+
+
+def ring(rev):
+    """A sheath-like e(y, r): a ring of radius 1 mm, brightest at mid-height."""
+    r, y = rev.radii_mm[None, :], rev.heights_mm[:, None]
+    return np.exp(-(r - 1.0) ** 2 / (2 * 0.3 ** 2)) * np.clip(1 - np.abs(y) / 2.2, 0, None)
+
+
+def data(op, e, rev):
+    views = (op @ (rev @ e.ravel())).reshape(op.dimsd)
+    scale = 0.8 / views.max()                                      # below the clipping level, as a render
+    return views * scale, e * scale
+
+
+def test_revolve_is_linear_and_its_adjoint_exact(op):
+    rev = RevolveOperator(op, *AXIS, R_MAX)
+    assert rev.dims == (41, len(rev.radii_mm)) and rev.dimsd == op.dims
+    assert pylops.utils.dottest(rev, *rev.shape, rtol=1e-12, complexflag=0)
+    # a voxel reads e at its own distance from the axis: a constant e is 1 inside the cylinder, 0 well outside
+    x = (rev @ np.ones(rev.shape[1])).reshape(op.dims)
+    p = list(op.depths_mm).index(0.0)
+    cols = ((np.arange(41) + 0.5) / 41 - 0.5) * op.sizes_mm[p][1]
+    r = np.hypot(cols - AXIS[0], 0.0 - AXIS[1])
+    mid = x[p, 20]
+    assert np.allclose(mid[r < R_MAX - 0.2], 1.0) and np.all(mid[r > R_MAX + 0.2] == 0)
+
+
+def test_known_emission_is_recovered(op):
+    rev = RevolveOperator(op, *AXIS, R_MAX)
+    views, e = data(op, ring(rev), rev)
+    res = solve_axisymmetric(views, op, np.ones(views.shape, bool), axis_x_mm=AXIS[0], axis_z_mm=AXIS[1],
+                             r_max_mm=R_MAX, lam=0.0, fills=2, inner=300)
+    assert res.residual < 1e-3
+    truth = (rev @ e.ravel()).reshape(op.dims)
+    assert np.linalg.norm(res.volume - truth) / np.linalg.norm(truth) < 0.01
+    assert np.linalg.norm(res.emission - e) / np.linalg.norm(e) < 0.01
+
+
+def test_axis_search_finds_the_axis(op):
+    rev = RevolveOperator(op, *AXIS, R_MAX)
+    views, _ = data(op, ring(rev), rev)
+    res = solve_axisymmetric(views, op, np.ones(views.shape, bool), r_max_mm=R_MAX, start_z_mm=-0.8,
+                             search_half_width_mm=2.0, fills=2, inner=100)
+    assert abs(res.axis_x_mm - AXIS[0]) < 0.05
+    assert abs(res.axis_z_mm - AXIS[1]) < 0.1
+    assert len(res.search) >= 4 and min(s[1] for s in res.search) <= res.search[0][1]
+
+
+def test_axis_x_from_a_rendered_view():
+    cam = PlenopticCamera(n_rows=41, n_cols=41)
+    op = ExactOperator(cam, [-1.0, 0.0, 1.0], precision="float32")
+    scene = axisymmetric_flame_scene(cam, centre_depth_mm=0.0, centre_x_mm=0.6, diameter_mm=2.5, core=0.5,
+                                     n_layers=8)
+    from lf_flame.tomo.truth import scene_truth
+    views = (op @ scene_truth(scene, op).ravel()).reshape(op.dimsd)
+    assert abs(axis_x_from_views(views, op, 0.0) - 0.6) < 0.05
+
+
+def test_bad_input_is_refused(op):
+    with pytest.raises(ValueError, match="r_max_mm must be positive"):
+        RevolveOperator(op, 0.0, 0.0, -1.0)
+    with pytest.raises(ValueError, match="finite"):
+        RevolveOperator(op, float("nan"), 0.0, 1.0)
+    with pytest.raises(ValueError, match="reaches no plane"):
+        RevolveOperator(op, 0.0, 40.0, 1.0)
+    views = np.zeros(op.dimsd)
+    with pytest.raises(ValueError, match="data shape"):
+        solve_axisymmetric(views[:, :, :-1], op, axis_x_mm=0.0, axis_z_mm=0.0, r_max_mm=1.0)
+    with pytest.raises(ValueError, match="fills"):
+        solve_axisymmetric(views, op, axis_x_mm=0.0, axis_z_mm=0.0, r_max_mm=1.0, fills=0)
+    with pytest.raises(ValueError, match="lam"):
+        solve_axisymmetric(views, op, axis_x_mm=0.0, axis_z_mm=0.0, r_max_mm=1.0, lam=-1.0)
+    with pytest.raises(ValueError, match="fit"):
+        solve_axisymmetric(views, op, np.ones(3, bool), axis_x_mm=0.0, axis_z_mm=0.0, r_max_mm=1.0)
+    with pytest.raises(ValueError, match="no light"):
+        solve_axisymmetric(views, op, axis_z_mm=0.0, r_max_mm=1.0)
+    with pytest.raises(ValueError, match="core"):
+        axisymmetric_flame_scene(op.camera, core=1.5)
+    from lf_flame.tomo.exact import ExactOperator
+    fine = ExactOperator(op.camera, op.depths_mm[:2], subsamples=2)
+    with pytest.raises(ValueError, match="subsamples=1"):
+        solve_axisymmetric(np.zeros(fine.dimsd), fine, axis_x_mm=0.0, axis_z_mm=0.0, r_max_mm=1.0)
