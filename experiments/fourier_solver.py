@@ -83,20 +83,7 @@ PRECISION = "float32"   # the solver's: its rounding (1e-7) is far below any ren
 def render_set(cam, kind, seed, rays, cache: Path):
     """(scene, views clean, views at 14 dB, own error, measured SNR) of one render, cached."""
     scene = R.build_scene(kind, cam, seed)
-    path = cache / f"{kind}_{seed}_{rays}.npz"
-    if not path.exists():
-        R.RAYS_DATA = rays
-        raw = tracer.render(cam, scene, rays, seed)
-        other = tracer.render(cam, scene, rays, seed + 7)
-        own = float(np.linalg.norm(raw - other) / (np.sqrt(2) * np.linalg.norm(raw)))
-        noisy, snr, _ = R.noisy(cam, scene, raw, SNR_DB, seed)
-        cache.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".partial.npz")
-        np.savez_compressed(tmp, clean=raw, noisy=noisy, own=own, snr=snr)
-        tmp.rename(path)
-    f = np.load(path)
-    n = cam.pixels_per_lenslet
-    return scene, raw_to_views(f["clean"], n), raw_to_views(f["noisy"], n), float(f["own"]), float(f["snr"])
+    return (scene,) + R.cached_render(cam, scene, rays, seed, cache / f"{kind}_{seed}_{rays}.npz", SNR_DB)
 
 
 def worst_plane(x, truth):

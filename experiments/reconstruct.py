@@ -117,6 +117,27 @@ def noisy(cam, scene, raw_clean, snr_db, seed):
     return raw, float(snr), float(fw)
 
 
+def cached_render(cam, scene, rays, seed, path: Path, snr_db):
+    """The scene traced at ``rays`` per pixel (views noise-free and at ``snr_db``), its own error
+    ``||r_1 - r_2|| / (sqrt 2 ||r_1||)`` from a second seed and the measured SNR, kept in ``path``
+    (.npz, written to a temporary file and renamed) and read back from it when there.
+    Returns (clean views, noisy views, own error, SNR dB)."""
+    global RAYS_DATA
+    if not path.exists():
+        RAYS_DATA = rays
+        raw = simulate.render(cam, scene, rays, seed)
+        other = simulate.render(cam, scene, rays, seed + 7)
+        own = float(np.linalg.norm(raw - other) / (np.sqrt(2) * np.linalg.norm(raw)))
+        loud, snr, _ = noisy(cam, scene, raw, snr_db, seed)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".partial.npz")
+        np.savez_compressed(tmp, clean=raw, noisy=loud, own=own, snr=snr)
+        tmp.rename(path)
+    f = np.load(path)
+    n = cam.pixels_per_lenslet
+    return raw_to_views(f["clean"], n), raw_to_views(f["noisy"], n), float(f["own"]), float(f["snr"])
+
+
 def light_field(kind, cam, seed, snr_db):
     scene = build_scene(kind, cam, seed)
     raw, snr, fw = noisy(cam, scene, simulate.render(cam, scene, RAYS_DATA, seed), snr_db, seed)

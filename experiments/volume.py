@@ -38,8 +38,7 @@ import reconstruct as R  # noqa: E402  (the 14 dB noise of make reconstruct)
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
-from lf_flame.refocus.shift_and_sum import aperture_mask, focal_stack, raw_to_views  # noqa: E402
-from lf_flame.simulate import tracer  # noqa: E402
+from lf_flame.refocus.shift_and_sum import aperture_mask, focal_stack  # noqa: E402
 from lf_flame.simulate.scenes import volume_flame_scene  # noqa: E402
 from lf_flame.simulate.scenes_volume import axisymmetric_flame_scene  # noqa: E402
 from lf_flame.tomo.axisymmetric import solve_axisymmetric  # noqa: E402
@@ -68,22 +67,9 @@ def build_scene(cam, seed, kw):
 
 def render_set(cam, name, seed, kw, rays, cache: Path):
     scene = build_scene(cam, seed, kw)
-    path = cache / f"volume_{seed}_{rays}.npz"
     t0 = time.perf_counter()
-    if not path.exists():
-        R.RAYS_DATA = rays
-        raw = tracer.render(cam, scene, rays, seed)
-        other = tracer.render(cam, scene, rays, seed + 7)
-        own = float(np.linalg.norm(raw - other) / (np.sqrt(2) * np.linalg.norm(raw)))
-        noisy, snr, _ = R.noisy(cam, scene, raw, SNR_DB, seed)
-        cache.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".partial.npz")
-        np.savez_compressed(tmp, clean=raw, noisy=noisy, own=own, snr=snr)
-        tmp.rename(path)
-    f = np.load(path)
-    n = cam.pixels_per_lenslet
-    return (scene, raw_to_views(f["clean"], n), raw_to_views(f["noisy"], n), float(f["own"]), float(f["snr"]),
-            time.perf_counter() - t0)
+    out = R.cached_render(cam, scene, rays, seed, cache / f"volume_{seed}_{rays}.npz", SNR_DB)
+    return (scene,) + out + (time.perf_counter() - t0,)
 
 
 def metrics(x, truth, depths):
