@@ -16,8 +16,9 @@ DEFAULT_TV = 0.3
 #: of ``lf-flame reconstruct`` where the camera needs tracing (``--rays-per-pixel``, crosstalk, not a perfect grid).
 DEFAULT_SOLVER = "pd-tv"
 #: The default on the exact operator (every perfect lenslet grid): admm, its knobs by the data's noise, beats
-#: pd-tv on every validation render (``results/fourier_solver.md``: worst plane 6.2 % against 10.5 % noise-free,
-#: 13.2 % against 18.6 % at 14 dB) in about a twentieth of its time.
+#: pd-tv on every validation render (``results/fourier_solver.md``: worst plane 2.3 % on the 2 x 2 grid and 6.2 %
+#: on the lenslet grid against 10.5 % noise-free, 11.4 % and 13.2 % against 18.6 % at 14 dB) in a fifth to a
+#: twentieth of its time.
 EXACT_SOLVER = "admm"
 #: Knobs of the "admm" solver (:func:`lf_flame.tomo.fourier.solve_admm`), chosen on validation renders at
 #: 400 rays per pixel (``experiments/exact_operator.py --stage tune``): fills of the missing data (its
