@@ -36,6 +36,12 @@ What is not diagonal in frequency, and how it is handled (:func:`solve_admm`):
   isotropic TV (``tv > 0``) as a third ADMM split ``g = grad x`` whose penalty joins
   ``lam`` in the same per-frequency matrix, so it costs no more FFTs.
 
+On an operator with ``subsamples > 1`` (a finer grid than the lenslets) all of this runs on
+its phase planes (:meth:`~lf_flame.tomo.exact.ExactOperator.to_phases`): the gradient and
+TV are those of each phase image on the lenslet grid, not of the finer grid (which would
+couple the phases and make ``G`` complex); the knobs were chosen on validation renders with
+that regulariser (:data:`~lf_flame.tomo.defaults.ADMM_KNOBS`).
+
 ``lam`` and ``rho`` are given relative to ``g0``, the mean of ``G``'s diagonal at zero
 frequency (the squared light a unit plane sends to the views), so that the same values
 serve any camera and radiance scale.
