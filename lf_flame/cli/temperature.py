@@ -106,7 +106,7 @@ def cmd_temperature(a):
     import h5py
 
     from ..config import provenance
-    from ..measure.pyrometry import load_calibration, temperature_planes
+    from ..measure.pyrometry import bright_pixels, load_calibration, temperature_planes
     from ..optics.colour import CHANNELS
     from ..tomo.colour import channel_emission, channel_sum_views, channel_views
     from ..tomo.exact import ExactOperator
@@ -133,8 +133,7 @@ def cmd_temperature(a):
     emission = channel_emission(a.route, views, chan, ch, op=op, slopes=[cam.slope_for_depth(d) for d in depths],
                                 saturation=a.saturation)
     temp, valid, n_masked = temperature_planes(emission[0], emission[1], cal, sensor, a.alpha, a.min_fraction)
-    tot = emission[0] + emission[1]
-    dim = tot < a.min_fraction * tot.reshape(len(tot), -1).max(axis=1)[:, None, None]
+    dim = ~bright_pixels(emission[0] + emission[1], a.min_fraction)
     n_dim = dim.reshape(len(dim), -1).sum(axis=1)
     sample = np.array([np.asarray(cam.field_of_view_mm(d)) / (cam.n_rows, cam.n_cols) for d in depths])
     wall = time.perf_counter() - t0

@@ -20,7 +20,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
                  "flame_truth", "plot_profiles"],
         "metrics": ["ssim_per_plane", "psnr_per_plane", "mean_ssim"],
         "pyrometry": ["T_RANGE_K", "MIN_FRACTION", "TemperatureCalibration", "model_ratio", "blackbody_ratio",
-                 "fit_calibration", "lookup_table", "ratio_to_temperature", "temperature_planes",
+                 "fit_calibration", "lookup_table", "ratio_to_temperature", "bright_pixels", "temperature_planes",
                  "wien_temperature", "write_calibration", "load_calibration"],
         "scoring": ["measure_stack", "score_stacks", "error_table"],
     },

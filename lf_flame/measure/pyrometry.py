@@ -230,6 +230,24 @@ def ratio_to_temperature(ratio, cal: TemperatureCalibration, sensor: ColourSenso
     return out
 
 
+def bright_pixels(emission, min_fraction: float = MIN_FRACTION) -> np.ndarray:
+    """Pixels of each plane at or above ``min_fraction`` of that plane's peak: those
+    :func:`temperature_planes` gives a temperature when their ratio has one.
+
+    Parameters
+    ----------
+    emission : ndarray of shape (P, rows, cols)
+        Summed emission of the two channels.
+    min_fraction : float
+
+    Returns
+    -------
+    ndarray of bool of shape (P, rows, cols)
+    """
+    tot = np.asarray(emission, float)
+    return tot >= min_fraction * tot.reshape(len(tot), -1).max(axis=1)[:, None, None]
+
+
 def temperature_planes(emission_a, emission_b, cal: TemperatureCalibration, sensor: ColourSensor,
                        alpha: float = ALPHA_SOOT, min_fraction: float = MIN_FRACTION):
     """Each plane's temperature map from two channels' emission, with the pixels masked.
@@ -263,8 +281,7 @@ def temperature_planes(emission_a, emission_b, cal: TemperatureCalibration, sens
         raise ValueError(f"two (P, rows, cols) emission stacks are needed. Received: {a.shape} and {b.shape}")
     if not (0 <= min_fraction < 1):
         raise ValueError(f"min_fraction must be in [0, 1). Received: {min_fraction}")
-    tot = a + b
-    bright = tot >= min_fraction * tot.reshape(len(tot), -1).max(axis=1)[:, None, None]
+    bright = bright_pixels(a + b, min_fraction)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(bright & (b > 0) & (a > 0), a / b, np.nan)
     temp = ratio_to_temperature(ratio, cal, sensor, alpha)

@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from ..optics.camera import PlenopticCamera
-from .scenes import FLAME_EFFECTS, Layer, Scene, _layer_grid, _roi
+from .scenes import FLAME_EFFECTS, Scene, _axisymmetric_layers, _roi
 
 
 def axisymmetric_flame_scene(camera: PlenopticCamera, rng: np.random.Generator | None = None, *,
@@ -60,31 +60,12 @@ def axisymmetric_flame_scene(camera: PlenopticCamera, rng: np.random.Generator |
         Fewer than 2 layers, a non-positive diameter, a core outside [0, 1], a non-finite
         axis, a slab the camera cannot image.
     """
-    if int(n_layers) < 2 or not diameter_mm > 0:
-        raise ValueError(f"need n_layers >= 2 and diameter_mm > 0. Received: {n_layers}, {diameter_mm}")
     if not 0.0 <= core <= 1.0:
         raise ValueError(f"core must lie in [0, 1]. Received: {core!r}")
     if not (math.isfinite(centre_depth_mm) and math.isfinite(centre_x_mm)):
         raise ValueError(f"the axis must be finite. Received: depth {centre_depth_mm!r}, x {centre_x_mm!r}")
-    h0, _ = camera.field_of_view_mm(0.0)
-    H = (0.8 * h0 if height_mm is None else float(height_mm)) * (rng.uniform(0.9, 1.1) if rng is not None else 1.0)
-    dzs = centre_depth_mm + (np.arange(n_layers) + 0.5) / n_layers * diameter_mm - diameter_mm / 2
-    thick = diameter_mm / n_layers
-    base_y = -0.45 * h0
-    s = 0.08 * diameter_mm
-    raw = []
-    for dz in dzs:
-        camera.image_distance_mm(camera.object_distance_mm(dz))
-        y, x, (h, w), _ = _layer_grid(camera, dz, texels_per_lenslet, 1.2)
-        eta = (y - base_y) / H
-        r = np.sqrt((x - centre_x_mm) ** 2 + (dz - centre_depth_mm) ** 2)
-        R = 0.4 * diameter_mm * np.sqrt(np.clip(1.0 - eta, 0.0, 1.0))
-        env = np.where((eta >= 0) & (eta <= 1), np.sin(np.pi * np.clip(eta, 0, 1) ** 0.75), 0.0)
-        shape = (1.0 - core) * np.exp(-(r - R) ** 2 / (2 * s ** 2)) + core * np.exp(-r ** 2 / (2 * (R / 2 + s) ** 2))
-        raw.append((dz, h, w, env * shape))
-    peak = 0.9 / (thick * max(float(np.max(sum(e for *_, e in raw))), 1e-12))   # brightest line of sight -> 0.9
-    layers = tuple(Layer((e * peak * thick).astype(np.float32), None, float(dz), (0.0, 0.0), (h, w))
-                   for dz, h, w, e in raw)
+    layers, H, base_y, dzs, thick, peak = _axisymmetric_layers(camera, rng, centre_depth_mm, centre_x_mm, diameter_mm,
+                                                               height_mm, core, n_layers, texels_per_lenslet)
     obj = dict(name="volume", depth_offset_mm=float(centre_depth_mm), centre_x_mm=float(centre_x_mm),
                diameter_mm=float(diameter_mm), height_mm=H, base_y_mm=base_y, core=float(core),
                layer_depths_mm=[float(v) for v in dzs], layer_thickness_mm=thick, peak_emission=peak,

@@ -37,7 +37,7 @@ import scipy.sparse
 from scipy import optimize
 
 from . import _fourier_kernels
-from .fourier import normal_matrices
+from .fourier import fill_data, normal_matrices
 
 #: Smoothness weight of :func:`solve_axisymmetric`, relative to the mean diagonal of ``R^T G R``.
 AXI_LAM = 1e-3
@@ -228,7 +228,6 @@ def _difference_operator(rows, n_r):
 
 
 def _check(views, op, fit):
-    N, _, R, C = op.dimsd
     v = np.asarray(views, np.float64)
     if v.shape != tuple(op.dimsd):
         raise ValueError(f"views must have the operator's data shape {tuple(op.dimsd)}. Received: {v.shape}")
@@ -398,18 +397,12 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
     if not (search_half_width_mm > 0 and search_tol_mm > 0):
         raise ValueError(f"search_half_width_mm and search_tol_mm must be > 0. Received: {search_half_width_mm!r}, "
                          f"{search_tol_mm!r}")
-    N, _, R, C = op.dimsd
+    N = op.dimsd[0]
     if normal is None:
         normal = op.__dict__.get("_axisymmetric_normal") or _Normal(op)
         op.__dict__["_axisymmetric_normal"] = normal
     lit = op._lit
-    canvas = op.canvas_shape
-    real = np.float32 if op._spec.dtype == np.complex64 else np.float64
-    w = op._w[lit]
-    y = v.reshape(N * N, R, C)[lit]
-    m = f.reshape(N * N, R, C)[lit] & (w > 0)
-    yt = np.where(m, y / np.where(w > 0, w, 1.0), 0.0).astype(real)
-    del canvas
+    y, yt, w, m = fill_data(v, f, op)
 
     def revolve_at(z0):
         x0 = axis_x_from_views(v, op, z0, f) if axis_x_mm is None else float(axis_x_mm)

@@ -265,6 +265,35 @@ def admm_system(op, lam: float = ADMM_LAM, tv: float = ADMM_TV, rho: float = ADM
     return fourier_system(op, lam + (rho_tv if tv > 0 else 0.0), rho)
 
 
+def fill_data(views, fit, op):
+    """The lit views' data for the fills of the missing data (:func:`solve_admm`).
+
+    Parameters
+    ----------
+    views : ndarray of shape (N, N, R, C)
+    fit : ndarray of bool, shape (N, N, R, C)
+        The pixels to fit.
+    op : ExactOperator
+
+    Returns
+    -------
+    y : ndarray of shape (V', R, C), float64
+        The views with light (``op._lit``).
+    yt : ndarray of shape (V', R, C), in the operator's precision
+        ``y / w`` (the cos^4 drift divided out) where fitted, 0 elsewhere.
+    w : ndarray of shape (V', R, C)
+        The per-pixel weights.
+    m : ndarray of bool of shape (V', R, C)
+        Fitted and seen (``w > 0``).
+    """
+    N, _, R, C = op.dimsd
+    real = np.float32 if op._spec.dtype == np.complex64 else np.float64
+    w = op._w[op._lit]
+    y = np.asarray(views, np.float64).reshape(N * N, R, C)[op._lit]
+    m = np.asarray(fit, bool).reshape(N * N, R, C)[op._lit] & (w > 0)
+    return y, np.where(m, y / np.where(w > 0, w, 1.0), 0.0).astype(real), w, m
+
+
 def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INNER, lam: float = ADMM_LAM,
                rho: float = ADMM_RHO, tv: float = ADMM_TV, rho_tv: float = ADMM_RHO_TV, momentum: float = ADMM_MOMENTUM,
                support=None, callback=None):
@@ -323,15 +352,11 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     system = admm_system(op, lam, tv, rho, rho_tv)
     system_s = 0.0 if any(system is k for k in kept) else system.setup_s
     P, gr, gc = op.phase_dims                                        # the lenslet grid's planes (phases)
-    N, _, R, C = op.dimsd
     canvas = op.canvas_shape
     if support is not None:
         support = op.to_phases(support)
     real = np.float32 if system.spec.dtype == np.complex64 else np.float64
-    w = op._w[system.lit]                                             # (V', R, C)
-    y = np.asarray(views, np.float64).reshape(N * N, R, C)[system.lit]
-    m = np.asarray(fit, bool).reshape(N * N, R, C)[system.lit] & (w > 0)
-    yt = np.where(m, y / np.where(w > 0, w, 1.0), 0.0).astype(real)
+    y, yt, w, m = fill_data(views, fit, op)
     norm = float(np.linalg.norm(np.where(m, y, 0.0))) or 1.0
     S = system.spec
     z = np.zeros((len(system.lit),) + canvas, real)
