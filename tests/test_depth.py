@@ -81,6 +81,26 @@ def test_score_flames_truth_and_off_planes(cam, planted):
     assert df.depth_mm.isna().all()
 
 
+def test_score_flames_heights_on_the_planes(cam, planted):
+    scene, _ = planted
+    depths = [o["depth_offset_mm"] for o in scene.objects]
+    truth = np.array([resample_layer(L, (cam.n_rows, cam.n_cols), plane_grid(cam, d)) for L, d in zip(scene.layers,
+                                                                                                          depths)])
+    df = score_flames(truth, depths, scene, cam)
+    assert df.height_err_mm.abs().max() < 0.3, df.height_err_mm.values       # the truth measures true heights
+    np.testing.assert_allclose(df.height_mm_found - df.height_mm, df.height_err_mm)
+    # flame 0 with its upper half gone (the tip is row 0's side): measured about half as tall
+    cut = truth.copy()
+    rows = np.flatnonzero(truth[0].max(axis=1) > 0)
+    cut[0, : (rows[0] + rows[-1]) // 2] = 0.0
+    df = score_flames(cut, depths, scene, cam)
+    assert df.height_err_mm[0] < -0.3 * df.height_mm[0] and abs(df.height_err_mm[1]) < 0.3
+    # an empty plane: no height, the diagnostics' reason kept
+    cut[1] = 0.0
+    df = score_flames(cut, depths, scene, cam)
+    assert np.isnan(df.height_err_mm[1]) and "empty" in df.height_failure[1]
+
+
 def test_merge_depths():
     planes, of = merge_depths(np.array([0.0, 0.5, 3.0]), np.array([1.0, 3.0, 1.0]), 1.0)
     np.testing.assert_allclose(planes, [0.375, 3.0])

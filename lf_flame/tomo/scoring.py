@@ -81,6 +81,12 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
     - **share within ±near_mm**: the route's non-negative emission in ``M`` on planes
       within ``near_mm`` of the flame's true depth, over that on all planes but those
       within ``near_mm`` of another flame whose region meets ``M`` (its own light).
+    - **height**: the flame measured on that plane
+      (:func:`~lf_flame.measure.diagnostics.measure_flame` in the flame's ``roi`` columns, at
+      the plane's depth; planes of emission with
+      :data:`~lf_flame.measure.diagnostics.EMISSION_MEASURE`, refocused images with the
+      defaults) against the scene's ``height_mm``. A plane the diagnostics find empty: NaN
+      and the failure's message.
 
     Parameters
     ----------
@@ -105,7 +111,9 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
     -------
     DataFrame, one row per flame: labels, ``flame``, ``depth_mm_true``, ``height_mm``,
     ``depth_mm`` (found; NaN: missed), ``depth_err_mm`` (signed), ``plane_mm``,
-    ``rel_err``, ``share_near``, ``time_s``.
+    ``rel_err``, ``share_near``, ``height_mm_found``, ``height_err_mm`` (signed; NaN: missed
+    or not measured), ``height_flags`` (the measurement's flags, ``;``-joined), ``height_failure``,
+    ``time_s``.
 
     Raises
     ------
@@ -117,6 +125,7 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
     """
     import pandas as pd
     from scipy import ndimage
+    from ..measure.diagnostics import EMISSION_MEASURE, EmptyPlaneError, measure_flame
     from .truth import bin_planes
     x = np.asarray(planes, np.float64)
     d = np.asarray(depths_mm, np.float64)
@@ -152,11 +161,18 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
     for k, (L, dz, M) in enumerate(zip(scene.layers, true_d, regions)):
         row = dict(labels, flame=k, depth_mm_true=dz, height_mm=float(scene.objects[k].get("height_mm", np.nan)),
                    depth_mm=est[k], depth_err_mm=est[k] - dz, plane_mm=np.nan, rel_err=np.nan, share_near=np.nan,
-                   time_s=time_s)
+                   height_mm_found=np.nan, height_err_mm=np.nan, height_flags="", height_failure="", time_s=time_s)
         if np.isfinite(est[k]):
             p = int(np.argmin(np.abs(d - est[k])))
             t = _flame_truth(L, camera, float(d[p]), shape)
             row.update(plane_mm=float(d[p]), rel_err=float(np.linalg.norm((x[p] - t)[M]) / np.linalg.norm(t[M])))
+            try:
+                m = measure_flame(xp[p], camera, float(d[p]), columns=tuple(scene.objects[k]["roi"][2:4]),
+                                  **(EMISSION_MEASURE if emission else {}))
+                row.update(height_mm_found=m.height_mm, height_err_mm=m.height_mm - row["height_mm"],
+                           height_flags=";".join(m.flags))
+            except EmptyPlaneError as e:
+                row["height_failure"] = str(e)
         if emission:
             others = [true_d[g] for g in range(len(true_d)) if g != k and np.any(regions[g] & M)]
             keep = np.array([not any(abs(dp - o) <= near_mm for o in others) for dp in d])
