@@ -101,6 +101,22 @@ def test_score_flames_heights_on_the_planes(cam, planted):
     assert np.isnan(df.height_err_mm[1]) and "empty" in df.height_failure[1]
 
 
+def test_l1_gathers_a_dense_stack_towards_the_flames_depths(cam, planted):
+    from lf_flame.tomo.exact import ExactOperator
+    from lf_flame.tomo.solvers import reconstruct
+    scene, views = planted
+    depths = list(np.arange(-12.0, 12.1, 1.0))
+    op = ExactOperator(cam, depths)
+    share = {l1: score_flames(reconstruct(views, op, "admm", l1=l1).planes, depths, scene, cam).share_near.values
+             for l1 in (0.0, 0.02)}
+    assert np.all(share[0.02] > share[0.0] + 0.05), share
+    assert reconstruct(views, op, "admm", l1=0.99).planes.max() == 0.0      # past lambda_max: nothing
+    with pytest.raises(ValueError, match="l1"):
+        reconstruct(views, op, "admm", l1=1.0)
+    with pytest.raises(ValueError, match="l1"):
+        reconstruct(views, op, "fista", l1=0.02)
+
+
 def test_merge_depths():
     planes, of = merge_depths(np.array([0.0, 0.5, 3.0]), np.array([1.0, 3.0, 1.0]), 1.0)
     np.testing.assert_allclose(planes, [0.375, 3.0])

@@ -296,7 +296,7 @@ def fill_data(views, fit, op):
 
 def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INNER, lam: float = ADMM_LAM,
                rho: float = ADMM_RHO, tv: float = ADMM_TV, rho_tv: float = ADMM_RHO_TV, momentum: float = ADMM_MOMENTUM,
-               support=None, callback=None):
+               l1: float = 0.0, support=None, callback=None):
     """Non-negative emission on the exact operator's planes by Fourier ADMM with missing data.
 
     Parameters
@@ -318,6 +318,12 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         ``pd-tv``; 0: none) and its split's penalty relative to ``g0``.
     momentum : float
         In [0, 1): each fill predicts the missing data from ``s + momentum (s - s_prev)``.
+    l1 : float
+        Weight of ``||x||_1`` (sparsity: with ``x >= 0`` it is the emission's sum, which a dense
+        stack can spend on fewer planes per line of sight), in [0, 1) as a fraction of
+        ``max(H^H y)``, the weight above which ``x = 0`` is the solution (LASSO's
+        ``lambda_max``; Tibshirani, J. R. Stat. Soc. B 58 (1996)). 0: none. Its proximal step
+        with the non-negativity: ``s = max(x + d - l1 lambda_max / (rho g0), 0)``.
     support : ndarray of bool, shape (P, rows, cols), or None
         Where each plane may hold emission (the non-negativity projection also zeroes the
         rest): the lateral footprints of the flames found at each depth
@@ -348,6 +354,8 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     if not 0 <= momentum < 1 or not (tv >= 0 and rho_tv > 0 and math.isfinite(tv) and math.isfinite(rho_tv)):
         raise ValueError(f"momentum must be in [0, 1), tv >= 0 and rho_tv > 0, finite. Received: momentum={momentum!r}, "
                          f"tv={tv!r}, rho_tv={rho_tv!r}")
+    if not 0 <= l1 < 1:
+        raise ValueError(f"l1 must be in [0, 1) (a fraction of the weight that zeroes every plane). Received: {l1!r}")
     kept = list(op.__dict__.get("_fourier_systems", {}).values())
     system = admm_system(op, lam, tv, rho, rho_tv)
     system_s = 0.0 if any(system is k for k in kept) else system.setup_s
@@ -374,6 +382,9 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         if j > 1:
             residuals.append(math.sqrt(residual) / norm)
         b = _fourier_kernels.spectra_adjoint(S, scipy.fft.rfft2(z, workers=op.workers))   # H^H z, (P, Lr, F)
+        if j == 1:   # the l1 step from H^H y (the first fill's z is the data)
+            shrink_l1 = l1 * float(scipy.fft.irfft2(b, s=canvas, workers=op.workers)[:, :gr, :gc].max()) / (
+                rho * system.g0) if l1 > 0 else 0.0
         s_prev = s
         for _ in range(int(inner)):
             r = s - d
@@ -382,7 +393,7 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
             x = scipy.fft.irfft2(system.solve(b + system.g0 * rho * scipy.fft.rfft2(r, workers=op.workers)),
                                  s=canvas, workers=op.workers)
             s_new = np.zeros_like(s)
-            s_new[:, :gr, :gc] = np.maximum(x[:, :gr, :gc] + d[:, :gr, :gc], 0)
+            s_new[:, :gr, :gc] = np.maximum(x[:, :gr, :gc] + d[:, :gr, :gc] - shrink_l1, 0)
             if support is not None:
                 s_new[:, :gr, :gc] *= support
             d += x - s_new

@@ -90,7 +90,7 @@ def lipschitz_bound(op: EmissionOperator) -> float:
 
 def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: int | None = None, *,
                 damp: float = 0.0, tv: float | None = None, lam: float | None = None, saturation=1.0,
-                progress: bool = False, callback=None, support=None) -> Reconstruction:
+                progress: bool = False, callback=None, support=None, l1: float = 0.0) -> Reconstruction:
     """Recover the emission on the operator's planes from one light field.
 
     Parameters
@@ -143,6 +143,9 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         read-only use): error-against-iterations curves from one run.
     support : ndarray of bool of shape (P, rows, cols) or None
         admm only: where each plane may hold emission (:func:`lf_flame.tomo.fourier.solve_admm`).
+    l1 : float
+        admm only: the sparsity weight in [0, 1) (a fraction of the weight that zeroes every
+        plane, :func:`lf_flame.tomo.fourier.solve_admm`); 0: none.
 
     Returns
     -------
@@ -191,8 +194,8 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         bar.update()
         if callback is not None:
             callback(count[0], np.ravel(x))
-    if support is not None and solver != "admm":
-        raise ValueError(f"a support is for the admm only. Received solver={solver!r}")
+    if (support is not None or l1) and solver != "admm":
+        raise ValueError(f"a support and l1 are for the admm only. Received solver={solver!r}")
     if solver == "admm":
         from .exact import ExactOperator
         from .fourier import admm_knobs, solve_admm
@@ -202,9 +205,9 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         iters, admm_tv, lam, noise = admm_knobs(y.reshape(op.dimsd), fit.reshape(op.dimsd),
                                                 iters if iters_given else None, tv if tv_given else None, lam,
                                                 op.subsamples)
-        settings.update(iters=iters, lam=lam, tv=admm_tv, noise=noise, subsamples=op.subsamples)
+        settings.update(iters=iters, lam=lam, tv=admm_tv, l1=l1, noise=noise, subsamples=op.subsamples)
         planes, residuals, settings["system_s"] = solve_admm(y.reshape(op.dimsd), op, fit.reshape(op.dimsd),
-                                                             fills=iters, lam=lam, tv=admm_tv, support=support,
+                                                             fills=iters, lam=lam, tv=admm_tv, l1=l1, support=support,
                                                              callback=lambda j, x: step(x))
         x = planes.ravel()
     elif solver == "adjoint":
