@@ -25,6 +25,9 @@ Sections (column ``section``):
 - ``training``: validation SSIM against epochs and wall time, from the learning curves.
 - ``reconstruction``: every 3-D reconstruction solver at every iteration count of ``make
   reconstruct``'s validation curves: time against the worst plane's emission error.
+- ``depth`` and ``volume``: the routes to flames at unknown depths (``make depth``) and to
+  volumes (``make volume``), read from their own results: time per light field against the
+  per-flame emission error and the 3-D error.
 
 Usage: ``python experiments/tradeoff.py --preset paper|quick --data-dir D --model-dir M --out O``;
 ``python experiments/tradeoff.py --plot-only --out O`` measures nothing and redraws the
@@ -250,6 +253,39 @@ def reconstruction_rows(folder: Path) -> list[dict]:
                          latency_ms_p90=1e3 * float(g.time_s.quantile(0.9)),
                          worst_plane_rel_err=float(g.rel_err.max()), mean_worst_plane_rel_err=float(g.rel_err.mean()),
                          n_samples=len(g)))
+    return rows
+
+
+def depth_volume_rows(folder: Path) -> list[dict]:
+    """The routes to flames at unknown depths and to volumes (issue 36), from their own runs in ``folder``
+    (``depth.csv`` of ``make depth``, ``volume.csv`` / ``volume_nonaxi.csv`` of ``make volume``; [] for each
+    missing): per route and noise, time per light field (median, p90) against the error (per flame's emission:
+    median, p90; per volume: the 3-D error, median and worst over scenes)."""
+    rows = []
+    f = folder / "depth.csv"
+    if f.exists():
+        d = pd.read_csv(f)
+        d = d[d.kind == "random"]
+        for (route, noise), g in d.groupby(["route", "noise"], sort=False):
+            t = g.groupby(["seed"]).time_s.first()
+            rows.append(dict(section="depth", route=route, noise="noise-free" if noise == "clean" else noise,
+                             scene="random depths", latency_ms_median=1e3 * float(t.median()),
+                             latency_ms_p90=1e3 * float(t.quantile(0.9)), error_median=float(g.rel_err.median()),
+                             error_tail=float(g.rel_err.quantile(0.9)),
+                             depth_err_mm_p90=float(g.depth_err_mm.abs().fillna(np.inf).quantile(0.9)),
+                             n_samples=len(g)))
+    for name in ("volume.csv", "volume_nonaxi.csv"):
+        f = folder / name
+        if not f.exists():
+            continue
+        v = pd.read_csv(f)
+        if "set" in v:                                       # the scored volumes only, not those the weights were chosen on
+            v = v[v.set == "test"]
+        for (route, noise), g in v.groupby(["route", "noise"], sort=False):
+            rows.append(dict(section="volume", route=route, noise=noise, scene=name.removesuffix(".csv"),
+                             latency_ms_median=1e3 * float(g.time_s.median()),
+                             latency_ms_p90=1e3 * float(g.time_s.quantile(0.9)), error_median=float(g.rel_3d.median()),
+                             error_tail=float(g.rel_3d.max()), n_samples=len(g)))
     return rows
 
 
@@ -503,6 +539,17 @@ def summary(df: pd.DataFrame, prov: dict, n_test: int, ref_rpp: int, gt_heights:
                   "iteration (median), so a setting's time is iterations x s/it.", "",
                   err.assign(**{"s/it.": per_it}).reset_index().to_markdown(index=False, floatfmt=".3g"), "",
                   "![reconstruction](tradeoff_reconstruct.png)", ""]
+    dv = df[df.section.isin(["depth", "volume"])]
+    if len(dv):
+        lines += ["## Flames at unknown depths and volumes: error against time per light field", "",
+                  "From `make depth` (`depth.csv`: per flame of the random-depth scenes, its emission error on the "
+                  "plane at its found depth; `depth_err_mm_p90`: the depth error's 90th percentile, a missed flame "
+                  "counted as infinite) and `make volume` (`volume*.csv`: the 3-D relative error per scene, scored "
+                  "volumes only). `error_tail`: the 90th percentile over flames (depth), the worst scene (volume). "
+                  "Time: the whole route per light field (depth search, "
+                  "operator, solve), median and 90th percentile.", "",
+                  dv[["section", "scene", "route", "noise", "latency_ms_median", "latency_ms_p90", "error_median",
+                      "error_tail", "depth_err_mm_p90", "n_samples"]].to_markdown(index=False, floatfmt=".3g"), ""]
     return "\n".join(lines)
 
 
@@ -517,8 +564,9 @@ def main(argv=None):
     p.add_argument("--plot-only", action="store_true",
                    help="measure nothing: redraw the two figures in --out from the tradeoff.csv there")
     p.add_argument("--reconstruction-only", action="store_true",
-                   help="measure nothing: replace the reconstruction rows of --out's tradeoff.csv with those of its "
-                        "reconstruct_iters.csv (make reconstruct), redraw the figures and rewrite tradeoff.md")
+                   help="measure nothing: replace the reconstruction, depth and volume rows of --out's tradeoff.csv "
+                        "with those of its reconstruct_iters.csv (make reconstruct), depth.csv (make depth) and "
+                        "volume*.csv (make volume), redraw the figures and rewrite tradeoff.md")
     p.add_argument("dirs", nargs="*", help=argparse.SUPPRESS)
     a = p.parse_args(argv)
     if a.models_only:
@@ -540,15 +588,16 @@ def main(argv=None):
     if a.reconstruction_only:
         out = Path(a.out)
         old = pd.read_csv(out / "tradeoff.csv")
-        df = pd.concat([old[old.section != "reconstruction"], pd.DataFrame(reconstruction_rows(out))],
-                       ignore_index=True)
+        df = pd.concat([old[~old.section.isin(["reconstruction", "depth", "volume"])],
+                        pd.DataFrame(reconstruction_rows(out) + depth_volume_rows(out))], ignore_index=True)
         atomic_write_text(out / "tradeoff.csv", df.to_csv(index=False))
         plot(df, out)
         j = json.loads((out / "tradeoff.json").read_text())
         atomic_write_text(out / "tradeoff.md", summary(df, j["provenance"], len(j["test_indices"]),
                                                        j["tradeoff_config"]["ref_rays_per_pixel"],
                                                        j.get("ground_truth_height_err_mm")))
-        print(f"{int((df.section == 'reconstruction').sum())} reconstruction rows -> {out / 'tradeoff.md'}")
+        print(f"{int((df.section == 'reconstruction').sum())} reconstruction rows, "
+              f"{int(df.section.isin(['depth', 'volume']).sum())} depth and volume rows -> {out / 'tradeoff.md'}")
         return 0
 
     t0 = time.perf_counter()
@@ -588,7 +637,7 @@ def main(argv=None):
                               ds.camera if quick else PAPER_CAMERA)
     shapes = [models / "shapes"] if (models / "shapes" / "train_info.json").exists() else []
     rows += training_rows(model_dirs + shapes)
-    rows += reconstruction_rows(out)
+    rows += reconstruction_rows(out) + depth_volume_rows(out)
     df = pd.DataFrame(rows)
     prov = provenance()
     tmp = out / "tradeoff.csv.partial"

@@ -65,3 +65,25 @@ def test_plot_only_redraws_the_figures_from_the_committed_csv(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["tradeoff.csv"] + pngs
     for png in pngs:
         assert (tmp_path / png).stat().st_size > 10_000
+
+
+def test_reconstruction_only_brings_the_depth_and_volume_routes(tmp_path):
+    """``--reconstruction-only`` measures nothing: it takes the depth and volume routes' time and error from
+    ``make depth``'s and ``make volume``'s files beside ``tradeoff.csv`` (here the committed ones)."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("tradeoff_script", ROOT / "experiments" / "tradeoff.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    for name in ("tradeoff.csv", "tradeoff.json", "reconstruct_iters.csv", "depth.csv", "volume.csv"):
+        shutil.copy(ROOT / "results" / name, tmp_path / name)
+    assert mod.main(["--reconstruction-only", "--out", str(tmp_path)]) == 0
+    df = pd.read_csv(tmp_path / "tradeoff.csv")
+    depth = pd.read_csv(tmp_path / "depth.csv")
+    dv = df[df.section == "depth"].set_index(["route", "noise"])
+    auto = depth[(depth.kind == "random") & (depth.route == "auto") & (depth.noise == "clean")]
+    assert dv.loc[("auto", "noise-free"), "error_median"] == pytest.approx(auto.rel_err.median())
+    assert dv.loc[("auto", "noise-free"), "latency_ms_median"] == pytest.approx(
+        1e3 * auto.groupby("seed").time_s.first().median())
+    vol = df[df.section == "volume"]
+    assert set(vol.route) == set(pd.read_csv(tmp_path / "volume.csv").route) and (vol.error_median > 0).all()
+    assert "## Flames at unknown depths and volumes" in (tmp_path / "tradeoff.md").read_text()
