@@ -95,6 +95,13 @@ def test_score_flames_heights_on_the_planes(cam, planted):
     cut[0, : (rows[0] + rows[-1]) // 2] = 0.0
     df = score_flames(cut, depths, scene, cam)
     assert df.height_err_mm[0] < -0.3 * df.height_mm[0] and abs(df.height_err_mm[1]) < 0.3
+    # with a route's footprints, the height is measured within the flame's own: the lower half gives half
+    foot = [t > 0 for t in truth]
+    df = score_flames(truth, depths, scene, cam, found=list(zip(depths, foot)))
+    assert df.height_err_mm.abs().max() < 0.3
+    foot[0][: (rows[0] + rows[-1]) // 2 - 3] = False          # the dilation by 2 samples: 3 rows of margin
+    df = score_flames(truth, depths, scene, cam, found=list(zip(depths, foot)))
+    assert df.height_err_mm[0] < -0.3 * df.height_mm[0] and abs(df.height_err_mm[1]) < 0.3
     # an empty plane: no height, the diagnostics' reason kept
     cut[1] = 0.0
     df = score_flames(cut, depths, scene, cam)

@@ -82,8 +82,10 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
       within ``near_mm`` of the flame's true depth, over that on all planes but those
       within ``near_mm`` of another flame whose region meets ``M`` (its own light).
     - **height**: the flame measured on that plane
-      (:func:`~lf_flame.measure.diagnostics.measure_flame` in the flame's ``roi`` columns, at
-      the plane's depth; planes of emission with
+      (:func:`~lf_flame.measure.diagnostics.measure_flame` in the flame's ``roi`` columns and,
+      with ``found``, within its found depth's footprint dilated by 2 samples (the route's own
+      segmentation: two flames merged onto one plane may share columns), at the plane's
+      depth; planes of emission with
       :data:`~lf_flame.measure.diagnostics.EMISSION_MEASURE`, refocused images with the
       defaults) against the scene's ``height_mm``. A plane the diagnostics find empty: NaN
       and the failure's message.
@@ -145,6 +147,7 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
         t = _flame_truth(L, camera, dz, shape)
         regions.append(ndimage.binary_dilation(t > 0.02 * t.max(), iterations=2))
     est = [np.nan] * len(true_d)
+    footprint = [None] * len(true_d)
     if found is not None:
         pairs = sorted((abs(fd - true_d[k]), k, j) for j, (fd, fm) in enumerate(found)
                        for k in range(len(true_d)) if np.any(np.asarray(fm, bool) & regions[k]))
@@ -152,6 +155,7 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
         for _, k, j in pairs:
             if k not in used_f and j not in used_j:
                 est[k] = float(found[j][0])
+                footprint[k] = ndimage.binary_dilation(np.asarray(found[j][1], bool), iterations=2)
                 used_f.add(k)
                 used_j.add(j)
     else:
@@ -167,7 +171,8 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
             t = _flame_truth(L, camera, float(d[p]), shape)
             row.update(plane_mm=float(d[p]), rel_err=float(np.linalg.norm((x[p] - t)[M]) / np.linalg.norm(t[M])))
             try:
-                m = measure_flame(xp[p], camera, float(d[p]), columns=tuple(scene.objects[k]["roi"][2:4]),
+                plane = xp[p] if footprint[k] is None else xp[p] * footprint[k]
+                m = measure_flame(plane, camera, float(d[p]), columns=tuple(scene.objects[k]["roi"][2:4]),
                                   **(EMISSION_MEASURE if emission else {}))
                 row.update(height_mm_found=m.height_mm, height_err_mm=m.height_mm - row["height_mm"],
                            height_flags=";".join(m.flags))
