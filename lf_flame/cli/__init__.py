@@ -16,7 +16,8 @@ import sys
 from ..routes import LEARNED_ROUTES
 from ..simulate.scenes import PAPER_DEPTHS_MM
 from ..tomo.defaults import (ADMM_KNOBS, ADMM_QUIET, ADMM_SUBSAMPLES, ADMM_TV, DEFAULT_ITERS, DEFAULT_SOLVER,
-                              DEFAULT_TV, EXACT_SOLVER, SOLVERS, SUBSAMPLES_MAX_PLANES)
+                              DEFAULT_TV, EXACT_SOLVER, SOLVERS, SUBSAMPLES_MAX_PLANES, VOLUME_L1, VOLUME_MAX_PLANES,
+                              VOLUME_PRIOR, VOLUME_PRIORS, VOLUME_STEP_MM, VOLUME_TV)
 from ..tomo.resolution import AXES, CONDITIONS, DEFAULT_FAR_MM, DEFAULT_NEAR_MM, DEFAULT_SPACING_MM, FEATURE_SIZES_MM
 from ._io import RAW_FORMATS
 from .learning import cmd_dataset, cmd_evaluate, cmd_predict, cmd_tables, cmd_train
@@ -90,10 +91,12 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
 
     s = sub.add_parser("simulate", help="render a raw light-field image of a scene")
-    s.add_argument("--scene", choices=["shapes", "flame", "point"], required=True,
+    s.add_argument("--scene", choices=["shapes", "flame", "point", "volume"], required=True,
                    help="shapes: the paper's four shapes (rectangle, triangle, circle, square); flame: four "
                         "flames; both at the paper's depths " + ", ".join(f"{d:+g}" for d in PAPER_DEPTHS_MM) +
-                        " mm; point: one point of light (--depth, --y, --x)")
+                        " mm; point: one point of light (--depth, --y, --x); volume: a volumetric laminar flame "
+                        "(a luminous sheath 10 mm across, at most 85 %% of the field, about a vertical axis through "
+                        "--depth, default 0, in 32 layers; 'reconstruct --volume')")
     s.add_argument("--out", required=True, help=".npz (raw, camera, objects, scene[, views]) or .png (the raw "
                    "image in 16 bits, clipped at 1, with the camera, objects and scene in its text); both read by "
                    "the commands that take a raw image")
@@ -301,6 +304,21 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--rays-per-pixel", type=int, default=None,
                    help="rays per pixel of a traced forward operator (the reference; default: the exact operator "
                         "where the camera is a perfect lenslet grid, else 4 rays)")
+    s.add_argument("--volume", action="store_true",
+                   help="a volume: a dense stack every --step mm from --from to --to (mm from the focal plane) on the "
+                        "exact operator's lenslet grid, with a prior (--prior), and the depth resolution the stack "
+                        "carries for the data alone (lf_flame.tomo.volume)")
+    s.add_argument("--from", dest="near", type=float, help="--volume: the nearest plane (mm)")
+    s.add_argument("--to", dest="far", type=float, help="--volume: the farthest plane (mm)")
+    s.add_argument("--step", type=float, default=VOLUME_STEP_MM, help=f"--volume: plane spacing (mm; at most "
+                   f"{VOLUME_MAX_PLANES} planes)")
+    s.add_argument("--prior", choices=list(VOLUME_PRIORS), default=VOLUME_PRIOR,
+                   help=f"--volume: none (admm by the data's noise), tv (admm with TV per plane, weight --tv, "
+                        f"default {VOLUME_TV['quiet']:g} on quiet data, {VOLUME_TV['noisy']:g} on noisy), sparse (admm "
+                        f"with an l1 weight, --l1, default {VOLUME_L1['quiet']:g} of the weight that zeroes every "
+                        f"plane), axisymmetric (a laminar flame's e(r, y) about a vertical axis found from the data: "
+                        f"for laminar flames)")
+    s.add_argument("--l1", type=float, default=None, help="--volume --prior sparse: the l1 weight in [0, 1)")
     s.add_argument("--out", required=True, help="volume.h5 (planes, depths, mm per sample, settings, residuals); "
                                                "the figure goes beside it as .png")
     s.set_defaults(func=cmd_reconstruct)

@@ -18,6 +18,9 @@ RAW_FORMATS = (".npz from 'lf-flame simulate' (key 'raw'), .npy, a PNG or TIFF i
 META_KEYS = ("camera", "objects", "scene", "sensor")
 #: Image files read as a raw image (scikit-image).
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff")
+#: Layers of the volume scene of 'lf-flame simulate --scene volume' (as experiments/volume.py's volumes); its
+#: diameter is 10 mm, at most 85 % of the field's width at its depth.
+VOLUME_LAYERS = 32
 
 
 def _read_image(p: Path) -> np.ndarray:
@@ -151,10 +154,16 @@ def _raw_objects(path):
 
 def simulated_scene(record: dict, camera):
     """The scene of ``lf-flame simulate`` from its record (``kind``, ``seed``, ``nominal``; a
-    point: ``depth_mm``, ``y_mm``, ``x_mm``), the one it renders and stores beside the raw image."""
+    point: ``depth_mm``, ``y_mm``, ``x_mm``; a volume: ``depth_mm``, its axis's depth), the one it
+    renders and stores beside the raw image."""
     from ..simulate import scenes
     if record["kind"] == "point":
         return scenes.point_scene(camera, record["depth_mm"], record["y_mm"], record["x_mm"])
+    if record["kind"] == "volume":
+        dz = record.get("depth_mm") or 0.0
+        return scenes.volume_flame_scene(camera, None if record["nominal"] else np.random.default_rng(record["seed"]),
+                                         centre_depth_mm=dz, n_layers=VOLUME_LAYERS,
+                                         diameter_mm=min(10.0, 0.85 * camera.field_of_view_mm(dz)[1]))
     return scenes.SCENES[record["kind"]](camera, np.random.default_rng(record["seed"]), vary=not record["nominal"])
 
 

@@ -14,7 +14,8 @@ from a colour (Bayer) light field, for two-colour pyrometry; :mod:`.axisymmetric
 axisymmetric flame's emission e(r, y) revolved onto a dense stack (its axis searched on the
 data residual); :mod:`.truth` puts a simulated
 scene's truth on the same grids; :mod:`.scoring` scores planes against it;
-:mod:`.decoded` turns decoded views of a user's camera into the exact operator's data and
+:mod:`.volume` solves a dense stack with a prior (none, TV, sparse, axisymmetric) and
+states the depth resolution it carries; :mod:`.decoded` turns decoded views of a user's camera into the exact operator's data and
 puts a simulated scene's truth in their frame;
 :mod:`.files` saves, loads and draws a reconstruction.
 
@@ -25,7 +26,7 @@ import lazy_loader as lazy
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
     submodules=["axisymmetric", "colour", "decoded", "defaults", "depth", "exact", "files", "fourier", "operator",
-                "resolution", "scoring", "solvers", "truth"],
+                "resolution", "scoring", "solvers", "truth", "volume"],
     submod_attrs={
         "axisymmetric": ["AXI_LAM", "AXI_FILLS", "AXI_INNER", "RevolveOperator", "AxisymmetricVolume",
                          "axis_x_from_views", "solve_axisymmetric"],
@@ -48,5 +49,6 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "solvers": ["SOLVERS", "DEFAULT_ITERS", "DEFAULT_TV", "PD_RESIDUAL_EVERY", "DEFAULT_SOLVER", "EXACT_SOLVER",
                  "Reconstruction", "lipschitz_bound", "reconstruct"],
         "truth": ["resample_layer", "scene_truth", "depth_shares", "bin_planes"],
+        "volume": ["volume_depths", "solve_volume"],
     },
 )

@@ -56,3 +56,19 @@ ADMM_SUBSAMPLES = 2
 #: ... for stacks of at most this many planes (the per-frequency matrices grow as (P s^2)^2: at 16
 #: planes on the 2 x 2 grid they are 64 x 64, some 350 MB on the paper's camera in float32)
 SUBSAMPLES_MAX_PLANES = 16
+#: Volumes (:func:`lf_flame.tomo.volume.solve_volume`, ``lf-flame reconstruct --volume``): the priors, the default
+#: one and the plane spacing (mm). The default assumes no shape: on the non-axisymmetric validation and test
+#: volumes no generic prior beat admm alone on both noise levels (``results/volume_nonaxi.md``); a laminar flame
+#: takes ``axisymmetric`` (3-D error 6.2 % median against admm's 52 %, ``results/volume.md``) ...
+VOLUME_PRIORS = ("none", "tv", "sparse", "axisymmetric")
+VOLUME_PRIOR = "none"
+VOLUME_STEP_MM = 0.5
+#: ... at most this many planes (the per-frequency matrices grow as P^2: 81 planes peak at 3.0 GB on the
+#: paper's camera, ``results/fourier_solver.md``) ...
+VOLUME_MAX_PLANES = 81
+#: ... and the weights of the "tv" and "sparse" priors per noise level (:func:`lf_flame.tomo.fourier.noise_regime`),
+#: chosen on 2 validation volumes by the bar score max(centroid mean / 0.3 mm, share outside the depth range / 10 %)
+#: (``python experiments/volume.py --set nonaxi``, ``results/volume_nonaxi.md``; l1 a fraction of lambda_max: from
+#: 0.002 up the centroids drifted 0.4-6 mm, 0.02 emptied the stack).
+VOLUME_TV = {"quiet": 0.3, "noisy": 1.0}
+VOLUME_L1 = {"quiet": 0.0005, "noisy": 0.0005}

@@ -13,12 +13,14 @@ import numpy as np
 from .solvers import Reconstruction
 
 
-def save_reconstruction(path, rec: Reconstruction, **attrs) -> None:
+def save_reconstruction(path, rec: Reconstruction, arrays=None, **attrs) -> None:
     """Write a :class:`Reconstruction` to HDF5, atomically (a temporary file, then renamed).
 
     Datasets ``planes`` (P, rows, cols) float32, ``depths_mm`` (P,), ``sample_mm`` (P, 2)
-    (mm per grid sample: height, width), ``residuals`` (iterations,); attributes
-    ``solver``, ``settings`` (JSON), ``time_s``, and ``attrs`` (JSON-encoded when not scalar).
+    (mm per grid sample: height, width), ``residuals`` (iterations,), and each of ``arrays``
+    (a dict of name: array, e.g. an axisymmetric flame's ``e(r, y)``) as ``extra/NAME``;
+    attributes ``solver``, ``settings`` (JSON), ``time_s``, and ``attrs`` (JSON-encoded when
+    not scalar).
     """
     import json
     import os
@@ -36,6 +38,8 @@ def save_reconstruction(path, rec: Reconstruction, **attrs) -> None:
         f.attrs["solver"] = rec.solver
         f.attrs["settings"] = json.dumps(rec.settings)
         f.attrs["time_s"] = rec.time_s
+        for k, v in (arrays or {}).items():
+            f[f"extra/{k}"] = np.asarray(v)
         for k, v in attrs.items():
             f.attrs[k] = v if isinstance(v, (int, float, str)) else json.dumps(v, default=float)
     os.replace(tmp, path)
@@ -95,7 +99,7 @@ def plot_reconstruction(path, rec: Reconstruction, refocused=None, truth=None, t
     the camera sees it: lenslets), a side view (maximum over x) and a slice at one x (mm)
     through the brightest column (summed over rows) of the truth, else of the
     reconstruction, depth across: each plane is drawn over half the spacing to its
-    neighbours, at its own height in mm.
+    neighbours, at its own height in mm; and the depth profile (each plane's sum).
 
     Parameters
     ----------
@@ -152,7 +156,7 @@ def plot_reconstruction(path, rec: Reconstruction, refocused=None, truth=None, t
         hi = np.clip(lo + 1, 0, ncol - 1)
         f = np.clip(cpos - lo, 0.0, 1.0)
         inside = (cpos >= -0.5) & (cpos <= ncol - 0.5)
-        fig, ax = plt.subplots(len(cols), 3, figsize=(10.5, 3.6 * len(cols)), squeeze=False, layout="constrained")
+        fig, ax = plt.subplots(len(cols), 4, figsize=(13.5, 3.6 * len(cols)), squeeze=False, layout="constrained")
         for j, (name, st) in enumerate(cols):
             st = st[order]
             images[name] = ax[j, 0].imshow(st.max(axis=0), **style(name))
@@ -165,8 +169,13 @@ def plot_reconstruction(path, rec: Reconstruction, refocused=None, truth=None, t
             sl = (st[kk, :, lo[kk]] * (1 - f)[:, None] + st[kk, :, hi[kk]] * f[:, None]) * inside[:, None]
             ax[j, 2].pcolormesh(X, Y, sl.T, shading="flat", **style(name))
             ax[j, 2].set_title(f"{name}: slice at x = {x0:+.2f} mm", fontsize=8)
+            ax[j, 3].plot(depths, st.sum(axis=(1, 2)), ".-", ms=3)
+            ax[j, 3].set_title(f"{name}: summed over each plane", fontsize=8)
+            ax[j, 3].set_ylabel("sum (radiance units x samples)", fontsize=7)
+            ax[j, 3].set_ylim(bottom=0)
             for a in ax[j, 1:]:
                 a.set_xlabel("depth (mm from the focal plane)", fontsize=7)
+            for a in ax[j, 1:3]:
                 a.set_ylabel("y (mm)", fontsize=7)
             for a in ax[j]:
                 a.tick_params(labelsize=6)

@@ -206,6 +206,8 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
                                                 iters if iters_given else None, tv if tv_given else None, lam,
                                                 op.subsamples)
         settings.update(iters=iters, lam=lam, tv=admm_tv, l1=l1, noise=noise, subsamples=op.subsamples)
+        bar.total = iters                                            # the fills the noise chose
+        bar.refresh()
         planes, residuals, settings["system_s"] = solve_admm(y.reshape(op.dimsd), op, fit.reshape(op.dimsd),
                                                              fills=iters, lam=lam, tv=admm_tv, l1=l1, support=support,
                                                              callback=lambda j, x: step(x))
