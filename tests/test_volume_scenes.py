@@ -70,3 +70,24 @@ def test_a_seed_reproduces_the_scene():
 def test_bad_input_is_refused(kw, match):
     with pytest.raises(ValueError, match=match):
         nonaxisymmetric_flame_scene(CAM, **{**dict(diameter_mm=3.0, n_layers=4), **kw})
+
+
+def test_outside_share_of_the_volume_experiment():
+    import importlib.util
+    import pathlib
+    path = pathlib.Path(__file__).resolve().parents[1] / "experiments" / "volume.py"
+    spec = importlib.util.spec_from_file_location("volume_script", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    depths = [-1.5, -1.0, -0.5, 0.0, 0.5, 1.0, 1.5]
+    truth = np.zeros((7, 4, 4))
+    truth[2:5, 1:3, 1:3] = 1.0                                    # the flame spans -0.5..0.5 mm
+    x = truth.copy()
+    x[0, 1, 1] = 2.0                                              # -1.5 mm: outside (-0.75 - 0.25 pad)
+    x[1, 1, 2] = 1.0                                              # -1.0 mm: inside the padded range
+    x[6, 2, 2] = -5.0                                             # negative: not emission, left out
+    m = mod.metrics(x, truth, depths, (-0.75, 0.75))
+    assert m["outside_share"] == pytest.approx(2.0 / (12 + 2 + 1))
+    assert m["outside_los_mean"] == pytest.approx((2.0 / 5) / 4)    # one of the 4 lit lines holds 2 of its 5
+    base = mod.metrics(x, truth, depths)
+    assert "outside_share" not in base and all(base[k] == m[k] for k in base)
