@@ -20,7 +20,13 @@ Metrics on the dense grid: 3-D relative L2 error; projection error (the planes s
 depth against the truth's, relative L2); per line of sight (a grid sample whose truth, summed
 over depth, holds >= 5 % of the largest) the depth centroid's error, mean / p90 / worst (mm).
 
-Usage: ``python experiments/volume.py --out results [--quick]``.
+``--set nonaxi``: non-axisymmetric volumes (:func:`~lf_flame.simulate.scenes_volume.nonaxisymmetric_flame_scene`,
+a sheath leaning in depth with a brighter lobe) for issue 36's bar (centroid mean <= 0.3 mm, <= 10 % of the
+emission outside the true depth range): validation volumes choose the TV and l1 weights of admm, test volumes
+(other seeds) score admm without prior, admm + TV, admm + l1, the (mis-specified) axisymmetric prior and
+shift-and-sum; writes results/volume_nonaxi.{csv,md,json,png}.
+
+Usage: ``python experiments/volume.py --out results [--set nonaxi] [--quick]``.
 """
 from __future__ import annotations
 
@@ -40,7 +46,7 @@ from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.refocus.shift_and_sum import aperture_mask, focal_stack  # noqa: E402
 from lf_flame.simulate.scenes import volume_flame_scene  # noqa: E402
-from lf_flame.simulate.scenes_volume import axisymmetric_flame_scene  # noqa: E402
+from lf_flame.simulate.scenes_volume import axisymmetric_flame_scene, nonaxisymmetric_flame_scene  # noqa: E402
 from lf_flame.tomo.axisymmetric import solve_axisymmetric  # noqa: E402
 from lf_flame.tomo.exact import ExactOperator  # noqa: E402
 from lf_flame.tomo.solvers import reconstruct  # noqa: E402
@@ -72,7 +78,10 @@ def render_set(cam, name, seed, kw, rays, cache: Path):
     return (scene,) + out + (time.perf_counter() - t0,)
 
 
-def metrics(x, truth, depths):
+def metrics(x, truth, depths, depth_range=None):
+    """3-D and projection errors, per-line-of-sight centroid errors; with ``depth_range`` (lo, hi) mm also the
+    share of the reconstructed non-negative emission on planes outside it (padded by half a plane step): overall
+    (``outside_share``) and per lit line of sight (mean, p90)."""
     rel = float(np.linalg.norm(x - truth) / np.linalg.norm(truth))
     pt, px = truth.sum(axis=0), x.sum(axis=0)
     proj = float(np.linalg.norm(px - pt) / np.linalg.norm(pt))
@@ -83,10 +92,22 @@ def metrics(x, truth, depths):
         cx = (z * x).sum(axis=0)[los] / px[los]
     err = np.abs(np.where(np.isfinite(cx), cx - ct, np.nan))
     e = err[np.isfinite(err)]
-    return dict(rel_3d=rel, projection=proj, centroid_mean_mm=float(e.mean()) if len(e) else np.nan,
-                centroid_p90_mm=float(np.percentile(e, 90)) if len(e) else np.nan,
-                centroid_worst_mm=float(e.max()) if len(e) else np.nan, lines_unlit=int((~np.isfinite(err)).sum()),
-                lines=int(los.sum()))
+    out = dict(rel_3d=rel, projection=proj, centroid_mean_mm=float(e.mean()) if len(e) else np.nan,
+               centroid_p90_mm=float(np.percentile(e, 90)) if len(e) else np.nan,
+               centroid_worst_mm=float(e.max()) if len(e) else np.nan, lines_unlit=int((~np.isfinite(err)).sum()),
+               lines=int(los.sum()))
+    if depth_range is not None:
+        d = np.asarray(depths, dtype=float)
+        pad = 0.5 * float(np.median(np.diff(d))) if len(d) > 1 else 0.0
+        outside = (d < depth_range[0] - pad) | (d > depth_range[1] + pad)
+        xp = np.maximum(x, 0.0)
+        tot, off = xp.sum(axis=0), xp[outside].sum(axis=0)
+        lit = los & (tot > 0)
+        share = off[lit] / tot[lit]
+        out.update(outside_share=float(off.sum() / max(tot.sum(), 1e-30)),
+                   outside_los_mean=float(share.mean()) if len(share) else np.nan,
+                   outside_los_p90=float(np.percentile(share, 90)) if len(share) else np.nan)
+    return out
 
 
 def run(a):
@@ -127,6 +148,251 @@ def run(a):
     return pd.DataFrame(rows), renders, figs, op_s, depths
 
 
+#: --set nonaxi (issue 36's non-axisymmetric volume bar): leaning sheaths with a lobe. Validation volumes choose
+#: the priors' weights; test volumes (other seeds, other tilts / lobes / depths / x) are scored with them.
+NONAXI_VAL = (
+    ("val tilt+8 lobe+0.25 D9 x+0.3 z+0.5", 611,
+     dict(centre_depth_mm=0.5, centre_x_mm=0.3, diameter_mm=9.0, tilt_deg=8.0, lobe=(1.5, 0.25, 0.5))),
+    ("val tilt-12 lobe-0.2 D10 x-0.4 z-1.0", 612,
+     dict(centre_depth_mm=-1.0, centre_x_mm=-0.4, diameter_mm=10.0, tilt_deg=-12.0, lobe=(1.2, -0.2, 0.6))),
+)
+NONAXI_TEST = (
+    ("tilt+10 lobe+0.25 D10", 701, dict(centre_depth_mm=0.0, centre_x_mm=0.0, diameter_mm=10.0, tilt_deg=10.0,
+                                         lobe=(1.5, 0.25, 0.5))),
+    ("tilt-6 lobe-0.3 D8 x+0.7 z+1.8", 702, dict(centre_depth_mm=1.8, centre_x_mm=0.7, diameter_mm=8.0,
+                                                  tilt_deg=-6.0, lobe=(2.0, -0.3, 0.4))),
+    ("tilt+15 lobe+0.15 D9 x-0.5 z-2.2", 703, dict(centre_depth_mm=-2.2, centre_x_mm=-0.5, diameter_mm=9.0,
+                                                    tilt_deg=15.0, lobe=(1.0, 0.15, 0.65))),
+    ("tilt-12 lobe-0.2 D10 x+0.3 z-0.8", 704, dict(centre_depth_mm=-0.8, centre_x_mm=0.3, diameter_mm=10.0,
+                                                    tilt_deg=-12.0, lobe=(2.5, -0.2, 0.3))),
+)
+NONAXI_TV = (0.1, 0.3, 1.0)
+NONAXI_L1 = (0.0005, 0.001, 0.002, 0.005, 0.01, 0.02)
+BAR_CENTROID_MM, BAR_OUTSIDE = 0.3, 0.10
+
+
+def bar_score(r):
+    """The worse of the two bar ratios (centroid mean / 0.3 mm, outside share / 10 %): <= 1 meets both; inf for an
+    empty volume (no lit line of sight holds emission)."""
+    if not np.isfinite(r["centroid_mean_mm"]):
+        return np.inf
+    return max(r["centroid_mean_mm"] / BAR_CENTROID_MM, r["outside_share"] / BAR_OUTSIDE)
+
+
+def nonaxi_renders(cam, scenes, a):
+    out = []
+    for name, seed, kw in scenes:
+        scene = nonaxisymmetric_flame_scene(cam, np.random.default_rng(seed), n_layers=N_LAYERS, **kw)
+        t0 = time.perf_counter()
+        clean, noisy, own, snr = R.cached_render(cam, scene, a.rays, seed, a.cache / f"volume_nonaxi_{seed}_{a.rays}.npz",
+                                                 SNR_DB)
+        obj = scene.objects[0]
+        out.append((name, seed, scene, clean, noisy, dict(
+            scene=name, seed=seed, own_error=own, snr_db=snr, render_or_load_s=time.perf_counter() - t0,
+            tilt_deg=obj["tilt_deg"], lobe=obj["lobe"], depth_range_mm=obj["depth_range_mm"],
+            centre_x_mm=obj["centre_x_mm"], centre_depth_mm=obj["depth_offset_mm"], height_mm=obj["height_mm"])))
+        print(f"{name}: own error {own:.4f}, SNR {snr:.2f} dB, depth range {obj['depth_range_mm']}", flush=True)
+    return out
+
+
+def run_nonaxi(a):
+    cam = PAPER_CAMERA
+    val, test = (NONAXI_VAL[:1], NONAXI_TEST[:1]) if a.quick else (NONAXI_VAL, NONAXI_TEST)
+    tvs, l1s = (NONAXI_TV[1:], NONAXI_L1[3:5]) if a.quick else (NONAXI_TV, NONAXI_L1)
+    depths = list(np.round((np.arange(a.planes) - (a.planes - 1) / 2) * a.step, 6))
+    t0 = time.perf_counter()
+    op = ExactOperator(cam, depths, precision="float32")
+    op_s = time.perf_counter() - t0
+    slopes = [cam.slope_for_depth(d) for d in depths]
+    mask = aperture_mask(cam.pixels_per_lenslet)
+    rows, figs = [], {}
+
+    def solve(route, fn, lab, truth, rng_):
+        t = time.perf_counter()
+        x, extra = fn()
+        rows.append(dict(lab, route=route, time_s=time.perf_counter() - t, **extra, **metrics(x, truth, depths, rng_)))
+        return x
+
+    focal_stack(np.ones((cam.pixels_per_lenslet,) * 2 + (cam.n_rows, cam.n_cols), np.float32), slopes[:1], mask)
+    # (compiled once above, untimed) validation: every candidate weight of each prior on the validation volumes, per noise level
+    renders = []
+    for name, seed, scene, clean, noisy, info in nonaxi_renders(cam, val, a):
+        renders.append(dict(info, split="validation"))
+        truth, rng_ = scene_truth(scene, op), info["depth_range_mm"]
+        for noise, views in (("noise-free", clean), ("14 dB", noisy)):
+            lab = dict(split="validation", scene=name, seed=seed, noise=noise, own_error=info["own_error"])
+            solve("admm (no prior)", lambda: (reconstruct(views, op, "admm").planes, {}), lab, truth, rng_)
+            for tv in tvs:
+                solve("admm + TV", lambda: (reconstruct(views, op, "admm", tv=tv).planes, dict(weight=tv)),
+                      lab, truth, rng_)
+            for l1 in l1s:
+                solve("admm + l1 (sparse)", lambda: (reconstruct(views, op, "admm", l1=l1).planes, dict(weight=l1)),
+                      lab, truth, rng_)
+            print(f"  val {name} {noise}: " + ", ".join(f"{r['route']} {r.get('weight', '')}: "
+                  f"{r['centroid_mean_mm']:.2f} mm {r['outside_share'] * 100:.1f} %" for r in rows[-1 - len(tvs)
+                                                                                             - len(l1s):]), flush=True)
+    vdf = pd.DataFrame(rows)
+    vdf["bar_score"] = vdf.apply(bar_score, axis=1)
+    vtab = (vdf[vdf.route != "admm (no prior)"].groupby(["noise", "route", "weight"], sort=False)
+            .agg(centroid_mean_mm=("centroid_mean_mm", "mean"), outside_share=("outside_share", "mean"),
+                 bar_score=("bar_score", "mean")).reset_index())
+    chosen = {(n, r): float(g.loc[g.bar_score.idxmin(), "weight"]) for (n, r), g in vtab.groupby(["noise", "route"])}
+    print("chosen weights:", chosen, flush=True)
+    # test: the chosen weights, every route on the same renders
+    for name, seed, scene, clean, noisy, info in nonaxi_renders(cam, test, a):
+        renders.append(dict(info, split="test"))
+        truth, rng_ = scene_truth(scene, op), info["depth_range_mm"]
+        for noise, views in (("noise-free", clean), ("14 dB", noisy)):
+            lab = dict(split="test", scene=name, seed=seed, noise=noise, own_error=info["own_error"])
+            tv, l1 = chosen[(noise, "admm + TV")], chosen[(noise, "admm + l1 (sparse)")]
+            xs = dict(truth=truth)
+            xs["admm"] = solve("admm (no prior)", lambda: (reconstruct(views, op, "admm").planes, {}), lab, truth, rng_)
+            xs["admm + TV"] = solve("admm + TV", lambda: (reconstruct(views, op, "admm", tv=tv).planes, dict(weight=tv)),
+                                    lab, truth, rng_)
+            xs["admm + l1"] = solve("admm + l1 (sparse)", lambda: (reconstruct(views, op, "admm", l1=l1).planes,
+                                                                   dict(weight=l1)), lab, truth, rng_)
+
+            def axi():
+                res = solve_axisymmetric(views, op, views < 1.0, camera=cam)
+                return res.volume, dict(axis_x_mm=res.axis_x_mm, axis_z_mm=res.axis_z_mm)
+            xs["axisymmetric"] = solve("axisymmetric (mis-specified)", axi, lab, truth, rng_)
+
+            def sas():
+                fs = focal_stack(views, slopes, mask).astype(np.float64)
+                return fs * float((fs * truth).sum() / max((fs * fs).sum(), 1e-30)), {}
+            solve("shift-and-sum (scaled)", sas, lab, truth, rng_)
+            if noise == "noise-free" and not figs:
+                figs = dict(name=name, range=rng_, **xs)
+            print(f"  {name} {noise}: " + ", ".join(f"{r['route']} {r['centroid_mean_mm']:.2f} mm "
+                                                     f"{r['outside_share'] * 100:.1f} %" for r in rows[-5:]), flush=True)
+    df = pd.DataFrame(rows)
+    df["bar_score"] = df.apply(bar_score, axis=1)
+    return df, vtab, chosen, renders, figs, op_s, depths
+
+
+def figure_nonaxi(figs, depths, path):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    t = figs["truth"]
+    row = int(np.argmax(t.sum(axis=(0, 2))))
+    keys = ("truth", "admm", "admm + TV", "admm + l1", "axisymmetric")
+    fig, ax = plt.subplots(2, len(keys), figsize=(16, 6.5))
+    vmax = t.max()
+    for j, k in enumerate(keys):
+        ax[0, j].imshow(figs[k][:, row, :], aspect="auto", vmin=0, vmax=vmax, cmap="inferno",
+                        extent=(0, t.shape[2], depths[-1], depths[0]))
+        for z in figs["range"]:
+            ax[0, j].axhline(z, color="c", ls="--", lw=0.8)
+        ax[0, j].set_title(f"{k}: x-z slice, row {row}")
+        ax[0, j].set_xlabel("column (lenslets)")
+        ax[0, j].set_ylabel("depth (mm)")
+        ax[1, j].imshow(figs[k].sum(axis=2).T, aspect="auto", vmin=0, cmap="inferno",
+                        extent=(depths[0], depths[-1], t.shape[1], 0))
+        for z in figs["range"]:
+            ax[1, j].axvline(z, color="c", ls="--", lw=0.8)
+        ax[1, j].set_title(f"{k}: rows vs depth (summed over x)")
+        ax[1, j].set_xlabel("depth (mm)")
+        ax[1, j].set_ylabel("row (lenslets)")
+    fig.suptitle(f"{figs['name']} (noise-free); dashed: the flame's true depth range")
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+
+
+def report_nonaxi(a, df, vtab, chosen, renders, figs, op_s, depths, wall):
+    stem = "volume_nonaxi_quick" if a.quick else "volume_nonaxi"
+    df.to_csv(a.out / f"{stem}.csv", index=False)
+    figure_nonaxi(figs, depths, a.out / f"{stem}.png")
+    t = df[df.split == "test"]
+    base_t = t[t.route == "admm (no prior)"].groupby("noise").time_s.median()
+    summ = t.groupby(["route", "noise"], sort=False).agg(
+        weight=("weight", "first"), cm_mean=("centroid_mean_mm", "mean"), cm_worst=("centroid_mean_mm", "max"),
+        p90_worst=("centroid_p90_mm", "max"), line_worst=("centroid_worst_mm", "max"),
+        out_median=("outside_share", "median"), out_worst=("outside_share", "max"),
+        los_mean=("outside_los_mean", "mean"), los_p90=("outside_los_p90", "max"),
+        rel=("rel_3d", "median"), proj=("projection", "median"), time=("time_s", "median")).reset_index()
+    cmd = "python experiments/volume.py --set nonaxi --out " + str(a.out) + (" --quick" if a.quick else "")
+    own = [r["own_error"] for r in renders]
+    L = ["# Non-axisymmetric volumes (issue 36, step 2 bar)", "",
+         f"`{cmd}` ({wall / 60:.1f} min wall on this 2-core machine, shared with another job). "
+         f"Scenes: `nonaxisymmetric_flame_scene` (a sheath leaning in depth with a brighter Gaussian lobe inside), "
+         f"{N_LAYERS} layers, traced at {a.rays} rays per pixel; {len([r for r in renders if r['split'] == 'validation'])} "
+         f"validation volumes (seeds {', '.join(str(r['seed']) for r in renders if r['split'] == 'validation')}) "
+         f"choose the priors' weights, {len([r for r in renders if r['split'] == 'test'])} test volumes "
+         f"(seeds {', '.join(str(r['seed']) for r in renders if r['split'] == 'test')}) are scored. Own error of the "
+         f"renders {min(own) * 100:.2f}–{max(own) * 100:.2f} % (two seeds); 14 dB measured "
+         f"{min(r['snr_db'] for r in renders):.2f}–{max(r['snr_db'] for r in renders):.2f} dB. Dense stack: "
+         f"{a.planes} planes every {a.step} mm from {depths[0]:+g} to {depths[-1]:+g} mm (exact operator, float32, "
+         f"setup {op_s:.1f} s); truth: scene_truth on the same planes.", "",
+         "| split | scene | seed | tilt (deg) | lobe (peak, depth offset / D, height) | true depth range (mm) | "
+         "own error | SNR (dB) |", "|---|---|---|---|---|---|---|---|"]
+    for r in renders:
+        L.append(f"| {r['split']} | {r['scene']} | {r['seed']} | {r['tilt_deg']:+.1f} | "
+                 f"({r['lobe'][0]:.2f}, {r['lobe'][1]:+.2f}, {r['lobe'][2]:.2f}) | "
+                 f"{r['depth_range_mm'][0]:+.2f} to {r['depth_range_mm'][1]:+.2f} | {r['own_error'] * 100:.2f} % | "
+                 f"{r['snr_db']:.2f} |")
+    L += ["", "## Weights chosen on the validation volumes", "",
+          "Each prior's weight minimises, per noise level, the validation mean of the bar score "
+          "max(centroid mean / 0.3 mm, outside share / 10 %) (<= 1 meets both). admm + TV: `reconstruct(views, op, "
+          "\"admm\", tv=w)`; admm + l1: `reconstruct(views, op, \"admm\", l1=w)` (w a fraction of lambda_max), the "
+          "other knobs by the noise as today.", "",
+          "| noise | prior | weight | centroid mean (mm) | outside share | bar score | chosen |", "|---|---|---|---|---|---|---|"]
+    for _, r in vtab.iterrows():
+        L.append(f"| {r.noise} | {r.route} | {r.weight:g} | {r.centroid_mean_mm:.3f} | {r.outside_share * 100:.1f} % | "
+                 f"{r.bar_score:.2f} | {'**yes**' if chosen[(r.noise, r.route)] == r.weight else ''} |")
+    L += ["", "## Test volumes", "",
+          "Per route and noise over the test volumes: the per-line-of-sight depth-centroid error (lit lines: truth "
+          "summed over depth >= 5 % of its largest), mean over scenes of each scene's mean / worst scene's mean, "
+          "worst scene's p90, worst line; `outside share`: share of the reconstructed non-negative emission on planes "
+          "outside the flame's true depth range (padded by half a plane step), over the whole stack, median / worst "
+          "scene; per line of sight (lit lines) mean / worst scene's p90; 3-D relative error and projection error "
+          "(median); time per light field (median) and its ratio to admm without prior in the same run.", "",
+          "| route | noise | weight | centroid mean / worst scene (mm) | p90 worst / worst line (mm) | "
+          "outside share median / worst | per line mean / p90 | 3-D error | projection | time (s) | x admm |",
+          "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for _, r in summ.iterrows():
+        w = "" if pd.isna(r.weight) else f"{r.weight:g}"
+        L.append(f"| {r.route} | {r.noise} | {w} | {r.cm_mean:.3f} / {r.cm_worst:.3f} | {r.p90_worst:.2f} / "
+                 f"{r.line_worst:.2f} | {r.out_median * 100:.1f} / {r.out_worst * 100:.1f} % | "
+                 f"{r.los_mean * 100:.1f} / {r.los_p90 * 100:.1f} % | {r.rel:.3f} | {r.proj:.3f} | {r.time:.1f} | "
+                 f"{r.time / base_t[r.noise]:.2f} |")
+    L += ["", "## Against the bar", "",
+          f"Bar (issue 36): centroid mean <= {BAR_CENTROID_MM} mm and <= {BAR_OUTSIDE * 100:.0f} % of the emission "
+          "outside the true depth range, noise-free and at 14 dB, the 14 dB figures <= 2x the noise-free ones. "
+          "Checked on the worst test scene.", "",
+          "| route | centroid mean worst scene: noise-free / 14 dB (mm) | outside share worst scene: noise-free / 14 dB | "
+          "14 dB / noise-free (centroid, outside) | bar score worst (<= 1 meets) | meets |", "|---|---|---|---|---|---|"]
+    verdict = []
+    for route, g in summ.groupby("route", sort=False):
+        nf, nz = g[g.noise == "noise-free"].iloc[0], g[g.noise == "14 dB"].iloc[0]
+        score = max(nf.cm_worst / BAR_CENTROID_MM, nf.out_worst / BAR_OUTSIDE, nz.cm_worst / BAR_CENTROID_MM,
+                    nz.out_worst / BAR_OUTSIDE)
+        rc, ro = nz.cm_worst / max(nf.cm_worst, 1e-12), nz.out_worst / max(nf.out_worst, 1e-12)
+        ok = score <= 1 and rc <= 2 and ro <= 2
+        verdict.append((score, route, ok, rc, ro))
+        L.append(f"| {route} | {nf.cm_worst:.3f} / {nz.cm_worst:.3f} | {nf.out_worst * 100:.1f} / {nz.out_worst * 100:.1f} % "
+                 f"| {rc:.2f}, {ro:.2f} | {score:.2f} | {'yes' if ok else 'no'} |")
+    met = [v for v in verdict if v[2]]
+    best = min(verdict)
+    L += ["", ("Routes meeting the bar: " + ", ".join(v[1] for v in met) + ".") if met else
+          (f"No route meets the bar. Closest: {best[1]}, bar score {best[0]:.2f} (its worst figure {best[0]:.2f}x "
+           f"the bar; 14 dB / noise-free {best[3]:.2f} centroid, {best[4]:.2f} outside)."), "",
+          "The axisymmetric prior is mis-specified here (a reference): it fits the best axisymmetric volume to a "
+          "leaning, lobed flame. Shift-and-sum is scaled by its least-squares factor against the truth (optimistic "
+          f"for it). Weights were chosen on the validation volumes only. Full rows (validation and test): "
+          f"[{stem}.csv]({stem}.csv); figure [{stem}.png]({stem}.png).", ""]
+    atomic_write_text(a.out / f"{stem}.md", "\n".join(L))
+    meta = dict(command=cmd, rays=a.rays, planes=a.planes, step_mm=a.step, snr_db=SNR_DB, n_layers=N_LAYERS,
+                validation=[dict(name=n, seed=s, **k) for n, s, k in NONAXI_VAL],
+                test=[dict(name=n, seed=s, **k) for n, s, k in NONAXI_TEST], tv_candidates=NONAXI_TV,
+                l1_candidates=NONAXI_L1, chosen={f"{n} / {r}": w for (n, r), w in chosen.items()},
+                validation_table=vtab.to_dict("records"), renders=renders, wall_s=wall, operator_setup_s=op_s,
+                provenance=provenance())
+    atomic_write_text(a.out / f"{stem}.json", json.dumps(meta, indent=1, default=str))
+    print("\n".join(L))
+
+
 def figure(figs, depths, op, path):
     import matplotlib
     matplotlib.use("Agg")
@@ -158,10 +424,18 @@ def main(argv=None):
     ap.add_argument("--planes", type=int, default=41)
     ap.add_argument("--step", type=float, default=0.5)
     ap.add_argument("--quick", action="store_true", help="one scene, 16 rays, 21 planes every 1 mm (a smoke test)")
+    ap.add_argument("--set", choices=("axi", "nonaxi"), default="axi",
+                    help="axi: axisymmetric volumes (results/volume.*); nonaxi: leaning, lobed volumes with the priors' "
+                         "weights chosen on validation volumes (results/volume_nonaxi.*)")
     a = ap.parse_args(argv)
     if a.quick:
         a.rays, a.planes, a.step = 16, 21, 1.0
     t0 = time.perf_counter()
+    if a.set == "nonaxi":
+        res = run_nonaxi(a)
+        a.out.mkdir(parents=True, exist_ok=True)
+        report_nonaxi(a, *res, time.perf_counter() - t0)
+        return
     df, renders, figs, op_s, depths = run(a)
     wall = time.perf_counter() - t0
     a.out.mkdir(parents=True, exist_ok=True)

@@ -3,7 +3,7 @@
 :mod:`.scenes` builds layered scenes (the paper's shapes and flames at four depths, overlaps,
 volumes, points); :mod:`.scenes_depth` flames at random depths and one behind
 another (issue 36); :mod:`.scenes_volume` axisymmetric volumetric flames (sheath, filled core) about any
-vertical axis; :mod:`.scenes_time` flickering flames over time; :mod:`.scenes_temperature` flames with a
+vertical axis and non-axisymmetric ones (leaning, with a lobe); :mod:`.scenes_time` flickering flames over time; :mod:`.scenes_temperature` flames with a
 temperature field seen in colour, rendered by :mod:`.colour` (a Bayer mosaic of per-channel renders); :mod:`.tracer` renders
 them by tracing rays backward through the camera's ray transfer matrices, with the
 Numba kernels in :mod:`._kernels`. Only the effects a scene asks for are simulated
@@ -26,7 +26,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
                                "colour_flame_scene", "colour_behind_scene", "blackbody_channels", "furnace_scene"],
         "scenes_depth": ["DEPTH_RANGE_MM", "HEIGHT_RANGE_MM", "MIN_HALF_WIDTH_MM", "random_depth_scene",
                          "behind_scene"],
-        "scenes_volume": ["axisymmetric_flame_scene"],
+        "scenes_volume": ["axisymmetric_flame_scene", "nonaxisymmetric_flame_scene"],
         "scenes_time": ["FlickerFlame", "FlameSequence", "SEQUENCE_KINDS", "flicker_sequence"],
         "tracer": ["NO_TABLE", "content_box", "backward_chain", "trace_coefficients", "render",
                  "render_points", "render_views", "render_reference", "apply_sensor"],
