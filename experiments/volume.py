@@ -110,15 +110,20 @@ def metrics(x, truth, depths, depth_range=None):
     return out
 
 
-def run(a):
+def dense_stack(a):
+    """The paper's camera, the dense stack's depths (``a.planes`` every ``a.step`` mm about 0), its exact
+    operator (float32) and build time (s), each plane's slope and the circular aperture mask."""
     cam = PAPER_CAMERA
-    scenes = SCENES[:1] if a.quick else SCENES
     depths = list(np.round((np.arange(a.planes) - (a.planes - 1) / 2) * a.step, 6))
     t0 = time.perf_counter()
     op = ExactOperator(cam, depths, precision="float32")
     op_s = time.perf_counter() - t0
-    slopes = [cam.slope_for_depth(d) for d in depths]
-    mask = aperture_mask(cam.pixels_per_lenslet)
+    return cam, depths, op, op_s, [cam.slope_for_depth(d) for d in depths], aperture_mask(cam.pixels_per_lenslet)
+
+
+def run(a):
+    scenes = SCENES[:1] if a.quick else SCENES
+    cam, depths, op, op_s, slopes, mask = dense_stack(a)
     rows, renders, figs = [], [], {}
     for name, seed, kw in scenes:
         scene, clean, noisy, own, snr, render_s = render_set(cam, name, seed, kw, a.rays, a.cache)
@@ -196,15 +201,9 @@ def nonaxi_renders(cam, scenes, a):
 
 
 def run_nonaxi(a):
-    cam = PAPER_CAMERA
     val, test = (NONAXI_VAL[:1], NONAXI_TEST[:1]) if a.quick else (NONAXI_VAL, NONAXI_TEST)
     tvs, l1s = (NONAXI_TV[1:], NONAXI_L1[3:5]) if a.quick else (NONAXI_TV, NONAXI_L1)
-    depths = list(np.round((np.arange(a.planes) - (a.planes - 1) / 2) * a.step, 6))
-    t0 = time.perf_counter()
-    op = ExactOperator(cam, depths, precision="float32")
-    op_s = time.perf_counter() - t0
-    slopes = [cam.slope_for_depth(d) for d in depths]
-    mask = aperture_mask(cam.pixels_per_lenslet)
+    cam, depths, op, op_s, slopes, mask = dense_stack(a)
     rows, figs = [], {}
 
     def solve(route, fn, lab, truth, rng_):
