@@ -260,7 +260,7 @@ def depth_volume_rows(folder: Path) -> list[dict]:
     """The routes to flames at unknown depths and to volumes (issue 36), from their own runs in ``folder``
     (``depth.csv`` of ``make depth``, ``volume.csv`` / ``volume_nonaxi.csv`` of ``make volume``; [] for each
     missing): per route and noise, time per light field (median, p90) against the error (per flame's emission:
-    median, p90; per volume: the 3-D error, median and worst over scenes)."""
+    median, p90; per volume: the 3-D error, median and worst over scenes, and the depth centroid's error)."""
     rows = []
     f = folder / "depth.csv"
     if f.exists():
@@ -279,13 +279,14 @@ def depth_volume_rows(folder: Path) -> list[dict]:
         if not f.exists():
             continue
         v = pd.read_csv(f)
-        if "set" in v:                                       # the scored volumes only, not those the weights were chosen on
-            v = v[v.set == "test"]
+        if "split" in v:                                     # the scored volumes only, not those the weights were chosen on
+            v = v[v.split == "test"]
         for (route, noise), g in v.groupby(["route", "noise"], sort=False):
             rows.append(dict(section="volume", route=route, noise=noise, scene=name.removesuffix(".csv"),
                              latency_ms_median=1e3 * float(g.time_s.median()),
                              latency_ms_p90=1e3 * float(g.time_s.quantile(0.9)), error_median=float(g.rel_3d.median()),
-                             error_tail=float(g.rel_3d.max()), n_samples=len(g)))
+                             error_tail=float(g.rel_3d.max()), centroid_mm_mean=float(g.centroid_mean_mm.mean()),
+                             n_samples=len(g)))
     return rows
 
 
@@ -545,11 +546,13 @@ def summary(df: pd.DataFrame, prov: dict, n_test: int, ref_rpp: int, gt_heights:
                   "From `make depth` (`depth.csv`: per flame of the random-depth scenes, its emission error on the "
                   "plane at its found depth; `depth_err_mm_p90`: the depth error's 90th percentile, a missed flame "
                   "counted as infinite) and `make volume` (`volume*.csv`: the 3-D relative error per scene, scored "
-                  "volumes only). `error_tail`: the 90th percentile over flames (depth), the worst scene (volume). "
+                  "volumes only; `centroid_mm_mean`: the per-line-of-sight depth centroid's error, mean over "
+                  "scenes). `error_tail`: the 90th percentile over flames (depth), the worst scene (volume). "
                   "Time: the whole route per light field (depth search, "
                   "operator, solve), median and 90th percentile.", "",
                   dv[["section", "scene", "route", "noise", "latency_ms_median", "latency_ms_p90", "error_median",
-                      "error_tail", "depth_err_mm_p90", "n_samples"]].to_markdown(index=False, floatfmt=".3g"), ""]
+                      "error_tail", "depth_err_mm_p90", "centroid_mm_mean", "n_samples"]].to_markdown(
+                      index=False, floatfmt=".3g"), ""]
     return "\n".join(lines)
 
 

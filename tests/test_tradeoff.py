@@ -74,7 +74,8 @@ def test_reconstruction_only_brings_the_depth_and_volume_routes(tmp_path):
     spec = importlib.util.spec_from_file_location("tradeoff_script", ROOT / "experiments" / "tradeoff.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
-    for name in ("tradeoff.csv", "tradeoff.json", "reconstruct_iters.csv", "depth.csv", "volume.csv"):
+    for name in ("tradeoff.csv", "tradeoff.json", "reconstruct_iters.csv", "depth.csv", "volume.csv",
+                 "volume_nonaxi.csv"):
         shutil.copy(ROOT / "results" / name, tmp_path / name)
     assert mod.main(["--reconstruction-only", "--out", str(tmp_path)]) == 0
     df = pd.read_csv(tmp_path / "tradeoff.csv")
@@ -85,5 +86,10 @@ def test_reconstruction_only_brings_the_depth_and_volume_routes(tmp_path):
     assert dv.loc[("auto", "noise-free"), "latency_ms_median"] == pytest.approx(
         1e3 * auto.groupby("seed").time_s.first().median())
     vol = df[df.section == "volume"]
-    assert set(vol.route) == set(pd.read_csv(tmp_path / "volume.csv").route) and (vol.error_median > 0).all()
+    assert set(vol[vol.scene == "volume"].route) == set(pd.read_csv(tmp_path / "volume.csv").route)
+    assert (vol.error_median > 0).all() and (vol.centroid_mm_mean > 0).all()
+    nonaxi = pd.read_csv(tmp_path / "volume_nonaxi.csv")
+    scored = nonaxi[nonaxi.split == "test"]
+    assert (vol.scene == "volume_nonaxi").sum() == scored.groupby(["route", "noise"]).ngroups
+    assert vol[vol.scene == "volume_nonaxi"].n_samples.sum() == len(scored)     # the validation volumes left out
     assert "## Flames at unknown depths and volumes" in (tmp_path / "tradeoff.md").read_text()
