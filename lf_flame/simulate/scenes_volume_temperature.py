@@ -222,3 +222,51 @@ def axisymmetric_node_truth(scene: ColourFlameScene, sensor: ColourSensor, radii
     dens = axisymmetric_density(r[None, :], y[:, None], o) * o["peak_emission"]
     em = dens[None] * np.moveaxis(band_integrals(sensor, T, o["alpha"], gains=True), -1, 0) * o["exposure"]
     return T, em
+
+
+def axisymmetric_voxel_truth(scene: ColourFlameScene, sensor: ColourSensor, op):
+    """The truth at the centre of each voxel of a stack of planes: temperature and per-channel emission density.
+
+    Each voxel's centre (its plane's depth, its row's height and its column's lateral
+    position on the plane's grid) gives its distance from the axis; the temperature and the
+    emission are the analytic fields there (:func:`axisymmetric_temperature_field`,
+    :func:`axisymmetric_density`): what an axisymmetric model sampled at the voxels holds, where
+    :func:`lf_flame.tomo.truth.scene_truth` gives each plane the thin layers around it (a slab
+    average, emission-weighted in temperature).
+
+    Parameters
+    ----------
+    scene : ColourFlameScene
+        From :func:`colour_axisymmetric_scene`.
+    sensor : ColourSensor
+        The sensor the scene was made with.
+    op : object with ``dims`` (P, rows, cols), ``depths_mm``, ``sizes_mm`` and ``centres_mm``
+        The planes (e.g. an :class:`lf_flame.tomo.exact.ExactOperator`).
+
+    Returns
+    -------
+    temperature : ndarray of shape (P, rows, cols), K
+    emission : ndarray of shape (3, P, rows, cols)
+        Channels R, G, B, recorded units per mm of depth (as :func:`axisymmetric_node_truth`).
+
+    Raises
+    ------
+    ValueError
+        A scene not made by :func:`colour_axisymmetric_scene`.
+    """
+    if scene.scene.name != "colour_axisymmetric":
+        raise ValueError(f"a colour_axisymmetric scene is needed. Received: {scene.scene.name!r}")
+    o = scene.scene.objects[0]
+    P, gr, gc = op.dims
+    T = np.zeros((P, gr, gc))
+    em = np.zeros((3, P, gr, gc))
+    for p in range(P):
+        h, w = op.sizes_mm[p]
+        cy, cx = op.centres_mm[p]
+        y = cy + (0.5 - (np.arange(gr) + 0.5) / gr) * h
+        x = cx + ((np.arange(gc) + 0.5) / gc - 0.5) * w
+        r = np.hypot(x - o["centre_x_mm"], op.depths_mm[p] - o["depth_offset_mm"])[None, :]
+        T[p] = axisymmetric_temperature_field(r, y[:, None], o, o["peak_k"], o["base_k"])
+        dens = axisymmetric_density(r, y[:, None], o) * o["peak_emission"] * o["exposure"]
+        em[:, p] = dens[None] * np.moveaxis(band_integrals(sensor, T[p], o["alpha"], gains=True), -1, 0)
+    return T, em
