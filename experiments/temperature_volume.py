@@ -48,7 +48,9 @@ from lf_flame.refocus.shift_and_sum import aperture_mask, raw_to_views  # noqa: 
 from lf_flame.simulate import tracer  # noqa: E402
 from lf_flame.simulate.scenes_volume_temperature import (axisymmetric_node_truth, axisymmetric_voxel_truth,  # noqa: E402
                                                          colour_axisymmetric_scene)
-from lf_flame.tomo.axisymmetric_colour import axisymmetric_temperature, volume_temperature  # noqa: E402
+from lf_flame.tomo.axisymmetric import AXI_LAM  # noqa: E402
+from lf_flame.tomo.axisymmetric_colour import (COLOUR_FILLS, COLOUR_INNER, axisymmetric_temperature,  # noqa: E402
+                                              volume_temperature)  # noqa: E402
 from lf_flame.tomo.colour import channel_views, refocus_channel  # noqa: E402
 from lf_flame.tomo.exact import ExactOperator  # noqa: E402
 from lf_flame.tomo.truth import scene_truth  # noqa: E402
@@ -138,7 +140,8 @@ def run(a, log, write=None):
             lab = dict(volume=name, noise=noise, own_error=r["own"], snr_db=r["snr"] if noise != "noise-free" else np.inf,
                        true_x_mm=kw["centre_x_mm"], true_z_mm=kw["centre_depth_mm"])
             t = time.perf_counter()
-            res = axisymmetric_temperature(views, op, chan, cal, model, camera=cam)
+            res = axisymmetric_temperature(views, op, chan, cal, model, camera=cam,
+                                           lam=a.lam if noise == "noise-free" else a.lam_noisy)
             dt = time.perf_counter() - t
             Tn, en = axisymmetric_node_truth(cs, sensor, res.radii_mm, res.heights_mm)
             bn = (en[0] + en[1]) >= P.MIN_FRACTION * float((en[0] + en[1]).max())
@@ -207,6 +210,8 @@ def main(argv=None):
     ap.add_argument("--planes", type=int, default=41)
     ap.add_argument("--step", type=float, default=0.5)
     ap.add_argument("--volumes", type=int, default=len(VOLUMES))
+    ap.add_argument("--lam", type=float, default=AXI_LAM, help="smoothness of each channel's solve, noise-free")
+    ap.add_argument("--lam-noisy", type=float, default=AXI_LAM, help="... and at 14 dB")
     ap.add_argument("--quick", action="store_true", help="one volume, 8 rays, 21 planes every 1 mm (a smoke test)")
     a = ap.parse_args(argv)
     if a.quick:
@@ -229,7 +234,8 @@ def write(a, df, info, fig, meta, wall, partial=False):
     stem = "temperature_volume_quick" if a.quick else "temperature_volume"
     df.to_csv(a.out / f"{stem}.csv", index=False)
     figure(fig, a.out / f"{stem}.png")
-    cmd = f"python experiments/temperature_volume.py --out {a.out}" + (" --quick" if a.quick else "")
+    cmd = (f"python experiments/temperature_volume.py --out {a.out}" + (" --quick" if a.quick else "")
+           + (f" --lam {a.lam:g}" if a.lam != AXI_LAM else "") + (f" --lam-noisy {a.lam_noisy:g}" if a.lam_noisy != AXI_LAM else ""))
     cols = ["volume", "noise", "route", "grid", "n_truth", "share_masked", "median_k", "p90_k", "worst_k", "time_s"]
     g = df.groupby(["route", "grid", "noise"], sort=False).agg(
         median_of_medians=("median_k", "median"), p90_worst_volume=("p90_k", "max"), worst=("worst_k", "max"),
@@ -247,7 +253,9 @@ def write(a, df, info, fig, meta, wall, partial=False):
              f"{[round(x['snr_db'], 2) for x in info]} dB, per channel "
              f"{[{k: round(v, 2) for k, v in x['snr_db_per_channel'].items()} for x in info]}.",
              f"Dense stack: {a.planes} planes every {a.step} mm, {meta['depths_mm'][0]:+g} to "
-             f"{meta['depths_mm'][-1]:+g} mm (ExactOperator float32). Scored over the voxels (nodes) with >= 10 % of "
+             f"{meta['depths_mm'][-1]:+g} mm (ExactOperator float32). Each channel's solve: smoothness lam {a.lam:g} "
+             f"noise-free, {a.lam_noisy:g} at 14 dB (relative, `solve_axisymmetric`), {COLOUR_FILLS} fills x "
+             f"{COLOUR_INNER} steps. Scored over the voxels (nodes) with >= 10 % of "
              "the volume's peak true R+G emission; `share_masked`: of those, the share the route leaves without a "
              "temperature (its own R+G below 10 % of its peak, or ratio out of the lookup). Truth per voxel: `slab` = "
              "each channel's `scene_truth` (the 32 thin layers shared between the two nearest planes, linearly in "
@@ -268,7 +276,7 @@ def write(a, df, info, fig, meta, wall, partial=False):
         for r in ax.itertuples()), "", f"Figure: [{stem}.png]({stem}.png); rows: [{stem}.csv]({stem}.csv).", ""]
     atomic_write_text(a.out / f"{stem}.md", "\n".join(lines))
     atomic_write_text(a.out / f"{stem}.json", json.dumps(dict(
-        command=cmd, rays=a.rays, cal_rays=a.cal_rays, planes=a.planes, step_mm=a.step, n_layers=N_LAYERS,
+        command=cmd, lam=a.lam, lam_noisy=a.lam_noisy, rays=a.rays, cal_rays=a.cal_rays, planes=a.planes, step_mm=a.step, n_layers=N_LAYERS,
         volumes=info, wall_s=wall, partial=partial, provenance=provenance(), **meta), indent=1, default=str))
     if not partial:
         print("\n".join(lines))
