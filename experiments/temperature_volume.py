@@ -179,24 +179,24 @@ def figure(f, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     row = int(np.argmax(f["vt"].sum(axis=(0, 2))))
-    fig, ax = plt.subplots(1, 5, figsize=(17, 4))
+    fig, ax = plt.subplots(1, 5, figsize=(19, 4.4))
     lo, hi = np.nanmin(np.where(f["vt"], f["Tt"], np.nan)), np.nanmax(np.where(f["vt"], f["Tt"], np.nan))
     d = f["depths"]
     for j, (lab, T) in enumerate((("truth", np.where(f["vt"], f["Tt"], np.nan)), ("axisymmetric", f["Ta"]),
                                   ("refocus-cfa", f["Tf"]))):
         im = ax[j].imshow(T[:, row, :], aspect="auto", vmin=lo, vmax=hi, cmap="inferno",
                           extent=(0, T.shape[2], d[-1], d[0]))
-        ax[j].set_title(f"{lab}: T, x-z slice row {row}")
+        ax[j].set_title(f"{lab}: T, x-z, row {row}", fontsize=9)
         ax[j].set_xlabel("column (lenslets)")
         ax[j].set_ylabel("depth (mm)")
     ext = (f["radii"][0], f["radii"][-1], f["heights"][-1], f["heights"][0])
     for j, (lab, T) in enumerate((("truth T(r, y)", f["Tn"]), ("axisymmetric T(r, y)", f["Tr"]))):
         im = ax[3 + j].imshow(T, aspect="auto", vmin=lo, vmax=hi, cmap="inferno", extent=ext)
-        ax[3 + j].set_title(lab)
+        ax[3 + j].set_title(lab, fontsize=9)
         ax[3 + j].set_xlabel("r (mm)")
         ax[3 + j].set_ylabel("y (mm)")
     fig.colorbar(im, ax=ax, label="K", shrink=0.8)
-    fig.suptitle(f"{f['name']} (noise-free); masked: white")
+    fig.suptitle(f"{f['name']} (noise-free); masked: white", y=0.99)
     fig.savefig(path, dpi=80)
     plt.close(fig)
 
