@@ -21,7 +21,7 @@ HELDOUT_paper := 20
 HELDOUT_quick := 4
 HELDOUT_SEED := 770077
 
-.PHONY: temperature help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi sequence new-user heights test clean-quick
+.PHONY: temperature temperature-volume help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi sequence new-user heights test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -55,6 +55,11 @@ endif
 temperature: $(STAMP) ## two-colour pyrometry with a colour (Bayer) light-field camera -> results/temperature{,_behind}.{csv,md,json}, results/temperature_calibration.json
 	$(VENV)/bin/python experiments/temperature.py --out results --stage flames $(if $(filter quick,$(PRESET)),--quick,)
 	$(VENV)/bin/python experiments/temperature.py --out results --stage behind $(if $(filter quick,$(PRESET)),--quick,)
+
+# two-colour temperature per voxel of axisymmetric colour flames (issue 37's Goal): each channel's e(r, y) on its
+# own CFA samples, the ratio to T; renders cached in data/temperature_volume
+temperature-volume: $(STAMP) ## temperature per voxel of axisymmetric flames -> results/temperature_volume.{csv,md,json,png}
+	$(VENV)/bin/python experiments/temperature_volume.py --out $(if $(filter quick,$(PRESET)),results/quick --quick,results)
 
 bench-sim: $(STAMP) ## simulator benchmark -> results/bench_sim.{csv,md,json}
 	$(VENV)/bin/python experiments/bench_sim.py --out results

@@ -4,7 +4,8 @@
 volumes, points); :mod:`.scenes_depth` flames at random depths and one behind
 another (issue 36); :mod:`.scenes_volume` axisymmetric volumetric flames (sheath, filled core) about any
 vertical axis and non-axisymmetric ones (leaning, with a lobe); :mod:`.scenes_time` flickering flames over time; :mod:`.scenes_temperature` flames with a
-temperature field seen in colour, rendered by :mod:`.colour` (a Bayer mosaic of per-channel renders); :mod:`.tracer` renders
+temperature field seen in colour, rendered by :mod:`.colour` (a Bayer mosaic of per-channel renders); :mod:`.scenes_volume_temperature` an
+axisymmetric volumetric flame with a temperature field T(r, y) in colour; :mod:`.tracer` renders
 them by tracing rays backward through the camera's ray transfer matrices, with the
 Numba kernels in :mod:`._kernels`. Only the effects a scene asks for are simulated
 (:class:`~.scenes.Effects`).
@@ -15,7 +16,8 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["colour", "scenes", "scenes_depth", "scenes_temperature", "scenes_volume", "scenes_time", "tracer"],
+    submodules=["colour", "scenes", "scenes_depth", "scenes_temperature", "scenes_volume", "scenes_volume_temperature",
+                "scenes_time", "tracer"],
     submod_attrs={
         "scenes": ["PAPER_DEPTHS_MM", "SHAPE_AT_DEPTH", "FLAME_HEIGHT_MEAN_MM", "FLAME_HEIGHT_SD_MM",
                  "REGIMES", "PAPER_RELATIVE_SD", "Effects", "Layer", "Scene", "shapes_scene",
@@ -27,6 +29,8 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "scenes_depth": ["DEPTH_RANGE_MM", "HEIGHT_RANGE_MM", "MIN_HALF_WIDTH_MM", "random_depth_scene",
                          "behind_scene"],
         "scenes_volume": ["axisymmetric_flame_scene", "nonaxisymmetric_flame_scene"],
+        "scenes_volume_temperature": ["TABLE_STEP_K", "axisymmetric_temperature_field", "axisymmetric_density",
+                                      "colour_axisymmetric_scene", "axisymmetric_node_truth", "axisymmetric_voxel_truth"],
         "scenes_time": ["FlickerFlame", "FlameSequence", "SEQUENCE_KINDS", "flicker_sequence"],
         "tracer": ["NO_TABLE", "content_box", "backward_chain", "trace_coefficients", "render",
                  "render_points", "render_views", "render_reference", "apply_sensor"],

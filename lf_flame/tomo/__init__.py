@@ -12,7 +12,8 @@ operator's per-frequency normal matrices (ADMM; kernels in :mod:`._fourier_kerne
 and solves on them; :mod:`.colour` recovers two colour channels' emission per plane
 from a colour (Bayer) light field, for two-colour pyrometry; :mod:`.axisymmetric` an
 axisymmetric flame's emission e(r, y) revolved onto a dense stack (its axis searched on the
-data residual); :mod:`.truth` puts a simulated
+data residual); :mod:`.axisymmetric_colour` an axisymmetric flame's temperature T(r, y) and
+per voxel from each colour channel's own CFA samples; :mod:`.truth` puts a simulated
 scene's truth on the same grids; :mod:`.scoring` scores planes against it;
 :mod:`.volume` solves a dense stack with a prior (none, TV, sparse, axisymmetric) and
 states the depth resolution it carries; :mod:`.decoded` turns decoded views of a user's camera into the exact operator's data and
@@ -25,11 +26,13 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["axisymmetric", "colour", "decoded", "defaults", "depth", "exact", "files", "fourier", "operator",
-                "resolution", "scoring", "solvers", "truth", "volume"],
+    submodules=["axisymmetric", "axisymmetric_colour", "colour", "decoded", "defaults", "depth", "exact", "files",
+                "fourier", "operator", "resolution", "scoring", "solvers", "truth", "volume"],
     submod_attrs={
         "axisymmetric": ["AXI_LAM", "AXI_FILLS", "AXI_INNER", "RevolveOperator", "AxisymmetricVolume",
                          "axis_x_from_views", "solve_axisymmetric"],
+        "axisymmetric_colour": ["COLOUR_FILLS", "COLOUR_INNER", "AxisymmetricTemperature", "volume_temperature",
+                                "axisymmetric_temperature"],
         "colour": ["CFA_ROUTES", "CFA_FILLS", "CFA_LAM", "CFA_TV", "SMOOTH_SIGMA", "channel_views", "admm_channel",
                    "refocus_channel", "smooth_planes", "channel_emission", "channel_sum_views", "colour_truth"],
         "decoded": ["MIN_WHITE", "white_views", "decoded_problem", "decoded_truth"],
