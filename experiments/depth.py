@@ -199,7 +199,7 @@ def write_report(out: Path, df, tb, own, settings, wall, prov, stem="depth"):
              tb.to_markdown(index=False, floatfmt=".3g"), "",
              "Issue bars: depth error p90 <= 0.3 mm, worst <= 1 mm; emission error <= 10 % on 90 % of flames; "
              ">= 90 % of each flame's emission within +-1 mm; heights on the found planes (measure_flame, emission "
-             "settings, in the flame's columns): <= 1 % of flames off by > 1 mm (missed or unmeasured counted off); "
+             "settings, in the flame's columns and found footprint): <= 1 % of flames off by > 1 mm (missed or unmeasured counted off); "
              "two flames 5 mm apart both found, each <= 15 %; "
              "14 dB within 2x the noise-free errors; goal <= 1 s per light field.", "",
              "## Time of the auto route per light field (s)", "",
