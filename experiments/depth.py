@@ -128,7 +128,7 @@ def run(cam, n_scenes, n_behind, rays, cache: Path, variant="default"):
         part = cache / f"{kind}_{seed}_{rays}{'' if variant == 'default' else '_' + variant}.csv"
         if part.exists():
             cached = pd.read_csv(part)
-            if "height_failure" in cached and SCORE_VERSION in str(cached.get("score_version", [""])[0]):
+            if "score_version" in cached and (cached.score_version == SCORE_VERSION).all():
                 rows.append(cached)
                 continue
         raw = tracer.render(cam, scene, rays, seed)

@@ -28,7 +28,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
                                "colour_flame_scene", "colour_behind_scene", "blackbody_channels", "furnace_scene"],
         "scenes_depth": ["DEPTH_RANGE_MM", "HEIGHT_RANGE_MM", "MIN_HALF_WIDTH_MM", "random_depth_scene",
                          "behind_scene"],
-        "scenes_volume": ["axisymmetric_flame_scene", "nonaxisymmetric_flame_scene"],
+        "scenes_volume": ["sheath_density", "axisymmetric_flame_scene", "nonaxisymmetric_flame_scene"],
         "scenes_volume_temperature": ["TABLE_STEP_K", "axisymmetric_temperature_field", "axisymmetric_density",
                                       "colour_axisymmetric_scene", "axisymmetric_node_truth", "axisymmetric_voxel_truth"],
         "scenes_time": ["FlickerFlame", "FlameSequence", "SEQUENCE_KINDS", "flicker_sequence"],

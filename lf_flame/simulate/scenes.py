@@ -503,32 +503,6 @@ def overlap_scene(camera: PlenopticCamera, rng: np.random.Generator, *, depths_m
     return Scene("overlap", tuple(layers), FLAME_EFFECTS, tuple(objects))
 
 
-def _axisymmetric_layers(camera, rng, centre_depth_mm, centre_x_mm, diameter_mm, height_mm, core, n_layers,
-                         texels_per_lenslet):
-    """:func:`volume_flame_scene`'s sheath blended with a filled core (``core`` in [0, 1]) about the axis at
-    ``(centre_x_mm, centre_depth_mm)``: (layers, height, base y, layer depths, thickness, peak per mm)."""
-    if int(n_layers) < 2 or not diameter_mm > 0:
-        raise ValueError(f"need n_layers >= 2 and diameter_mm > 0. Received: {n_layers}, {diameter_mm}")
-    h0, _ = camera.field_of_view_mm(0.0)
-    H = (0.8 * h0 if height_mm is None else float(height_mm)) * (rng.uniform(0.9, 1.1) if rng is not None else 1.0)
-    dzs = centre_depth_mm + (np.arange(n_layers) + 0.5) / n_layers * diameter_mm - diameter_mm / 2
-    thick, base_y, s, raw = diameter_mm / n_layers, -0.45 * h0, 0.08 * diameter_mm, []
-    for dz in dzs:
-        camera.image_distance_mm(camera.object_distance_mm(dz))
-        y, x, (h, w), _ = _layer_grid(camera, dz, texels_per_lenslet, 1.2)
-        eta = (y - base_y) / H
-        r = np.sqrt((x - centre_x_mm) ** 2 + (dz - centre_depth_mm) ** 2)
-        R = 0.4 * diameter_mm * np.sqrt(np.clip(1.0 - eta, 0.0, 1.0))
-        env = np.where((eta >= 0) & (eta <= 1), np.sin(np.pi * np.clip(eta, 0, 1) ** 0.75), 0.0)
-        shape = np.exp(-(r - R) ** 2 / (2 * s ** 2))
-        shape = (1.0 - core) * shape + core * np.exp(-r ** 2 / (2 * (R / 2 + s) ** 2)) if core else shape
-        raw.append((dz, h, w, env * shape))
-    peak = 0.9 / (thick * max(float(np.max(sum(e for *_, e in raw))), 1e-12))   # brightest line of sight -> 0.9
-    layers = tuple(Layer((e * peak * thick).astype(np.float32), None, float(dz), (0.0, 0.0), (h, w))
-                   for dz, h, w, e in raw)
-    return layers, H, base_y, dzs, thick, peak
-
-
 def volume_flame_scene(camera: PlenopticCamera, rng: np.random.Generator | None = None, *,
                        centre_depth_mm: float = 0.0, diameter_mm: float = 10.0, height_mm: float | None = None,
                        n_layers: int = 24, texels_per_lenslet: float = 3.0) -> Scene:
@@ -555,6 +529,7 @@ def volume_flame_scene(camera: PlenopticCamera, rng: np.random.Generator | None 
     ValueError
         Fewer than 2 layers, a non-positive diameter, a slab the camera cannot image.
     """
+    from .scenes_volume import _axisymmetric_layers    # the volumes' module (it imports this one)
     layers, H, base_y, dzs, thick, peak = _axisymmetric_layers(camera, rng, centre_depth_mm, 0.0, diameter_mm,
                                                                height_mm, 0.0, n_layers, texels_per_lenslet)
     obj = dict(name="volume", depth_offset_mm=float(centre_depth_mm), diameter_mm=float(diameter_mm), height_mm=H,

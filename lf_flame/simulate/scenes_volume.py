@@ -4,7 +4,8 @@ vertical axis) and non-axisymmetric (a leaning sheath with a brighter lobe insid
 :func:`lf_flame.simulate.scenes.volume_flame_scene` draws the sheath on the optical axis;
 :func:`axisymmetric_flame_scene` draws the same sheath, a filled core or a blend of both,
 with its axis at any lateral position and depth; :func:`nonaxisymmetric_flame_scene` the sheath
-about an axis leaning in depth with a Gaussian lobe on one side; all sampled as thin layers.
+about an axis leaning in depth with a Gaussian lobe on one side; all sampled as thin layers, their
+density :func:`sheath_density`.
 """
 from __future__ import annotations
 
@@ -13,7 +14,63 @@ import math
 import numpy as np
 
 from ..optics.camera import PlenopticCamera
-from .scenes import FLAME_EFFECTS, Layer, Scene, _axisymmetric_layers, _layer_grid, _roi
+from .scenes import FLAME_EFFECTS, Layer, Scene, _layer_grid, _roi
+
+
+def sheath_density(r_mm, eta, diameter_mm: float, core: float = 0.0):
+    """Relative emission density of a laminar flame's luminous sheath blended with a filled core.
+
+    ``env(eta) [(1 - core) exp(-(r - R)^2 / (2 s^2)) + core exp(-r^2 / (2 (R/2 + s)^2))]``: the
+    sheath (Burke & Schumann 1928) of radius ``R(eta) = 0.4 D sqrt(1 - eta)`` and thickness
+    ``s = 0.08 D``, ``env(eta) = sin(pi eta^0.75)`` on ``0 <= eta <= 1`` (0 outside); the core
+    (``core`` in [0, 1]) of half the sheath's radius. The density of every volume generator
+    (:func:`~lf_flame.simulate.scenes.volume_flame_scene`, :func:`axisymmetric_flame_scene`,
+    :func:`nonaxisymmetric_flame_scene`'s sheath,
+    :func:`lf_flame.simulate.scenes_volume_temperature.axisymmetric_density`).
+
+    Parameters
+    ----------
+    r_mm : array_like
+        Distance from the axis (mm).
+    eta : array_like, broadcastable with ``r_mm``
+        Height above the base over the flame height.
+    diameter_mm : float
+        ``D`` (mm).
+    core : float
+
+    Returns
+    -------
+    ndarray broadcast from ``r_mm`` and ``eta``.
+    """
+    s = 0.08 * diameter_mm
+    R = 0.4 * diameter_mm * np.sqrt(np.clip(1.0 - eta, 0.0, 1.0))
+    env = np.where((eta >= 0) & (eta <= 1), np.sin(np.pi * np.clip(eta, 0, 1) ** 0.75), 0.0)
+    shape = np.exp(-(r_mm - R) ** 2 / (2 * s ** 2))
+    shape = (1.0 - core) * shape + core * np.exp(-r_mm ** 2 / (2 * (R / 2 + s) ** 2)) if core else shape
+    return env * shape
+
+
+def _axisymmetric_layers(camera, rng, centre_depth_mm, centre_x_mm, diameter_mm, height_mm, core, n_layers,
+                         texels_per_lenslet):
+    """:func:`~lf_flame.simulate.scenes.volume_flame_scene`'s sheath blended with a filled core (``core`` in [0, 1]) about the axis at
+    ``(centre_x_mm, centre_depth_mm)``: (layers, height, base y, layer depths, thickness, peak per mm)."""
+    if int(n_layers) < 2 or not diameter_mm > 0:
+        raise ValueError(f"need n_layers >= 2 and diameter_mm > 0. Received: {n_layers}, {diameter_mm}")
+    h0, _ = camera.field_of_view_mm(0.0)
+    H = (0.8 * h0 if height_mm is None else float(height_mm)) * (rng.uniform(0.9, 1.1) if rng is not None else 1.0)
+    dzs = centre_depth_mm + (np.arange(n_layers) + 0.5) / n_layers * diameter_mm - diameter_mm / 2
+    thick, base_y, raw = diameter_mm / n_layers, -0.45 * h0, []
+    for dz in dzs:
+        camera.image_distance_mm(camera.object_distance_mm(dz))
+        y, x, (h, w), _ = _layer_grid(camera, dz, texels_per_lenslet, 1.2)
+        r = np.sqrt((x - centre_x_mm) ** 2 + (dz - centre_depth_mm) ** 2)
+        raw.append((dz, h, w, sheath_density(r, (y - base_y) / H, diameter_mm, core)))
+    peak = 0.9 / (thick * max(float(np.max(sum(e for *_, e in raw))), 1e-12))   # brightest line of sight -> 0.9
+    layers = tuple(Layer((e * peak * thick).astype(np.float32), None, float(dz), (0.0, 0.0), (h, w))
+                   for dz, h, w, e in raw)
+    return layers, H, base_y, dzs, thick, peak
+
+
 
 
 def axisymmetric_flame_scene(camera: PlenopticCamera, rng: np.random.Generator | None = None, *,
@@ -154,19 +211,16 @@ def nonaxisymmetric_flame_scene(camera: PlenopticCamera, rng: np.random.Generato
     D, base_y = float(diameter_mm), -0.45 * h0
     half = D / 2 + abs(math.tan(math.radians(tilt))) * H / 2
     dzs = centre_depth_mm + (np.arange(n_layers) + 0.5) / n_layers * 2 * half - half
-    thick, s, sl, y_mid, raw = 2 * half / n_layers, 0.08 * D, 0.12 * D, base_y + H / 2, []
+    thick, sl, y_mid, raw = 2 * half / n_layers, 0.12 * D, base_y + H / 2, []
     for dz in dzs:
         camera.image_distance_mm(camera.object_distance_mm(dz))
         y, x, (h, w), _ = _layer_grid(camera, dz, texels_per_lenslet, 1.2)
-        eta = (y - base_y) / H
         za = centre_depth_mm + math.tan(math.radians(tilt)) * (y - y_mid)        # the leaning axis, per row
         r = np.sqrt((x - centre_x_mm) ** 2 + (dz - za) ** 2)
-        R = 0.4 * D * np.sqrt(np.clip(1.0 - eta, 0.0, 1.0))
-        env = np.where((eta >= 0) & (eta <= 1), np.sin(np.pi * np.clip(eta, 0, 1) ** 0.75), 0.0)
         yl = base_y + eta_l * H
         zl = centre_depth_mm + math.tan(math.radians(tilt)) * (yl - y_mid) + fz * D
         blob = amp * np.exp(-((x - centre_x_mm) ** 2 + (y - yl) ** 2 + (dz - zl) ** 2) / (2 * sl ** 2))
-        raw.append((dz, h, w, env * np.exp(-(r - R) ** 2 / (2 * s ** 2)) + blob))
+        raw.append((dz, h, w, sheath_density(r, (y - base_y) / H, D) + blob))
     peak = 0.9 / (thick * max(float(np.max(sum(e for *_, e in raw))), 1e-12))   # brightest line of sight -> 0.9
     layers = tuple(Layer((e * peak * thick).astype(np.float32), None, float(dz), (0.0, 0.0), (h, w))
                    for dz, h, w, e in raw)

@@ -23,7 +23,7 @@ from ..optics.camera import PlenopticCamera
 from ..optics.colour import ALPHA_SOOT, ColourSensor, band_integrals
 from .scenes import Scene, _layer_grid
 from .scenes_temperature import FLAME_BASE_K, SHEATH_XI, ColourFlameScene, flame_temperature
-from .scenes_volume import axisymmetric_flame_scene
+from .scenes_volume import axisymmetric_flame_scene, sheath_density
 
 
 def _geometry(obj):
@@ -80,9 +80,8 @@ def axisymmetric_temperature_field(r_mm, y_mm, obj: dict, peak_k: float, base_k:
 def axisymmetric_density(r_mm, y_mm, obj: dict) -> np.ndarray:
     """The soot emission density ``e(r, y)`` of the volume (relative, the generator's formula before its scaling).
 
-    ``env(eta) [(1 - core) exp(-(r - R)^2 / (2 s^2)) + core exp(-r^2 / (2 (R/2 + s)^2))]`` with
-    ``env = sin(pi eta^0.75)`` on ``0 <= eta <= 1``
-    (:func:`~lf_flame.simulate.scenes_volume.axisymmetric_flame_scene`); multiply by the
+    :func:`~lf_flame.simulate.scenes_volume.sheath_density` at ``eta = (y - base_y) / H`` (as
+    :func:`~lf_flame.simulate.scenes_volume.axisymmetric_flame_scene` draws it); multiply by the
     object's ``peak_emission`` for the layers' units per mm of depth.
 
     Returns
@@ -90,15 +89,7 @@ def axisymmetric_density(r_mm, y_mm, obj: dict) -> np.ndarray:
     ndarray broadcast from ``r_mm`` and ``y_mm``.
     """
     D, H, base_y, core = _geometry(obj)
-    r = np.asarray(r_mm, float)
-    eta = (np.asarray(y_mm, float) - base_y) / H
-    R = 0.4 * D * np.sqrt(np.clip(1.0 - eta, 0.0, 1.0))
-    s = 0.08 * D
-    env = np.where((eta >= 0) & (eta <= 1), np.sin(np.pi * np.clip(eta, 0, 1) ** 0.75), 0.0)
-    shape = np.exp(-(r - R) ** 2 / (2 * s ** 2))
-    if core:
-        shape = (1.0 - core) * shape + core * np.exp(-r ** 2 / (2 * (R / 2 + s) ** 2))
-    return env * shape
+    return sheath_density(np.asarray(r_mm, float), (np.asarray(y_mm, float) - base_y) / H, D, core)
 
 
 #: Temperature step (K) of the band-integral table the layers are interpolated from (log-linear; its

@@ -21,13 +21,12 @@ unsaturated samples; the others are missing data): no demosaicing and no CFA ali
 """
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..measure.pyrometry import MIN_FRACTION, TemperatureCalibration, ratio_to_temperature
+from ..measure.pyrometry import MIN_FRACTION, TemperatureCalibration, temperature_planes
 from ..optics.colour import ALPHA_SOOT, CHANNELS, ColourSensor
 from .axisymmetric import AXI_LAM, solve_axisymmetric
 from .colour import channel_sum_views
@@ -44,9 +43,9 @@ def volume_temperature(emission_a, emission_b, cal: TemperatureCalibration, sens
                        alpha: float = ALPHA_SOOT, min_fraction: float = MIN_FRACTION):
     """Temperature of each sample of two channels' emission (any shape), masked against the whole array's peak.
 
-    Unlike :func:`lf_flame.measure.pyrometry.temperature_planes` (each plane against its own
-    peak), a sample is bright when ``a + b`` is at least ``min_fraction`` of the largest
-    ``a + b`` of the whole array (the volume or the ``(r, y)`` nodes).
+    :func:`lf_flame.measure.pyrometry.temperature_planes` with the whole array as one plane: a
+    sample is bright when ``a + b`` is at least ``min_fraction`` of the largest ``a + b`` of the
+    whole array (the volume or the ``(r, y)`` nodes), not of its own plane.
 
     Parameters
     ----------
@@ -70,24 +69,18 @@ def volume_temperature(emission_a, emission_b, cal: TemperatureCalibration, sens
     Raises
     ------
     ValueError
-        Shapes that differ, ``min_fraction`` outside [0, 1), no positive emission, and the
-        errors of :func:`~lf_flame.measure.pyrometry.ratio_to_temperature`.
+        Shapes that differ, no positive emission, and the errors of
+        :func:`~lf_flame.measure.pyrometry.temperature_planes` (``min_fraction`` outside [0, 1)).
     """
     a, b = np.asarray(emission_a, float), np.asarray(emission_b, float)
     if a.shape != b.shape:
         raise ValueError(f"the two channels' emission must have one shape. Received: {a.shape} and {b.shape}")
-    if not (0 <= min_fraction < 1):
-        raise ValueError(f"min_fraction must be in [0, 1). Received: {min_fraction!r}")
-    tot = a + b
-    top = float(np.max(tot)) if tot.size else 0.0
-    if not top > 0:
+    if not (a.size and float(np.max(a + b)) > 0):
         raise ValueError("no positive emission: no temperature")
-    bright = tot >= min_fraction * top
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(bright & (a > 0) & (b > 0), a / b, np.nan)
-    temp = ratio_to_temperature(ratio, cal, sensor, alpha)
-    valid = bright & np.isfinite(temp)
-    return np.where(valid, temp, np.nan), valid, int((bright & ~valid).sum())
+    # the whole array as one plane of temperature_planes: its peak is the array's
+    temp, valid, n_masked = temperature_planes(a.reshape(1, 1, -1), b.reshape(1, 1, -1), cal, sensor, alpha,
+                                               min_fraction)
+    return temp.reshape(a.shape), valid.reshape(a.shape), int(n_masked[0])
 
 
 @dataclass
@@ -207,8 +200,6 @@ def axisymmetric_temperature(views, op, chan, cal: TemperatureCalibration, senso
         axis_x_mm, axis_z_mm = found.axis_x_mm, found.axis_z_mm
         r_max_mm = float(found.radii_mm[-1])
         dr_mm = float(found.radii_mm[1] - found.radii_mm[0])
-    if not (math.isfinite(axis_x_mm) and math.isfinite(axis_z_mm)):
-        raise ValueError(f"the axis must be finite. Received: {axis_x_mm!r}, {axis_z_mm!r}")
     sols = [solve_axisymmetric(v, op, f, axis_x_mm=axis_x_mm, axis_z_mm=axis_z_mm, r_max_mm=r_max_mm, dr_mm=dr_mm,
                                lam=lam, fills=fills, inner=inner, camera=camera) for f in fits]
     em = np.stack([s.emission for s in sols])

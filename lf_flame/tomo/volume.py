@@ -120,17 +120,15 @@ def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, p
                              np.array([axi.residual]), axi.time_s)
     else:
         knobs = {}
-        if (prior == "tv" and tv is None) or (prior == "sparse" and l1 is None):    # the weight by the noise
-            from .fourier import noise_regime, relative_noise
-            from .operator import check_views
-            v = check_views(views, op)
-            regime = noise_regime(relative_noise(v, None if saturation is None else v < float(saturation)))
-            tv = VOLUME_TV[regime] if prior == "tv" else None
-            l1 = VOLUME_L1[regime] if prior == "sparse" else None
-        if prior == "tv":
-            knobs["tv"] = tv
-        rec = reconstruct(views, op, "admm", saturation=saturation, progress=progress,
-                          l1=l1 if prior == "sparse" else 0.0, **knobs)
+        if prior in ("tv", "sparse"):
+            key, weight, table = ("tv", tv, VOLUME_TV) if prior == "tv" else ("l1", l1, VOLUME_L1)
+            if weight is None:                                            # the weight by the noise
+                from .fourier import noise_regime, relative_noise
+                from .operator import check_views
+                v = check_views(views, op)
+                weight = table[noise_regime(relative_noise(v, None if saturation is None else v < float(saturation)))]
+            knobs[key] = weight
+        rec = reconstruct(views, op, "admm", saturation=saturation, progress=progress, **knobs)
         rec.settings["prior"] = prior
     rec.settings.update(setup_s=setup_s, near_mm=float(near_mm), far_mm=float(far_mm), step_mm=float(step_mm))
     res = None
