@@ -83,9 +83,11 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
       within ``near_mm`` of another flame whose region meets ``M`` (its own light).
     - **height**: the flame measured on that plane
       (:func:`~lf_flame.measure.diagnostics.measure_flame` in the flame's ``roi`` columns and,
-      with ``found``, within its found depth's footprint dilated by 2 samples (the route's own
-      segmentation: two flames merged onto one plane may share columns), at the plane's
-      depth; planes of emission with
+      with ``found``, outside the footprints (dilated by 2 samples) of the other found depths
+      on the same plane: two flames merged onto one plane may share columns, and the route's
+      own segmentation tells them apart; its own footprint is not used, as the lenslets that
+      voted for a flame in front of another cover only where it is the sharper one), at the
+      plane's depth; planes of emission with
       :data:`~lf_flame.measure.diagnostics.EMISSION_MEASURE`, refocused images with the
       defaults) against the scene's ``height_mm``. A plane the diagnostics find empty: NaN
       and the failure's message.
@@ -151,11 +153,15 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
     if found is not None:
         pairs = sorted((abs(fd - true_d[k]), k, j) for j, (fd, fm) in enumerate(found)
                        for k in range(len(true_d)) if np.any(np.asarray(fm, bool) & regions[k]))
+        on_plane = [int(np.argmin(np.abs(d - fd))) for fd, _ in found]
         used_f, used_j = set(), set()
         for _, k, j in pairs:
             if k not in used_f and j not in used_j:
                 est[k] = float(found[j][0])
-                footprint[k] = ndimage.binary_dilation(np.asarray(found[j][1], bool), iterations=2)
+                others = [np.asarray(found[g][1], bool) for g in range(len(found))
+                          if g != j and on_plane[g] == on_plane[j]]
+                if others:       # flames merged onto one plane: the others' voters are not this flame
+                    footprint[k] = ~ndimage.binary_dilation(np.any(others, axis=0), iterations=2)
                 used_f.add(k)
                 used_j.add(j)
     else:
