@@ -113,6 +113,15 @@ def test_score_flames_heights_on_the_planes(cam, planted):
     assert abs(df.height_err_mm[0]) > 0.3 * df.height_mm[0], df.height_err_mm.values
     df = score_flames(merged, depths, scene, cam, found=both + [(depths[0] + 0.3, other)])
     assert df.height_err_mm.abs().max() < 0.3, df.height_err_mm.values
+    # where the other's voters cover only part of it, the rest is told apart by the regions the
+    # depths were found in
+    part = other.copy()
+    part[(2 + top) // 2:] = False
+    df = score_flames(merged, depths, scene, cam, found=both + [(depths[0] + 0.3, part)])
+    assert abs(df.height_err_mm[0]) > 0.3 * df.height_mm[0], df.height_err_mm.values
+    regions = [(d, m, m) for d, m in both] + [(depths[0] + 0.3, part, other)]
+    df = score_flames(merged, depths, scene, cam, found=regions)
+    assert df.height_err_mm.abs().max() < 0.3, df.height_err_mm.values
     # an empty plane: no height, the diagnostics' reason kept
     cut[1] = 0.0
     df = score_flames(cut, depths, scene, cam)

@@ -83,11 +83,12 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
       within ``near_mm`` of another flame whose region meets ``M`` (its own light).
     - **height**: the flame measured on that plane
       (:func:`~lf_flame.measure.diagnostics.measure_flame` in the flame's ``roi`` columns and,
-      with ``found``, outside the footprints (dilated by 2 samples) of the other found depths
-      on the same plane: two flames merged onto one plane may share columns, and the route's
-      own segmentation tells them apart; its own footprint is not used, as the lenslets that
-      voted for a flame in front of another cover only where it is the sharper one), at the
-      plane's depth; planes of emission with
+      with ``found``, within the region its depth was found in and outside the footprints of
+      the other found depths on the same plane, each dilated by 2 samples: two flames merged
+      onto one plane may share columns, and the route's own segmentation tells them apart;
+      its own footprint is not used, as the lenslets that voted for a flame in front of
+      another cover only where it is the sharper one), at the plane's depth; planes of
+      emission with
       :data:`~lf_flame.measure.diagnostics.EMISSION_MEASURE`, refocused images with the
       defaults) against the scene's ``height_mm``. A plane the diagnostics find empty: NaN
       and the failure's message.
@@ -101,8 +102,10 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
     scene : Scene
         Its layers are the flames, ``scene.objects[k]["depth_offset_mm"]`` their depths.
     camera : PlenopticCamera
-    found : sequence of (depth_mm, mask (R, C) bool) or None
-        A route's depths and their lateral footprints.
+    found : sequence of (depth_mm, mask (R, C) bool[, region (R, C) bool]) or None
+        A route's depths, their lateral footprints (the lenslets that voted for them) and,
+        optionally, the regions they were found in
+        (:class:`~lf_flame.tomo.depth.FoundDepths`' ``labels == region``).
     emission : bool
         False for refocused images: the share is not defined (NaN).
     near_mm : float
@@ -151,17 +154,21 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
     est = [np.nan] * len(true_d)
     footprint = [None] * len(true_d)
     if found is not None:
-        pairs = sorted((abs(fd - true_d[k]), k, j) for j, (fd, fm) in enumerate(found)
-                       for k in range(len(true_d)) if np.any(np.asarray(fm, bool) & regions[k]))
-        on_plane = [int(np.argmin(np.abs(d - fd))) for fd, _ in found]
+        pairs = sorted((abs(f[0] - true_d[k]), k, j) for j, f in enumerate(found)
+                       for k in range(len(true_d)) if np.any(np.asarray(f[1], bool) & regions[k]))
+        on_plane = [int(np.argmin(np.abs(d - f[0]))) for f in found]
         used_f, used_j = set(), set()
         for _, k, j in pairs:
             if k not in used_f and j not in used_j:
                 est[k] = float(found[j][0])
+                foot = np.ones(shape, bool)
+                if len(found[j]) > 2:    # the region the depth was found in
+                    foot = ndimage.binary_dilation(np.asarray(found[j][2], bool), iterations=2)
                 others = [np.asarray(found[g][1], bool) for g in range(len(found))
                           if g != j and on_plane[g] == on_plane[j]]
                 if others:       # flames merged onto one plane: the others' voters are not this flame
-                    footprint[k] = ~ndimage.binary_dilation(np.any(others, axis=0), iterations=2)
+                    foot &= ~ndimage.binary_dilation(np.any(others, axis=0), iterations=2)
+                footprint[k] = foot
                 used_f.add(k)
                 used_j.add(j)
     else:
