@@ -91,7 +91,6 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, required=True)
     args = ap.parse_args(argv)
     t_all = time.perf_counter()
-    depths = [f[0] for f in FLAMES]
     rows = []
 
     def solve(case, variant, rays, cam, cal, white, raw, scene, clipped=None, gain=1.0):

@@ -12,7 +12,7 @@ is :func:`lf_flame.tomo.truth.scene_truth` on it. Routes on the same renders:
 
 - ``axisymmetric``: :func:`lf_flame.tomo.axisymmetric.solve_axisymmetric`, the axis found
   (x0 from the central view, z0 searched on the residual from find_depths' start);
-- ``admm``: the dense stack by ``reconstruct(views, op, "admm")`` (no axisymmetric prior);
+- ``admm``: the dense stack by ``reconstruct(views, op, "admm", l1=0.0)`` (no axisymmetric prior);
 - ``shift-and-sum``: ``focal_stack`` at every plane's slope, scaled by the least-squares
   factor against the truth (optimistic for it).
 
@@ -139,7 +139,7 @@ def run(a):
             rows.append(dict(lab, route="axisymmetric", time_s=time.perf_counter() - t, axis_x_mm=res.axis_x_mm,
                              axis_z_mm=res.axis_z_mm, residual=res.residual, **metrics(res.volume, truth, depths)))
             t = time.perf_counter()
-            rec = reconstruct(views, op, "admm")
+            rec = reconstruct(views, op, "admm", l1=0.0)
             rows.append(dict(lab, route="admm (dense, no prior)", time_s=time.perf_counter() - t,
                              **metrics(rec.planes, truth, depths)))
             t = time.perf_counter()
@@ -220,9 +220,9 @@ def run_nonaxi(a):
         truth, rng_ = scene_truth(scene, op), info["depth_range_mm"]
         for noise, views in (("noise-free", clean), ("14 dB", noisy)):
             lab = dict(split="validation", scene=name, seed=seed, noise=noise, own_error=info["own_error"])
-            solve("admm (no prior)", lambda: (reconstruct(views, op, "admm").planes, {}), lab, truth, rng_)
+            solve("admm (no prior)", lambda: (reconstruct(views, op, "admm", l1=0.0).planes, {}), lab, truth, rng_)
             for tv in tvs:
-                solve("admm + TV", lambda: (reconstruct(views, op, "admm", tv=tv).planes, dict(weight=tv)),
+                solve("admm + TV", lambda: (reconstruct(views, op, "admm", tv=tv, l1=0.0).planes, dict(weight=tv)),
                       lab, truth, rng_)
             for l1 in l1s:
                 solve("admm + l1 (sparse)", lambda: (reconstruct(views, op, "admm", l1=l1).planes, dict(weight=l1)),
@@ -245,8 +245,8 @@ def run_nonaxi(a):
             lab = dict(split="test", scene=name, seed=seed, noise=noise, own_error=info["own_error"])
             tv, l1 = chosen[(noise, "admm + TV")], chosen[(noise, "admm + l1 (sparse)")]
             xs = dict(truth=truth)
-            xs["admm"] = solve("admm (no prior)", lambda: (reconstruct(views, op, "admm").planes, {}), lab, truth, rng_)
-            xs["admm + TV"] = solve("admm + TV", lambda: (reconstruct(views, op, "admm", tv=tv).planes, dict(weight=tv)),
+            xs["admm"] = solve("admm (no prior)", lambda: (reconstruct(views, op, "admm", l1=0.0).planes, {}), lab, truth, rng_)
+            xs["admm + TV"] = solve("admm + TV", lambda: (reconstruct(views, op, "admm", tv=tv, l1=0.0).planes, dict(weight=tv)),
                                     lab, truth, rng_)
             xs["admm + l1"] = solve("admm + l1 (sparse)", lambda: (reconstruct(views, op, "admm", l1=l1).planes,
                                                                    dict(weight=l1)), lab, truth, rng_)

@@ -99,8 +99,8 @@ def test_a_matrix_that_is_not_positive_definite_is_refused(op):
 def test_planted_emission_is_recovered_and_the_fills_are_what_recover_it(op, planted):
     x, views = planted
     # noise-free data: no TV needed (its bias would be the error measured), more fills than the default
-    one = reconstruct(views, op, "admm", 1, tv=0.0, saturation=None)
-    full = reconstruct(views, op, "admm", 8, tv=0.0, saturation=None)
+    one = reconstruct(views, op, "admm", 1, tv=0.0, l1=0.0, saturation=None)
+    full = reconstruct(views, op, "admm", 8, tv=0.0, l1=0.0, saturation=None)
     assert (full.planes >= 0).all()
     assert rel(full.planes, x).max() < 0.08
     # zero-filled data outside the window (one fill) is far worse: the fills carry the window
@@ -120,17 +120,19 @@ def test_the_noise_estimate_and_the_knobs_it_picks(op, planted):
     # the defaults follow the noise: the quiet knobs on the exact light field, the noisy ones at 3 %
     knobs = fourier.ADMM_KNOBS
     quiet = reconstruct(views, op, "admm", saturation=None).settings
-    assert (quiet["iters"], quiet["tv"], quiet["lam"]) == tuple(knobs[1, "quiet"][k] for k in ("fills", "tv", "lam"))
+    assert (quiet["iters"], quiet["tv"], quiet["lam"], quiet["l1"]) == tuple(knobs[1, "quiet"][k] for k in
+                                                                             ("fills", "tv", "lam", "l1"))
     loud_views = views + rng.normal(scale=0.03 * peak, size=views.shape)
     loud = reconstruct(loud_views, op, "admm", saturation=None).settings
-    assert (loud["iters"], loud["tv"], loud["lam"]) == tuple(knobs[1, "noisy"][k] for k in ("fills", "tv", "lam"))
+    assert (loud["iters"], loud["tv"], loud["lam"], loud["l1"]) == tuple(knobs[1, "noisy"][k] for k in
+                                                                         ("fills", "tv", "lam", "l1"))
     assert loud["noise"] > fourier.ADMM_QUIET_NOISE > quiet["noise"]
     # a knob given is kept, the others still follow the noise
     mixed = reconstruct(views, op, "admm", 2, saturation=None).settings
     assert (mixed["iters"], mixed["tv"]) == (2, knobs[1, "quiet"]["tv"])
     # the finer grid has its own knobs; the routes take it on all but dense stacks
-    assert fourier.admm_knobs(views, None, subsamples=2)[:3] == tuple(knobs[2, "quiet"][k] for k in ("fills", "tv", "lam"))
-    assert fourier.admm_knobs(loud_views, None, subsamples=2)[:3] == tuple(knobs[2, "noisy"][k] for k in ("fills", "tv", "lam"))
+    assert fourier.admm_knobs(views, None, subsamples=2)[:4] == tuple(knobs[2, "quiet"][k] for k in ("fills", "tv", "lam", "l1"))
+    assert fourier.admm_knobs(loud_views, None, subsamples=2)[:4] == tuple(knobs[2, "noisy"][k] for k in ("fills", "tv", "lam", "l1"))
     assert fourier.admm_subsamples(4) == fourier.ADMM_SUBSAMPLES == 2
     assert fourier.admm_subsamples(fourier.SUBSAMPLES_MAX_PLANES + 1) == 1
     with pytest.raises(ValueError, match="subsamples"):

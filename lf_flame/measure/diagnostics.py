@@ -437,7 +437,6 @@ def measure_flame(plane, camera: PlenopticCamera, depth_offset_mm: float, *, col
     y, _ = lenslet_to_object_mm(camera, rows_idx, 0, depth_offset_mm)
     profile = np.where(mask, img, 0.0).max(axis=1)
     start = int(np.argmax(profile))
-    pmax = float(profile[start])
     tip_edge = _edge(img, mask, y, start, -1, lo, hi, (c0, c1))
     base_edge = _edge(img, mask, y, start, +1, lo, hi, (c0, c1))
     tip, base = tip_edge.y_mm, base_edge.y_mm

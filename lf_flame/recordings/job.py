@@ -147,7 +147,7 @@ class SequenceJob:
                 views = self.views(np.asarray(next(iter(self.source.frames(0, 1))), np.float64))
                 fit = None if self.saturation is None else views < self.saturation
                 self._cache[key] = admm_knobs(views, fit, self.iters, self.tv)
-            out["iters"], out["tv"], out["lam"], out["admm_noise"] = self._cache[key]
+            out["iters"], out["tv"], out["lam"], out["l1"], out["admm_noise"] = self._cache[key]
         return out
 
     def identity(self) -> dict:
@@ -197,7 +197,7 @@ class SequenceJob:
             return focal_stack(views, self.slopes, aperture_mask(n, "circular")), None
         from ..tomo.solvers import reconstruct
         r = self.reconstruction()
-        rec = reconstruct(views, self.operator(), r["solver"], r["iters"], tv=r["tv"], lam=r.get("lam"),
+        rec = reconstruct(views, self.operator(), r["solver"], r["iters"], tv=r["tv"], lam=r.get("lam"), l1=r.get("l1"),
                           saturation=r["saturation"])
         return rec.planes, int(rec.settings["n_saturated"])
 

@@ -34,8 +34,8 @@ from .truth import resample_layer
 #: The routes from a colour light field to two channels' emission per plane.
 CFA_ROUTES = ("admm-cfa", "admm-cfa-smooth", "refocus-cfa")
 #: admm on each channel's samples: converged by 25 fills on the nominal scene (12-300 tried,
-#: ``experiments/temperature.py``); lam and tv as measured there.
-CFA_FILLS, CFA_LAM, CFA_TV = 25, 0.01, 0.0
+#: ``experiments/temperature.py``); lam and tv as measured there, no sparsity weight.
+CFA_FILLS, CFA_LAM, CFA_TV, CFA_L1 = 25, 0.01, 0.0, 0.0
 #: Gaussian (lenslets) of ``admm-cfa-smooth``.
 SMOOTH_SIGMA = 0.7
 
@@ -69,7 +69,7 @@ def channel_views(shape, sensor: ColourSensor, pixels_per_lenslet: int) -> np.nd
 
 
 def admm_channel(views: np.ndarray, op, fit: np.ndarray, *, fills: int = CFA_FILLS, lam: float = CFA_LAM,
-                 tv: float = CFA_TV) -> np.ndarray:
+                 tv: float = CFA_TV, l1: float = CFA_L1) -> np.ndarray:
     """One channel's emission per plane by admm on its own samples.
 
     The views are scaled by the largest fitted sample (so admm's ``lam`` does not depend on
@@ -83,7 +83,7 @@ def admm_channel(views: np.ndarray, op, fit: np.ndarray, *, fills: int = CFA_FIL
         The planes' operator (``op.dims`` = (P, rows, cols)).
     fit : ndarray of shape (N, N, R, C), bool
         The samples of this channel that are fitted (its own, not clipped).
-    fills, lam, tv
+    fills, lam, tv, l1
         admm's iterations and weights (:func:`lf_flame.tomo.solvers.reconstruct`).
 
     Returns
@@ -101,7 +101,7 @@ def admm_channel(views: np.ndarray, op, fit: np.ndarray, *, fills: int = CFA_FIL
     s = float(views[fit].max()) if fit.any() else 0.0
     if not s > 0:
         raise ValueError("this channel has no sample with signal to fit")
-    rec = reconstruct(views / s, op, "admm", fills, lam=lam, tv=tv, saturation=~fit)
+    rec = reconstruct(views / s, op, "admm", fills, lam=lam, tv=tv, l1=l1, saturation=~fit)
     return rec.planes.reshape(op.dims) * s
 
 

@@ -207,8 +207,8 @@ def relative_noise(views, fit=None) -> float:
     return float(math.sqrt(math.pi / 2) * np.median(sig) / 6 / peak) if sig else 0.0
 
 
-def admm_knobs(views, fit, fills=None, tv=None, lam=None, subsamples: int = 1):
-    """admm's fills, TV and gradient weights for these views: those given, the others by their noise.
+def admm_knobs(views, fit, fills=None, tv=None, lam=None, subsamples: int = 1, l1=None):
+    """admm's fills, TV, gradient and sparsity weights for these views: those given, the others by their noise.
 
     The knobs not given come from :data:`~lf_flame.tomo.defaults.ADMM_KNOBS` for the
     planes' grid (``subsamples``) and the light field's noise level (quiet below
@@ -217,7 +217,7 @@ def admm_knobs(views, fit, fills=None, tv=None, lam=None, subsamples: int = 1):
     Returns
     -------
     fills : int
-    tv, lam : float
+    tv, lam, l1 : float
     noise : float
         :func:`relative_noise` of the views (NaN when every knob was given: not measured).
 
@@ -228,11 +228,11 @@ def admm_knobs(views, fit, fills=None, tv=None, lam=None, subsamples: int = 1):
     """
     if (subsamples, "quiet") not in ADMM_KNOBS:
         raise ValueError(f"admm's knobs were chosen for subsamples in {sorted({k for k, _ in ADMM_KNOBS})}; give "
-                         f"fills, tv and lam for subsamples={subsamples!r}")
-    noise = math.nan if None not in (fills, tv, lam) else relative_noise(views, fit)
+                         f"fills, tv, lam and l1 for subsamples={subsamples!r}")
+    noise = math.nan if None not in (fills, tv, lam, l1) else relative_noise(views, fit)
     knobs = ADMM_KNOBS[subsamples, noise_regime(noise)]
     return (int(knobs["fills"] if fills is None else fills), float(knobs["tv"] if tv is None else tv),
-            float(knobs["lam"] if lam is None else lam), noise)
+            float(knobs["lam"] if lam is None else lam), float(knobs["l1"] if l1 is None else l1), noise)
 
 
 def noise_regime(noise: float) -> str:

@@ -90,7 +90,7 @@ def lipschitz_bound(op: EmissionOperator) -> float:
 
 def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: int | None = None, *,
                 damp: float = 0.0, tv: float | None = None, lam: float | None = None, saturation=1.0,
-                progress: bool = False, callback=None, support=None, l1: float = 0.0) -> Reconstruction:
+                progress: bool = False, callback=None, support=None, l1: float | None = None) -> Reconstruction:
     """Recover the emission on the operator's planes from one light field.
 
     Parameters
@@ -143,9 +143,10 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         read-only use): error-against-iterations curves from one run.
     support : ndarray of bool of shape (P, rows, cols) or None
         admm only: where each plane may hold emission (:func:`lf_flame.tomo.fourier.solve_admm`).
-    l1 : float
+    l1 : float or None
         admm only: the sparsity weight in [0, 1) (a fraction of the weight that zeroes every
-        plane, :func:`lf_flame.tomo.fourier.solve_admm`); 0: none.
+        plane, :func:`lf_flame.tomo.fourier.solve_admm`); 0: none; None: admm's by the noise
+        (above).
 
     Returns
     -------
@@ -202,9 +203,9 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         if not isinstance(op, ExactOperator):
             raise ValueError("the admm solver works on the exact operator's per-frequency matrices: give an "
                              "lf_flame.tomo.exact.ExactOperator")
-        iters, admm_tv, lam, noise = admm_knobs(y.reshape(op.dimsd), fit.reshape(op.dimsd),
-                                                iters if iters_given else None, tv if tv_given else None, lam,
-                                                op.subsamples)
+        iters, admm_tv, lam, l1, noise = admm_knobs(y.reshape(op.dimsd), fit.reshape(op.dimsd),
+                                                    iters if iters_given else None, tv if tv_given else None, lam,
+                                                    op.subsamples, l1)
         settings.update(iters=iters, lam=lam, tv=admm_tv, l1=l1, noise=noise, subsamples=op.subsamples)
         bar.total = iters                                            # the fills the noise chose
         bar.refresh()

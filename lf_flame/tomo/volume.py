@@ -119,7 +119,7 @@ def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, p
                                   search=[list(s) for s in axi.search]),
                              np.array([axi.residual]), axi.time_s)
     else:
-        knobs = {}
+        knobs = {"l1": 0.0}                        # sparsity only where the prior says so
         if prior in ("tv", "sparse"):
             key, weight, table = ("tv", tv, VOLUME_TV) if prior == "tv" else ("l1", l1, VOLUME_L1)
             if weight is None:                                            # the weight by the noise
