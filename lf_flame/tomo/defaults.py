@@ -16,8 +16,8 @@ DEFAULT_TV = 0.3
 #: of ``lf-flame reconstruct`` where the camera needs tracing (``--rays-per-pixel``, crosstalk, not a perfect grid).
 DEFAULT_SOLVER = "pd-tv"
 #: The default on the exact operator (every perfect lenslet grid): admm, its knobs by the data's noise, beats
-#: pd-tv on every validation render (``results/fourier_solver.md``: worst plane 2.3 % on the 2 x 2 grid and 6.2 %
-#: on the lenslet grid against 10.5 % noise-free, 11.4 % and 13.2 % against 18.6 % at 14 dB) in a fifth to a
+#: pd-tv on every validation render (``results/fourier_solver.md``: worst plane 2.3 % on the 2 x 2 grid and 6.0 %
+#: on the lenslet grid against 10.5 % noise-free, 8.1 % and 13.2 % against 18.6 % at 14 dB) in a fifth to a
 #: twentieth of its time.
 EXACT_SOLVER = "admm"
 #: Knobs of the "admm" solver (:func:`lf_flame.tomo.fourier.solve_admm`), chosen on validation renders at
@@ -53,7 +53,7 @@ ADMM_KNOBS = {(1, "quiet"): dict(ADMM_QUIET, lam=ADMM_LAM, l1=0.001),
 #: The planes' grid of the routes that build their operator (``lf-flame reconstruct``,
 #: :func:`lf_flame.tomo.depth.find_planes`): a light field carries detail finer than a lenslet in
 #: its views' parallax off focus, and the 2 x 2 grid beat the lenslet grid on the validation
-#: renders at both noise levels (worst plane 2.3 % against 6.2 % noise-free, 11.4 % against 13.2 %
+#: renders at both noise levels (worst plane 2.3 % against 6.0 % noise-free, 8.1 % against 13.2 %
 #: at 14 dB), at about twice the time per solve ...
 ADMM_SUBSAMPLES = 2
 #: ... for stacks of at most this many planes (the per-frequency matrices grow as (P s^2)^2: at 16
