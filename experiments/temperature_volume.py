@@ -48,7 +48,6 @@ from lf_flame.refocus.shift_and_sum import aperture_mask, raw_to_views  # noqa: 
 from lf_flame.simulate import tracer  # noqa: E402
 from lf_flame.simulate.scenes_volume_temperature import (axisymmetric_node_truth, axisymmetric_voxel_truth,  # noqa: E402
                                                          colour_axisymmetric_scene)
-from lf_flame.tomo.axisymmetric import AXI_LAM  # noqa: E402
 from lf_flame.tomo.axisymmetric_colour import (COLOUR_FILLS, COLOUR_INNER, axisymmetric_temperature,  # noqa: E402
                                               volume_temperature)  # noqa: E402
 from lf_flame.tomo.colour import channel_views, refocus_channel  # noqa: E402
@@ -239,7 +238,7 @@ def write(a, df, info, fig, meta, wall, partial=False):
     df.to_csv(a.out / f"{stem}.csv", index=False)
     figure(fig, a.out / f"{stem}.png")
     cmd = (f"python experiments/temperature_volume.py --out {a.out}" + (" --quick" if a.quick else "")
-           + (f" --lam {a.lam:g}" if a.lam != AXI_LAM else "") + (f" --lam-noisy {a.lam_noisy:g}" if a.lam_noisy != AXI_LAM else ""))
+           + (f" --lam {a.lam:g}" if a.lam != LAM else "") + (f" --lam-noisy {a.lam_noisy:g}" if a.lam_noisy != LAM else ""))
     cols = ["volume", "noise", "route", "grid", "n_truth", "share_masked", "median_k", "p90_k", "worst_k", "time_s"]
     g = df.groupby(["route", "grid", "noise"], sort=False).agg(
         median_of_medians=("median_k", "median"), p90_worst_volume=("p90_k", "max"), worst=("worst_k", "max"),
