@@ -19,6 +19,10 @@ blackbody check), ``<out>/temperature.md`` (the bars and the table), ``<out>/tem
   noise on the mosaic; SNR measured over each channel's pixels).
 - **Routes** (each channel's emission, then R/G -> T by the calibration's lookup; pixels
   below 10 % of the plane's peak R+G masked and counted):
+  ``admm-cfa-matched`` (the default of ``lf-flame temperature``): each channel by admm on its
+  own pixels on a 2 x 2 grid per lenslet, re-imaged and solved again on the other channel's
+  pixels (both channels through both sampling patterns), binned to the lenslets, smoothed by
+  ``MATCHED_SIGMA_NOISY`` when noisy (:func:`lf_flame.tomo.colour.matched_channels`);
   ``admm-cfa``: the exact operator's admm on each channel's own pixels (the CFA complement
   as the missing-data mask); ``admm-cfa-smooth``: the same, both channels smoothed by a
   Gaussian of :data:`SMOOTH_SIGMA` lenslets before the ratio; ``refocus-cfa``: each
@@ -61,9 +65,9 @@ from lf_flame.simulate import tracer
 from lf_flame.simulate.colour import render_colour
 from lf_flame.simulate.scenes_temperature import (BEHIND_PEAK_K, FLAME_PEAK_K, colour_behind_scene, colour_flame_scene,
                                                   furnace_scene)
-from lf_flame.tomo.colour import (CFA_FILLS as FILLS, CFA_LAM as LAM, CFA_TV as TV, SMOOTH_SIGMA, admm_channel,
-                                  channel_emission, channel_views, colour_truth, smooth_planes)
-from lf_flame.tomo.exact import ExactOperator
+from lf_flame.tomo.colour import (CFA_FILLS as FILLS, CFA_LAM as LAM, CFA_TV as TV, MATCHED_SIGMA_NOISY,
+                                  MATCHED_SUBSAMPLES, SMOOTH_SIGMA, admm_channel, channel_emission, channel_views,
+                                  colour_truth, route_operator, smooth_planes)
 
 GAINS = (1.0, 1.25, 0.8)
 FIT_K = (1400.0, 1700.0, 2000.0, 2300.0, 2600.0)
@@ -142,6 +146,11 @@ def score(route, noise, scene_id, a, b, Tt, vt, cal, model, **extra):
     return rows
 
 
+def operators(cam, depths):
+    """The routes' operators: the matched route's grid and the lenslet grid of the others."""
+    return {route: route_operator(cam, depths, route) for route in ("admm-cfa-matched", "admm-cfa")}
+
+
 def render_scene(cam, cs, sensor, rays, seed):
     """Each channel rendered twice (own error), mosaicked, clipped; and at 14 dB. Returns a dict."""
     t0 = time.perf_counter()
@@ -162,14 +171,20 @@ def render_scene(cam, cs, sensor, rays, seed):
                 render_s=time.perf_counter() - t0)
 
 
-def route_rows(cam, sensor, op, depths, r, scorer, log, tag):
-    """Every route on the clean and the 14 dB render; ``scorer(route, noise, a, b, **extra)`` -> rows."""
-    rows = []
+def route_rows(cam, sensor, ops, depths, r, scorer, log, tag):
+    """Every route on the clean and the 14 dB render; ``scorer(route, noise, a, b, **extra)`` -> rows.
+    ``ops``: the routes' operators (:func:`operators`)."""
+    rows, op = [], ops["admm-cfa"]
     chan_v = channel_views(r["clean"].shape, sensor, cam.pixels_per_lenslet)
     slopes = [cam.slope_for_depth(d) for d in depths]
     for noise, raw in (("clean", r["clean"]), (f"{SNR_DB:g}dB", r["noisy"])):
         views = raw_to_views(raw, cam.pixels_per_lenslet)
         lab = dict(snr_db=r["snr_all"] if noise != "clean" else np.inf, own_error=r["own"])
+        t0 = time.perf_counter()
+        chosen = {}
+        m = channel_emission("admm-cfa-matched", views, chan_v, (0, 1), op=ops["admm-cfa-matched"], info=chosen)
+        rows += scorer("admm-cfa-matched", noise, m[0], m[1], time_s=time.perf_counter() - t0,
+                       sigma=chosen["sigma"], measured_noise=chosen["noise"], **lab)
         t0 = time.perf_counter()
         rec = channel_emission("admm-cfa", views, chan_v, (0, 1), op=op)
         rows += scorer("admm-cfa", noise, rec[0], rec[1], time_s=time.perf_counter() - t0, **lab)
@@ -194,8 +209,8 @@ def flames(cam, sensor, model, cal, n_scenes, rays, log):
         depths = [float(o["depth_offset_mm"]) for o in cs.scene.objects]
         key = tuple(depths)
         if key not in ops:
-            ops[key] = ExactOperator(cam, depths, precision="float32")
-        op = ops[key]
+            ops[key] = operators(cam, depths)
+        op = ops[key]["admm-cfa"]
         r = render_scene(cam, cs, sensor, rays, seed)
         info.append(dict(scene=i, seed=seed, peaks_k=list(FLAME_PEAK_K), depths_mm=depths, own_error=r["own"],
                          full_well_e=r["fw"], snr_db=r["snr_all"], snr_db_per_channel=r["snr"],
@@ -207,7 +222,7 @@ def flames(cam, sensor, model, cal, n_scenes, rays, log):
         def scorer(route, noise, a, b, **extra):
             return score(route, noise, i, a, b, Tt, vt, cal, model, **extra)
 
-        rows += route_rows(cam, sensor, op, depths, r, scorer, log, f"scene {i}")
+        rows += route_rows(cam, sensor, ops[key], depths, r, scorer, log, f"scene {i}")
     return rows, info
 
 
@@ -220,9 +235,9 @@ def behind(cam, sensor, model, cal, n_scenes, rays, log):
         sep = BEHIND_SEPARATIONS_MM[i % len(BEHIND_SEPARATIONS_MM)]
         cs = colour_behind_scene(cam, sensor, np.random.default_rng(seed), sep)
         depths = [float(o["depth_offset_mm"]) for o in cs.scene.objects]
-        op = ExactOperator(cam, depths, precision="float32")
+        ops = operators(cam, depths)
         r = render_scene(cam, cs, sensor, rays, seed)
-        truth = colour_truth(cs.channel_radiance, cs.scene.layers, op)
+        truth = colour_truth(cs.channel_radiance, cs.scene.layers, ops["admm-cfa"])
         Tt, vt, _ = P.temperature_planes(truth[0], truth[1], cal, model)
         mixed = vt & vt[::-1]
         info.append(dict(scene=i, seed=seed, separation_mm=sep, peaks_k=list(BEHIND_PEAK_K), depths_mm=depths,
@@ -239,7 +254,7 @@ def behind(cam, sensor, model, cal, n_scenes, rays, log):
                         for x in score(route, noise, i, a, b, Tt, v, cal, model, **extra)]
             return out
 
-        rows += route_rows(cam, sensor, op, depths, r, scorer, log, f"behind {i}")
+        rows += route_rows(cam, sensor, ops, depths, r, scorer, log, f"behind {i}")
     return rows, info
 
 
@@ -275,6 +290,7 @@ def write_behind(out, df, info, cal_note, args, wall, prov):
     atomic_write_text(out / "temperature_behind.json", json.dumps(dict(
         provenance=prov, wall_time_s=wall, rays_per_pixel=args.rays, scenes=info, gains=GAINS, snr_db=SNR_DB,
         read_noise_e=READ_E, admm=dict(fills=FILLS, lam=LAM, tv=TV), smooth_sigma_lenslets=SMOOTH_SIGMA,
+        matched=dict(subsamples=MATCHED_SUBSAMPLES, sigma_noisy=MATCHED_SIGMA_NOISY),
         calibration=cal_note), indent=2, default=str))
 
 
@@ -342,7 +358,9 @@ def write_report(out, df, info, cal, wien, args, wall, prov):
     atomic_write_text(out / "temperature.json", json.dumps(dict(
         provenance=prov, wall_time_s=wall, rays_per_pixel=args.rays, scenes=info, gains=GAINS, fit_k=FIT_K,
         check_k=CHECK_K, snr_db=SNR_DB, read_noise_e=READ_E, admm=dict(fills=FILLS, lam=LAM, tv=TV),
-        smooth_sigma_lenslets=SMOOTH_SIGMA, calibration=dataclasses.asdict(cal), wien=wien), indent=2, default=str))
+        smooth_sigma_lenslets=SMOOTH_SIGMA,
+        matched=dict(subsamples=MATCHED_SUBSAMPLES, sigma_noisy=MATCHED_SIGMA_NOISY),
+        calibration=dataclasses.asdict(cal), wien=wien), indent=2, default=str))
 
 
 def main(argv=None):

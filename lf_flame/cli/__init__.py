@@ -353,10 +353,13 @@ def build_parser() -> argparse.ArgumentParser:
                    "focus on the calibration's two channels interpolated and summed; 'scene', 'paper', or depths in "
                    "mm separated by commas (as 'lf-flame reconstruct')")
     s.add_argument("--slope", type=float, action="append", help="plane slope instead of a depth (repeatable)")
-    s.add_argument("--route", choices=["admm-cfa-smooth", "admm-cfa", "refocus-cfa"], default="admm-cfa-smooth",
+    s.add_argument("--route", choices=["admm-cfa-matched", "admm-cfa", "admm-cfa-smooth", "refocus-cfa"],
+                   default="admm-cfa-matched",
                    help="each channel's emission: the exact operator's admm on its own pixels (the CFA as a "
-                        "missing-data mask), then smoothed by 0.7 lenslet; the same unsmoothed; or each channel's "
-                        "pixels refocused (results/temperature.md)")
+                        "missing-data mask) on a 2 x 2 grid per lenslet, re-imaged and solved again on the other "
+                        "channel's pixels so that both channels' resolution matches (smoothed by 0.7 lenslet when "
+                        "the light field is noisy); admm on its own pixels alone, unsmoothed or smoothed by 0.7 "
+                        "lenslet; or each channel's pixels refocused (results/temperature.md)")
     s.add_argument("--min-fraction", type=float, default=0.1, help="pixels whose two channels' emission is below this "
                    "fraction of their plane's peak get no temperature (counted as dim)")
     s.add_argument("--alpha", type=float, default=1.39, help="emissivity exponent of the source, eps ~ lambda^-alpha "

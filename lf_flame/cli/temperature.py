@@ -108,8 +108,7 @@ def cmd_temperature(a):
     from ..config import provenance
     from ..measure.pyrometry import bright_pixels, load_calibration, temperature_planes
     from ..optics.colour import CHANNELS
-    from ..tomo.colour import channel_emission, channel_sum_views, channel_views
-    from ..tomo.exact import ExactOperator
+    from ..tomo.colour import channel_emission, channel_sum_views, channel_views, route_operator
     from .volume import found_planes, reconstruct_input
     src = str(a.raw)
     if src.endswith(".h5") and ".h5:" not in src:
@@ -129,9 +128,9 @@ def cmd_temperature(a):
     if depths == "auto":
         depths, found = found_planes(cam, channel_sum_views(views, chan, ch))
         extra = dict(depths_from="auto (channel sum)", found_depths=found)
-    op = None if a.route == "refocus-cfa" else ExactOperator(cam, depths, precision="float32")
-    emission = channel_emission(a.route, views, chan, ch, op=op, slopes=[cam.slope_for_depth(d) for d in depths],
-                                saturation=a.saturation)
+    chosen = {}
+    emission = channel_emission(a.route, views, chan, ch, op=route_operator(cam, depths, a.route),
+                                slopes=[cam.slope_for_depth(d) for d in depths], saturation=a.saturation, info=chosen)
     temp, valid, n_masked = temperature_planes(emission[0], emission[1], cal, sensor, a.alpha, a.min_fraction)
     dim = ~bright_pixels(emission[0] + emission[1], a.min_fraction)
     n_dim = dim.reshape(len(dim), -1).sum(axis=1)
@@ -155,7 +154,8 @@ def cmd_temperature(a):
             dict(path=str(a.calibration), **{k: getattr(cal, k) for k in cal.__dataclass_fields__})),
                      sensor=json.dumps(dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase),
                                             where=where)),
-                     route=a.route, alpha=float(a.alpha), min_fraction=float(a.min_fraction),
+                     route=a.route, route_settings=json.dumps(chosen), alpha=float(a.alpha),
+                     min_fraction=float(a.min_fraction),
                      saturation="none" if a.saturation is None else float(a.saturation), camera=cam.to_json(),
                      time_s=wall, provenance=json.dumps(provenance()),
                      axes="temperature_k, valid, dim: (plane, lenslet row, lenslet col); emission: (channel, plane, "
@@ -172,4 +172,4 @@ def cmd_temperature(a):
                  if v.size else "no temperature")
         print(f"plane {k} ({d:+.2f} mm): {int(valid[k].sum())} px with a temperature, {stats}; {int(n_masked[k])} "
               f"bright px masked (ratio out of the table), {int(n_dim[k])} px below {a.min_fraction:g} of the peak")
-    print(f"temperature of {len(depths)} planes ({a.route}) in {wall:.1f} s -> {out}, {fig}")
+    print(f"temperature of {len(depths)} planes ({a.route} {chosen}) in {wall:.1f} s -> {out}, {fig}")
