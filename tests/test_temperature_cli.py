@@ -76,6 +76,9 @@ def test_temperature_round_trip(files, capsys):
         assert f["temperature_k"].attrs["units"] == "K"
         assert list(f["depths_mm"][:]) == [0.0]
         assert json.loads(f.attrs["provenance"])["versions"]
+        # the default route and its grid are recorded
+        assert f.attrs["route"] == "admm-cfa-matched"
+        assert json.loads(f.attrs["route_settings"])["subsamples"] == 2
         n_masked, n_dim = f["n_masked"][:], f["n_dim"][:]
     assert t.shape == (1, 21, 21)
     # masked pixels carry no temperature; dim ones are masked; the counts are the masks'

@@ -232,7 +232,7 @@ def smooth_planes(planes: np.ndarray, sigma: float = SMOOTH_SIGMA) -> np.ndarray
 
 
 def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, *, op=None, slopes=None,
-                     saturation: float | None = 1.0, info: dict | None = None):
+                     saturation: float | None = 1.0, sigma: float | None = None, info: dict | None = None):
     """Two channels' emission per plane from a colour light field by one of :data:`CFA_ROUTES`.
 
     Parameters
@@ -252,6 +252,9 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
         The planes' slopes, lenslets per view (``refocus-cfa``).
     saturation : float or None
         Clipping level: admm leaves samples at or above it out of the fit (None: none).
+    sigma : float or None
+        ``admm-cfa-matched``'s Gaussian, lenslets; None: by the light field's noise
+        (:func:`cfa_noise`; texture finer than two lenslets also reads as noise there).
     info : dict or None
         Filled with what the route chose: ``noise`` and ``sigma`` (``admm-cfa-matched``),
         ``subsamples`` (admm routes).
@@ -287,11 +290,13 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
         rec = [admm_channel(views, op, f) for f in fits]
     rec = [bin_planes(r, op.subsamples) for r in rec]
     info["subsamples"] = op.subsamples
-    sigma = SMOOTH_SIGMA if route == "admm-cfa-smooth" else 0.0
     if route == "admm-cfa-matched":
-        info["noise"] = cfa_noise(views, chan, channels)
-        sigma = MATCHED_SIGMA_NOISY if info["noise"] >= ADMM_QUIET_NOISE else 0.0
+        if sigma is None:
+            info["noise"] = cfa_noise(views, chan, channels)
+            sigma = MATCHED_SIGMA_NOISY if info["noise"] >= ADMM_QUIET_NOISE else 0.0
         info["sigma"] = sigma
+    else:
+        sigma = SMOOTH_SIGMA if route == "admm-cfa-smooth" else 0.0
     if sigma:
         rec = [smooth_planes(r, sigma) for r in rec]
     return rec[0], rec[1]
