@@ -29,7 +29,8 @@ blackbody check), ``<out>/temperature.md`` (the bars and the table), ``<out>/tem
   channel's pixels refocused by shift-and-sum at the planes' slopes (mean over the views
   that hold that channel: the focal-stack ratio baseline); ``admm-full`` (noise-free, a
   reference, not a colour camera): admm on each channel's full, unmosaicked light field,
-  what three sensors or a filter wheel would give.
+  what three sensors or a filter wheel would give, on the lenslet grid and (``2x2``) on the
+  matched route's grid: the operator's own limit, what the CFA costs beside it.
 - **Scores** per plane over pixels whose *true* R+G emission is >= 10 % of the plane's peak:
   |T - T_true| median, p90, worst over the pixels the route reports, and the truth pixels it
   masks. The truth temperature of a grid cell is the lookup of its true R/G emission ratio
@@ -68,6 +69,7 @@ from lf_flame.simulate.scenes_temperature import (BEHIND_PEAK_K, FLAME_PEAK_K, c
 from lf_flame.tomo.colour import (CFA_FILLS as FILLS, CFA_LAM as LAM, CFA_TV as TV, MATCHED_SIGMA_NOISY,
                                   MATCHED_SUBSAMPLES, SMOOTH_SIGMA, admm_channel, channel_emission, channel_views,
                                   colour_truth, route_operator, smooth_planes)
+from lf_flame.tomo.truth import bin_planes
 
 GAINS = (1.0, 1.25, 0.8)
 FIT_K = (1400.0, 1700.0, 2000.0, 2300.0, 2600.0)
@@ -193,9 +195,11 @@ def route_rows(cam, sensor, ops, depths, r, scorer, log, tag):
         fs = channel_emission("refocus-cfa", views, chan_v, (0, 1), slopes=slopes)
         rows += scorer("refocus-cfa", noise, fs[0], fs[1], time_s=time.perf_counter() - t0, **lab)
         if noise == "clean":
-            full = [admm_channel(raw_to_views(r["chans"][c], cam.pixels_per_lenslet), op,
-                                 raw_to_views(r["chans"][c], cam.pixels_per_lenslet) < 1) for c in (0, 1)]
-            rows += scorer("admm-full (no CFA, reference)", noise, full[0], full[1], **lab)
+            for name, o in (("admm-full (no CFA, reference)", op),
+                            ("admm-full 2x2 (no CFA, reference)", ops["admm-cfa-matched"])):
+                full = [admm_channel(v, o, v < 1) for v in
+                        (raw_to_views(r["chans"][c], cam.pixels_per_lenslet) for c in (0, 1))]
+                rows += scorer(name, noise, *(bin_planes(x, o.subsamples) for x in full), **lab)
         log(f"  {tag} {noise} done")
     return rows
 
