@@ -134,7 +134,8 @@ def axisymmetric_temperature(views, op, chan, cal: TemperatureCalibration, senso
                              r_max_mm: float | None = None, dr_mm: float | None = None,
                              saturation: float | None = 1.0, alpha: float = ALPHA_SOOT,
                              min_fraction: float = MIN_FRACTION, lam: float = AXI_LAM, fills: int = COLOUR_FILLS,
-                             inner: int = COLOUR_INNER, camera=None, **search) -> AxisymmetricTemperature:
+                             inner: int = COLOUR_INNER, matched: bool = False, camera=None,
+                             **search) -> AxisymmetricTemperature:
     """Two-colour temperature ``T(r, y)`` and per voxel of an axisymmetric flame from one colour light field.
 
     Parameters
@@ -161,6 +162,10 @@ def axisymmetric_temperature(views, op, chan, cal: TemperatureCalibration, senso
     lam, fills, inner
         Each channel's solve (:func:`~lf_flame.tomo.axisymmetric.solve_axisymmetric`;
         defaults :data:`COLOUR_FILLS`, :data:`COLOUR_INNER`).
+    matched : bool
+        Match the channels' resolution as :func:`lf_flame.tomo.colour.matched_channels`:
+        each channel's volume imaged again by ``op`` and solved on the other channel's
+        samples (twice the solves).
     camera : PlenopticCamera or None
         For the axis search's start (:func:`~lf_flame.tomo.depth.find_depths`).
     **search
@@ -202,6 +207,10 @@ def axisymmetric_temperature(views, op, chan, cal: TemperatureCalibration, senso
         dr_mm = float(found.radii_mm[1] - found.radii_mm[0])
     sols = [solve_axisymmetric(v, op, f, axis_x_mm=axis_x_mm, axis_z_mm=axis_z_mm, r_max_mm=r_max_mm, dr_mm=dr_mm,
                                lam=lam, fills=fills, inner=inner, camera=camera) for f in fits]
+    if matched:
+        sols = [solve_axisymmetric(op.matvec(s.volume.ravel()).reshape(v.shape), op, fits[1 - i], axis_x_mm=axis_x_mm,
+                                   axis_z_mm=axis_z_mm, r_max_mm=r_max_mm, dr_mm=dr_mm, lam=lam, fills=fills,
+                                   inner=inner, camera=camera) for i, s in enumerate(sols)]
     em = np.stack([s.emission for s in sols])
     vol = np.stack([s.volume for s in sols])
     T, valid, n_masked = volume_temperature(em[0], em[1], cal, sensor, alpha, min_fraction)
