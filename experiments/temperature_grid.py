@@ -8,8 +8,12 @@ emission by admm (as ``admm-cfa``, :func:`lf_flame.tomo.colour.admm_channel`) on
   lenslet (``subsamples=2``, binned back to the lenslets before the ratio), through the CFA
   (each channel's own samples), unsmoothed and smoothed by a Gaussian of 0.7 lenslets
   (``admm-cfa-smooth``);
-- the same without the CFA (each channel rendered on every pixel: the operator's own limit,
-  noise-free only).
+- the same through the CFA by the matched route (each channel re-imaged and solved again
+  on the other channel's samples, :func:`lf_flame.tomo.colour.matched_channels`);
+- the same without the CFA (each channel rendered on every pixel: the operator's own limit),
+  noise-free and at 14 dB (each channel's full image with the shot and read noise of the
+  mosaic's 14 dB full well: the same noise per pixel as through the CFA), the latter also with
+  the monochrome admm knobs for 14 dB on the 2 x 2 grid (``ADMM_KNOBS[2, "noisy"]``).
 
 Beside each plane: its slope (lenslets per view step) and the share of the red channel's
 samples whose object position on that plane falls on an even lenslet row (0.5: the red
@@ -29,6 +33,8 @@ import sys
 import time
 from pathlib import Path
 
+import dataclasses
+
 import numpy as np
 import pandas as pd
 
@@ -41,7 +47,10 @@ from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.optics.colour import library_sensor  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_flame_scene  # noqa: E402
-from lf_flame.tomo.colour import CFA_LAM, admm_channel, channel_views, colour_truth, smooth_planes  # noqa: E402
+from lf_flame.simulate import tracer  # noqa: E402
+from lf_flame.tomo.colour import (CFA_LAM, admm_channel, channel_views, colour_truth, matched_channels,  # noqa: E402
+                                  smooth_planes)
+from lf_flame.tomo.defaults import ADMM_KNOBS  # noqa: E402
 from lf_flame.tomo.exact import ExactOperator  # noqa: E402
 from lf_flame.tomo.truth import bin_planes  # noqa: E402
 
@@ -79,28 +88,40 @@ def main(argv=None):
         chan = channel_views(r["clean"].shape, sensor, n)
         slopes = [cam.slope_for_depth(d) for d in depths]
         plane = dict(slope=slopes, red_even_share=[even_share(chan, s) for s in slopes])
-        full = [raw_to_views(r["chans"][c], n) for c in (0, 1)]
-        cases = [("cfa", "clean", raw_to_views(r["clean"], n)), ("cfa", "14dB", raw_to_views(r["noisy"], n)),
-                 ("no CFA", "clean", None)]
+        full = [raw_to_views(tracer.apply_sensor(r["chans"][c].copy(), cs.scene.effects, seed), n) for c in (0, 1)]
+        fx = dataclasses.replace(cs.scene.effects, full_well_e=r["fw"], read_noise_e=E.READ_E)
+        full_noisy = [raw_to_views(tracer.apply_sensor(r["chans"][c].copy(), fx, seed + 11 + c), n) for c in (0, 1)]
+        mono = {k: v for k, v in ADMM_KNOBS[2, "noisy"].items() if k in ("fills", "lam", "tv", "l1")}
+        cases = [("cfa", "own samples", "clean", raw_to_views(r["clean"], n), {}),
+                 ("cfa", "own samples", "14dB", raw_to_views(r["noisy"], n), {}),
+                 ("cfa", "matched", "clean", raw_to_views(r["clean"], n), {}),
+                 ("cfa", "matched", "14dB", raw_to_views(r["noisy"], n), {}),
+                 ("no CFA", "own samples", "clean", full, {}), ("no CFA", "own samples", "14dB", full_noisy, {}),
+                 ("no CFA", "own samples, 14 dB knobs", "14dB", full_noisy, mono)]
         for sub, op in ops.items():
-            for data, noise, views in cases:
+            for data, route, noise, views, knobs in cases:
                 t1 = time.perf_counter()
-                if views is None:
-                    rec = [admm_channel(v, op, v < 1, lam=CFA_LAM) for v in full]
+                knobs = knobs or dict(lam=CFA_LAM)
+                if data == "no CFA":
+                    rec = [admm_channel(v, op, v < 1, **knobs) for v in views]
+                elif route == "matched":
+                    rec = matched_channels(views, op, [(chan == c) & (views < 1) for c in (0, 1)], **knobs)
                 else:
-                    rec = [admm_channel(views, op, (chan == c) & (views < 1), lam=CFA_LAM) for c in (0, 1)]
+                    rec = [admm_channel(views, op, (chan == c) & (views < 1), **knobs) for c in (0, 1)]
                 rec = [bin_planes(x, sub) for x in rec]
                 dt = time.perf_counter() - t1
                 for sigma in (0.0, SIGMA):
                     a, b = (smooth_planes(x, sigma) if sigma else x for x in rec)
-                    for x in E.score(f"{data}, grid {sub}x{sub}", noise, seed, a, b, Tt, vt, cal, model, time_s=dt):
-                        rows.append(dict(x, data=data, subsamples=sub, sigma=sigma,
+                    for x in E.score(f"{data}, {route}, grid {sub}x{sub}", noise, seed, a, b, Tt, vt, cal, model,
+                                     time_s=dt):
+                        rows.append(dict(x, data=data, solve=route, subsamples=sub, sigma=sigma,
                                          **{k: v[x["plane"]] for k, v in plane.items()}))
             print(f"seed {seed} grid {sub} done", flush=True)
     df = pd.DataFrame(rows)
     df.to_csv(args.out / "temperature_grid.csv", index=False)
     per_plane = df.assign(sigma=df.sigma.map(lambda v: f"{v:g} lenslet" if v else "none")).pivot_table(
-        index=["data", "subsamples", "sigma", "noise"], columns="plane", values="p90_k", aggfunc="max").reset_index()
+        index=["data", "solve", "subsamples", "sigma", "noise"], columns="plane", values="p90_k",
+        aggfunc="max").reset_index()
     per_plane.columns = [c if isinstance(c, str) else f"plane {c}" for c in per_plane.columns]
     planes = df.groupby("plane")[["slope", "red_even_share"]].first().reset_index()
     prov = provenance()
@@ -109,7 +130,8 @@ def main(argv=None):
         f"Command: `python experiments/temperature_grid.py --out {args.out} --rays {args.rays}`; wall time "
         f"{time.perf_counter() - t0:.0f} s; commit {prov.get('git_commit')}; seeds {SEEDS} (validation, not the scored "
         f"ones); own error of the renders {[round(v, 4) for v in own.values()]}; admm as `admm-cfa` "
-        f"(lam {CFA_LAM}); the 2 x 2 grid binned to the lenslets before the ratio.", "",
+        f"(lam {CFA_LAM}), except `14 dB knobs`: {mono}; the 2 x 2 grid binned to the lenslets before the ratio; "
+        "no CFA at 14 dB: each channel's full image with the noise of the mosaic's full well.", "",
         "p90 |T error| (K) per plane, the worse of the two scenes, over the pixels >= 10 % of each plane's true peak "
         f"(as temperature.md); sigma: the Gaussian (lenslets) both channels are smoothed by (0: none, {SIGMA}: "
         "`admm-cfa-smooth`):", "",
