@@ -57,7 +57,8 @@ temperature: $(STAMP) ## two-colour pyrometry with a colour (Bayer) light-field 
 	$(VENV)/bin/python experiments/temperature.py --out results --stage behind $(if $(filter quick,$(PRESET)),--quick,)
 
 # two-colour temperature per voxel of axisymmetric colour flames (issue 37's Goal): each channel's e(r, y) on its
-# own CFA samples, the ratio to T; renders cached in data/temperature_volume
+# own CFA samples, unmatched and matched (re-solved on the other channel's), the ratio to T; renders cached in
+# data/temperature_volume
 temperature-volume: $(STAMP) ## temperature per voxel of axisymmetric flames -> results/temperature_volume.{csv,md,json,png}
 	$(VENV)/bin/python experiments/temperature_volume.py --out $(if $(filter quick,$(PRESET)),results/quick --quick,results)
 

@@ -145,7 +145,7 @@ def run(a, log, write=None):
             lab = dict(volume=name, noise=noise, own_error=r["own"], snr_db=r["snr"] if noise != "noise-free" else np.inf,
                        true_x_mm=kw["centre_x_mm"], true_z_mm=kw["centre_depth_mm"])
             t = time.perf_counter()
-            res = axisymmetric_temperature(views, op, chan, cal, model, camera=cam,
+            res = axisymmetric_temperature(views, op, chan, cal, model, camera=cam, matched=False,
                                            lam=a.lam if noise == "noise-free" else a.lam_noisy)
             dt = time.perf_counter() - t
             Tn, en = axisymmetric_node_truth(cs, sensor, res.radii_mm, res.heights_mm)

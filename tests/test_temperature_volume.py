@@ -24,8 +24,9 @@ MODEL = library_sensor()
 W = CAM.field_of_view_mm(0.0)[1]
 KW = dict(diameter_mm=0.5 * W, centre_x_mm=0.05 * W, centre_depth_mm=0.5, core=0.3, peak_k=2050.0)
 DEPTHS = list(np.arange(-3.0, 3.01, 0.5))
-#: tolerances (K) over the bright voxels, noise-free, 32 rays per pixel (measured: see the report of the branch)
-MEDIAN_K, P90_K = 40.0, 120.0
+#: tolerances (K) over the bright voxels and nodes, noise-free, 32 rays per pixel (measured with the matched
+#: route: voxels 14 / 62 K, nodes 35 / 76 K; each channel on its own samples: voxels 24 / 106 K)
+MEDIAN_K, P90_K = 40.0, 80.0
 
 
 def _cal():
@@ -88,6 +89,18 @@ def test_voxel_temperature_noise_free(case):
     med_n, p90_n, masked_n = _errors(res.temperature, res.valid, Tn, bn)
     print(f"nodes: median {med_n:.1f} K, p90 {p90_n:.1f} K, masked {masked_n:.3f}")
     assert med_n <= MEDIAN_K and p90_n <= P90_K and masked_n <= 0.25
+
+
+def test_matching_the_channels_beats_each_on_its_own_samples(case):
+    """The default (matched) route against each channel solved on its own samples alone, on the
+    same axis: the voxels' p90 drops (measured 106 -> 62 K on this scene, 32 rays)."""
+    res = case["res"]
+    own = axisymmetric_temperature(case["views"], case["op"], case["chan"], case["cal"], MODEL, matched=False,
+                                   axis_x_mm=res.axis_x_mm, axis_z_mm=res.axis_z_mm,
+                                   r_max_mm=float(res.radii_mm[-1]), dr_mm=float(res.radii_mm[1] - res.radii_mm[0]))
+    p90 = [_errors(x.temperature_volume, x.valid_volume, case["Tt"], case["vt"])[1] for x in (res, own)]
+    print(f"voxels' p90: matched {p90[0]:.1f} K, own samples {p90[1]:.1f} K")
+    assert p90[0] < 0.8 * p90[1]
 
 
 def test_swapped_channel_mask_breaks_it(case):
