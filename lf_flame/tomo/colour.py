@@ -51,8 +51,9 @@ SMOOTH_SIGMA = 0.7
 #: ``admm-cfa-matched``: its planes' grid (samples per lenslet and axis) and the Gaussian
 #: (lenslets) both channels are smoothed by when the light field is noisy (relative noise at
 #: or above ``ADMM_QUIET_NOISE``; none when quiet). Chosen on validation scenes (seeds 937500-1,
-#: 400 rays): worst-plane p90 38 K noise-free unsmoothed (67 K smoothed by 0.7), 96 K at
-#: 14 dB smoothed by 0.7 (249 K unsmoothed); on the lenslet grid 56 K noise-free.
+#: 400 rays, ``results/temperature_grid.md``): worst-plane p90 38 K noise-free unsmoothed (67 K
+#: smoothed by 0.7), 98 K at 14 dB smoothed by 0.7 (253 K unsmoothed); on the lenslet grid 56 K
+#: noise-free (89 K at 14 dB: the one setting where the lenslet grid is better).
 MATCHED_SUBSAMPLES, MATCHED_SIGMA_NOISY = 2, 0.7
 
 
