@@ -51,6 +51,10 @@ SEARCH_INNER = 15
 #: Half width (mm) of the bracket the axis depth is searched in about its start, and the search's tolerance.
 SEARCH_HALF_WIDTH_MM = 3.0
 SEARCH_TOL_MM = 0.05
+#: Spacing (mm) of the scan that picks the residual's basin before the bounded search refines within one
+#: spacing of the scan's best: the short trials' residual is not unimodal over the bracket for a filled core
+#: (a validation core at -1.6 mm, seed 603: the bounded search alone stopped at -0.87 mm, 3-D error 31.7 %).
+SEARCH_SCAN_MM = 0.5
 
 
 def _grid_coordinates(op, p):
@@ -365,7 +369,8 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
         Fills of the missing data and FISTA steps per fill of the final solve (>= 1).
     search_half_width_mm, search_fills, search_inner, search_tol_mm : float, int, int, float
         The axis depth's search: bracket ``start ± half width`` (mm), each trial's shorter solve,
-        the tolerance (mm).
+        the tolerance (mm). The bracket is scanned every :data:`SEARCH_SCAN_MM` first; the
+        bounded search (Brent) then refines within one spacing of the scan's lowest residual.
     start_z_mm : float or None
         Start of the search; None: the vote-weighted mean of :func:`lf_flame.tomo.depth.find_depths`
         (needs ``camera``).
@@ -430,8 +435,10 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
             search.append((float(z0), float(res)))
             return res
         lo, hi = start_z_mm - search_half_width_mm, start_z_mm + search_half_width_mm
-        best = optimize.minimize_scalar(trial, bounds=(lo, hi), method="bounded",
-                                        options=dict(xatol=search_tol_mm))
+        scan = np.linspace(lo, hi, max(int(round((hi - lo) / SEARCH_SCAN_MM)), 1) + 1)
+        k = int(np.argmin([trial(z) for z in scan]))
+        best = optimize.minimize_scalar(trial, bounds=(scan[max(k - 1, 0)], scan[min(k + 1, len(scan) - 1)]),
+                                        method="bounded", options=dict(xatol=search_tol_mm))
         axis_z_mm = float(best.x)
     rev = revolve_at(float(axis_z_mm))
     e, res = _fit_emission(op, normal, yt, y, w, m, lit, rev, lam, fills, inner)
