@@ -62,6 +62,11 @@ def test_axis_search_finds_the_axis(op):
     assert abs(res.axis_x_mm - AXIS[0]) < 0.05
     assert abs(res.axis_z_mm - AXIS[1]) < 0.1
     assert len(res.search) >= 4 and min(s[1] for s in res.search) <= res.search[0][1]
+    # the bracket (-2.8 to +1.2 mm) is scanned every SEARCH_SCAN_MM before the bounded search refines, so
+    # a residual with several dips cannot hold the search in the first one it meets
+    from lf_flame.tomo.axisymmetric import SEARCH_SCAN_MM
+    scan = np.arange(-2.8, 1.2 + 1e-9, SEARCH_SCAN_MM)
+    assert np.allclose([z for z, _ in res.search[:len(scan)]], scan)
 
 
 def test_axis_x_from_a_rendered_view():
