@@ -195,11 +195,11 @@ def route_rows(cam, sensor, ops, depths, r, scorer, log, tag):
         fs = channel_emission("refocus-cfa", views, chan_v, (0, 1), slopes=slopes)
         rows += scorer("refocus-cfa", noise, fs[0], fs[1], time_s=time.perf_counter() - t0, **lab)
         if noise == "clean":
+            full = [raw_to_views(r["chans"][c], cam.pixels_per_lenslet) for c in (0, 1)]
             for name, o in (("admm-full (no CFA, reference)", op),
                             ("admm-full 2x2 (no CFA, reference)", ops["admm-cfa-matched"])):
-                full = [admm_channel(v, o, v < 1) for v in
-                        (raw_to_views(r["chans"][c], cam.pixels_per_lenslet) for c in (0, 1))]
-                rows += scorer(name, noise, *(bin_planes(x, o.subsamples) for x in full), **lab)
+                rec = [bin_planes(admm_channel(v, o, v < 1), o.subsamples) for v in full]
+                rows += scorer(name, noise, rec[0], rec[1], **lab)
         log(f"  {tag} {noise} done")
     return rows
 

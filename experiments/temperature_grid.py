@@ -92,12 +92,11 @@ def main(argv=None):
         fx = dataclasses.replace(cs.scene.effects, full_well_e=r["fw"], read_noise_e=E.READ_E)
         full_noisy = [raw_to_views(tracer.apply_sensor(r["chans"][c].copy(), fx, seed + 11 + c), n) for c in (0, 1)]
         mono = {k: v for k, v in ADMM_KNOBS[2, "noisy"].items() if k in ("fills", "lam", "tv", "l1")}
-        cases = [("cfa", "own samples", "clean", raw_to_views(r["clean"], n), {}),
-                 ("cfa", "own samples", "14dB", raw_to_views(r["noisy"], n), {}),
-                 ("cfa", "matched", "clean", raw_to_views(r["clean"], n), {}),
-                 ("cfa", "matched", "14dB", raw_to_views(r["noisy"], n), {}),
-                 ("no CFA", "own samples", "clean", full, {}), ("no CFA", "own samples", "14dB", full_noisy, {}),
-                 ("no CFA", "own samples, 14 dB knobs", "14dB", full_noisy, mono)]
+        mosaic_views = {k: raw_to_views(r[k], n) for k in ("clean", "noisy")}
+        cases = [("cfa", solve, noise, mosaic_views[k], {}) for solve in ("own samples", "matched")
+                 for noise, k in (("clean", "clean"), ("14dB", "noisy"))]
+        cases += [("no CFA", "own samples", "clean", full, {}), ("no CFA", "own samples", "14dB", full_noisy, {}),
+                  ("no CFA", "own samples, 14 dB knobs", "14dB", full_noisy, mono)]
         for sub, op in ops.items():
             for data, route, noise, views, knobs in cases:
                 t1 = time.perf_counter()

@@ -110,9 +110,13 @@ class AxisymmetricTemperature:
     channels : (int, int)
         The channel indices (0 R, 1 G, 2 B) of ``a`` and ``b``.
     residuals : (float, float)
-        Each channel's data residual on its own samples.
+        Each channel's data residual of its last solve (on its own samples; matched: on the
+        other channel's).
     time_s : float
-        Wall time (axis, both solves, temperature).
+        Wall time (axis, the solves, temperature).
+    own_samples : AxisymmetricTemperature or None
+        Matched: the same from each channel's own samples alone (the first pass, its
+        ``time_s`` up to the end of it); None when not matched.
     """
 
     temperature: np.ndarray
@@ -130,6 +134,7 @@ class AxisymmetricTemperature:
     channels: tuple
     residuals: tuple
     time_s: float
+    own_samples: "AxisymmetricTemperature | None" = None
 
 
 def axisymmetric_temperature(views, op, chan, cal: TemperatureCalibration, sensor: ColourSensor, *,
@@ -211,18 +216,24 @@ def axisymmetric_temperature(views, op, chan, cal: TemperatureCalibration, senso
         axis_x_mm, axis_z_mm = found.axis_x_mm, found.axis_z_mm
         r_max_mm = float(found.radii_mm[-1])
         dr_mm = float(found.radii_mm[1] - found.radii_mm[0])
+    def result(sols, own_samples=None):
+        em = np.stack([s.emission for s in sols])
+        vol = np.stack([s.volume for s in sols])
+        T, valid, n_masked = volume_temperature(em[0], em[1], cal, sensor, alpha, min_fraction)
+        Tv, valid_v, n_masked_v = volume_temperature(vol[0], vol[1], cal, sensor, alpha, min_fraction)
+        return AxisymmetricTemperature(temperature=T, valid=valid, n_masked=n_masked, temperature_volume=Tv,
+                                       valid_volume=valid_v, n_masked_volume=n_masked_v, emission=em, volume=vol,
+                                       radii_mm=sols[0].radii_mm, heights_mm=sols[0].heights_mm,
+                                       axis_x_mm=float(axis_x_mm), axis_z_mm=float(axis_z_mm), channels=(ia, ib),
+                                       residuals=(sols[0].residual, sols[1].residual),
+                                       time_s=time.perf_counter() - t0, own_samples=own_samples)
+
     sols = [solve_axisymmetric(v, op, f, axis_x_mm=axis_x_mm, axis_z_mm=axis_z_mm, r_max_mm=r_max_mm, dr_mm=dr_mm,
                                lam=lam, fills=fills, inner=inner, camera=camera) for f in fits]
-    if matched:
-        sols = [solve_axisymmetric(op.matvec(s.volume.ravel()).reshape(v.shape), op, fits[1 - i], axis_x_mm=axis_x_mm,
-                                   axis_z_mm=axis_z_mm, r_max_mm=r_max_mm, dr_mm=dr_mm, lam=lam, fills=fills,
-                                   inner=inner, camera=camera) for i, s in enumerate(sols)]
-    em = np.stack([s.emission for s in sols])
-    vol = np.stack([s.volume for s in sols])
-    T, valid, n_masked = volume_temperature(em[0], em[1], cal, sensor, alpha, min_fraction)
-    Tv, valid_v, n_masked_v = volume_temperature(vol[0], vol[1], cal, sensor, alpha, min_fraction)
-    return AxisymmetricTemperature(temperature=T, valid=valid, n_masked=n_masked, temperature_volume=Tv,
-                                   valid_volume=valid_v, n_masked_volume=n_masked_v, emission=em, volume=vol,
-                                   radii_mm=sols[0].radii_mm, heights_mm=sols[0].heights_mm,
-                                   axis_x_mm=float(axis_x_mm), axis_z_mm=float(axis_z_mm), channels=(ia, ib),
-                                   residuals=(sols[0].residual, sols[1].residual), time_s=time.perf_counter() - t0)
+    if not matched:
+        return result(sols)
+    own = result(sols)
+    return result([solve_axisymmetric(op.matvec(s.volume.ravel()).reshape(v.shape), op, fits[1 - i],
+                                      axis_x_mm=axis_x_mm, axis_z_mm=axis_z_mm, r_max_mm=r_max_mm, dr_mm=dr_mm,
+                                      lam=lam, fills=fills, inner=inner, camera=camera) for i, s in enumerate(sols)],
+                  own_samples=own)
