@@ -78,6 +78,12 @@ GRID_FINE = dict(lam=(0.01, 0.003), tv=(0.0, 0.1, 0.3), momentum=(0.6,), inner=(
 #: the finer grid is taken for a noise level only where it beats the lenslet grid's best by this factor
 FINE_GAIN = 0.9
 MAX_FILLS = 16
+#: where the first fill predicts the missing data from (``solve_admm``'s ``start``), tried with every knob
+STARTS = ("zero", "refocused")
+KNOBS = ["start", "lam", "tv", "momentum", "inner", "l1"]
+#: the stopping tolerances tried on the chosen knobs (``solve_admm``'s ``tol``: relative change of the planes over a
+#: fill); the largest that keeps the validation score within 10 % of the best is taken, 0 (every fill) if none
+TOLS = (0.0, 0.002, 0.005, 0.01, 0.02, 0.03, 0.05)
 #: the knobs are chosen per noise level: 'quiet' on the noise-free renders, 'noisy' on those at 14 dB
 REGIMES = {"clean": "quiet", "14dB": "noisy"}
 DENSE_P = (4, 16, 41, 81)
@@ -112,25 +118,42 @@ def tune(cam, rays, cache):
                              time_s=time.perf_counter() - t0))
             for sub, grid in ((1, GRID), (2, GRID_FINE)):
                 op = ops[sub]
-                for lam, tv, mom, inner, l1 in itertools.product(*grid.values()):
+                for start, (lam, tv, mom, inner, l1) in itertools.product(STARTS, itertools.product(*grid.values())):
+                    prev = []
+
                     def cb(j, x):
-                        rows.append(dict(labels, route="admm", subsamples=sub, lam=lam, tv=tv, momentum=mom,
-                                         inner=inner, l1=l1, fills=j,
+                        change = np.linalg.norm(x - prev[0]) / max(np.linalg.norm(x), 1e-30) if prev else np.nan
+                        prev[:] = [x.copy()]
+                        rows.append(dict(labels, route="admm", subsamples=sub, start=start, lam=lam, tv=tv,
+                                         momentum=mom, inner=inner, l1=l1, fills=j, change=change,
                                          worst=worst_plane(bin_planes(x.reshape(op.dims), sub), truth)))
                     fourier.solve_admm(views, op, views < 1.0, fills=MAX_FILLS, inner=inner, lam=lam, tv=tv,
-                                       momentum=mom, l1=l1, callback=cb)
+                                       momentum=mom, l1=l1, start=start, callback=cb)
         print(f"  tune {kind} {seed} done", flush=True)
     df = pd.DataFrame(rows)
     best = {}
     for noise, regime in REGIMES.items():
         for sub in (1, 2):
             admm = df[(df.route == "admm") & (df.noise == noise) & (df.subsamples == sub)]
-            score = admm.groupby(["lam", "tv", "momentum", "inner", "l1", "fills"]).worst.max().reset_index()
+            score = admm.groupby(KNOBS + ["fills"]).worst.max().reset_index()
             # the fewest fills within 10 % of the best score, then the best of those
             ok = score[score.worst <= 1.1 * score.worst.min()].sort_values(["fills", "inner", "worst"])
-            best[f"{regime}_{sub}"] = ok.iloc[0].to_dict()
+            b = best[f"{regime}_{sub}"] = ok.iloc[0].to_dict()
+            b["tol"], b["fills_run_mean"], b["worst_stopped"] = stopping(admm, b, 1.1 * score.worst.min())
         best[f"{regime}_subsamples"] = 2 if best[f"{regime}_2"]["worst"] < FINE_GAIN * best[f"{regime}_1"]["worst"] else 1
     return df, best
+
+
+def stopping(admm, chosen, bar):
+    """The largest of TOLS whose stopped runs (after the first fill >= 2 whose relative change of the planes is at
+    most tol, else at the chosen fills) keep every render's worst plane within ``bar``: (tol, mean fills run, score)."""
+    runs = admm[np.logical_and.reduce([admm[k] == chosen[k] for k in KNOBS]) & (admm.fills <= chosen["fills"])]
+    for tol in sorted(TOLS, reverse=True):
+        stops = [g.loc[g.fills >= 2].pipe(lambda h: h[(h.change <= tol) | (h.fills == chosen["fills"])]).iloc[0]
+                 for _, g in runs.sort_values("fills").groupby(["scene", "seed"])]
+        worst = max(r.worst for r in stops)
+        if worst <= bar or tol == 0:
+            return float(tol), float(np.mean([r.fills for r in stops])), float(worst)
 
 
 def score(cam, rays, cache, n_tests):
@@ -252,7 +275,8 @@ def main(argv=None):
     a.out.mkdir(parents=True, exist_ok=True)
     meta_path = a.out / "fourier_solver.json"
     meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
-    meta.update(rays=a.rays, precision=PRECISION, grid=GRID, grid_fine=GRID_FINE, fine_gain=FINE_GAIN,
+    meta.update(rays=a.rays, precision=PRECISION, grid=GRID, grid_fine=GRID_FINE, fine_gain=FINE_GAIN, starts=STARTS,
+                tols=TOLS,
                 max_fills=MAX_FILLS, val_seeds=R.VAL_SEEDS,
                 test_seeds=R.TEST_SEEDS[:a.tests], snr_db=SNR_DB, provenance=provenance())
     t_all = time.perf_counter()
@@ -261,8 +285,8 @@ def main(argv=None):
         df, best = tune(cam, a.rays, a.cache)
         df.to_csv(a.out / "fourier_solver_tune.csv", index=False)
         meta["chosen"] = {key: int(b) if isinstance(b, int) else
-                          {k: (float(v) if k not in ("inner", "fills") else int(v)) for k, v in b.items()}
-                          for key, b in best.items()}
+                          {k: (v if k == "start" else float(v) if k not in ("inner", "fills") else int(v))
+                           for k, v in b.items()} for key, b in best.items()}
         meta["noise_levels"] = df.groupby("noise").noise_level.agg(["min", "max"]).to_dict("index")
         meta["pd_tv_validation_worst"] = df[df.route == "pd-tv"].groupby("noise").worst.max().to_dict()
         print("chosen", meta["chosen"], "noise levels", meta["noise_levels"], "pd-tv validation worst",

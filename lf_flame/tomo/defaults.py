@@ -39,6 +39,8 @@ ADMM_TV = 0.3
 #: 4e-4 to 7e-4, renders at 14 dB 0.03 to 0.04; the split lies between, the validation set holds
 #: no level in between).
 ADMM_QUIET_NOISE = 0.005
+#: Where admm's first fill predicts the missing data from (:func:`lf_flame.tomo.fourier.solve_admm`'s ``start``).
+ADMM_STARTS = ("zero", "refocused")
 ADMM_QUIET = {"fills": 6, "tv": 0.0}
 #: admm's knobs per planes' grid (samples per lenslet footprint and axis,
 #: :class:`~lf_flame.tomo.exact.ExactOperator`'s ``subsamples``) and noise level, chosen on the

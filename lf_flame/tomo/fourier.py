@@ -48,6 +48,7 @@ serve any camera and radiance scale.
 """
 from __future__ import annotations
 
+import hashlib
 import math
 import time
 
@@ -57,7 +58,7 @@ import scipy.fft
 from . import _fourier_kernels
 
 from .defaults import (ADMM_FILLS, ADMM_INNER, ADMM_KNOBS, ADMM_LAM, ADMM_MOMENTUM, ADMM_QUIET_NOISE, ADMM_RHO,
-                       ADMM_RHO_TV, ADMM_SUBSAMPLES, ADMM_TV, SUBSAMPLES_MAX_PLANES)
+                       ADMM_RHO_TV, ADMM_STARTS, ADMM_SUBSAMPLES, ADMM_TV, SUBSAMPLES_MAX_PLANES)
 
 
 #: Largest imaginary part of the normal matrices, relative to their largest entry, that is
@@ -296,7 +297,7 @@ def fill_data(views, fit, op):
 
 def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INNER, lam: float = ADMM_LAM,
                rho: float = ADMM_RHO, tv: float = ADMM_TV, rho_tv: float = ADMM_RHO_TV, momentum: float = ADMM_MOMENTUM,
-               l1: float = 0.0, support=None, callback=None):
+               l1: float = 0.0, support=None, start: str = "zero", tol: float = 0.0, callback=None):
     """Non-negative emission on the exact operator's planes by Fourier ADMM with missing data.
 
     Parameters
@@ -328,6 +329,19 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         Where each plane may hold emission (the non-negativity projection also zeroes the
         rest): the lateral footprints of the flames found at each depth
         (:func:`lf_flame.tomo.depth.find_planes`). None: everywhere.
+    start : {"zero", "refocused"}
+        Where the first fill predicts the missing data from. ``"zero"``: nothing (the
+        missing data start at 0). ``"refocused"``: the normalised back-projection
+        ``H^H (M y~) / H^H (M 1)`` (shift-and-sum refocusing through the operator over the
+        fitted pixels, :func:`backprojection`), scaled to the data by least squares; it costs
+        one ``H`` and one ``H^H`` more (the second kept on ``op`` per mask) and takes the
+        missing data's fills, slow where flames stand near the window's edge, most of the way
+        at once (the window's light is what the fills converge on: given its true value one
+        fill reaches the floor, a probe on validation renders).
+    tol : float
+        >= 0: stop after fill ``j >= 2`` once the planes' relative change over the fill,
+        ``||s_j - s_(j-1)|| / ||s_j||``, is at most ``tol``; ``fills`` is then a cap. 0: run
+        every fill.
     callback : callable or None
         ``callback(j, x)`` after fill ``j`` (1-based) with the planes (flat).
 
@@ -336,7 +350,7 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     planes : ndarray of shape (P, rows, cols), float64, non-negative
     residuals : list of float
         ``||M (w H v - y)|| / ||M y||`` at the point ``v`` each fill after the first predicts
-        from (no extra operator application is spent on it).
+        from (no extra operator application is spent on it): ``len(residuals) + 1`` fills ran.
     system_s : float
         Seconds spent building the :class:`FourierSystem` (0 when ``op`` had it).
 
@@ -344,7 +358,7 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     ------
     ValueError
         Fills or inner iterations below 1, a momentum outside [0, 1), negative weights, a
-        support that is not boolean of the planes' shape.
+        support that is not boolean of the planes' shape, an unknown start, a negative tol.
     """
     if support is not None and (np.asarray(support).dtype != bool or np.shape(support) != tuple(op.dims)):
         raise ValueError(f"support must be boolean of the planes' shape {tuple(op.dims)}. Received: "
@@ -356,6 +370,9 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
                          f"tv={tv!r}, rho_tv={rho_tv!r}")
     if not 0 <= l1 < 1:
         raise ValueError(f"l1 must be in [0, 1) (a fraction of the weight that zeroes every plane). Received: {l1!r}")
+    if start not in ADMM_STARTS or not (tol >= 0 and math.isfinite(tol)):
+        raise ValueError(f"start must be one of {ADMM_STARTS} and tol finite and >= 0. Received: start={start!r}, "
+                         f"tol={tol!r}")
     kept = list(op.__dict__.get("_fourier_systems", {}).values())
     system = admm_system(op, lam, tv, rho, rho_tv)
     system_s = 0.0 if any(system is k for k in kept) else system.setup_s
@@ -369,6 +386,21 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     S = system.spec
     z = np.zeros((len(system.lit),) + canvas, real)
     s = np.zeros((P,) + canvas, real)
+    lam_max = None
+    if start == "refocused":   # the normalised back-projection, scaled to the data: the first fill predicts from it
+        _fourier_kernels.fill(z, yt, y, w, m)
+        num = scipy.fft.irfft2(_fourier_kernels.spectra_adjoint(S, scipy.fft.rfft2(z, workers=op.workers)), s=canvas,
+                               workers=op.workers)[:, :gr, :gc]
+        lam_max = float(num.max())
+        den = backprojection_weight(op, m)
+        s[:, :gr, :gc] = np.where(den > 0, np.maximum(num, 0) / np.where(den > 0, den, 1), 0)
+        if support is not None:
+            s[:, :gr, :gc] *= support
+        z = scipy.fft.irfft2(_fourier_kernels.spectra_forward(S, scipy.fft.rfft2(s, workers=op.workers)), s=canvas,
+                             workers=op.workers)
+        a = _least_squares_scale(z, yt, m)
+        s *= a
+        z *= a
     s_prev, d = s, np.zeros_like(s)
     gy, gx, ey, ex = (np.zeros_like(s) for _ in range(4))
     kappa = tv / (rho_tv * system.g0) if tv > 0 else 0.0
@@ -382,9 +414,12 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         if j > 1:
             residuals.append(math.sqrt(residual) / norm)
         b = _fourier_kernels.spectra_adjoint(S, scipy.fft.rfft2(z, workers=op.workers))   # H^H z, (P, Lr, F)
-        if j == 1:   # the l1 step from H^H y (the first fill's z is the data)
-            shrink_l1 = l1 * float(scipy.fft.irfft2(b, s=canvas, workers=op.workers)[:, :gr, :gc].max()) / (
-                rho * system.g0) if l1 > 0 else 0.0
+        if j == 1 and l1 > 0:   # the l1 step from H^H y (without a start the first fill's z is the data)
+            if lam_max is None:
+                lam_max = float(scipy.fft.irfft2(b, s=canvas, workers=op.workers)[:, :gr, :gc].max())
+            shrink_l1 = l1 * lam_max / (rho * system.g0)
+        elif j == 1:
+            shrink_l1 = 0.0
         s_prev = s
         for _ in range(int(inner)):
             r = s - d
@@ -406,7 +441,49 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
                 ey, ex = vy - gy, vx - gx
         if callback is not None:
             callback(j, op.from_phases(s[:, :gr, :gc]).astype(np.float64).ravel())
+        if tol > 0 and j > 1 and (np.linalg.norm(s[:, :gr, :gc] - s_prev[:, :gr, :gc])
+                                  <= tol * np.linalg.norm(s[:, :gr, :gc])):
+            break
     return op.from_phases(s[:, :gr, :gc]).astype(np.float64), residuals, system_s
+
+
+def backprojection_weight(op, m) -> np.ndarray:
+    """``H^H (M 1)`` on the lenslet grid's phase planes: how much of each sample the fitted pixels see.
+
+    The denominator of the normalised back-projection (:func:`solve_admm`'s refocused start),
+    kept on ``op`` for the last mask (a light field without saturated pixels shares its
+    operator's).
+
+    Parameters
+    ----------
+    op : ExactOperator
+    m : ndarray of bool of shape (V', R, C)
+        The fitted pixels of the lit views (:func:`fill_data`).
+
+    Returns
+    -------
+    ndarray of shape (P s^2, rows, cols), in the operator's precision
+    """
+    key = hashlib.blake2b(np.packbits(m).tobytes(), digest_size=16).digest() + bytes(str(m.shape), "ascii")
+    kept = op.__dict__.get("_backprojection_weight")
+    if kept is None or kept[0] != key:
+        real = np.float32 if op._spec.dtype == np.complex64 else np.float64
+        ones = np.zeros((len(op._lit),) + tuple(op.canvas_shape), real)
+        ones[:, :m.shape[1], :m.shape[2]] = m
+        P, gr, gc = op.phase_dims
+        den = scipy.fft.irfft2(_fourier_kernels.spectra_adjoint(op._spec, scipy.fft.rfft2(ones, workers=op.workers)),
+                               s=op.canvas_shape, workers=op.workers)[:, :gr, :gc]
+        kept = op.__dict__["_backprojection_weight"] = (key, np.where(den > 1e-6 * den.max(), den, 0).astype(real))
+    return kept[1]
+
+
+def _least_squares_scale(z, yt, m) -> float:
+    """``a`` minimising ``||M (a z - y~)||`` over the fitted pixels (``z`` the canvas views, ``yt`` and ``m`` the
+    sensor's); 1 where ``z`` is dark there."""
+    R, C = m.shape[1:]
+    zz = np.where(m, z[:, :R, :C], 0)
+    den = float(np.vdot(zz, zz))
+    return float(np.vdot(zz, yt)) / den if den > 0 else 1.0
 
 
 def _grad_adjoint(gy, gx):
