@@ -171,3 +171,81 @@ def spectra_adjoint(S, ys):
     out = np.empty((P,) + ys.shape[1:], S.dtype)
     adjoint(S.reshape(V, P, -1), np.ascontiguousarray(ys, S.dtype).reshape(V, -1), out.reshape(P, -1))
     return out
+
+
+@nb.njit(parallel=True, cache=True)
+def admm_target(s, d, gy, gx, ey, ex, coef, out):
+    """``out = s - d + coef D^T (g - e)`` on planes (P, Lr, Lc): the point the ADMM x-step is drawn to,
+    ``D^T`` the adjoint of the periodic forward differences along rows and columns (the TV split's
+    term; ``coef`` 0 skips it)."""
+    P, Lr, Lc = s.shape
+    for k in nb.prange(P):
+        for r in range(Lr):
+            r0 = r - 1 if r > 0 else Lr - 1
+            for c in range(Lc):
+                v = s[k, r, c] - d[k, r, c]
+                if coef != 0.0:
+                    c0 = c - 1 if c > 0 else Lc - 1
+                    v += coef * ((gy[k, r0, c] - ey[k, r0, c]) - (gy[k, r, c] - ey[k, r, c])
+                                 + (gx[k, r, c0] - ex[k, r, c0]) - (gx[k, r, c] - ex[k, r, c]))
+                out[k, r, c] = v
+
+
+@nb.njit(parallel=True, cache=True)
+def admm_project(x, d, shrink, support, rows, cols, s):
+    """The ADMM s-step and dual update in one pass: ``s = max(x + d - shrink, 0)`` on the grid
+    ``[:rows, :cols]`` where ``support`` (P, rows, cols) holds, 0 elsewhere; ``d += x - s``. All (P, Lr, Lc)
+    but ``support``; ``s`` written."""
+    P, Lr, Lc = x.shape
+    for k in nb.prange(P):
+        for r in range(Lr):
+            for c in range(Lc):
+                v = 0.0
+                if r < rows and c < cols and support[k, r, c]:
+                    v = max(x[k, r, c] + d[k, r, c] - shrink, 0.0)
+                s[k, r, c] = v
+                d[k, r, c] += x[k, r, c] - v
+
+
+@nb.njit(parallel=True, cache=True)
+def tv_shrink(x, kappa, gy, gx, ey, ex):
+    """The TV split's step on planes x (P, Lr, Lc), in place: ``v = D x + e`` (periodic forward
+    differences along rows and columns), ``g = max(1 - kappa / |v|, 0) v`` (isotropic shrinkage),
+    ``e = v - g``."""
+    P, Lr, Lc = x.shape
+    for k in nb.prange(P):
+        for r in range(Lr):
+            r1 = r + 1 if r + 1 < Lr else 0
+            for c in range(Lc):
+                c1 = c + 1 if c + 1 < Lc else 0
+                vy = x[k, r1, c] - x[k, r, c] + ey[k, r, c]
+                vx = x[k, r, c1] - x[k, r, c] + ex[k, r, c]
+                keep = max(1.0 - kappa / max(np.sqrt(vy * vy + vx * vx), 1e-30), 0.0)
+                gy[k, r, c] = keep * vy
+                gx[k, r, c] = keep * vx
+                ey[k, r, c] = vy - keep * vy
+                ex[k, r, c] = vx - keep * vx
+
+
+@nb.njit(parallel=True, cache=True)
+def gather_data(views, fit, w_all, lit, y, yt, w, m):
+    """The lit views' data in one pass: for each ``i``, view ``lit[i]`` of ``views`` (N N, R, C) into
+    ``y``, its weights ``w_all`` into ``w``, ``m = fit & (w > 0)`` and ``yt = y / w`` where ``m``,
+    else 0 (all (V', R, C)). Returns ``sum over m of y^2``."""
+    n, R, C = y.shape
+    part = np.zeros(n)
+    for i in nb.prange(n):
+        src = lit[i]
+        sq = 0.0
+        for r in range(R):
+            for c in range(C):
+                a = views[src, r, c]
+                wi = w_all[src, r, c]
+                ok = fit[src, r, c] and wi > 0
+                y[i, r, c] = a
+                w[i, r, c] = wi
+                m[i, r, c] = ok
+                yt[i, r, c] = a / wi if ok else 0.0
+                sq += a * a if ok else 0.0
+        part[i] = sq
+    return part.sum()

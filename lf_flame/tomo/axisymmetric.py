@@ -407,7 +407,7 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
         normal = op.__dict__.get("_axisymmetric_normal") or _Normal(op)
         op.__dict__["_axisymmetric_normal"] = normal
     lit = op._lit
-    y, yt, w, m = fill_data(v, f, op)
+    y, yt, w, m, _ = fill_data(v, f, op)
 
     def revolve_at(z0):
         x0 = axis_x_from_views(v, op, z0, f) if axis_x_mm is None else float(axis_x_mm)

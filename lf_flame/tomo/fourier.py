@@ -286,13 +286,17 @@ def fill_data(views, fit, op):
         The per-pixel weights.
     m : ndarray of bool of shape (V', R, C)
         Fitted and seen (``w > 0``).
+    norm : float
+        ``||M y||``.
     """
     N, _, R, C = op.dimsd
     real = np.float32 if op._spec.dtype == np.complex64 else np.float64
-    w = op._w[op._lit]
-    y = np.asarray(views, np.float64).reshape(N * N, R, C)[op._lit]
-    m = np.asarray(fit, bool).reshape(N * N, R, C)[op._lit] & (w > 0)
-    return y, np.where(m, y / np.where(w > 0, w, 1.0), 0.0).astype(real), w, m
+    V = len(op._lit)
+    y, yt, w, m = (np.empty((V, R, C), t) for t in (np.float64, real, op._w.dtype, bool))
+    sq = _fourier_kernels.gather_data(np.ascontiguousarray(views, np.float64).reshape(N * N, R, C),
+                                      np.ascontiguousarray(fit, bool).reshape(N * N, R, C), op._w,
+                                      np.asarray(op._lit, np.int64), y, yt, w, m)
+    return y, yt, w, m, math.sqrt(sq)
 
 
 def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INNER, lam: float = ADMM_LAM,
@@ -381,8 +385,8 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     if support is not None:
         support = op.to_phases(support)
     real = np.float32 if system.spec.dtype == np.complex64 else np.float64
-    y, yt, w, m = fill_data(views, fit, op)
-    norm = float(np.linalg.norm(np.where(m, y, 0.0))) or 1.0
+    y, yt, w, m, norm = fill_data(views, fit, op)
+    norm = norm or 1.0
     S = system.spec
     z = np.zeros((len(system.lit),) + canvas, real)
     s = np.zeros((P,) + canvas, real)
@@ -401,8 +405,10 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         a = _least_squares_scale(z, yt, m)
         s *= a
         z *= a
-    s_prev, d = s, np.zeros_like(s)
+    s_prev, d, r = s, np.zeros_like(s), np.empty_like(s)
     gy, gx, ey, ex = (np.zeros_like(s) for _ in range(4))
+    if support is None:
+        support = np.ones((P, gr, gc), bool)
     kappa = tv / (rho_tv * system.g0) if tv > 0 else 0.0
     residuals = []
     for j in range(1, int(fills) + 1):
@@ -422,23 +428,13 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
             shrink_l1 = 0.0
         s_prev = s
         for _ in range(int(inner)):
-            r = s - d
-            if tv > 0:
-                r = r + (rho_tv / rho) * _grad_adjoint(gy - ey, gx - ex)
+            _fourier_kernels.admm_target(s, d, gy, gx, ey, ex, rho_tv / rho if tv > 0 else 0.0, r)
             x = scipy.fft.irfft2(system.solve(b + system.g0 * rho * scipy.fft.rfft2(r, workers=op.workers)),
                                  s=canvas, workers=op.workers)
-            s_new = np.zeros_like(s)
-            s_new[:, :gr, :gc] = np.maximum(x[:, :gr, :gc] + d[:, :gr, :gc] - shrink_l1, 0)
-            if support is not None:
-                s_new[:, :gr, :gc] *= support
-            d += x - s_new
-            s = s_new
+            s = np.empty_like(s_prev)
+            _fourier_kernels.admm_project(x, d, shrink_l1, support, gr, gc, s)
             if tv > 0:   # isotropic shrinkage of the gradient (the TV split), then its dual
-                dy, dx = np.roll(x, -1, axis=1) - x, np.roll(x, -1, axis=2) - x
-                vy, vx = dy + ey, dx + ex
-                shrink = np.maximum(1.0 - kappa / np.maximum(np.hypot(vy, vx), 1e-30), 0.0)
-                gy, gx = shrink * vy, shrink * vx
-                ey, ex = vy - gy, vx - gx
+                _fourier_kernels.tv_shrink(x, kappa, gy, gx, ey, ex)
         if callback is not None:
             callback(j, op.from_phases(s[:, :gr, :gc]).astype(np.float64).ravel())
         if tol > 0 and j > 1 and (np.linalg.norm(s[:, :gr, :gc] - s_prev[:, :gr, :gc])
@@ -484,8 +480,3 @@ def _least_squares_scale(z, yt, m) -> float:
     zz = np.where(m, z[:, :R, :C], 0)
     den = float(np.vdot(zz, zz))
     return float(np.vdot(zz, yt)) / den if den > 0 else 1.0
-
-
-def _grad_adjoint(gy, gx):
-    """``D^T (gy, gx)`` of the periodic forward differences along rows and columns (axes 1, 2)."""
-    return (np.roll(gy, 1, axis=1) - gy) + (np.roll(gx, 1, axis=2) - gx)
