@@ -1,6 +1,7 @@
 """The Fourier ADMM solver on the exact operator (lf_flame.tomo.fourier): its kernels, the
 missing data (window, saturated pixels), its planted recovery, and its refusals."""
 import copy
+import math
 
 import numpy as np
 import pytest
@@ -131,8 +132,13 @@ def test_the_noise_estimate_and_the_knobs_it_picks(op, planted):
     mixed = reconstruct(views, op, "admm", 2, saturation=None).settings
     assert (mixed["iters"], mixed["tv"]) == (2, knobs[1, "quiet"]["tv"])
     # the finer grid has its own knobs; the routes take it on all but dense stacks
-    assert fourier.admm_knobs(views, None, subsamples=2)[:4] == tuple(knobs[2, "quiet"][k] for k in ("fills", "tv", "lam", "l1"))
-    assert fourier.admm_knobs(loud_views, None, subsamples=2)[:4] == tuple(knobs[2, "noisy"][k] for k in ("fills", "tv", "lam", "l1"))
+    names = ("fills", "tv", "lam", "l1", "start", "tol")
+    for v, regime in ((views, "quiet"), (loud_views, "noisy")):
+        got = fourier.admm_knobs(v, None, subsamples=2)
+        assert tuple(got[k] for k in names) == tuple(knobs[2, regime][k] for k in names)
+    # every knob given: the noise is not measured, the fills given all run from the default start
+    given = fourier.admm_knobs(views, None, 3, 0.0, 0.01, 2, 0.0)
+    assert math.isnan(given["noise"]) and (given["start"], given["tol"]) == (fourier.ADMM_START, 0.0)
     assert fourier.admm_subsamples(4) == fourier.ADMM_SUBSAMPLES == 2
     assert fourier.admm_subsamples(fourier.SUBSAMPLES_MAX_PLANES + 1) == 1
     with pytest.raises(ValueError, match="subsamples"):

@@ -310,7 +310,8 @@ def test_reconstruction_settings_reach_the_solver_and_the_run_identity(small_seq
     r = admm.identity()["reconstruction"]
     v0 = admm.views(frames[0])
     knobs = admm_knobs(v0, v0 < 0.9)
-    assert (r["iters"], r["tv"], r["lam"], r["l1"]) == knobs[:4] and r["admm_noise"] > 0
+    assert (r["iters"], r["tv"], r["lam"], r["l1"], r["start"], r["tol"]) == tuple(
+        knobs[k] for k in ("fills", "tv", "lam", "l1", "start", "tol")) and r["admm_noise"] > 0
     assert (r["iters"], r["tv"]) in ((ADMM_QUIET["fills"], ADMM_QUIET["tv"]), (ADMM_FILLS, ADMM_TV))
     given = dataclasses.replace(admm, iters=3, tv=0.1).identity()["reconstruction"]
     assert (given["iters"], given["tv"]) == (3, 0.1) and "admm_noise" not in given

@@ -147,7 +147,8 @@ class SequenceJob:
                 views = self.views(np.asarray(next(iter(self.source.frames(0, 1))), np.float64))
                 fit = None if self.saturation is None else views < self.saturation
                 self._cache[key] = admm_knobs(views, fit, self.iters, self.tv)
-            out["iters"], out["tv"], out["lam"], out["l1"], out["admm_noise"] = self._cache[key]
+            knobs = dict(self._cache[key])
+            out.update(iters=knobs.pop("fills"), admm_noise=knobs.pop("noise"), **knobs)
         return out
 
     def identity(self) -> dict:
@@ -198,7 +199,7 @@ class SequenceJob:
         from ..tomo.solvers import reconstruct
         r = self.reconstruction()
         rec = reconstruct(views, self.operator(), r["solver"], r["iters"], tv=r["tv"], lam=r.get("lam"), l1=r.get("l1"),
-                          saturation=r["saturation"])
+                          start=r.get("start"), tol=r.get("tol"), saturation=r["saturation"])
         return rec.planes, int(rec.settings["n_saturated"])
 
     def operator(self):

@@ -39,8 +39,10 @@ ADMM_TV = 0.3
 #: 4e-4 to 7e-4, renders at 14 dB 0.03 to 0.04; the split lies between, the validation set holds
 #: no level in between).
 ADMM_QUIET_NOISE = 0.005
-#: Where admm's first fill predicts the missing data from (:func:`lf_flame.tomo.fourier.solve_admm`'s ``start``).
+#: Where admm's first fill predicts the missing data from (:func:`lf_flame.tomo.fourier.solve_admm`'s ``start``),
+#: and the start of the solves whose knobs are all given (the noise not measured).
 ADMM_STARTS = ("zero", "refocused")
+ADMM_START = "zero"
 ADMM_QUIET = {"fills": 6, "tv": 0.0}
 #: admm's knobs per planes' grid (samples per lenslet footprint and axis,
 #: :class:`~lf_flame.tomo.exact.ExactOperator`'s ``subsamples``) and noise level, chosen on the
@@ -48,10 +50,10 @@ ADMM_QUIET = {"fills": 6, "tv": 0.0}
 #: The sparsity weight ``l1`` (a fraction of lambda_max) joined the grid later: it took the 2 x 2 grid's
 #: worst validation plane at 14 dB from 11.4 % to 8.1 % and the lenslet grid's noise-free one from 6.2 %
 #: to 6.0 %, and was not taken for the other two.
-ADMM_KNOBS = {(1, "quiet"): dict(ADMM_QUIET, lam=ADMM_LAM, l1=0.001),
-              (1, "noisy"): {"fills": ADMM_FILLS, "tv": ADMM_TV, "lam": ADMM_LAM, "l1": 0.0},
-              (2, "quiet"): {"fills": 11, "tv": 0.0, "lam": 0.003, "l1": 0.0},
-              (2, "noisy"): {"fills": 4, "tv": 0.1, "lam": 0.01, "l1": 0.001}}
+ADMM_KNOBS = {(1, "quiet"): dict(ADMM_QUIET, lam=ADMM_LAM, l1=0.001, start="zero", tol=0.0),
+              (1, "noisy"): {"fills": ADMM_FILLS, "tv": ADMM_TV, "lam": ADMM_LAM, "l1": 0.0, "start": "zero", "tol": 0.0},
+              (2, "quiet"): {"fills": 11, "tv": 0.0, "lam": 0.003, "l1": 0.0, "start": "zero", "tol": 0.0},
+              (2, "noisy"): {"fills": 4, "tv": 0.1, "lam": 0.01, "l1": 0.001, "start": "zero", "tol": 0.0}}
 #: The planes' grid of the routes that build their operator (``lf-flame reconstruct``,
 #: :func:`lf_flame.tomo.depth.find_planes`): a light field carries detail finer than a lenslet in
 #: its views' parallax off focus, and the 2 x 2 grid beat the lenslet grid on the validation

@@ -58,7 +58,7 @@ import scipy.fft
 from . import _fourier_kernels
 
 from .defaults import (ADMM_FILLS, ADMM_INNER, ADMM_KNOBS, ADMM_LAM, ADMM_MOMENTUM, ADMM_QUIET_NOISE, ADMM_RHO,
-                       ADMM_RHO_TV, ADMM_STARTS, ADMM_SUBSAMPLES, ADMM_TV, SUBSAMPLES_MAX_PLANES)
+                       ADMM_RHO_TV, ADMM_START, ADMM_STARTS, ADMM_SUBSAMPLES, ADMM_TV, SUBSAMPLES_MAX_PLANES)
 
 
 #: Largest imaginary part of the normal matrices, relative to their largest entry, that is
@@ -208,19 +208,21 @@ def relative_noise(views, fit=None) -> float:
     return float(math.sqrt(math.pi / 2) * np.median(sig) / 6 / peak) if sig else 0.0
 
 
-def admm_knobs(views, fit, fills=None, tv=None, lam=None, subsamples: int = 1, l1=None):
-    """admm's fills, TV, gradient and sparsity weights for these views: those given, the others by their noise.
+def admm_knobs(views, fit, fills=None, tv=None, lam=None, subsamples: int = 1, l1=None, start=None, tol=None) -> dict:
+    """admm's knobs for these views: those given, the others by their noise.
 
     The knobs not given come from :data:`~lf_flame.tomo.defaults.ADMM_KNOBS` for the
     planes' grid (``subsamples``) and the light field's noise level (quiet below
-    :data:`~lf_flame.tomo.defaults.ADMM_QUIET_NOISE`).
+    :data:`~lf_flame.tomo.defaults.ADMM_QUIET_NOISE`). The noise is measured when any of
+    ``fills``, ``tv``, ``lam``, ``l1`` is not given; otherwise ``start`` not given is
+    :data:`~lf_flame.tomo.defaults.ADMM_START`. ``tol`` not given is the grid's and noise
+    level's where ``fills`` was not given, else 0 (the fills given all run).
 
     Returns
     -------
-    fills : int
-    tv, lam, l1 : float
-    noise : float
-        :func:`relative_noise` of the views (NaN when every knob was given: not measured).
+    dict
+        ``fills`` (int), ``tv``, ``lam``, ``l1`` (float), ``start`` (str), ``tol`` (float) and
+        ``noise``: :func:`relative_noise` of the views (NaN when not measured).
 
     Raises
     ------
@@ -230,10 +232,15 @@ def admm_knobs(views, fit, fills=None, tv=None, lam=None, subsamples: int = 1, l
     if (subsamples, "quiet") not in ADMM_KNOBS:
         raise ValueError(f"admm's knobs were chosen for subsamples in {sorted({k for k, _ in ADMM_KNOBS})}; give "
                          f"fills, tv, lam and l1 for subsamples={subsamples!r}")
-    noise = math.nan if None not in (fills, tv, lam, l1) else relative_noise(views, fit)
-    knobs = ADMM_KNOBS[subsamples, noise_regime(noise)]
-    return (int(knobs["fills"] if fills is None else fills), float(knobs["tv"] if tv is None else tv),
-            float(knobs["lam"] if lam is None else lam), float(knobs["l1"] if l1 is None else l1), noise)
+    given = dict(fills=fills, tv=tv, lam=lam, l1=l1)
+    noise = math.nan if None not in given.values() else relative_noise(views, fit)
+    chosen = ADMM_KNOBS[subsamples, noise_regime(noise)] if math.isfinite(noise) else {}
+    out = {k: chosen[k] if v is None else v for k, v in given.items()}
+    out = dict(fills=int(out["fills"]), tv=float(out["tv"]), lam=float(out["lam"]), l1=float(out["l1"]))
+    out["start"] = str(chosen.get("start", ADMM_START) if start is None else start)
+    out["tol"] = float((chosen["tol"] if fills is None else 0.0) if tol is None else tol)
+    out["noise"] = noise
+    return out
 
 
 def noise_regime(noise: float) -> str:

@@ -90,7 +90,8 @@ def lipschitz_bound(op: EmissionOperator) -> float:
 
 def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: int | None = None, *,
                 damp: float = 0.0, tv: float | None = None, lam: float | None = None, saturation=1.0,
-                progress: bool = False, callback=None, support=None, l1: float | None = None) -> Reconstruction:
+                progress: bool = False, callback=None, support=None, l1: float | None = None, start: str | None = None,
+                tol: float | None = None) -> Reconstruction:
     """Recover the emission on the operator's planes from one light field.
 
     Parameters
@@ -147,6 +148,11 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         admm only: the sparsity weight in [0, 1) (a fraction of the weight that zeroes every
         plane, :func:`lf_flame.tomo.fourier.solve_admm`); 0: none; None: admm's by the noise
         (above).
+    start, tol : str, float or None
+        admm only: where the first fill predicts the missing data from and the stopping
+        tolerance (:func:`lf_flame.tomo.fourier.solve_admm`); None: by the noise with the other
+        knobs (:func:`lf_flame.tomo.fourier.admm_knobs`; ``tol`` 0 when ``iters`` is given).
+        ``settings["fills_run"]`` counts the fills that ran.
 
     Returns
     -------
@@ -195,23 +201,24 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         bar.update()
         if callback is not None:
             callback(count[0], np.ravel(x))
-    if (support is not None or l1) and solver != "admm":
-        raise ValueError(f"a support and l1 are for the admm only. Received solver={solver!r}")
+    if (support is not None or l1 or start is not None or tol is not None) and solver != "admm":
+        raise ValueError(f"a support, l1, start and tol are for the admm only. Received solver={solver!r}")
     if solver == "admm":
         from .exact import ExactOperator
         from .fourier import admm_knobs, solve_admm
         if not isinstance(op, ExactOperator):
             raise ValueError("the admm solver works on the exact operator's per-frequency matrices: give an "
                              "lf_flame.tomo.exact.ExactOperator")
-        iters, admm_tv, lam, l1, noise = admm_knobs(y.reshape(op.dimsd), fit.reshape(op.dimsd),
-                                                    iters if iters_given else None, tv if tv_given else None, lam,
-                                                    op.subsamples, l1)
-        settings.update(iters=iters, lam=lam, tv=admm_tv, l1=l1, noise=noise, subsamples=op.subsamples)
+        knobs = admm_knobs(y.reshape(op.dimsd), fit.reshape(op.dimsd), iters if iters_given else None,
+                           tv if tv_given else None, lam, op.subsamples, l1, start, tol)
+        iters = knobs.pop("fills")
+        settings.update(iters=iters, subsamples=op.subsamples, **knobs)
         bar.total = iters                                            # the fills the noise chose
         bar.refresh()
-        planes, residuals, settings["system_s"] = solve_admm(y.reshape(op.dimsd), op, fit.reshape(op.dimsd),
-                                                             fills=iters, lam=lam, tv=admm_tv, l1=l1, support=support,
-                                                             callback=lambda j, x: step(x))
+        planes, residuals, settings["system_s"] = solve_admm(
+            y.reshape(op.dimsd), op, fit.reshape(op.dimsd), fills=iters, lam=knobs["lam"], tv=knobs["tv"],
+            l1=knobs["l1"], start=knobs["start"], tol=knobs["tol"], support=support, callback=lambda j, x: step(x))
+        settings["fills_run"] = len(residuals) + 1
         x = planes.ravel()
     elif solver == "adjoint":
         x = op.normalised_adjoint(y.reshape(op.dimsd)).ravel()
