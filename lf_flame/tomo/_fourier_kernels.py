@@ -148,7 +148,8 @@ def pack_lower(A, dtype):
     BLOCK) of ``dtype``, the last block padded with ones."""
     P, _, M = A.shape
     n_blocks = (M + BLOCK - 1) // BLOCK
-    out = np.ones((n_blocks, P * (P + 1) // 2, BLOCK), dtype)
+    out = np.empty((n_blocks, P * (P + 1) // 2, BLOCK), dtype)
+    out[-1, :, M - (n_blocks - 1) * BLOCK:] = 1                # the padding: an identity's ones, never read as data
     for j in range(P):                                       # a row at a time: no full-size temporary
         sel = slice(j * (j + 1) // 2, (j + 1) * (j + 2) // 2)
         for k in range(n_blocks):
