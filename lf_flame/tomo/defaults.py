@@ -16,9 +16,9 @@ DEFAULT_TV = 0.3
 #: of ``lf-flame reconstruct`` where the camera needs tracing (``--rays-per-pixel``, crosstalk, not a perfect grid).
 DEFAULT_SOLVER = "pd-tv"
 #: The default on the exact operator (every perfect lenslet grid): admm, its knobs by the data's noise, beats
-#: pd-tv on every validation render (``results/fourier_solver.md``: worst plane 2.3 % on the 2 x 2 grid and 6.0 %
-#: on the lenslet grid against 10.5 % noise-free, 8.1 % and 13.2 % against 18.6 % at 14 dB) in a fifth to a
-#: twentieth of its time.
+#: pd-tv on every validation render (``results/fourier_solver.md``: worst plane 2.0 % on the 2 x 2 grid and 6.2 %
+#: on the lenslet grid against 10.5 % noise-free, 8.1 % and 13.2 % against 18.6 % at 14 dB) in a ninth to a
+#: twenty-seventh of its time (the paper's scene, ``--stage time``).
 EXACT_SOLVER = "admm"
 #: Knobs of the "admm" solver (:func:`lf_flame.tomo.fourier.solve_admm`), chosen on validation renders at
 #: 400 rays per pixel (``experiments/exact_operator.py --stage tune``): fills of the missing data (its
@@ -61,8 +61,8 @@ ADMM_KNOBS = {(1, "quiet"): dict(ADMM_QUIET, lam=ADMM_LAM, l1=0.001, start="refo
 #: The planes' grid of the routes that build their operator (``lf-flame reconstruct``,
 #: :func:`lf_flame.tomo.depth.find_planes`): a light field carries detail finer than a lenslet in
 #: its views' parallax off focus, and the 2 x 2 grid beat the lenslet grid on the validation
-#: renders at both noise levels (worst plane 2.3 % against 6.0 % noise-free, 8.1 % against 13.2 %
-#: at 14 dB), at about twice the time per solve ...
+#: renders at both noise levels (worst plane 2.0 % against 6.2 % noise-free, 8.1 % against 13.2 %
+#: at 14 dB), at 1.6-3.7 times the time per solve ...
 ADMM_SUBSAMPLES = 2
 #: ... for stacks of at most this many planes (the per-frequency matrices grow as (P s^2)^2: at 16
 #: planes on the 2 x 2 grid they are 64 x 64, some 350 MB on the paper's camera in float32)
