@@ -56,6 +56,28 @@ def test_the_numba_sums_are_the_einsums(op):
                                atol=1e-10)
 
 
+def test_the_fused_admm_steps_are_the_array_formulas():
+    """The Numba kernels of the ADMM steps between fills against their NumPy formulas."""
+    rng = np.random.default_rng(2)
+    s, d, gy, gx, ey, ex, x = rng.normal(size=(7, 3, 9, 8)).astype(np.float32)
+    D_T = lambda a, b: (np.roll(a, 1, axis=1) - a) + (np.roll(b, 1, axis=2) - b)   # noqa: E731
+    out = np.empty_like(s)
+    K.admm_target(s, d, gy, gx, ey, ex, 0.7, out)
+    np.testing.assert_allclose(out, s - d + 0.7 * D_T(gy - ey, gx - ex), rtol=1e-5, atol=1e-5)
+    support = rng.random((3, 6, 5)) > 0.3
+    dd, new = d.copy(), np.empty_like(s)
+    K.admm_project(x, dd, 0.1, support, 6, 5, new)
+    ref = np.zeros_like(s)
+    ref[:, :6, :5] = np.maximum(x[:, :6, :5] + d[:, :6, :5] - 0.1, 0) * support
+    np.testing.assert_allclose(new, ref, rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(dd, d + x - ref, rtol=1e-6, atol=1e-6)
+    vy, vx = np.roll(x, -1, axis=1) - x + ey, np.roll(x, -1, axis=2) - x + ex
+    keep = np.maximum(1 - 0.5 / np.hypot(vy, vx), 0)
+    K.tv_shrink(x, 0.5, gy, gx, ey, ex)
+    np.testing.assert_allclose(gy, keep * vy, rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(ex, vx - keep * vx, rtol=1e-5, atol=1e-5)
+
+
 def _gram(op):
     """``G(f) = H(f)^H H(f)`` the slow way, from the operator's spectra: (Lr, F, P, P)."""
     return np.einsum("vkrf,vlrf->rfkl", op._spec.conj(), op._spec)
