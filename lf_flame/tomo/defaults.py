@@ -70,7 +70,7 @@ SUBSAMPLES_MAX_PLANES = 16
 #: Volumes (:func:`lf_flame.tomo.volume.solve_volume`, ``lf-flame reconstruct --volume``): the priors, the default
 #: one and the plane spacing (mm). The default assumes no shape: on the non-axisymmetric validation and test
 #: volumes no generic prior beat admm alone on both noise levels (``results/volume_nonaxi.md``); a laminar flame
-#: takes ``axisymmetric`` (3-D error 6.2 % median against admm's 52 %, ``results/volume.md``) ...
+#: takes ``axisymmetric`` (3-D error 6.4 % median against admm's 55 %, ``results/volume.md``) ...
 VOLUME_PRIORS = ("none", "tv", "sparse", "axisymmetric")
 VOLUME_PRIOR = "none"
 VOLUME_STEP_MM = 0.5
