@@ -36,6 +36,12 @@ What is not diagonal in frequency, and how it is handled (:func:`solve_admm`):
   isotropic TV (``tv > 0``) as a third ADMM split ``g = grad x`` whose penalty joins
   ``lam`` in the same per-frequency matrix, so it costs no more FFTs.
 
+- **The start and the stopping.** The fills converge on the window's light (given its true
+  value, one fill reaches the floor: a probe on validation renders), so the first fill may
+  predict the missing data from the normalised back-projection ``H^H (M y~) / H^H (M 1)``
+  (``start="refocused"``), and the fills may stop once the planes settle (``tol``); both are
+  knobs chosen on validation renders (:data:`~lf_flame.tomo.defaults.ADMM_KNOBS`).
+
 On an operator with ``subsamples > 1`` (a finer grid than the lenslets) all of this runs on
 its phase planes (:meth:`~lf_flame.tomo.exact.ExactOperator.to_phases`): the gradient and
 TV are those of each phase image on the lenslet grid, not of the finer grid (which would
