@@ -350,7 +350,7 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         Where the first fill predicts the missing data from. ``"zero"``: nothing (the
         missing data start at 0). ``"refocused"``: the normalised back-projection
         ``H^H (M y~) / H^H (M 1)`` (shift-and-sum refocusing through the operator over the
-        fitted pixels, :func:`backprojection`), scaled to the data by least squares; it costs
+        fitted pixels, :func:`backprojection_weight`), scaled to the data by least squares; it costs
         one ``H`` and one ``H^H`` more (the second kept on ``op`` per mask) and takes the
         missing data's fills, slow where flames stand near the window's edge, most of the way
         at once (the window's light is what the fills converge on: given its true value one
@@ -433,12 +433,10 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         if j > 1:
             residuals.append(math.sqrt(residual) / norm)
         b = _fourier_kernels.spectra_adjoint(S, scipy.fft.rfft2(z, workers=op.workers))   # H^H z, (P, Lr, F)
-        if j == 1 and l1 > 0:   # the l1 step from H^H y (without a start the first fill's z is the data)
-            if lam_max is None:
+        if j == 1:   # the l1 step from H^H y (without a start the first fill's z is the data)
+            if l1 > 0 and lam_max is None:
                 lam_max = float(scipy.fft.irfft2(b, s=canvas, workers=op.workers)[:, :gr, :gc].max())
-            shrink_l1 = l1 * lam_max / (rho * system.g0)
-        elif j == 1:
-            shrink_l1 = 0.0
+            shrink_l1 = l1 * lam_max / (rho * system.g0) if l1 > 0 else 0.0
         s_prev = s
         for _ in range(int(inner)):
             _fourier_kernels.admm_target(s, d, gy, gx, ey, ex, rho_tv / rho if tv > 0 else 0.0, r)
