@@ -303,9 +303,8 @@ def fill_data(views, fit, op):
         ``||M y||``.
     """
     N, _, R, C = op.dimsd
-    real = np.float32 if op._spec.dtype == np.complex64 else np.float64
     V = len(op._lit)
-    y, yt, w, m = (np.empty((V, R, C), t) for t in (np.float64, real, op._w.dtype, bool))
+    y, yt, w, m = (np.empty((V, R, C), t) for t in (np.float64, op._real, op._w.dtype, bool))
     sq = _fourier_kernels.gather_data(np.ascontiguousarray(views, np.float64).reshape(N * N, R, C),
                                       np.ascontiguousarray(fit, bool).reshape(N * N, R, C), op._w,
                                       np.asarray(op._lit, np.int64), y, yt, w, m)
@@ -397,24 +396,21 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     canvas = op.canvas_shape
     if support is not None:
         support = op.to_phases(support)
-    real = np.float32 if system.spec.dtype == np.complex64 else np.float64
     y, yt, w, m, norm = fill_data(views, fit, op)
     norm = norm or 1.0
     S = system.spec
-    z = np.zeros((len(system.lit),) + canvas, real)
-    s = np.zeros((P,) + canvas, real)
+    z = np.zeros((len(system.lit),) + canvas, op._real)
+    s = np.zeros((P,) + canvas, op._real)
     lam_max = None
     if start == "refocused":   # the normalised back-projection, scaled to the data: the first fill predicts from it
         _fourier_kernels.fill(z, yt, y, w, m)
-        num = scipy.fft.irfft2(_fourier_kernels.spectra_adjoint(S, scipy.fft.rfft2(z, workers=op.workers)), s=canvas,
-                               workers=op.workers)[:, :gr, :gc]
+        num = _backproject(op, z)
         lam_max = float(num.max())
         den = backprojection_weight(op, m)
         s[:, :gr, :gc] = np.where(den > 0, np.maximum(num, 0) / np.where(den > 0, den, 1), 0)
         if support is not None:
             s[:, :gr, :gc] *= support
-        z = scipy.fft.irfft2(_fourier_kernels.spectra_forward(S, scipy.fft.rfft2(s, workers=op.workers)), s=canvas,
-                             workers=op.workers)
+        z = _forward_views(op, s)
         a = _least_squares_scale(z, yt, m)
         s *= a
         z *= a
@@ -426,9 +422,7 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     residuals = []
     for j in range(1, int(fills) + 1):
         if j > 1:   # predict from the extrapolated planes (heavy-ball momentum on the fills), data where measured
-            v = s + momentum * (s - s_prev)
-            hv = _fourier_kernels.spectra_forward(S, scipy.fft.rfft2(v, workers=op.workers))
-            z = scipy.fft.irfft2(hv, s=canvas, workers=op.workers)
+            z = _forward_views(op, s + momentum * (s - s_prev))
         residual = _fourier_kernels.fill(z, yt, y, w, m)
         if j > 1:
             residuals.append(math.sqrt(residual) / norm)
@@ -474,14 +468,25 @@ def backprojection_weight(op, m) -> np.ndarray:
     key = hashlib.blake2b(np.packbits(m).tobytes(), digest_size=16).digest() + bytes(str(m.shape), "ascii")
     kept = op.__dict__.get("_backprojection_weight")
     if kept is None or kept[0] != key:
-        real = np.float32 if op._spec.dtype == np.complex64 else np.float64
-        ones = np.zeros((len(op._lit),) + tuple(op.canvas_shape), real)
+        ones = np.zeros((len(op._lit),) + tuple(op.canvas_shape), op._real)
         ones[:, :m.shape[1], :m.shape[2]] = m
-        P, gr, gc = op.phase_dims
-        den = scipy.fft.irfft2(_fourier_kernels.spectra_adjoint(op._spec, scipy.fft.rfft2(ones, workers=op.workers)),
-                               s=op.canvas_shape, workers=op.workers)[:, :gr, :gc]
-        kept = op.__dict__["_backprojection_weight"] = (key, np.where(den > 1e-6 * den.max(), den, 0).astype(real))
+        den = _backproject(op, ones)
+        kept = op.__dict__["_backprojection_weight"] = (key, np.where(den > 1e-6 * den.max(), den, 0).astype(op._real))
     return kept[1]
+
+
+def _forward_views(op, planes) -> np.ndarray:
+    """``H planes`` on the canvas: phase planes (P s^2, Lr, Lc) to the lit views (V', Lr, Lc)."""
+    return scipy.fft.irfft2(_fourier_kernels.spectra_forward(op._spec, scipy.fft.rfft2(planes, workers=op.workers)),
+                            s=op.canvas_shape, workers=op.workers)
+
+
+def _backproject(op, views) -> np.ndarray:
+    """``H^H views`` on the lenslet grid: the lit views on the canvas (V', Lr, Lc) to the phase planes
+    (P s^2, rows, cols)."""
+    _, gr, gc = op.phase_dims
+    return scipy.fft.irfft2(_fourier_kernels.spectra_adjoint(op._spec, scipy.fft.rfft2(views, workers=op.workers)),
+                            s=op.canvas_shape, workers=op.workers)[:, :gr, :gc]
 
 
 def _least_squares_scale(z, yt, m) -> float:
