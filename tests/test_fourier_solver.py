@@ -236,3 +236,23 @@ def test_the_stopping_tolerance_ends_the_fills_once_the_planes_settle(op, plante
         fourier.solve_admm(views, op, fit, start="focal")
     with pytest.raises(ValueError, match="tol"):
         fourier.solve_admm(views, op, fit, tol=-1.0)
+
+
+@pytest.mark.parametrize("complex_matrices", [False, True])
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_the_packed_cholesky_solve_matches_a_dense_solve(complex_matrices, dtype):
+    """cholesky + pack_lower + cholesky_solve against numpy's solve, per frequency, real and complex
+    matrices, over more frequencies than one block (the last one partial)."""
+    P, M = 5, K.BLOCK + 37
+    rng = np.random.default_rng(7)
+    B = rng.normal(size=(M, P, P)) + (1j * rng.normal(size=(M, P, P)) if complex_matrices else 0)
+    A = B @ np.conj(np.swapaxes(B, 1, 2)) + P * np.eye(P)                  # Hermitian positive definite, (M, P, P)
+    b = rng.normal(size=(P, M)) + 1j * rng.normal(size=(P, M))
+    want = np.linalg.solve(A, b.T[..., None])[..., 0].T
+    L = np.ascontiguousarray(np.moveaxis(A, 0, -1))
+    assert K.cholesky(L) == 0
+    packed = K.pack_lower(L, dtype)
+    assert packed.dtype == dtype and packed.shape[1] == (2 if complex_matrices else 1)
+    got = np.array(b, np.result_type(dtype, np.complex64))
+    K.cholesky_solve(packed, got)
+    np.testing.assert_allclose(got, want, rtol=0, atol=(1e-4 if dtype == np.float32 else 1e-10) * np.abs(want).max())

@@ -121,12 +121,13 @@ class FourierSystem:
     ----------
     g0 : float
         Mean of ``G``'s diagonal at zero frequency.
-    factor : ndarray of shape (n_blocks, P (P + 1) / 2, BLOCK)
+    factor : ndarray of shape (n_blocks, 1 or 2, P (P + 1) / 2, BLOCK)
         The lower Cholesky factors, computed in float64 (complex128 where ``G`` is complex),
-        packed by rows in blocks of frequencies (:func:`~lf_flame.tomo._fourier_kernels.pack_lower`:
-        a block's factors lie together in memory) and kept in the operator's precision
-        (float32 on a float32 operator: a solve reads them at every ADMM step, so their
-        memory is the solves' time); frequency last, in SIMD lanes.
+        packed by rows in blocks of frequencies, real and imaginary parts apart, diagonals as
+        their reciprocals (:func:`~lf_flame.tomo._fourier_kernels.pack_lower`: a block's
+        factors lie together in memory) and kept in the operator's real precision (float32
+        on a float32 operator: a solve reads them at every ADMM step, so their memory is the
+        solves' time); frequency last, in SIMD lanes.
     spec : ndarray of shape (V', P, Lr, Lc // 2 + 1)
         The operator's spectra of its lit views (``op``'s own array, not a copy).
     lit : ndarray of int
@@ -160,8 +161,7 @@ class FourierSystem:
             raise ValueError(f"{bad} of the per-frequency normal matrices are not positive definite: the operator's "
                              "kernels hold NaN or infinite taps")
         real = np.float32 if op._spec.dtype == np.complex64 else np.float64
-        self.factor = _fourier_kernels.pack_lower(G.reshape(P, P, -1), real if G.dtype == np.float64 else
-                                                  np.result_type(real, np.complex64))
+        self.factor = _fourier_kernels.pack_lower(G.reshape(P, P, -1), real)
         del G
         self.lam, self.rho = float(lam), float(rho)
         self.nbytes = int(self.factor.nbytes)
