@@ -24,19 +24,29 @@ def forward(S, xs, out):
 
 
 @nb.njit(parallel=True, cache=True, fastmath=False)
-def adjoint(S, ys, out):
+def adjoint(S, ys, out, n_threads):
     """``out[k, m] = sum_v conj(S[v, k, m]) ys[v, m]``: S (V, P, M), ys (V, M), out (P, M), complex.
 
-    Threads over planes; per plane the views one after another, each a contiguous, vectorised
-    pass over the frequencies (3x faster than blocks of 256 frequencies holding every plane,
-    in the same A/B; splitting the frequencies into chunks per thread made it 1.7-2.3x slower)."""
+    Threads over slices of the views, each summing into its own partial planes (a view's data
+    stay in cache while its spectra stream past once), then the partials are added: 1.35x
+    faster than threading over planes, where every thread read every view's data (an A/B on
+    the 16-plane 2 x 2 grid's spectra; splitting the frequencies into chunks per thread was
+    1.7-2.3x slower than that)."""
     V, P, M = S.shape
+    nt = max(1, min(n_threads, V))
+    part = np.zeros((nt, P, M), out.dtype)
+    per = (V + nt - 1) // nt
+    for t in nb.prange(nt):
+        for v in range(t * per, min(V, (t + 1) * per)):
+            for k in range(P):
+                for m in range(M):
+                    part[t, k, m] += np.conj(S[v, k, m]) * ys[v, m]
     for k in nb.prange(P):
         for m in range(M):
-            out[k, m] = 0
-        for v in range(V):
-            for m in range(M):
-                out[k, m] += np.conj(S[v, k, m]) * ys[v, m]
+            acc = part[0, k, m]
+            for t in range(1, nt):
+                acc += part[t, k, m]
+            out[k, m] = acc
 
 
 @nb.njit(parallel=True, cache=True)
@@ -214,7 +224,8 @@ def spectra_adjoint(S, ys):
     """``sum_v conj(S[v, k]) ys[v]`` per frequency: S (V, P, Lr, F), ys (V, Lr, F) -> (P, Lr, F), S's dtype."""
     V, P = S.shape[:2]
     out = np.empty((P,) + ys.shape[1:], S.dtype)
-    adjoint(S.reshape(V, P, -1), np.ascontiguousarray(ys, S.dtype).reshape(V, -1), out.reshape(P, -1))
+    adjoint(S.reshape(V, P, -1), np.ascontiguousarray(ys, S.dtype).reshape(V, -1), out.reshape(P, -1),
+            nb.get_num_threads())
     return out
 
 
