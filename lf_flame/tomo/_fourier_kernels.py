@@ -96,15 +96,18 @@ def correlate_taps(h, origin_y, origin_x, k, out):
 
 
 @nb.njit(parallel=True, cache=True)
-def cholesky(A):
+def cholesky(A, out):
     """In place, the lower Cholesky factor of the Hermitian positive definite ``A[:, :, m]`` for
-    every ``m``: A (P, P, M), real or complex, its lower triangle read and written. Returns the
-    number of matrices that were not positive definite (their factor holds NaN)."""
+    every ``m`` (A (P, P, M), real or complex, its lower triangle read and written), and the same
+    packed into ``out`` for :func:`cholesky_solve` as each block of frequencies is done (no second
+    pass over ``A``; :func:`factor_packed` allocates it). Returns the number of matrices that were
+    not positive definite (their factor holds NaN)."""
     P, _, M = A.shape
-    n_blocks = (M + 255) // 256
+    n_blocks = (M + BLOCK - 1) // BLOCK
+    cplx = out.shape[1] == 2
     bad = np.zeros(n_blocks, np.int64)
     for b in nb.prange(n_blocks):
-        lo, hi = b * 256, min(M, b * 256 + 256)
+        lo, hi = b * BLOCK, min(M, b * BLOCK + BLOCK)
         for j in range(P):
             for t in range(j):
                 for m in range(lo, hi):
@@ -121,6 +124,14 @@ def cholesky(A):
                         A[i, j, m] -= A[i, t, m] * np.conj(A[j, t, m])
                 for m in range(lo, hi):
                     A[i, j, m] /= A[j, j, m]
+        for i in range(P):                                   # packed by rows, the diagonal as its reciprocal
+            row = i * (i + 1) // 2
+            for t in range(i + 1):
+                for m in range(lo, hi):
+                    a = A[i, t, m]
+                    out[b, 0, row + t, m - lo] = 1.0 / a.real if t == i else a.real
+                    if cplx:
+                        out[b, 1, row + t, m - lo] = 0.0 if t == i else a.imag
     return bad.sum()
 
 
@@ -131,7 +142,7 @@ BLOCK = 256
 @nb.njit(parallel=True, cache=True)
 def cholesky_solve(L, b):
     """In place, ``b[:, m] <- (L L^H)^-1 b[:, m]`` for every ``m``: L (n_blocks, 1 or 2, P (P + 1) / 2,
-    BLOCK) the lower factors of :func:`cholesky` packed by :func:`pack_lower` (real and imaginary
+    BLOCK) the lower factors packed by :func:`factor_packed` (real and imaginary
     parts apart, the diagonal as its reciprocal), b (P, M) complex.
 
     Per block the right-hand sides are split into real and imaginary rows too, so that every
@@ -187,29 +198,20 @@ def cholesky_solve(L, b):
                 b[i, lo + m] = br[i, m] + 1j * bi[i, m]
 
 
-def pack_lower(A, dtype):
-    """The lower triangles of the Cholesky factors ``A`` (P, P, M) for :func:`cholesky_solve`.
+def factor_packed(A, dtype):
+    """The lower Cholesky factors of ``A`` (P, P, M), overwritten, packed for :func:`cholesky_solve`.
 
     Packed by rows (entry ``(i, t)``, ``t <= i``, at ``i (i + 1) / 2 + t``) in blocks of
     :data:`BLOCK` frequencies, real and imaginary parts apart (the second only where ``A`` is
     complex), each diagonal entry (real) as its reciprocal: (n_blocks, 1 or 2, P (P + 1) / 2,
-    BLOCK) of the real ``dtype``, the last block padded with ones.
+    BLOCK) of the real ``dtype``, the last block padded with ones. Returns the packed factors
+    and the number of matrices that were not positive definite (:func:`cholesky`).
     """
     P, _, M = A.shape
     n_blocks = (M + BLOCK - 1) // BLOCK
-    parts = (np.real, np.imag) if np.iscomplexobj(A) else (np.real,)
-    out = np.empty((n_blocks, len(parts), P * (P + 1) // 2, BLOCK), dtype)
+    out = np.empty((n_blocks, 2 if np.iscomplexobj(A) else 1, P * (P + 1) // 2, BLOCK), dtype)
     out[-1, :, :, M - (n_blocks - 1) * BLOCK:] = 1             # the padding: never read as data
-    for j in range(P):                                       # a row at a time: no full-size temporary
-        sel = slice(j * (j + 1) // 2, (j + 1) * (j + 2) // 2)
-        for k in range(n_blocks):
-            part = A[j, :j + 1, k * BLOCK:(k + 1) * BLOCK]
-            for c, f in enumerate(parts):
-                out[k, c, sel, :part.shape[1]] = f(part)
-            out[k, 0, sel.stop - 1, :part.shape[1]] = 1 / part[j].real
-            if len(parts) == 2:
-                out[k, 1, sel.stop - 1, :part.shape[1]] = 0
-    return out
+    return out, int(cholesky(A, out))
 
 
 def spectra_forward(S, xs):

@@ -124,7 +124,7 @@ class FourierSystem:
     factor : ndarray of shape (n_blocks, 1 or 2, P (P + 1) / 2, BLOCK)
         The lower Cholesky factors, computed in float64 (complex128 where ``G`` is complex),
         packed by rows in blocks of frequencies, real and imaginary parts apart, diagonals as
-        their reciprocals (:func:`~lf_flame.tomo._fourier_kernels.pack_lower`: a block's
+        their reciprocals (:func:`~lf_flame.tomo._fourier_kernels.factor_packed`: a block's
         factors lie together in memory) and kept in the operator's real precision (float32
         on a float32 operator: a solve reads them at every ADMM step, so their memory is the
         solves' time); frequency last, in SIMD lanes.
@@ -156,13 +156,12 @@ class FourierSystem:
                + 4 * np.sin(np.pi * np.arange(F) / op.canvas_shape[1])[None, :] ** 2)   # |D(f)|^2, (Lr, F)
         for k in range(P):
             G[k, k] += self.g0 * (lam * lap + rho)
-        bad = _fourier_kernels.cholesky(G.reshape(P, P, -1))
+        real = np.float32 if op._spec.dtype == np.complex64 else np.float64
+        self.factor, bad = _fourier_kernels.factor_packed(G.reshape(P, P, -1), real)
+        del G
         if bad:
             raise ValueError(f"{bad} of the per-frequency normal matrices are not positive definite: the operator's "
                              "kernels hold NaN or infinite taps")
-        real = np.float32 if op._spec.dtype == np.complex64 else np.float64
-        self.factor = _fourier_kernels.pack_lower(G.reshape(P, P, -1), real)
-        del G
         self.lam, self.rho = float(lam), float(rho)
         self.nbytes = int(self.factor.nbytes)
         self.setup_s = time.perf_counter() - t0
