@@ -256,17 +256,18 @@ def dense(cam, plane_counts=DENSE_P):
         solve_s = rec.time_s - rec.settings["system_s"]
         # the same setup again in this process: its memory's first touch is then paid (a virtual machine backs a
         # guest's fresh pages on first touch, at a cost that varies from run to run)
-        del op
+        row = dict(planes=P, spacing_mm=40.0 / (P - 1), operator_setup_s=op_s, system_setup_s=system.setup_s,
+                   setup_s=op_s + system.setup_s, operator_mb=op.nbytes / 2 ** 20, system_mb=system.nbytes / 2 ** 20,
+                   solve_s=solve_s)
+        lam, rho = system.lam, system.rho
+        del op, system                                             # the system holds the operator's spectra
         t0 = time.perf_counter()
         again = ExactOperator(cam, depths, precision=PRECISION)
-        warm_s = time.perf_counter() - t0 + fourier.FourierSystem(again, system.lam, system.rho).setup_s
-        rows.append(dict(planes=P, spacing_mm=40.0 / (P - 1), operator_setup_s=op_s, system_setup_s=system.setup_s,
-                         setup_s=op_s + system.setup_s, setup_again_s=warm_s, operator_mb=again.nbytes / 2 ** 20,
-                         system_mb=system.nbytes / 2 ** 20, solve_s=solve_s,
-                         peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024))
-        print(f"  dense P={P}: setup {op_s + system.setup_s:.1f} s (again {warm_s:.1f} s), solve {solve_s:.2f} s",
-              flush=True)
-        del again, system
+        row["setup_again_s"] = time.perf_counter() - t0 + fourier.FourierSystem(again, lam, rho).setup_s
+        del again
+        rows.append(dict(row, peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024))
+        print(f"  dense P={P}: setup {row['setup_s']:.1f} s (again {row['setup_again_s']:.1f} s), "
+              f"solve {solve_s:.2f} s", flush=True)
     return pd.DataFrame(rows)
 
 
