@@ -286,7 +286,7 @@ class ExactOperator(pylops.LinearOperator):
     quadrature_nodes : int
         Gauss-Legendre nodes per smooth piece of a pixel (:data:`QUADRATURE_NODES`).
     workers : int or None
-        Threads of SciPy's FFTs; None: all cores.
+        Threads of SciPy's FFTs and of the spectra's construction; None: all cores.
     subsamples : int
         Samples per lenslet footprint and axis of the planes' grids (default 1). Off focus
         the views see a plane at sub-lenslet shifts (their parallax), so a light field
