@@ -18,7 +18,11 @@ wall times, provenance):
   2 x 2 samples per lenslet (``ExactOperator(subsamples=2)``, scored binned back to the
   lenslets, against the same truth), the finer grid taken per noise level where it beats the
   lenslet grid by ``FINE_GAIN``; pd-tv (40 it., TV 0.3, 4-ray operator) on the same renders
-  for the record.
+  for the record. Every knob with every start (``STARTS``; the coarse one on the 2 x 2 grid,
+  its lenslet-grid solve at the package's lenslet knobs); the start by time among those
+  within 10 % of the best score (:func:`choose`).
+- **coarse**: the coarse start's rows alone, added to an existing ``fourier_solver_tune.csv``
+  (the other starts' rows kept), then the same choice.
 - **score**: admm at the package's defaults (its grid, knobs by the data's noise) and on the
   lenslet grid, pd-tv and shift-and-sum (``focal_stack``) on the scored
   renders (``TEST_SEEDS``) of the paper, varied and overlap scenes, noise-free and at
@@ -80,7 +84,7 @@ GRID_FINE = dict(lam=(0.01, 0.003), tv=(0.0, 0.1, 0.3), momentum=(0.6,), inner=(
 FINE_GAIN = 0.9
 MAX_FILLS = 16
 #: where the first fill predicts the missing data from (``solve_admm``'s ``start``), tried with every knob
-STARTS = ("zero", "refocused")
+STARTS = ("zero", "refocused", "coarse")
 KNOBS = ["start", "lam", "tv", "momentum", "inner", "l1"]
 #: the stopping tolerances tried on the chosen knobs (``solve_admm``'s ``tol``: relative change of the planes over a
 #: fill); the largest that keeps the validation score within 10 % of the best is taken, 0 (every fill) if none
@@ -101,25 +105,31 @@ def worst_plane(x, truth):
     return float(R.rel_errors(x, truth).max())
 
 
-def tune(cam, rays, cache):
+def tune(cam, rays, cache, starts=STARTS, grids=(1, 2), pd_tv=True):
+    """Validation rows: every knob of the grids' GRID / GRID_FINE with every start, worst plane per fill."""
     rows = []
     for kind, seed in itertools.product(KINDS, R.VAL_SEEDS):
         scene, clean, noisy, own, snr = render_set(cam, kind, seed, rays, cache)
         depths = R.planes_of(kind, scene)
         ops = {1: ExactOperator(cam, depths, precision=PRECISION),
                2: ExactOperator(cam, depths, precision=PRECISION, subsamples=2)}
-        mc = EmissionOperator(cam, depths, rays_per_pixel=R.RAYS_OP)
+        mc = EmissionOperator(cam, depths, rays_per_pixel=R.RAYS_OP) if pd_tv else None
         truth = scene_truth(scene, ops[1])
         for noise, views in (("clean", clean), ("14dB", noisy)):
             labels = dict(scene=kind, seed=seed, noise=noise, own_error=own,
                           noise_level=fourier.relative_noise(views, views < 1.0))
-            t0 = time.perf_counter()
-            rec = reconstruct(views, mc, "pd-tv")
-            rows.append(dict(labels, route="pd-tv", fills=np.nan, worst=worst_plane(rec.planes, truth),
-                             time_s=time.perf_counter() - t0))
+            if pd_tv:
+                t0 = time.perf_counter()
+                rec = reconstruct(views, mc, "pd-tv")
+                rows.append(dict(labels, route="pd-tv", fills=np.nan, worst=worst_plane(rec.planes, truth),
+                                 time_s=time.perf_counter() - t0))
             for sub, grid in ((1, GRID), (2, GRID_FINE)):
+                if sub not in grids:
+                    continue
                 op = ops[sub]
-                for start, (lam, tv, mom, inner, l1) in itertools.product(STARTS, itertools.product(*grid.values())):
+                for start, (lam, tv, mom, inner, l1) in itertools.product(starts, itertools.product(*grid.values())):
+                    if start == "coarse" and sub == 1:
+                        continue
                     prev = []
 
                     def cb(j, x):
@@ -129,20 +139,64 @@ def tune(cam, rays, cache):
                                          momentum=mom, inner=inner, l1=l1, fills=j, change=change,
                                          worst=worst_plane(bin_planes(x.reshape(op.dims), sub), truth)))
                     fourier.solve_admm(views, op, views < 1.0, fills=MAX_FILLS, inner=inner, lam=lam, tv=tv,
-                                       momentum=mom, l1=l1, start=start, callback=cb)
+                                       momentum=mom, l1=l1, start=start, callback=cb,
+                                       coarse_knobs=defaults.ADMM_KNOBS[1, REGIMES[noise]])
         print(f"  tune {kind} {seed} done", flush=True)
-    df = pd.DataFrame(rows)
+    return pd.DataFrame(rows)
+
+
+def choose(df, cam, rays, cache):
+    """The knobs per noise level and grid from the validation rows.
+
+    Per start: the fewest fills within 10 % of that start's best score, then the best of those, and the largest
+    tolerance that keeps the stopped runs within 10 % of the best (:func:`stopping`). Among the starts whose
+    stopped score is within 10 % of the best start's, the fastest: the median over the validation renders of
+    the stopped solve's time (:func:`time_start`), since a start's cost is not its fills (the refocused start
+    adds an ``H`` and an ``H^H``, the coarse one a solve on the lenslet grid)."""
     best = {}
     for noise, regime in REGIMES.items():
         for sub in (1, 2):
             admm = df[(df.route == "admm") & (df.noise == noise) & (df.subsamples == sub)]
-            score = admm.groupby(KNOBS + ["fills"]).worst.max().reset_index()
-            # the fewest fills within 10 % of the best score, then the best of those
-            ok = score[score.worst <= 1.1 * score.worst.min()].sort_values(["fills", "inner", "worst"])
-            b = best[f"{regime}_{sub}"] = ok.iloc[0].to_dict()
-            b["tol"], b["fills_run_mean"], b["worst_stopped"] = stopping(admm, b, 1.1 * score.worst.min())
+            cands = []
+            for start, runs in admm.groupby("start"):
+                score = runs.groupby(KNOBS + ["fills"]).worst.max().reset_index()
+                # the fewest fills within 10 % of the best score, then the best of those
+                ok = score[score.worst <= 1.1 * score.worst.min()].sort_values(["fills", "inner", "worst"])
+                b = ok.iloc[0].to_dict()
+                b["tol"], b["fills_run_mean"], b["worst_stopped"] = stopping(runs, b, 1.1 * score.worst.min())
+                cands.append(b)
+            floor = min(b["worst_stopped"] for b in cands)
+            cands = [b for b in cands if b["worst_stopped"] <= 1.1 * floor]
+            for b in cands:
+                b["time_s"] = time_start(cam, rays, cache, noise, sub, b) if len(cands) > 1 else np.nan
+            b = best[f"{regime}_{sub}"] = min(cands, key=lambda c: (c["time_s"] if len(cands) > 1 else 0.0))
+            b["starts_timed"] = {c["start"]: c["time_s"] for c in cands}
         best[f"{regime}_subsamples"] = 2 if best[f"{regime}_2"]["worst"] < FINE_GAIN * best[f"{regime}_1"]["worst"] else 1
-    return df, best
+    return best
+
+
+def time_start(cam, rays, cache, noise, sub, knobs, repeats=3):
+    """Median over the validation renders of the stopped admm solve's time at these knobs (operators, per-frequency
+    factors and the coarse start's lenslet-grid operator built beforehand; the fastest of ``repeats``)."""
+    times = []
+    for kind, seed in itertools.product(KINDS, R.VAL_SEEDS):
+        scene, clean, noisy, _, _ = render_set(cam, kind, seed, rays, cache)
+        views = clean if noise == "clean" else noisy
+        op = ExactOperator(cam, R.planes_of(kind, scene), precision=PRECISION, subsamples=sub)
+
+        def run():
+            fourier.solve_admm(views, op, views < 1.0, fills=int(knobs["fills"]), inner=int(knobs["inner"]),
+                               lam=knobs["lam"], tv=knobs["tv"], momentum=knobs["momentum"], l1=knobs["l1"],
+                               start=knobs["start"], tol=knobs["tol"],
+                               coarse_knobs=defaults.ADMM_KNOBS[1, REGIMES[noise]])
+        run()
+        t = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            run()
+            t.append(time.perf_counter() - t0)
+        times.append(min(t))
+    return float(np.median(times))
 
 
 def stopping(admm, chosen, bar):
@@ -282,7 +336,9 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=Path("results"))
     ap.add_argument("--cache", type=Path, default=Path("data/fourier_solver"))
-    ap.add_argument("--stage", choices=("all", "tune", "score", "time", "dense"), default="all")
+    ap.add_argument("--stage", choices=("all", "tune", "coarse", "score", "time", "dense"), default="all",
+                    help="coarse: the coarse start's validation rows added to fourier_solver_tune.csv, then the "
+                         "choice again (tune: every start)")
     ap.add_argument("--rays", type=int, default=400, help="rays per pixel of the scored renders")
     ap.add_argument("--tests", type=int, default=2, help="scored renders per scene kind")
     ap.add_argument("--repeats", type=int, default=12)
@@ -298,12 +354,18 @@ def main(argv=None):
                 test_seeds=R.TEST_SEEDS[:a.tests], snr_db=SNR_DB, provenance=provenance())
     t_all = time.perf_counter()
     stages = ("tune", "score", "time", "dense") if a.stage == "all" else (a.stage,)
-    if "tune" in stages:
-        df, best = tune(cam, a.rays, a.cache)
-        df.to_csv(a.out / "fourier_solver_tune.csv", index=False)
+    if "tune" in stages or "coarse" in stages:
+        if "tune" in stages:
+            df = tune(cam, a.rays, a.cache)
+        else:
+            old = pd.read_csv(a.out / "fourier_solver_tune.csv")
+            df = pd.concat([old[old.start != "coarse"], tune(cam, a.rays, a.cache, starts=("coarse",), grids=(2,),
+                                                              pd_tv=False)], ignore_index=True)
+        atomic_write_text(a.out / "fourier_solver_tune.csv", df.to_csv(index=False))
+        best = choose(df, cam, a.rays, a.cache)
         meta["chosen"] = {key: int(b) if isinstance(b, int) else
-                          {k: (v if k == "start" else float(v) if k not in ("inner", "fills") else int(v))
-                           for k, v in b.items()} for key, b in best.items()}
+                          {k: (v if k in ("start", "starts_timed") else float(v) if k not in ("inner", "fills")
+                               else int(v)) for k, v in b.items()} for key, b in best.items()}
         meta["noise_levels"] = df.groupby("noise").noise_level.agg(["min", "max"]).to_dict("index")
         meta["pd_tv_validation_worst"] = df[df.route == "pd-tv"].groupby("noise").worst.max().to_dict()
         print("chosen", meta["chosen"], "noise levels", meta["noise_levels"], "pd-tv validation worst",

@@ -208,7 +208,7 @@ def test_the_refocused_start_takes_the_window_most_of_the_way(op, planted):
     x, views = planted
     fit = np.ones(op.dimsd, bool)
     err = {start: [rel(fourier.solve_admm(views, op, fit, fills=f, tv=0.0, lam=0.03, start=start)[0], x).max()
-                   for f in (1, 2)] for start in fourier.ADMM_STARTS}
+                   for f in (1, 2)] for start in ("zero", "refocused")}
     assert err["refocused"][0] < 0.85 * err["zero"][0] and err["refocused"][1] < 0.9 * err["zero"][1]
     # the back-projection's weight is H^H of the fitted pixels: kept for the last mask, rebuilt for another
     w = fourier.backprojection_weight(op, np.ones((len(op._lit),) + op.dimsd[2:], bool))
@@ -216,6 +216,29 @@ def test_the_refocused_start_takes_the_window_most_of_the_way(op, planted):
     part[:, :5] = False
     w_part = fourier.backprojection_weight(op, part)
     assert (w_part <= w + 1e-6 * w.max()).all() and w_part[:, :2].max() < 0.5 * w[:, :2].max()
+
+
+def test_the_coarse_start_solves_the_lenslet_grid_first(camera, op, planted):
+    """On a 2 x 2 grid per lenslet, the coarse start (the lenslet grid's solve, each lenslet's value on its
+    four samples) leaves the first fill closer to the planted emission than the refocused start; it keeps its
+    lenslet-grid operator on the fine one, honours a support, and is refused on the lenslet grid itself."""
+    x, _ = planted
+    fine = ExactOperator(camera, DEPTHS, subsamples=2)
+    xf = np.repeat(np.repeat(x, 2, axis=1), 2, axis=2)                  # smooth blobs on the fine grid
+    views = fine.matvec(xf.ravel()).reshape(fine.dimsd)
+    fit = np.ones(fine.dimsd, bool)
+    knobs = dict(tv=0.0, lam=0.003, l1=0.0)
+    err = {start: rel(fourier.solve_admm(views, fine, fit, fills=1, start=start, **knobs)[0], xf).max()
+           for start in ("refocused", "coarse")}
+    assert err["coarse"] < 0.5 * err["refocused"]
+    coarse, built_s = fourier.coarse_operator(fine)
+    assert built_s == 0.0 and coarse.subsamples == 1 and coarse.dims == op.dims   # kept from the solves above
+    support = np.zeros(fine.dims, bool)
+    support[:, : fine.dims[1] // 2] = True                                 # the upper half of every plane
+    planes = fourier.solve_admm(views, fine, fit, fills=2, start="coarse", support=support, **knobs)[0]
+    assert planes[~support].max() == 0 and planes[support].max() > 0
+    with pytest.raises(ValueError, match="finer grid"):
+        fourier.solve_admm(planted[1], op, np.ones(op.dimsd, bool), start="coarse")
 
 
 def test_the_stopping_tolerance_ends_the_fills_once_the_planes_settle(op, planted):

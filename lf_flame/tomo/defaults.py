@@ -41,7 +41,7 @@ ADMM_TV = 0.3
 ADMM_QUIET_NOISE = 0.005
 #: Where admm's first fill predicts the missing data from (:func:`lf_flame.tomo.fourier.solve_admm`'s ``start``),
 #: and the start of the solves whose knobs are all given (the noise not measured).
-ADMM_STARTS = ("zero", "refocused")
+ADMM_STARTS = ("zero", "refocused", "coarse")
 ADMM_START = "zero"
 ADMM_QUIET = {"fills": 4, "tv": 0.0}
 #: admm's knobs per planes' grid (samples per lenslet footprint and axis,

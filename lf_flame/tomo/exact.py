@@ -382,6 +382,7 @@ class ExactOperator(pylops.LinearOperator):
         self._w = weights.reshape(N * N, R, C).astype(self._real)
 
         self.camera, self.effects, self.precision = camera, effects, precision
+        self.quadrature_nodes = int(quadrature_nodes)
         self.depths_mm = ek.depths_mm
         self.sizes_mm = ek.sizes_mm
         self.centres_mm = ((0.0, 0.0),) * len(ek.depths_mm)

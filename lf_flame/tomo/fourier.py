@@ -312,7 +312,7 @@ def fill_data(views, fit, op):
 
 def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INNER, lam: float = ADMM_LAM,
                rho: float = ADMM_RHO, tv: float = ADMM_TV, rho_tv: float = ADMM_RHO_TV, momentum: float = ADMM_MOMENTUM,
-               l1: float = 0.0, support=None, start: str = "zero", tol: float = 0.0, callback=None):
+               l1: float = 0.0, support=None, start: str = "zero", tol: float = 0.0, coarse_knobs=None, callback=None):
     """Non-negative emission on the exact operator's planes by Fourier ADMM with missing data.
 
     Parameters
@@ -344,7 +344,7 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         Where each plane may hold emission (the non-negativity projection also zeroes the
         rest): the lateral footprints of the flames found at each depth
         (:func:`lf_flame.tomo.depth.find_planes`). None: everywhere.
-    start : {"zero", "refocused"}
+    start : {"zero", "refocused", "coarse"}
         Where the first fill predicts the missing data from. ``"zero"``: nothing (the
         missing data start at 0). ``"refocused"``: the normalised back-projection
         ``H^H (M y~) / H^H (M 1)`` (shift-and-sum refocusing through the operator over the
@@ -352,11 +352,20 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         one ``H`` and one ``H^H`` more (the second kept on ``op`` per mask) and takes the
         missing data's fills, slow where flames stand near the window's edge, most of the way
         at once (the window's light is what the fills converge on: given its true value one
-        fill reaches the floor, a probe on validation renders).
+        fill reaches the floor, a probe on validation renders). ``"coarse"`` (a grid finer
+        than the lenslets only): the planes solved first on the lenslet grid
+        (:func:`coarse_operator`, with ``coarse_knobs``), each lenslet's value given to its
+        ``s x s`` samples, and the ADMM steps start from them too: a coarse-to-fine start
+        whose fills cost a quarter of the spectra's (the views' FFTs are the same).
     tol : float
         >= 0: stop after fill ``j >= 2`` once the planes' relative change over the fill,
         ``||s_j - s_(j-1)|| / ||s_j||``, is at most ``tol``; ``fills`` is then a cap. 0: run
         every fill.
+    coarse_knobs : dict or None
+        The lenslet grid's solve of the coarse start: ``fills`` (a cap), ``lam``, ``tv``,
+        ``l1``, ``start`` (``"zero"`` or ``"refocused"``) and ``tol``, as
+        :data:`~lf_flame.tomo.defaults.ADMM_KNOBS` holds them per noise level (what
+        :func:`lf_flame.tomo.solvers.reconstruct` passes). None: the quiet ones.
     callback : callable or None
         ``callback(j, x)`` after fill ``j`` (1-based) with the planes (flat).
 
@@ -367,13 +376,15 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         ``||M (w H v - y)|| / ||M y||`` at the point ``v`` each fill after the first predicts
         from (no extra operator application is spent on it): ``len(residuals) + 1`` fills ran.
     system_s : float
-        Seconds spent building the :class:`FourierSystem` (0 when ``op`` had it).
+        Seconds spent building the :class:`FourierSystem` (0 when ``op`` had it), and for the
+        coarse start the lenslet grid's operator and system where this call built them.
 
     Raises
     ------
     ValueError
         Fills or inner iterations below 1, a momentum outside [0, 1), negative weights, a
-        support that is not boolean of the planes' shape, an unknown start, a negative tol.
+        support that is not boolean of the planes' shape, an unknown start, a negative tol, the
+        coarse start on the lenslet grid.
     """
     if support is not None and (np.asarray(support).dtype != bool or np.shape(support) != tuple(op.dims)):
         raise ValueError(f"support must be boolean of the planes' shape {tuple(op.dims)}. Received: "
@@ -388,11 +399,24 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     if start not in ADMM_STARTS or not (tol >= 0 and math.isfinite(tol)):
         raise ValueError(f"start must be one of {ADMM_STARTS} and tol finite and >= 0. Received: start={start!r}, "
                          f"tol={tol!r}")
+    if start == "coarse" and op.subsamples == 1:
+        raise ValueError("the coarse start solves on the lenslet grid first: it needs a finer grid (subsamples > 1)")
     kept = list(op.__dict__.get("_fourier_systems", {}).values())
     system = admm_system(op, lam, tv, rho, rho_tv)
     system_s = 0.0 if any(system is k for k in kept) else system.setup_s
     P, gr, gc = op.phase_dims                                        # the lenslet grid's planes (phases)
     canvas = op.canvas_shape
+    if start == "coarse":   # the lenslet grid's solve, each lenslet's value on its s x s samples
+        kn = dict(ADMM_KNOBS[1, "quiet"] if coarse_knobs is None else coarse_knobs)
+        coarse, coarse_s = coarse_operator(op)
+        sub = op.subsamples
+        coarse_support = None if support is None else \
+            np.asarray(support).reshape(P // sub ** 2, gr, sub, gc, sub).any(axis=(2, 4))
+        xc, _, cs = solve_admm(views, coarse, fit, fills=kn["fills"], inner=inner, lam=kn["lam"], rho=rho,
+                               tv=kn["tv"], rho_tv=rho_tv, momentum=momentum, l1=kn["l1"], support=coarse_support,
+                               start=kn["start"], tol=kn["tol"])
+        system_s += coarse_s + cs
+        coarse_planes = np.repeat(np.repeat(xc, sub, axis=1), sub, axis=2)
     if support is not None:
         support = op.to_phases(support)
     y, yt, w, m, norm = fill_data(views, fit, op)
@@ -401,15 +425,20 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     z = np.zeros((len(system.lit),) + canvas, op._real)
     s = np.zeros((P,) + canvas, op._real)
     lam_max = None
-    if start == "refocused":   # the normalised back-projection, scaled to the data: the first fill predicts from it
+    if start == "refocused" or (start == "coarse" and l1 > 0):   # H^H (M y~): the start's numerator, l1's scale
         _fourier_kernels.fill(z, yt, y, w, m)
         num = _backproject(op, z)
         lam_max = float(num.max())
+    if start == "refocused":   # the normalised back-projection, scaled to the data: the first fill predicts from it
         den = backprojection_weight(op, m)
         s[:, :gr, :gc] = np.where(den > 0, np.maximum(num, 0) / np.where(den > 0, den, 1), 0)
+    elif start == "coarse":
+        s[:, :gr, :gc] = op.to_phases(coarse_planes)
+    if start != "zero":
         if support is not None:
             s[:, :gr, :gc] *= support
         z = _forward_views(op, s)
+    if start == "refocused":
         a = _least_squares_scale(z, yt, m)
         s *= a
         z *= a
@@ -445,6 +474,31 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
                                   <= tol * np.linalg.norm(s[:, :gr, :gc])):
             break
     return op.from_phases(s[:, :gr, :gc]).astype(np.float64), residuals, system_s
+
+
+def coarse_operator(op):
+    """The same planes' operator on the lenslet grid (``subsamples`` 1), built once and kept on ``op``.
+
+    Parameters
+    ----------
+    op : ExactOperator
+        On a grid finer than the lenslets.
+
+    Returns
+    -------
+    coarse : ExactOperator
+        The same camera, depths, margin, effects, precision, quadrature and workers.
+    setup_s : float
+        Seconds spent building it in this call (0 when ``op`` had it).
+    """
+    kept = op.__dict__.get("_coarse_operator")
+    if kept is not None:
+        return kept, 0.0
+    from .exact import ExactOperator
+    coarse = ExactOperator(op.camera, op.depths_mm, margin=op.margin, effects=op.effects, precision=op.precision,
+                           quadrature_nodes=op.quadrature_nodes, workers=op.workers)
+    op.__dict__["_coarse_operator"] = coarse
+    return coarse, coarse.setup_s
 
 
 def backprojection_weight(op, m) -> np.ndarray:

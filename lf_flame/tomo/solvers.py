@@ -152,7 +152,9 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         admm only: where the first fill predicts the missing data from and the stopping
         tolerance (:func:`lf_flame.tomo.fourier.solve_admm`); None: by the noise with the other
         knobs (:func:`lf_flame.tomo.fourier.admm_knobs`; ``tol`` 0 when ``iters`` is given).
-        ``settings["fills_run"]`` counts the fills that ran.
+        ``settings["fills_run"]`` counts the fills that ran. The coarse start's lenslet-grid
+        solve takes the lenslet grid's knobs for the noise level (the quiet ones where the
+        noise was not measured).
 
     Returns
     -------
@@ -205,7 +207,8 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         raise ValueError(f"a support, l1, start and tol are for the admm only. Received solver={solver!r}")
     if solver == "admm":
         from .exact import ExactOperator
-        from .fourier import admm_knobs, solve_admm
+        from .defaults import ADMM_KNOBS
+        from .fourier import admm_knobs, noise_regime, solve_admm
         if not isinstance(op, ExactOperator):
             raise ValueError("the admm solver works on the exact operator's per-frequency matrices: give an "
                              "lf_flame.tomo.exact.ExactOperator")
@@ -217,7 +220,8 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         bar.refresh()
         planes, residuals, settings["system_s"] = solve_admm(
             y.reshape(op.dimsd), op, fit.reshape(op.dimsd), fills=iters, lam=knobs["lam"], tv=knobs["tv"],
-            l1=knobs["l1"], start=knobs["start"], tol=knobs["tol"], support=support, callback=lambda j, x: step(x))
+            l1=knobs["l1"], start=knobs["start"], tol=knobs["tol"], support=support, callback=lambda j, x: step(x),
+            coarse_knobs=ADMM_KNOBS.get((1, noise_regime(knobs["noise"]))) if math.isfinite(knobs["noise"]) else None)
         settings["fills_run"] = len(residuals) + 1
         x = planes.ravel()
     elif solver == "adjoint":
