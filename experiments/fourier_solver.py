@@ -22,7 +22,7 @@ wall times, provenance):
   its lenslet-grid solve at the package's lenslet knobs); the start by time among those
   within 10 % of the best score (:func:`choose`).
 - **coarse**: the coarse start's rows alone, added to an existing ``fourier_solver_tune.csv``
-  (the other starts' rows kept), then the same choice.
+  (the other starts' rows kept), then the same choice; **choose**: the choice alone, from it.
 - **score**: admm at the package's defaults (its grid, knobs by the data's noise) and on the
   lenslet grid, pd-tv and shift-and-sum (``focal_stack``) on the scored
   renders (``TEST_SEEDS``) of the paper, varied and overlap scenes, noise-free and at
@@ -152,7 +152,8 @@ def choose(df, cam, rays, cache):
     tolerance that keeps the stopped runs within 10 % of the best (:func:`stopping`). Among the starts whose
     stopped score is within 10 % of the best start's, the fastest: the median over the validation renders of
     the stopped solve's time (:func:`time_start`), since a start's cost is not its fills (the refocused start
-    adds an ``H`` and an ``H^H``, the coarse one a solve on the lenslet grid)."""
+    adds an ``H`` and an ``H^H``, the coarse one a solve on the lenslet grid); starts within 10 % of the
+    fastest time count as as fast (this machine's run-to-run noise), the best stopped score among them."""
     best = {}
     for noise, regime in REGIMES.items():
         for sub in (1, 2):
@@ -169,8 +170,12 @@ def choose(df, cam, rays, cache):
             cands = [b for b in cands if b["worst_stopped"] <= 1.1 * floor]
             for b in cands:
                 b["time_s"] = time_start(cam, rays, cache, noise, sub, b) if len(cands) > 1 else np.nan
-            b = best[f"{regime}_{sub}"] = min(cands, key=lambda c: (c["time_s"] if len(cands) > 1 else 0.0))
-            b["starts_timed"] = {c["start"]: c["time_s"] for c in cands}
+            timed = {c["start"]: (c["time_s"], c["worst_stopped"]) for c in cands}
+            if len(cands) > 1:   # within 10 % of the fastest counts as as fast (this machine's noise): the best score
+                fastest = min(c["time_s"] for c in cands)
+                cands = [c for c in cands if c["time_s"] <= 1.1 * fastest]
+            b = best[f"{regime}_{sub}"] = min(cands, key=lambda c: c["worst_stopped"])
+            b["starts_timed"] = timed
         best[f"{regime}_subsamples"] = 2 if best[f"{regime}_2"]["worst"] < FINE_GAIN * best[f"{regime}_1"]["worst"] else 1
     return best
 
@@ -336,9 +341,9 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=Path("results"))
     ap.add_argument("--cache", type=Path, default=Path("data/fourier_solver"))
-    ap.add_argument("--stage", choices=("all", "tune", "coarse", "score", "time", "dense"), default="all",
+    ap.add_argument("--stage", choices=("all", "tune", "coarse", "choose", "score", "time", "dense"), default="all",
                     help="coarse: the coarse start's validation rows added to fourier_solver_tune.csv, then the "
-                         "choice again (tune: every start)")
+                         "choice again (tune: every start); choose: the choice again from that file")
     ap.add_argument("--rays", type=int, default=400, help="rays per pixel of the scored renders")
     ap.add_argument("--tests", type=int, default=2, help="scored renders per scene kind")
     ap.add_argument("--repeats", type=int, default=12)
@@ -354,14 +359,17 @@ def main(argv=None):
                 test_seeds=R.TEST_SEEDS[:a.tests], snr_db=SNR_DB, provenance=provenance())
     t_all = time.perf_counter()
     stages = ("tune", "score", "time", "dense") if a.stage == "all" else (a.stage,)
-    if "tune" in stages or "coarse" in stages:
+    if {"tune", "coarse", "choose"} & set(stages):
         if "tune" in stages:
             df = tune(cam, a.rays, a.cache)
+        elif "choose" in stages:
+            df = pd.read_csv(a.out / "fourier_solver_tune.csv")
         else:
             old = pd.read_csv(a.out / "fourier_solver_tune.csv")
             df = pd.concat([old[old.start != "coarse"], tune(cam, a.rays, a.cache, starts=("coarse",), grids=(2,),
                                                               pd_tv=False)], ignore_index=True)
-        atomic_write_text(a.out / "fourier_solver_tune.csv", df.to_csv(index=False))
+        if "choose" not in stages:
+            atomic_write_text(a.out / "fourier_solver_tune.csv", df.to_csv(index=False))
         best = choose(df, cam, a.rays, a.cache)
         meta["chosen"] = {key: int(b) if isinstance(b, int) else
                           {k: (v if k in ("start", "starts_timed") else float(v) if k not in ("inner", "fills")
