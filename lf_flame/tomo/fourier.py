@@ -477,7 +477,7 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
 
 
 def coarse_operator(op):
-    """The same planes' operator on the lenslet grid (``subsamples`` 1), built once and kept on ``op``.
+    """The same planes' operator on the lenslet grid (``subsamples`` 1), binned once and kept on ``op``.
 
     Parameters
     ----------
@@ -487,17 +487,14 @@ def coarse_operator(op):
     Returns
     -------
     coarse : ExactOperator
-        The same camera, depths, margin, effects, precision, quadrature and workers.
+        :meth:`~lf_flame.tomo.exact.ExactOperator.binned`: its phase kernels summed.
     setup_s : float
         Seconds spent building it in this call (0 when ``op`` had it).
     """
     kept = op.__dict__.get("_coarse_operator")
     if kept is not None:
         return kept, 0.0
-    from .exact import ExactOperator
-    coarse = ExactOperator(op.camera, op.depths_mm, margin=op.margin, effects=op.effects, precision=op.precision,
-                           quadrature_nodes=op.quadrature_nodes, workers=op.workers)
-    op.__dict__["_coarse_operator"] = coarse
+    coarse = op.__dict__["_coarse_operator"] = op.binned()
     return coarse, coarse.setup_s
 
 
