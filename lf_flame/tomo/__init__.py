@@ -43,7 +43,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "exact": ["QUADRATURE_NODES", "SHIFT_TOLERANCE", "PRECISIONS", "ExactKernels", "exact_kernels",
                   "ExactOperator", "emission_operator"],
         "fourier": ["FourierSystem", "fourier_system", "admm_system", "solve_admm", "admm_knobs", "admm_subsamples",
-                    "relative_noise", "backprojection_weight"],
+                    "relative_noise", "backprojection_weight", "coarse_operator"],
         "files": ["save_reconstruction", "load_reconstruction", "plot_reconstruction"],
         "operator": ["ADJOINT_BLOCKS", "RAY_TABLE_MAX_BYTES", "plane_grid", "EmissionOperator",
                      "normalised_adjoint", "check_views"],
