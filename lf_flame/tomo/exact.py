@@ -394,7 +394,6 @@ class ExactOperator(pylops.LinearOperator):
         self.workers = workers
         self.subsamples, self.phase_dims = sub, (P, gr, gc)
         super().__init__(dtype=np.float64, dims=ek.dims, dimsd=(N, N, R, C))
-        self.nbytes = int(self._spec.nbytes + self._w.nbytes + h.nbytes + weights.nbytes)
         self.setup_s = time.perf_counter() - t_start
 
     def binned(self) -> "ExactOperator":
@@ -427,9 +426,13 @@ class ExactOperator(pylops.LinearOperator):
         new._spec = self._spec.reshape((len(self._lit), P, s2) + self._spec.shape[2:]).sum(axis=2)
         new.subsamples, new.phase_dims = 1, (P, gr, gc)
         pylops.LinearOperator.__init__(new, dtype=np.float64, dims=(P, gr, gc), dimsd=self.dimsd)
-        new.nbytes = int(new._spec.nbytes + new._w.nbytes + new.kernels.nbytes + new.weights.nbytes)
         new.setup_s = time.perf_counter() - t0
         return new
+
+    @property
+    def nbytes(self) -> int:
+        """Memory held: the kernels' spectra, the weights and the kernels."""
+        return int(self._spec.nbytes + self._w.nbytes + self.kernels.nbytes + self.weights.nbytes)
 
     @staticmethod
     def _axis(k, N, n_lenslets, name):

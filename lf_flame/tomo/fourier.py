@@ -156,8 +156,7 @@ class FourierSystem:
                + 4 * np.sin(np.pi * np.arange(F) / op.canvas_shape[1])[None, :] ** 2)   # |D(f)|^2, (Lr, F)
         for k in range(P):
             G[k, k] += self.g0 * (lam * lap + rho)
-        real = np.float32 if op._spec.dtype == np.complex64 else np.float64
-        self.factor, bad = _fourier_kernels.factor_packed(G.reshape(P, P, -1), real)
+        self.factor, bad = _fourier_kernels.factor_packed(G.reshape(P, P, -1), op._real)
         del G
         if bad:
             raise ValueError(f"{bad} of the per-frequency normal matrices are not positive definite: the operator's "
@@ -406,8 +405,8 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     system_s = 0.0 if any(system is k for k in kept) else system.setup_s
     P, gr, gc = op.phase_dims                                        # the lenslet grid's planes (phases)
     canvas = op.canvas_shape
-    if start == "coarse":   # the lenslet grid's solve, each lenslet's value on its s x s samples
-        kn = dict(ADMM_KNOBS[1, "quiet"] if coarse_knobs is None else coarse_knobs)
+    if start == "coarse":   # the lenslet grid's solve: each lenslet's value on its s x s samples is on every phase
+        kn = ADMM_KNOBS[1, "quiet"] if coarse_knobs is None else coarse_knobs
         coarse, coarse_s = coarse_operator(op)
         sub = op.subsamples
         coarse_support = None if support is None else \
@@ -416,7 +415,6 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
                                tv=kn["tv"], rho_tv=rho_tv, momentum=momentum, l1=kn["l1"], support=coarse_support,
                                start=kn["start"], tol=kn["tol"])
         system_s += coarse_s + cs
-        coarse_planes = np.repeat(np.repeat(xc, sub, axis=1), sub, axis=2)
     if support is not None:
         support = op.to_phases(support)
     y, yt, w, m, norm = fill_data(views, fit, op)
@@ -433,7 +431,7 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         den = backprojection_weight(op, m)
         s[:, :gr, :gc] = np.where(den > 0, np.maximum(num, 0) / np.where(den > 0, den, 1), 0)
     elif start == "coarse":
-        s[:, :gr, :gc] = op.to_phases(coarse_planes)
+        s[:, :gr, :gc] = np.repeat(xc, sub ** 2, axis=0)           # phase k s^2 + a s + b of plane k
     if start != "zero":
         if support is not None:
             s[:, :gr, :gc] *= support
