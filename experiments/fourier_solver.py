@@ -21,8 +21,11 @@ wall times, provenance):
   for the record. Every knob with every start (``STARTS``; the coarse one on the 2 x 2 grid,
   its lenslet-grid solve at the package's lenslet knobs); the start by time among those
   within 10 % of the best score (:func:`choose`).
-- **coarse**: the coarse start's rows alone, added to an existing ``fourier_solver_tune.csv``
-  (the other starts' rows kept), then the same choice; **choose**: the choice alone, from it.
+- **coarse**: the coarse start's lenslet-grid solve: its start and fills cap (``COARSE_VARIANTS``)
+  tried ahead of the chosen quiet 2 x 2 knobs on the noise-free validation renders, the rows
+  added to an existing ``fourier_solver_tune.csv`` (the same knobs' earlier coarse rows
+  replaced), then the same choice, each variant a start of its own; **choose**: the choice
+  alone, from that file.
 - **score**: admm at the package's defaults (its grid, knobs by the data's noise) and on the
   lenslet grid, pd-tv and shift-and-sum (``focal_stack``) on the scored
   renders (``TEST_SEEDS``) of the paper, varied and overlap scenes, noise-free and at
@@ -85,7 +88,10 @@ FINE_GAIN = 0.9
 MAX_FILLS = 16
 #: where the first fill predicts the missing data from (``solve_admm``'s ``start``), tried with every knob
 STARTS = ("zero", "refocused", "coarse")
-KNOBS = ["start", "lam", "tv", "momentum", "inner", "l1"]
+KNOBS = ["start", "lam", "tv", "momentum", "inner", "l1", "coarse_start", "coarse_fills"]
+#: the coarse start's lenslet-grid solve (``defaults.COARSE_KNOBS``): its start and fills cap tried ahead of the
+#: 2 x 2 grid's chosen quiet knobs (``--stage coarse``); the rows of the other starts carry "-" and 0
+COARSE_VARIANTS = tuple((start, fills) for start in ("zero", "refocused") for fills in (1, 2, 4))
 #: the stopping tolerances tried on the chosen knobs (``solve_admm``'s ``tol``: relative change of the planes over a
 #: fill); the largest that keeps the validation score within 10 % of the best is taken, 0 (every fill) if none
 TOLS = (0.0, 0.002, 0.005, 0.01, 0.02, 0.03, 0.05)
@@ -105,8 +111,19 @@ def worst_plane(x, truth):
     return float(R.rel_errors(x, truth).max())
 
 
-def tune(cam, rays, cache, starts=STARTS, grids=(1, 2), pd_tv=True):
-    """Validation rows: every knob of the grids' GRID / GRID_FINE with every start, worst plane per fill."""
+def coarse_knobs(regime, start=None, fills=None):
+    """The coarse start's lenslet-grid knobs: the package's for the noise level, ``start`` and ``fills`` replaced."""
+    kn = dict(defaults.COARSE_KNOBS[regime])
+    kn.update({k: v for k, v in (("start", start), ("fills", fills)) if v is not None})
+    return kn
+
+
+def tune(cam, rays, cache, starts=STARTS, grids=(1, 2), pd_tv=True, coarse_variants=None, fine=None, noises=None):
+    """Validation rows: every knob of the grids' GRID / GRID_FINE with every start, worst plane per fill.
+
+    ``coarse_variants``: the coarse start's (start, fills cap) pairs tried (None: the package's); ``fine``: the
+    2 x 2 grid's knobs (lam, tv, momentum, inner, l1) alone instead of GRID_FINE's; ``noises``: those run (None:
+    both)."""
     rows = []
     for kind, seed in itertools.product(KINDS, R.VAL_SEEDS):
         scene, clean, noisy, own, snr = render_set(cam, kind, seed, rays, cache)
@@ -116,6 +133,8 @@ def tune(cam, rays, cache, starts=STARTS, grids=(1, 2), pd_tv=True):
         mc = EmissionOperator(cam, depths, rays_per_pixel=R.RAYS_OP) if pd_tv else None
         truth = scene_truth(scene, ops[1])
         for noise, views in (("clean", clean), ("14dB", noisy)):
+            if noises is not None and noise not in noises:
+                continue
             labels = dict(scene=kind, seed=seed, noise=noise, own_error=own,
                           noise_level=fourier.relative_noise(views, views < 1.0))
             if pd_tv:
@@ -127,20 +146,25 @@ def tune(cam, rays, cache, starts=STARTS, grids=(1, 2), pd_tv=True):
                 if sub not in grids:
                     continue
                 op = ops[sub]
-                for start, (lam, tv, mom, inner, l1) in itertools.product(starts, itertools.product(*grid.values())):
+                knobs = [fine] if fine is not None and sub == 2 else itertools.product(*grid.values())
+                for start, (lam, tv, mom, inner, l1) in itertools.product(starts, knobs):
                     if start == "coarse" and sub == 1:
                         continue
-                    prev = []
+                    default = coarse_knobs(REGIMES[noise])
+                    for cs, cf in (coarse_variants or [(default["start"], default["fills"])]) \
+                            if start == "coarse" else [("-", 0)]:
+                        prev = []
 
-                    def cb(j, x):
-                        change = np.linalg.norm(x - prev[0]) / max(np.linalg.norm(x), 1e-30) if prev else np.nan
-                        prev[:] = [x.copy()]
-                        rows.append(dict(labels, route="admm", subsamples=sub, start=start, lam=lam, tv=tv,
-                                         momentum=mom, inner=inner, l1=l1, fills=j, change=change,
-                                         worst=worst_plane(bin_planes(x.reshape(op.dims), sub), truth)))
-                    fourier.solve_admm(views, op, views < 1.0, fills=MAX_FILLS, inner=inner, lam=lam, tv=tv,
-                                       momentum=mom, l1=l1, start=start, callback=cb,
-                                       coarse_knobs=defaults.ADMM_KNOBS[1, REGIMES[noise]])
+                        def cb(j, x):
+                            change = np.linalg.norm(x - prev[0]) / max(np.linalg.norm(x), 1e-30) if prev else np.nan
+                            prev[:] = [x.copy()]
+                            rows.append(dict(labels, route="admm", subsamples=sub, start=start, lam=lam, tv=tv,
+                                             momentum=mom, inner=inner, l1=l1, coarse_start=cs, coarse_fills=cf,
+                                             fills=j, change=change,
+                                             worst=worst_plane(bin_planes(x.reshape(op.dims), sub), truth)))
+                        fourier.solve_admm(views, op, views < 1.0, fills=MAX_FILLS, inner=inner, lam=lam, tv=tv,
+                                           momentum=mom, l1=l1, start=start, callback=cb,
+                                           coarse_knobs=coarse_knobs(REGIMES[noise], cs, cf) if cf else None)
         print(f"  tune {kind} {seed} done", flush=True)
     return pd.DataFrame(rows)
 
@@ -159,7 +183,7 @@ def choose(df, cam, rays, cache):
         for sub in (1, 2):
             admm = df[(df.route == "admm") & (df.noise == noise) & (df.subsamples == sub)]
             cands = []
-            for start, runs in admm.groupby("start"):
+            for _, runs in admm.groupby(["start", "coarse_start", "coarse_fills"]):
                 score = runs.groupby(KNOBS + ["fills"]).worst.max().reset_index()
                 # the fewest fills within 10 % of the best score, then the best of those
                 ok = score[score.worst <= 1.1 * score.worst.min()].sort_values(["fills", "inner", "worst"])
@@ -171,7 +195,7 @@ def choose(df, cam, rays, cache):
             for b, t in zip(cands, time_starts(cam, rays, cache, noise, sub, cands) if len(cands) > 1
                             else [np.nan]):
                 b["time_s"] = t
-            timed = {c["start"]: (c["time_s"], c["worst_stopped"]) for c in cands}
+            timed = {start_label(c): (c["time_s"], c["worst_stopped"]) for c in cands}
             if len(cands) > 1:   # within 10 % of the fastest counts as as fast (this machine's noise): the best score
                 fastest = min(c["time_s"] for c in cands)
                 cands = [c for c in cands if c["time_s"] <= 1.1 * fastest]
@@ -179,6 +203,12 @@ def choose(df, cam, rays, cache):
             b["starts_timed"] = timed
         best[f"{regime}_subsamples"] = 2 if best[f"{regime}_2"]["worst"] < FINE_GAIN * best[f"{regime}_1"]["worst"] else 1
     return best
+
+
+def start_label(knobs):
+    """``start``, the coarse one with its lenslet-grid start and fills cap: ``coarse (zero, 2)``."""
+    return knobs["start"] + (f" ({knobs['coarse_start']}, {int(knobs['coarse_fills'])})"
+                             if knobs["start"] == "coarse" else "")
 
 
 def time_starts(cam, rays, cache, noise, sub, candidates, repeats=3):
@@ -195,7 +225,9 @@ def time_starts(cam, rays, cache, noise, sub, candidates, repeats=3):
                 fourier.solve_admm(views, op, views < 1.0, fills=int(knobs["fills"]), inner=int(knobs["inner"]),
                                    lam=knobs["lam"], tv=knobs["tv"], momentum=knobs["momentum"], l1=knobs["l1"],
                                    start=knobs["start"], tol=knobs["tol"],
-                                   coarse_knobs=defaults.ADMM_KNOBS[1, REGIMES[noise]])
+                                   coarse_knobs=coarse_knobs(REGIMES[noise], knobs["coarse_start"],
+                                                             int(knobs["coarse_fills"]))
+                                   if knobs["start"] == "coarse" else None)
             run()
             t = []
             for _ in range(repeats):
@@ -204,6 +236,16 @@ def time_starts(cam, rays, cache, noise, sub, candidates, repeats=3):
                 t.append(time.perf_counter() - t0)
             out.append(min(t))
     return [float(np.median(t)) for t in times]
+
+
+def legacy_coarse_labels(df):
+    """Tune rows written before the coarse start's variants were tried, labelled with the lenslet-grid knobs they
+    ran (``ADMM_KNOBS[1, ...]`` then: refocused start and 4 fills when quiet, zero and 4 when noisy)."""
+    if "coarse_start" in df:
+        return df
+    coarse = df.start == "coarse"
+    return df.assign(coarse_start=np.where(coarse, np.where(df.noise == "clean", "refocused", "zero"), "-"),
+                     coarse_fills=np.where(coarse, 4, 0))
 
 
 def stopping(admm, chosen, bar):
@@ -344,8 +386,9 @@ def main(argv=None):
     ap.add_argument("--out", type=Path, default=Path("results"))
     ap.add_argument("--cache", type=Path, default=Path("data/fourier_solver"))
     ap.add_argument("--stage", choices=("all", "tune", "coarse", "choose", "score", "time", "dense"), default="all",
-                    help="coarse: the coarse start's validation rows added to fourier_solver_tune.csv, then the "
-                         "choice again (tune: every start); choose: the choice again from that file")
+                    help="coarse: the coarse start's lenslet-grid variants (start, fills cap) at the chosen quiet "
+                         "2 x 2 knobs added to fourier_solver_tune.csv, then the choice again (tune: every "
+                         "start); choose: the choice again from that file")
     ap.add_argument("--rays", type=int, default=400, help="rays per pixel of the scored renders")
     ap.add_argument("--tests", type=int, default=2, help="scored renders per scene kind")
     ap.add_argument("--repeats", type=int, default=12)
@@ -365,16 +408,22 @@ def main(argv=None):
         if "tune" in stages:
             df = tune(cam, a.rays, a.cache)
         elif "choose" in stages:
-            df = pd.read_csv(a.out / "fourier_solver_tune.csv")
-        else:
-            old = pd.read_csv(a.out / "fourier_solver_tune.csv")
-            df = pd.concat([old[old.start != "coarse"], tune(cam, a.rays, a.cache, starts=("coarse",), grids=(2,),
-                                                              pd_tv=False)], ignore_index=True)
+            df = legacy_coarse_labels(pd.read_csv(a.out / "fourier_solver_tune.csv"))
+        else:   # the coarse start's variants at the chosen quiet 2 x 2 knobs, noise-free
+            old = legacy_coarse_labels(pd.read_csv(a.out / "fourier_solver_tune.csv"))
+            q = meta["chosen"]["quiet_2"]
+            fine = tuple(q[k] for k in ("lam", "tv", "momentum", "inner", "l1"))
+            new = tune(cam, a.rays, a.cache, starts=("coarse",), grids=(2,), pd_tv=False,
+                       coarse_variants=COARSE_VARIANTS, fine=fine, noises=("clean",))
+            same = np.logical_and.reduce([old[k] == new[k].iloc[0] for k in ("start", "noise", "subsamples", "lam",
+                                                                            "tv", "momentum", "inner", "l1")])
+            df = pd.concat([old[~same], new], ignore_index=True)
         if "choose" not in stages:
             atomic_write_text(a.out / "fourier_solver_tune.csv", df.to_csv(index=False))
         best = choose(df, cam, a.rays, a.cache)
         meta["chosen"] = {key: int(b) if isinstance(b, int) else
-                          {k: (v if k in ("start", "starts_timed") else float(v) if k not in ("inner", "fills")
+                          {k: (v if k in ("start", "coarse_start", "starts_timed") else
+                               float(v) if k not in ("inner", "fills", "coarse_fills")
                                else int(v)) for k, v in b.items()} for key, b in best.items()}
         meta["noise_levels"] = df.groupby("noise").noise_level.agg(["min", "max"]).to_dict("index")
         meta["pd_tv_validation_worst"] = df[df.route == "pd-tv"].groupby("noise").worst.max().to_dict()
@@ -386,6 +435,9 @@ def main(argv=None):
             all(tuple(c[f"{regime}_{sub}"].get(k, 0.0) for k in ("fills", "tv", "lam", "l1", "start", "tol"))
                 == tuple(defaults.ADMM_KNOBS[sub, regime][k] for k in ("fills", "tv", "lam", "l1", "start", "tol"))
                 and c[f"{regime}_subsamples"] == defaults.ADMM_SUBSAMPLES
+                and (c[f"{regime}_2"]["start"] != "coarse" or (c[f"{regime}_2"]["coarse_start"],
+                                                               c[f"{regime}_2"]["coarse_fills"])
+                     == tuple(defaults.COARSE_KNOBS[regime][k] for k in ("start", "fills")))
                 for regime in ("quiet", "noisy") for sub in (1, 2))
             and meta["noise_levels"]["clean"]["max"] < defaults.ADMM_QUIET_NOISE < meta["noise_levels"]["14dB"]["min"])
     if "score" in stages:

@@ -64,6 +64,11 @@ ADMM_KNOBS = {(1, "quiet"): dict(ADMM_QUIET, lam=ADMM_LAM, l1=0.001, start="refo
               (1, "noisy"): {"fills": ADMM_FILLS, "tv": ADMM_TV, "lam": ADMM_LAM, "l1": 0.0, "start": "zero", "tol": 0.05},
               (2, "quiet"): {"fills": 3, "tv": 0.0, "lam": 0.003, "l1": 0.0, "start": "coarse", "tol": 0.03},
               (2, "noisy"): {"fills": 4, "tv": 0.1, "lam": 0.01, "l1": 0.001, "start": "zero", "tol": 0.05}}
+#: The coarse start's lenslet-grid solve (:func:`lf_flame.tomo.fourier.solve_admm`'s ``coarse_knobs``) per noise
+#: level: the lenslet grid's knobs, its start and fills cap chosen for this role on the validation renders
+#: (``python experiments/fourier_solver.py --stage coarse``: each candidate ahead of the 2 x 2 grid's quiet
+#: knobs, the fastest stopped solve within 10 % of the best score, as the starts are chosen).
+COARSE_KNOBS = {"quiet": ADMM_KNOBS[1, "quiet"], "noisy": ADMM_KNOBS[1, "noisy"]}
 #: The planes' grid of the routes that build their operator (``lf-flame reconstruct``,
 #: :func:`lf_flame.tomo.depth.find_planes`): a light field carries detail finer than a lenslet in
 #: its views' parallax off focus, and the 2 x 2 grid beat the lenslet grid on the validation

@@ -64,7 +64,8 @@ import scipy.fft
 from . import _fourier_kernels
 
 from .defaults import (ADMM_FILLS, ADMM_INNER, ADMM_KNOBS, ADMM_LAM, ADMM_MOMENTUM, ADMM_QUIET_NOISE, ADMM_RHO,
-                       ADMM_RHO_TV, ADMM_START, ADMM_STARTS, ADMM_SUBSAMPLES, ADMM_TV, SUBSAMPLES_MAX_PLANES)
+                       ADMM_RHO_TV, ADMM_START, ADMM_STARTS, ADMM_SUBSAMPLES, ADMM_TV, COARSE_KNOBS,
+                       SUBSAMPLES_MAX_PLANES)
 
 
 #: Largest imaginary part of the normal matrices, relative to their largest entry, that is
@@ -363,7 +364,7 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     coarse_knobs : dict or None
         The lenslet grid's solve of the coarse start: ``fills`` (a cap), ``lam``, ``tv``,
         ``l1``, ``start`` (``"zero"`` or ``"refocused"``) and ``tol``, as
-        :data:`~lf_flame.tomo.defaults.ADMM_KNOBS` holds them per noise level (what
+        :data:`~lf_flame.tomo.defaults.COARSE_KNOBS` holds them per noise level (what
         :func:`lf_flame.tomo.solvers.reconstruct` passes). None: the quiet ones.
     callback : callable or None
         ``callback(j, x)`` after fill ``j`` (1-based) with the planes (flat).
@@ -406,7 +407,7 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     P, gr, gc = op.phase_dims                                        # the lenslet grid's planes (phases)
     canvas = op.canvas_shape
     if start == "coarse":   # the lenslet grid's solve: each lenslet's value on its s x s samples is on every phase
-        kn = ADMM_KNOBS[1, "quiet"] if coarse_knobs is None else coarse_knobs
+        kn = COARSE_KNOBS["quiet"] if coarse_knobs is None else coarse_knobs
         coarse, coarse_s = coarse_operator(op)
         sub = op.subsamples
         coarse_support = None if support is None else \

@@ -207,7 +207,7 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         raise ValueError(f"a support, l1, start and tol are for the admm only. Received solver={solver!r}")
     if solver == "admm":
         from .exact import ExactOperator
-        from .defaults import ADMM_KNOBS
+        from .defaults import COARSE_KNOBS
         from .fourier import admm_knobs, noise_regime, solve_admm
         if not isinstance(op, ExactOperator):
             raise ValueError("the admm solver works on the exact operator's per-frequency matrices: give an "
@@ -221,7 +221,7 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         planes, residuals, settings["system_s"] = solve_admm(
             y.reshape(op.dimsd), op, fit.reshape(op.dimsd), fills=iters, lam=knobs["lam"], tv=knobs["tv"],
             l1=knobs["l1"], start=knobs["start"], tol=knobs["tol"], support=support, callback=lambda j, x: step(x),
-            coarse_knobs=ADMM_KNOBS.get((1, noise_regime(knobs["noise"]))) if math.isfinite(knobs["noise"]) else None)
+            coarse_knobs=COARSE_KNOBS[noise_regime(knobs["noise"])] if math.isfinite(knobs["noise"]) else None)
         settings["fills_run"] = len(residuals) + 1
         x = planes.ravel()
     elif solver == "adjoint":
