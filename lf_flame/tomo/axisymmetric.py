@@ -37,10 +37,12 @@ import scipy.sparse
 from scipy import optimize
 
 from . import _fourier_kernels
-from .fourier import fill_data, normal_matrices
+from .fourier import fill_data, noise_regime, normal_matrices, relative_noise
 
-#: Smoothness weight of :func:`solve_axisymmetric`, relative to the mean diagonal of ``R^T G R``.
-AXI_LAM = 1e-3
+#: Smoothness weight of :func:`solve_axisymmetric`, relative to the mean diagonal of ``R^T G R``, per noise level
+#: of the light field (:func:`lf_flame.tomo.fourier.noise_regime`). The quiet weight was set by hand; the noisy one
+#: chosen on validation volumes (``python experiments/volume.py --set axi-lam``, ``results/volume_axi_lam.md``).
+AXI_LAM = {"quiet": 1e-3, "noisy": 1e-3}
 #: Fills of the missing data (outer iterations) and FISTA steps per fill of a final solve. 100 steps: a filled
 #: core converges slowly near the axis (25 steps left a core 15.9 % off with its true axis, 100 steps 6.7 %).
 AXI_FILLS = 8
@@ -340,7 +342,7 @@ def axis_x_from_views(views, op, axis_z_mm: float, fit=None) -> float:
 
 
 def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, axis_z_mm: float | None = None,
-                       r_max_mm: float | None = None, dr_mm: float | None = None, lam: float = AXI_LAM,
+                       r_max_mm: float | None = None, dr_mm: float | None = None, lam: float | None = None,
                        fills: int = AXI_FILLS, inner: int = AXI_INNER, search_half_width_mm: float = SEARCH_HALF_WIDTH_MM,
                        search_fills: int = SEARCH_FILLS, search_inner: int = SEARCH_INNER,
                        search_tol_mm: float = SEARCH_TOL_MM, start_z_mm: float | None = None, camera=None,
@@ -362,9 +364,10 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
         the axis's depth (a flame's half width with a margin).
     dr_mm : float or None
         Radial node spacing (:class:`RevolveOperator`).
-    lam : float
+    lam : float or None
         Weight of ``||D e||^2`` (first differences in ``y`` and ``r``) relative to the mean
-        diagonal of ``R^T G R`` (>= 0).
+        diagonal of ``R^T G R`` (>= 0); None: :data:`AXI_LAM` for the light field's noise level
+        (:func:`lf_flame.tomo.fourier.relative_noise` of the fitted pixels).
     fills, inner : int
         Fills of the missing data and FISTA steps per fill of the final solve (>= 1).
     search_half_width_mm, search_fills, search_inner, search_tol_mm : float, int, int, float
@@ -394,6 +397,8 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
     """
     t0 = time.perf_counter()
     v, f = _check(views, op, fit)
+    if lam is None:
+        lam = AXI_LAM[noise_regime(relative_noise(v, f))]
     for name, k in (("fills", fills), ("inner", inner), ("search_fills", search_fills), ("search_inner", search_inner)):
         if int(k) != k or k < 1:
             raise ValueError(f"{name} must be an integer >= 1. Received: {k!r}")

@@ -141,7 +141,7 @@ def axisymmetric_temperature(views, op, chan, cal: TemperatureCalibration, senso
                              axis_x_mm: float | None = None, axis_z_mm: float | None = None,
                              r_max_mm: float | None = None, dr_mm: float | None = None,
                              saturation: float | None = 1.0, alpha: float = ALPHA_SOOT,
-                             min_fraction: float = MIN_FRACTION, lam: float = AXI_LAM, fills: int = COLOUR_FILLS,
+                             min_fraction: float = MIN_FRACTION, lam: float = AXI_LAM["quiet"], fills: int = COLOUR_FILLS,
                              inner: int = COLOUR_INNER, matched: bool = True, camera=None,
                              **search) -> AxisymmetricTemperature:
     """Two-colour temperature ``T(r, y)`` and per voxel of an axisymmetric flame from one colour light field.
