@@ -73,7 +73,7 @@ AXI_VAL = (
     ("val core D8 x+0.3 z+2.0", 512, dict(centre_depth_mm=2.0, centre_x_mm=0.3, diameter_mm=8.0, core=1.0)),
     ("val sheath+core D7 x-0.2 z-0.6", 513, dict(centre_depth_mm=-0.6, centre_x_mm=-0.2, diameter_mm=7.0, core=0.3)),
 )
-AXI_LAMS = (3e-4, 1e-3, 3e-3, 1e-2, 3e-2)
+AXI_LAMS = (1e-3, 1e-2, 0.1, 0.3, 1.0)
 
 
 def build_scene(cam, seed, kw):
