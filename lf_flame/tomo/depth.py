@@ -46,6 +46,11 @@ SLOPE_STEP = 0.04
 MERGE_MM = 1.0
 #: Lenslets a region is grown by to make its planes' support (:func:`plane_support`).
 SUPPORT_DILATION = 3
+#: The found planes' admm knobs where they differ from admm's own for the planes' grid and the light field's
+#: noise level (:data:`~lf_flame.tomo.defaults.ADMM_KNOBS`), chosen on validation scenes of flames at random
+#: depths (``python experiments/depth.py --tune``, ``results/depth_tune.md``): flames a few lenslets wide want
+#: no TV at 14 dB, where the paper's scenes chose TV 0.1.
+FOUND_PLANES_KNOBS = {(2, "noisy"): {"tv": 0.0, "lam": 0.003}}
 
 
 @dataclass
@@ -326,7 +331,8 @@ def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturat
     with ``support`` (admm) each plane's emission held to the regions its depths were found
     in (:func:`plane_support`): a flame's light cannot leak onto a plane found for another
     region, the prior of few depths per line of sight. ``solve``: more keywords of
-    ``reconstruct`` (``iters``, ``lam``, ``tv``). ``experiments/depth.py --variant support``
+    ``reconstruct`` (``iters``, ``lam``, ``tv``); None: admm's knobs by the noise, with
+    :data:`FOUND_PLANES_KNOBS` for the grid and noise level where it holds them. ``experiments/depth.py --variant support``
     measures ``support=True, solve=dict(lam=0.01, tv=0.0)`` (TV 0.3 flattens flames a few
     lenslets wide; chosen on validation renders, seeds 100-107). ``subsamples``: samples per
     lenslet and axis of the planes' grid; None: admm's
@@ -355,5 +361,10 @@ def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturat
     op = emission_operator(camera, [float(d) for d in found.planes_mm], subsamples=subsamples)
     s = getattr(op, "subsamples", 1)
     sup = plane_support(found, dilation).repeat(s, axis=1).repeat(s, axis=2) if support and solver == "admm" else None
+    if solve is None and solver == "admm":   # the noise as reconstruct measures it (its fitted pixels)
+        from .fourier import noise_regime, relative_noise
+        fit = None if saturation is None else ~np.asarray(saturation) if np.ndim(saturation) else \
+            np.asarray(views) < saturation
+        solve = FOUND_PLANES_KNOBS.get((s, noise_regime(relative_noise(views, fit))))
     rec = reconstruct(np.asarray(views, np.float64), op, solver, saturation=saturation, support=sup, **(solve or {}))
     return found, op, rec
