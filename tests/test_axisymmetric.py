@@ -54,6 +54,19 @@ def test_known_emission_is_recovered(op):
     assert np.linalg.norm(res.emission - e) / np.linalg.norm(e) < 0.01
 
 
+def test_the_weight_follows_the_noise(op):
+    from lf_flame.tomo.axisymmetric import AXI_LAM
+    rev = RevolveOperator(op, *AXIS, R_MAX)
+    views, _ = data(op, ring(rev), rev)
+    loud = views + np.random.default_rng(5).normal(scale=0.03 * views.max(), size=views.shape)
+    kw = dict(axis_x_mm=AXIS[0], axis_z_mm=AXIS[1], r_max_mm=R_MAX, fills=1, inner=10)
+    for v, regime in ((views, "quiet"), (loud, "noisy")):
+        res = solve_axisymmetric(v, op, **kw)
+        assert res.lam == AXI_LAM[regime]
+        np.testing.assert_array_equal(res.emission, solve_axisymmetric(v, op, lam=AXI_LAM[regime], **kw).emission)
+    assert solve_axisymmetric(loud, op, lam=0.5, **kw).lam == 0.5                 # a weight given is kept
+
+
 def test_axis_search_finds_the_axis(op):
     rev = RevolveOperator(op, *AXIS, R_MAX)
     views, _ = data(op, ring(rev), rev)

@@ -62,6 +62,22 @@ def test_find_planes_emission_scored(cam, behind):
     assert df.share_near.min() > 0.9
 
 
+def test_the_found_planes_take_their_own_knobs_on_noisy_data(cam, planted):
+    from lf_flame.tomo.defaults import ADMM_KNOBS
+    from lf_flame.tomo.depth import FOUND_PLANES_KNOBS
+    _, views = planted
+    loud = views + np.random.default_rng(2).normal(scale=0.03 * views.max(), size=views.shape)
+    (key, own), = FOUND_PLANES_KNOBS.items()
+    assert key == (2, "noisy") and any(own[k] != ADMM_KNOBS[key][k] for k in own)
+    got = find_planes(loud, cam)[2].settings
+    assert got["subsamples"] == 2 and got["noise"] > 0.005
+    assert {k: got[k] for k in own} == own                               # the route's own where it holds them
+    assert (got["iters"], got["l1"]) == (ADMM_KNOBS[key]["fills"], ADMM_KNOBS[key]["l1"])   # admm's elsewhere
+    quiet = find_planes(views, cam)[2].settings
+    assert (quiet["tv"], quiet["lam"]) == (ADMM_KNOBS[2, "quiet"]["tv"], ADMM_KNOBS[2, "quiet"]["lam"])
+    assert find_planes(loud, cam, solve=dict(tv=0.3))[2].settings["tv"] == 0.3    # knobs given are kept
+
+
 def test_score_flames_truth_and_off_planes(cam, planted):
     scene, _ = planted
     depths = [o["depth_offset_mm"] for o in scene.objects]

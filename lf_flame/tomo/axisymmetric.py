@@ -186,6 +186,8 @@ class AxisymmetricVolume:
         Each axis depth tried by the search (mm) and its residual (empty when ``z0`` was given).
     time_s : float
         Wall time, seconds (normal matrices, search and solve).
+    lam : float
+        The smoothness weight used (given, or :data:`AXI_LAM` for the light field's noise).
     """
 
     emission: np.ndarray
@@ -197,6 +199,7 @@ class AxisymmetricVolume:
     residual: float
     search: list = field(default_factory=list)
     time_s: float = float("nan")
+    lam: float = float("nan")
 
 
 class _Normal:
@@ -450,4 +453,4 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
     return AxisymmetricVolume(emission=e.reshape(rev.dims), radii_mm=rev.radii_mm, heights_mm=rev.heights_mm,
                               volume=(rev.matrix @ e).reshape(op.dims), axis_x_mm=rev.axis_x_mm,
                               axis_z_mm=float(axis_z_mm), residual=float(res), search=search,
-                              time_s=time.perf_counter() - t0)
+                              time_s=time.perf_counter() - t0, lam=float(lam))

@@ -114,7 +114,7 @@ def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, p
         axi = solve_axisymmetric(v, op, fit, camera=camera)
         sample = tuple((h / op.dims[1], w / op.dims[2]) for h, w in op.sizes_mm)
         rec = Reconstruction(axi.volume, tuple(float(d) for d in depths), sample, "axisymmetric",
-                             dict(prior=prior, axis_x_mm=axi.axis_x_mm, axis_z_mm=axi.axis_z_mm,
+                             dict(prior=prior, axis_x_mm=axi.axis_x_mm, axis_z_mm=axi.axis_z_mm, lam=axi.lam,
                                   saturation=saturation, n_saturated=int((~fit).sum()),
                                   search=[list(s) for s in axi.search]),
                              np.array([axi.residual]), axi.time_s)
