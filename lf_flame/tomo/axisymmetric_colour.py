@@ -31,7 +31,7 @@ import numpy as np
 
 from ..measure.pyrometry import MIN_FRACTION, TemperatureCalibration, temperature_planes
 from ..optics.colour import ALPHA_SOOT, CHANNELS, ColourSensor
-from .axisymmetric import AXI_LAM, solve_axisymmetric
+from .axisymmetric import solve_axisymmetric
 from .colour import channel_sum_views
 
 #: Fills of the missing data and FISTA steps per fill of each channel's solve. A channel's own samples
@@ -40,6 +40,10 @@ from .colour import channel_sum_views
 #: solve_axisymmetric's 8 x 100 left the voxels' median temperature error at 149 K, 30 x 25 at 27 K,
 #: 60 x 15 at 27 K; tests/test_temperature_volume.py's scene).
 COLOUR_FILLS, COLOUR_INNER = 30, 25
+#: ... and the smoothness weight of each channel's solve: ``solve_axisymmetric``'s weight when the results in
+#: ``results/temperature_volume.md`` were measured (its noise-dependent ``AXI_LAM`` was chosen later, on
+#: monochrome volumes, not on colour ones).
+COLOUR_LAM = 1e-3
 
 
 def volume_temperature(emission_a, emission_b, cal: TemperatureCalibration, sensor: ColourSensor,
@@ -141,7 +145,7 @@ def axisymmetric_temperature(views, op, chan, cal: TemperatureCalibration, senso
                              axis_x_mm: float | None = None, axis_z_mm: float | None = None,
                              r_max_mm: float | None = None, dr_mm: float | None = None,
                              saturation: float | None = 1.0, alpha: float = ALPHA_SOOT,
-                             min_fraction: float = MIN_FRACTION, lam: float = AXI_LAM["quiet"], fills: int = COLOUR_FILLS,
+                             min_fraction: float = MIN_FRACTION, lam: float = COLOUR_LAM, fills: int = COLOUR_FILLS,
                              inner: int = COLOUR_INNER, matched: bool = True, camera=None,
                              **search) -> AxisymmetricTemperature:
     """Two-colour temperature ``T(r, y)`` and per voxel of an axisymmetric flame from one colour light field.
@@ -169,7 +173,7 @@ def axisymmetric_temperature(views, op, chan, cal: TemperatureCalibration, senso
         As :func:`volume_temperature`.
     lam, fills, inner
         Each channel's solve (:func:`~lf_flame.tomo.axisymmetric.solve_axisymmetric`;
-        defaults :data:`COLOUR_FILLS`, :data:`COLOUR_INNER`).
+        defaults :data:`COLOUR_LAM`, :data:`COLOUR_FILLS`, :data:`COLOUR_INNER`).
     matched : bool
         Match the channels' resolution as :func:`lf_flame.tomo.colour.matched_channels`:
         each channel's volume imaged again by ``op`` and solved on the other channel's
