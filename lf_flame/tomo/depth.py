@@ -333,10 +333,10 @@ def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturat
     in (:func:`plane_support`): a flame's light cannot leak onto a plane found for another
     region, the prior of few depths per line of sight. ``solve``: more keywords of
     ``reconstruct`` (``iters``, ``lam``, ``tv``); None: admm's knobs by the noise, with
-    :data:`FOUND_PLANES_KNOBS` for the grid and noise level where it holds them. ``experiments/depth.py --variant support``
-    measures ``support=True, solve=dict(lam=0.01, tv=0.0)`` (TV 0.3 flattens flames a few
-    lenslets wide; chosen on validation renders, seeds 100-107). ``subsamples``: samples per
-    lenslet and axis of the planes' grid; None: admm's
+    :data:`FOUND_PLANES_KNOBS` for the grid and noise level where it holds them.
+    ``experiments/depth.py --variant support`` measures ``support=True, solve=dict(lam=0.01,
+    tv=0.0)`` (TV 0.3 flattens flames a few lenslets wide; chosen on validation renders, seeds
+    100-107). ``subsamples``: samples per lenslet and axis of the planes' grid; None: admm's
     (:func:`lf_flame.tomo.fourier.admm_subsamples`), 1 for the other solvers.
 
     Returns
