@@ -95,12 +95,17 @@ def add_noise(raw, snr_db, seed):
 VARIANTS = {"default": {}, "support": dict(support=True, solve=dict(lam=0.01, tv=0.0))}
 
 
+def found_flames(found):
+    """``score_flames``' ``found`` of the auto route: each found depth, its voters and the region it was found in."""
+    return list(zip(found.depths_mm, found.masks, found.labels[None] == found.region[:, None, None]))
+
+
 def routes(cam, scene, views, fixed_op, mask, labels, variant="default"):
     rows = []
     t0 = time.perf_counter()
     found, _, rec = find_planes(views, cam, **VARIANTS[variant])
     t_auto = time.perf_counter() - t0
-    rows.append(score_flames(rec.planes, found.planes_mm, scene, cam, found=list(zip(found.depths_mm, found.masks, found.labels[None] == found.region[:, None, None])),
+    rows.append(score_flames(rec.planes, found.planes_mm, scene, cam, found=found_flames(found),
                              time_s=t_auto, route="auto", find_s=found.time_s, solve_s=rec.time_s,
                              n_found=len(found.depths_mm), n_planes=len(found.planes_mm), **labels))
     # each flame's found uncertainty beside its error (matched as score_flames matches)
@@ -182,9 +187,9 @@ def tune(cam, n_scenes, rays, out: Path):
             for name, solve in [("package defaults", None)] + (list(TUNE_KNOBS.items()) if noise == "14dB" else []):
                 t0 = time.perf_counter()
                 found, _, rec = find_planes(views, cam, solve=solve)
-                rows.append(score_flames(rec.planes, found.planes_mm, scene, cam, found=list(zip(
-                    found.depths_mm, found.masks, found.labels[None] == found.region[:, None, None])),
-                    time_s=time.perf_counter() - t0, route=name, noise=noise, seed=seed, snr_db=snr, knobs=str(solve)))
+                rows.append(score_flames(rec.planes, found.planes_mm, scene, cam, found=found_flames(found),
+                                         time_s=time.perf_counter() - t0, route=name, noise=noise, seed=seed,
+                                         snr_db=snr, knobs=str(solve)))
         print(f"  tune {i + 1}/{n_scenes}", flush=True)
     df = pd.concat(rows, ignore_index=True)
     tab = df.groupby(["noise", "route"], sort=False).rel_err.agg(

@@ -238,16 +238,6 @@ def time_starts(cam, rays, cache, noise, sub, candidates, repeats=3):
     return [float(np.median(t)) for t in times]
 
 
-def legacy_coarse_labels(df):
-    """Tune rows written before the coarse start's variants were tried, labelled with the lenslet-grid knobs they
-    ran (``ADMM_KNOBS[1, ...]`` then: refocused start and 4 fills when quiet, zero and 4 when noisy)."""
-    if "coarse_start" in df:
-        return df
-    coarse = df.start == "coarse"
-    return df.assign(coarse_start=np.where(coarse, np.where(df.noise == "clean", "refocused", "zero"), "-"),
-                     coarse_fills=np.where(coarse, 4, 0))
-
-
 def stopping(admm, chosen, bar):
     """The largest of TOLS whose stopped runs (after the first fill >= 2 whose relative change of the planes is at
     most tol, else at the chosen fills) keep every render's worst plane within ``bar``: (tol, mean fills run, score)."""
@@ -408,9 +398,9 @@ def main(argv=None):
         if "tune" in stages:
             df = tune(cam, a.rays, a.cache)
         elif "choose" in stages:
-            df = legacy_coarse_labels(pd.read_csv(a.out / "fourier_solver_tune.csv"))
+            df = pd.read_csv(a.out / "fourier_solver_tune.csv")
         else:   # the coarse start's variants at the chosen quiet 2 x 2 knobs, noise-free
-            old = legacy_coarse_labels(pd.read_csv(a.out / "fourier_solver_tune.csv"))
+            old = pd.read_csv(a.out / "fourier_solver_tune.csv")
             q = meta["chosen"]["quiet_2"]
             fine = tuple(q[k] for k in ("lam", "tv", "momentum", "inner", "l1"))
             new = tune(cam, a.rays, a.cache, starts=("coarse",), grids=(2,), pd_tv=False,
