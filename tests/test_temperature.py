@@ -173,7 +173,7 @@ def test_matched_route_keeps_a_uniform_ratio_off_focus():
     aliasing, about 7 % in the ratio (p90 over the bright lenslets); the matched route (each
     channel through both channels' samples) keeps the ratio within a third of that,
     unsmoothed."""
-    from lf_flame.tomo.colour import channel_emission, channel_views, route_operator
+    from lf_flame.tomo.colour import MATCHED_KNOBS, channel_emission, channel_views, route_operator
     sensor = library_sensor(gains=GAINS)
     y, x = np.mgrid[0:42, 0:42]
     soot = np.exp(-(((x - 21) / 7.0) ** 2 + ((y - 21) / 12.0) ** 2)) * (1 + 0.5 * np.cos(1.3 * x) * np.cos(0.9 * y))
@@ -191,7 +191,8 @@ def test_matched_route_keeps_a_uniform_ratio_off_focus():
         assert a.shape == b.shape == (1, CAM.n_rows, CAM.n_cols)          # binned to the lenslets
         bright = a + b > 0.3 * (a + b).max()
         spread[route] = np.percentile(np.abs(a[bright] / b[bright] / (ch[0].sum() / ch[1].sum()) - 1), 90)
-    assert info == dict(subsamples=2, sigma=0.0)
+    assert info["knobs"] == MATCHED_KNOBS[info["regime"]]     # (its fine texture reads as noise)
+    assert (info["subsamples"], info["sigma"]) == (2, 0.0)
     assert spread["admm-cfa"] > 0.04
     assert spread["admm-cfa-matched"] < spread["admm-cfa"] / 3
 
@@ -216,3 +217,30 @@ def test_cfa_noise_reads_each_channel_alone():
     noisy = raw + np.random.default_rng(0).normal(0, 0.2, raw.shape).astype(np.float32) * raw
     assert cfa_noise(raw_to_views(raw, n), chan, (0, 1)) < ADMM_QUIET_NOISE
     assert cfa_noise(raw_to_views(noisy, n), chan, (0, 1)) > ADMM_QUIET_NOISE
+
+
+def test_matched_route_takes_its_knobs_by_the_noise(monkeypatch):
+    """``admm-cfa-matched`` solves a quiet light field with the quiet knobs, unsmoothed, and a
+    noisy one with the noisy knobs, smoothed; given knobs and sigma, it measures nothing."""
+    from lf_flame.tomo import colour
+    quiet = dict(fills=2, lam=0.003, tv=0.0, l1=0.0)            # (few fills: the test's time)
+    monkeypatch.setitem(colour.MATCHED_KNOBS, "quiet", quiet)
+    monkeypatch.setitem(colour.MATCHED_KNOBS, "noisy", dict(colour.MATCHED_KNOBS["noisy"], fills=3))
+    sensor = library_sensor(gains=GAINS)
+    y, x = np.mgrid[0:42, 0:42]
+    soot = np.exp(-(((x - 21) / 7.0) ** 2 + ((y - 21) / 12.0) ** 2))
+    ch = soot[None] * np.moveaxis(band_integrals(sensor, np.full((42, 42), 1900.0), gains=True), -1, 0)
+    ch = (ch * 0.8 / ch.max()).astype(np.float32)
+    scene = Scene("blob", (Layer(ch[1], None, 0.0, (0.0, 0.0), CAM.field_of_view_mm(0.0)),), Effects(occlusion=False))
+    raw = render_colour(CAM, scene, [ch], sensor, 64, 1)
+    noisy = raw + np.random.default_rng(0).normal(0, 0.2, raw.shape).astype(np.float32) * raw
+    n, op = CAM.pixels_per_lenslet, colour.route_operator(CAM, [0.0], "admm-cfa-matched")
+    chan = colour.channel_views(raw.shape, sensor, n)
+    for image, regime, sigma in ((raw, "quiet", 0.0), (noisy, "noisy", colour.MATCHED_SIGMA_NOISY)):
+        info = {}
+        colour.channel_emission("admm-cfa-matched", raw_to_views(image, n), chan, (0, 1), op=op, info=info)
+        assert (info["regime"], info["knobs"], info["sigma"]) == (regime, colour.MATCHED_KNOBS[regime], sigma)
+    info = {}
+    colour.channel_emission("admm-cfa-matched", raw_to_views(noisy, n), chan, (0, 1), op=op, sigma=0.2,
+                            knobs=quiet, info=info)
+    assert info == dict(knobs=quiet, sigma=0.2, subsamples=2)

@@ -55,6 +55,15 @@ SMOOTH_SIGMA = 0.7
 #: smoothed by 0.7), 98 K at 14 dB smoothed by 0.7 (253 K unsmoothed); on the lenslet grid 56 K
 #: noise-free (89 K at 14 dB: the one setting where the lenslet grid is better).
 MATCHED_SUBSAMPLES, MATCHED_SIGMA_NOISY = 2, 0.7
+#: ``admm-cfa-matched``'s admm knobs (all four solves) by the light field's noise regime
+#: (:func:`cfa_noise` against ``ADMM_QUIET_NOISE``). Quiet: the missing data's fills converge
+#: slowly (three quarters of the red samples are missing), and the lenslet-scale aliasing of
+#: the ratio fades only after some hundreds of fills: chosen on validation scenes (seeds
+#: 937500-1, ``results/temperature_fills.md``) for the smallest worst-plane p90, about 90 s a
+#: scene on 2 cores against 8 s for 25 fills. Noisy: 25 fills (stopping early regularises the
+#: noise) and the ``admm-cfa`` weights, smoothed by :data:`MATCHED_SIGMA_NOISY`.
+MATCHED_KNOBS = {"quiet": dict(fills=300, lam=0.003, tv=0.0, l1=0.0),
+                 "noisy": dict(fills=CFA_FILLS, lam=CFA_LAM, tv=CFA_TV, l1=CFA_L1)}
 
 
 def channel_views(shape, sensor: ColourSensor, pixels_per_lenslet: int) -> np.ndarray:
@@ -233,7 +242,8 @@ def smooth_planes(planes: np.ndarray, sigma: float = SMOOTH_SIGMA) -> np.ndarray
 
 
 def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, *, op=None, slopes=None,
-                     saturation: float | None = 1.0, sigma: float | None = None, info: dict | None = None):
+                     saturation: float | None = 1.0, sigma: float | None = None, knobs: dict | None = None,
+                     info: dict | None = None):
     """Two channels' emission per plane from a colour light field by one of :data:`CFA_ROUTES`.
 
     Parameters
@@ -256,9 +266,12 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
     sigma : float or None
         ``admm-cfa-matched``'s Gaussian, lenslets; None: by the light field's noise
         (:func:`cfa_noise`; texture finer than two lenslets also reads as noise there).
+    knobs : dict or None
+        ``admm-cfa-matched``'s admm ``fills``, ``lam``, ``tv``, ``l1``; None:
+        :data:`MATCHED_KNOBS` by the light field's noise, as ``sigma``.
     info : dict or None
-        Filled with what the route chose: ``noise`` and ``sigma`` (``admm-cfa-matched``),
-        ``subsamples`` (admm routes).
+        Filled with what the route chose: ``noise`` (measured where ``sigma`` or ``knobs`` is
+        None), ``regime``, ``knobs`` and ``sigma`` (``admm-cfa-matched``), ``subsamples`` (admm routes).
 
     Returns
     -------
@@ -286,18 +299,18 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
     ok = np.ones(views.shape, bool) if saturation is None else views < saturation
     fits = [(chan == c) & ok for c in channels]
     if route == "admm-cfa-matched":
-        rec = matched_channels(views, op, fits)
+        if sigma is None or knobs is None:
+            info["noise"] = cfa_noise(views, chan, channels)
+            info["regime"] = "noisy" if info["noise"] >= ADMM_QUIET_NOISE else "quiet"
+            sigma = (MATCHED_SIGMA_NOISY if info["regime"] == "noisy" else 0.0) if sigma is None else sigma
+            knobs = MATCHED_KNOBS[info["regime"]] if knobs is None else knobs
+        info.update(knobs=dict(knobs), sigma=sigma)
+        rec = matched_channels(views, op, fits, **knobs)
     else:
         rec = [admm_channel(views, op, f) for f in fits]
+        sigma = SMOOTH_SIGMA if route == "admm-cfa-smooth" else 0.0
     rec = [bin_planes(r, op.subsamples) for r in rec]
     info["subsamples"] = op.subsamples
-    if route == "admm-cfa-matched":
-        if sigma is None:
-            info["noise"] = cfa_noise(views, chan, channels)
-            sigma = MATCHED_SIGMA_NOISY if info["noise"] >= ADMM_QUIET_NOISE else 0.0
-        info["sigma"] = sigma
-    else:
-        sigma = SMOOTH_SIGMA if route == "admm-cfa-smooth" else 0.0
     if sigma:
         rec = [smooth_planes(r, sigma) for r in rec]
     return rec[0], rec[1]
