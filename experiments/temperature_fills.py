@@ -81,8 +81,9 @@ def main(argv=None):
                   f"{[round(x['p90_k']) for x in rows[-len(Tt):]]}", flush=True)
     df = pd.DataFrame(rows)
     df.to_csv(args.out / "temperature_fills.csv", index=False)
-    g = df.groupby(["noise", "fills", "lam"]).agg(p90_worst_plane=("p90_k", "max"), p90_median_plane=("p90_k", "median"),
-                                                  worst=("worst_k", "max"), time_s=("time_s", "median")).reset_index()
+    g = df.groupby(["noise", "fills", "lam"]).agg(
+        p90_worst_plane=("p90_k", "max"), p90_median_plane=("p90_k", "median"), worst=("worst_k", "max"),
+        time_s=("time_s", "median")).reset_index()
     clean = g[g.noise == "clean"].sort_values(["p90_worst_plane", "fills"])
     best = clean.p90_worst_plane.min()
     pick = clean[clean.p90_worst_plane <= best + 1.0].sort_values("fills").iloc[0]

@@ -197,12 +197,9 @@ def test_matched_route_keeps_a_uniform_ratio_off_focus():
     assert spread["admm-cfa-matched"] < spread["admm-cfa"] / 3
 
 
-def test_cfa_noise_reads_each_channel_alone():
-    """The noise of a colour light field measured on each channel's own samples: a smooth
-    noise-free flame reads quiet (the CFA's pattern is not noise), the same at about 14 dB noisy;
-    the sub-views hold one channel only."""
-    from lf_flame.tomo.colour import channel_subviews, cfa_noise, channel_views
-    from lf_flame.tomo.defaults import ADMM_QUIET_NOISE
+def _smooth_blob():
+    """A smooth flame-like blob at 1,900 K in focus through the CFA, noise-free and with about 14 dB
+    of noise: (sensor, raw, noisy)."""
     sensor = library_sensor(gains=GAINS)
     y, x = np.mgrid[0:42, 0:42]
     soot = np.exp(-(((x - 21) / 7.0) ** 2 + ((y - 21) / 12.0) ** 2))
@@ -210,11 +207,21 @@ def test_cfa_noise_reads_each_channel_alone():
     ch = (ch * 0.8 / ch.max()).astype(np.float32)
     scene = Scene("blob", (Layer(ch[1], None, 0.0, (0.0, 0.0), CAM.field_of_view_mm(0.0)),), Effects(occlusion=False))
     raw = render_colour(CAM, scene, [ch], sensor, 64, 1)
+    noisy = raw + np.random.default_rng(0).normal(0, 0.2, raw.shape).astype(np.float32) * raw
+    return sensor, raw, noisy
+
+
+def test_cfa_noise_reads_each_channel_alone():
+    """The noise of a colour light field measured on each channel's own samples: a smooth
+    noise-free flame reads quiet (the CFA's pattern is not noise), the same at about 14 dB noisy;
+    the sub-views hold one channel only."""
+    from lf_flame.tomo.colour import channel_subviews, cfa_noise, channel_views
+    from lf_flame.tomo.defaults import ADMM_QUIET_NOISE
+    sensor, raw, noisy = _smooth_blob()
     n = CAM.pixels_per_lenslet
     chan = channel_views(raw.shape, sensor, n)
     for c in (0, 1):
         assert (channel_subviews(chan.astype(float), chan, c) == c).all()
-    noisy = raw + np.random.default_rng(0).normal(0, 0.2, raw.shape).astype(np.float32) * raw
     assert cfa_noise(raw_to_views(raw, n), chan, (0, 1)) < ADMM_QUIET_NOISE
     assert cfa_noise(raw_to_views(noisy, n), chan, (0, 1)) > ADMM_QUIET_NOISE
 
@@ -226,14 +233,7 @@ def test_matched_route_takes_its_knobs_by_the_noise(monkeypatch):
     quiet = dict(fills=2, lam=0.003, tv=0.0, l1=0.0)            # (few fills: the test's time)
     monkeypatch.setitem(colour.MATCHED_KNOBS, "quiet", quiet)
     monkeypatch.setitem(colour.MATCHED_KNOBS, "noisy", dict(colour.MATCHED_KNOBS["noisy"], fills=3))
-    sensor = library_sensor(gains=GAINS)
-    y, x = np.mgrid[0:42, 0:42]
-    soot = np.exp(-(((x - 21) / 7.0) ** 2 + ((y - 21) / 12.0) ** 2))
-    ch = soot[None] * np.moveaxis(band_integrals(sensor, np.full((42, 42), 1900.0), gains=True), -1, 0)
-    ch = (ch * 0.8 / ch.max()).astype(np.float32)
-    scene = Scene("blob", (Layer(ch[1], None, 0.0, (0.0, 0.0), CAM.field_of_view_mm(0.0)),), Effects(occlusion=False))
-    raw = render_colour(CAM, scene, [ch], sensor, 64, 1)
-    noisy = raw + np.random.default_rng(0).normal(0, 0.2, raw.shape).astype(np.float32) * raw
+    sensor, raw, noisy = _smooth_blob()
     n, op = CAM.pixels_per_lenslet, colour.route_operator(CAM, [0.0], "admm-cfa-matched")
     chan = colour.channel_views(raw.shape, sensor, n)
     for image, regime, sigma in ((raw, "quiet", 0.0), (noisy, "noisy", colour.MATCHED_SIGMA_NOISY)):
