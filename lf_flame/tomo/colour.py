@@ -12,8 +12,9 @@ missing. Routes from those samples to each plane's emission in two channels, who
   *other* channel's samples (:func:`matched_channels`), so that both channels pass through
   both sampling patterns and their errors largely cancel in the ratio: the colour
   counterpart of matching two images' point-spread functions before a colour ratio in
-  multi-band photometry. Binned to the lenslets; smoothed by :data:`MATCHED_SIGMA_NOISY`
-  lenslets when the light field is noisy (:func:`cfa_noise`);
+  multi-band photometry. Binned to the lenslets; the admm knobs of :data:`MATCHED_KNOBS` by
+  the light field's noise (:func:`cfa_noise`), smoothed by :data:`MATCHED_SIGMA_NOISY`
+  lenslets when it is noisy;
 - ``admm-cfa``: the exact operator's admm (:func:`lf_flame.tomo.solvers.reconstruct`) on
   each channel's own samples, the other channels' samples left out of the fit as missing
   data (the ``saturation`` mask), as are clipped samples (:func:`admm_channel`);
