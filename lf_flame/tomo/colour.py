@@ -65,6 +65,9 @@ MATCHED_SUBSAMPLES, MATCHED_SIGMA_NOISY = 2, 0.7
 #: noise) and the ``admm-cfa`` weights, smoothed by :data:`MATCHED_SIGMA_NOISY`.
 MATCHED_KNOBS = {"quiet": dict(fills=300, lam=0.003, tv=0.0, l1=0.0),
                  "noisy": dict(fills=CFA_FILLS, lam=CFA_LAM, tv=CFA_TV, l1=CFA_L1)}
+#: The relative noise (:func:`cfa_noise`) below which ``admm-cfa-matched`` takes the quiet knobs: lower
+#: than the monochrome ``ADMM_QUIET_NOISE``, as the quiet knobs' many fills fit the noise.
+MATCHED_QUIET_NOISE = ADMM_QUIET_NOISE
 
 
 def channel_views(shape, sensor: ColourSensor, pixels_per_lenslet: int) -> np.ndarray:
@@ -302,7 +305,7 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
     if route == "admm-cfa-matched":
         if sigma is None or knobs is None:
             info["noise"] = cfa_noise(views, chan, channels)
-            info["regime"] = "noisy" if info["noise"] >= ADMM_QUIET_NOISE else "quiet"
+            info["regime"] = "noisy" if info["noise"] >= MATCHED_QUIET_NOISE else "quiet"
             sigma = (MATCHED_SIGMA_NOISY if info["regime"] == "noisy" else 0.0) if sigma is None else sigma
             knobs = MATCHED_KNOBS[info["regime"]] if knobs is None else knobs
         info.update(knobs=dict(knobs), sigma=sigma)
