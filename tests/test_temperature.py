@@ -227,8 +227,9 @@ def test_cfa_noise_reads_each_channel_alone():
 
 
 def test_matched_route_takes_its_knobs_by_the_noise(monkeypatch):
-    """``admm-cfa-matched`` solves a quiet light field with the quiet knobs, unsmoothed, and a
-    noisy one with the noisy knobs, smoothed; given knobs and sigma, it measures nothing."""
+    """``admm-cfa-matched`` solves a light field whose noise is below ``MATCHED_QUIET_NOISE`` with
+    the quiet knobs, unsmoothed, and one above it with the noisy knobs, smoothed; given knobs and
+    sigma, it measures nothing."""
     from lf_flame.tomo import colour
     quiet = dict(fills=2, lam=0.003, tv=0.0, l1=0.0)            # (few fills: the test's time)
     monkeypatch.setitem(colour.MATCHED_KNOBS, "quiet", quiet)
@@ -236,7 +237,9 @@ def test_matched_route_takes_its_knobs_by_the_noise(monkeypatch):
     sensor, raw, noisy = _smooth_blob()
     n, op = CAM.pixels_per_lenslet, colour.route_operator(CAM, [0.0], "admm-cfa-matched")
     chan = colour.channel_views(raw.shape, sensor, n)
-    for image, regime, sigma in ((raw, "quiet", 0.0), (noisy, "noisy", colour.MATCHED_SIGMA_NOISY)):
+    for image, threshold, regime in ((raw, 0.01, "quiet"), (raw, 0.003, "noisy"), (noisy, 0.01, "noisy")):
+        monkeypatch.setattr(colour, "MATCHED_QUIET_NOISE", threshold)   # the blob reads 0.004, noisy 0.03
+        sigma = colour.MATCHED_SIGMA_NOISY if regime == "noisy" else 0.0
         info = {}
         colour.channel_emission("admm-cfa-matched", raw_to_views(image, n), chan, (0, 1), op=op, info=info)
         assert (info["regime"], info["knobs"], info["sigma"]) == (regime, colour.MATCHED_KNOBS[regime], sigma)

@@ -37,7 +37,6 @@ import numpy as np
 
 from ..optics.colour import ColourSensor
 from ..refocus.shift_and_sum import aperture_mask, focal_stack, raw_to_views
-from .defaults import ADMM_QUIET_NOISE
 from .fourier import relative_noise
 from .solvers import reconstruct
 from .truth import bin_planes, resample_layer
@@ -51,13 +50,13 @@ CFA_FILLS, CFA_LAM, CFA_TV, CFA_L1 = 25, 0.01, 0.0, 0.0
 SMOOTH_SIGMA = 0.7
 #: ``admm-cfa-matched``: its planes' grid (samples per lenslet and axis) and the Gaussian
 #: (lenslets) both channels are smoothed by when the light field is noisy (relative noise at
-#: or above ``ADMM_QUIET_NOISE``; none when quiet). Chosen on validation scenes (seeds 937500-1,
+#: or above ``MATCHED_QUIET_NOISE``; none when quiet). Chosen on validation scenes (seeds 937500-1,
 #: 400 rays, ``results/temperature_grid.md``): worst-plane p90 38 K noise-free unsmoothed (67 K
 #: smoothed by 0.7), 98 K at 14 dB smoothed by 0.7 (253 K unsmoothed); on the lenslet grid 56 K
 #: noise-free (89 K at 14 dB: the one setting where the lenslet grid is better).
 MATCHED_SUBSAMPLES, MATCHED_SIGMA_NOISY = 2, 0.7
 #: ``admm-cfa-matched``'s admm knobs (all four solves) by the light field's noise regime
-#: (:func:`cfa_noise` against ``ADMM_QUIET_NOISE``). Quiet: the missing data's fills converge
+#: (:func:`cfa_noise` against :data:`MATCHED_QUIET_NOISE`). Quiet: the missing data's fills converge
 #: slowly (three quarters of the red samples are missing), and the lenslet-scale aliasing of
 #: the ratio fades only after some hundreds of fills: chosen on validation scenes (seeds
 #: 937500-1, ``results/temperature_fills.md``) for the smallest worst-plane p90, about 90 s a
@@ -66,8 +65,11 @@ MATCHED_SUBSAMPLES, MATCHED_SIGMA_NOISY = 2, 0.7
 MATCHED_KNOBS = {"quiet": dict(fills=300, lam=0.003, tv=0.0, l1=0.0),
                  "noisy": dict(fills=CFA_FILLS, lam=CFA_LAM, tv=CFA_TV, l1=CFA_L1)}
 #: The relative noise (:func:`cfa_noise`) below which ``admm-cfa-matched`` takes the quiet knobs: lower
-#: than the monochrome ``ADMM_QUIET_NOISE``, as the quiet knobs' many fills fit the noise.
-MATCHED_QUIET_NOISE = ADMM_QUIET_NOISE
+#: than the monochrome ``ADMM_QUIET_NOISE`` (0.005), as the quiet knobs' many fills fit the noise. Chosen on
+#: the validation scenes (``experiments/temperature_snr.py --validation``): the quiet knobs' worst-plane p90
+#: beat the noisy knobs' from 30 dB (noise up to 0.0033; 65 against 68 K) and lost at 26 dB (noise from
+#: 0.0047; 98 against 67 K); 0.004 splits them (their geometric mean 0.0039).
+MATCHED_QUIET_NOISE = 0.004
 
 
 def channel_views(shape, sensor: ColourSensor, pixels_per_lenslet: int) -> np.ndarray:
