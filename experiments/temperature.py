@@ -94,19 +94,32 @@ def full_well_for(clean: np.ndarray, snr_db: float, read: float = READ_E) -> flo
     return float(1.0 / ((-b + np.sqrt(b * b - 4 * a * c)) / (2 * a)))
 
 
-def add_noise(clean, effects, seed, snr_db=SNR_DB):
-    """Shot and read noise on a noise-free mosaic at ``snr_db`` (measured within 0.2 dB: the full
+def add_noise(clean, effects, seed, target_db=SNR_DB):
+    """Shot and read noise on a noise-free mosaic at ``target_db`` (measured within 0.2 dB: the full
     well is corrected up to 4 times, as make reconstruct does). Returns (noisy, full well)."""
-    fw = full_well_for(clean, snr_db)
-    s2 = np.sum(clean.astype(np.float64) ** 2)
+    fw = full_well_for(clean, target_db)
     for _ in range(4):
         fx = dataclasses.replace(effects, full_well_e=fw, read_noise_e=READ_E)
         noisy = tracer.apply_sensor(clean.copy(), fx, seed)
-        snr = 10 * np.log10(s2 / np.sum((noisy.astype(np.float64) - clean) ** 2))
-        if abs(snr - snr_db) < 0.2:
+        snr = snr_db(clean, noisy)
+        if abs(snr - target_db) < 0.2:
             break
-        fw /= 10 ** ((snr - snr_db) / 10)
+        fw /= 10 ** ((snr - target_db) / 10)
     return noisy, fw
+
+
+def snr_db(clean, noisy) -> float:
+    """SNR (dB) of ``noisy`` against the noise-free ``clean``, over the whole image."""
+    c = clean.astype(np.float64)
+    return float(10 * np.log10(np.sum(c ** 2) / np.sum((noisy - c) ** 2)))
+
+
+def true_temperature(cs, op, cal, model):
+    """Each plane's true temperature (K) and truth mask of a colour scene on ``op``'s grid:
+    :func:`colour_truth`'s R and G through the calibration's lookup. Returns (Tt, vt)."""
+    truth = colour_truth(cs.channel_radiance, cs.scene.layers, op)
+    Tt, vt, _ = P.temperature_planes(truth[0], truth[1], cal, model)
+    return Tt, vt
 
 
 def snr_per_channel(clean, noisy, chan):
@@ -169,8 +182,7 @@ def render_scene(cam, cs, sensor, rays, seed):
     clean = tracer.apply_sensor(mosaic(chans, sensor), cs.scene.effects, seed)   # clipping only
     noisy, fw = add_noise(clean, cs.scene.effects, seed)
     snr = snr_per_channel(clean, noisy, sensor.channel_map(clean.shape))
-    snr_all = float(10 * np.log10(np.sum(clean.astype(float) ** 2) / np.sum((noisy - clean.astype(float)) ** 2)))
-    return dict(chans=chans, own=own, clean=clean, noisy=noisy, fw=fw, snr=snr, snr_all=snr_all,
+    return dict(chans=chans, own=own, clean=clean, noisy=noisy, fw=fw, snr=snr, snr_all=snr_db(clean, noisy),
                 render_s=time.perf_counter() - t0)
 
 
@@ -222,8 +234,7 @@ def flames(cam, sensor, model, cal, n_scenes, rays, log):
                          full_well_e=r["fw"], snr_db=r["snr_all"], snr_db_per_channel=r["snr"],
                          render_s=r["render_s"], heights_mm=[o["height_mm"] for o in cs.scene.objects]))
         log(f"  scene {i}: own error {r['own']:.4f}, SNR {r['snr_all']:.2f} dB {r['snr']}")
-        truth = colour_truth(cs.channel_radiance, cs.scene.layers, op)
-        Tt, vt, _ = P.temperature_planes(truth[0], truth[1], cal, model)
+        Tt, vt = true_temperature(cs, op, cal, model)
 
         def scorer(route, noise, a, b, **extra):
             return score(route, noise, i, a, b, Tt, vt, cal, model, **extra)
@@ -243,8 +254,7 @@ def behind(cam, sensor, model, cal, n_scenes, rays, log):
         depths = [float(o["depth_offset_mm"]) for o in cs.scene.objects]
         ops = operators(cam, depths)
         r = render_scene(cam, cs, sensor, rays, seed)
-        truth = colour_truth(cs.channel_radiance, cs.scene.layers, ops["admm-cfa"])
-        Tt, vt, _ = P.temperature_planes(truth[0], truth[1], cal, model)
+        Tt, vt = true_temperature(cs, ops["admm-cfa"], cal, model)
         mixed = vt & vt[::-1]
         info.append(dict(scene=i, seed=seed, separation_mm=sep, peaks_k=list(BEHIND_PEAK_K), depths_mm=depths,
                          heights_mm=[o["height_mm"] for o in cs.scene.objects], own_error=r["own"],

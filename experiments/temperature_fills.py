@@ -35,8 +35,8 @@ from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.optics.colour import library_sensor  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_flame_scene  # noqa: E402
-from lf_flame.tomo.colour import (MATCHED_KNOBS, MATCHED_SIGMA_NOISY, channel_views, colour_truth,  # noqa: E402
-                                  matched_channels, route_operator, smooth_planes)
+from lf_flame.tomo.colour import (MATCHED_KNOBS, MATCHED_SIGMA_NOISY, channel_views, matched_channels,  # noqa: E402
+                                  route_operator, smooth_planes)
 from lf_flame.tomo.truth import bin_planes  # noqa: E402
 
 FILLS, LAMS = (25, 100, 300), (0.003, 0.005, 0.01)
@@ -65,8 +65,7 @@ def main(argv=None):
         op = route_operator(cam, depths, "admm-cfa-matched")
         r = E.render_scene(cam, cs, sensor, args.rays, seed)
         own[seed] = r["own"]
-        truth = colour_truth(cs.channel_radiance, cs.scene.layers, route_operator(cam, depths, "admm-cfa"))
-        Tt, vt, _ = P.temperature_planes(truth[0], truth[1], cal, model)
+        Tt, vt = E.true_temperature(cs, route_operator(cam, depths, "admm-cfa"), cal, model)
         chan = channel_views(r["clean"].shape, sensor, cam.pixels_per_lenslet)
         for noise, knobs, sigma in settings():
             views = raw_to_views(r["clean" if noise == "clean" else "noisy"], cam.pixels_per_lenslet)

@@ -48,7 +48,7 @@ from lf_flame.optics.colour import library_sensor  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_flame_scene  # noqa: E402
 from lf_flame.simulate import tracer  # noqa: E402
-from lf_flame.tomo.colour import (CFA_LAM, admm_channel, channel_views, colour_truth, matched_channels,  # noqa: E402
+from lf_flame.tomo.colour import (CFA_LAM, admm_channel, channel_views, matched_channels,  # noqa: E402
                                   smooth_planes)
 from lf_flame.tomo.defaults import ADMM_KNOBS  # noqa: E402
 from lf_flame.tomo.exact import ExactOperator  # noqa: E402
@@ -83,8 +83,7 @@ def main(argv=None):
                2: ExactOperator(cam, depths, precision="float32", subsamples=2)}
         r = E.render_scene(cam, cs, sensor, args.rays, seed)
         own[seed] = r["own"]
-        truth = colour_truth(cs.channel_radiance, cs.scene.layers, ops[1])
-        Tt, vt, _ = P.temperature_planes(truth[0], truth[1], cal, model)
+        Tt, vt = E.true_temperature(cs, ops[1], cal, model)
         chan = channel_views(r["clean"].shape, sensor, n)
         slopes = [cam.slope_for_depth(d) for d in depths]
         plane = dict(slope=slopes, red_even_share=[even_share(chan, s) for s in slopes])

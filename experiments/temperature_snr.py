@@ -36,7 +36,7 @@ from lf_flame.optics.colour import library_sensor  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_flame_scene  # noqa: E402
 from lf_flame.tomo.colour import (MATCHED_KNOBS, MATCHED_QUIET_NOISE, MATCHED_SIGMA_NOISY,  # noqa: E402
-                                  cfa_noise, channel_emission, channel_views, colour_truth, route_operator)
+                                  cfa_noise, channel_emission, channel_views, route_operator)
 from temperature_grid import SEEDS as VALIDATION_SEEDS  # noqa: E402
 
 SNRS_DB = (14.0, 17.0, 20.0, 23.0, 26.0, 30.0)
@@ -65,33 +65,30 @@ def main(argv=None):
         depths = [float(o["depth_offset_mm"]) for o in cs.scene.objects]
         op = route_operator(cam, depths, "admm-cfa-matched")
         r = E.render_scene(cam, cs, sensor, args.rays, seed)
-        truth = colour_truth(cs.channel_radiance, cs.scene.layers, route_operator(cam, depths, "admm-cfa"))
-        Tt, vt, _ = P.temperature_planes(truth[0], truth[1], cal, model)
+        Tt, vt = E.true_temperature(cs, route_operator(cam, depths, "admm-cfa"), cal, model)
         chan_raw = sensor.channel_map(r["clean"].shape)
         chan = channel_views(r["clean"].shape, sensor, cam.pixels_per_lenslet)
         for snr in VALIDATION_SNRS_DB if args.validation else SNRS_DB:
             noisy, _ = E.add_noise(r["clean"], cs.scene.effects, seed, snr)
-            measured = float(10 * np.log10(np.sum(r["clean"].astype(float) ** 2)
-                                           / np.sum((noisy - r["clean"].astype(float)) ** 2)))
+            measured = E.snr_db(r["clean"], noisy)
             per = E.snr_per_channel(r["clean"], noisy, chan_raw)
             views = raw_to_views(noisy, cam.pixels_per_lenslet)
+            level_noise = cfa_noise(views, chan, (0, 1)) if fixed else np.nan   # (the route measures its own)
             for route, (knobs, sigma) in (fixed or {"by the noise": (None, None)}).items():
                 chosen = {}
                 t1 = time.perf_counter()
                 a, b = channel_emission("admm-cfa-matched", views, chan, (0, 1), op=op, knobs=knobs, sigma=sigma,
                                         info=chosen)
-                noise = chosen.get("noise", np.nan) if not fixed else cfa_noise(views, chan, (0, 1))
                 rows += E.score(route, f"{snr:g}dB", seed, a, b, Tt, vt, cal, model,
                                 time_s=time.perf_counter() - t1, snr_db=snr, measured_snr_db=measured,
                                 snr_r_db=per["R"], snr_g_db=per["G"], regime=chosen.get("regime", ""),
-                                measured_noise=noise, fills=chosen["knobs"]["fills"],
+                                measured_noise=chosen.get("noise", level_noise), fills=chosen["knobs"]["fills"],
                                 sigma=chosen["sigma"])
                 p90 = [round(x["p90_k"]) for x in rows[-len(Tt):]]
                 print(f"seed {seed} {snr:g} dB (measured {measured:.2f}, R {per['R']:.1f}, G {per['G']:.1f}) "
                       f"{route} {chosen.get('regime', '')}: p90 per plane {p90}", flush=True)
     df = pd.DataFrame(rows)
     df.to_csv(args.out / f"{name}.csv", index=False)
-    df["measured_noise"] = df.groupby(["scene", "snr_db"]).measured_noise.transform("max")
     g = df.groupby(["route", "snr_db"]).agg(
         measured_snr_db=("measured_snr_db", "mean"), snr_r_db=("snr_r_db", "mean"), snr_g_db=("snr_g_db", "mean"),
         noise=("measured_noise", "max"), regime=("regime", "first"), p90_worst_plane=("p90_k", "max"),
@@ -111,8 +108,8 @@ def main(argv=None):
             choice = [f"Quiet knobs win at {', '.join(f'{v:g}' for v in quiet)} dB (noise up to "
                       f"{noise[quiet].max():.4f}), noisy ones at {', '.join(f'{v:g}' for v in noisy)} dB (noise from "
                       f"{low[noisy].min():.4f}): threshold (geometric mean) {thr:.4f}; `MATCHED_QUIET_NOISE` = "
-                      f"{MATCHED_QUIET_NOISE} -> **{'holds' if held else 'differs from'}** the choice (it splits them).",
-                      ""]
+                      f"{MATCHED_QUIET_NOISE} -> **{'holds' if held else 'differs from'}** the choice "
+                      "(it splits them).", ""]
         else:
             choice = ["The knob sets do not split by the noise on these levels: no threshold chosen.", ""]
     prov = provenance()
