@@ -22,8 +22,9 @@ blackbody check), ``<out>/temperature.md`` (the bars and the table), ``<out>/tem
   ``admm-cfa-matched`` (the default of ``lf-flame temperature``): each channel by admm on its
   own pixels on a 2 x 2 grid per lenslet, re-imaged and solved again on the other channel's
   pixels (both channels through both sampling patterns), binned to the lenslets, with the
-  admm knobs ``MATCHED_KNOBS`` of the light field's noise regime and smoothed by
-  ``MATCHED_SIGMA_NOISY`` when noisy (:func:`lf_flame.tomo.colour.matched_channels`);
+  admm knobs ``MATCHED_KNOBS`` of the light field's noise regime and the ratio smoothed by the
+  guided filter of ``MATCHED_RATIO_FILTER`` for that noise (:func:`lf_flame.tomo.colour.matched_channels`,
+  :func:`lf_flame.tomo.colour.guided_ratio`);
   ``admm-cfa``: the exact operator's admm on each channel's own pixels (the CFA complement
   as the missing-data mask); ``admm-cfa-smooth``: the same, both channels smoothed by a
   Gaussian of :data:`SMOOTH_SIGMA` lenslets before the ratio; ``refocus-cfa``: each
@@ -68,7 +69,7 @@ from lf_flame.simulate.colour import render_colour
 from lf_flame.simulate.scenes_temperature import (BEHIND_PEAK_K, FLAME_PEAK_K, colour_behind_scene, colour_flame_scene,
                                                   furnace_scene)
 from lf_flame.tomo.colour import (CFA_FILLS as FILLS, CFA_LAM as LAM, CFA_TV as TV, MATCHED_KNOBS,
-                                  MATCHED_SIGMA_NOISY, MATCHED_SUBSAMPLES, SMOOTH_SIGMA, admm_channel, channel_emission,
+                                  MATCHED_QUIET_NOISE, MATCHED_RATIO_FILTER, MATCHED_SUBSAMPLES, MATCHED_WIDE_NOISE, SMOOTH_SIGMA, admm_channel, channel_emission,
                                   channel_views, colour_truth, route_operator, smooth_planes)
 from lf_flame.tomo.truth import bin_planes
 
@@ -199,7 +200,8 @@ def route_rows(cam, sensor, ops, depths, r, scorer, log, tag):
         chosen = {}
         m = channel_emission("admm-cfa-matched", views, chan_v, (0, 1), op=ops["admm-cfa-matched"], info=chosen)
         rows += scorer("admm-cfa-matched", noise, m[0], m[1], time_s=time.perf_counter() - t0,
-                       sigma=chosen["sigma"], measured_noise=chosen["noise"], fills=chosen["knobs"]["fills"],
+                       sigma=chosen["sigma"], ratio_filter=str(chosen["ratio_filter"]), measured_noise=chosen["noise"],
+                       fills=chosen["knobs"]["fills"],
                        lam=chosen["knobs"]["lam"], **lab)
         t0 = time.perf_counter()
         rec = channel_emission("admm-cfa", views, chan_v, (0, 1), op=op)
@@ -306,7 +308,8 @@ def write_behind(out, df, info, cal_note, args, wall, prov):
     atomic_write_text(out / "temperature_behind.json", json.dumps(dict(
         provenance=prov, wall_time_s=wall, rays_per_pixel=args.rays, scenes=info, gains=GAINS, snr_db=SNR_DB,
         read_noise_e=READ_E, admm=dict(fills=FILLS, lam=LAM, tv=TV), smooth_sigma_lenslets=SMOOTH_SIGMA,
-        matched=dict(subsamples=MATCHED_SUBSAMPLES, sigma_noisy=MATCHED_SIGMA_NOISY, knobs=MATCHED_KNOBS),
+        matched=dict(subsamples=MATCHED_SUBSAMPLES, knobs=MATCHED_KNOBS, quiet_noise=MATCHED_QUIET_NOISE,
+                     ratio_filter=MATCHED_RATIO_FILTER, wide_noise=MATCHED_WIDE_NOISE),
         calibration=cal_note), indent=2, default=str))
 
 
@@ -375,7 +378,8 @@ def write_report(out, df, info, cal, wien, args, wall, prov):
         provenance=prov, wall_time_s=wall, rays_per_pixel=args.rays, scenes=info, gains=GAINS, fit_k=FIT_K,
         check_k=CHECK_K, snr_db=SNR_DB, read_noise_e=READ_E, admm=dict(fills=FILLS, lam=LAM, tv=TV),
         smooth_sigma_lenslets=SMOOTH_SIGMA,
-        matched=dict(subsamples=MATCHED_SUBSAMPLES, sigma_noisy=MATCHED_SIGMA_NOISY, knobs=MATCHED_KNOBS),
+        matched=dict(subsamples=MATCHED_SUBSAMPLES, knobs=MATCHED_KNOBS, quiet_noise=MATCHED_QUIET_NOISE,
+                     ratio_filter=MATCHED_RATIO_FILTER, wide_noise=MATCHED_WIDE_NOISE),
         calibration=dataclasses.asdict(cal), wien=wien), indent=2, default=str))
 
 

@@ -10,7 +10,7 @@ Writes ``<out>/temperature_snr.{csv,md}``.
 
 ``--validation``: the validation scenes of ``temperature_grid.py`` instead (seeds 937500-1, not
 the scored ones), each light field solved with both knob sets of ``MATCHED_KNOBS`` (quiet: unsmoothed;
-noisy: smoothed by ``MATCHED_SIGMA_NOISY``) beside the route's own choice, with the relative noise
+noisy: smoothed by ``MATCHED_SIGMA_NOISY``, the filter before the guided ratio filter) beside the route's own choice, with the relative noise
 ``cfa_noise`` measures: where the quiet knobs stop winning chooses ``MATCHED_QUIET_NOISE``.
 Writes ``<out>/temperature_snr_validation.{csv,md}``.
 
@@ -53,7 +53,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     seeds = list(VALIDATION_SEEDS) if args.validation else [E.SEED0 + i for i in range(args.scenes)]
     fixed = {f"{k} knobs": (MATCHED_KNOBS[k], MATCHED_SIGMA_NOISY if k == "noisy" else 0.0)
-             for k in ("quiet", "noisy")} if args.validation else {}
+             for k in ("quiet", "noisy")} if args.validation else {}   # (the Gaussian it chose the threshold with)
     name = "temperature_snr_validation" if args.validation else "temperature_snr"
     t0 = time.perf_counter()
     cam, sensor, model = PAPER_CAMERA, library_sensor(gains=E.GAINS), library_sensor()
@@ -78,12 +78,12 @@ def main(argv=None):
                 chosen = {}
                 t1 = time.perf_counter()
                 a, b = channel_emission("admm-cfa-matched", views, chan, (0, 1), op=op, knobs=knobs, sigma=sigma,
-                                        info=chosen)
+                                        ratio_filter={} if fixed else None, info=chosen)
                 rows += E.score(route, f"{snr:g}dB", seed, a, b, Tt, vt, cal, model,
                                 time_s=time.perf_counter() - t1, snr_db=snr, measured_snr_db=measured,
                                 snr_r_db=per["R"], snr_g_db=per["G"], regime=chosen.get("regime", ""),
                                 measured_noise=chosen.get("noise", level_noise), fills=chosen["knobs"]["fills"],
-                                sigma=chosen["sigma"])
+                                sigma=chosen["sigma"], ratio_filter=str(chosen["ratio_filter"]))
                 p90 = [round(x["p90_k"]) for x in rows[-len(Tt):]]
                 print(f"seed {seed} {snr:g} dB (measured {measured:.2f}, R {per['R']:.1f}, G {per['G']:.1f}) "
                       f"{route} {chosen.get('regime', '')}: p90 per plane {p90}", flush=True)

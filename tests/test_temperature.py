@@ -228,8 +228,8 @@ def test_cfa_noise_reads_each_channel_alone():
 
 def test_matched_route_takes_its_knobs_by_the_noise(monkeypatch):
     """``admm-cfa-matched`` solves a light field whose noise is below ``MATCHED_QUIET_NOISE`` with
-    the quiet knobs, unsmoothed, and one above it with the noisy knobs, smoothed; given knobs and
-    sigma, it measures nothing."""
+    the quiet knobs, one above it with the noisy knobs, each with the guided ratio filter of its
+    noise (the wider one from ``MATCHED_WIDE_NOISE``); given knobs and filter, it measures nothing."""
     from lf_flame.tomo import colour
     quiet = dict(fills=2, lam=0.003, tv=0.0, l1=0.0)            # (few fills: the test's time)
     monkeypatch.setitem(colour.MATCHED_KNOBS, "quiet", quiet)
@@ -237,13 +237,49 @@ def test_matched_route_takes_its_knobs_by_the_noise(monkeypatch):
     sensor, raw, noisy = _smooth_blob()
     n, op = CAM.pixels_per_lenslet, colour.route_operator(CAM, [0.0], "admm-cfa-matched")
     chan = colour.channel_views(raw.shape, sensor, n)
-    for image, threshold, regime in ((raw, 0.01, "quiet"), (raw, 0.003, "noisy"), (noisy, 0.01, "noisy")):
-        monkeypatch.setattr(colour, "MATCHED_QUIET_NOISE", threshold)   # the blob reads 0.004, noisy 0.03
-        sigma = colour.MATCHED_SIGMA_NOISY if regime == "noisy" else 0.0
+    filtered = {}
+    for image, thresholds, regime in ((raw, (0.01, 0.1), "quiet"), (raw, (0.003, 0.1), "noisy"),
+                                      (noisy, (0.01, 0.1), "noisy"), (noisy, (0.01, 0.02), "very noisy")):
+        monkeypatch.setattr(colour, "MATCHED_QUIET_NOISE", thresholds[0])   # the blob reads 0.004, noisy 0.03
+        monkeypatch.setattr(colour, "MATCHED_WIDE_NOISE", thresholds[1])
         info = {}
-        colour.channel_emission("admm-cfa-matched", raw_to_views(image, n), chan, (0, 1), op=op, info=info)
-        assert (info["regime"], info["knobs"], info["sigma"]) == (regime, colour.MATCHED_KNOBS[regime], sigma)
+        a, _ = colour.channel_emission("admm-cfa-matched", raw_to_views(image, n), chan, (0, 1), op=op, info=info)
+        assert info["regime"] == regime
+        assert info["knobs"] == colour.MATCHED_KNOBS["quiet" if regime == "quiet" else "noisy"]
+        assert info["ratio_filter"] == colour.MATCHED_RATIO_FILTER.get(regime, {}) and info["sigma"] == 0.0
+        filtered[regime, image is noisy] = a
+    assert not np.allclose(filtered["noisy", True], filtered["very noisy", True])   # the filter was applied
     info = {}
     colour.channel_emission("admm-cfa-matched", raw_to_views(noisy, n), chan, (0, 1), op=op, sigma=0.2,
-                            knobs=quiet, info=info)
-    assert info == dict(knobs=quiet, sigma=0.2, subsamples=2)
+                            knobs=quiet, ratio_filter={}, info=info)
+    assert info == dict(knobs=quiet, sigma=0.2, ratio_filter={}, subsamples=2)
+
+
+def test_guided_ratio_averages_the_noise_and_keeps_what_follows_the_guide():
+    """The guided filter of the log ratio: a ratio linear in the log emission comes out nearly
+    unchanged (eps well below the guide's local variance), noise on it is averaged, a constant ratio stays exact, and the
+    pixels below the emission threshold are left as they were; a Gaussian on both channels
+    instead bends the ratio where it follows the brightness."""
+    from lf_flame.tomo.colour import guided_filter, guided_ratio, smooth_planes
+    y, x = np.mgrid[0:40, 0:40]
+    b = np.exp(-(((x - 20) / 8.0) ** 2 + ((y - 20) / 11.0) ** 2))[None] + 1e-6
+    lr = 0.05 + 0.3 * np.log(b)                          # hotter where brighter: ln(a/b) linear in ln(b)
+    a = b * np.exp(lr)
+    fa, fb = guided_ratio(a, b, 2, 1e-4, guide_sigma=0.0)     # eps well below the guide's local variance
+    bright = P.bright_pixels(a + b)
+    assert np.array_equal(fb, b) and np.array_equal(fa[~bright], a[~bright])
+    assert np.abs(np.log(fa / fb) - lr)[bright].max() < 2e-3          # the linear trend kept
+    ga, gb = smooth_planes(a, 0.7), smooth_planes(b, 0.7)
+    assert np.abs(np.log(ga / gb) - lr)[bright].max() > 5 * np.abs(np.log(fa / fb) - lr)[bright].max()
+    ca, _ = guided_ratio(1.3 * b, b, 1, 0.03)
+    np.testing.assert_allclose(ca, 1.3 * b, rtol=1e-9)
+    rng = np.random.default_rng(3)
+    na = a * np.exp(rng.normal(0, 0.05, a.shape))
+    fa, _ = guided_ratio(na, b, 2, 1e-3, guide_sigma=0.0)
+    before = np.std((np.log(na / b) - lr)[bright])
+    after = np.std((np.log(fa / b) - lr)[bright])
+    assert after < 0.5 * before
+    with pytest.raises(ValueError, match="radius"):
+        guided_filter(lr[0], lr[0], bright[0], 0, 0.1)
+    with pytest.raises(ValueError, match="one 2-D shape"):
+        guided_filter(lr[0], lr[0][1:], bright[0], 1, 0.1)

@@ -13,8 +13,8 @@ missing. Routes from those samples to each plane's emission in two channels, who
   both sampling patterns and their errors largely cancel in the ratio: the colour
   counterpart of matching two images' point-spread functions before a colour ratio in
   multi-band photometry. Binned to the lenslets; the admm knobs of :data:`MATCHED_KNOBS` by
-  the light field's noise (:func:`cfa_noise`), smoothed by :data:`MATCHED_SIGMA_NOISY`
-  lenslets when it is noisy;
+  the light field's noise (:func:`cfa_noise`), the ratio smoothed by the guided filter of
+  :data:`MATCHED_RATIO_FILTER` for that noise (:func:`guided_ratio`);
 - ``admm-cfa``: the exact operator's admm (:func:`lf_flame.tomo.solvers.reconstruct`) on
   each channel's own samples, the other channels' samples left out of the fit as missing
   data (the ``saturation`` mask), as are clipped samples (:func:`admm_channel`);
@@ -35,6 +35,7 @@ import dataclasses
 
 import numpy as np
 
+from ..measure.pyrometry import MIN_FRACTION, bright_pixels
 from ..optics.colour import ColourSensor
 from ..refocus.shift_and_sum import aperture_mask, focal_stack, raw_to_views
 from .fourier import relative_noise
@@ -49,8 +50,8 @@ CFA_FILLS, CFA_LAM, CFA_TV, CFA_L1 = 25, 0.01, 0.0, 0.0
 #: Gaussian (lenslets) of ``admm-cfa-smooth``.
 SMOOTH_SIGMA = 0.7
 #: ``admm-cfa-matched``: its planes' grid (samples per lenslet and axis) and the Gaussian
-#: (lenslets) both channels are smoothed by when the light field is noisy (relative noise at
-#: or above ``MATCHED_QUIET_NOISE``; none when quiet). Chosen on validation scenes (seeds 937500-1,
+#: (lenslets) both channels were smoothed by when the light field is noisy, before the guided
+#: ratio filter (:data:`MATCHED_RATIO_FILTER`) replaced it; the experiments compare the two. Chosen on validation scenes (seeds 937500-1,
 #: 400 rays, ``results/temperature_grid.md``): worst-plane p90 38 K noise-free unsmoothed (67 K
 #: smoothed by 0.7), 98 K at 14 dB smoothed by 0.7 (253 K unsmoothed); on the lenslet grid 56 K
 #: noise-free (89 K at 14 dB: the one setting where the lenslet grid is better).
@@ -61,7 +62,7 @@ MATCHED_SUBSAMPLES, MATCHED_SIGMA_NOISY = 2, 0.7
 #: the ratio fades only after some hundreds of fills: chosen on validation scenes (seeds
 #: 937500-1, ``results/temperature_fills.md``) for the smallest worst-plane p90, about 90 s a
 #: scene on 2 cores against 8 s for 25 fills. Noisy: 25 fills (stopping early regularises the
-#: noise) and the ``admm-cfa`` weights, smoothed by :data:`MATCHED_SIGMA_NOISY`.
+#: noise) and the ``admm-cfa`` weights, the ratio filtered by :data:`MATCHED_RATIO_FILTER`.
 MATCHED_KNOBS = {"quiet": dict(fills=300, lam=0.003, tv=0.0, l1=0.0),
                  "noisy": dict(fills=CFA_FILLS, lam=CFA_LAM, tv=CFA_TV, l1=CFA_L1)}
 #: The relative noise (:func:`cfa_noise`) below which ``admm-cfa-matched`` takes the quiet knobs: lower
@@ -70,6 +71,18 @@ MATCHED_KNOBS = {"quiet": dict(fills=300, lam=0.003, tv=0.0, l1=0.0),
 #: beat the noisy knobs' from 30 dB (noise up to 0.0033; 65 against 68 K) and lost at 26 dB (noise from
 #: 0.0047; 98 against 67 K); 0.004 splits them (their geometric mean 0.0039).
 MATCHED_QUIET_NOISE = 0.004
+#: ``admm-cfa-matched``'s filter of the two channels' ratio by the light field's noise regime (in
+#: place of a Gaussian on both channels, which blurs the temperature across the luminous sheath):
+#: a guided filter (:func:`guided_ratio`) of the log ratio, the log of the summed emission as its
+#: guide, of ``radius`` lenslets and regularisation ``eps``; the wider one from
+#: :data:`MATCHED_WIDE_NOISE`. Chosen on validation scenes (``experiments/temperature_ratio_filter.py``):
+#: per noise level the smallest worst-plane p90; noise-free, the smaller of the flames' p90 over 30 K
+#: and the two-flames-behind p90 over 50 K (their bars), as the filter trades the in-focus plane's
+#: detail for the CFA's aliasing on the planes out of focus.
+MATCHED_RATIO_FILTER = {"quiet": dict(radius=1, eps=0.001), "noisy": dict(radius=1, eps=0.03),
+                        "very noisy": dict(radius=2, eps=0.03)}
+#: The relative noise (:func:`cfa_noise`) from which the wider ratio filter is taken.
+MATCHED_WIDE_NOISE = 0.0125
 
 
 def channel_views(shape, sensor: ColourSensor, pixels_per_lenslet: int) -> np.ndarray:
@@ -247,9 +260,103 @@ def smooth_planes(planes: np.ndarray, sigma: float = SMOOTH_SIGMA) -> np.ndarray
     return np.stack([gaussian_filter(p, sigma) for p in planes])
 
 
+def guided_filter(p: np.ndarray, guide: np.ndarray, mask: np.ndarray, radius: int, eps: float) -> np.ndarray:
+    """Guided filter of an image over the pixels of a mask.
+
+    He, Sun & Tang, "Guided image filtering", IEEE TPAMI 35 (2013) 1397, Algorithm 1: in
+    each ``(2 radius + 1)``-square window the output is a linear function ``a I + b`` of the
+    guide ``I``, fitted to ``p`` by least squares with ``a`` damped by ``eps``; the windows'
+    ``a`` and ``b`` are averaged. Every window mean is taken over the mask's pixels only
+    (normalised convolution, Knutsson & Westin 1993), so pixels outside it neither enter nor
+    bias the fit.
+
+    Parameters
+    ----------
+    p, guide : ndarray of shape (rows, cols)
+        The image filtered and its guide (any units; ``eps`` is in the guide's units squared).
+    mask : ndarray of shape (rows, cols), bool
+    radius : int, pixels
+    eps : float, > 0
+
+    Returns
+    -------
+    ndarray of shape (rows, cols): filtered on the mask; ``p`` elsewhere.
+
+    Raises
+    ------
+    ValueError
+        Shapes that differ, a radius below 1 or ``eps`` not positive.
+    """
+    from scipy.ndimage import uniform_filter
+    p, guide, m = np.asarray(p, float), np.asarray(guide, float), np.asarray(mask, bool)
+    if not (p.shape == guide.shape == m.shape and p.ndim == 2):
+        raise ValueError(f"image, guide and mask of one 2-D shape are needed. Received {p.shape}, {guide.shape}, "
+                         f"{m.shape}")
+    if int(radius) < 1 or not eps > 0:
+        raise ValueError(f"radius >= 1 and eps > 0 are needed. Received radius {radius}, eps {eps}")
+    w = m.astype(float)
+    n = np.maximum(uniform_filter(w, 2 * int(radius) + 1, mode="constant"), 1e-12)
+
+    def mean(x):
+        return uniform_filter(np.where(m, x, 0.0), 2 * int(radius) + 1, mode="constant") / n
+
+    i, q = np.where(m, guide, 0.0), np.where(m, p, 0.0)
+    mi, mq = mean(i), mean(q)
+    a = (mean(i * q) - mi * mq) / (mean(i * i) - mi ** 2 + eps)
+    b = mq - a * mi
+    return np.where(m, mean(a) * i + mean(b), p)
+
+
+def guided_ratio(a: np.ndarray, b: np.ndarray, radius: int, eps: float, guide_sigma: float = 0.5,
+                 min_fraction: float = MIN_FRACTION):
+    """Two channels' emission per plane with their ratio smoothed by a guided filter.
+
+    The log ratio ``ln(a / b)`` of each plane (where both are positive and ``a + b`` is at
+    least ``min_fraction`` of the plane's peak) is filtered by :func:`guided_filter` with
+    the log of the summed emission, smoothed by a Gaussian of ``guide_sigma`` lenslets and
+    relative to the plane's peak, as its guide: where temperature follows brightness (the
+    hot, luminous sheath) the ratio keeps its edges, and it is averaged where it does not.
+    ``b`` is returned as it is and ``a`` as ``b`` times the filtered ratio.
+
+    Parameters
+    ----------
+    a, b : ndarray of shape (P, rows, cols)
+        The ratio's numerator and denominator channels' emission (lenslet grid).
+    radius : int, lenslets
+    eps : float
+        Regularisation, in the guide's units (log emission) squared.
+    guide_sigma : float, lenslets
+    min_fraction : float
+        As :func:`lf_flame.measure.pyrometry.temperature_planes`.
+
+    Returns
+    -------
+    (a, b) : two ndarrays of shape (P, rows, cols).
+
+    Raises
+    ------
+    ValueError
+        Shapes that differ or are not 3-D, and the errors of :func:`guided_filter`.
+    """
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    if a.shape != b.shape or a.ndim != 3:
+        raise ValueError(f"two (P, rows, cols) emission stacks are needed. Received {a.shape} and {b.shape}")
+    m = bright_pixels(a + b, min_fraction) & (a > 0) & (b > 0)
+    guide = np.log(np.maximum(smooth_planes(a + b, guide_sigma), 1e-30))
+    out = a.copy()
+    for k in range(len(a)):
+        if not m[k].any():
+            continue
+        with np.errstate(divide="ignore", invalid="ignore"):
+            lr = np.where(m[k], np.log(a[k] / b[k]), 0.0)
+        g = guide[k] - guide[k][m[k]].max()
+        out[k] = np.where(m[k], b[k] * np.exp(guided_filter(lr, g, m[k], radius, eps)), a[k])
+    return out, b
+
+
 def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, *, op=None, slopes=None,
                      saturation: float | None = 1.0, sigma: float | None = None, knobs: dict | None = None,
-                     info: dict | None = None):
+                     ratio_filter: dict | None = None, info: dict | None = None):
     """Two channels' emission per plane from a colour light field by one of :data:`CFA_ROUTES`.
 
     Parameters
@@ -270,14 +377,19 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
     saturation : float or None
         Clipping level: admm leaves samples at or above it out of the fit (None: none).
     sigma : float or None
-        ``admm-cfa-matched``'s Gaussian, lenslets; None: by the light field's noise
-        (:func:`cfa_noise`; texture finer than two lenslets also reads as noise there).
+        ``admm-cfa-matched``'s Gaussian on both channels, lenslets; None: 0 (none).
     knobs : dict or None
         ``admm-cfa-matched``'s admm ``fills``, ``lam``, ``tv``, ``l1``; None:
-        :data:`MATCHED_KNOBS` by the light field's noise, as ``sigma``.
+        :data:`MATCHED_KNOBS` by the light field's noise (:func:`cfa_noise`; texture finer
+        than two lenslets also reads as noise there).
+    ratio_filter : dict or None
+        ``admm-cfa-matched``'s :func:`guided_ratio` ``radius`` and ``eps`` (an empty dict:
+        none); None: :data:`MATCHED_RATIO_FILTER` by the light field's noise (the wider one
+        from :data:`MATCHED_WIDE_NOISE`).
     info : dict or None
-        Filled with what the route chose: ``noise`` (measured where ``sigma`` or ``knobs`` is
-        None), ``regime``, ``knobs`` and ``sigma`` (``admm-cfa-matched``), ``subsamples`` (admm routes).
+        Filled with what the route chose: ``noise`` (measured where ``knobs`` or ``ratio_filter``
+        is None), ``regime``, ``knobs``, ``sigma`` and ``ratio_filter`` (``admm-cfa-matched``),
+        ``subsamples`` (admm routes).
 
     Returns
     -------
@@ -304,13 +416,17 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
     info = {} if info is None else info
     ok = np.ones(views.shape, bool) if saturation is None else views < saturation
     fits = [(chan == c) & ok for c in channels]
+    ratio_filter = {} if route != "admm-cfa-matched" else ratio_filter
     if route == "admm-cfa-matched":
-        if sigma is None or knobs is None:
+        sigma = 0.0 if sigma is None else sigma
+        if ratio_filter is None or knobs is None:
             info["noise"] = cfa_noise(views, chan, channels)
-            info["regime"] = "noisy" if info["noise"] >= MATCHED_QUIET_NOISE else "quiet"
-            sigma = (MATCHED_SIGMA_NOISY if info["regime"] == "noisy" else 0.0) if sigma is None else sigma
-            knobs = MATCHED_KNOBS[info["regime"]] if knobs is None else knobs
-        info.update(knobs=dict(knobs), sigma=sigma)
+            info["regime"] = ("quiet" if info["noise"] < MATCHED_QUIET_NOISE else
+                              "noisy" if info["noise"] < MATCHED_WIDE_NOISE else "very noisy")
+            knobs = MATCHED_KNOBS["quiet" if info["regime"] == "quiet" else "noisy"] if knobs is None else knobs
+            if ratio_filter is None:
+                ratio_filter = MATCHED_RATIO_FILTER.get(info["regime"], {})
+        info.update(knobs=dict(knobs), sigma=sigma, ratio_filter=dict(ratio_filter))
         rec = matched_channels(views, op, fits, **knobs)
     else:
         rec = [admm_channel(views, op, f) for f in fits]
@@ -319,6 +435,8 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
     info["subsamples"] = op.subsamples
     if sigma:
         rec = [smooth_planes(r, sigma) for r in rec]
+    if ratio_filter:
+        rec = guided_ratio(rec[0], rec[1], **ratio_filter)
     return rec[0], rec[1]
 
 
