@@ -283,3 +283,24 @@ def test_guided_ratio_averages_the_noise_and_keeps_what_follows_the_guide():
         guided_filter(lr[0], lr[0], bright[0], 0, 0.1)
     with pytest.raises(ValueError, match="one 2-D shape"):
         guided_filter(lr[0], lr[0][1:], bright[0], 1, 0.1)
+
+
+def test_cfa_blind_marks_the_slopes_where_half_the_lenslets_have_no_red_sample():
+    """At an odd-integer slope (odd pixels per lenslet) the points on every other lenslet row
+    have no red sample in any view; elsewhere every row has one. ``cfa_blind`` flags exactly
+    the former among these slopes, and no plane with an even number of pixels per lenslet."""
+    from lf_flame.tomo.colour import cfa_blind, channel_views
+    n = CAM.pixels_per_lenslet
+    chan = channel_views((CAM.n_rows * n, CAM.n_cols * n), library_sensor(), n)
+    red_row = (chan == 0).any(axis=(1, 3))                    # (view row u, lenslet row k)
+    slopes = [-3.0, -1.0, -0.95, 0.0, 0.5, 1.0, 1.3, 2.0, 3.0]
+    seen = []
+    for s in slopes:
+        rows = np.arange(4, CAM.n_rows - 4)
+        k = rows[:, None] + np.rint(s * (np.arange(n) - (n - 1) / 2)).astype(int)[None]
+        ok = (k >= 0) & (k < CAM.n_rows)
+        seen.append(np.mean([np.any(red_row[np.arange(n)[ok[i]], k[i][ok[i]]]) for i in range(len(rows))]))
+    seen = np.array(seen)
+    assert np.all((seen < 0.6) | (seen > 0.95))                # half the rows, or all of them
+    np.testing.assert_array_equal(cfa_blind(slopes, n), seen < 0.75)
+    assert not cfa_blind(slopes, 14).any()

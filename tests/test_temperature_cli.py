@@ -80,6 +80,7 @@ def test_temperature_round_trip(files, capsys):
         assert f.attrs["route"] == "admm-cfa-matched"
         assert json.loads(f.attrs["route_settings"])["subsamples"] == 2
         n_masked, n_dim = f["n_masked"][:], f["n_dim"][:]
+        assert list(f["cfa_blind"][:]) == [False]           # slope 0: both CFA phases in every lenslet
     assert t.shape == (1, 21, 21)
     # masked pixels carry no temperature; dim ones are masked; the counts are the masks'
     assert np.array_equal(np.isfinite(t), valid)

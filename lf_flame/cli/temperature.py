@@ -108,7 +108,7 @@ def cmd_temperature(a):
     from ..config import provenance
     from ..measure.pyrometry import bright_pixels, load_calibration, temperature_planes
     from ..optics.colour import CHANNELS
-    from ..tomo.colour import channel_emission, channel_sum_views, channel_views, route_operator
+    from ..tomo.colour import cfa_blind, channel_emission, channel_sum_views, channel_views, route_operator
     from .volume import found_planes, reconstruct_input
     src = str(a.raw)
     if src.endswith(".h5") and ".h5:" not in src:
@@ -133,6 +133,7 @@ def cmd_temperature(a):
                                 slopes=[cam.slope_for_depth(d) for d in depths], saturation=a.saturation, info=chosen)
     temp, valid, n_masked = temperature_planes(emission[0], emission[1], cal, sensor, a.alpha, a.min_fraction)
     dim = ~bright_pixels(emission[0] + emission[1], a.min_fraction)
+    blind = cfa_blind([cam.slope_for_depth(d) for d in depths], n)
     n_dim = dim.reshape(len(dim), -1).sum(axis=1)
     sample = np.array([np.asarray(cam.field_of_view_mm(d)) / (cam.n_rows, cam.n_cols) for d in depths])
     wall = time.perf_counter() - t0
@@ -150,6 +151,9 @@ def cmd_temperature(a):
         f["sample_mm"] = sample
         f["n_masked"] = np.asarray(n_masked, np.int64)
         f["n_dim"] = np.asarray(n_dim, np.int64)
+        f["cfa_blind"] = blind
+        f["cfa_blind"].attrs["meaning"] = ("plane at a slope near an odd integer: half its lenslets have no sample of "
+                                           "a CFA phase in any view (lf_flame.tomo.colour.cfa_blind)")
         attrs = dict(kind="lf_flame temperature", source=src, calibration=json.dumps(
             dict(path=str(a.calibration), **{k: getattr(cal, k) for k in cal.__dataclass_fields__})),
                      sensor=json.dumps(dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase),
@@ -171,5 +175,7 @@ def cmd_temperature(a):
         stats = (f"median {np.median(v):.0f} K, p10-p90 {np.percentile(v, 10):.0f}-{np.percentile(v, 90):.0f} K"
                  if v.size else "no temperature")
         print(f"plane {k} ({d:+.2f} mm): {int(valid[k].sum())} px with a temperature, {stats}; {int(n_masked[k])} "
-              f"bright px masked (ratio out of the table), {int(n_dim[k])} px below {a.min_fraction:g} of the peak")
+              f"bright px masked (ratio out of the table), {int(n_dim[k])} px below {a.min_fraction:g} of the peak"
+              + (f"; WARNING: slope {cam.slope_for_depth(d):+.3f} near an odd integer, half its lenslets have no red "
+                 "sample in any view (cfa_blind): its temperature is interpolation there" if blind[k] else ""))
     print(f"temperature of {len(depths)} planes ({a.route} {chosen}) in {wall:.1f} s -> {out}, {fig}")

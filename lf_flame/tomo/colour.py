@@ -215,6 +215,35 @@ def channel_subviews(views: np.ndarray, chan: np.ndarray, channel: int) -> np.nd
     return out
 
 
+def cfa_blind(slopes, pixels_per_lenslet: int) -> np.ndarray:
+    """Planes whose points a 2 x 2 CFA shows in one phase only: no ratio there for half the lenslets.
+
+    With an odd number ``N`` of pixels per lenslet, the CFA's phase along an axis alternates
+    from lenslet to lenslet, so view ``u`` of lenslet ``k`` holds phase ``(k + u) mod 2``. A
+    point of a plane of slope ``s`` at lenslet ``y`` lies in lenslet ``y + s u`` of view ``u``,
+    at phase ``(y + (s + 1) u) mod 2``: at an odd-integer slope that is ``y``'s alone, and
+    the points on every other lenslet row (column) have no sample of that phase in any view
+    (no red sample, in the RGGB pattern). Within ``2 / (N - 1)`` of an odd integer the views'
+    spread of ``s u`` stays under two lenslets and most of them still see one phase only.
+    With ``N`` even, each view holds one phase at every lenslet and no plane is blind.
+
+    Parameters
+    ----------
+    slopes : sequence of float, lenslets per view
+    pixels_per_lenslet : int
+
+    Returns
+    -------
+    ndarray of bool, shape (len(slopes),)
+    """
+    s = np.asarray(slopes, float)
+    n = int(pixels_per_lenslet)
+    if n % 2 == 0 or n < 3:
+        return np.zeros(s.shape, bool)
+    odd = 2 * np.floor(s / 2) + 1                       # the nearest odd integer
+    return np.abs(s - odd) < 2.0 / (n - 1)
+
+
 def cfa_noise(views: np.ndarray, chan: np.ndarray, channels) -> float:
     """A colour light field's relative noise: the largest of ``channels``' (:func:`lf_flame.tomo.fourier.relative_noise`
     of :func:`channel_subviews`, each channel's samples only, so the CFA's pattern is not taken for noise)."""
