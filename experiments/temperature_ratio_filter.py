@@ -11,9 +11,9 @@ the plane's true peak R+G emission). Also noise-free, two flames one behind anot
 (``colour_behind_scene``, validation seeds :data:`BEHIND_SEEDS`, not the scored 937200-937203),
 scored over the mixed pixels as ``temperature_behind.md``. Per noisy level: the filter with the
 smallest worst-plane p90 is chosen; noise-free, the one with the smallest larger of the flames'
-worst-plane p90 over 30 K and the behind scenes' over 50 K (their bars), the behind planes at a
-slope within :data:`BLIND_SLOPE` of +-1 lenslet per view apart (there one parity of lenslets holds
-no red sample in any view: the CFA leaves those points without a ratio, which no filter restores); ``MATCHED_RATIO_FILTER`` and ``MATCHED_WIDE_NOISE`` are checked against the choices, the
+worst-plane p90 over 30 K and the behind scenes' over 50 K (their bars), the behind planes the CFA
+leaves blind apart (:func:`lf_flame.tomo.colour.cfa_blind`: at a slope near +-1 lenslet per view, half
+the lenslets hold no red sample in any view, a ratio no filter restores); ``MATCHED_RATIO_FILTER`` and ``MATCHED_WIDE_NOISE`` are checked against the choices, the
 relative noise ``cfa_noise`` measures beside each level. Writes ``<out>/temperature_ratio_filter.{csv,md}``.
 
 Usage: ``python experiments/temperature_ratio_filter.py --out results [--rays 400]``.
@@ -39,14 +39,14 @@ from lf_flame.optics.colour import library_sensor  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_behind_scene, colour_flame_scene  # noqa: E402
 from lf_flame.tomo.colour import (MATCHED_KNOBS, MATCHED_QUIET_NOISE, MATCHED_RATIO_FILTER,  # noqa: E402
-                                  MATCHED_SIGMA_NOISY, MATCHED_WIDE_NOISE, cfa_noise, channel_views, guided_ratio,
+                                  MATCHED_SIGMA_NOISY, MATCHED_WIDE_NOISE, cfa_blind, cfa_noise, channel_views,
+                                  guided_ratio,
                                   matched_channels, route_operator, smooth_planes)
 from lf_flame.tomo.truth import bin_planes  # noqa: E402
 
 SNRS_DB = (14.0, 17.0, 20.0, 26.0, 30.0)
 GUIDED = ((1, 0.001), (1, 0.003), (1, 0.01), (1, 0.03), (1, 0.1), (2, 0.03), (2, 0.1), (2, 0.3))
 BEHIND_SEEDS = ((937600, 10.0), (937601, 20.0), (937602, 10.0), (937603, 20.0))
-BLIND_SLOPE = 0.15
 
 
 def filters():
@@ -111,9 +111,10 @@ def main(argv=None):
             views, op, [(chan == c) & (views < 1) for c in (0, 1)], **MATCHED_KNOBS["quiet"]))
         dt = time.perf_counter() - t1
         slopes = [cam.slope_for_depth(d) for d in depths]
+        blind = cfa_blind(slopes, cam.pixels_per_lenslet)
         for name, f in filters().items():
             rows += [dict(x, kind="behind", slope=slopes[x["plane"]],
-                          blind=abs(abs(slopes[x["plane"]]) - 1) < BLIND_SLOPE)
+                          blind=bool(blind[x["plane"]]))
                      for x in E.score("admm-cfa-matched", "clean", seed, *f(a, b), Tt, vt & vt[::-1], cal, model,
                                       snr_db=np.inf, filter=name, measured_noise=cfa_noise(views, chan, (0, 1)),
                                       fills=MATCHED_KNOBS["quiet"]["fills"], time_s=dt)]
@@ -152,8 +153,8 @@ def main(argv=None):
         f"{MATCHED_QUIET_NOISE}, `MATCHED_WIDE_NOISE` {MATCHED_WIDE_NOISE}, `MATCHED_RATIO_FILTER` "
         f"{MATCHED_RATIO_FILTER}) with its p90 here:", "",
         picks.to_markdown(floatfmt=".4g"), "",
-        "Noise-free: the flames' worst-plane p90 beside the behind scenes' (mixed pixels; the planes at a slope "
-        f"within {BLIND_SLOPE} of +-1 apart, as `behind_blind_plane_p90`), and the larger of each over its bar:", "",
+        "Noise-free: the flames' worst-plane p90 beside the behind scenes' (mixed pixels; the planes `cfa_blind` "
+        "flags apart, as `behind_blind_plane_p90`), and the larger of each over its bar:", "",
         clean.to_markdown(floatfmt=".3g"), "",
         f"Both scenes of each level take the same filter: **{'yes' if held else 'no'}**.", "",
         "All settings (median-plane p90 and worst pixel too):", "",
