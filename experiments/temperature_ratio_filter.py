@@ -7,9 +7,9 @@ paper's four flames drawn with the validation seeds of ``temperature_grid.py`` (
 none; a Gaussian of ``MATCHED_SIGMA_NOISY`` lenslets on both (the route's filter before this
 experiment); or a guided filter of their log ratio (:func:`lf_flame.tomo.colour.guided_ratio`) of each
 radius and eps of :data:`GUIDED`. Scored as ``temperature.md`` (per plane over the pixels >= 10 % of
-the plane's true peak R+G emission). Also noise-free, two flames one behind another
-(``colour_behind_scene``, validation seeds :data:`BEHIND_SEEDS`, not the scored 937200-937203),
-scored over the mixed pixels as ``temperature_behind.md``. Per noisy level: the filter with the
+the plane's true peak R+G emission), beside the share of those pixels each leaves without a
+temperature. Also noise-free, two flames one behind another (``colour_behind_scene``, validation
+seeds :data:`BEHIND_SEEDS`, not the scored 937200-937203), scored over the mixed pixels as ``temperature_behind.md``. Per noisy level: the filter with the
 smallest worst-plane p90 is chosen; noise-free, the one with the smallest larger of the flames'
 worst-plane p90 over 30 K and the behind scenes' over 50 K (their bars), the behind planes the CFA
 leaves blind apart (:func:`lf_flame.tomo.colour.cfa_blind`: at a slope near +-1 lenslet per view, half
@@ -126,7 +126,10 @@ def main(argv=None):
     blind = bh[bh.blind.astype(bool)].groupby("filter").p90_k.max()
     df = df[df.kind == "flame"]
     g = df.groupby(["snr_db", "filter"]).agg(noise=("measured_noise", "max"), p90_worst_plane=("p90_k", "max"),
-                                             p90_median_plane=("p90_k", "median"), worst=("worst_k", "max"))
+                                             p90_median_plane=("p90_k", "median"), worst=("worst_k", "max"),
+                                             masked=("n_masked", "sum"), truth=("n_truth", "sum"))
+    g["masked_pct"] = 100.0 * g.masked / g.truth
+    g = g.drop(columns=["masked", "truth"])
     w = g.p90_worst_plane.unstack("filter")
     noise = df.groupby("snr_db").measured_noise.agg(["min", "max"])
     picks = pd.DataFrame(dict(noise_min=noise["min"], noise_max=noise["max"], best=w.idxmin(axis=1),
@@ -149,6 +152,9 @@ def main(argv=None):
         "the SNR measured over the image; `noise`: `cfa_noise` (the route's measure).", "",
         "Worst-plane p90 |T error| (K) over both scenes, per SNR (inf: noise-free) and filter:", "",
         w.to_markdown(floatfmt=".1f"), "",
+        "Share of the truth pixels (>= 10 % of the true peak) left without a temperature (%): a filter that "
+        "masks more reports fewer of the dim, hard pixels, so its p90 is read beside this:", "",
+        g.masked_pct.unstack("filter").to_markdown(floatfmt=".1f"), "",
         "The best filter per level, and the one the route takes by the measured noise (`MATCHED_QUIET_NOISE` "
         f"{MATCHED_QUIET_NOISE}, `MATCHED_WIDE_NOISE` {MATCHED_WIDE_NOISE}, `MATCHED_RATIO_FILTER` "
         f"{MATCHED_RATIO_FILTER}) with its p90 here:", "",

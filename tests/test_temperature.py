@@ -258,8 +258,10 @@ def test_matched_route_takes_its_knobs_by_the_noise(monkeypatch):
 def test_guided_ratio_averages_the_noise_and_keeps_what_follows_the_guide():
     """The guided filter of the log ratio: a ratio linear in the log emission comes out nearly
     unchanged (eps well below the guide's local variance), noise on it is averaged, a constant ratio stays exact, and the
-    pixels below the emission threshold are left as they were; a Gaussian on both channels
-    instead bends the ratio where it follows the brightness."""
+    pixels below the emission threshold keep their ratio; a Gaussian on both channels
+    instead bends the ratio where it follows the brightness. The pixels bright enough for a
+    temperature are those of the smoothed sum: noise does not raise the threshold and drop
+    the flame's dim edge."""
     from lf_flame.tomo.colour import guided_filter, guided_ratio, smooth_planes
     y, x = np.mgrid[0:40, 0:40]
     b = np.exp(-(((x - 20) / 8.0) ** 2 + ((y - 20) / 11.0) ** 2))[None] + 1e-6
@@ -267,18 +269,24 @@ def test_guided_ratio_averages_the_noise_and_keeps_what_follows_the_guide():
     a = b * np.exp(lr)
     fa, fb = guided_ratio(a, b, 2, 1e-4, guide_sigma=0.0)     # eps well below the guide's local variance
     bright = P.bright_pixels(a + b)
-    assert np.array_equal(fb, b) and np.array_equal(fa[~bright], a[~bright])
+    np.testing.assert_allclose(fa + fb, a + b, rtol=1e-12)            # no smoothing of the sum asked for
+    np.testing.assert_allclose(np.log(fa / fb)[~bright], lr[~bright], atol=1e-9)
     assert np.abs(np.log(fa / fb) - lr)[bright].max() < 2e-3          # the linear trend kept
     ga, gb = smooth_planes(a, 0.7), smooth_planes(b, 0.7)
     assert np.abs(np.log(ga / gb) - lr)[bright].max() > 5 * np.abs(np.log(fa / fb) - lr)[bright].max()
-    ca, _ = guided_ratio(1.3 * b, b, 1, 0.03)
-    np.testing.assert_allclose(ca, 1.3 * b, rtol=1e-9)
+    ca, cb = guided_ratio(1.3 * b, b, 1, 0.03)
+    np.testing.assert_allclose(ca / cb, 1.3, rtol=1e-9)
+    np.testing.assert_allclose(ca + cb, smooth_planes(2.3 * b, 0.5), rtol=1e-9)
     rng = np.random.default_rng(3)
     na = a * np.exp(rng.normal(0, 0.05, a.shape))
-    fa, _ = guided_ratio(na, b, 2, 1e-3, guide_sigma=0.0)
+    fa, fb = guided_ratio(na, b, 2, 1e-3, guide_sigma=0.0)
     before = np.std((np.log(na / b) - lr)[bright])
-    after = np.std((np.log(fa / b) - lr)[bright])
+    after = np.std((np.log(fa / fb) - lr)[bright])
     assert after < 0.5 * before
+    na, nb = a * rng.normal(1, 0.3, a.shape), b * rng.normal(1, 0.3, a.shape)   # noisy channels
+    raw = P.bright_pixels(na + nb).sum()
+    fa, fb = guided_ratio(na, nb, 2, 1e-3)
+    assert P.bright_pixels(fa + fb).sum() > raw and abs(P.bright_pixels(fa + fb).sum() - bright.sum()) < 0.1 * bright.sum()
     with pytest.raises(ValueError, match="radius"):
         guided_filter(lr[0], lr[0], bright[0], 0, 0.1)
     with pytest.raises(ValueError, match="one 2-D shape"):

@@ -342,12 +342,15 @@ def guided_ratio(a: np.ndarray, b: np.ndarray, radius: int, eps: float, guide_si
                  min_fraction: float = MIN_FRACTION):
     """Two channels' emission per plane with their ratio smoothed by a guided filter.
 
-    The log ratio ``ln(a / b)`` of each plane (where both are positive and ``a + b`` is at
-    least ``min_fraction`` of the plane's peak) is filtered by :func:`guided_filter` with
-    the log of the summed emission, smoothed by a Gaussian of ``guide_sigma`` lenslets and
-    relative to the plane's peak, as its guide: where temperature follows brightness (the
-    hot, luminous sheath) the ratio keeps its edges, and it is averaged where it does not.
-    ``b`` is returned as it is and ``a`` as ``b`` times the filtered ratio.
+    The two channels are split into their summed emission ``s = a + b``, smoothed by a
+    Gaussian of ``guide_sigma`` lenslets, and the ratio ``a / b``. The log ratio of each
+    plane (where both channels are positive and ``s`` is at least ``min_fraction`` of the
+    plane's peak ``s``) is filtered by :func:`guided_filter` with ``ln s``, relative to the
+    plane's peak, as its guide: where temperature follows brightness (the hot, luminous
+    sheath) the ratio keeps its edges, and it is averaged where it does not. Elsewhere the
+    ratio is kept as it is. The channels returned are ``s`` split by the ratio, so that
+    which pixels are bright enough for a temperature is decided on the smoothed sum, not on
+    a noise peak (a noisy plane's peak raises its ``min_fraction`` threshold).
 
     Parameters
     ----------
@@ -357,12 +360,14 @@ def guided_ratio(a: np.ndarray, b: np.ndarray, radius: int, eps: float, guide_si
     eps : float
         Regularisation, in the guide's units (log emission) squared.
     guide_sigma : float, lenslets
+        0: the sum is not smoothed (``a + b`` is returned unchanged).
     min_fraction : float
         As :func:`lf_flame.measure.pyrometry.temperature_planes`.
 
     Returns
     -------
-    (a, b) : two ndarrays of shape (P, rows, cols).
+    (a, b) : two ndarrays of shape (P, rows, cols), with ``a / b`` the filtered ratio and
+    ``a + b`` the smoothed sum (clipped at 0).
 
     Raises
     ------
@@ -372,17 +377,19 @@ def guided_ratio(a: np.ndarray, b: np.ndarray, radius: int, eps: float, guide_si
     a, b = np.asarray(a, float), np.asarray(b, float)
     if a.shape != b.shape or a.ndim != 3:
         raise ValueError(f"two (P, rows, cols) emission stacks are needed. Received {a.shape} and {b.shape}")
-    m = bright_pixels(a + b, min_fraction) & (a > 0) & (b > 0)
-    guide = np.log(np.maximum(smooth_planes(a + b, guide_sigma), 1e-30))
-    out = a.copy()
+    s = np.maximum(smooth_planes(a + b, guide_sigma) if guide_sigma > 0 else a + b, 0.0)
+    m = bright_pixels(s, min_fraction) & (a > 0) & (b > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        frac = np.where(a + b > 0, np.clip(a / (a + b), 0.0, 1.0), 0.5)     # a's share of the sum
+        guide = np.log(s)
     for k in range(len(a)):
         if not m[k].any():
             continue
         with np.errstate(divide="ignore", invalid="ignore"):
             lr = np.where(m[k], np.log(a[k] / b[k]), 0.0)
-        g = guide[k] - guide[k][m[k]].max()
-        out[k] = np.where(m[k], b[k] * np.exp(guided_filter(lr, g, m[k], radius, eps)), a[k])
-    return out, b
+        g = np.where(m[k], guide[k] - guide[k][m[k]].max(), 0.0)
+        frac[k] = np.where(m[k], 1.0 / (1.0 + np.exp(-guided_filter(lr, g, m[k], radius, eps))), frac[k])
+    return s * frac, s * (1.0 - frac)
 
 
 def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, *, op=None, slopes=None,
