@@ -3,15 +3,15 @@
 The paper's four flames of ``temperature.py``'s flames stage (the same scenes and seeds: the nominal
 scene and one drawn, 400 rays per pixel), the mosaic's shot and read noise set to each SNR of
 :data:`SNRS_DB` (``temperature.add_noise``: measured over the image within 0.2 dB; per channel
-reported), temperature by the default route ``admm-cfa-matched`` with its knobs and smoothing
+reported), temperature by the default route ``admm-cfa-matched`` with its knobs and ratio filter
 chosen by the noise it measures (:data:`lf_flame.tomo.colour.MATCHED_KNOBS`). Scored as
 ``temperature.md``: per plane over the pixels >= 10 % of the plane's true peak R+G emission.
 Writes ``<out>/temperature_snr.{csv,md}``.
 
 ``--validation``: the validation scenes of ``temperature_grid.py`` instead (seeds 937500-1, not
-the scored ones), each light field solved with both knob sets of ``MATCHED_KNOBS`` (quiet: unsmoothed;
-noisy: smoothed by ``MATCHED_SIGMA_NOISY``, the filter before the guided ratio filter) beside the route's own choice, with the relative noise
-``cfa_noise`` measures: where the quiet knobs stop winning chooses ``MATCHED_QUIET_NOISE``.
+the scored ones), each light field solved with both knob sets of ``MATCHED_KNOBS``, each with its
+ratio filter of ``MATCHED_RATIO_FILTER`` (quiet; noisy), with the relative noise ``cfa_noise``
+measures: where the quiet knobs stop winning chooses ``MATCHED_QUIET_NOISE``.
 Writes ``<out>/temperature_snr_validation.{csv,md}``.
 
 Usage: ``python experiments/temperature_snr.py --out results [--rays 400] [--scenes 2] [--validation]``.
@@ -35,7 +35,7 @@ from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.optics.colour import library_sensor  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_flame_scene  # noqa: E402
-from lf_flame.tomo.colour import (MATCHED_KNOBS, MATCHED_QUIET_NOISE, MATCHED_SIGMA_NOISY,  # noqa: E402
+from lf_flame.tomo.colour import (MATCHED_KNOBS, MATCHED_QUIET_NOISE, MATCHED_RATIO_FILTER,  # noqa: E402
                                   cfa_noise, channel_emission, channel_views, route_operator)
 from temperature_grid import SEEDS as VALIDATION_SEEDS  # noqa: E402
 
@@ -52,8 +52,8 @@ def main(argv=None):
     ap.add_argument("--validation", action="store_true", help="validation scenes, both knob sets")
     args = ap.parse_args(argv)
     seeds = list(VALIDATION_SEEDS) if args.validation else [E.SEED0 + i for i in range(args.scenes)]
-    fixed = {f"{k} knobs": (MATCHED_KNOBS[k], MATCHED_SIGMA_NOISY if k == "noisy" else 0.0)
-             for k in ("quiet", "noisy")} if args.validation else {}   # (the Gaussian it chose the threshold with)
+    fixed = {f"{k} knobs": (MATCHED_KNOBS[k], MATCHED_RATIO_FILTER[k])
+             for k in ("quiet", "noisy")} if args.validation else {}
     name = "temperature_snr_validation" if args.validation else "temperature_snr"
     t0 = time.perf_counter()
     cam, sensor, model = PAPER_CAMERA, library_sensor(gains=E.GAINS), library_sensor()
@@ -74,11 +74,11 @@ def main(argv=None):
             per = E.snr_per_channel(r["clean"], noisy, chan_raw)
             views = raw_to_views(noisy, cam.pixels_per_lenslet)
             level_noise = cfa_noise(views, chan, (0, 1)) if fixed else np.nan   # (the route measures its own)
-            for route, (knobs, sigma) in (fixed or {"by the noise": (None, None)}).items():
+            for route, (knobs, ratio_filter) in (fixed or {"by the noise": (None, None)}).items():
                 chosen = {}
                 t1 = time.perf_counter()
-                a, b = channel_emission("admm-cfa-matched", views, chan, (0, 1), op=op, knobs=knobs, sigma=sigma,
-                                        ratio_filter={} if fixed else None, info=chosen)
+                a, b = channel_emission("admm-cfa-matched", views, chan, (0, 1), op=op, knobs=knobs,
+                                        ratio_filter=ratio_filter, info=chosen)
                 rows += E.score(route, f"{snr:g}dB", seed, a, b, Tt, vt, cal, model,
                                 time_s=time.perf_counter() - t1, snr_db=snr, measured_snr_db=measured,
                                 snr_r_db=per["R"], snr_g_db=per["G"], regime=chosen.get("regime", ""),
@@ -119,7 +119,7 @@ def main(argv=None):
         f"{' --validation' if args.validation else f' --scenes {args.scenes}'}`; wall time "
         f"{time.perf_counter() - t0:.0f} s; commit {prov.get('git_commit')}; seeds {seeds} "
         f"({'validation, not the scored ones' if args.validation else 'the flames stage scenes'}); "
-        "`admm-cfa-matched`, `by the noise`: its knobs and smoothing by the relative noise it measures (`noise`, "
+        "`admm-cfa-matched`, `by the noise`: its knobs and ratio filter by the relative noise it measures (`noise`, "
         f"the larger of the two channels'; quiet below {MATCHED_QUIET_NOISE})"
         f"{'; here each knob set fixed' if args.validation else ''}; "
         "shot + 2 e- read noise on the mosaic, the SNR measured over the image (and per channel, the "
