@@ -9,12 +9,14 @@ experiment); or a guided filter of their log ratio (:func:`lf_flame.tomo.colour.
 radius and eps of :data:`GUIDED`. Scored as ``temperature.md`` (per plane over the pixels >= 10 % of
 the plane's true peak R+G emission), beside the share of those pixels each leaves without a
 temperature. Also noise-free, two flames one behind another (``colour_behind_scene``, validation
-seeds :data:`BEHIND_SEEDS`, not the scored 937200-937203), scored over the mixed pixels as ``temperature_behind.md``. Per noisy level: the filter with the
-smallest worst-plane p90 is chosen; noise-free, the one with the smallest larger of the flames'
-worst-plane p90 over 30 K and the behind scenes' over 50 K (their bars), the behind planes the CFA
-leaves blind apart (:func:`lf_flame.tomo.colour.cfa_blind`: at a slope near +-1 lenslet per view, half
-the lenslets hold no red sample in any view, a ratio no filter restores); ``MATCHED_RATIO_FILTER`` and ``MATCHED_WIDE_NOISE`` are checked against the choices, the
-relative noise ``cfa_noise`` measures beside each level. Writes ``<out>/temperature_ratio_filter.{csv,md}``.
+seeds :data:`BEHIND_SEEDS`, not the scored 937200-937203), scored over the mixed pixels as
+``temperature_behind.md``. Per noisy level: the filter with the smallest worst-plane p90 is chosen;
+noise-free, the one with the smallest larger of the flames' worst-plane p90 over 30 K and the behind
+scenes' over 50 K (their bars), the behind planes the CFA leaves blind apart
+(:func:`lf_flame.tomo.colour.cfa_blind`: at a slope near +-1 lenslet per view, half the lenslets hold
+no red sample in any view, a ratio no filter restores); ``MATCHED_RATIO_FILTER`` and
+``MATCHED_WIDE_NOISE`` are checked against the choices, the relative noise ``cfa_noise`` measures
+beside each level. Writes ``<out>/temperature_ratio_filter.{csv,md}``.
 
 Usage: ``python experiments/temperature_ratio_filter.py --out results [--rays 400]``.
 """

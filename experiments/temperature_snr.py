@@ -41,7 +41,7 @@ from temperature_grid import SEEDS as VALIDATION_SEEDS  # noqa: E402
 
 SNRS_DB = (14.0, 17.0, 20.0, 23.0, 26.0, 30.0)
 #: ``--validation``'s levels: around where the measured noise crosses ``MATCHED_QUIET_NOISE``.
-VALIDATION_SNRS_DB = (26.0, 30.0, 35.0, 40.0, 46.0)
+VALIDATION_SNRS_DB = (20.0, 23.0, 26.0, 30.0, 35.0)
 
 
 def main(argv=None):

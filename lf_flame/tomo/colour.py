@@ -51,10 +51,11 @@ CFA_FILLS, CFA_LAM, CFA_TV, CFA_L1 = 25, 0.01, 0.0, 0.0
 SMOOTH_SIGMA = 0.7
 #: ``admm-cfa-matched``: its planes' grid (samples per lenslet and axis) and the Gaussian
 #: (lenslets) both channels were smoothed by when the light field is noisy, before the guided
-#: ratio filter (:data:`MATCHED_RATIO_FILTER`) replaced it; the experiments compare the two. Chosen on validation scenes (seeds 937500-1,
-#: 400 rays, ``results/temperature_grid.md``): worst-plane p90 38 K noise-free unsmoothed (67 K
-#: smoothed by 0.7), 98 K at 14 dB smoothed by 0.7 (253 K unsmoothed); on the lenslet grid 56 K
-#: noise-free (89 K at 14 dB: the one setting where the lenslet grid is better).
+#: ratio filter (:data:`MATCHED_RATIO_FILTER`) replaced it; the experiments compare the two.
+#: Chosen on validation scenes (seeds 937500-1, 400 rays, ``results/temperature_grid.md``):
+#: worst-plane p90 38 K noise-free unsmoothed (67 K smoothed by 0.7), 98 K at 14 dB smoothed by
+#: 0.7 (253 K unsmoothed); on the lenslet grid 56 K noise-free (89 K at 14 dB: the one setting
+#: where the lenslet grid is better).
 MATCHED_SUBSAMPLES, MATCHED_SIGMA_NOISY = 2, 0.7
 #: ``admm-cfa-matched``'s admm knobs (all four solves) by the light field's noise regime
 #: (:func:`cfa_noise` against :data:`MATCHED_QUIET_NOISE`). Quiet: the missing data's fills converge
