@@ -69,8 +69,9 @@ from lf_flame.simulate.colour import render_colour
 from lf_flame.simulate.scenes_temperature import (BEHIND_PEAK_K, FLAME_PEAK_K, colour_behind_scene, colour_flame_scene,
                                                   furnace_scene)
 from lf_flame.tomo.colour import (CFA_FILLS as FILLS, CFA_LAM as LAM, CFA_TV as TV, MATCHED_KNOBS,
-                                  MATCHED_QUIET_NOISE, MATCHED_RATIO_FILTER, MATCHED_SUBSAMPLES, MATCHED_WIDE_NOISE, SMOOTH_SIGMA, admm_channel, channel_emission,
-                                  channel_views, colour_truth, route_operator, smooth_planes)
+                                  MATCHED_QUIET_NOISE, MATCHED_RATIO_FILTER, MATCHED_SUBSAMPLES, MATCHED_WIDE_NOISE,
+                                  SMOOTH_SIGMA, admm_channel, channel_emission, channel_views, colour_truth,
+                                  route_operator, smooth_planes)
 from lf_flame.tomo.truth import bin_planes
 
 GAINS = (1.0, 1.25, 0.8)
@@ -86,6 +87,9 @@ FURNACE_PEAK = 0.5
 BEHIND_SEED0 = 937200
 BEHIND_SEPARATIONS_MM = (10.0, 20.0)
 BARS = dict(p90_clean=30.0, worst_clean=80.0, p90_noisy=60.0, blackbody=5.0)
+#: the matched route's settings, as the reports record them
+MATCHED = dict(subsamples=MATCHED_SUBSAMPLES, knobs=MATCHED_KNOBS, quiet_noise=MATCHED_QUIET_NOISE,
+               ratio_filter=MATCHED_RATIO_FILTER, wide_noise=MATCHED_WIDE_NOISE)
 
 
 def full_well_for(clean: np.ndarray, snr_db: float, read: float = READ_E) -> float:
@@ -113,6 +117,22 @@ def snr_db(clean, noisy) -> float:
     """SNR (dB) of ``noisy`` against the noise-free ``clean``, over the whole image."""
     c = clean.astype(np.float64)
     return float(10 * np.log10(np.sum(c ** 2) / np.sum((noisy - c) ** 2)))
+
+
+def setup(out):
+    """The paper's camera, the colour sensor (with :data:`GAINS`) and the pyrometer's model of it, and the
+    calibration the flames stage wrote to ``out``: (cam, sensor, model, cal)."""
+    cam, sensor, model = PAPER_CAMERA, library_sensor(gains=GAINS), library_sensor()
+    return cam, sensor, model, P.load_calibration(Path(out) / "temperature_calibration.json", model)
+
+
+def scene_case(cam, cs, sensor, rays, seed, cal, model):
+    """A colour scene rendered (:func:`render_scene`), each plane's true temperature on the lenslet grid
+    (:func:`true_temperature`) and the views' channel map: (depths, r, Tt, vt, chan)."""
+    depths = [float(o["depth_offset_mm"]) for o in cs.scene.objects]
+    r = render_scene(cam, cs, sensor, rays, seed)
+    Tt, vt = true_temperature(cs, route_operator(cam, depths, "admm-cfa"), cal, model)
+    return depths, r, Tt, vt, channel_views(r["clean"].shape, sensor, cam.pixels_per_lenslet)
 
 
 def true_temperature(cs, op, cal, model):
@@ -308,9 +328,7 @@ def write_behind(out, df, info, cal_note, args, wall, prov):
     atomic_write_text(out / "temperature_behind.json", json.dumps(dict(
         provenance=prov, wall_time_s=wall, rays_per_pixel=args.rays, scenes=info, gains=GAINS, snr_db=SNR_DB,
         read_noise_e=READ_E, admm=dict(fills=FILLS, lam=LAM, tv=TV), smooth_sigma_lenslets=SMOOTH_SIGMA,
-        matched=dict(subsamples=MATCHED_SUBSAMPLES, knobs=MATCHED_KNOBS, quiet_noise=MATCHED_QUIET_NOISE,
-                     ratio_filter=MATCHED_RATIO_FILTER, wide_noise=MATCHED_WIDE_NOISE),
-        calibration=cal_note), indent=2, default=str))
+        matched=MATCHED, calibration=cal_note), indent=2, default=str))
 
 
 def wien_difference(cal, model):
@@ -378,9 +396,7 @@ def write_report(out, df, info, cal, wien, args, wall, prov):
         provenance=prov, wall_time_s=wall, rays_per_pixel=args.rays, scenes=info, gains=GAINS, fit_k=FIT_K,
         check_k=CHECK_K, snr_db=SNR_DB, read_noise_e=READ_E, admm=dict(fills=FILLS, lam=LAM, tv=TV),
         smooth_sigma_lenslets=SMOOTH_SIGMA,
-        matched=dict(subsamples=MATCHED_SUBSAMPLES, knobs=MATCHED_KNOBS, quiet_noise=MATCHED_QUIET_NOISE,
-                     ratio_filter=MATCHED_RATIO_FILTER, wide_noise=MATCHED_WIDE_NOISE),
-        calibration=dataclasses.asdict(cal), wien=wien), indent=2, default=str))
+        matched=MATCHED, calibration=dataclasses.asdict(cal), wien=wien), indent=2, default=str))
 
 
 def main(argv=None):

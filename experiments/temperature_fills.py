@@ -30,12 +30,9 @@ import temperature as E  # noqa: E402
 from temperature_grid import SEEDS  # noqa: E402
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
-from lf_flame.measure import pyrometry as P  # noqa: E402
-from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
-from lf_flame.optics.colour import library_sensor  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_flame_scene  # noqa: E402
-from lf_flame.tomo.colour import (MATCHED_KNOBS, MATCHED_SIGMA_NOISY, channel_views, matched_channels,  # noqa: E402
+from lf_flame.tomo.colour import (MATCHED_KNOBS, MATCHED_SIGMA_NOISY, matched_channels,  # noqa: E402
                                   route_operator, smooth_planes)
 from lf_flame.tomo.truth import bin_planes  # noqa: E402
 
@@ -56,17 +53,13 @@ def main(argv=None):
     ap.add_argument("--rays", type=int, default=400)
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
-    cam, sensor, model = PAPER_CAMERA, library_sensor(gains=E.GAINS), library_sensor()
-    cal = P.load_calibration(args.out / "temperature_calibration.json", model)
+    cam, sensor, model, cal = E.setup(args.out)
     rows, own = [], {}
     for seed in SEEDS:
         cs = colour_flame_scene(cam, sensor, np.random.default_rng(seed))
-        depths = [float(o["depth_offset_mm"]) for o in cs.scene.objects]
+        depths, r, Tt, vt, chan = E.scene_case(cam, cs, sensor, args.rays, seed, cal, model)
         op = route_operator(cam, depths, "admm-cfa-matched")
-        r = E.render_scene(cam, cs, sensor, args.rays, seed)
         own[seed] = r["own"]
-        Tt, vt = E.true_temperature(cs, route_operator(cam, depths, "admm-cfa"), cal, model)
-        chan = channel_views(r["clean"].shape, sensor, cam.pixels_per_lenslet)
         for noise, knobs, sigma in settings():
             views = raw_to_views(r["clean" if noise == "clean" else "noisy"], cam.pixels_per_lenslet)
             t1 = time.perf_counter()

@@ -35,15 +35,11 @@ import temperature as E  # noqa: E402
 from temperature_grid import SEEDS  # noqa: E402
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
-from lf_flame.measure import pyrometry as P  # noqa: E402
-from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
-from lf_flame.optics.colour import library_sensor  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_behind_scene, colour_flame_scene  # noqa: E402
 from lf_flame.tomo.colour import (MATCHED_KNOBS, MATCHED_QUIET_NOISE, MATCHED_RATIO_FILTER,  # noqa: E402
-                                  MATCHED_SIGMA_NOISY, MATCHED_WIDE_NOISE, cfa_blind, cfa_noise, channel_views,
-                                  guided_ratio,
-                                  matched_channels, route_operator, smooth_planes)
+                                  MATCHED_SIGMA_NOISY, MATCHED_WIDE_NOISE, cfa_blind, cfa_noise, guided_ratio,
+                                  matched_channels, matched_regime, route_operator, smooth_planes)
 from lf_flame.tomo.truth import bin_planes  # noqa: E402
 
 SNRS_DB = (14.0, 17.0, 20.0, 26.0, 30.0)
@@ -63,10 +59,7 @@ def filters():
 
 def route_filter(noise: float) -> str:
     """The filter name the route takes at a measured noise."""
-    if noise < MATCHED_QUIET_NOISE:
-        f = MATCHED_RATIO_FILTER.get("quiet")
-    else:
-        f = MATCHED_RATIO_FILTER["noisy" if noise < MATCHED_WIDE_NOISE else "very noisy"]
+    f = MATCHED_RATIO_FILTER[matched_regime(noise)]
     return f"guided r{f['radius']} eps{f['eps']:g}" if f else "none"
 
 
@@ -76,16 +69,12 @@ def main(argv=None):
     ap.add_argument("--rays", type=int, default=400)
     args = ap.parse_args(argv)
     t0 = time.perf_counter()
-    cam, sensor, model = PAPER_CAMERA, library_sensor(gains=E.GAINS), library_sensor()
-    cal = P.load_calibration(args.out / "temperature_calibration.json", model)
+    cam, sensor, model, cal = E.setup(args.out)
     rows = []
     for seed in SEEDS:
         cs = colour_flame_scene(cam, sensor, np.random.default_rng(seed))
-        depths = [float(o["depth_offset_mm"]) for o in cs.scene.objects]
+        depths, r, Tt, vt, chan = E.scene_case(cam, cs, sensor, args.rays, seed, cal, model)
         op = route_operator(cam, depths, "admm-cfa-matched")
-        r = E.render_scene(cam, cs, sensor, args.rays, seed)
-        Tt, vt = E.true_temperature(cs, route_operator(cam, depths, "admm-cfa"), cal, model)
-        chan = channel_views(r["clean"].shape, sensor, cam.pixels_per_lenslet)
         for snr in (np.inf,) + SNRS_DB:
             raw = r["clean"] if snr == np.inf else E.add_noise(r["clean"], cs.scene.effects, seed, snr)[0]
             views = raw_to_views(raw, cam.pixels_per_lenslet)
@@ -102,12 +91,10 @@ def main(argv=None):
             print(f"seed {seed} {snr:g} dB (noise {noise:.4f}): {dt:.0f} s", flush=True)
     for seed, sep in BEHIND_SEEDS:
         cs = colour_behind_scene(cam, sensor, np.random.default_rng(seed), sep)
-        depths = [float(o["depth_offset_mm"]) for o in cs.scene.objects]
+        depths, r, Tt, vt, chan = E.scene_case(cam, cs, sensor, args.rays, seed, cal, model)
         op = route_operator(cam, depths, "admm-cfa-matched")
-        r = E.render_scene(cam, cs, sensor, args.rays, seed)
-        Tt, vt = E.true_temperature(cs, route_operator(cam, depths, "admm-cfa"), cal, model)
         views = raw_to_views(r["clean"], cam.pixels_per_lenslet)
-        chan = channel_views(r["clean"].shape, sensor, cam.pixels_per_lenslet)
+        noise = cfa_noise(views, chan, (0, 1))
         t1 = time.perf_counter()
         a, b = (bin_planes(x, op.subsamples) for x in matched_channels(
             views, op, [(chan == c) & (views < 1) for c in (0, 1)], **MATCHED_KNOBS["quiet"]))
@@ -118,7 +105,7 @@ def main(argv=None):
             rows += [dict(x, kind="behind", slope=slopes[x["plane"]],
                           blind=bool(blind[x["plane"]]))
                      for x in E.score("admm-cfa-matched", "clean", seed, *f(a, b), Tt, vt & vt[::-1], cal, model,
-                                      snr_db=np.inf, filter=name, measured_noise=cfa_noise(views, chan, (0, 1)),
+                                      snr_db=np.inf, filter=name, measured_noise=noise,
                                       fills=MATCHED_KNOBS["quiet"]["fills"], time_s=dt)]
         print(f"behind {seed} ({sep:g} mm, slopes {[round(x, 3) for x in slopes]}): {dt:.0f} s", flush=True)
     df = pd.DataFrame(rows)

@@ -30,13 +30,10 @@ sys.path.insert(0, str(Path(__file__).parent))
 import temperature as E  # noqa: E402
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
-from lf_flame.measure import pyrometry as P  # noqa: E402
-from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
-from lf_flame.optics.colour import library_sensor  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_flame_scene  # noqa: E402
 from lf_flame.tomo.colour import (MATCHED_KNOBS, MATCHED_QUIET_NOISE, MATCHED_RATIO_FILTER,  # noqa: E402
-                                  cfa_noise, channel_emission, channel_views, route_operator)
+                                  cfa_noise, channel_emission, route_operator)
 from temperature_grid import SEEDS as VALIDATION_SEEDS  # noqa: E402
 
 SNRS_DB = (14.0, 17.0, 20.0, 23.0, 26.0, 30.0)
@@ -56,18 +53,14 @@ def main(argv=None):
              for k in ("quiet", "noisy")} if args.validation else {}
     name = "temperature_snr_validation" if args.validation else "temperature_snr"
     t0 = time.perf_counter()
-    cam, sensor, model = PAPER_CAMERA, library_sensor(gains=E.GAINS), library_sensor()
-    cal = P.load_calibration(args.out / "temperature_calibration.json", model)
+    cam, sensor, model, cal = E.setup(args.out)
     rows = []
     for i, seed in enumerate(seeds):
         nominal = i == 0 and not args.validation
         cs = colour_flame_scene(cam, sensor, None if nominal else np.random.default_rng(seed))
-        depths = [float(o["depth_offset_mm"]) for o in cs.scene.objects]
+        depths, r, Tt, vt, chan = E.scene_case(cam, cs, sensor, args.rays, seed, cal, model)
         op = route_operator(cam, depths, "admm-cfa-matched")
-        r = E.render_scene(cam, cs, sensor, args.rays, seed)
-        Tt, vt = E.true_temperature(cs, route_operator(cam, depths, "admm-cfa"), cal, model)
         chan_raw = sensor.channel_map(r["clean"].shape)
-        chan = channel_views(r["clean"].shape, sensor, cam.pixels_per_lenslet)
         for snr in VALIDATION_SNRS_DB if args.validation else SNRS_DB:
             noisy, _ = E.add_noise(r["clean"], cs.scene.effects, seed, snr)
             measured = E.snr_db(r["clean"], noisy)

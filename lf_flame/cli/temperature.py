@@ -129,11 +129,12 @@ def cmd_temperature(a):
         depths, found = found_planes(cam, channel_sum_views(views, chan, ch))
         extra = dict(depths_from="auto (channel sum)", found_depths=found)
     chosen = {}
-    emission = channel_emission(a.route, views, chan, ch, op=route_operator(cam, depths, a.route),
-                                slopes=[cam.slope_for_depth(d) for d in depths], saturation=a.saturation, info=chosen)
+    slopes = [cam.slope_for_depth(d) for d in depths]
+    emission = channel_emission(a.route, views, chan, ch, op=route_operator(cam, depths, a.route), slopes=slopes,
+                                saturation=a.saturation, info=chosen)
     temp, valid, n_masked = temperature_planes(emission[0], emission[1], cal, sensor, a.alpha, a.min_fraction)
     dim = ~bright_pixels(emission[0] + emission[1], a.min_fraction)
-    blind = cfa_blind([cam.slope_for_depth(d) for d in depths], n)
+    blind = cfa_blind(slopes, n)
     n_dim = dim.reshape(len(dim), -1).sum(axis=1)
     sample = np.array([np.asarray(cam.field_of_view_mm(d)) / (cam.n_rows, cam.n_cols) for d in depths])
     wall = time.perf_counter() - t0
@@ -176,6 +177,6 @@ def cmd_temperature(a):
                  if v.size else "no temperature")
         print(f"plane {k} ({d:+.2f} mm): {int(valid[k].sum())} px with a temperature, {stats}; {int(n_masked[k])} "
               f"bright px masked (ratio out of the table), {int(n_dim[k])} px below {a.min_fraction:g} of the peak"
-              + (f"; WARNING: slope {cam.slope_for_depth(d):+.3f} near an odd integer, half its lenslets have no red "
+              + (f"; WARNING: slope {slopes[k]:+.3f} near an odd integer, half its lenslets have no red "
                  "sample in any view (cfa_blind): its temperature is interpolation there" if blind[k] else ""))
     print(f"temperature of {len(depths)} planes ({a.route} {chosen}) in {wall:.1f} s -> {out}, {fig}")

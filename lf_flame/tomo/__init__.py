@@ -36,7 +36,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "colour": ["CFA_ROUTES", "CFA_FILLS", "CFA_LAM", "CFA_TV", "SMOOTH_SIGMA", "MATCHED_SUBSAMPLES",
                    "MATCHED_SIGMA_NOISY", "MATCHED_KNOBS", "MATCHED_QUIET_NOISE", "MATCHED_RATIO_FILTER",
                    "MATCHED_WIDE_NOISE", "channel_views", "admm_channel", "matched_channels", "channel_subviews",
-                   "cfa_blind", "cfa_noise", "route_operator", "refocus_channel", "smooth_planes", "guided_filter",
+                   "cfa_blind", "matched_regime", "cfa_noise", "route_operator", "refocus_channel", "smooth_planes", "guided_filter",
                    "guided_ratio", "channel_emission", "channel_sum_views", "colour_truth"],
         "decoded": ["MIN_WHITE", "white_views", "decoded_problem", "decoded_truth"],
         "depth": ["DEPTH_RANGE_MM", "SLOPE_STEP", "MERGE_MM", "FoundDepths", "find_depths", "merge_depths",

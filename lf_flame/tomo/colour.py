@@ -247,6 +247,14 @@ def cfa_blind(slopes, pixels_per_lenslet: int) -> np.ndarray:
     return np.abs(s - odd) < 2.0 / (n - 1)
 
 
+def matched_regime(noise: float) -> str:
+    """``admm-cfa-matched``'s noise regime for a relative noise (:func:`cfa_noise`): ``"quiet"``
+    below :data:`MATCHED_QUIET_NOISE`, ``"noisy"`` below :data:`MATCHED_WIDE_NOISE`, else
+    ``"very noisy"``; it picks :data:`MATCHED_KNOBS` (the noisy ones for both noisy regimes)
+    and :data:`MATCHED_RATIO_FILTER`."""
+    return "quiet" if noise < MATCHED_QUIET_NOISE else "noisy" if noise < MATCHED_WIDE_NOISE else "very noisy"
+
+
 def cfa_noise(views: np.ndarray, chan: np.ndarray, channels) -> float:
     """A colour light field's relative noise: the largest of ``channels``' (:func:`lf_flame.tomo.fourier.relative_noise`
     of :func:`channel_subviews`, each channel's samples only, so the CFA's pattern is not taken for noise)."""
@@ -457,21 +465,20 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
     info = {} if info is None else info
     ok = np.ones(views.shape, bool) if saturation is None else views < saturation
     fits = [(chan == c) & ok for c in channels]
-    ratio_filter = {} if route != "admm-cfa-matched" else ratio_filter
     if route == "admm-cfa-matched":
         sigma = 0.0 if sigma is None else sigma
         if ratio_filter is None or knobs is None:
             info["noise"] = cfa_noise(views, chan, channels)
-            info["regime"] = ("quiet" if info["noise"] < MATCHED_QUIET_NOISE else
-                              "noisy" if info["noise"] < MATCHED_WIDE_NOISE else "very noisy")
+            info["regime"] = matched_regime(info["noise"])
             knobs = MATCHED_KNOBS["quiet" if info["regime"] == "quiet" else "noisy"] if knobs is None else knobs
             if ratio_filter is None:
-                ratio_filter = MATCHED_RATIO_FILTER.get(info["regime"], {})
+                ratio_filter = MATCHED_RATIO_FILTER[info["regime"]]
         info.update(knobs=dict(knobs), sigma=sigma, ratio_filter=dict(ratio_filter))
         rec = matched_channels(views, op, fits, **knobs)
     else:
         rec = [admm_channel(views, op, f) for f in fits]
         sigma = SMOOTH_SIGMA if route == "admm-cfa-smooth" else 0.0
+        ratio_filter = {}
     rec = [bin_planes(r, op.subsamples) for r in rec]
     info["subsamples"] = op.subsamples
     if sigma:
