@@ -229,11 +229,13 @@ def test_cfa_noise_reads_each_channel_alone():
 def test_matched_route_takes_its_knobs_by_the_noise(monkeypatch):
     """``admm-cfa-matched`` solves a light field whose noise is below ``MATCHED_QUIET_NOISE`` with
     the quiet knobs, one above it with the noisy knobs, each with the guided ratio filter of its
-    noise (the wider one from ``MATCHED_WIDE_NOISE``); given knobs and filter, it measures nothing."""
+    noise (the very noisy knobs and the wider filter from ``MATCHED_WIDE_NOISE``); given knobs and
+    filter, it measures nothing."""
     from lf_flame.tomo import colour
     quiet = dict(fills=2, lam=0.003, tv=0.0, l1=0.0)            # (few fills: the test's time)
     monkeypatch.setitem(colour.MATCHED_KNOBS, "quiet", quiet)
     monkeypatch.setitem(colour.MATCHED_KNOBS, "noisy", dict(colour.MATCHED_KNOBS["noisy"], fills=3))
+    monkeypatch.setitem(colour.MATCHED_KNOBS, "very noisy", dict(colour.MATCHED_KNOBS["very noisy"], fills=4))
     sensor, raw, noisy = _smooth_blob()
     n, op = CAM.pixels_per_lenslet, colour.route_operator(CAM, [0.0], "admm-cfa-matched")
     chan = colour.channel_views(raw.shape, sensor, n)
@@ -245,7 +247,7 @@ def test_matched_route_takes_its_knobs_by_the_noise(monkeypatch):
         info = {}
         a, _ = colour.channel_emission("admm-cfa-matched", raw_to_views(image, n), chan, (0, 1), op=op, info=info)
         assert info["regime"] == regime
-        assert info["knobs"] == colour.MATCHED_KNOBS["quiet" if regime == "quiet" else "noisy"]
+        assert info["knobs"] == colour.MATCHED_KNOBS[regime]
         assert info["ratio_filter"] == colour.MATCHED_RATIO_FILTER.get(regime, {}) and info["sigma"] == 0.0
         filtered[regime, image is noisy] = a
     assert not np.allclose(filtered["noisy", True], filtered["very noisy", True])   # the filter was applied

@@ -65,7 +65,8 @@ MATCHED_SUBSAMPLES, MATCHED_SIGMA_NOISY = 2, 0.7
 #: scene on 2 cores against 8 s for 25 fills. Noisy: 25 fills (stopping early regularises the
 #: noise) and the ``admm-cfa`` weights, the ratio filtered by :data:`MATCHED_RATIO_FILTER`.
 MATCHED_KNOBS = {"quiet": dict(fills=300, lam=0.003, tv=0.0, l1=0.0),
-                 "noisy": dict(fills=CFA_FILLS, lam=CFA_LAM, tv=CFA_TV, l1=CFA_L1)}
+                 "noisy": dict(fills=CFA_FILLS, lam=CFA_LAM, tv=CFA_TV, l1=CFA_L1),
+                 "very noisy": dict(fills=CFA_FILLS, lam=CFA_LAM, tv=CFA_TV, l1=CFA_L1)}
 #: The relative noise (:func:`cfa_noise`) below which ``admm-cfa-matched`` takes the quiet knobs: lower
 #: than the monochrome ``ADMM_QUIET_NOISE`` (0.005), as the quiet knobs' many fills fit the noise. Chosen on
 #: the validation scenes (``experiments/temperature_snr.py --validation``, each knob set with its
@@ -250,8 +251,7 @@ def cfa_blind(slopes, pixels_per_lenslet: int) -> np.ndarray:
 def matched_regime(noise: float) -> str:
     """``admm-cfa-matched``'s noise regime for a relative noise (:func:`cfa_noise`): ``"quiet"``
     below :data:`MATCHED_QUIET_NOISE`, ``"noisy"`` below :data:`MATCHED_WIDE_NOISE`, else
-    ``"very noisy"``; it picks :data:`MATCHED_KNOBS` (the noisy ones for both noisy regimes)
-    and :data:`MATCHED_RATIO_FILTER`."""
+    ``"very noisy"``; it picks :data:`MATCHED_KNOBS` and :data:`MATCHED_RATIO_FILTER`."""
     return "quiet" if noise < MATCHED_QUIET_NOISE else "noisy" if noise < MATCHED_WIDE_NOISE else "very noisy"
 
 
@@ -470,7 +470,7 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
         if ratio_filter is None or knobs is None:
             info["noise"] = cfa_noise(views, chan, channels)
             info["regime"] = matched_regime(info["noise"])
-            knobs = MATCHED_KNOBS["quiet" if info["regime"] == "quiet" else "noisy"] if knobs is None else knobs
+            knobs = MATCHED_KNOBS[info["regime"]] if knobs is None else knobs
             if ratio_filter is None:
                 ratio_filter = MATCHED_RATIO_FILTER[info["regime"]]
         info.update(knobs=dict(knobs), sigma=sigma, ratio_filter=dict(ratio_filter))
