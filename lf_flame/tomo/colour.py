@@ -63,10 +63,15 @@ MATCHED_SUBSAMPLES, MATCHED_SIGMA_NOISY = 2, 0.7
 #: the ratio fades only after some hundreds of fills: chosen on validation scenes (seeds
 #: 937500-1, ``results/temperature_fills.md``) for the smallest worst-plane p90, about 90 s a
 #: scene on 2 cores against 8 s for 25 fills. Noisy: 25 fills (stopping early regularises the
-#: noise) and the ``admm-cfa`` weights, the ratio filtered by :data:`MATCHED_RATIO_FILTER`.
+#: noise) and the ``admm-cfa`` weights, the ratio filtered by :data:`MATCHED_RATIO_FILTER`. Very
+#: noisy (from :data:`MATCHED_WIDE_NOISE`): a three times larger gradient weight, chosen with the
+#: ratio filter on four validation scenes at 14 dB (seeds 937500-3, ``results/temperature_noisy.md``:
+#: worst-plane p90 77 K against 87 K for lam 0.01, the dim -10 mm plane the worst; lam 0.1 and
+#: TV 0.03 did not win). (At 17 dB, in the noisy regime, lam 0.1 won there, 65 against 75 K; not
+#: taken, as the noisy knobs also serve 20-26 dB, not measured there.)
 MATCHED_KNOBS = {"quiet": dict(fills=300, lam=0.003, tv=0.0, l1=0.0),
                  "noisy": dict(fills=CFA_FILLS, lam=CFA_LAM, tv=CFA_TV, l1=CFA_L1),
-                 "very noisy": dict(fills=CFA_FILLS, lam=CFA_LAM, tv=CFA_TV, l1=CFA_L1)}
+                 "very noisy": dict(fills=CFA_FILLS, lam=0.03, tv=CFA_TV, l1=CFA_L1)}
 #: The relative noise (:func:`cfa_noise`) below which ``admm-cfa-matched`` takes the quiet knobs: lower
 #: than the monochrome ``ADMM_QUIET_NOISE`` (0.005), as the quiet knobs' many fills fit the noise. Chosen on
 #: the validation scenes (``experiments/temperature_snr.py --validation``, each knob set with its
