@@ -4,9 +4,11 @@
 on the paper's four flames drawn with the validation seeds :data:`SEEDS` (the two of
 ``temperature_grid.py`` and two more; not the scored 937000-937001), with the mosaic's shot and read
 noise at each SNR of :data:`SNRS_DB` (``temperature.add_noise``), for each admm gradient weight
-``lam`` and TV weight of :data:`KNOBS` (the knobs of ``MATCHED_KNOBS['noisy']`` among them: chosen
-noise-free and at 14 dB on two scenes with lam and tv fixed, ``results/temperature_fills.md``), the
-ratio filtered by each guided filter (:func:`lf_flame.tomo.colour.guided_ratio`) of :data:`GUIDED`.
+``lam`` of :data:`KNOBS` (``MATCHED_KNOBS['noisy']``'s 0.01 among them, chosen on two scenes with lam
+fixed, ``results/temperature_fills.md``; TV 0.03 was no level's best at 14 or 17 dB in this script's first
+run, commit 0be9b8c), the ratio filtered by each filter of :data:`FILTERS` (:func:`lf_flame.tomo.colour.filter_ratio`:
+a guided filter of the log ratio, alone or after averaging the channels along the brightness
+contours, :func:`lf_flame.tomo.colour.contour_ratio`).
 Scored as ``temperature.md`` (per plane over the pixels >= 10 % of the plane's true peak R+G
 emission). Each level's best setting (the smallest worst-plane p90 over the four scenes) is
 reported; per noise regime (:func:`lf_flame.tomo.colour.matched_regime` of the levels' measured
@@ -33,17 +35,20 @@ from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_flame_scene  # noqa: E402
 from lf_flame.tomo.colour import (CFA_FILLS, MATCHED_KNOBS, MATCHED_RATIO_FILTER, cfa_noise,  # noqa: E402
-                                  guided_ratio, matched_channels, matched_regime, route_operator)
+                                  filter_ratio, matched_channels, matched_regime, route_operator)
 from lf_flame.tomo.truth import bin_planes  # noqa: E402
 
 SEEDS = (937500, 937501, 937502, 937503)
 SNRS_DB = (14.0, 17.0, 20.0, 26.0)
-KNOBS = tuple(dict(fills=CFA_FILLS, lam=lam, tv=tv, l1=0.0) for lam in (0.01, 0.03, 0.1) for tv in (0.0, 0.03))
-GUIDED = ((1, 0.1), (2, 0.1), (2, 0.3), (3, 0.1))
+KNOBS = tuple(dict(fills=CFA_FILLS, lam=lam, tv=0.0, l1=0.0) for lam in (0.01, 0.03, 0.1))
+#: ratio filters (:func:`lf_flame.tomo.colour.filter_ratio`): guided alone, and averaged along the contours first
+FILTERS = tuple(dict(radius=r, eps=e) for r, e in ((1, 0.1), (2, 0.1), (2, 0.3), (3, 0.1))) + tuple(
+    dict(radius=1, eps=0.1, contour=length) for length in (3.0, 5.0, 8.0, 12.0))
 
 
-def label(knobs, radius, eps) -> str:
-    return f"lam {knobs['lam']:g} tv {knobs['tv']:g}, guided r{radius} eps{eps:g}"
+def label(knobs, f) -> str:
+    contour = f"contour {f['contour']:g} + " if f.get("contour") else ""
+    return f"lam {knobs['lam']:g}, {contour}guided r{f['radius']} eps{f['eps']:g}"
 
 
 def main(argv=None):
@@ -66,10 +71,10 @@ def main(argv=None):
                 t1 = time.perf_counter()
                 a, b = (bin_planes(x, op.subsamples) for x in matched_channels(views, op, fits, **knobs))
                 dt = time.perf_counter() - t1
-                for radius, eps in GUIDED:
-                    rows += E.score("admm-cfa-matched", f"{snr:g}dB", seed, *guided_ratio(a, b, radius, eps), Tt, vt,
-                                    cal, model, snr_db=snr, setting=label(knobs, radius, eps), lam=knobs["lam"],
-                                    tv=knobs["tv"], radius=radius, eps=eps, measured_noise=noise, time_s=dt)
+                for f in FILTERS:
+                    rows += E.score("admm-cfa-matched", f"{snr:g}dB", seed, *filter_ratio(a, b, **f), Tt, vt, cal,
+                                    model, snr_db=snr, setting=label(knobs, f), lam=knobs["lam"], radius=f["radius"],
+                                    eps=f["eps"], contour=f.get("contour", 0.0), measured_noise=noise, time_s=dt)
             print(f"seed {seed} {snr:g} dB (noise {noise:.4f}) done", flush=True)
     df = pd.DataFrame(rows)
     df.to_csv(args.out / "temperature_noisy.csv", index=False)
@@ -83,8 +88,7 @@ def main(argv=None):
     for snr in SNRS_DB:
         noise = df[df.snr_db == snr].measured_noise
         regime = matched_regime(float(noise.max()))
-        f = MATCHED_RATIO_FILTER[regime]
-        route = label(MATCHED_KNOBS[regime], f["radius"], f["eps"])
+        route = label(MATCHED_KNOBS[regime], MATCHED_RATIO_FILTER[regime])
         w = g.loc[snr].p90_worst_plane
         picks.append(dict(snr_db=snr, noise_min=noise.min(), noise_max=noise.max(), regime=regime,
                           regime_low_noise=matched_regime(float(noise.min())), best=w.idxmin(), best_p90=w.min(),
@@ -93,8 +97,7 @@ def main(argv=None):
     regimes = []
     for regime, levels in picks.groupby("regime").snr_db:
         mean = g.loc[list(levels)].p90_worst_plane.groupby("setting").mean()
-        f = MATCHED_RATIO_FILTER[regime]
-        route = label(MATCHED_KNOBS[regime], f["radius"], f["eps"])
+        route = label(MATCHED_KNOBS[regime], MATCHED_RATIO_FILTER[regime])
         regimes.append(dict(regime=regime, levels_db=", ".join(f"{x:g}" for x in levels), best=mean.idxmin(),
                             best_mean_p90=mean.min(), route=route, route_mean_p90=mean.get(route, np.nan),
                             holds=route == mean.idxmin()))

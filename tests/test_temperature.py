@@ -296,6 +296,35 @@ def test_guided_ratio_averages_the_noise_and_keeps_what_follows_the_guide():
         guided_filter(lr[0], lr[0][1:], bright[0], 1, 0.1)
 
 
+def test_contour_ratio_averages_along_the_sheath_and_keeps_its_profile_across():
+    """Averaging the channels along the brightness contours: on a ring-shaped sheath whose ratio
+    peaks across it, the profile across comes out nearly unchanged where an isotropic Gaussian of
+    the same length flattens it; noise along the ring is averaged; a constant ratio stays exact
+    and the sum is the smoothed sum; a length that is not positive is refused."""
+    from lf_flame.tomo.colour import contour_ratio, filter_ratio, guided_ratio, smooth_planes
+    y, x = np.mgrid[0:64, 0:64]
+    r = np.hypot(x - 31.5, y - 31.5)
+    b = np.exp(-((r - 18) / 4.0) ** 2)[None] + 1e-6
+    lr = 0.3 * np.exp(-((r - 18) / 2.5) ** 2)[None]           # hottest on the sheath, as a flame's
+    a = b * np.exp(lr)
+    bright = P.bright_pixels(a + b)
+    fa, fb = contour_ratio(a, b, 2.0, guide_sigma=0.0)
+    kept = np.abs(np.log(fa / fb) - lr)[bright].max()
+    ga, gb = smooth_planes(a, 2.0), smooth_planes(b, 2.0)
+    assert kept < 0.03 and np.abs(np.log(ga / gb) - lr)[bright].max() > 4 * kept
+    na = a * np.random.default_rng(3).normal(1, 0.1, a.shape)
+    fa, fb = contour_ratio(na, b, 2.0, guide_sigma=0.0)
+    assert np.std((np.log(fa / fb) - lr)[bright]) < 0.5 * np.std((np.log(na / b) - lr)[bright])
+    ca, cb = contour_ratio(1.3 * b, b, 3.0)
+    np.testing.assert_allclose(ca / cb, 1.3, rtol=1e-9)
+    np.testing.assert_allclose(ca + cb, smooth_planes(2.3 * b, 0.5), rtol=1e-9)
+    np.testing.assert_allclose(filter_ratio(a, b, 1, 0.1, contour=2.0), guided_ratio(*contour_ratio(a, b, 2.0), 1, 0.1))
+    with pytest.raises(ValueError, match="positive length"):
+        contour_ratio(a, b, 0.0)
+    with pytest.raises(ValueError, match="emission stacks"):
+        contour_ratio(a, b[:, 1:], 2.0)
+
+
 def test_cfa_blind_marks_the_slopes_where_half_the_lenslets_have_no_red_sample():
     """At an odd-integer slope (odd pixels per lenslet) the points on every other lenslet row
     have no red sample in any view; elsewhere every row has one. ``cfa_blind`` flags exactly
