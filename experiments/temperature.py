@@ -22,9 +22,10 @@ blackbody check), ``<out>/temperature.md`` (the bars and the table), ``<out>/tem
   ``admm-cfa-matched`` (the default of ``lf-flame temperature``): each channel by admm on its
   own pixels on a 2 x 2 grid per lenslet, re-imaged and solved again on the other channel's
   pixels (both channels through both sampling patterns), binned to the lenslets, with the
-  admm knobs ``MATCHED_KNOBS`` of the light field's noise regime and the ratio smoothed by the
-  guided filter of ``MATCHED_RATIO_FILTER`` for that noise (:func:`lf_flame.tomo.colour.matched_channels`,
-  :func:`lf_flame.tomo.colour.guided_ratio`);
+  admm knobs ``MATCHED_KNOBS`` of the light field's noise regime and the ratio filtered by
+  ``MATCHED_RATIO_FILTER`` for that noise (:func:`lf_flame.tomo.colour.matched_channels`,
+  :func:`lf_flame.tomo.colour.filter_ratio`: averaged along the brightness contours when noisy, then
+  a guided filter);
   ``admm-cfa``: the exact operator's admm on each channel's own pixels (the CFA complement
   as the missing-data mask); ``admm-cfa-smooth``: the same, both channels smoothed by a
   Gaussian of :data:`SMOOTH_SIGMA` lenslets before the ratio; ``refocus-cfa``: each

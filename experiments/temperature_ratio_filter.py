@@ -60,7 +60,8 @@ def filters():
 def route_filter(noise: float) -> str:
     """The filter name the route takes at a measured noise."""
     f = MATCHED_RATIO_FILTER[matched_regime(noise)]
-    return f"guided r{f['radius']} eps{f['eps']:g}" if f else "none"
+    contour = f"contour {f['contour']:g} + " if f.get("contour") else ""
+    return f"{contour}guided r{f['radius']} eps{f['eps']:g}" if f else "none"
 
 
 def main(argv=None):
@@ -124,7 +125,7 @@ def main(argv=None):
     picks = pd.DataFrame(dict(noise_min=noise["min"], noise_max=noise["max"], best=w.idxmin(axis=1),
                               best_p90=w.min(axis=1),
                               route=[route_filter(n) for n in noise["max"]],
-                              route_p90=[w.loc[s, route_filter(noise.loc[s, 'max'])] for s in w.index]))
+                              route_p90=[w.loc[s].get(route_filter(noise.loc[s, 'max']), np.nan) for s in w.index]))
     clean = pd.DataFrame(dict(flames_p90=w.loc[np.inf], behind_mixed_p90=bw, behind_blind_plane_p90=blind))
     clean["larger_over_bar"] = np.maximum(clean.flames_p90 / 30.0, clean.behind_mixed_p90 / 50.0)
     picks.loc[np.inf, "best"] = clean.larger_over_bar.idxmin()
