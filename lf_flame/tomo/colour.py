@@ -66,9 +66,8 @@ MATCHED_SUBSAMPLES, MATCHED_SIGMA_NOISY = 2, 0.7
 #: noise) and the ``admm-cfa`` weights, the ratio filtered by :data:`MATCHED_RATIO_FILTER`. Very
 #: noisy (from :data:`MATCHED_WIDE_NOISE`): a three times larger gradient weight, chosen with the
 #: ratio filter on four validation scenes at 14 dB (seeds 937500-3, ``results/temperature_noisy.md``:
-#: worst-plane p90 77 K against 87 K for lam 0.01, the dim -10 mm plane the worst; lam 0.1 and
-#: TV 0.03 did not win). (At 17 dB, in the noisy regime, lam 0.1 won there, 65 against 75 K; not
-#: taken, as the noisy knobs also serve 20-26 dB, not measured there.)
+#: worst-plane p90 62 K against 64 K for lam 0.01 and 67 K for lam 0.1, each with its best filter); at
+#: 17-26 dB lam 0.01 stays best (TV 0.03 was no level's best in a first run, commit 0be9b8c).
 MATCHED_KNOBS = {"quiet": dict(fills=300, lam=0.003, tv=0.0, l1=0.0),
                  "noisy": dict(fills=CFA_FILLS, lam=CFA_LAM, tv=CFA_TV, l1=CFA_L1),
                  "very noisy": dict(fills=CFA_FILLS, lam=0.03, tv=CFA_TV, l1=CFA_L1)}
@@ -405,7 +404,8 @@ def contour_ratio(a: np.ndarray, b: np.ndarray, length: float, guide_sigma: floa
         As :func:`lf_flame.measure.pyrometry.temperature_planes`.
     support_fraction : float
         Below ``min_fraction``, so that a contour's samples near that threshold are not cut off
-        (validation scenes at 14 dB: the dim plane's p90 58 K against 63 K with the same threshold).
+        (validation scenes 937500 and 937502 at 14 dB, a ``/tmp`` probe: the dim -10 mm plane's p90
+        49 and 58 K against 54 and 63 K with the threshold itself).
     orient_sigma, tensor_sigma : float, lenslets
         The Gaussian on the log sum before its gradient, and the structure tensor's window.
 
@@ -498,7 +498,8 @@ def guided_ratio(a: np.ndarray, b: np.ndarray, radius: int, eps: float, guide_si
 
 def filter_ratio(a: np.ndarray, b: np.ndarray, radius: int, eps: float, contour: float = 0.0):
     """The matched route's ratio filter (:data:`MATCHED_RATIO_FILTER`): :func:`contour_ratio` along ``contour``
-    lenslets (when > 0), then :func:`guided_ratio` of ``radius`` and ``eps``. Shapes, units and errors as theirs."""
+    lenslets (when > 0), then :func:`guided_ratio` of ``radius`` and ``eps`` (each smooths the sum by its
+    0.5-lenslet Gaussian). Shapes, units and errors as theirs."""
     if contour:
         a, b = contour_ratio(a, b, contour)
     return guided_ratio(a, b, radius, eps)
@@ -534,8 +535,8 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
         than two lenslets also reads as noise there).
     ratio_filter : dict or None
         ``admm-cfa-matched``'s :func:`filter_ratio` ``radius``, ``eps`` and ``contour`` (an empty
-        dict: none); None: :data:`MATCHED_RATIO_FILTER` by the light field's noise (the wider one
-        from :data:`MATCHED_WIDE_NOISE`).
+        dict: none); None: :data:`MATCHED_RATIO_FILTER` by the light field's noise (the very noisy
+        one from :data:`MATCHED_WIDE_NOISE`).
     info : dict or None
         Filled with what the route chose: ``noise`` (measured where ``knobs`` or ``ratio_filter``
         is None), ``regime``, ``knobs``, ``sigma`` and ``ratio_filter`` (``admm-cfa-matched``),
