@@ -75,9 +75,10 @@ MATCHED_KNOBS = {"quiet": dict(fills=300, lam=0.003, tv=0.0, l1=0.0),
 #: than the monochrome ``ADMM_QUIET_NOISE`` (0.005), as the quiet knobs' many fills fit the noise. Chosen on
 #: the validation scenes (``experiments/temperature_snr.py --validation``, each knob set with its
 #: :data:`MATCHED_RATIO_FILTER`): the quiet knobs' worst-plane p90 beat the noisy knobs' from 30 dB
-#: (noise up to 0.0033; 32.6 against 34.6 K) and lost at 26 dB (noise from 0.0047; 38.8 against 37.6 K)
-#: and below; 0.004 splits them (their geometric mean 0.0039). (With the Gaussian before: 65 against
-#: 68 K at 30 dB, 98 against 67 K at 26 dB.)
+#: (noise up to 0.0033; 32.6 against 39.3 K with the contour filter) and lost at 26 dB (noise from 0.0047;
+#: 38.8 against 38.0 K) and below; 0.004 splits them (their geometric mean 0.0039). (With the guided filter
+#: alone: 32.6 against 34.6 K, 38.8 against 37.6 K; with the Gaussian: 65 against 68 K at 30 dB, 98 against
+#: 67 K at 26 dB.)
 MATCHED_QUIET_NOISE = 0.004
 #: ``admm-cfa-matched``'s filter of the two channels' ratio by the light field's noise regime (in
 #: place of a Gaussian on both channels, which blurs the temperature across the luminous sheath),
