@@ -24,7 +24,7 @@ blackbody check), ``<out>/temperature.md`` (the bars and the table), ``<out>/tem
   pixels (both channels through both sampling patterns), binned to the lenslets, with the
   admm knobs ``MATCHED_KNOBS`` of the light field's noise regime and the ratio filtered by
   ``MATCHED_RATIO_FILTER`` for that noise (:func:`lf_flame.tomo.colour.matched_channels`,
-  :func:`lf_flame.tomo.colour.filter_ratio`: averaged along the brightness contours when noisy, then
+  :func:`lf_flame.tomo.colour_ratio.filter_ratio`: averaged along the brightness contours when noisy, then
   a guided filter);
   ``admm-cfa``: the exact operator's admm on each channel's own pixels (the CFA complement
   as the missing-data mask); ``admm-cfa-smooth``: the same, both channels smoothed by a
@@ -71,8 +71,8 @@ from lf_flame.simulate.scenes_temperature import (BEHIND_PEAK_K, FLAME_PEAK_K, c
                                                   furnace_scene)
 from lf_flame.tomo.colour import (CFA_FILLS as FILLS, CFA_LAM as LAM, CFA_TV as TV, MATCHED_KNOBS,
                                   MATCHED_QUIET_NOISE, MATCHED_RATIO_FILTER, MATCHED_SUBSAMPLES, MATCHED_WIDE_NOISE,
-                                  SMOOTH_SIGMA, admm_channel, channel_emission, channel_views, colour_truth,
-                                  route_operator, smooth_planes)
+                                  admm_channel, channel_emission, channel_views, colour_truth, route_operator)
+from lf_flame.tomo.colour_ratio import SMOOTH_SIGMA, smooth_planes
 from lf_flame.tomo.truth import bin_planes
 
 GAINS = (1.0, 1.25, 0.8)

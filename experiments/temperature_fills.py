@@ -32,8 +32,8 @@ from temperature_grid import SEEDS  # noqa: E402
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_flame_scene  # noqa: E402
-from lf_flame.tomo.colour import (MATCHED_KNOBS, MATCHED_SIGMA_NOISY, matched_channels,  # noqa: E402
-                                  route_operator, smooth_planes)
+from lf_flame.tomo.colour import MATCHED_KNOBS, MATCHED_SIGMA_NOISY, matched_channels, route_operator  # noqa: E402
+from lf_flame.tomo.colour_ratio import smooth_planes  # noqa: E402
 from lf_flame.tomo.truth import bin_planes  # noqa: E402
 
 FILLS, LAMS = (25, 100, 300), (0.003, 0.005, 0.01)

@@ -6,9 +6,9 @@ on the paper's four flames drawn with the validation seeds :data:`SEEDS` (the tw
 noise at each SNR of :data:`SNRS_DB` (``temperature.add_noise``), for each admm gradient weight
 ``lam`` of :data:`KNOBS` (``MATCHED_KNOBS['noisy']``'s 0.01 among them, chosen on two scenes with lam
 fixed, ``results/temperature_fills.md``; TV 0.03 was no level's best at 14 or 17 dB in this script's first
-run, commit 0be9b8c), the ratio filtered by each filter of :data:`FILTERS` (:func:`lf_flame.tomo.colour.filter_ratio`:
-a guided filter of the log ratio, alone or after averaging the channels along the brightness
-contours, :func:`lf_flame.tomo.colour.contour_ratio`).
+run, commit 0be9b8c), the ratio filtered by each filter of :data:`FILTERS`
+(:func:`lf_flame.tomo.colour_ratio.filter_ratio`: a guided filter of the log ratio, alone or after
+averaging the channels along the brightness contours, :func:`lf_flame.tomo.colour_ratio.contour_ratio`).
 Scored as ``temperature.md`` (per plane over the pixels >= 10 % of the plane's true peak R+G
 emission). Each level's best setting (the smallest worst-plane p90 over the four scenes) is
 reported; per noise regime (:func:`lf_flame.tomo.colour.matched_regime` of the levels' measured
@@ -35,13 +35,14 @@ from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_flame_scene  # noqa: E402
 from lf_flame.tomo.colour import (CFA_FILLS, MATCHED_KNOBS, MATCHED_RATIO_FILTER, cfa_noise,  # noqa: E402
-                                  filter_ratio, matched_channels, matched_regime, route_operator)
+                                  matched_channels, matched_regime, route_operator)
+from lf_flame.tomo.colour_ratio import filter_ratio  # noqa: E402
 from lf_flame.tomo.truth import bin_planes  # noqa: E402
 
 SEEDS = (937500, 937501, 937502, 937503)
 SNRS_DB = (14.0, 17.0, 20.0, 26.0)
 KNOBS = tuple(dict(fills=CFA_FILLS, lam=lam, tv=0.0, l1=0.0) for lam in (0.01, 0.03, 0.1))
-#: ratio filters (:func:`lf_flame.tomo.colour.filter_ratio`): guided alone, and averaged along the contours first
+#: ratio filters (:func:`lf_flame.tomo.colour_ratio.filter_ratio`): guided alone, and averaged along the contours first
 FILTERS = tuple(dict(radius=r, eps=e) for r, e in ((1, 0.1), (2, 0.1), (2, 0.3), (3, 0.1))) + tuple(
     dict(radius=1, eps=0.1, contour=length) for length in (3.0, 5.0, 8.0, 12.0))
 

@@ -5,7 +5,7 @@ paper's four flames drawn with the validation seeds of ``temperature_grid.py`` (
 937000-937001), noise-free (the quiet knobs) and with the mosaic's shot and read noise at each SNR of
 :data:`SNRS_DB` (the noisy knobs; ``temperature.add_noise``), the two channels' emission filtered by:
 none; a Gaussian of ``MATCHED_SIGMA_NOISY`` lenslets on both (the route's filter before this
-experiment); or a guided filter of their log ratio (:func:`lf_flame.tomo.colour.guided_ratio`) of each
+experiment); or a guided filter of their log ratio (:func:`lf_flame.tomo.colour_ratio.guided_ratio`) of each
 radius and eps of :data:`GUIDED`. Scored as ``temperature.md`` (per plane over the pixels >= 10 % of
 the plane's true peak R+G emission), beside the share of those pixels each leaves without a
 temperature. Also noise-free, two flames one behind another (``colour_behind_scene``, validation
@@ -38,8 +38,9 @@ from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_behind_scene, colour_flame_scene  # noqa: E402
 from lf_flame.tomo.colour import (MATCHED_KNOBS, MATCHED_QUIET_NOISE, MATCHED_RATIO_FILTER,  # noqa: E402
-                                  MATCHED_SIGMA_NOISY, MATCHED_WIDE_NOISE, cfa_blind, cfa_noise, guided_ratio,
-                                  matched_channels, matched_regime, route_operator, smooth_planes)
+                                  MATCHED_SIGMA_NOISY, MATCHED_WIDE_NOISE, cfa_blind, cfa_noise, matched_channels,
+                                  matched_regime, route_operator)
+from lf_flame.tomo.colour_ratio import guided_ratio, smooth_planes  # noqa: E402
 from lf_flame.tomo.truth import bin_planes  # noqa: E402
 
 SNRS_DB = (14.0, 17.0, 20.0, 26.0, 30.0)

@@ -264,7 +264,7 @@ def test_guided_ratio_averages_the_noise_and_keeps_what_follows_the_guide():
     instead bends the ratio where it follows the brightness. The pixels bright enough for a
     temperature are those of the smoothed sum: noise does not raise the threshold and drop
     the flame's dim edge."""
-    from lf_flame.tomo.colour import guided_filter, guided_ratio, smooth_planes
+    from lf_flame.tomo.colour_ratio import guided_filter, guided_ratio, smooth_planes
     y, x = np.mgrid[0:40, 0:40]
     b = np.exp(-(((x - 20) / 8.0) ** 2 + ((y - 20) / 11.0) ** 2))[None] + 1e-6
     lr = 0.05 + 0.3 * np.log(b)                          # hotter where brighter: ln(a/b) linear in ln(b)
@@ -301,7 +301,7 @@ def test_contour_ratio_averages_along_the_sheath_and_keeps_its_profile_across():
     peaks across it, the profile across comes out nearly unchanged where an isotropic Gaussian of
     the same length flattens it; noise along the ring is averaged; a constant ratio stays exact
     and the sum is the smoothed sum; a length that is not positive is refused."""
-    from lf_flame.tomo.colour import contour_ratio, filter_ratio, guided_ratio, smooth_planes
+    from lf_flame.tomo.colour_ratio import contour_ratio, filter_ratio, guided_ratio, smooth_planes
     y, x = np.mgrid[0:64, 0:64]
     r = np.hypot(x - 31.5, y - 31.5)
     b = np.exp(-((r - 18) / 4.0) ** 2)[None] + 1e-6
