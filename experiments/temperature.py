@@ -136,6 +136,24 @@ def scene_case(cam, cs, sensor, rays, seed, cal, model):
     return depths, r, Tt, vt, channel_views(r["clean"].shape, sensor, cam.pixels_per_lenslet)
 
 
+def flame_scenes(seeds, rays, cam, sensor, model, cal):
+    """The paper's four flames drawn with each seed of ``seeds`` (the validation scripts' scenes) and
+    :func:`scene_case`'d, with the matched route's operator: yields (seed, cs, r, Tt, vt, chan, op)."""
+    for seed in seeds:
+        cs = colour_flame_scene(cam, sensor, np.random.default_rng(seed))
+        depths, r, Tt, vt, chan = scene_case(cam, cs, sensor, rays, seed, cal, model)
+        yield seed, cs, r, Tt, vt, chan, route_operator(cam, depths, "admm-cfa-matched")
+
+
+def ratio_filter_label(f: dict) -> str:
+    """A ratio filter's name in the validation scripts' tables (``MATCHED_RATIO_FILTER``'s form): e.g.
+    ``"contour 8 + guided r1 eps0.1"``, ``"guided r1 eps0.001"``; ``"none"`` for an empty dict."""
+    if not f:
+        return "none"
+    contour = f"contour {f['contour']:g} + " if f.get("contour") else ""
+    return f"{contour}guided r{f['radius']} eps{f['eps']:g}"
+
+
 def true_temperature(cs, op, cal, model):
     """Each plane's true temperature (K) and truth mask of a colour scene on ``op``'s grid:
     :func:`colour_truth`'s R and G through the calibration's lookup. Returns (Tt, vt)."""

@@ -22,7 +22,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -31,8 +30,7 @@ from temperature_grid import SEEDS  # noqa: E402
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
-from lf_flame.simulate.scenes_temperature import colour_flame_scene  # noqa: E402
-from lf_flame.tomo.colour import MATCHED_KNOBS, MATCHED_SIGMA_NOISY, matched_channels, route_operator  # noqa: E402
+from lf_flame.tomo.colour import MATCHED_KNOBS, MATCHED_SIGMA_NOISY, matched_channels  # noqa: E402
 from lf_flame.tomo.colour_ratio import smooth_planes  # noqa: E402
 from lf_flame.tomo.truth import bin_planes  # noqa: E402
 
@@ -55,10 +53,7 @@ def main(argv=None):
     t0 = time.perf_counter()
     cam, sensor, model, cal = E.setup(args.out)
     rows, own = [], {}
-    for seed in SEEDS:
-        cs = colour_flame_scene(cam, sensor, np.random.default_rng(seed))
-        depths, r, Tt, vt, chan = E.scene_case(cam, cs, sensor, args.rays, seed, cal, model)
-        op = route_operator(cam, depths, "admm-cfa-matched")
+    for seed, cs, r, Tt, vt, chan, op in E.flame_scenes(SEEDS, args.rays, cam, sensor, model, cal):
         own[seed] = r["own"]
         for noise, knobs, sigma in settings():
             views = raw_to_views(r["clean" if noise == "clean" else "noisy"], cam.pixels_per_lenslet)

@@ -39,9 +39,8 @@ import temperature as E  # noqa: E402
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
-from lf_flame.simulate.scenes_temperature import colour_flame_scene  # noqa: E402
 from lf_flame.tomo.colour import (CFA_FILLS, MATCHED_KNOBS, MATCHED_RATIO_FILTER, cfa_noise,  # noqa: E402
-                                  channel_emission, matched_channels, matched_regime, route_operator)
+                                  channel_emission, matched_channels, matched_regime)
 from lf_flame.tomo.colour_ratio import filter_ratio  # noqa: E402
 from lf_flame.tomo.truth import bin_planes  # noqa: E402
 
@@ -57,18 +56,8 @@ FILTERS = tuple(dict(radius=r, eps=e) for r, e in ((1, 0.1), (2, 0.1), (2, 0.3),
     dict(radius=1, eps=0.1, contour=length) for length in (3.0, 5.0, 8.0, 12.0))
 
 
-def scenes(seeds, rays, cam, sensor, model, cal):
-    """Each validation scene of ``seeds`` drawn, rendered and scored on the lenslet grid
-    (``temperature.scene_case``), with the matched route's operator: yields (seed, cs, r, Tt, vt, chan, op)."""
-    for seed in seeds:
-        cs = colour_flame_scene(cam, sensor, np.random.default_rng(seed))
-        depths, r, Tt, vt, chan = E.scene_case(cam, cs, sensor, rays, seed, cal, model)
-        yield seed, cs, r, Tt, vt, chan, route_operator(cam, depths, "admm-cfa-matched")
-
-
 def label(knobs, f) -> str:
-    contour = f"contour {f['contour']:g} + " if f.get("contour") else ""
-    return f"lam {knobs['lam']:g}, {contour}guided r{f['radius']} eps{f['eps']:g}"
+    return f"lam {knobs['lam']:g}, {E.ratio_filter_label(f)}"
 
 
 def main(argv=None):
@@ -82,7 +71,7 @@ def main(argv=None):
     t0 = time.perf_counter()
     cam, sensor, model, cal = E.setup(args.out)
     rows = []
-    for seed, cs, r, Tt, vt, chan, op in scenes(SEEDS, args.rays, cam, sensor, model, cal):
+    for seed, cs, r, Tt, vt, chan, op in E.flame_scenes(SEEDS, args.rays, cam, sensor, model, cal):
         for snr in SNRS_DB:
             views = raw_to_views(E.add_noise(r["clean"], cs.scene.effects, seed, snr)[0], cam.pixels_per_lenslet)
             noise = cfa_noise(views, chan, (0, 1))
@@ -149,7 +138,7 @@ def check(args):
     t0 = time.perf_counter()
     cam, sensor, model, cal = E.setup(args.out)
     rows = []
-    for seed, cs, r, Tt, vt, chan, op in scenes(CHECK_SEEDS, args.rays, cam, sensor, model, cal):
+    for seed, cs, r, Tt, vt, chan, op in E.flame_scenes(CHECK_SEEDS, args.rays, cam, sensor, model, cal):
         for offset in CHECK_REALISATIONS:
             views = raw_to_views(E.add_noise(r["clean"], cs.scene.effects, seed + offset, CHECK_DB)[0],
                                  cam.pixels_per_lenslet)

@@ -36,7 +36,7 @@ from temperature_grid import SEEDS  # noqa: E402
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
-from lf_flame.simulate.scenes_temperature import colour_behind_scene, colour_flame_scene  # noqa: E402
+from lf_flame.simulate.scenes_temperature import colour_behind_scene  # noqa: E402
 from lf_flame.tomo.colour import (MATCHED_KNOBS, MATCHED_QUIET_NOISE, MATCHED_RATIO_FILTER,  # noqa: E402
                                   MATCHED_SIGMA_NOISY, MATCHED_WIDE_NOISE, cfa_blind, cfa_noise, matched_channels,
                                   matched_regime, route_operator)
@@ -54,15 +54,13 @@ def filters():
            f"gaussian {MATCHED_SIGMA_NOISY}": lambda a, b: (smooth_planes(a, MATCHED_SIGMA_NOISY),
                                                             smooth_planes(b, MATCHED_SIGMA_NOISY))}
     for r, eps in GUIDED:
-        out[f"guided r{r} eps{eps:g}"] = lambda a, b, r=r, eps=eps: guided_ratio(a, b, r, eps)
+        out[E.ratio_filter_label(dict(radius=r, eps=eps))] = lambda a, b, r=r, eps=eps: guided_ratio(a, b, r, eps)
     return out
 
 
 def route_filter(noise: float) -> str:
     """The filter name the route takes at a measured noise."""
-    f = MATCHED_RATIO_FILTER[matched_regime(noise)]
-    contour = f"contour {f['contour']:g} + " if f.get("contour") else ""
-    return f"{contour}guided r{f['radius']} eps{f['eps']:g}" if f else "none"
+    return E.ratio_filter_label(MATCHED_RATIO_FILTER[matched_regime(noise)])
 
 
 def main(argv=None):
@@ -73,10 +71,7 @@ def main(argv=None):
     t0 = time.perf_counter()
     cam, sensor, model, cal = E.setup(args.out)
     rows = []
-    for seed in SEEDS:
-        cs = colour_flame_scene(cam, sensor, np.random.default_rng(seed))
-        depths, r, Tt, vt, chan = E.scene_case(cam, cs, sensor, args.rays, seed, cal, model)
-        op = route_operator(cam, depths, "admm-cfa-matched")
+    for seed, cs, r, Tt, vt, chan, op in E.flame_scenes(SEEDS, args.rays, cam, sensor, model, cal):
         for snr in (np.inf,) + SNRS_DB:
             raw = r["clean"] if snr == np.inf else E.add_noise(r["clean"], cs.scene.effects, seed, snr)[0]
             views = raw_to_views(raw, cam.pixels_per_lenslet)
