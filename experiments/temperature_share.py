@@ -11,7 +11,8 @@ calibration). Given ``s`` the data are linear in ``f`` (the share step):
 with ``H`` the exact operator (:class:`lf_flame.tomo.exact.ExactOperator`, the matched route's
 2 x 2 grid per lenslet), ``M_R``, ``M_G`` each channel's unclipped samples, ``D_along`` and
 ``D_across`` the derivatives along and across the contours of ``s`` (the structure tensor's
-orientation, as :func:`lf_flame.tomo.colour_ratio.contour_ratio`), and ``w = sqrt(||H e||^2) s_ref``
+orientation, :func:`lf_flame.tomo.colour_ratio.contour_direction`, of ``s`` smoothed by 2 samples
+over a window of 3), and ``w = sqrt(||H e||^2) s_ref``
 (``s_ref`` the median of ``s`` over its bright samples) the data's precision at a typical
 brightness, so that ``mu`` is relative to it and dim samples, whose precision goes as ``s^2``,
 are smoothed more. Given ``f`` the data are linear in ``s`` (the sum step):
@@ -41,16 +42,14 @@ import numpy as np
 import pandas as pd
 import pylops
 from pylops.optimization.basic import lsqr
-from scipy.ndimage import gaussian_filter
-from skimage.feature import structure_tensor
 
 sys.path.insert(0, str(Path(__file__).parent))
 import temperature as E  # noqa: E402
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
-from lf_flame.tomo.colour import MATCHED_KNOBS, MATCHED_RATIO_FILTER, channel_emission, matched_channels  # noqa: E402
-from lf_flame.tomo.colour_ratio import filter_ratio  # noqa: E402
+from lf_flame.tomo.colour import MATCHED_KNOBS, MATCHED_RATIO_FILTER, matched_channels  # noqa: E402
+from lf_flame.tomo.colour_ratio import contour_direction, filter_ratio  # noqa: E402
 from lf_flame.tomo.truth import bin_planes  # noqa: E402
 
 SEEDS = (937500, 937501, 937502, 937503)
@@ -63,23 +62,11 @@ LSQR_ITERS, ALTERNATIONS = 60, 6
 REGIME = "very noisy"
 
 
-def contour_directions(s):
-    """Unit vectors (rows, cols) along the contours of each plane of ``s`` (P, rows, cols): the structure
-    tensor (scikit-image) of the log of ``s`` smoothed by 2 samples, window 3 samples."""
-    dr, dc = np.zeros_like(s), np.zeros_like(s)
-    for k in range(len(s)):
-        log_s = np.log(np.maximum(s[k], 1e-6 * s[k].max()))
-        arr, arc, acc = structure_tensor(gaussian_filter(log_s, 2.0), sigma=3.0, order="rc")
-        theta = 0.5 * np.arctan2(2 * arc, acc - arr)
-        dr[k], dc[k] = np.cos(theta), -np.sin(theta)
-    return dr, dc
-
-
 class ShareSolver:
     """The share and sum steps on one colour light field (module docstring)."""
 
     def __init__(self, views, chan, op):
-        self.views, self.op, self.y = views, op, views.ravel()
+        self.op, self.y = op, views.ravel()
         ok = views < 1
         self.m = [((chan == c) & ok).ravel() for c in (0, 1)]
         self.M = [pylops.Diagonal(m.astype(float)) for m in self.m]
@@ -96,7 +83,7 @@ class ShareSolver:
         f0 = r / (r + g)                                        # the light field's overall share
         bright = s > 0.1 * s.reshape(len(s), -1).max(1)[:, None, None]
         w = np.sqrt(self.gain) * float(np.median(s[bright]))
-        dr, dc = (x.ravel() for x in contour_directions(s))
+        dr, dc = np.stack([contour_direction(p, 2.0, 3.0) for p in s], axis=1).reshape(2, -1)
         along = pylops.Diagonal(w * dr) @ self.d[0] + pylops.Diagonal(w * dc) @ self.d[1]
         across = pylops.Diagonal(-w * dc) @ self.d[0] + pylops.Diagonal(w * dr) @ self.d[1]
         S = pylops.Diagonal(s.ravel())
@@ -132,26 +119,26 @@ def main(argv=None):
     knobs, rf = MATCHED_KNOBS[REGIME], MATCHED_RATIO_FILTER[REGIME]
     rows = []
     for seed, cs, r, Tt, vt, chan, op in E.flame_scenes(args.seeds, args.rays, cam, sensor, model, cal):
-        cases = [("clean", r["clean"])] + [
-            (f"{SNR:g}dB", E.add_noise(r["clean"], cs.scene.effects, seed + o, SNR)[0]) for o in REALISATIONS]
-        for (noise, raw), real in zip(cases, (-1,) + REALISATIONS):
+        cases = [("clean", -1, r["clean"])] + [
+            (f"{SNR:g}dB", o, E.add_noise(r["clean"], cs.scene.effects, seed + o, SNR)[0]) for o in REALISATIONS]
+        for noise, real, raw in cases:
             views = raw_to_views(raw, cam.pixels_per_lenslet)
-            tag = dict(realisation=real)
             t1 = time.perf_counter()
-            a, b = channel_emission("admm-cfa-matched", views, chan, (0, 1), op=op, knobs=knobs, ratio_filter=rf)
+            # the shipped route (channel_emission with these knobs and filter): its channels also give the first sum
+            matched = matched_channels(views, op, [(chan == c) & (views < 1) for c in (0, 1)], **knobs)
+            a, b = filter_ratio(*(bin_planes(x, op.subsamples) for x in matched), **rf)
             rows += E.score("admm-cfa-matched", noise, seed, a, b, Tt, vt, cal, model, step=0, filter="shipped",
-                            time_s=time.perf_counter() - t1, **tag)
-            fits = [(chan == c) & (views < 1) for c in (0, 1)]
-            s = np.maximum(sum(matched_channels(views, op, fits, **knobs)), 0.0)
+                            time_s=time.perf_counter() - t1, realisation=real)
+            s = np.maximum(sum(matched), 0.0)
             solver, f = ShareSolver(views, chan, op), None
             for step in range(1, ALTERNATIONS + 1):
                 f = solver.share(s, f)
                 a, b = lenslet_channels(s, f, op.subsamples)
                 dt = time.perf_counter() - t1
                 rows += E.score("share", noise, seed, a, b, Tt, vt, cal, model, step=step, filter="none",
-                                time_s=dt, **tag)
+                                time_s=dt, realisation=real)
                 rows += E.score("share", noise, seed, *filter_ratio(a, b, **rf), Tt, vt, cal, model, step=step,
-                                filter="shipped", time_s=dt, **tag)
+                                filter="shipped", time_s=dt, realisation=real)
                 if step < ALTERNATIONS:
                     s = solver.sum(f, s)
             print(f"seed {seed} {noise} realisation {real} done ({time.perf_counter() - t0:.0f} s)", flush=True)

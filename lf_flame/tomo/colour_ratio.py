@@ -8,8 +8,9 @@ temperature keeps the flame's structure:
 - :func:`smooth_planes`: a Gaussian on each plane (``admm-cfa-smooth``'s, on both channels);
 - :func:`guided_filter` and :func:`guided_ratio`: the log ratio smoothed by a guided filter
   with the log of the summed emission as its guide (He, Sun & Tang, TPAMI 2013);
-- :func:`contour_ratio`: each channel averaged along the contours of the summed emission (the
-  structure tensor's orientation), the ratio that of the averages;
+- :func:`contour_ratio`: each channel averaged along the contours of the summed emission (their
+  direction by :func:`contour_direction`, the structure tensor's orientation), the ratio that of the
+  averages;
 - :func:`filter_ratio`: the matched route's filter (``MATCHED_RATIO_FILTER``), the contours'
   average and then the guided filter.
 
@@ -93,6 +94,31 @@ def _sum_and_share(a, b, guide_sigma, min_fraction):
     return a, b, s, m, frac
 
 
+def contour_direction(plane: np.ndarray, orient_sigma: float = 1.0, tensor_sigma: float = 1.5):
+    """The direction along the brightness contours at each pixel of one plane.
+
+    The structure tensor's orientation (scikit-image ``structure_tensor``; Bigün & Granlund,
+    ICCV 1987) of the log of ``plane`` (floored at 1e-6 of its peak) smoothed by a Gaussian of
+    ``orient_sigma``, over a window of ``tensor_sigma``: the contour is perpendicular to the
+    dominant gradient.
+
+    Parameters
+    ----------
+    plane : ndarray of shape (rows, cols), non-negative with a positive peak
+    orient_sigma, tensor_sigma : float, pixels
+
+    Returns
+    -------
+    (dr, dc) : two ndarrays of shape (rows, cols): the unit vector along the contour (rows, cols).
+    """
+    from scipy.ndimage import gaussian_filter
+    from skimage.feature import structure_tensor
+    log_s = np.log(np.maximum(plane, 1e-6 * plane.max()))
+    arr, arc, acc = structure_tensor(gaussian_filter(log_s, orient_sigma), sigma=tensor_sigma, order="rc")
+    theta = 0.5 * np.arctan2(2 * arc, acc - arr)                     # the gradient's angle from the columns' axis
+    return np.cos(theta), -np.sin(theta)
+
+
 def contour_ratio(a: np.ndarray, b: np.ndarray, length: float, guide_sigma: float = 0.5,
                   min_fraction: float = MIN_FRACTION, support_fraction: float = MIN_FRACTION / 2,
                   orient_sigma: float = 1.0, tensor_sigma: float = 1.5):
@@ -139,8 +165,7 @@ def contour_ratio(a: np.ndarray, b: np.ndarray, length: float, guide_sigma: floa
     ValueError
         Shapes that differ or are not 3-D, or a length that is not positive.
     """
-    from scipy.ndimage import gaussian_filter, map_coordinates
-    from skimage.feature import structure_tensor
+    from scipy.ndimage import map_coordinates
     if not (np.isfinite(length) and length > 0):
         raise ValueError(f"a positive length along the contours (lenslets) is needed. Received {length!r}")
     a, b, s, _, frac = _sum_and_share(a, b, guide_sigma, min_fraction)
@@ -152,10 +177,7 @@ def contour_ratio(a: np.ndarray, b: np.ndarray, length: float, guide_sigma: floa
     for k in range(len(a)):
         if not m[k].any():
             continue
-        log_s = np.log(np.maximum(s[k], 1e-6 * s[k].max()))
-        arr, arc, acc = structure_tensor(gaussian_filter(log_s, orient_sigma), sigma=tensor_sigma, order="rc")
-        theta = 0.5 * np.arctan2(2 * arc, acc - arr)                 # the gradient's angle from the columns' axis
-        dr, dc = np.cos(theta), -np.sin(theta)                       # the contour's direction (rows, cols)
+        dr, dc = contour_direction(s[k], orient_sigma, tensor_sigma)
         na, nb = np.zeros_like(s[k]), np.zeros_like(s[k])
         ak, bk = np.where(m[k], a[k], 0.0), np.where(m[k], b[k], 0.0)
         for t, w in zip(steps, weights):
