@@ -21,7 +21,7 @@ HELDOUT_paper := 20
 HELDOUT_quick := 4
 HELDOUT_SEED := 770077
 
-.PHONY: temperature temperature-volume help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi sequence new-user heights test clean-quick
+.PHONY: temperature temperature-volume temperature-sequence help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi sequence new-user heights test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -55,6 +55,11 @@ endif
 temperature: $(STAMP) ## two-colour pyrometry with a colour (Bayer) light-field camera -> results/temperature{,_behind}.{csv,md,json}, results/temperature_calibration.json
 	$(VENV)/bin/python experiments/temperature.py --out results --stage flames $(if $(filter quick,$(PRESET)),--quick,)
 	$(VENV)/bin/python experiments/temperature.py --out results --stage behind $(if $(filter quick,$(PRESET)),--quick,)
+
+# temperature of a recording's planes over time (issue 37's Goal): the paper's four flames flickering in colour, each
+# frame through the shipped route at 14 and 20 dB, against the truth; uses make temperature's calibration
+temperature-sequence: $(STAMP) ## temperature of a flickering recording's planes over time -> results/temperature_sequence.{csv,md,json,png}
+	$(VENV)/bin/python experiments/temperature_sequence.py $(if $(filter quick,$(PRESET)),--out results/quick --quick,--out results)
 
 # two-colour temperature per voxel of axisymmetric colour flames (issue 37's Goal): each channel's e(r, y) on its
 # own CFA samples, unmatched and matched (re-solved on the other channel's), the ratio to T; renders cached in

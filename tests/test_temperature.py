@@ -167,6 +167,41 @@ def test_colour_behind_scene():
         colour_behind_scene(CAM, sensor, np.random.default_rng(3), 10.0, peaks_k=(2000.0,))
 
 
+def test_colour_flicker_frame_puts_the_hot_sheath_on_the_swayed_flame_and_flickers_its_temperature():
+    """A recording's frame in colour: in every row the hottest texel lies on the (strongly swayed) flame's soot,
+    the sheath temperature swings at the flame's frequency against its height, and the recording's one
+    exposure makes the hotter frames brighter."""
+    import dataclasses
+
+    from lf_flame.simulate.scenes_temperature import FLAME_PEAK_K, colour_flicker_frame
+    from lf_flame.simulate.scenes_time import flicker_sequence
+    sensor = library_sensor(gains=GAINS)
+    seq = flicker_sequence(CAM, np.random.default_rng(4), fps=100.0, duration_s=0.2)
+    fine = dataclasses.replace(seq, flames=tuple(dataclasses.replace(f, sway=0.3) for f in seq.flames),
+                               texels_per_lenslet=12.0)   # the sheath resolved: several texels across a flame
+    for cs in (colour_flicker_frame(fine, CAM, sensor, i) for i in (0, 7)):
+        for k in range(len(seq.flames)):
+            rows = np.flatnonzero(cs.soot[k].max(axis=1) > 0.1 * cs.soot[k].max())   # the flame, not its faint tip
+            hottest = np.argmax(cs.temperature_k[k][rows], axis=1)
+            assert np.all(cs.soot[k][rows, hottest] > 0)
+    frames = [colour_flicker_frame(seq, CAM, sensor, i, flicker_k=50.0, exposure=1.0) for i in range(seq.n_frames)]
+    sheath = np.array([[o["peak_k"] for o in cs.scene.objects] for cs in frames])       # (frames, flames)
+    heights = np.array([seq.heights_mm(i) for i in range(seq.n_frames)])
+    for k, pk in enumerate(FLAME_PEAK_K):
+        assert np.ptp(sheath[:, k]) > 50.0 and np.all(np.abs(sheath[:, k] - pk) <= 50.0 + 1e-9)
+        assert np.corrcoef(sheath[:, k], heights[:, k])[0, 1] < -0.9
+        hot, cold = np.argmax(sheath[:, k]), np.argmin(sheath[:, k])
+        assert frames[hot].channel_radiance[k][0].max() > 1.2 * frames[cold].channel_radiance[k][0].max()
+    own = colour_flicker_frame(seq, CAM, sensor, 3, flicker_k=50.0)
+    assert max(float(c.max()) for c in own.channel_radiance) == pytest.approx(0.8, rel=1e-6)
+    with pytest.raises(ValueError, match="one peak temperature per flame"):
+        colour_flicker_frame(seq, CAM, sensor, 0, peaks_k=(2000.0,))
+    with pytest.raises(ValueError, match="above base_k"):
+        colour_flicker_frame(seq, CAM, sensor, 0, flicker_k=400.0)
+    with pytest.raises(ValueError, match="frame must lie"):
+        colour_flicker_frame(seq, CAM, sensor, seq.n_frames)
+
+
 def test_matched_route_keeps_a_uniform_ratio_off_focus():
     """One flame-like blob with fine texture at +10 mm, one temperature (a uniform R/G ratio),
     through the CFA: each channel reconstructed from its own samples alone has its own

@@ -434,6 +434,13 @@ _FLAME_KEYS = ("name", "depth_offset_mm", "height_template_mm", "height_mm", "ce
 FLAME_EFFECTS = Effects(aperture=True, cos4=True, occlusion=False)
 
 
+def flame_centreline(cx, H, eta, sway, phase):
+    """Lateral position (mm) of a flame's centreline at normalised heights ``eta``: ``cx`` swayed by
+    ``sway H eta² sin(2 pi eta / 0.6 + phase)``, a wave travelling up the flame (``phase`` falls
+    with time, :class:`lf_flame.simulate.scenes_time.FlameSequence`); ``cx`` itself where ``sway`` is 0."""
+    return cx + sway * H * eta ** 2 * np.sin(2 * math.pi * eta / 0.6 + phase)
+
+
 def _flame_layer(camera, dz, H, cx, base_y, level, sway, phase, texels_per_lenslet, half_width_mm=None):
     """One flame of height ``H`` (mm), centre ``cx`` and base ``base_y`` (mm) at depth ``dz``,
     its base's half-width ``half_width_mm`` (None: 0.07 H): its layer (the field x 1.2) and its
@@ -442,8 +449,7 @@ def _flame_layer(camera, dz, H, cx, base_y, level, sway, phase, texels_per_lensl
     eta = (y - base_y) / H
     hw0 = 0.07 * H if half_width_mm is None else half_width_mm
     half_w = hw0 * np.sqrt(np.clip(1.0 - eta, 0.0, 1.0)) + 1e-9
-    centre = cx + sway * H * eta ** 2 * np.sin(2 * math.pi * eta / 0.6 + phase)
-    lum = (level * flame_luminosity(eta, (x - centre) / half_w)).astype(np.float32)
+    lum = (level * flame_luminosity(eta, (x - flame_centreline(cx, H, eta, sway, phase)) / half_w)).astype(np.float32)
     hw = hw0 + sway * H
     obj = dict(name=f"flame_{dz:+.0f}mm", depth_offset_mm=dz, height_mm=H, centre_x_mm=cx, base_y_mm=base_y,
                radiance=level, sway=sway, phase=phase, roi=_roi(camera, dz, base_y, base_y + H, cx - hw, cx + hw))

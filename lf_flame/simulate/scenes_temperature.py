@@ -16,7 +16,8 @@ import numpy as np
 
 from ..optics.camera import PlenopticCamera
 from ..optics.colour import ALPHA_SOOT, ColourSensor, band_integrals
-from .scenes import PAPER_DEPTHS_MM, Scene, _layer_grid, flame_luminosity, flame_scene
+from .scenes import PAPER_DEPTHS_MM, Scene, _layer_grid, flame_centreline, flame_luminosity, flame_scene
+from .scenes_time import FlameSequence
 
 #: Sheath (hottest) temperature of each of the paper's four flames, K, in the order of
 #: :data:`~lf_flame.simulate.scenes.PAPER_DEPTHS_MM`: each flame its own field, within the
@@ -136,25 +137,112 @@ def colour_flame_scene(camera: PlenopticCamera, sensor: ColourSensor, rng: np.ra
                        regime=regime, depths_mm=depths_mm, texels_per_lenslet=texels_per_lenslet)
     temps, soots = [], []
     for L, obj, pk in zip(mono.layers, mono.objects, peaks_k):
-        y, x, _, _ = _layer_grid(camera, L.depth_offset_mm, texels_per_lenslet, 1.2)
-        H = obj["height_mm"]
-        eta = (y - obj["base_y_mm"]) / H
-        half_w = 0.07 * H * np.sqrt(np.clip(1.0 - eta, 0.0, 1.0)) + 1e-9
-        xi = (x - obj["centre_x_mm"]) / half_w
+        eta, xi = _flame_coordinates(camera, L, obj, texels_per_lenslet)
         soot = obj["radiance"] * flame_luminosity(eta, xi)
         temps.append(np.broadcast_to(flame_temperature(eta, xi, float(pk), base_k), soot.shape).copy())
         soots.append(soot)
     return _in_colour(mono, "colour_flame", temps, soots, sensor, alpha, peak, peaks_k, base_k)
 
 
-def _in_colour(mono: Scene, name, temps, soots, sensor, alpha, peak, peaks_k, base_k) -> ColourFlameScene:
-    """A monochrome scene's layers as soot with temperature: each channel's emission, one exposure."""
+def _flame_coordinates(camera: PlenopticCamera, layer, obj: dict, texels_per_lenslet: float):
+    """A flame layer's normalised coordinates (eta, xi) per texel, as its luminosity was drawn
+    (:func:`lf_flame.simulate.scenes._flame_layer`): height over the flame's height, and lateral offset
+    from the (swayed) centreline over the local half-width (``half_width_mm`` at the base, 0.07 H
+    where the object does not record it)."""
+    y, x, _, _ = _layer_grid(camera, layer.depth_offset_mm, texels_per_lenslet, 1.2)
+    H = obj["height_mm"]
+    eta = (y - obj["base_y_mm"]) / H
+    half_w = obj.get("half_width_mm", 0.07 * H) * np.sqrt(np.clip(1.0 - eta, 0.0, 1.0)) + 1e-9
+    centre = flame_centreline(obj["centre_x_mm"], H, eta, obj.get("sway", 0.0), obj.get("phase", 0.0))
+    return eta, (x - centre) / half_w
+
+
+def _in_colour(mono: Scene, name, temps, soots, sensor, alpha, peak, peaks_k, base_k,
+               exposure: float | None = None) -> ColourFlameScene:
+    """A monochrome scene's layers as soot with temperature: each channel's emission, one exposure
+    (None: the one that brings the brightest texel of any channel to ``peak``)."""
     rad = [s[None] * np.moveaxis(band_integrals(sensor, t, alpha, gains=True), -1, 0) for s, t in zip(soots, temps)]
-    exposure = peak / max(float(r.max()) for r in rad)
+    if exposure is None:
+        exposure = peak / max(float(r.max()) for r in rad)
     chans = tuple((r * exposure).astype(np.float32) for r in rad)
     layers = tuple(dataclasses.replace(L, radiance=c[1]) for L, c in zip(mono.layers, chans))
     objects = tuple(dict(o, peak_k=float(pk), base_k=float(base_k)) for o, pk in zip(mono.objects, peaks_k))
     return ColourFlameScene(Scene(name, layers, mono.effects, objects), chans, tuple(temps), tuple(soots), exposure)
+
+
+#: Amplitude (K) of each flame's sheath temperature oscillation in a recording
+#: (:func:`colour_flicker_frame`): at the flame's flicker frequency, in antiphase with its height. A
+#: model for the recordings of issue 37's Goal (a stretched flame loses more heat), not a fit to data.
+FLICKER_K = 40.0
+
+
+def colour_flicker_frame(seq: FlameSequence, camera: PlenopticCamera, sensor: ColourSensor, frame: int, *,
+                         peaks_k=FLAME_PEAK_K, flicker_k: float = FLICKER_K, base_k: float = FLAME_BASE_K,
+                         alpha: float = ALPHA_SOOT, exposure: float | None = None,
+                         peak: float = 0.8) -> ColourFlameScene:
+    """One frame of a recording of flickering flames with temperature, seen by a colour sensor.
+
+    The geometry and soot of ``seq.scene(camera, frame)`` (:class:`~lf_flame.simulate.scenes_time.FlameSequence`:
+    heights that flicker, centrelines that sway); flame ``k``'s temperature is :func:`flame_temperature`
+    in its coordinates of that frame, with the sheath at
+
+        T_sheath(t) = peaks_k[k] - flicker_k sin(2 pi f_k t + phase_k)
+
+    (``f_k`` and ``phase_k`` the flame's flicker frequency and phase: hottest when the flame is
+    shortest). Each object records its sheath temperature of the frame as ``peak_k``: the truth of
+    the recording's temperature over time.
+
+    Parameters
+    ----------
+    seq : FlameSequence
+    camera : PlenopticCamera
+    sensor : ColourSensor
+    frame : int
+        In ``[0, seq.n_frames)``.
+    peaks_k : sequence of float, K
+        Each flame's mean sheath temperature, in ``seq.flames``' order.
+    flicker_k : float, K
+        Amplitude of the sheath temperature's oscillation (>= 0).
+    base_k, alpha
+        As :func:`colour_flame_scene`.
+    exposure : float or None
+        The recording's exposure (a camera's is fixed over a recording: give frame 0's
+        ``exposure`` to the others); None: this frame's, bringing its brightest texel of any channel
+        to ``peak``.
+    peak : float
+        In (0, 1]; used where ``exposure`` is None.
+
+    Returns
+    -------
+    ColourFlameScene
+        ``scene.name == "colour_flicker"``, one layer per flame.
+
+    Raises
+    ------
+    ValueError
+        Not one peak temperature per flame, ``flicker_k`` negative or not finite, a sheath
+        temperature that falls to ``base_k``, ``peak`` outside (0, 1] or an exposure not
+        positive, and the errors of :meth:`FlameSequence.scene` (a frame outside the recording).
+    """
+    if len(peaks_k) != len(seq.flames):
+        raise ValueError(f"one peak temperature per flame is needed: {len(seq.flames)} flames, {len(peaks_k)} given")
+    if not (np.isfinite(flicker_k) and flicker_k >= 0):
+        raise ValueError(f"flicker_k must be finite and >= 0 (K). Received: {flicker_k!r}")
+    if not (0 < peak <= 1) or not (exposure is None or (np.isfinite(exposure) and exposure > 0)):
+        raise ValueError(f"peak must be in (0, 1] and the exposure positive. Received: peak={peak}, "
+                         f"exposure={exposure!r}")
+    mono = seq.scene(camera, frame)
+    t = int(frame) / float(seq.fps)
+    sheath = [float(pk) - flicker_k * np.sin(2 * np.pi * f.freq_hz * t + f.phase) for pk, f in zip(peaks_k, seq.flames)]
+    if min(sheath) <= base_k:
+        raise ValueError(f"the sheath temperatures {sheath} K must stay above base_k {base_k} K: lower flicker_k")
+    temps, soots = [], []
+    for L, obj, pk in zip(mono.layers, mono.objects, sheath):
+        eta, xi = _flame_coordinates(camera, L, obj, seq.texels_per_lenslet)
+        soot = np.asarray(L.radiance, float)
+        temps.append(np.broadcast_to(flame_temperature(eta, xi, pk, base_k), soot.shape).copy())
+        soots.append(soot)
+    return _in_colour(mono, "colour_flicker", temps, soots, sensor, alpha, peak, sheath, base_k, exposure)
 
 
 #: Sheath temperatures (K) of the far and the near flame of :func:`colour_behind_scene`.
@@ -207,11 +295,7 @@ def colour_behind_scene(camera: PlenopticCamera, sensor: ColourSensor, rng: np.r
                         texels_per_lenslet=texels_per_lenslet)
     temps, soots = [], []
     for L, obj, pk in zip(mono.layers, mono.objects, peaks_k):
-        y, x, _, _ = _layer_grid(camera, L.depth_offset_mm, texels_per_lenslet, 1.2)
-        H = obj["height_mm"]
-        eta = (y - obj["base_y_mm"]) / H
-        half_w = obj["half_width_mm"] * np.sqrt(np.clip(1.0 - eta, 0.0, 1.0)) + 1e-9
-        xi = (x - obj["centre_x_mm"]) / half_w
+        eta, xi = _flame_coordinates(camera, L, obj, texels_per_lenslet)
         soot = np.asarray(L.radiance, float)
         temps.append(np.broadcast_to(flame_temperature(eta, xi, float(pk), base_k), soot.shape).copy())
         soots.append(soot)
