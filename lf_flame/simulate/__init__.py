@@ -4,7 +4,7 @@
 volumes, points); :mod:`.scenes_depth` flames at random depths and one behind
 another (issue 36); :mod:`.scenes_volume` axisymmetric volumetric flames (sheath, filled core) about any
 vertical axis and non-axisymmetric ones (leaning, with a lobe); :mod:`.scenes_time` flickering flames over time; :mod:`.scenes_temperature` flames with a
-temperature field seen in colour, rendered by :mod:`.colour` (a Bayer mosaic of per-channel renders); :mod:`.scenes_volume_temperature` an
+temperature field seen in colour (still or flickering), rendered by :mod:`.colour` (a Bayer mosaic of per-channel renders); :mod:`.scenes_volume_temperature` an
 axisymmetric volumetric flame with a temperature field T(r, y) in colour; :mod:`.tracer` renders
 them by tracing rays backward through the camera's ray transfer matrices, with the
 Numba kernels in :mod:`._kernels`. Only the effects a scene asks for are simulated
@@ -21,11 +21,12 @@ __getattr__, __dir__, __all__ = lazy.attach(
     submod_attrs={
         "scenes": ["PAPER_DEPTHS_MM", "SHAPE_AT_DEPTH", "FLAME_HEIGHT_MEAN_MM", "FLAME_HEIGHT_SD_MM",
                  "REGIMES", "PAPER_RELATIVE_SD", "Effects", "Layer", "Scene", "shapes_scene",
-                 "flame_luminosity", "flame_scene", "FLAME_EFFECTS", "overlap_scene",
+                 "flame_luminosity", "flame_centreline", "flame_scene", "FLAME_EFFECTS", "overlap_scene",
                  "volume_flame_scene", "point_scene", "white_scene", "SCENES"],
         "colour": ["render_colour"],
         "scenes_temperature": ["FLAME_PEAK_K", "FLAME_BASE_K", "BEHIND_PEAK_K", "flame_temperature", "ColourFlameScene",
-                               "colour_flame_scene", "colour_behind_scene", "blackbody_channels", "furnace_scene"],
+                               "colour_flame_scene", "colour_behind_scene", "blackbody_channels", "furnace_scene",
+                               "FLICKER_K", "colour_flicker_frame"],
         "scenes_depth": ["DEPTH_RANGE_MM", "HEIGHT_RANGE_MM", "MIN_HALF_WIDTH_MM", "random_depth_scene",
                          "behind_scene"],
         "scenes_volume": ["sheath_density", "axisymmetric_flame_scene", "nonaxisymmetric_flame_scene"],
