@@ -157,6 +157,18 @@ def _flame_coordinates(camera: PlenopticCamera, layer, obj: dict, texels_per_len
     return eta, (x - centre) / half_w
 
 
+def _layer_temperatures(camera: PlenopticCamera, mono: Scene, peaks_k, base_k: float, texels_per_lenslet: float):
+    """Each flame layer of ``mono`` as soot (its luminosity) with :func:`flame_temperature` of sheath
+    ``peaks_k[k]`` in its own coordinates (:func:`_flame_coordinates`): (temps, soots), float64 per layer."""
+    temps, soots = [], []
+    for L, obj, pk in zip(mono.layers, mono.objects, peaks_k):
+        eta, xi = _flame_coordinates(camera, L, obj, texels_per_lenslet)
+        soot = np.asarray(L.radiance, float)
+        temps.append(np.broadcast_to(flame_temperature(eta, xi, float(pk), base_k), soot.shape).copy())
+        soots.append(soot)
+    return temps, soots
+
+
 def _in_colour(mono: Scene, name, temps, soots, sensor, alpha, peak, peaks_k, base_k,
                exposure: float | None = None) -> ColourFlameScene:
     """A monochrome scene's layers as soot with temperature: each channel's emission, one exposure
@@ -236,12 +248,7 @@ def colour_flicker_frame(seq: FlameSequence, camera: PlenopticCamera, sensor: Co
     sheath = [float(pk) - flicker_k * np.sin(2 * np.pi * f.freq_hz * t + f.phase) for pk, f in zip(peaks_k, seq.flames)]
     if min(sheath) <= base_k:
         raise ValueError(f"the sheath temperatures {sheath} K must stay above base_k {base_k} K: lower flicker_k")
-    temps, soots = [], []
-    for L, obj, pk in zip(mono.layers, mono.objects, sheath):
-        eta, xi = _flame_coordinates(camera, L, obj, seq.texels_per_lenslet)
-        soot = np.asarray(L.radiance, float)
-        temps.append(np.broadcast_to(flame_temperature(eta, xi, pk, base_k), soot.shape).copy())
-        soots.append(soot)
+    temps, soots = _layer_temperatures(camera, mono, sheath, base_k, seq.texels_per_lenslet)
     return _in_colour(mono, "colour_flicker", temps, soots, sensor, alpha, peak, sheath, base_k, exposure)
 
 
@@ -293,12 +300,7 @@ def colour_behind_scene(camera: PlenopticCamera, sensor: ColourSensor, rng: np.r
         raise ValueError(f"peak must be in (0, 1]. Received: {peak}")
     mono = behind_scene(camera, rng, separation_mm, depth_range=depth_range or DEPTH_RANGE_MM,
                         texels_per_lenslet=texels_per_lenslet)
-    temps, soots = [], []
-    for L, obj, pk in zip(mono.layers, mono.objects, peaks_k):
-        eta, xi = _flame_coordinates(camera, L, obj, texels_per_lenslet)
-        soot = np.asarray(L.radiance, float)
-        temps.append(np.broadcast_to(flame_temperature(eta, xi, float(pk), base_k), soot.shape).copy())
-        soots.append(soot)
+    temps, soots = _layer_temperatures(camera, mono, peaks_k, base_k, texels_per_lenslet)
     return _in_colour(mono, "colour_behind", temps, soots, sensor, alpha, peak, peaks_k, base_k)
 
 
