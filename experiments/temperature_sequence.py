@@ -58,9 +58,10 @@ EXPOSURE_PEAK = 0.6
 ROUTE = "admm-cfa-matched"
 
 
-def frame_rows(cam, sensor, model, cal, seq, i, exposure, ops, rays, snrs):
+def frame_rows(cam, sensor, model, cal, seq, i, exposure, ops, chan, rays, snrs):
     """One frame: rendered, each SNR's noise, the route's temperature and the truth -> rows (one per noise
-    level and plane); frame 0's rows carry ``own_error``, from a second render with another seed."""
+    level and plane); frame 0's rows carry ``own_error``, from a second render with another seed. ``chan``:
+    the views' channel map (:func:`channel_views`), the same for every frame."""
     cs = colour_flicker_frame(seq, cam, sensor, i, exposure=exposure)
     clean = render_colour(cam, cs.scene, cs.channel_radiance, sensor, rays, seq.seed + i)
     extra = {}
@@ -68,20 +69,18 @@ def frame_rows(cam, sensor, model, cal, seq, i, exposure, ops, rays, snrs):
         other = render_colour(cam, cs.scene, cs.channel_radiance, sensor, rays, seq.seed + 10_000)
         extra["own_error"] = float(np.linalg.norm(clean - other) / (np.sqrt(2) * np.linalg.norm(clean)))
     Tt, vt = E.true_temperature(cs, ops["truth"], cal, model)
-    chan = channel_views(clean.shape, sensor, cam.pixels_per_lenslet)
     rows = []
     for j, snr in enumerate(snrs):
         raw, _ = E.add_noise(clean, cs.scene.effects, seq.seed + 100_000 * (j + 1) + i, snr)
-        t0, info = time.perf_counter(), {}
+        info = {}
         a, b = channel_emission(ROUTE, raw_to_views(raw, cam.pixels_per_lenslet), chan, (0, 1), op=ops["route"],
                                 info=info)
-        dt = time.perf_counter() - t0
         T, valid, _ = P.temperature_planes(a, b, cal, model)
-        scored = E.score(ROUTE, f"{snr:g}dB", i, a, b, Tt, vt, cal, model, time_s=dt, regime=info["regime"],
-                         snr_db=E.snr_db(clean, raw))
+        scored = E.score(ROUTE, f"{snr:g}dB", i, a, b, Tt, vt, cal, model, time_s=i / seq.fps,
+                         regime=info["regime"], snr_db=E.snr_db(clean, raw))
         for k, row in enumerate(scored):
             sel = vt[k] & valid[k]
-            rows.append(dict(row, frame=i, time_s=i / seq.fps, depth_mm=seq.flames[k].depth_offset_mm,
+            rows.append(dict(row, frame=i, depth_mm=seq.flames[k].depth_offset_mm,
                              sheath_true_k=cs.scene.objects[k]["peak_k"], t_true_k=float(np.median(Tt[k][vt[k]])),
                              t_k=float(np.median(T[k][sel])) if sel.any() else np.nan, **extra))
     return rows
@@ -114,8 +113,7 @@ def over_time(df, seq):
                         pixel_p90_median_k=float(g.p90_k.median()), pixel_p90_worst_k=float(g.p90_k.max())))
     res = pd.DataFrame(out)
     for noise, g in df.groupby("noise", sort=True):
-        pk = peaks(spectra(g.rename(columns={"t_k": "temperature_k"}), seq.fps, signals=("temperature_k",)),
-                   [f.freq_hz for f in seq.flames])
+        pk = peaks(spectra(g, seq.fps, signals=("t_k",)), [f.freq_hz for f in seq.flames])
         for r in pk.itertuples():
             res.loc[(res.noise == noise) & (res.plane == r.plane), "dominant_hz"] = r.dominant_hz
     return res
@@ -163,6 +161,7 @@ def main(argv=None):
     depths = [f.depth_offset_mm for f in seq.flames]
     ops = dict(truth=route_operator(cam, depths, "admm-cfa"), route=route_operator(cam, depths, ROUTE))
     exposure = colour_flicker_frame(seq, cam, sensor, 0, peak=EXPOSURE_PEAK).exposure
+    chan = channel_views(cam.sensor_shape, sensor, cam.pixels_per_lenslet)
     # frames done are kept in a cache named by the settings, so that a stopped run resumes
     a.cache.mkdir(parents=True, exist_ok=True)
     cache = a.cache / (f"frames_seed{SEED}_fps{a.fps:g}_n{a.frames}_rays{a.rays}_snr{'-'.join(f'{x:g}' for x in a.snr)}"
@@ -172,8 +171,8 @@ def main(argv=None):
     for i in tqdm(range(seq.n_frames), desc="frames", initial=len(done), total=seq.n_frames):
         if i in done:
             continue
-        df = pd.concat([df, pd.DataFrame(frame_rows(cam, sensor, model, cal, seq, i, exposure, ops, a.rays, a.snr))],
-                       ignore_index=True)
+        new = frame_rows(cam, sensor, model, cal, seq, i, exposure, ops, chan, a.rays, a.snr)
+        df = pd.concat([df, pd.DataFrame(new)], ignore_index=True)
         atomic_write_text(cache, df.to_csv(index=False))
     df = df.sort_values(["frame", "noise", "plane"], ignore_index=True)
     meta = dict(own_error=float(df.own_error.dropna().iloc[0]), resumed_frames=len(done))
