@@ -192,6 +192,10 @@ class FourierSlice:
     beforehand by the kernel's Fourier transform (roll-off correction). Each pixel is
     then divided by the number of views that reach it, as in :func:`focal_stack`.
     Interpolation along r and c is therefore band-limited (sinc), not bilinear.
+    An even number of views (decoded from lenslet images of any pitch) has view offsets
+    ``u - (N - 1)/2`` at half-integers: the views are placed on the whole offsets
+    ``u - N/2``, which refocuses the image shifted by ``slope / 2``, and each plane is moved
+    back by that shift as a phase ramp on its spectrum (band-limited, exact).
 
     Parameters
     ----------
@@ -214,18 +218,19 @@ class FourierSlice:
         if not (np.isfinite(max_slope) and max_slope > 0):
             raise ValueError(f"max_slope must be positive and finite. Received: {max_slope}")
         n, _, R, C = views.shape
-        if n % 2 == 0:
-            raise ValueError(f"Fourier-slice refocusing needs an odd number of views per axis. Received: {n}")
         self.n, self.shape, self.mask, self.max_slope = n, (R, C), mask, float(max_slope)
         W, alpha = self.KERNEL_WIDTH, self.OVERSAMPLE
         self.M = M = int(2 * np.ceil(alpha * n / 2))
         self.beta = np.pi * np.sqrt((W / alpha) ** 2 * (alpha - 0.5) ** 2 - 0.8)
-        pad = _margin(max_slope, n)
+        # the angular grid's samples: whole view offsets; an even count's offsets are half-integers,
+        # taken half a view lower (u - N/2) and the refocused image moved back by slope / 2 in stack()
+        self.half = 0.5 * (1 - n % 2)
+        pad = _margin(max_slope, n) + int(np.ceil(self.half * max_slope))
         self.R2, self.C2 = scipy.fft.next_fast_len(R + pad), scipy.fft.next_fast_len(C + pad, real=True)
-        off = _view_offsets(n)
+        off = _view_offsets(n) - self.half
         roll = self._kernel_ft(off)
         x = np.zeros((M, M, self.R2, self.C2), np.float32)
-        idx = off.astype(int) % M  # view offset u' at index u' mod M
+        idx = np.rint(off).astype(int) % M  # view offset u' at index u' mod M
         weight = (mask / (roll[:, None] * roll[None, :])).astype(np.float32)
         x[idx[:, None], idx[None, :], :R, :C] = views * weight[:, :, None, None]
         spec = scipy.fft.rfftn(x, axes=(2, 3), workers=-1)
@@ -270,6 +275,8 @@ class FourierSlice:
         j_c, w_c = self._taps(-slopes[:, None] * fc[None, :])
         spec = np.empty((len(slopes), self.R2, len(fc)), np.complex64)
         _refocus_kernels.fourier_slice(self.spectrum, j_r, w_r, j_c, w_c, spec)
+        if self.half:   # views placed at offsets u - c - 1/2 give the image at r - s/2: shift it back, band-limited
+            spec *= np.exp(2j * np.pi * self.half * slopes[:, None, None] * (fr[None, :, None] + fc[None, None, :]))
         img = scipy.fft.irfft2(spec, s=(self.R2, self.C2), workers=-1)[:, :R, :C]
         shifts = slopes[:, None] * _view_offsets(self.n)[None, :]
         count = np.einsum("sur,uv,svc->src", _band_limited_box(shifts, R, self.R2), self.mask.astype(np.float64),
