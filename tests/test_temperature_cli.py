@@ -134,3 +134,26 @@ def test_channel_sum_has_no_cfa_checkerboard():
     assert v.std() / v.mean() > 0.1
     s = channel_sum_views(views, chan)[7, 7, 5:16, 5:16]
     assert s.std() / s.mean() < 0.01
+
+
+def test_temperature_refuses_a_monochrome_light_field(files, tmp_path, capsys):
+    """A light field without colour channels: a monochrome render (its record), or an image with no
+    mosaic (the same colour raw image with its 2 x 2 phases averaged: the record stripped), exit 2
+    naming the cause; the colour image itself is not refused by the mosaic check."""
+    from lf_flame.cli.temperature import _refuse_monochrome
+    d = files
+    with np.load(d["flame"]) as z:
+        raw = z["raw"]
+    _refuse_monochrome(str(d["flame"]))                    # a colour capture passes
+    np.save(tmp_path / "colour.npy", raw)
+    _refuse_monochrome(str(tmp_path / "colour.npy"))        # no record: its mosaic tells
+    R, C = raw.shape
+    even = np.pad(raw, ((0, R % 2), (0, C % 2)), mode="edge")
+    grey = even.reshape(even.shape[0] // 2, 2, even.shape[1] // 2, 2).mean(axis=(1, 3)).repeat(2, 0).repeat(2, 1)
+    grey = grey[:R, :C]
+    np.save(tmp_path / "grey.npy", grey)
+    np.savez(tmp_path / "mono.npz", raw=grey, camera=json.dumps(CAM.to_dict()))
+    for path, why in ((tmp_path / "grey.npy", "no colour filter mosaic"), (tmp_path / "mono.npz", "monochrome")):
+        assert main(["temperature", str(path), "--calibration", str(d["cal"]), "--out", str(tmp_path / "t.h5")]) == 2
+        assert why in capsys.readouterr().err
+    assert not (tmp_path / "t.h5").exists()

@@ -58,7 +58,8 @@ def test_volume_cli_refusals(volume_raw, tmp_path, capsys):
              (["--volume", "--from", "-3", "--to", "3", "--depth", "0"], "drop --depth"),
              (["--volume", "--from", "-3", "--to", "3", "--prior", "tv", "--l1", "0.01"], "l1 weight with 'sparse'"),
              (["--volume", "--from", "3", "--to", "-3"], "near < far"),
-             (["--volume", "--from", "-30", "--to", "30", "--step", "0.5"], "at most 81")]
+             (["--volume", "--from", "-20", "--to", "20", "--step", "0.4"], "at most 81"),
+             (["--volume", "--from", "400", "--to", "500"], "this camera refocuses")]
     for args, message in cases:
         capsys.readouterr()
         assert main(["reconstruct", str(volume_raw), *args, "--out", out]) == 2, args
@@ -78,10 +79,12 @@ def test_solve_volume_refusals():
 
 
 def test_the_tv_and_l1_weights_follow_the_noise(volume_raw):
-    from lf_flame.cli._io import _load_views
+    from lf_flame.cli._io import _raw_reader
+    from lf_flame.real.lightfield import read_light_field
     from lf_flame.tomo.defaults import VOLUME_L1, VOLUME_TV
     from lf_flame.tomo.fourier import noise_regime, relative_noise
-    views, cam = _load_views(volume_raw)
+    lf = read_light_field(volume_raw, raw_reader=_raw_reader)
+    views, cam = lf.views, lf.camera
     noisy = np.clip(views + np.random.default_rng(0).normal(0, 0.05, views.shape), 0, None)
     for v in (views, noisy):
         regime = noise_regime(relative_noise(v, v < 1.0))

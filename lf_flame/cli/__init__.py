@@ -19,7 +19,7 @@ from ..tomo.defaults import (ADMM_KNOBS, ADMM_QUIET, ADMM_SUBSAMPLES, ADMM_TV, D
                               DEFAULT_TV, EXACT_SOLVER, SOLVERS, SUBSAMPLES_MAX_PLANES, VOLUME_L1, VOLUME_MAX_PLANES,
                               VOLUME_PRIOR, VOLUME_PRIORS, VOLUME_STEP_MM, VOLUME_TV)
 from ..tomo.resolution import AXES, CONDITIONS, DEFAULT_FAR_MM, DEFAULT_NEAR_MM, DEFAULT_SPACING_MM, FEATURE_SIZES_MM
-from ._io import RAW_FORMATS
+from ._io import RAW_FORMATS, add_camera_args
 from .learning import cmd_dataset, cmd_evaluate, cmd_predict, cmd_tables, cmd_train
 from .optics import cmd_refocus, cmd_simulate, cmd_slopes
 from .profiles import cmd_profiles
@@ -27,7 +27,7 @@ from .real import cmd_calibrate, cmd_decode
 from .resolution import cmd_resolution
 from .sequence import cmd_sequence, cmd_simulate_sequence
 from .temperature import cmd_calibrate_temperature, cmd_temperature
-from .volume import OWN_CAMERA_ITERS, OWN_CAMERA_SOLVER, cmd_reconstruct
+from .volume import cmd_reconstruct
 
 # The commands' modules import only NumPy at the top: each command imports the libraries
 # it uses (PyLops, TensorFlow, Dask, Numba, Matplotlib, SciPy ...) when it runs, so
@@ -103,7 +103,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--seed", type=int, default=0, help="seed of the scene's random variation and of the rays")
     s.add_argument("--rays-per-pixel", type=int, default=16, help="rays traced per sensor pixel (fewer: faster, "
                    "noisier)")
-    s.add_argument("--data-config", help="TOML with a [camera] table (default: the paper's camera)")
+    s.add_argument("--data-config", "--camera", dest="data_config", help="camera file (the datasheet tables of "
+                   "docs/own_camera.md) or a TOML with a [camera] table (default: the paper's camera); the scene's "
+                   "depths are mm from its focus distance")
     s.add_argument("--nominal", action="store_true", help="the nominal scene (no random variation)")
     s.add_argument("--views", action="store_true", help="also store sub-aperture views (N, N, R, C)")
     s.add_argument("--crosstalk", action="store_true", help="add crosstalk through neighbouring lenslets")
@@ -141,7 +143,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("refocus", help="refocus a raw image (or decoded views) at one or more slopes")
     s.add_argument("raw", help=RAW_FORMATS + ", or VIEWS.h5 from decode")
-    s.add_argument("--slope", type=float, action="append", required=True, help="lenslets per view (repeatable)")
+    s.add_argument("--slope", type=float, action="append", help="lenslets per view (repeatable)")
+    s.add_argument("--depth", type=float, action="append", help="instead of --slope: plane depth, mm from the "
+                   "camera's focus distance (> 0 farther; repeatable)")
+    add_camera_args(s)
     s.add_argument("--method", choices=["shift-sum", "fourier"], default="shift-sum",
                    help="shift-and-sum of the views, or the Fourier slice")
     s.add_argument("--interpolation", choices=["bilinear", "nearest"], default="bilinear",
@@ -160,8 +165,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--metric", choices=["tenengrad", "laplacian", "normvar"], default="tenengrad",
                    help="sharpness of a refocused region")
     s.add_argument("--method", choices=["fourier", "shift-sum"], default="fourier", help="refocusing of the search")
-    s.add_argument("--lo", type=float, default=-3.0, help="lowest slope searched, lenslets per view")
-    s.add_argument("--hi", type=float, default=3.0, help="highest slope searched, lenslets per view")
+    s.add_argument("--lo", type=float, help="lowest slope searched, lenslets per view (default: the camera's "
+                   "imaging range, |slope| <= 3 and object distances beyond 1.05 focal lengths)")
+    s.add_argument("--hi", type=float, help="highest slope searched, lenslets per view (default: as --lo)")
+    add_camera_args(s)
     s.add_argument("--aperture", choices=["square", "circular"], default="circular",
                    help="views summed: all, or those inside the main lens's circular aperture")
     s.add_argument("--out-prefix", help="write PREFIX.slopes.csv and PREFIX.slopes.png (default: beside RAW)")
@@ -255,6 +262,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--model-dir", help="folder written by 'lf-flame train' (learned routes)")
     s.add_argument("--slope", type=float, action="append",
                    help="one per plane (repeatable); default: the dataset's, else the analytic slopes of the depths")
+    s.add_argument("--camera", help="camera file (TOML, docs/own_camera.md) of a raw image of a perfect lenslet "
+                   "grid (default: the camera stored in RAW, else the paper's)")
     s.add_argument("--out", required=True, help="PREFIX: writes PREFIX.csv (one row per plane), PREFIX.axial.csv "
                                                "and PREFIX.png")
     s.set_defaults(func=cmd_profiles)
@@ -275,12 +284,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--slope", type=float, action="append", help="plane slope instead of a depth (repeatable)")
     s.add_argument("--solver", choices=list(SOLVERS),
                    help=f"the default is the one chosen on validation renders: {EXACT_SOLVER} on the exact operator, "
-                        f"{DEFAULT_SOLVER} on a traced one (--rays-per-pixel, or a camera that needs tracing), "
-                        f"{OWN_CAMERA_SOLVER} with --camera; adjoint: plain refocusing through the operator's rays "
-                        f"(default: {EXACT_SOLVER}, traced: {DEFAULT_SOLVER})")
+                        f"{DEFAULT_SOLVER} on a traced one (--rays-per-pixel); adjoint: plain refocusing through "
+                        f"the operator's rays (default: {EXACT_SOLVER}, traced: {DEFAULT_SOLVER})")
     s.add_argument("--iters", type=int, help="iterations (default: the solver's, chosen on validation renders: "
-                   + ", ".join(f"{k} {v}" for k, v in DEFAULT_ITERS.items()) + "; with --camera "
-                   + ", ".join(f"{k} {v}" for k, v in OWN_CAMERA_ITERS.items()) + ")")
+                   + ", ".join(f"{k} {v}" for k, v in DEFAULT_ITERS.items()) + ")")
     s.add_argument("--damp", type=float, default=0.0, help="LSQR damping (Tikhonov)")
     s.add_argument("--tv", type=float, default=None, help=f"TV weight of pd-tv (default: {DEFAULT_TV}) or of admm "
                    f"(default by the light field's noise and the grid: on {ADMM_SUBSAMPLES} x {ADMM_SUBSAMPLES} samples "
@@ -290,17 +297,13 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--subsamples", type=_subsamples, default=None,
                    help="samples per lenslet and axis of the planes' grid on the exact operator: 1 (the lenslet grid) "
                         "or 2 (detail finer than a lenslet, seen off focus in the views' parallax; 4x the unknowns). "
-                        f"Default 'auto': {ADMM_SUBSAMPLES} for admm on at most {SUBSAMPLES_MAX_PLANES} planes, "
-                        "else 1")
+                        f"Default 'auto': {ADMM_SUBSAMPLES} for admm on at most {SUBSAMPLES_MAX_PLANES} planes of "
+                        "simulated views, else 1 (decoded views: 1)")
     s.add_argument("--saturation", type=_level_or_none, default=argparse.SUPPRESS,
                    help="the sensor's clipping level in the views' units: pixels at or above it are left out of the "
-                        "fit ('none': fit every pixel; default 1.0). With --camera only 'none' (fit every sample): "
-                        "decoded views carry their clipped samples ('lf-flame decode --saturation')")
-    s.add_argument("--camera", help="camera file (TOML: the datasheet tables of docs/own_camera.md, or a [camera] "
-                   "table): VIEWS.h5 from 'lf-flame decode' is reconstructed with that camera's exact operator on the "
-                   "decoded views; needs --depth or --slope")
-    s.add_argument("--calibration", help="with --camera: the JSON of 'lf-flame calibrate' the views were decoded "
-                   "with (default: the one stored in VIEWS.h5; given, it must be that one)")
+                        "fit ('none': fit every pixel; default 1.0). Decoded views take only 'none' (fit every "
+                        "sample): they carry their clipped samples ('lf-flame decode --saturation')")
+    add_camera_args(s)
     s.add_argument("--rays-per-pixel", type=int, default=None,
                    help="rays per pixel of a traced forward operator (the reference; default: the exact operator "
                         "where the camera is a perfect lenslet grid, else 4 rays)")

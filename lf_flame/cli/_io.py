@@ -99,28 +99,33 @@ def _raw_meta(path) -> dict:
     return {}
 
 
-def _load_views(path):
-    """Sub-aperture views (N, N, R, C) and the camera (or None) of RAW: a file of views
-    decoded by ``lf-flame decode`` (.h5 without ':INDEX'), else a raw image of the
-    simulated camera split by :func:`lf_flame.refocus.shift_and_sum.raw_to_views`.
+def add_camera_args(s):
+    """``--camera`` and ``--calibration``: the options of every command that reads a light field."""
+    s.add_argument("--camera", help="camera file (TOML: the datasheet tables of docs/own_camera.md, or a [camera] "
+                   "table); needed for views from 'lf-flame decode' and for raw captures of a camera that is not "
+                   "stored in the file (default: the camera 'lf-flame simulate' stored, else the paper's)")
+    s.add_argument("--calibration", help="the white-image calibration JSON of 'lf-flame calibrate': a raw capture is "
+                   "decoded with it (its white image) before the route; decoded views are checked against it")
 
-    Raises
-    ------
-    ValueError
-        An .h5 file that is not decoded views, or a file that is no raw image (:func:`_load_raw`).
-    """
-    s = str(path)
-    if s.endswith(".h5") and ".h5:" not in s:
-        from ..real.decoding import load_views
+
+def _raw_reader(p):
+    raw, cam = _load_raw(p)
+    return raw, cam, _raw_meta(p)
+
+
+def light_field(a, path=None):
+    """The light field of a command's input (``a.raw`` or ``path``) with its ``--camera`` and
+    ``--calibration`` (:func:`lf_flame.real.lightfield.read_light_field`)."""
+    from ..real.decoding import load_views
+    from ..real.lightfield import read_light_field
+    src = str(path or a.raw)
+    if src.endswith(".h5") and ".h5:" not in src:
         try:
-            return load_views(s)[0], None
+            load_views(src)
         except ValueError as e:
             raise ValueError(f"{e}. Reads views .h5 from 'lf-flame decode', or a raw image: {RAW_FORMATS}") from None
-    from ..optics.camera import PAPER_CAMERA
-    from ..refocus.shift_and_sum import raw_to_views
-    raw, cam = _load_raw(path)
-    cam = cam or PAPER_CAMERA
-    return raw_to_views(raw, cam.pixels_per_lenslet), cam
+    return read_light_field(src, getattr(a, "camera", None), getattr(a, "calibration", None),
+                            views=getattr(a, "views", None), raw_reader=_raw_reader)
 
 
 def _save_image(path, img, metadata=None, bits: int = 8):
@@ -180,16 +185,27 @@ def _raw_scene(path, camera):
 
 
 def camera_config(path):
-    """The camera of a TOML file's ``[camera]`` table (the paper's values for the keys it
-    leaves out); the file's other tables (``[dataset]`` ...) are not read, so a TOML holding
-    only a camera serves ``simulate`` and ``simulate-sequence``.
+    """The camera of a TOML file: the datasheet tables of a camera file
+    (:func:`lf_flame.optics.camera_file.load_camera_file`), or a ``[camera]`` table (the
+    paper's values for the keys it leaves out; a data config without one: the paper's camera);
+    the file's other tables (``[dataset]`` ...) are not read, so a data config serves
+    ``simulate`` and ``simulate-sequence``.
 
     Raises
     ------
     ValueError
-        An unknown key in ``[camera]``, or a camera the optics refuse.
+        A file holding neither (naming what a camera file holds), an unknown key in
+        ``[camera]``, or a camera the optics refuse.
     """
     from ..config import _build, load_toml
     from ..optics.camera import PlenopticCamera
-    return _build(PlenopticCamera, load_toml(path).get("camera", {}), f"{path} [camera]")
-
+    from ..optics.camera_file import DATASHEET_KEYS, load_camera_file
+    table = load_toml(path)
+    if set(table) & set(DATASHEET_KEYS):
+        return load_camera_file(path)
+    if "camera" not in table and "dataset" in table:           # a data config of the paper's camera
+        return PlenopticCamera()
+    if "camera" not in table:
+        raise ValueError(f"{path} describes no camera: a camera file holds the datasheet tables "
+                         f"{', '.join(f'[{k}]' for k in DATASHEET_KEYS)} (docs/own_camera.md) or a [camera] table")
+    return _build(PlenopticCamera, table["camera"], f"{path} [camera]")

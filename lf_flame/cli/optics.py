@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import _load_views, _raw_objects, _save_image, _write_stack, camera_config, simulated_scene
+from ._io import _raw_objects, _save_image, _write_stack, camera_config, light_field, simulated_scene
 
 
 def cmd_simulate(a):
@@ -40,15 +40,36 @@ def cmd_simulate(a):
     print(f"rendered {sc.name} {raw.shape} at {a.rays_per_pixel} rays/pixel in {dt:.2f} s -> {out}")
 
 
+def views_and_camera(a):
+    """The views of a command's input and their camera (:func:`._io.light_field`); decoded views
+    without ``--camera`` come with None (slopes only, no depths)."""
+    src = str(a.raw)
+    if src.endswith(".h5") and ".h5:" not in src and not getattr(a, "camera", None):
+        from ..real.decoding import load_views
+        return load_views(src)[0], None
+    lf = light_field(a)
+    return lf.views, lf.camera
+
+
 def cmd_refocus(a):
     from ..refocus.shift_and_sum import aperture_mask, refocus_views
-    views, _ = _load_views(a.raw)
+    if bool(a.slope) == bool(a.depth):
+        raise ValueError("give the planes as --slope (lenslets per view) or as --depth (mm), one of them")
+    views, cam = views_and_camera(a)
+    if a.depth:
+        if cam is None:
+            raise ValueError(f"--depth needs the camera of {a.raw}: give --camera cam.toml (or use --slope)")
+        slopes = [cam.slope_for_depth(d) for d in a.depth]
+    else:
+        slopes = list(a.slope)
     n = views.shape[0]
     t = time.perf_counter()
-    stack = refocus_views(views, a.slope, aperture_mask(n, a.aperture), method=a.method,
+    stack = refocus_views(views, slopes, aperture_mask(n, a.aperture), method=a.method,
                           interpolation=a.interpolation)
-    print(f"refocused {len(a.slope)} planes ({a.method}) in {1e3 * (time.perf_counter() - t):.2f} ms")
-    _write_stack(a.out, stack, slopes=np.asarray(a.slope))
+    print(f"refocused {len(slopes)} planes ({a.method}) at slopes " + ", ".join(f"{s:+.4g}" for s in slopes)
+          + f" in {1e3 * (time.perf_counter() - t):.2f} ms")
+    extra = {} if a.depth is None else {"depths_mm": np.asarray(a.depth)}
+    _write_stack(a.out, stack, slopes=np.asarray(slopes), **extra)
 
 
 def cmd_slopes(a):
@@ -57,21 +78,32 @@ def cmd_slopes(a):
     import pandas as pd
     from ..learn.evaluation import plot_slope_curves
     from ..refocus.shift_and_sum import aperture_mask, find_sharpest_slope
-    views, cam = _load_views(a.raw)
+    views, cam = views_and_camera(a)
+    lo, hi = a.lo, a.hi
+    if lo is None or hi is None:
+        from ..real.lightfield import MAX_SEARCH_SLOPE, imaging_range_mm
+        if cam is None:
+            s_lo, s_hi = -MAX_SEARCH_SLOPE, MAX_SEARCH_SLOPE
+        else:
+            s_lo, s_hi = sorted(cam.slope_for_depth(d) for d in imaging_range_mm(cam))
+        lo, hi = (s_lo if lo is None else lo), (s_hi if hi is None else hi)
     if a.roi:
         objects = [dict(name=f"roi{i}", roi=tuple(r)) for i, r in enumerate(a.roi)]
     else:
         objects = _raw_objects(a.raw) or [dict(name="image", roi=(0, views.shape[2], 0, views.shape[3]))]
     mask = aperture_mask(views.shape[0], a.aperture)
+    # the grid's steps move the outermost view as on the paper's 15 views (0.05 and 0.005 lenslets per view)
+    scale = 14.0 / max(views.shape[0] - 1, 1)
     t = time.perf_counter()
-    searches = [find_sharpest_slope(views, o["roi"], metric=a.metric, method=a.method, lo=a.lo, hi=a.hi, mask=mask)
+    searches = [find_sharpest_slope(views, o["roi"], metric=a.metric, method=a.method, lo=lo, hi=hi, mask=mask,
+                                    coarse_step=0.05 * scale, fine_step=0.005 * scale)
                 for o in objects]
     rows = []
     for o, s in zip(objects, searches):
-        row = dict(object=o["name"], roi=" ".join(str(int(x)) for x in o["roi"]), slope=round(s.slope, 4))
-        if cam is not None:  # decoded views of a real camera: no optics, no depth
+        row = dict(object=o["name"], roi=" ".join(str(int(x)) for x in o["roi"]), slope=float(f"{s.slope:.5g}"))
+        if cam is not None:  # decoded views without --camera: no optics, no depth
             try:
-                row["depth_mm"] = round(cam.depth_for_slope(s.slope), 2)
+                row["depth_mm"] = round(cam.depth_for_slope(s.slope), 3)
             except ValueError:
                 row["depth_mm"] = float("nan")
         if "depth_offset_mm" in o:

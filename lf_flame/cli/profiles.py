@@ -28,6 +28,9 @@ def _profiles_input(a):
     else:
         raw, cam = _load_raw(a.raw)
         objects = _raw_objects(a.raw)
+    if getattr(a, "camera", None):
+        from ..optics.camera_file import load_camera_file
+        cam = load_camera_file(a.camera)
     cam = cam or PAPER_CAMERA
     if objects is not None and not all("height_mm" in o for o in objects):
         raise ValueError(f"{a.raw} does not hold a flame scene (its objects have no flame heights)")
@@ -50,9 +53,9 @@ def _profiles_input(a):
         run, _ = _learned_runner(raw, cam, a.raw, a.model_dir, route.solver)
         stack = run(raw.astype(np.float32)[None, ..., None])
     elif route.tomographic:
-        from ..refocus.shift_and_sum import raw_to_views
+        from ..real.lightfield import from_raw
         from .volume import run_reconstruction, saturation_note
-        rec = run_reconstruction(cam, raw_to_views(raw, n), depths, route.solver)[1]
+        rec = run_reconstruction(from_raw(raw, cam, str(a.raw)), depths, route.solver)[1]
         print(saturation_note(rec))
         stack = rec.planes
     else:

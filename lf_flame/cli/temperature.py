@@ -50,6 +50,33 @@ def _channels(text: str):
     return ch
 
 
+#: Relative spread of a raw image's four 2 x 2 phase means (over its lit pixels) below which it holds no colour
+#: filter mosaic: a monochrome sensor's phases differ by noise alone; a Bayer mosaic of flame light by tens of %.
+MOSAIC_SPREAD = 0.01
+
+
+def _refuse_monochrome(path):
+    """Refuse a light field without colour channels: one ``lf-flame simulate`` rendered monochrome
+    (its record holds a camera and no sensor), or an image whose four 2 x 2 pixel phases have the
+    same mean over its lit pixels (within :data:`MOSAIC_SPREAD`): no mosaic to take a ratio of."""
+    meta = _raw_meta(path)
+    if "camera" in meta and "sensor" not in meta:
+        raise ValueError(f"{path} is a monochrome light field (rendered without a colour sensor): two-colour "
+                         "pyrometry needs a colour (Bayer) capture")
+    raw, _ = _load_raw(path)
+    lit = raw > 0.1 * float(raw.max()) if raw.max() > 0 else np.zeros(raw.shape, bool)
+    means = []
+    for i in (0, 1):
+        for j in (0, 1):
+            m = lit[i::2, j::2]
+            means.append(float(raw[i::2, j::2][m].mean()) if m.any() else np.nan)
+    means = np.asarray(means)
+    if np.all(np.isfinite(means)) and np.ptp(means) <= MOSAIC_SPREAD * means.mean():
+        raise ValueError(f"{path} holds no colour filter mosaic (its four 2 x 2 pixel phases have the same mean, "
+                         f"within {100 * MOSAIC_SPREAD:g} %): a monochrome light field has no two colour channels "
+                         "to take a ratio of")
+
+
 def cmd_calibrate_temperature(a):
     """``calibrate-temperature BB... --temperature T... --out bb.json``."""
     from ..measure.pyrometry import blackbody_ratio, fit_calibration, write_calibration
@@ -113,6 +140,7 @@ def cmd_temperature(a):
     src = str(a.raw)
     if src.endswith(".h5") and ".h5:" not in src:
         raise ValueError(f"{src}: temperature reads a raw colour image (the CFA's mosaic), not decoded views")
+    _refuse_monochrome(src)
     cal = load_calibration(a.calibration)
     sensor, where = _sensor(src, a, cal)
     cal.check_sensor(sensor)
@@ -120,13 +148,19 @@ def cmd_temperature(a):
     print(f"sensor {sensor.name}, {sensor.pattern} phase {sensor.phase} ({where}); calibration "
           f"{cal.channels[0]}/{cal.channels[1]}, gain ratio {cal.gain_ratio:.5f}")
     t0 = time.perf_counter()
-    cam, views, depths, _ = reconstruct_input(a)
+    import argparse
+    # --calibration is the blackbody calibration here: the light field is a raw image of its own camera
+    lf, depths, _ = reconstruct_input(argparse.Namespace(**{**vars(a), "calibration": None}))
+    if lf.decoded:
+        raise ValueError(f"{src}: temperature reads a raw colour image of a perfect lenslet grid (the CFA's mosaic "
+                         "under each lenslet); decoding a colour capture does not keep its channels apart yet")
+    cam, views = lf.camera, lf.views
     n = cam.pixels_per_lenslet
     chan = channel_views((views.shape[2] * n, views.shape[3] * n), sensor, n)
     ch = tuple(CHANNELS.index(c) for c in cal.channels)
     extra = {}
     if depths == "auto":
-        depths, found = found_planes(cam, channel_sum_views(views, chan, ch))
+        depths, found = found_planes(lf, channel_sum_views(views, chan, ch))
         extra = dict(depths_from="auto (channel sum)", found_depths=found)
     chosen = {}
     slopes = [cam.slope_for_depth(d) for d in depths]

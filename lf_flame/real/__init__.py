@@ -4,7 +4,9 @@
 image (Dansereau et al., CVPR 2013); :mod:`.decoding` resamples a capture onto that
 grid and writes its sub-aperture views, with the samples from clipped pixels;
 :mod:`.own_camera` gives the perfect-grid camera of those views (a camera file and the
-calibration checked against each other) and the frame of its planes.
+calibration checked against each other) and the frame of its planes; :mod:`.lightfield`
+reads any light field (a simulated raw image, decoded views, a raw capture decoded on the
+fly) into one value, views with their camera, that every route takes.
 
 Its public names are importable from here (loaded on first use, as scikit-image does).
 """
@@ -12,7 +14,7 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["calibration", "decoding", "own_camera"],
+    submodules=["calibration", "decoding", "own_camera", "lightfield"],
     submod_attrs={
         "calibration": ["CALIBRATION_FORMAT", "CALIBRATION_VERSION", "CalibrationError", "GridCalibration",
                  "load_image", "file_digest", "lattice_from_autocorrelation", "spot_centres",
@@ -20,5 +22,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "decoding": ["check_grid", "view_positions", "hex_to_square", "decode", "clipped_samples", "save_views",
                      "load_views", "load_clipped"],
         "own_camera": ["PITCH_WARN", "PITCH_TOLERANCE", "DecodedFrame", "decoded_frame", "views_camera"],
+        "lightfield": ["LightField", "MAX_SEARCH_SLOPE", "imaging_range_mm", "from_raw", "from_decoded",
+                       "read_light_field", "same_grid"],
     },
 )

@@ -107,8 +107,9 @@ def _cell_means(layer, y, x, half_mm):
 def decoded_truth(scene: Scene, op: ExactOperator, rotation_deg: float = 0.0, centre_lenslets=(0.0, 0.0)) -> np.ndarray:
     """A simulated scene's emission on the planes of decoded views (the truth they are scored on).
 
-    Sample ``(i, j)`` of plane ``k`` is centred at lattice offset ``(i - (R-1)/2, j - (C-1)/2)
-    + centre_lenslets`` (pitches along the grid's axes, from the optical axis); its object
+    Sample ``(i, j)`` of plane ``k`` is centred at lattice offset ``((i - (R-1)/2) / s, (j - (C-1)/2) / s)
+    + centre_lenslets`` (pitches along the grid's axes, from the optical axis; ``s`` the
+    operator's samples per lenslet); its object
     point (``-y`` down, ``x`` right) is that offset turned by the grid's rotation, times
     ``pitch z_k / d``. Its value is the layer's mean over the sample's square, exact for the
     piecewise-constant texture (summed-area table), the square taken unrotated: a rotation
@@ -131,8 +132,9 @@ def decoded_truth(scene: Scene, op: ExactOperator, rotation_deg: float = 0.0, ce
     """
     P, R, C = op.dims
     cam = op.camera
-    ar, ac = np.meshgrid(np.arange(R) - (R - 1) / 2 + centre_lenslets[0],
-                         np.arange(C) - (C - 1) / 2 + centre_lenslets[1], indexing="ij")
+    s = getattr(op, "subsamples", 1)                            # samples per lenslet and axis
+    ar, ac = np.meshgrid((np.arange(R) - (R - 1) / 2) / s + centre_lenslets[0],
+                         (np.arange(C) - (C - 1) / 2) / s + centre_lenslets[1], indexing="ij")
     t = math.radians(rotation_deg)
     q_r = math.cos(t) * ar + math.sin(t) * ac                   # sensor-frame offsets (rows, cols), pitches
     q_c = -math.sin(t) * ar + math.cos(t) * ac
@@ -140,5 +142,30 @@ def decoded_truth(scene: Scene, op: ExactOperator, rotation_deg: float = 0.0, ce
     for L in scene.layers:
         for p, wgt in depth_shares(op.depths_mm, L.depth_offset_mm):
             scale = cam.mla_pitch_mm * cam.object_distance_mm(op.depths_mm[p]) / cam.mla_distance_mm
-            truth[p] += wgt * _cell_means(L, -q_r * scale, q_c * scale, scale / 2)
+            truth[p] += wgt * _cell_means(L, -q_r * scale, q_c * scale, scale / (2 * s))
     return truth
+
+
+def fit_data(light_field, op: ExactOperator):
+    """A light field's views as ``op``'s data, and what to leave out of the fit.
+
+    Parameters
+    ----------
+    light_field : lf_flame.real.lightfield.LightField
+        Simulated (radiance) or decoded (white-normalised) views of ``op.camera``.
+    op : ExactOperator or EmissionOperator
+        On the light field's camera.
+
+    Returns
+    -------
+    data : ndarray of shape (N, N, R, C), float64
+        Decoded views times the operator's white views (:func:`decoded_problem`); other
+        views as they are.
+    saturation : float, ndarray of bool or None
+        :func:`lf_flame.tomo.solvers.reconstruct`'s ``saturation``: decoded views' clipped
+        and dark samples, else the light field's mask or clipping level.
+    """
+    lf = light_field
+    if lf.white_normalised:
+        return decoded_problem(lf.views, op, lf.leave_out)
+    return np.asarray(lf.views, np.float64), lf.fit_mask()

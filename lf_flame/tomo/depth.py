@@ -40,7 +40,8 @@ from ..refocus.shift_and_sum import FourierSlice, _check_finite, aperture_mask
 
 #: Depths (mm from the focal plane) searched unless told: the paper camera's usable slopes (-1.9 .. +2.8).
 DEPTH_RANGE_MM = (-15.0, 25.0)
-#: Coarse slope step (lenslets per view step): about 0.33 mm of depth at the focal plane.
+#: Coarse slope step (lenslets per view step) on 15 views: about 0.33 mm of depth at the paper camera's focal
+#: plane; on ``N`` views ``SLOPE_STEP * 14 / (N - 1)``, so that the outermost view moves as far per step.
 SLOPE_STEP = 0.04
 #: Found depths closer than this (mm) are solved as one plane.
 MERGE_MM = 1.0
@@ -143,7 +144,7 @@ def _half_width(curve, i):
     return 0.5 * (hi - lo)
 
 
-def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM, slope_step: float = SLOPE_STEP,
+def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM, slope_step: float | None = None,
                 threshold: float = 0.12, sigma: float = 1.5, min_pixels: int = 6, peak_fraction: float = 0.1,
                 vote_floor: float = 0.02,
                 min_separation_mm: float = 2.5, merge_mm: float = MERGE_MM) -> FoundDepths:
@@ -157,8 +158,9 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
         The camera that took them (slope <-> depth).
     depth_range_mm : (float, float)
         Depths searched (mm from the focal plane, positive farther), low < high.
-    slope_step : float
-        Step of the coarse slope grid (lenslets per view step), > 0.
+    slope_step : float or None
+        Step of the coarse slope grid (lenslets per view step), > 0; None: :data:`SLOPE_STEP`
+        scaled to the views' count (``14 / (N - 1)``).
     threshold : float
         Emission is where the smoothed central view exceeds this fraction of its maximum, in (0, 1).
     sigma : float
@@ -188,6 +190,8 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
     """
     t0 = time.perf_counter()
     v = _check_views(views, camera)
+    if slope_step is None:
+        slope_step = SLOPE_STEP * 14.0 / max(v.shape[0] - 1, 1)
     lo, hi = (float(d) for d in depth_range_mm)
     if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
         raise ValueError(f"depth_range_mm must be two finite depths, low < high. Received: {depth_range_mm!r}")

@@ -52,6 +52,7 @@ def volume_depths(near_mm: float, far_mm: float, step_mm: float) -> np.ndarray:
 
 def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, prior: str = VOLUME_PRIOR, *,
                  saturation=1.0, tv: float | None = None, l1: float | None = None, resolution: bool = True,
+                 white_normalised: bool = False,
                  progress: bool = False):
     """The emission on a dense stack from one light field, with a prior (module docstring).
 
@@ -66,8 +67,13 @@ def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, p
         plane, > 0 farther; :func:`volume_depths`).
     prior : str
         One of :data:`~lf_flame.tomo.defaults.VOLUME_PRIORS`.
-    saturation : float or None
-        The clipping level (views' units): pixels at or above it are left out of the fit; None: all fitted.
+    saturation : float, ndarray of bool of the views' shape, or None
+        The clipping level (views' units): pixels at or above it are left out of the fit; a mask
+        of the samples to leave out (decoded views' clipped samples); None: all fitted.
+    white_normalised : bool
+        Views decoded from a capture (divided by the white image): taken as the operator's
+        data times its white views, the aperture image's dark rim left out
+        (:func:`lf_flame.tomo.decoded.decoded_problem`).
     tv, l1 : float or None
         The ``"tv"`` and ``"sparse"`` priors' weights; None: :data:`~lf_flame.tomo.defaults.VOLUME_TV`,
         :data:`~lf_flame.tomo.defaults.VOLUME_L1` for the light field's noise level
@@ -105,17 +111,25 @@ def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, p
     t0 = time.perf_counter()
     op = ExactOperator(camera, list(depths), precision="float32")
     setup_s = time.perf_counter() - t0
+    if white_normalised:                                   # decoded views: the operator's data, dark rims left out
+        from .decoded import decoded_problem
+        views, saturation = decoded_problem(views, op, saturation if np.ndim(saturation) else None)
+
+    def fitted(v):
+        if np.ndim(saturation):
+            return ~np.asarray(saturation)
+        return np.ones(v.shape, bool) if saturation is None else v < float(saturation)
     axi = None
     if prior == "axisymmetric":
         from .axisymmetric import solve_axisymmetric
         from .operator import check_views
         v = check_views(views, op)
-        fit = np.ones(v.shape, bool) if saturation is None else v < float(saturation)
+        fit = fitted(v)
         axi = solve_axisymmetric(v, op, fit, camera=camera)
         sample = tuple((h / op.dims[1], w / op.dims[2]) for h, w in op.sizes_mm)
         rec = Reconstruction(axi.volume, tuple(float(d) for d in depths), sample, "axisymmetric",
                              dict(prior=prior, axis_x_mm=axi.axis_x_mm, axis_z_mm=axi.axis_z_mm, lam=axi.lam,
-                                  saturation=saturation, n_saturated=int((~fit).sum()),
+                                  saturation="mask" if np.ndim(saturation) else saturation, n_saturated=int((~fit).sum()),
                                   search=[list(s) for s in axi.search]),
                              np.array([axi.residual]), axi.time_s)
     else:
@@ -126,7 +140,7 @@ def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, p
                 from .fourier import noise_regime, relative_noise
                 from .operator import check_views
                 v = check_views(views, op)
-                weight = table[noise_regime(relative_noise(v, None if saturation is None else v < float(saturation)))]
+                weight = table[noise_regime(relative_noise(v, fitted(v)))]
             knobs[key] = weight
         rec = reconstruct(views, op, "admm", saturation=saturation, progress=progress, **knobs)
         rec.settings["prior"] = prior

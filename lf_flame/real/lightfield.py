@@ -1,0 +1,339 @@
+"""Light fields in: one value, whatever the camera, that every route takes.
+
+A :class:`LightField` holds the sub-aperture views, the camera they are views of, the
+samples to leave out of a fit, and, for views decoded from a capture, the real camera and
+where the views' planes lie in its object space. Every reader returns one:
+
+- a raw image of a perfect lenslet grid (what ``lf-flame simulate`` writes, with its
+  camera; or any image with a camera file whose grid is perfect): split into views
+  (:func:`lf_flame.refocus.shift_and_sum.raw_to_views`);
+- views decoded by ``lf-flame decode`` (``VIEWS.h5``) with the camera file;
+- a raw capture with its white-image calibration and the camera file: decoded here
+  (:func:`lf_flame.real.decoding.decode`, the calibration's white image).
+
+For decoded views, :attr:`LightField.camera` is the perfect-grid camera of the decoded
+views (:func:`lf_flame.real.own_camera.views_camera`), on which the exact operator is
+built; its planes are the real object's turned and shifted by :attr:`LightField.frame`.
+So a route never asks which camera it runs on (plenoptomos' ``Lightfield`` keeps data,
+camera and mask together in the same way).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..optics.camera import PlenopticCamera
+from .own_camera import DecodedFrame
+
+#: Suffixes read as a raw image by :func:`read_light_field` (besides ``VIEWS.h5``).
+RAW_SUFFIXES = (".npz", ".npy", ".png", ".tif", ".tiff")
+
+
+@dataclass(frozen=True, eq=False)
+class LightField:
+    """Sub-aperture views with the camera they are views of.
+
+    Attributes
+    ----------
+    views : ndarray of shape (N, N, R, C), float32
+        View row ``u``, view column ``v``, lenslet row, lenslet column; radiance units
+        (simulated) or relative to the white target (decoded, ``white_normalised``).
+    camera : PlenopticCamera
+        A perfect lenslet grid whose views these are: slope <-> depth, the exact operator.
+    source : str
+        Where the views came from (a path, or a description).
+    leave_out : ndarray of bool of the views' shape, or None
+        Samples not to fit (decoded from clipped pixels). None: none recorded.
+    saturation : float or None
+        The clipping level in the views' units where no mask says it (simulated raw images:
+        1.0); None with a mask, or for decoded views.
+    white_normalised : bool
+        Decoded views divided by the white image: the exact operator's data are the views
+        times its own white views (:func:`lf_flame.tomo.decoded.decoded_problem`).
+    frame : DecodedFrame or None
+        Where the planes lie in the real camera's object space (decoded views); None: the
+        camera's own frame.
+    capture_camera : PlenopticCamera or None
+        The real camera (its camera file) of decoded views.
+    camera_file : str or None
+        The camera file's path, when one was read.
+    """
+
+    views: np.ndarray
+    camera: PlenopticCamera
+    source: str = ""
+    leave_out: np.ndarray | None = None
+    saturation: float | None = 1.0
+    white_normalised: bool = False
+    frame: DecodedFrame | None = None
+    capture_camera: PlenopticCamera | None = None
+    camera_file: str | None = None
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        v = self.views
+        if v.ndim != 4 or v.shape[0] != v.shape[1]:
+            raise ValueError(f"{self.source}: views of shape {v.shape} are not (N, N, R, C)")
+        cam = self.camera
+        want = (cam.pixels_per_lenslet, cam.pixels_per_lenslet, cam.n_rows, cam.n_cols)
+        if v.shape != want:
+            raise ValueError(f"{self.source}: views of shape {v.shape} are not the views of its camera {want} "
+                             "(N, N, rows, cols)")
+        if self.leave_out is not None and (self.leave_out.shape != v.shape or self.leave_out.dtype != bool):
+            raise ValueError(f"{self.source}: leave_out must be boolean of the views' shape {v.shape}")
+
+    @property
+    def decoded(self) -> bool:
+        """Views decoded from a capture (their planes are in :attr:`frame`)."""
+        return self.frame is not None
+
+    def fit_mask(self):
+        """``reconstruct``'s ``saturation``: the mask of samples to leave out, else the level."""
+        return self.leave_out if self.leave_out is not None else self.saturation
+
+    def depth_range_mm(self, depth_range_mm=None) -> tuple[float, float]:
+        """Depths to search, mm from the focus distance: the camera's imaging range
+        (:func:`imaging_range_mm`), clipped to ``depth_range_mm`` when given."""
+        lo, hi = imaging_range_mm(self.camera)
+        if depth_range_mm is None:
+            return lo, hi
+        a, b = (float(d) for d in depth_range_mm)
+        if not (math.isfinite(a) and math.isfinite(b) and b > a):
+            raise ValueError(f"a depth range is two finite depths, low < high. Received: {depth_range_mm!r}")
+        if b <= lo or a >= hi:
+            raise ValueError(f"depths {a:+g} .. {b:+g} mm lie outside what this camera can refocus "
+                             f"({lo:+.3g} .. {hi:+.3g} mm from its focus distance)")
+        return max(a, lo), min(b, hi)
+
+
+#: The largest |slope| (lenslets per view step) searched unless told: beyond it a point's image
+#: moves more than this many lenslets between neighbouring views and every view sees it blurred
+#: over as many lenslets (the paper's planes reach 2.28).
+MAX_SEARCH_SLOPE = 3.0
+#: The nearest depth searched is where the object distance is this multiple of the main lens's
+#: focal length (nearer, the image runs off to infinity).
+NEAR_LIMIT = 1.05
+
+
+def imaging_range_mm(camera: PlenopticCamera, max_slope: float = MAX_SEARCH_SLOPE) -> tuple[float, float]:
+    """Depths (mm from the focus distance) a camera can refocus: slopes within ``max_slope``,
+    object distances beyond :data:`NEAR_LIMIT` focal lengths (and finite).
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+    max_slope : float
+        Largest |slope|, lenslets per view step, > 0.
+
+    Returns
+    -------
+    (near, far) : float, float
+        mm, negative nearer the camera. ``far`` is capped at 10 focus distances.
+
+    Notes
+    -----
+    ``slope(z) = -d (1 - d / z_i) / (g N)`` (``PlenopticCamera.slope_for_depth``) rises
+    monotonically from minus infinity at the main lens's focal length ``F`` to
+    ``d (d - F) / (F g N)`` at infinity; the range is where ``|slope| <= max_slope``, found by
+    bisection on each side of the focus distance.
+    """
+    if not (math.isfinite(max_slope) and max_slope > 0):
+        raise ValueError(f"max_slope must be positive and finite. Received: {max_slope!r}")
+    z_f = camera.focus_distance_mm
+    near_mm = NEAR_LIMIT * camera.main_focal_mm - z_f
+    far_mm = 10.0 * z_f
+
+    def slope(d):
+        return camera.slope_for_depth(d)
+
+    def edge(a, b, target):     # bisection for slope(d) = target between a (inside) and b (outside)
+        for _ in range(80):
+            m = 0.5 * (a + b)
+            if abs(slope(m)) <= abs(target):
+                a = m
+            else:
+                b = m
+        return a
+    lo = near_mm if abs(slope(near_mm)) <= max_slope else edge(0.0, near_mm, max_slope)
+    hi = far_mm if abs(slope(far_mm)) <= max_slope else edge(0.0, far_mm, max_slope)
+    return float(lo), float(hi)
+
+
+def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation: float | None = 1.0,
+             camera_file: str | None = None, meta: dict | None = None) -> LightField:
+    """The light field of a raw image of a perfect lenslet grid.
+
+    Parameters
+    ----------
+    raw : ndarray of shape (R N, C N)
+    camera : PlenopticCamera
+        Perfect grid (whole pixels per lenslet, square, unrotated); its sensor the image's size.
+
+    Raises
+    ------
+    ValueError
+        A camera whose grid is not perfect (give the white-image calibration: decode), or an
+        image of another size than the camera's sensor.
+    """
+    from ..refocus.shift_and_sum import raw_to_views
+    raw = np.asarray(raw)
+    if not camera.perfect_grid:
+        raise ValueError(f"{source}: the camera's lenslet images are {camera.grid_pitch:.3f} px apart"
+                         f"{', rotated' if camera.grid_rotation_deg else ''}: not whole pixels on a square grid, so "
+                         "the image must be decoded: give its white-image calibration (--calibration cal.json)")
+    if raw.ndim != 2 or tuple(raw.shape) != tuple(camera.sensor_shape):
+        raise ValueError(f"{source}: an image of shape {raw.shape} is not this camera's "
+                         f"{camera.sensor_shape[0]} x {camera.sensor_shape[1]} px raw image")
+    if not np.all(np.isfinite(raw)):
+        raise ValueError(f"{source}: the raw image contains NaN or infinite values")
+    views = raw_to_views(raw, camera.pixels_per_lenslet)
+    return LightField(views, camera, source, saturation=saturation, camera_file=camera_file, meta=dict(meta or {}))
+
+
+def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "decoded views", clipped=None,
+                 white_normalised: bool = True, camera_file: str | None = None) -> LightField:
+    """The light field of views decoded from a capture of ``camera`` with ``calibration``.
+
+    Parameters
+    ----------
+    views : ndarray of shape (N, N, R, C)
+        :func:`lf_flame.real.decoding.decode`'s views.
+    calibration : GridCalibration
+    camera : PlenopticCamera
+        The real camera (its camera file).
+    clipped : ndarray of bool of the views' shape, or None
+
+    Raises
+    ------
+    ValueError
+        As :func:`lf_flame.real.own_camera.views_camera` (another sensor, layout or pitch);
+        NaN or inf in the views.
+    """
+    from .own_camera import decoded_frame, views_camera
+    v = np.asarray(views, np.float32)
+    if not np.all(np.isfinite(v)):
+        raise ValueError(f"{source}: the views contain NaN or infinite values")
+    vcam = views_camera(camera, calibration, v.shape)
+    frame = decoded_frame(calibration, *v.shape[2:])
+    return LightField(v, vcam, source, leave_out=clipped, saturation=None, white_normalised=white_normalised,
+                      frame=frame, capture_camera=camera, camera_file=camera_file)
+
+
+def read_light_field(path, camera=None, calibration=None, *, views: int | None = None,
+                     raw_reader=None) -> LightField:
+    """Read a light field: ``VIEWS.h5`` from ``lf-flame decode``, or a raw image.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``VIEWS.h5``; or a raw image (:data:`RAW_SUFFIXES`).
+    camera : str, Path, PlenopticCamera or None
+        A camera file (:func:`lf_flame.optics.camera_file.load_camera_file`) or camera.
+        None: the camera stored in the file (``lf-flame simulate``'s), else, for a raw image,
+        the paper's camera; decoded views need one.
+    calibration : str, Path, GridCalibration or None
+        The white-image calibration: a raw capture of a camera whose grid is not perfect is
+        decoded with it (its white image, checked by its SHA-256); decoded views are checked
+        against it.
+    views : int or None
+        Views per axis when decoding here (default: every view the lenslet image holds).
+    raw_reader : callable or None
+        ``raw_reader(path) -> (raw, stored camera or None, meta dict)``; None: the
+        command line's reader (:func:`lf_flame.cli._io` formats) is not imported here, so
+        raw images are read as .npy/.npz (``raw``) or images by scikit-image.
+
+    Returns
+    -------
+    LightField
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    ValueError
+        Decoded views without a camera file; a calibration of another grid than the views';
+        a raw image of a non-perfect grid without a calibration; the readers' errors.
+    """
+    from ..optics.camera_file import load_camera_file
+    from .calibration import GridCalibration
+    src = str(path)
+    cam = camera if (camera is None or isinstance(camera, PlenopticCamera)) else load_camera_file(camera)
+    cam_file = None if camera is None or isinstance(camera, PlenopticCamera) else str(Path(camera).resolve())
+    cal = calibration if (calibration is None or isinstance(calibration, GridCalibration)) else \
+        GridCalibration.load(calibration)
+    p = Path(src)
+    if p.suffix.lower() == ".h5" and ".h5:" not in src:
+        from .decoding import load_clipped, load_views
+        v, vcal = load_views(p)
+        if cal is not None and not same_grid(cal, vcal):
+            raise ValueError(f"{src} was decoded with another calibration than the one given")
+        if cam is None:
+            raise ValueError(f"{src} holds decoded views: give the camera they come from (--camera cam.toml, "
+                             "docs/own_camera.md)")
+        import h5py
+        with h5py.File(p, "r") as f:
+            white = bool(f.attrs.get("white_normalised", True))
+        return from_decoded(v, vcal, cam, src, load_clipped(p), white, cam_file)
+    raw, stored, meta = (raw_reader or _read_raw)(p)
+    cam = cam or stored
+    if cam is None:
+        from ..optics.camera import PAPER_CAMERA
+        cam = PAPER_CAMERA
+    if cal is None:
+        return from_raw(raw, cam, src, camera_file=cam_file, meta=meta)
+    return _decode_here(raw, src, cam, cal, views, cam_file)
+
+
+def _decode_here(raw, src, cam, cal, n_views, cam_file) -> LightField:
+    """A raw capture decoded with its calibration's white (and dark) image."""
+    from .calibration import file_digest, load_image
+    from .decoding import clipped_samples, decode
+
+    def image(info, kind):
+        if not info:
+            return None
+        q = Path(info["path"])
+        if not q.is_file():
+            raise FileNotFoundError(f"the calibration's {kind} image {q} is gone: decode with 'lf-flame decode "
+                                    f"--{kind}'")
+        if file_digest(q)["sha256"] != info["sha256"]:
+            raise ValueError(f"the calibration's {kind} image {q} has changed since the calibration")
+        return load_image(q)
+    white, dark = image(cal.white, "white"), image(cal.dark, "dark")
+    v = decode(raw, cal, white, dark, n_views=n_views)
+    level = 1.0 if float(np.max(raw)) <= 1.0 else None
+    clipped = None if level is None else clipped_samples(raw, cal, level, n_views=n_views)
+    return from_decoded(v, cal, cam, src, clipped, white is not None, cam_file)
+
+
+def _read_raw(p: Path):
+    """A raw image, the camera stored beside it (or None) and its other records (JSON strings)."""
+    import json
+    if not p.is_file():
+        raise FileNotFoundError(f"raw image file not found: {p}")
+    meta, stored = {}, None
+    if p.suffix.lower() == ".npz":
+        with np.load(p) as z:
+            if "raw" not in z:
+                raise ValueError(f"{p} holds no raw image (its arrays: {', '.join(z.files)})")
+            raw = z["raw"]
+            meta = {k: str(z[k]) for k in z.files if k != "raw" and z[k].dtype.kind == "U"}
+    elif p.suffix.lower() == ".npy":
+        raw = np.load(p)
+    else:
+        from .calibration import load_image
+        raw = load_image(p)
+    if "camera" in meta:
+        stored = PlenopticCamera.from_dict(json.loads(meta["camera"]))
+    return np.asarray(raw, np.float64), stored, meta
+
+
+def same_grid(c1, c2) -> bool:
+    """Two calibrations of one lenslet grid (the fitted lattice and the decoded grid)."""
+    return (c1.layout == c2.layout and tuple(c1.sensor_shape) == tuple(c2.sensor_shape)
+            and (c1.n_rows, c1.n_cols) == (c2.n_rows, c2.n_cols)
+            and np.allclose([c1.pitch_px, c1.rotation_deg, *c1.origin_px],
+                            [c2.pitch_px, c2.rotation_deg, *c2.origin_px], rtol=0, atol=1e-9))
