@@ -116,16 +116,9 @@ def _raw_reader(p):
 def light_field(a, path=None):
     """The light field of a command's input (``a.raw`` or ``path``) with its ``--camera`` and
     ``--calibration`` (:func:`lf_flame.real.lightfield.read_light_field`)."""
-    from ..real.decoding import load_views
     from ..real.lightfield import read_light_field
-    src = str(path or a.raw)
-    if src.endswith(".h5") and ".h5:" not in src:
-        try:
-            load_views(src)
-        except ValueError as e:
-            raise ValueError(f"{e}. Reads views .h5 from 'lf-flame decode', or a raw image: {RAW_FORMATS}") from None
-    return read_light_field(src, getattr(a, "camera", None), getattr(a, "calibration", None),
-                            views=getattr(a, "views", None), raw_reader=_raw_reader)
+    return read_light_field(path or a.raw, getattr(a, "camera", None), getattr(a, "calibration", None),
+                            views=getattr(a, "views", None), raw_reader=_raw_reader, formats=RAW_FORMATS)
 
 
 def _save_image(path, img, metadata=None, bits: int = 8):

@@ -23,28 +23,13 @@ def cmd_calibrate(a):
           f"{len(cal.lenslets)} of {cal.n_found} lenslet images; {dt:.2f} s -> {a.out}")
 
 
-def _calibration_file(info, kind, override):
-    """The white or dark image a calibration names, checked against its SHA-256."""
-    from ..real.calibration import file_digest, load_image
-    if override:
-        return load_image(override)
-    if not info:
-        return None
-    p = Path(info["path"])
-    if not p.is_file():
-        raise FileNotFoundError(f"the calibration's {kind} image {p} is gone; give it with --{kind}")
-    if file_digest(p)["sha256"] != info["sha256"]:
-        raise ValueError(f"the calibration's {kind} image {p} has changed since the calibration")
-    return load_image(p)
-
-
 def cmd_decode(a):
-    from ..real.calibration import GridCalibration, load_image
+    from ..real.calibration import GridCalibration, calibration_image, load_image
     from ..real.decoding import clipped_samples, decode, save_views
     cal = GridCalibration.load(a.calibration)
     raw = load_image(a.raw)
-    white = None if a.no_white else _calibration_file(cal.white, "white", a.white)
-    dark = _calibration_file(cal.dark, "dark", a.dark)
+    white = None if a.no_white else calibration_image(cal.white, "white", a.white)
+    dark = calibration_image(cal.dark, "dark", a.dark)
     t = time.perf_counter()
     views = decode(raw, cal, white, dark, n_views=a.views, camera_id=a.camera_id)
     level = _saturation_level(a.saturation, raw)

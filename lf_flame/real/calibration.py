@@ -588,3 +588,27 @@ def _decoded_grid(layout, M, origin, r, c, H, W):
         else:
             c1 -= 1
     raise CalibrationError("no lenslet grid found: no whole lenslet image lies on the sensor")
+
+
+def calibration_image(info, kind: str, override=None):
+    """The white or dark image a calibration names (``GridCalibration.white``/``.dark``), checked
+    against its SHA-256; ``override``: a path read instead, unchecked. None when neither is given.
+
+    Raises
+    ------
+    FileNotFoundError
+        The named image is gone (give it again as ``--white``/``--dark``).
+    ValueError
+        The named image has changed since the calibration.
+    """
+    if override:
+        return load_image(override)
+    if not info:
+        return None
+    p = Path(info["path"])
+    if not p.is_file():
+        raise FileNotFoundError(f"the calibration's {kind} image {p} is gone; give it with --{kind}")
+    if file_digest(p)["sha256"] != info["sha256"]:
+        raise ValueError(f"the calibration's {kind} image {p} has changed since the calibration")
+    return load_image(p)
+

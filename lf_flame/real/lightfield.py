@@ -223,7 +223,7 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
 
 
 def read_light_field(path, camera=None, calibration=None, *, views: int | None = None,
-                     raw_reader=None) -> LightField:
+                     raw_reader=None, formats: str = "") -> LightField:
     """Read a light field: ``VIEWS.h5`` from ``lf-flame decode``, or a raw image.
 
     Parameters
@@ -244,6 +244,9 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
         ``raw_reader(path) -> (raw, stored camera or None, meta dict)``; None: the
         command line's reader (:func:`lf_flame.cli._io` formats) is not imported here, so
         raw images are read as .npy/.npz (``raw``) or images by scikit-image.
+    formats : str
+        What the caller reads as a raw image, added to the refusal of an .h5 file that holds
+        no decoded views.
 
     Returns
     -------
@@ -267,7 +270,11 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
     p = Path(src)
     if p.suffix.lower() == ".h5" and ".h5:" not in src:
         from .decoding import load_clipped, load_views
-        v, vcal = load_views(p)
+        try:
+            v, vcal = load_views(p)
+        except ValueError as e:
+            raise ValueError(f"{e}. Reads views .h5 from 'lf-flame decode'" + (f", or a raw image: {formats}"
+                                                                               if formats else "")) from None
         if cal is not None and not same_grid(cal, vcal):
             raise ValueError(f"{src} was decoded with another calibration than the one given")
         if cam is None:
@@ -289,20 +296,9 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
 
 def _decode_here(raw, src, cam, cal, n_views, cam_file) -> LightField:
     """A raw capture decoded with its calibration's white (and dark) image."""
-    from .calibration import file_digest, load_image
+    from .calibration import calibration_image
     from .decoding import clipped_samples, decode
-
-    def image(info, kind):
-        if not info:
-            return None
-        q = Path(info["path"])
-        if not q.is_file():
-            raise FileNotFoundError(f"the calibration's {kind} image {q} is gone: decode with 'lf-flame decode "
-                                    f"--{kind}'")
-        if file_digest(q)["sha256"] != info["sha256"]:
-            raise ValueError(f"the calibration's {kind} image {q} has changed since the calibration")
-        return load_image(q)
-    white, dark = image(cal.white, "white"), image(cal.dark, "dark")
+    white, dark = calibration_image(cal.white, "white"), calibration_image(cal.dark, "dark")
     v = decode(raw, cal, white, dark, n_views=n_views)
     level = 1.0 if float(np.max(raw)) <= 1.0 else None
     clipped = None if level is None else clipped_samples(raw, cal, level, n_views=n_views)
