@@ -21,7 +21,7 @@ HELDOUT_paper := 20
 HELDOUT_quick := 4
 HELDOUT_SEED := 770077
 
-.PHONY: temperature temperature-volume temperature-sequence help install dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi sequence new-user heights test clean-quick
+.PHONY: cameras temperature temperature-volume temperature-sequence help install docs dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi sequence new-user heights test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -35,6 +35,16 @@ $(STAMP): setup.cfg pyproject.toml
 	touch $@
 
 install: $(STAMP) ## create .venv and install the package (once)
+
+# the documentation site (mkdocs.yml, docs/): its tools are the package's `docs` extra, installed
+# into .venv once; the build is offline and fails on any warning (broken link, missing page)
+DOCS_STAMP := $(VENV)/.docs-installed
+$(DOCS_STAMP): setup.cfg | $(STAMP)
+	$(VENV)/bin/pip install -e ".[docs]"
+	touch $@
+
+docs: $(DOCS_STAMP) ## build the documentation site into site/ (mkdocs build --strict; installs the docs extra once)
+	$(VENV)/bin/mkdocs build --strict
 
 # The installed package is an order-only prerequisite: reinstalling it does not invalidate data.
 $(DATA)/slopes.json: $(DCFG) | $(STAMP)
@@ -126,8 +136,8 @@ DEPTH_ARGS_quick := --quick
 sequence: $(STAMP) ## flame recordings: per-plane flicker spectra, serial and Dask frames/s -> results/sequence.{csv,md,json,png}
 	$(VENV)/bin/python experiments/sequence.py --out $(TRADEOFF_OUT)
 
-# a new user's first light field through the command line (simulate, then profiles per route)
-new-user: $(STAMP) ## the README's first-light-field commands, each route's heights -> results/new_user.{csv,md}
+# a new user's first light field through the command line (the README quick start's simulate, then profiles per route)
+new-user: $(STAMP) ## the quick start's simulate and profiles commands, each route's heights -> results/new_user.{csv,md}
 	$(VENV)/bin/python experiments/new_user.py --out $(TRADEOFF_OUT)
 
 reconstruct: $(STAMP) ## 3-D emission reconstruction, every solver against refocusing -> results/reconstruct.{csv,md,json,png}
@@ -141,6 +151,9 @@ resolution: $(STAMP) ## smallest resolvable plane spacing against feature size -
 
 # find the planes (issue 36): flames at random depths, found and reconstructed, beside the baselines (about 50 min
 # on 2 cores for 100 scenes; each scene's rows cached in data/depth, so a rerun resumes)
+cameras: $(STAMP) ## five cameras end to end from the CLI (white image, calibrate, decode, found depths, emission) -> results/cameras.{csv,md,json,png}
+	$(VENV)/bin/python experiments/cameras.py --out $(TRADEOFF_OUT) $(if $(filter quick,$(PRESET)),--quick,)
+
 depth: $(STAMP) ## flames at unknown depths: depth, emission and share errors per flame -> results/depth.{csv,md,json,png}
 	$(VENV)/bin/python experiments/depth.py --out $(TRADEOFF_OUT) $(DEPTH_ARGS_$(PRESET))
 

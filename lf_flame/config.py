@@ -5,6 +5,7 @@ the model and training settings. Every output records the resolved config beside
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import datetime
 import json
@@ -12,6 +13,8 @@ import os
 import platform
 import subprocess
 import tomllib
+import zipfile
+import zlib
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
@@ -206,5 +209,66 @@ def atomic_write_text(path, text: str) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".partial")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    with removed_on_error(tmp):
+        tmp.write_text(text)
+        os.replace(tmp, path)
+
+
+@contextlib.contextmanager
+def removed_on_error(tmp):
+    """Remove the temporary file ``tmp`` if the block fails (a full disk, Ctrl-C), then re-raise:
+    a writer that renames its finished temporary file onto the output leaves nothing half-written.
+
+    Parameters
+    ----------
+    tmp : path-like
+        The temporary file the block writes.
+    """
+    try:
+        yield
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+#: What the file readers raise on an empty, truncated or damaged file: NumPy's .npy (EOFError) and .npz
+#: (zipfile's, zlib's), HDF5 (OSError), text (UnicodeDecodeError).
+DAMAGED_FILE_ERRORS = (EOFError, zipfile.BadZipFile, zlib.error, OSError, UnicodeDecodeError)
+
+
+class DamagedFileError(ValueError):
+    """An input file that is empty, truncated or damaged (:func:`reading`)."""
+
+
+@contextlib.contextmanager
+def reading(path, what: str = "file"):
+    """Read ``path`` inside this block; a damaged file is refused with one message naming it.
+
+    Parameters
+    ----------
+    path : path-like
+        The file being read.
+    what : str
+        What it should be (``"raw image"``, ``"HDF5 file"``), named in the message.
+
+    Raises
+    ------
+    DamagedFileError
+        A ValueError: the block raised one of :data:`DAMAGED_FILE_ERRORS` (not ``FileNotFoundError``,
+        ``PermissionError`` or ``IsADirectoryError``, which pass as they are): ``"PATH is not
+        a readable WHAT: the file is empty"``, or ``"...: it is truncated or damaged (REASON)"``.
+
+    Examples
+    --------
+    >>> with reading("frames.h5", "HDF5 file"):          # doctest: +SKIP
+    ...     f = h5py.File("frames.h5", "r")
+    """
+    try:
+        yield
+    except (FileNotFoundError, PermissionError, IsADirectoryError):
+        raise
+    except DAMAGED_FILE_ERRORS as e:
+        p = Path(path)
+        empty = p.is_file() and p.stat().st_size == 0
+        why = "the file is empty" if empty else f"it is truncated or damaged ({e})"
+        raise DamagedFileError(f"{p} is not a readable {what}: {why}") from None

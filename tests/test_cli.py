@@ -50,7 +50,7 @@ def test_help_names_reconstructs_planes_and_solver_defaults(monkeypatch):
     monkeypatch.setenv("COLUMNS", "100000")
     text = _sub_parsers()["reconstruct"].format_help()
     assert ", ".join(f"{d:+g}" for d in PAPER_DEPTHS_MM) + " mm" in text
-    assert all(f"{k} {v}" in text for k, v in DEFAULT_ITERS.items())
+    assert all(f"{k} {v}" in text for k, v in DEFAULT_ITERS.items() if k not in ("adjoint", "admm"))
     assert f"(default: {EXACT_SOLVER}, traced: {DEFAULT_SOLVER})" in text and f"(default: {DEFAULT_TV})" in text
 
 
@@ -101,6 +101,36 @@ def test_simulates_png_reads_back_with_its_camera_and_reconstructs(small_flame, 
     out = capsys.readouterr().out
     assert "reconstructed 4 planes" in out and "(with the scene's truth)" in out
     assert (small_flame / "png.png").stat().st_size > 10_000
+
+
+def test_admm_help_output_and_run_agree_on_its_fills(monkeypatch):
+    """admm's iterations are its fills, a cap by the noise and grid that stops sooner once they
+    converge: the help names the cap a run takes, and reconstruct's output (``iterations_note``)
+    counts the fills that ran (counted here at the solver), not the cap. A quiet light field of
+    one plane on a 12 x 12-lenslet camera, the 2 x 2 grid."""
+    import re
+
+    from lf_flame.cli.volume import iterations_note
+    from lf_flame.optics.camera import PlenopticCamera
+    from lf_flame.tomo.defaults import ADMM_KNOBS
+    from lf_flame.tomo.exact import emission_operator
+    from lf_flame.tomo.solvers import reconstruct
+    monkeypatch.setenv("COLUMNS", "100000")
+    text = " ".join(_sub_parsers()["reconstruct"].format_help().split())
+    op = emission_operator(PlenopticCamera(n_rows=12, n_cols=12), [0.0], subsamples=2)
+    _, R, C = op.dims
+    yy, xx = np.mgrid[:R, :C]
+    views = op.matvec(np.exp(-((yy - R / 2) ** 2 + (xx - C / 2) ** 2) / (2 * (R / 6) ** 2)).ravel())
+    views = 0.8 * views.reshape(op.dimsd) / views.max()
+    fills = []
+    rec = reconstruct(views, op, "admm", callback=lambda k, x: fills.append(k))
+    cap = ADMM_KNOBS[2, "quiet"]["fills"]
+    assert rec.settings["iters"] == cap and re.search(rf"admm: .* at most {cap} \(quiet\) or \d+ \(noisy\) on the "
+                                                      r"2 x 2 grid", text), text
+    assert len(fills) == rec.settings["fills_run"] < cap          # converged before the cap
+    assert iterations_note(rec) == f"{len(fills)} fills of at most {cap}, converged"
+    rec = reconstruct(views, op, "admm", 2)                         # --iters 2: both run
+    assert iterations_note(rec) == "2 fills"
 
 
 def test_reconstruct_refuses_other_files_naming_what_it_reads(small_flame, capsys, tmp_path):

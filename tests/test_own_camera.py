@@ -20,7 +20,7 @@ from lf_flame.tomo.decoded import decoded_problem, decoded_truth, white_views
 from lf_flame.tomo.exact import ExactOperator
 from lf_flame.tomo.files import load_reconstruction
 from lf_flame.tomo.solvers import reconstruct
-from lf_flame.tomo.truth import scene_truth
+from lf_flame.tomo.truth import bin_planes, scene_truth
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = str(ROOT / "examples" / "own_camera.toml")
@@ -38,16 +38,14 @@ def _experiment():
 #: finer than the planes' samples: 9-19 % worst plane depending on the grid's phase, there).
 flames = _experiment().side_flames
 DEPTHS = [f[0] for f in _experiment().FLAMES]
-#: Worst plane measured on this route (256 rays per pixel, admm on the lenslet grid with the decoded views'
-#: knobs, ``DECODED_KNOBS``): 8.1 % (+20 / 0 / -10 mm: 7.3 / 2.2 / 8.1 %; on the found depths 8.1 / 1.5 /
-#: 7.6 %); FISTA 100 iterations 7.9 % (``results/own_camera.md``).
+#: Worst plane measured on this route (256 rays per pixel, admm on the 2 x 2 grid as on every camera, scored
+#: on the lenslets): 4.7 % (+20 / 0 / -10 mm: 2.7 / 4.4 / 4.7 %); on the lenslet grid it was 7.3 / 2.2 / 8.1 %.
 #: The floor is the flames' texture finer than a lenslet: a direct render of the decoded views'
 #: camera differs from its exact operator's light field of the truth by 10.7 %.
-WORST_PLANE_BAR = 0.09
-#: The in-focus plane (one tap per view: no texture finer than its samples is mixed in): 1.9 %
-#: measured; 7.8 % when the decoded camera's lenslets keep the real focal length (its views' angles
-#: 5.7 % off; a break tried on this test).
-FOCUS_PLANE_BAR = 0.03
+WORST_PLANE_BAR = 0.06
+#: The in-focus plane: 4.4 % measured; 14 % when the decoded camera's lenslets keep the real focal
+#: length (its views' angles 5.7 % off; a break tried on this test).
+FOCUS_PLANE_BAR = 0.05
 
 
 @pytest.fixture(scope="module")
@@ -79,18 +77,21 @@ def test_decoded_views_of_another_camera_are_reconstructed(route):
     cal = GridCalibration.load(d / "cal.json")
     views, _ = decoding.load_views(d / "views.h5")
     rec = load_reconstruction(d / "vol.h5")
-    assert rec.solver == "admm" and rec.settings["lam"] == 0.003 and rec.settings["subsamples"] == 1
+    assert rec.solver == "admm" and rec.settings["subsamples"] == 2
     with h5py.File(d / "vol.h5") as f:
         frame = json.loads(f.attrs["frame"])
         assert f.attrs["operator"] == "exact"
+    # scored on the lenslets, as every route is (the 2 x 2 grid's finer samples averaged: at focus they are
+    # the operator's null space, one tap per view)
+    planes = bin_planes(rec.planes, 2)
     op = ExactOperator(views_camera(cam, cal, views.shape), DEPTHS)
     truth = decoded_truth(scene, op, frame["rotation_deg"], frame["centre_lenslets"])
-    err = np.linalg.norm((rec.planes - truth).reshape(3, -1), axis=1) / np.linalg.norm(truth.reshape(3, -1), axis=1)
+    err = np.linalg.norm((planes - truth).reshape(3, -1), axis=1) / np.linalg.norm(truth.reshape(3, -1), axis=1)
     assert err.max() <= WORST_PLANE_BAR and err[1] <= FOCUS_PLANE_BAR, err
     # the frame matters: the same planes scored unturned, or about the sensor's centre, are worse
     for rot, centre in ((0.0, frame["centre_lenslets"]), (frame["rotation_deg"], (0.0, 0.0))):
         t = decoded_truth(scene, op, rot, centre)
-        assert max(np.linalg.norm(rec.planes[k] - t[k]) / np.linalg.norm(t[k]) for k in range(3)) > err.max() + 0.01
+        assert max(np.linalg.norm(planes[k] - t[k]) / np.linalg.norm(t[k]) for k in range(3)) > err.max() + 0.01
 
 
 def test_decoded_frame_is_the_grids(route):
@@ -273,8 +274,8 @@ def test_camera_file_and_calibration_must_agree(route):
         views_camera(cam, dataclasses.replace(cal, pitch_px=cam.grid_pitch_px * 1.02), shape)
     with pytest.raises(ValueError, match="5 % tolerated"):
         views_camera(cam, dataclasses.replace(cal, pitch_px=cam.grid_pitch_px * 1.06), shape)
-    with pytest.raises(ValueError, match="another camera"):
-        views_camera(cam, dataclasses.replace(cal, sensor_shape=(500, 340)), shape)
+    with pytest.raises(ValueError, match="larger than the camera's 520 x 340 px sensor: another camera"):
+        views_camera(cam, dataclasses.replace(cal, sensor_shape=(540, 340)), shape)
     with pytest.raises(ValueError, match="hex"):
         views_camera(cam, dataclasses.replace(cal, layout="hex"), shape)
 
@@ -305,3 +306,16 @@ def test_simulate_refocus_and_slopes_take_a_camera_file(route, tmp_path, capsys)
     import pandas as pd
     row = pd.read_csv(tmp_path / "s.slopes.csv").iloc[0]
     assert np.isfinite(row["depth_mm"])
+
+
+def test_images_smaller_than_the_datasheet_sensor_are_its_centred_crop(route):
+    """A datasheet gives the whole sensor; capture files are often a crop: taken as the centred crop,
+    with a warning, and the decoded camera is the full sensor's (images larger than the sensor:
+    test_camera_file_and_calibration_must_agree)."""
+    cam, _, _, d = route
+    cal = GridCalibration.load(d / "cal.json")
+    views, _ = decoding.load_views(d / "views.h5")
+    H, W = cam.sensor_shape
+    big = dataclasses.replace(cam, sensor_rows=H + 40, sensor_cols=W + 30)
+    with pytest.warns(UserWarning, match="centred crop"):
+        assert views_camera(big, cal, views.shape) == views_camera(cam, cal, views.shape)

@@ -19,10 +19,10 @@ from ..tomo.defaults import (ADMM_KNOBS, ADMM_QUIET, ADMM_SUBSAMPLES, ADMM_TV, D
                               DEFAULT_TV, EXACT_SOLVER, SOLVERS, SUBSAMPLES_MAX_PLANES, VOLUME_L1, VOLUME_MAX_PLANES,
                               VOLUME_PRIOR, VOLUME_PRIORS, VOLUME_STEP_MM, VOLUME_TV)
 from ..tomo.resolution import AXES, CONDITIONS, DEFAULT_FAR_MM, DEFAULT_NEAR_MM, DEFAULT_SPACING_MM, FEATURE_SIZES_MM
-from ._io import RAW_FORMATS, add_camera_args
+from ._io import RAW_FORMATS, add_camera_args, check_outputs, fraction, positive_int
 from .learning import cmd_dataset, cmd_evaluate, cmd_predict, cmd_tables, cmd_train
 from .optics import cmd_refocus, cmd_simulate, cmd_slopes
-from .profiles import cmd_profiles
+from .profiles import PROFILES_ROUTE, cmd_profiles
 from .real import cmd_calibrate, cmd_decode
 from .resolution import cmd_resolution
 from .sequence import cmd_sequence, cmd_simulate_sequence
@@ -51,9 +51,34 @@ class _Parser(argparse.ArgumentParser):
         super().__init__(*args, formatter_class=formatter_class, **kwargs)
 
 
+def _admm_fills(subsamples: int) -> str:
+    """admm's cap on its fills on a grid of ``subsamples``, by the noise (:data:`~lf_flame.tomo.defaults.ADMM_KNOBS`)."""
+    quiet, noisy = (ADMM_KNOBS[subsamples, k]["fills"] for k in ("quiet", "noisy"))
+    return f"{quiet}" if quiet == noisy else f"{quiet} (quiet) or {noisy} (noisy)"
+
+
+#: What admm's iterations are by default (``reconstruct --help``): its fills of the missing data, a cap by the
+#: data's noise and the planes' grid, stopped sooner once they converge; ``reconstruct`` prints how many ran.
+ADMM_FILLS_HELP = (f"admm: its fills of the missing data, by the data's noise and the grid: at most "
+                   f"{_admm_fills(ADMM_SUBSAMPLES)} on the {ADMM_SUBSAMPLES} x {ADMM_SUBSAMPLES} grid, "
+                   f"{_admm_fills(1)} on the lenslet grid, stopping sooner once they converge (the output says how "
+                   "many ran); --iters N runs all N")
+
+
 def _level_or_none(text: str):
     """A sensor level for ``--saturation``, or None for 'none'."""
     return None if text.lower() == "none" else float(text)
+
+
+def _bit_depth(text: str) -> int:
+    """``--bit-depth``: an integer from 1 to 32."""
+    try:
+        bits = int(text)
+    except ValueError:
+        bits = 0
+    if not 1 <= bits <= 32:
+        raise argparse.ArgumentTypeError(f"--bit-depth takes an integer from 1 to 32. Received: {text!r}")
+    return bits
 
 
 def _subsamples(text: str):
@@ -91,12 +116,14 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
 
     s = sub.add_parser("simulate", help="render a raw light-field image of a scene")
-    s.add_argument("--scene", choices=["shapes", "flame", "point", "volume"], required=True,
+    s.add_argument("--scene", choices=["shapes", "flame", "point", "volume", "depth", "white"], required=True,
                    help="shapes: the paper's four shapes (rectangle, triangle, circle, square); flame: four "
                         "flames; both at the paper's depths " + ", ".join(f"{d:+g}" for d in PAPER_DEPTHS_MM) +
                         " mm; point: one point of light (--depth, --y, --x); volume: a volumetric laminar flame "
                         "(a luminous sheath 10 mm across, at most 85 %% of the field, about a vertical axis through "
-                        "--depth, default 0, in 32 layers; 'reconstruct --volume')")
+                        "--depth, default 0, in 32 layers; 'reconstruct --volume'); depth: 2-4 flames at random "
+                        "depths, sizes and places (--seed), scaled to the camera (its depth of field and lenslet "
+                        "footprint); white: a flat field, the white image that 'lf-flame calibrate' takes")
     s.add_argument("--out", required=True, help=".npz (raw, camera, objects, scene[, views]) or .png (the raw "
                    "image in 16 bits, clipped at 1, with the camera, objects and scene in its text); both read by "
                    "the commands that take a raw image")
@@ -109,7 +136,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--nominal", action="store_true", help="the nominal scene (no random variation)")
     s.add_argument("--views", action="store_true", help="also store sub-aperture views (N, N, R, C)")
     s.add_argument("--crosstalk", action="store_true", help="add crosstalk through neighbouring lenslets")
-    s.add_argument("--bit-depth", type=int, help="quantise the raw image to this many bits (default: not quantised)")
+    s.add_argument("--bit-depth", type=_bit_depth, help="quantise the raw image to this many bits, 1-32 (default: "
+                   "not quantised)")
     s.add_argument("--depth", type=float, default=0.0, help="point scene: depth offset (mm)")
     s.add_argument("--y", type=float, default=0.0, help="point scene: height (mm)")
     s.add_argument("--x", type=float, default=0.0, help="point scene: lateral position (mm)")
@@ -153,7 +181,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="shift-sum only: bilinear, or whole-lenslet shifts")
     s.add_argument("--aperture", choices=["square", "circular"], default="circular",
                    help="views summed: all, or those inside the main lens's circular aperture")
-    s.add_argument("--out", required=True, help=".npz (stack) or .png (planes side by side)")
+    s.add_argument("--out", required=True, help=".npz (the planes as 'stack', with 'slopes' and 'depths_mm'), or "
+                   ".png/.pdf/.svg: a figure of the planes in object-space mm at their depths, one colour bar")
     s.set_defaults(func=cmd_refocus)
 
     s = sub.add_parser("slopes", help="sharpest slope of each object of a raw image (table and plot of the "
@@ -187,7 +216,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--shard", help="i/N: render only shard i of N (1 <= i <= N) beside --out; an unsharded "
                                    "run imports finished shards and renders the rest")
     s.add_argument("--scheduler", help="render on the Dask cluster at this address (tcp://...) or scheduler file")
-    s.add_argument("--workers", type=int, help="render on a local Dask cluster of this many worker processes")
+    s.add_argument("--workers", type=positive_int, help="render on a local Dask cluster of this many worker "
+                   "processes (>= 1)")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=cmd_dataset)
 
@@ -209,8 +239,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--route", choices=["shift-sum", *(f"reconstruct-{k}" for k in SOLVERS)], default="shift-sum",
                    help="planes by shift-and-sum, or each plane's emission (as lf-flame reconstruct; its settings: "
                         "--iters, --tv, --saturation, --operator-rays)")
-    s.add_argument("--iters", type=int, help="reconstruct-*: iterations (default: the solver's, chosen on validation "
-                   "renders)")
+    s.add_argument("--iters", type=positive_int, help="reconstruct-*: iterations, >= 1 (default: the solver's, as "
+                   "lf-flame reconstruct's --iters)")
     s.add_argument("--tv", type=float, default=None,
                    help=f"reconstruct-pd-tv / -admm: TV weight (default: pd-tv {DEFAULT_TV}; admm by each frame's "
                         f"noise: {ADMM_QUIET['tv']} on quiet data, {ADMM_TV} on noisy)")
@@ -226,8 +256,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--dark", help="real frames: dark frame")
     s.add_argument("--nperseg", type=int, help="Welch segment, frames (default: the whole record, bin 1/T)")
     s.add_argument("--chunk", type=int, default=16, help="frames per task (default: %(default)s)")
-    s.add_argument("--workers", type=int, help="a local Dask cluster of this many single-thread worker processes "
-                   "(default: serial, Numba's threads)")
+    s.add_argument("--workers", type=positive_int, help="a local Dask cluster of this many single-thread worker "
+                   "processes, >= 1 (default: serial, Numba's threads)")
     s.add_argument("--scheduler", help="an existing Dask cluster: address (tcp://...) or scheduler file")
     s.add_argument("--out", required=True, help="output folder (resumed when it holds the same run)")
     s.set_defaults(func=cmd_sequence)
@@ -256,12 +286,17 @@ def build_parser() -> argparse.ArgumentParser:
                    "'simulate --scene flame' .npz, dataset samples)")
     s.add_argument("--route", choices=["ground-truth", "shift-sum", "shift-sum-nearest", "fourier",
                                        *LEARNED_ROUTES, *(f"reconstruct-{k}" for k in SOLVERS)],
-                   default="shift-sum", help="refocusing route; ground-truth: a dataset's stored planes; learned "
-                   "routes need --model-dir; reconstruct-SOLVER: each plane's emission (lf-flame reconstruct, the "
-                   "solver's default iterations; reconstruct-adjoint is plain refocusing)")
+                   default=PROFILES_ROUTE, help="how the planes are made. reconstruct-SOLVER: each plane's emission "
+                   "(lf-flame reconstruct, the solver's default iterations; admm's finer grid averaged to the "
+                   "lenslets); the default, reconstruct-admm, measured every flame height of 'simulate --scene "
+                   "flame' (seeds 0-2) within 0.21 mm, where refocused planes carry the other flames' blur (shift-"
+                   "sum: the +20 mm flame of seed 0 measured 13 mm short, flagged untrusted). shift-sum, "
+                   "shift-sum-nearest, fourier: refocused planes (faster; reconstruct-adjoint is plain refocusing "
+                   "too); ground-truth: a dataset's stored planes; learned routes need --model-dir")
     s.add_argument("--model-dir", help="folder written by 'lf-flame train' (learned routes)")
     s.add_argument("--slope", type=float, action="append",
-                   help="one per plane (repeatable); default: the dataset's, else the analytic slopes of the depths")
+                   help="refocusing routes: one per plane (repeatable); default: the dataset's, else the analytic "
+                   "slopes of the depths")
     s.add_argument("--camera", help="camera file (TOML, docs/own_camera.md) of a raw image of a perfect lenslet "
                    "grid (default: the camera stored in RAW, else the paper's)")
     s.add_argument("--out", required=True, help="PREFIX: writes PREFIX.csv (one row per plane), PREFIX.axial.csv "
@@ -286,8 +321,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"the default is the one chosen on validation renders: {EXACT_SOLVER} on the exact operator, "
                         f"{DEFAULT_SOLVER} on a traced one (--rays-per-pixel); adjoint: plain refocusing through "
                         f"the operator's rays (default: {EXACT_SOLVER}, traced: {DEFAULT_SOLVER})")
-    s.add_argument("--iters", type=int, help="iterations (default: the solver's, chosen on validation renders: "
-                   + ", ".join(f"{k} {v}" for k, v in DEFAULT_ITERS.items()) + ")")
+    s.add_argument("--iters", type=positive_int, help="iterations, >= 1 (default: the solver's, chosen on validation "
+                   "renders: " + ", ".join(f"{k} {v}" for k, v in DEFAULT_ITERS.items() if k not in ("adjoint", "admm"))
+                   + "; " + ADMM_FILLS_HELP + "; adjoint: none)")
     s.add_argument("--damp", type=float, default=0.0, help="LSQR damping (Tikhonov)")
     s.add_argument("--tv", type=float, default=None, help=f"TV weight of pd-tv (default: {DEFAULT_TV}) or of admm "
                    f"(default by the light field's noise and the grid: on {ADMM_SUBSAMPLES} x {ADMM_SUBSAMPLES} samples "
@@ -363,8 +399,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "channel's pixels so that both channels' resolution matches (smoothed by 0.7 lenslet when "
                         "the light field is noisy); admm on its own pixels alone, unsmoothed or smoothed by 0.7 "
                         "lenslet; or each channel's pixels refocused (results/temperature.md)")
-    s.add_argument("--min-fraction", type=float, default=0.1, help="pixels whose two channels' emission is below this "
-                   "fraction of their plane's peak get no temperature (counted as dim)")
+    s.add_argument("--min-fraction", type=fraction, default=0.1, help="pixels whose two channels' emission is below "
+                   "this fraction (0 to 1) of their plane's peak get no temperature (counted as dim)")
     s.add_argument("--alpha", type=float, default=1.39, help="emissivity exponent of the source, eps ~ lambda^-alpha "
                    "(soot: 1.39, Hottel & Broughton; 0: a blackbody)")
     s.add_argument("--saturation", type=_level_or_none, default=1.0, help="the sensor's clipping level: pixels at "
@@ -409,11 +445,49 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv=None):
+#: Exit statuses: done; a failure while running (a full disk, a device error, out of memory); bad input
+#: (options, missing or damaged files, outputs that cannot be written: argparse's refusals exit so too);
+#: stopped by Ctrl-C (128 + SIGINT, as the shells report it).
+EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
+#: The errors of the user's paths (bad input): a file missing or unreadable, a file where a folder must be.
+PATH_ERRORS = (FileNotFoundError, PermissionError, NotADirectoryError, IsADirectoryError, FileExistsError)
+#: Failures while running (reported on one line; any other exception is a bug: its traceback is shown).
+RUN_ERRORS = (OSError, RuntimeError, MemoryError, FloatingPointError)
+
+
+def _message(e: BaseException) -> str:
+    """An exception as one line: an OS error's file and reason, else its text (or its kind)."""
+    if isinstance(e, OSError) and e.filename and e.strerror:
+        return f"{e.filename}: {e.strerror}"
+    text = " ".join(str(e).split())
+    return text or {MemoryError: "out of memory"}.get(type(e), type(e).__name__)
+
+
+def main(argv=None) -> int:
+    """Run one ``lf-flame`` command and return its exit status (:data:`EXIT_OK` ...).
+
+    The outputs' folders are checked first (:func:`~lf_flame.cli._io.check_outputs`); bad
+    input (``ValueError``, :data:`PATH_ERRORS`, a command's ``SystemExit("message")``) gives
+    :data:`EXIT_BAD_INPUT`, a failure while running (:data:`RUN_ERRORS`) :data:`EXIT_FAILED`,
+    Ctrl-C :data:`EXIT_INTERRUPTED`, each with one line on stderr; the writers leave no
+    half-written output (temporary file, then renamed).
+    """
     a = build_parser().parse_args(argv)
     try:
+        check_outputs(a)
         a.func(a)
-    except (ValueError, FileNotFoundError) as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    return 0
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except (ValueError, *PATH_ERRORS) as e:
+        print(f"error: {_message(e)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except SystemExit as e:
+        if not isinstance(e.code, str):
+            raise
+        print(e.code if e.code.startswith("error: ") else f"error: {e.code}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except RUN_ERRORS as e:
+        print(f"error: {_message(e)}", file=sys.stderr)
+        return EXIT_FAILED
+    return EXIT_OK

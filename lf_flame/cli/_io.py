@@ -44,31 +44,36 @@ def _load_raw(path):
     Raises
     ------
     ValueError
-        A file of another kind (the message names the formats read), or not a 2-D image.
-    SystemExit
+        A file of another kind (the message names the formats read), not a 2-D image, or an
+        empty, truncated or damaged file (:func:`lf_flame.config.reading`).
+    FileNotFoundError
         The file does not exist.
     """
+    from ..config import reading
     s = str(path)
     if ".h5:" in s:
         from ..learn.dataset import LightFieldDataset
         f, i = s.rsplit(":", 1)
-        ds = LightFieldDataset(f)
-        return ds.raw(int(i)), ds.camera
+        with reading(f, "dataset (HDF5)"):
+            ds = LightFieldDataset(f)
+            return ds.raw(int(i)), ds.camera
     p = Path(s)
     if not p.is_file():
-        raise SystemExit(f"error: raw image file not found: {p}")
+        raise FileNotFoundError(f"raw image file not found: {p}")
     suffix = p.suffix.lower()
     if suffix == ".npz":
-        with np.load(p) as z:
+        with reading(p, ".npz file"), np.load(p) as z:
             if "raw" not in z:
                 raise ValueError(f"{p} holds no raw image (its arrays: {', '.join(z.files)}). A raw image is "
                                  + RAW_FORMATS)
             raw = z["raw"]
     elif suffix == ".npy":
-        try:
-            raw = np.load(p)
-        except ValueError:   # NumPy's message speaks of pickles: not the user's problem
-            raise ValueError(f"{p} is not a NumPy array file. A raw image is " + RAW_FORMATS) from None
+        with reading(p, ".npy file"):
+            try:
+                raw = np.load(p)
+            except ValueError:   # NumPy's message speaks of pickles (or of a reshape): not the user's problem
+                raise ValueError(f"{p} is not a NumPy array file (or it is truncated). A raw image is "
+                                 + RAW_FORMATS) from None
     elif suffix in IMAGE_SUFFIXES:
         raw = _read_image(p)
     else:
@@ -88,15 +93,95 @@ def _raw_meta(path) -> dict:
     arrays of its .npz or the text of its PNG; empty for any other file."""
     p = Path(str(path))
     suffix = p.suffix.lower()
+    from ..config import reading
     if suffix == ".npz" and p.is_file():
-        with np.load(p) as z:
+        with reading(p, ".npz file"), np.load(p) as z:
             return {k: str(z[k]) for k in META_KEYS if k in z}
     if suffix == ".png" and p.is_file():
         from PIL import Image
-        with Image.open(p) as im:
+        with reading(p, "PNG image"), Image.open(p) as im:     # PIL's UnidentifiedImageError is an OSError
             text = dict(getattr(im, "text", {}))
         return {k: text[f"lf_flame.{k}"] for k in META_KEYS if f"lf_flame.{k}" in text}
     return {}
+
+
+# ---- the options' checks, made before any work ---------------------------------------
+def positive_int(text: str) -> int:
+    """An argparse ``type``: a whole number >= 1 (``--workers``, ``--iters``).
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        Anything else; argparse names the option and exits with status 2.
+    """
+    import argparse
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"takes a whole number >= 1. Received: {text!r}")
+    return n
+
+
+def fraction(text: str) -> float:
+    """An argparse ``type``: a number from 0 to 1 (``--min-fraction``).
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        Anything else (NaN included); argparse names the option and exits with status 2.
+    """
+    import argparse
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not 0.0 <= v <= 1.0:
+        raise argparse.ArgumentTypeError(f"takes a number from 0 to 1. Received: {text!r}")
+    return v
+
+
+#: The options (argparse ``dest``) naming what a command writes: a file, a folder or a prefix.
+OUTPUT_OPTIONS = ("out", "out_prefix", "results")
+
+
+def check_output(path) -> None:
+    """Refuse an output that cannot be written, before the work that would fill it.
+
+    The folder that will hold ``path`` (``path`` itself when it is an existing folder) must
+    be writable or creatable: its nearest existing ancestor must be a folder that this
+    process may write into.
+
+    Parameters
+    ----------
+    path : path-like
+        An output file, folder or prefix.
+
+    Raises
+    ------
+    ValueError
+        A file stands where a folder of the path must be, or the folder is not writable;
+        the message names the path and the culprit.
+    """
+    import os
+    p = Path(path)
+    folder = p if p.is_dir() else p.parent
+    q = folder.absolute()
+    while not q.exists() and q != q.parent:
+        q = q.parent
+    if not q.is_dir():
+        raise ValueError(f"cannot write {p}: {q} is a file, not a folder")
+    if not os.access(q, os.W_OK | os.X_OK):
+        raise ValueError(f"cannot write {p}: the folder {q} is not writable")
+
+
+def check_outputs(a) -> None:
+    """:func:`check_output` on each of a command's outputs (:data:`OUTPUT_OPTIONS` in ``a``)."""
+    for k in OUTPUT_OPTIONS:
+        v = getattr(a, k, None)
+        if isinstance(v, (str, Path)) and str(v):
+            check_output(v)
 
 
 def add_camera_args(s):
@@ -152,11 +237,17 @@ def _raw_objects(path):
 
 def simulated_scene(record: dict, camera):
     """The scene of ``lf-flame simulate`` from its record (``kind``, ``seed``, ``nominal``; a
-    point: ``depth_mm``, ``y_mm``, ``x_mm``; a volume: ``depth_mm``, its axis's depth), the one it
+    point: ``depth_mm``, ``y_mm``, ``x_mm``; a volume: ``depth_mm``, its axis's depth; ``depth``:
+    :func:`lf_flame.simulate.scenes_depth.camera_depth_scene`; ``white``: a flat field), the one it
     renders and stores beside the raw image."""
     from ..simulate import scenes
     if record["kind"] == "point":
         return scenes.point_scene(camera, record["depth_mm"], record["y_mm"], record["x_mm"])
+    if record["kind"] == "white":
+        return scenes.white_scene(camera)
+    if record["kind"] == "depth":
+        from ..simulate.scenes_depth import camera_depth_scene
+        return camera_depth_scene(camera, np.random.default_rng(record["seed"]))
     if record["kind"] == "volume":
         dz = record.get("depth_mm") or 0.0
         return scenes.volume_flame_scene(camera, None if record["nominal"] else np.random.default_rng(record["seed"]),

@@ -69,7 +69,51 @@ def cmd_refocus(a):
     print(f"refocused {len(slopes)} planes ({a.method}) at slopes " + ", ".join(f"{s:+.4g}" for s in slopes)
           + f" in {1e3 * (time.perf_counter() - t):.2f} ms")
     extra = {} if a.depth is None else {"depths_mm": np.asarray(a.depth)}
-    _write_stack(a.out, stack, slopes=np.asarray(slopes), **extra)
+    if Path(a.out).suffix.lower() in FIGURE_SUFFIXES:
+        from ..measure.figures import save_figure
+        print(f"-> {save_figure(refocus_figure(stack, slopes, cam, method=a.method), a.out)}")
+    else:
+        _write_stack(a.out, stack, slopes=np.asarray(slopes), **extra)
+
+
+#: ``refocus --out`` suffixes written as a figure (anything else: the stack as .npz).
+FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
+
+
+def refocus_figure(stack, slopes, camera=None, *, method: str = ""):
+    """``refocus``'s figure: one panel per plane, in object-space mm at its depth, on one colour scale.
+
+    Parameters
+    ----------
+    stack : ndarray of shape (P, rows, cols)
+        Refocused planes (the raw image's units), one sample per lenslet.
+    slopes : sequence of P float
+        Each plane's slope (lenslets per view).
+    camera : PlenopticCamera or None
+        The planes' camera: each panel's depth (mm) and its field in mm
+        (:func:`lf_flame.measure.figures.plane_extent_mm`). None (views without a camera), or a
+        camera whose lenslet grid is not the planes': titles give the slope alone, axes in lenslets.
+    method : str
+        The refocusing method, named in the figure's title.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from ..measure.figures import plane_extent_mm, planes_figure, signed
+    stack = np.asarray(stack)
+    if camera is not None and (camera.n_rows, camera.n_cols) != stack.shape[1:]:
+        camera = None
+    titles, extents = [], []
+    for s in slopes:
+        try:
+            d = None if camera is None else camera.depth_for_slope(s)
+        except ValueError:                                       # a slope that focuses no real plane
+            d = None
+        titles.append(f"slope {signed(s, 3)} lenslets/view" + ("" if d is None else f"\ndepth {signed(d)} mm"))
+        extents.append(None if d is None else plane_extent_mm(camera, d))
+    return planes_figure([stack], extents, titles, "refocused radiance (a.u.: the raw image's units)",
+                         suptitle=f"refocused ({method})" if method else "")
 
 
 def cmd_slopes(a):

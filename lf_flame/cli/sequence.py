@@ -75,6 +75,8 @@ def cmd_sequence(a):
             raise ValueError("give the planes of a recording: --depth MM (repeatable) or --slope S")
         depths = [float(v) for v in a.depth] if a.depth else [cam.depth_for_slope(s) for s in a.slope]
         slopes = list(a.slope) if a.slope else [cam.slope_for_depth(d) for d in depths]
+        from ..real.lightfield import check_imaging_range
+        check_imaging_range(cam, depths)
         cal = None
         if a.calibration:
             from ..real.calibration import GridCalibration

@@ -106,24 +106,44 @@ def cmd_calibrate_temperature(a):
           + f" K -> {out}")
 
 
-def plot_temperature(path, temperature_k, depths_mm, valid) -> None:
-    """Each plane's temperature map side by side, one colour bar in K; masked pixels grey."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    P = len(temperature_k)
+#: What the temperature figure's grey area is (its legend entry).
+NO_TEMPERATURE = "no temperature: dim, or a ratio outside the calibration"
+
+
+def temperature_figure(temperature_k, depths_mm, valid, camera=None, truth_k=None):
+    """``temperature``'s figure: each plane's temperature map in object-space mm, one colour bar in K.
+
+    Pixels without a temperature (NaN) are grey, named by a legend entry (:data:`NO_TEMPERATURE`).
+    With a truth, its maps form a second row on the same colour scale.
+
+    Parameters
+    ----------
+    temperature_k : ndarray of shape (P, rows, cols)
+        Temperature (K), NaN where none was estimated.
+    depths_mm : sequence of P float
+        The planes' depths (mm from the focal plane).
+    valid : ndarray of bool, shape (P, rows, cols)
+        Where a temperature was estimated (counted in the titles).
+    camera : PlenopticCamera or None
+        The planes' camera: axes in mm (:func:`lf_flame.measure.figures.plane_extent_mm`); None: lenslets.
+    truth_k : ndarray of shape (P, rows, cols) or None
+        The true temperature (K) on the same planes, NaN where the scene has none.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Axes: the panels row by row (estimate, then truth), then the colour bar's.
+    """
+    from ..measure.figures import plane_extent_mm, planes_figure, signed
     t = np.asarray(temperature_k, float)
-    lo, hi = (np.nanpercentile(t, [1, 99]) if np.isfinite(t).any() else (1500.0, 2500.0))
-    fig, axes = plt.subplots(1, P, figsize=(2.6 * P + 1.2, 4.2), squeeze=False, constrained_layout=True)
-    cmap = matplotlib.colormaps["inferno"].with_extremes(bad="0.6")
-    for k, ax in enumerate(axes[0]):
-        im = ax.imshow(np.ma.masked_invalid(t[k]), cmap=cmap, vmin=lo, vmax=max(hi, lo + 1), interpolation="nearest")
-        ax.set_title(f"{depths_mm[k]:+.1f} mm\n{int(valid[k].sum())} px with T", fontsize=9)
-        ax.set_xticks([])
-        ax.set_yticks([])
-    fig.colorbar(im, ax=axes[0].tolist(), label="temperature (K)")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    rows = [t] if truth_k is None else [t, np.asarray(truth_k, float)]
+    finite = np.concatenate([r[np.isfinite(r)] for r in rows])
+    lo, hi = np.percentile(finite, [1, 99]) if finite.size else (1500.0, 2500.0)
+    extents = None if camera is None else [plane_extent_mm(camera, d) for d in depths_mm]
+    titles = [[f"estimate {signed(d)} mm\n{int(np.sum(v))} px with T" for d, v in zip(depths_mm, valid)],
+              [f"truth {signed(d)} mm" for d in depths_mm]][:len(rows)]
+    return planes_figure(rows, extents, titles, "temperature (K)", vmin=float(lo), vmax=float(max(hi, lo + 1)),
+                         bad_label=NO_TEMPERATURE)
 
 
 def cmd_temperature(a):
@@ -133,6 +153,7 @@ def cmd_temperature(a):
     import h5py
 
     from ..config import provenance
+    from ..measure.figures import save_figure
     from ..measure.pyrometry import bright_pixels, load_calibration, temperature_planes
     from ..optics.colour import CHANNELS
     from ..tomo.colour import cfa_blind, channel_emission, channel_sum_views, channel_views, route_operator
@@ -160,7 +181,7 @@ def cmd_temperature(a):
     ch = tuple(CHANNELS.index(c) for c in cal.channels)
     extra = {}
     if depths == "auto":
-        depths, found = found_planes(lf, channel_sum_views(views, chan, ch))
+        depths, found, _ = found_planes(lf, channel_sum_views(views, chan, ch))
         extra = dict(depths_from="auto (channel sum)", found_depths=found)
     chosen = {}
     slopes = [cam.slope_for_depth(d) for d in depths]
@@ -175,7 +196,8 @@ def cmd_temperature(a):
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + ".part")
-    with h5py.File(tmp, "w") as f:
+    from ..config import removed_on_error
+    with removed_on_error(tmp), h5py.File(tmp, "w") as f:
         f["temperature_k"] = temp.astype(np.float32)
         f["temperature_k"].attrs.update(units="K", masked="NaN: no temperature (see valid, dim)")
         f["valid"] = valid
@@ -204,7 +226,7 @@ def cmd_temperature(a):
             f.attrs[k] = v
     tmp.replace(out)
     fig = out.with_suffix(".png")
-    plot_temperature(fig, temp, depths, valid)
+    save_figure(temperature_figure(temp, depths, valid, cam), fig)
     for k, d in enumerate(depths):
         v = temp[k][valid[k]]
         stats = (f"median {np.median(v):.0f} K, p10-p90 {np.percentile(v, 10):.0f}-{np.percentile(v, 90):.0f} K"

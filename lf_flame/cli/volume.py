@@ -43,19 +43,17 @@ def reconstruct_input(a):
             raise ValueError(f"--depths takes auto, scene, paper or depths in mm separated by commas. Received: "
                              f"{a.depths!r}") from None
     if depths != "auto":
-        lo, hi = lf.depth_range_mm()
-        far = [d for d in depths if not lo <= d <= hi]
-        if far:
-            raise ValueError(f"planes at {', '.join(f'{d:+g}' for d in far)} mm lie outside what this camera can "
-                             f"refocus ({lo:+.3g} .. {hi:+.3g} mm from its focus distance, |slope| <= "
-                             "3 lenslets per view)")
+        from ..real.lightfield import check_imaging_range
+        check_imaging_range(cam, depths)
     return lf, depths, objects
 
 
 def found_planes(lf, views=None):
     """``--depths auto``: the depths holding emission (:func:`lf_flame.tomo.depth.find_depths` over the
-    camera's imaging range), printed, and their record for the HDF5 (each found depth, its uncertainty,
-    peak width, plane and region). ``views``: other views of ``lf.camera`` to search (a channel sum)."""
+    camera's imaging range), printed, their record for the HDF5 (each found depth, its uncertainty,
+    peak width, plane and region) and the :class:`~lf_flame.tomo.depth.FoundDepths` itself (its masks:
+    the lenslets that voted for each depth). ``views``: other views of ``lf.camera`` to search (a
+    channel sum)."""
     from ..tomo.depth import find_depths
     found = find_depths(lf.views if views is None else views, lf.camera, depth_range_mm=lf.depth_range_mm())
     if not len(found.planes_mm):
@@ -67,7 +65,7 @@ def found_planes(lf, views=None):
     print(f"found {len(record)} depths in {found.time_s:.2f} s: " + ", ".join(
         f"{r['depth_mm']:+.2f} +- {r['uncertainty_mm']:.2f} mm" for r in record)
         + f" -> {len(found.planes_mm)} planes")
-    return [float(d) for d in found.planes_mm], record
+    return [float(d) for d in found.planes_mm], record, found
 
 
 def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None, saturation="file",
@@ -77,16 +75,15 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
     solve (:func:`lf_flame.tomo.solvers.reconstruct`; solver None: the operator's default) on the
     light field's data (:func:`lf_flame.tomo.decoded.fit_data`: decoded views times the model's
     white views). The exact operator's grid: ``subsamples`` samples per lenslet; None: admm's
-    (:func:`lf_flame.tomo.fourier.admm_subsamples`) on simulated views, 1 on decoded views and for
-    the other solvers. ``saturation``: "file" (the light field's own mask or level), a level or None."""
+    (:func:`lf_flame.tomo.fourier.admm_subsamples`), 1 for the other solvers. ``saturation``: "file" (the light field's own mask or level), a level or None."""
     from ..tomo.decoded import fit_data
-    from ..tomo.defaults import DECODED_KNOBS, EXACT_SOLVER
+    from ..tomo.defaults import EXACT_SOLVER
     from ..tomo.exact import emission_operator
     from ..tomo.fourier import admm_subsamples
     from ..tomo.solvers import reconstruct
     admm = rays_per_pixel is None and (solver or EXACT_SOLVER) == "admm"
     if subsamples is None:
-        subsamples = admm_subsamples(len(depths)) if admm and not lf.decoded else 1
+        subsamples = admm_subsamples(len(depths)) if admm else 1
     if rays_per_pixel is not None and lf.decoded:
         raise ValueError("--rays-per-pixel traces the simulated camera; decoded views are solved on their camera's "
                          "exact operator")
@@ -97,8 +94,17 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
                              "--saturation takes only 'none' for them (fit every sample)")
         lf = dataclasses.replace(lf, leave_out=None, saturation=saturation)
     data, fit = fit_data(lf, op)
-    knobs = DECODED_KNOBS if admm and lf.decoded and tv is None and iters is None else {}
-    return op, reconstruct(data, op, solver, iters, damp=damp, tv=tv, saturation=fit, progress=progress, **knobs)
+    return op, reconstruct(data, op, solver, iters, damp=damp, tv=tv, saturation=fit, progress=progress)
+
+
+def iterations_note(rec) -> str:
+    """The iterations that ran: admm's fills (``settings["fills_run"]``, "of at most" the cap where
+    they converged sooner), else the solver's ``settings["iters"]``."""
+    cap = int(rec.settings["iters"])
+    if rec.solver != "admm":
+        return f"{cap} iterations"
+    ran = int(rec.settings.get("fills_run", cap))
+    return f"{ran} fills" + (f" of at most {cap}, converged" if ran < cap else "")
 
 
 def saturation_note(rec) -> str:
@@ -113,7 +119,7 @@ def saturation_note(rec) -> str:
 
 def cmd_reconstruct(a):
     from ..tomo.files import plot_reconstruction, save_reconstruction
-    from ..tomo.truth import scene_truth
+    from ..tomo.truth import scene_truth, truth_depths
     from ..refocus.shift_and_sum import aperture_mask, focal_stack
     if getattr(a, "volume", False):
         return volume_reconstruct(a)
@@ -122,10 +128,11 @@ def cmd_reconstruct(a):
         raise ValueError(" and ".join(given) + " go with --volume")
     lf, depths, objects = reconstruct_input(a)
     cam, views = lf.camera, lf.views
-    extra = {}
+    extra, arrays = {}, None
     if depths == "auto":
-        depths, found = found_planes(lf)
+        depths, found, voters = found_planes(lf)
         extra = dict(depths_from="auto", found_depths=found)
+        arrays = dict(found_masks=np.asarray(voters.masks, bool), found_regions=voters.labels)
     if lf.decoded:
         extra.update(own_camera=lf.capture_camera.to_json(), frame=lf.frame.to_dict(), operator="exact",
                      n_clipped=0 if lf.leave_out is None else int(lf.leave_out.sum()))
@@ -137,7 +144,7 @@ def cmd_reconstruct(a):
     print(saturation_note(rec) if not lf.decoded else
           f"{rec.settings['n_saturated']} samples left out of the fit (clipped, or outside the aperture's image)")
     out = Path(a.out)
-    save_reconstruction(out, rec, source=str(a.raw), camera=cam.to_json(), **extra)
+    save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), **extra)
     n = cam.pixels_per_lenslet
     refocused = focal_stack(views, [cam.slope_for_depth(d) for d in depths], aperture_mask(n, "circular"))
     sub = getattr(op, "subsamples", 1)
@@ -145,10 +152,11 @@ def cmd_reconstruct(a):
     scene = None if lf.decoded else _raw_scene(a.raw, cam)
     truth = None if scene is None else scene_truth(scene, op)
     fig = out.with_suffix(".png")
-    plot_reconstruction(fig, rec, refocused, truth)
+    plot_reconstruction(fig, rec, refocused, truth, truth_depths_mm=None if scene is None else
+                        truth_depths(scene, rec.depths_mm))
     res = f"{rec.residuals[-1]:.4f}" if len(rec.residuals) else "-"
     grid = f", {sub} x {sub} samples per lenslet" if sub > 1 else ""
-    print(f"reconstructed {len(depths)} planes ({rec.solver}, {rec.settings['iters']} iterations{grid}) in "
+    print(f"reconstructed {len(depths)} planes ({rec.solver}, {iterations_note(rec)}{grid}) in "
           f"{rec.time_s:.2f} s;"
           f" relative residual {res} -> {out}, {fig}" + ("" if truth is None else " (with the scene's truth)"))
 

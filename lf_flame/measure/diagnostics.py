@@ -7,7 +7,8 @@ The one place for diagnostics (issue 17). A refocused plane ``(R, C)`` is in len
 segments the in-focus flame with scikit-image and measures it;
 :func:`lf_flame.measure.scoring.score_stacks` compares measurements with the
 simulation's truth (the flame scene's ``objects``);
-:func:`plot_profiles` draws them (the figure of ``lf-flame profiles``).
+:func:`profiles_figure` draws them (the figure of ``lf-flame profiles``, :func:`plot_profiles`
+writes it).
 
 How the other planes' out-of-focus flames bias each measurement, and what is done about
 it (``docs/diagnostics.md`` has the measured figures):
@@ -72,7 +73,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
@@ -505,19 +505,26 @@ def flame_truth(obj: dict) -> dict:
                 centre_x_mm=float(obj["centre_x_mm"]), columns=(int(obj["roi"][2]), int(obj["roi"][3])))
 
 
-def plot_profiles(path, cam, stack, depths, ms, objects, route):
+def plot_profiles(path, cam, stack, depths, ms, objects, route, value_label: str = "radiance (a.u.)"):
+    """Write :func:`profiles_figure` to ``path`` (PNG), atomically."""
+    from .figures import save_figure
+    save_figure(profiles_figure(cam, stack, depths, ms, objects, route, value_label), path, dpi=100)
+
+
+def profiles_figure(cam, stack, depths, ms, objects, route, value_label: str = "radiance (a.u.)"):
     """Each plane in object-space mm with the measured outline and edges (and the true ones),
     then the axial and radial profiles of the planes.
 
-    A flagged plane (:attr:`FlameMeasurement.flags`) has a red title ending in
+    A legend names the lines drawn on the planes (the measured region's outline, the
+    measured base and tip, the true base and tip); the planes share one colour bar. A
+    flagged plane (:attr:`FlameMeasurement.flags`) has a red title ending in
     ``UNTRUSTED: <flags>`` and its measured edges and profiles drawn dotted.
 
     Parameters
     ----------
-    path : str or Path
-        PNG to write.
     cam : PlenopticCamera
     stack : ndarray of shape (P, R, C)
+        The planes on the camera's lenslet grid.
     depths : sequence of P float
         Depth (mm) of each plane.
     ms : sequence of P FlameMeasurement or None
@@ -526,20 +533,28 @@ def plot_profiles(path, cam, stack, depths, ms, objects, route):
         The truth, drawn when given.
     route : str
         Named in the axial profiles' title.
+    value_label : str
+        What the planes' values are, with units (the colour bar's and the profiles' axes).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Axes: the P planes, the axial profiles, the radial profiles (P > 1), the colour bar.
     """
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from .figures import add_colorbar, plane_extent_mm, show_plane, signed
     P = len(stack)
-    fig = plt.figure(figsize=(2.6 * P, 9.0))
+    fig = Figure(figsize=(2.6 * P + 1.0, 9.6), layout="constrained")
     grid = fig.add_gridspec(2, P, height_ratios=(2.2, 1.0))
     vmax = max(float(np.max(stack)), 1e-9)
+    untrusted = False
+    panels = []
     for k, (plane, d, m) in enumerate(zip(stack, depths, ms)):
         ax = fig.add_subplot(grid[0, k])
-        (top, bottom), (left, right) = lenslet_to_object_mm(cam, [-0.5, plane.shape[0] - 0.5],
-                                                            [-0.5, plane.shape[1] - 0.5], d)
-        ax.imshow(plane, cmap="inferno", vmin=0, vmax=vmax, extent=(left, right, bottom, top))
-        title = f"{d:+.0f} mm"
+        panels.append(ax)
+        im = show_plane(ax, plane, plane_extent_mm(cam, d), vmax=vmax, ylabel=k == 0)
+        title = f"{signed(d, 0)} mm"
         if m is not None:
             rows, cols = np.arange(plane.shape[0]), np.arange(plane.shape[1])
             y, x = lenslet_to_object_mm(cam, rows[:, None], cols[None, :], d)
@@ -548,6 +563,7 @@ def plot_profiles(path, cam, stack, depths, ms, objects, route):
             for yy in (m.base_y_mm, m.tip_y_mm):
                 ax.axhline(yy, color="w", ls="--" if m.trusted else ":", lw=0.8)
             title += f"\nH {m.height_mm:.2f} mm"
+            untrusted |= not m.trusted
         else:
             title += "\nno flame found"
         if objects:
@@ -558,31 +574,35 @@ def plot_profiles(path, cam, stack, depths, ms, objects, route):
         if m is not None and not m.trusted:
             title += f"\nUNTRUSTED: {', '.join(m.flags)}"
         ax.set_title(title, fontsize=9, color="k" if m is None or m.trusted else "red")
-        ax.set_xlabel("x (mm)", fontsize=8)
-        if k == 0:
-            ax.set_ylabel("y (mm)", fontsize=8)
-        ax.tick_params(labelsize=7)
+    add_colorbar(fig, im, panels, value_label)
+    lines = [Line2D([], [], color="0.3", lw=0.9, label="measured flame region (outline)"),
+             Line2D([], [], color="0.3", ls="--", lw=0.9, label="measured base and tip")]
+    if untrusted:
+        lines.append(Line2D([], [], color="0.3", ls=":", lw=0.9, label="measured base and tip, untrusted"))
+    if objects:
+        lines.append(Line2D([], [], color="c", lw=0.9, label="true base and tip"))
+    fig.legend(handles=lines, loc="outside upper center", ncol=len(lines), fontsize=8, frameon=False)
     axa = fig.add_subplot(grid[1, : max(1, P // 2)])
     axr = fig.add_subplot(grid[1, max(1, P // 2):]) if P > 1 else None
+    styles = ("-", "--", ":")
     for k, (d, m) in enumerate(zip(depths, ms)):
         if m is None:
             continue
         axa.plot(m.axial_height_mm, m.axial_intensity, color=f"C{k}", ls="-" if m.trusted else ":",
-                 label=f"{d:+.0f} mm" + ("" if m.trusted else " (untrusted)"))
+                 label=f"{signed(d, 0)} mm" + ("" if m.trusted else " (untrusted)"))
         if axr is not None:
-            for j, r in enumerate(m.radial):
-                axr.plot(r.x_mm, r.intensity, color=f"C{k}", ls=("-", "--", ":")[j % 3], lw=0.9,
-                         label=f"{d:+.0f} mm, {r.height_mm:.1f} mm" if k == 0 or j == 0 else None)
-    axa.set(xlabel="height above the measured base (mm)", ylabel="intensity on the centreline",
-            title=f"axial profiles ({route})")
-    axa.legend(fontsize=7)
+            for r in m.radial:      # styled by the fraction of the height it stands at
+                j = int(np.argmin(np.abs(np.asarray(RADIAL_FRACTIONS) - r.height_mm / max(m.height_mm, 1e-9))))
+                axr.plot(r.x_mm, r.intensity, color=f"C{k}", ls=styles[j % 3], lw=0.9)
+    axa.set(xlabel="height above the measured base (mm)", ylabel=value_label,
+            title=f"axial profiles on the centreline ({route})")
+    axa.legend(fontsize=7, title="plane", title_fontsize=7)
     if axr is not None:
-        axr.set(xlabel="offset from the centreline (mm)", ylabel="intensity",
-                title="radial profiles at 25 / 50 / 75 % of the height")
-        axr.legend(fontsize=6, ncol=2)
-    fig.tight_layout()
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(f"{path}.partial.png")
-    fig.savefig(tmp, dpi=100)
-    plt.close(fig)
-    tmp.replace(path)
+        axr.set(xlabel="offset from the centreline (mm)", ylabel=value_label,
+                title="radial profiles across the flame")
+        fractions = [f"{100 * f:.0f} % of the height" for f in RADIAL_FRACTIONS]
+        handles = [Line2D([], [], color=f"C{k}", label=f"{signed(d, 0)} mm") for k, (d, m) in
+                   enumerate(zip(depths, ms)) if m is not None and m.radial]
+        handles += [Line2D([], [], color="k", ls=styles[j % 3], lw=0.9, label=f) for j, f in enumerate(fractions)]
+        axr.legend(handles=handles, fontsize=6, ncol=2)
+    return fig

@@ -17,7 +17,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -309,16 +308,18 @@ def wien_temperature(ratio, cal: TemperatureCalibration, sensor: ColourSensor, a
 
 
 def write_calibration(path, cal: TemperatureCalibration) -> Path:
-    """Write ``cal`` as JSON atomically (a temporary file in the same folder, then renamed)."""
+    """Write ``cal`` as JSON atomically (``PATH.partial`` beside it, then renamed; removed if the
+    write fails), with the permissions of any file this process creates (its umask), as
+    :func:`lf_flame.config.atomic_write_text` writes (``measure`` does not import ``config``)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    tmp = path.with_name(path.name + ".partial")
     try:
-        with os.fdopen(fd, "w") as f:
+        with open(tmp, "w") as f:
             json.dump(dict(asdict(cal), kind="lf_flame two-colour temperature calibration"), f, indent=2)
         os.replace(tmp, path)
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        tmp.unlink(missing_ok=True)
         raise
     return path
 
@@ -330,8 +331,11 @@ def load_calibration(path, sensor: ColourSensor | None = None) -> TemperatureCal
     (:meth:`TemperatureCalibration.check_sensor`) or whose ratio is not strictly monotonic
     (:func:`lookup_table`). Raises ValueError for a file that is not such a calibration.
     """
-    d = json.loads(Path(path).read_text())
-    if d.pop("kind", None) != "lf_flame two-colour temperature calibration":
+    try:
+        d = json.loads(Path(path).read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise ValueError(f"{path} is not an lf_flame temperature calibration (not JSON: {e})") from None
+    if not isinstance(d, dict) or d.pop("kind", None) != "lf_flame two-colour temperature calibration":
         raise ValueError(f"{path} is not an lf_flame temperature calibration")
     try:
         cal = TemperatureCalibration(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})

@@ -54,6 +54,9 @@ DATASHEET_KEYS = {
 #: Relative disagreement tolerated between two values of the same quantity given twice
 #: (f-number and aperture, focus distance and MLA distance): datasheets round to 3 digits.
 AGREEMENT = 2e-3
+#: A pitch this close below a whole number of pixels holds that number of views: a calibration
+#: measures the pitch within a few hundredths of a percent (14.9997 px for 15).
+PITCH_SNAP_PX = 0.02
 
 
 def _number(where, key, v, *, integer=False, positive=True):
@@ -310,7 +313,7 @@ def decoded_camera(camera: PlenopticCamera, n_views: int, n_rows: int, n_cols: i
         if isinstance(v, bool) or int(v) != v or v < 1:
             raise ValueError(f"{name} must be a positive integer. Received: {name}={v!r}")
     N = int(n_views)
-    if N > camera.grid_pitch + 1e-9:
+    if N > camera.grid_pitch + PITCH_SNAP_PX:
         raise ValueError(f"{N} views per axis do not fit under lenslet images {camera.grid_pitch:.3f} px apart")
     g = camera.sensor_distance_mm
     if abs(g - camera.mla_focal_mm) > 1e-9:

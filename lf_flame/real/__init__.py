@@ -22,7 +22,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "decoding": ["check_grid", "view_positions", "hex_to_square", "decode", "clipped_samples", "save_views",
                      "load_views", "load_clipped"],
         "own_camera": ["PITCH_WARN", "PITCH_TOLERANCE", "DecodedFrame", "decoded_frame", "views_camera"],
-        "lightfield": ["LightField", "MAX_SEARCH_SLOPE", "imaging_range_mm", "from_raw", "from_decoded",
-                       "read_light_field", "same_grid"],
+        "lightfield": ["LightField", "MAX_SEARCH_SLOPE", "imaging_range_mm", "check_imaging_range", "from_raw",
+                       "from_decoded", "read_light_field", "same_grid"],
     },
 )

@@ -206,10 +206,12 @@ def load_image(path) -> np.ndarray:
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"image file not found: {p}")
+    from ..config import reading
     if p.suffix == ".npy":
-        a = np.load(p)
+        with reading(p, ".npy file"):
+            a = np.load(p)
     elif p.suffix == ".npz":
-        with np.load(p) as z:
+        with reading(p, ".npz file"), np.load(p) as z:
             keys = list(z.keys())
             if "raw" in keys:
                 a = z["raw"]

@@ -32,7 +32,8 @@ def check_grid(image: np.ndarray, calibration: GridCalibration, significance: fl
     strongest bin among spatial frequencies of periods between 0.6 and 1.6 pitches is
     compared with the median there: below ``significance`` × the median the image shows
     no grid (a dark raw image) and cannot be checked, which passes. Otherwise the power
-    at the calibration's fundamental frequencies (the best of the 3 × 3 bins about each)
+    at the calibration's fundamental frequencies (two for a square lattice, three for a
+    hexagonal one; the best of the 3 × 3 bins about each)
     must reach a quarter of that strongest bin, else the grid is another one: another
     camera, or another set-up of this one.
     """
@@ -57,9 +58,12 @@ def check_grid(image: np.ndarray, calibration: GridCalibration, significance: fl
     if top < significance * np.median(power[band]):
         return
     at = 0.0
-    for k in range(2):
-        rr = int(round(recip[0, k] * h)) + h // 2
-        cc = int(round(recip[1, k] * w)) + w // 2
+    fundamentals = [recip[:, 0], recip[:, 1]]
+    if calibration.layout == "hex":         # a hexagonal lattice has three: the third is their sum or difference
+        fundamentals.append(min(recip[:, 0] + recip[:, 1], recip[:, 0] - recip[:, 1], key=np.linalg.norm))
+    for k in fundamentals:
+        rr = int(round(k[0] * h)) + h // 2
+        cc = int(round(k[1] * w)) + w // 2
         if 1 <= rr < h - 1 and 1 <= cc < w - 1:
             at = max(at, power[rr - 1:rr + 2, cc - 1:cc + 2].max())
     if at < 0.25 * top:
@@ -121,6 +125,23 @@ def hex_to_square(views: np.ndarray) -> np.ndarray:
     return out
 
 
+def max_views(calibration) -> int:
+    """Views per axis a lenslet image holds: ``floor(pitch_px + PITCH_SNAP_PX)``
+    (:data:`lf_flame.optics.camera_file.PITCH_SNAP_PX`).
+
+    Parameters
+    ----------
+    calibration : GridCalibration
+
+    Returns
+    -------
+    int
+        One pixel apart along each axis: 10 for a 10.57 px pitch, 15 for a calibrated 14.9997.
+    """
+    from ..optics.camera_file import PITCH_SNAP_PX
+    return int(math.floor(calibration.pitch_px + PITCH_SNAP_PX))
+
+
 def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | None = None,
            dark: np.ndarray | None = None, *, n_views: int | None = None, min_white: float = 0.05,
            camera_id: str | None = None, check: bool = True) -> np.ndarray:
@@ -138,7 +159,7 @@ def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | No
     white, dark : ndarray of the same shape, or None
         White image and dark frame (the dark frame is subtracted from both).
     n_views : int or None
-        ``N``, views per axis, one pixel apart; default ``floor(pitch_px)``, at most that.
+        ``N``, views per axis, one pixel apart; default and most :func:`max_views`.
     min_white : float
         Samples where the white image is below this fraction of its 99th percentile
         (outside the lenslet image, between lenslets) are set to 0.
@@ -172,7 +193,7 @@ def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | No
         img = img - d
     if check:
         check_grid(img, calibration)
-    n_max = int(math.floor(calibration.pitch_px))
+    n_max = max_views(calibration)
     n = n_max if n_views is None else n_views
     if int(n) != n or not 1 <= n <= n_max:
         raise ValueError(f"n_views must be an integer in [1, {n_max}] (the pitch is {calibration.pitch_px:.2f} px). "
@@ -234,7 +255,7 @@ def clipped_samples(raw: np.ndarray, calibration: GridCalibration, saturation: f
     if isinstance(saturation, bool) or not isinstance(saturation, (int, float, np.floating)) or \
             not (math.isfinite(saturation) and saturation > 0):
         raise ValueError(f"saturation must be a positive finite level (raw units). Received: {saturation!r}")
-    n_max = int(math.floor(calibration.pitch_px))
+    n_max = max_views(calibration)
     n = n_max if n_views is None else n_views
     if int(n) != n or not 1 <= n <= n_max:
         raise ValueError(f"n_views must be an integer in [1, {n_max}]. Received: n_views={n_views!r}")
@@ -255,7 +276,8 @@ def save_views(path, views: np.ndarray, calibration: GridCalibration, clipped: n
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     tmp = p.with_name(p.name + ".partial")
-    with h5py.File(tmp, "w") as f:
+    from ..config import removed_on_error
+    with removed_on_error(tmp), h5py.File(tmp, "w") as f:
         f.create_dataset("views", data=np.asarray(views, np.float32), compression="gzip", compression_opts=1)
         if clipped is not None:
             if np.shape(clipped) != np.shape(views) or np.asarray(clipped).dtype != bool:
@@ -276,7 +298,8 @@ def load_views(path) -> tuple[np.ndarray, GridCalibration]:
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"views file not found: {p}")
-    with h5py.File(p, "r") as f:
+    from ..config import reading
+    with reading(p, "HDF5 file"), h5py.File(p, "r") as f:
         if f.attrs.get("format") != "lf_flame.decoded_views" or "views" not in f:
             raise ValueError(f"{p} is not a file of decoded views written by 'lf-flame decode'")
         views = f["views"][...]

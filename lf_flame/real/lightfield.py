@@ -162,6 +162,28 @@ def imaging_range_mm(camera: PlenopticCamera, max_slope: float = MAX_SEARCH_SLOP
     return float(lo), float(hi)
 
 
+def check_imaging_range(camera: PlenopticCamera, depths_mm) -> None:
+    """Refuse planes the camera cannot refocus: depths outside :func:`imaging_range_mm`.
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+    depths_mm : sequence of float
+        Plane depths, mm from the focus distance (> 0 farther).
+
+    Raises
+    ------
+    ValueError
+        Naming the depths outside the range and the range.
+    """
+    lo, hi = imaging_range_mm(camera)
+    far = [float(d) for d in depths_mm if not lo <= d <= hi]
+    if far:
+        raise ValueError(f"planes at {', '.join(f'{d:+g}' for d in far)} mm lie outside what this camera can "
+                         f"refocus ({lo:+.3g} .. {hi:+.3g} mm from its focus distance, |slope| <= "
+                         f"{MAX_SEARCH_SLOPE:g} lenslets per view)")
+
+
 def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation: float | None = 1.0,
              camera_file: str | None = None, meta: dict | None = None) -> LightField:
     """The light field of a raw image of a perfect lenslet grid.
@@ -269,9 +291,12 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
         GridCalibration.load(calibration)
     p = Path(src)
     if p.suffix.lower() == ".h5" and ".h5:" not in src:
+        from ..config import DamagedFileError
         from .decoding import load_clipped, load_views
         try:
             v, vcal = load_views(p)
+        except DamagedFileError:
+            raise
         except ValueError as e:
             raise ValueError(f"{e}. Reads views .h5 from 'lf-flame decode'" + (f", or a raw image: {formats}"
                                                                                if formats else "")) from None
@@ -310,15 +335,17 @@ def _read_raw(p: Path):
     import json
     if not p.is_file():
         raise FileNotFoundError(f"raw image file not found: {p}")
+    from ..config import reading
     meta, stored = {}, None
     if p.suffix.lower() == ".npz":
-        with np.load(p) as z:
+        with reading(p, ".npz file"), np.load(p) as z:
             if "raw" not in z:
                 raise ValueError(f"{p} holds no raw image (its arrays: {', '.join(z.files)})")
             raw = z["raw"]
             meta = {k: str(z[k]) for k in z.files if k != "raw" and z[k].dtype.kind == "U"}
     elif p.suffix.lower() == ".npy":
-        raw = np.load(p)
+        with reading(p, ".npy file"):
+            raw = np.load(p)
     else:
         from .calibration import load_image
         raw = load_image(p)

@@ -106,21 +106,28 @@ def views_camera(camera: PlenopticCamera, calibration: GridCalibration, views_sh
     Raises
     ------
     ValueError
-        Another sensor size or layout than the camera's, a calibrated pitch more than
+        Images larger than the camera's sensor, another layout than the camera's, a calibrated pitch more than
         :data:`PITCH_TOLERANCE` away from the camera's, views of another shape than the
         calibration decodes to, or the errors of ``decoded_camera``.
 
     Warns
     -----
     UserWarning
-        A calibrated pitch more than :data:`PITCH_WARN` away from the camera's.
+        A calibrated pitch more than :data:`PITCH_WARN` away from the camera's; images smaller
+        than the camera's sensor (a centred crop: a datasheet gives the whole sensor, a capture
+        file often less).
     """
     shape = tuple(int(v) for v in views_shape)
     if len(shape) != 4 or shape[0] != shape[1]:
         raise ValueError(f"views of shape {shape} are not (N, N, R, C)")
-    if tuple(calibration.sensor_shape) != tuple(camera.sensor_shape):
-        raise ValueError(f"the calibration's sensor is {calibration.sensor_shape[0]} x {calibration.sensor_shape[1]} px, "
-                         f"the camera's {camera.sensor_shape[0]} x {camera.sensor_shape[1]} px: another camera")
+    (H, W), (Hc, Wc) = calibration.sensor_shape, camera.sensor_shape
+    if (H, W) != (Hc, Wc):
+        if not (H <= Hc and W <= Wc):
+            raise ValueError(f"the calibration's images are {H} x {W} px, larger than the camera's {Hc} x {Wc} px "
+                             "sensor: another camera")
+        warnings.warn(f"the images are {H} x {W} px of the camera's {Hc} x {Wc} px sensor: taken as its centred "
+                      "crop (the optical axis at the image's centre, as the file's offset_px counts it)", UserWarning,
+                      stacklevel=2)
     if calibration.layout != camera.grid_layout:
         raise ValueError(f"the calibration found a {calibration.layout} lenslet grid, the camera file says "
                          f"{camera.grid_layout}")

@@ -26,6 +26,51 @@ def _write_csv(path: Path, df: pd.DataFrame) -> None:
     atomic_write_text(path, df.to_csv(index=False, float_format="%.6g"))
 
 
+def _recording(ident: dict):
+    """Where a run's frames come from (the source's kind and path or files), without their size and time."""
+    src = ident.get("source") or {}
+    return src.get("kind"), src.get("path"), tuple(src.get("files") or ())
+
+
+def _settings(ident: dict) -> dict:
+    """A run's settings but its recording's contents: the reconstruction's knobs chosen by the
+    first frame's noise (admm) left out with them."""
+    rec = ident.get("reconstruction")
+    keep = None if rec is None else {k: rec.get(k) for k in ("solver", "saturation", "operator_rays")}
+    return {**{k: v for k, v in ident.items() if k not in ("source", "reconstruction")}, "reconstruction": keep}
+
+
+def _start_over_or_refuse(out: Path, old: str, new: str) -> None:
+    """``out`` holds the job of another run (``old``, job.json) than this one (``new``). Start over,
+    saying so, when the recording file changed since (the same path and settings, another size or
+    time: e.g. a frame fixed after the run failed on it; its chunks done are stale and removed) or
+    when the other run never finished a chunk; else refuse: its results are another run's.
+
+    Raises
+    ------
+    ValueError
+        The folder holds another run's chunks or results.
+    """
+    try:
+        old_id = json.loads(old)
+    except json.JSONDecodeError:
+        old_id = {}
+    new_id = json.loads(new)
+    parts = sorted((out / "parts").glob("chunk-*.csv"))
+    kind, path, files = _recording(new_id)
+    if (kind in ("hdf5", "folder") and _recording(old_id) == (kind, path, files)
+            and old_id.get("source") != new_id["source"] and _settings(old_id) == _settings(new_id)):
+        print(f"{path or Path(files[0]).parent} changed since the run in {out} (size or modification time): "
+              f"starting over{f' ({len(parts)} chunks done from the old frames removed)' if parts else ''}")
+        for p in parts:
+            p.unlink()
+        return
+    if not parts and not (out / "summary.json").exists():
+        print(f"{out} holds an unfinished run of other settings with no chunk done: starting over")
+        return
+    raise ValueError(f"{out} holds a run with other settings (job.json); give another --out or delete it")
+
+
 def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | None = None, nperseg=None,
         truth=None, progress: bool = True) -> dict:
     """Process a recording into ``out``: frames.csv, spectra.csv, peaks.csv, sequence.png
@@ -70,7 +115,7 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
     ident = json.dumps(job.identity(), sort_keys=True, default=float)
     jf = out / "job.json"
     if jf.exists() and jf.read_text() != ident:
-        raise ValueError(f"{out} holds a run with other settings (job.json); give another --out or delete it")
+        _start_over_or_refuse(out, jf.read_text(), ident)
     (out / "summary.json").unlink(missing_ok=True)   # not finished until written again
     atomic_write_text(jf, ident)
     todo = [c for c in range(job.n_chunks) if not (parts / f"chunk-{c:05d}.csv").exists()]

@@ -107,7 +107,11 @@ class FolderSource:
         return _scaled(np.asarray(io.imread(p)))   # keeps the dtype (load_image returns float64)
 
     def identity(self) -> dict:
-        return dict(kind="folder", files=[str(Path(p).resolve()) for p in self.files])
+        """The files (absolute paths), each with its size and modification time (a changed frame
+        is another recording)."""
+        stats = [os.stat(p) for p in self.files]
+        return dict(kind="folder", files=[str(Path(p).resolve()) for p in self.files],
+                    stats=[[st.st_size, st.st_mtime] for st in stats])
 
     def frames(self, start: int, stop: int):
         """Frames ``start`` to ``stop`` (exclusive): an iterator of (H, W) float32 images."""
@@ -146,33 +150,70 @@ def open_source(path, camera: PlenopticCamera | None = None):
     if not p.is_file():
         raise ValueError(f"recording not found: {p}")
     import h5py
-    try:
-        with h5py.File(p, "r") as f:
-            if "frames" not in f or f["frames"].ndim != 3 or f["frames"].shape[0] < 1:
-                raise ValueError(f"{p} has no 'frames' dataset of shape (T, H, W)")
-            attrs = {k: f.attrs[k] for k in f.attrs}
-    except OSError as e:
-        raise ValueError(f"{p} is not a readable HDF5 file ({e})") from None
+    from ..config import reading
+    with reading(p, "HDF5 file"), h5py.File(p, "r") as f:
+        if "frames" not in f or f["frames"].ndim != 3 or f["frames"].shape[0] < 1:
+            raise ValueError(f"{p} has no 'frames' dataset of shape (T, H, W)")
+        attrs = {k: f.attrs[k] for k in f.attrs}
     return H5Source(str(p)), attrs
 
 
 def write_frames(path, source: SimulatedSource, progress: bool = True) -> Path:
     """Render a simulated recording into an HDF5 stack: ``frames`` (T, H, W) uint16 counts
     (x 65535), attributes ``fps``, ``camera`` and ``sequence`` (JSON, the truth); written
-    to a temporary file, then renamed."""
-    import h5py
+    to ``PATH.partial``, then renamed.
+
+    A run stopped part-way (an error, Ctrl-C) leaves ``PATH.partial`` holding the frames
+    written so far (each marked in its dataset ``done`` once written) and the settings it was
+    made for (attribute ``settings``: the source's identity and camera). The next run with the
+    same settings renders only the frames not done (each frame has its own seed: the file is
+    the one an uninterrupted run writes); a partial file of other settings, or one that cannot
+    be read, is started over. Both are said on stdout.
+    """
     from tqdm import tqdm
     path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".partial")
-    H, W = source.camera.sensor_shape
-    with h5py.File(tmp, "w") as f:
-        d = f.create_dataset("frames", (source.n_frames, H, W), np.uint16, chunks=(1, H, W), compression="lzf")
-        for i in tqdm(range(source.n_frames), desc="frames", disable=not progress):
-            d[i] = np.round(np.clip(source.raw(i), 0, 1) * 65535).astype(np.uint16)
+    n, (H, W) = source.n_frames, source.camera.sensor_shape
+    settings = json.dumps(dict(source.identity(), camera=source.camera.to_json()), sort_keys=True)
+    f = _resumed_frames(tmp, settings, (n, H, W))
+    with f:
+        done, d = f["done"], f["frames"]
+        todo = np.flatnonzero(done[:] == 0)
+        for i in tqdm(todo, desc="frames", disable=not progress, initial=n - len(todo), total=n):
+            d[i] = np.round(np.clip(source.raw(int(i)), 0, 1) * 65535).astype(np.uint16)
+            f.flush()
+            done[i] = 1            # marked after its frame is on disk: a stop in between renders it again
+            f.flush()
+        del f["done"]
         f.attrs.update(fps=source.sequence.fps, camera=source.camera.to_json(),
                        sequence=json.dumps(source.sequence.to_dict()))
     os.replace(tmp, path)
     return path
+
+
+def _resumed_frames(tmp: Path, settings: str, shape: tuple):
+    """:func:`write_frames`' partial file, open for writing: ``tmp`` resumed when it was made for
+    ``settings`` (frames of ``shape``), else (other settings, unreadable, absent) a new one."""
+    import h5py
+    if tmp.exists():
+        try:
+            f = h5py.File(tmp, "r+")
+        except OSError:
+            f = None
+        if f is not None and (f.attrs.get("settings") == settings and "done" in f and "frames" in f
+                              and f["frames"].shape == tuple(shape)):
+            n_done = int(f["done"][:].sum())
+            print(f"{tmp}: resuming, {n_done} of {shape[0]} frames already written")
+            return f
+        if f is not None:
+            f.close()
+        print(f"{tmp} was written for other settings (or cannot be read): starting over")
+    f = h5py.File(tmp, "w")
+    f.attrs["settings"] = settings
+    f.create_dataset("frames", shape, np.uint16, chunks=(1, *shape[1:]), compression="lzf")
+    f.create_dataset("done", (shape[0],), np.uint8, fillvalue=0)
+    return f
 
 
 def frame_rate(fps: float | None, attrs: dict, times_s=None) -> float:

@@ -28,6 +28,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
                                "colour_flame_scene", "colour_behind_scene", "blackbody_channels", "furnace_scene",
                                "FLICKER_K", "colour_flicker_frame"],
         "scenes_depth": ["DEPTH_RANGE_MM", "HEIGHT_RANGE_MM", "MIN_HALF_WIDTH_MM", "random_depth_scene",
+                         "PAPER_SLOPE_RANGE", "camera_depth_ranges", "camera_depth_scene",
                          "behind_scene"],
         "scenes_volume": ["sheath_density", "axisymmetric_flame_scene", "nonaxisymmetric_flame_scene"],
         "scenes_volume_temperature": ["TABLE_STEP_K", "axisymmetric_temperature_field", "axisymmetric_density",

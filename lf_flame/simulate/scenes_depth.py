@@ -22,6 +22,13 @@ HEIGHT_RANGE_MM = (2.0, 25.0)
 #: Smallest half-width of a flame's base (mm): 7-12 % of its height, but never below this
 #: (about 3 lenslet footprints at the focal plane of the paper camera), so a flame is resolved.
 MIN_HALF_WIDTH_MM = 0.4
+#: The paper camera's :data:`DEPTH_RANGE_MM` in slopes (lenslets per view step) and its lenslet
+#: footprint at the focus distance (mm): :func:`camera_depth_scene` scales both to another camera.
+PAPER_SLOPE_RANGE = (-1.9035, 2.8110)
+PAPER_FOOTPRINT_MM = 0.131413
+#: :func:`camera_depth_ranges` keeps depths within this share of the focus distance (the paper's
+#: -15 .. +25 mm are -4.6 .. +7.7 % of its 326 mm).
+MAX_DEPTH_SHARE = 0.25
 
 
 def _flame(camera, dz, H, half_w0, cx, base_y, level, texels_per_lenslet, name):
@@ -46,11 +53,13 @@ def _check(camera, depth_range, n_flames):
 
 def random_depth_scene(camera: PlenopticCamera, rng: np.random.Generator, *, n_flames: int | None = None,
                        depth_range=DEPTH_RANGE_MM, height_range=HEIGHT_RANGE_MM,
-                       texels_per_lenslet: float = 3.0, max_tries: int = 500) -> Scene:
+                       texels_per_lenslet: float = 3.0, max_tries: int = 500,
+                       min_half_width_mm: float = MIN_HALF_WIDTH_MM) -> Scene:
     """Flames at continuous random depths, heights and lateral positions, each in its own part of the image.
 
     Per flame: depth ``U(depth_range)`` (continuous: never on a grid); height
-    log-uniform in ``height_range`` capped at 85 % of the field's height at that depth;
+    log-uniform in ``height_range`` capped at 85 % of the field's height at that depth (and
+    its low end at half that cap);
     half-width of the base ``U(0.07, 0.12)`` of the height, at least
     :data:`MIN_HALF_WIDTH_MM`; base and centre uniform over the field (the flame inside
     the central 90 %); peak radiance ``U(0.5, 1.0)``. A flame whose box (in lenslets,
@@ -71,6 +80,8 @@ def random_depth_scene(camera: PlenopticCamera, rng: np.random.Generator, *, n_f
     texels_per_lenslet : float
     max_tries : int
         Draws per flame before giving up.
+    min_half_width_mm : float
+        Smallest half-width of a flame's base (mm).
 
     Returns
     -------
@@ -95,8 +106,9 @@ def random_depth_scene(camera: PlenopticCamera, rng: np.random.Generator, *, n_f
         for _ in range(max_tries):
             dz = float(rng.uniform(lo, hi))
             fh, fw = camera.field_of_view_mm(dz)
-            H = float(math.exp(rng.uniform(math.log(h_lo), math.log(min(h_hi, 0.85 * fh)))))
-            hw = max(float(rng.uniform(0.07, 0.12)) * H, MIN_HALF_WIDTH_MM)
+            h_top = min(h_hi, 0.85 * fh)
+            H = float(math.exp(rng.uniform(math.log(min(h_lo, 0.5 * h_top)), math.log(h_top))))
+            hw = max(float(rng.uniform(0.07, 0.12)) * H, min_half_width_mm)
             base = float(rng.uniform(-0.45 * fh, 0.45 * fh - H))
             cx = float(rng.uniform(-0.45 * fw + hw, 0.45 * fw - hw))
             level = float(rng.uniform(0.5, 1.0))
@@ -110,6 +122,66 @@ def random_depth_scene(camera: PlenopticCamera, rng: np.random.Generator, *, n_f
         layers.append(layer)
         objects.append(obj)
     return Scene("depth", tuple(layers), FLAME_EFFECTS, tuple(objects))
+
+
+def camera_depth_ranges(camera: PlenopticCamera) -> dict:
+    """:func:`random_depth_scene`'s ranges for any camera: the paper camera's, scaled.
+
+    - depths: the slopes of :data:`PAPER_SLOPE_RANGE` times ``min(14 / (N - 1), min(R, C) / 90)``
+      (``N`` views, ``R x C`` lenslets), so that a flame's parallax across the aperture takes
+      the same share of the field as on the paper's camera (never more parallax than its 15
+      views give); a far slope beyond 80 % of the slope at infinity is clipped there, and the
+      depths to within :data:`MAX_DEPTH_SHARE` of the focus distance (a camera of many views
+      and few lenslets images far deeper than it resolves: its flames stay near focus);
+    - heights and the smallest half-width: the paper's in lenslet footprints at the focus
+      distance (``pitch z_f / d``): 2-25 mm and 0.4 mm are 15.2-190 and 3.04 footprints.
+
+    On the paper camera: depths -15.0 .. +25.0 mm, heights 2-25 mm, half-width 0.4 mm.
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+
+    Returns
+    -------
+    dict
+        ``depth_range`` (near, far) mm from the focus distance, ``height_range`` (mm),
+        ``min_half_width_mm`` (mm): :func:`random_depth_scene`'s keyword arguments.
+    """
+    n, R, C = camera.pixels_per_lenslet, camera.n_rows, camera.n_cols
+    scale = min(14.0 / max(n - 1, 1), min(R, C) / 90.0)
+    s_inf = camera.slope_for_depth(1e6 * camera.focus_distance_mm)
+    lo_s, hi_s = (v * scale for v in PAPER_SLOPE_RANGE)
+    if s_inf > 0:
+        hi_s = min(hi_s, 0.8 * s_inf)
+    foot = camera.mla_pitch_mm * camera.focus_distance_mm / camera.mla_distance_mm / PAPER_FOOTPRINT_MM
+    reach = MAX_DEPTH_SHARE * camera.focus_distance_mm
+    return dict(depth_range=(max(camera.depth_for_slope(lo_s), -reach), min(camera.depth_for_slope(hi_s), reach)),
+                height_range=tuple(v * foot for v in HEIGHT_RANGE_MM), min_half_width_mm=MIN_HALF_WIDTH_MM * foot)
+
+
+def camera_depth_scene(camera: PlenopticCamera, rng: np.random.Generator, *, n_flames: int | None = None,
+                       texels_per_lenslet: float = 3.0) -> Scene:
+    """:func:`random_depth_scene` with :func:`camera_depth_ranges`: flames at random depths that any
+    camera can image and resolve (``lf-flame simulate --scene depth``). Without ``n_flames``,
+    2-4 are drawn, and one fewer (down to one) while a small field has no room for them.
+
+    Raises
+    ------
+    ValueError
+        As :func:`random_depth_scene`.
+    """
+    ranges = camera_depth_ranges(camera)
+    if n_flames is not None:
+        return random_depth_scene(camera, rng, n_flames=n_flames, texels_per_lenslet=texels_per_lenslet, **ranges)
+    n = int(rng.integers(2, 5))
+    while True:
+        try:
+            return random_depth_scene(camera, rng, n_flames=n, texels_per_lenslet=texels_per_lenslet, **ranges)
+        except ValueError as e:
+            if n == 1 or not str(e).startswith("no room"):
+                raise
+            n -= 1
 
 
 def behind_scene(camera: PlenopticCamera, rng: np.random.Generator, separation_mm: float, *,

@@ -48,7 +48,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
                   "ExactOperator", "emission_operator"],
         "fourier": ["FourierSystem", "fourier_system", "admm_system", "solve_admm", "admm_knobs", "admm_subsamples",
                     "relative_noise", "backprojection_weight", "coarse_operator"],
-        "files": ["save_reconstruction", "load_reconstruction", "plot_reconstruction"],
+        "files": ["save_reconstruction", "load_reconstruction", "plot_reconstruction", "reconstruction_figure"],
         "operator": ["ADJOINT_BLOCKS", "RAY_TABLE_MAX_BYTES", "plane_grid", "EmissionOperator",
                      "normalised_adjoint", "check_views"],
         "resolution": ["FEATURE_SIZES_MM", "CONDITIONS", "AXES", "MAX_PLANES", "DepthResolution", "stack_depths",
@@ -57,7 +57,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "scoring": ["score_planes", "score_flames"],
         "solvers": ["SOLVERS", "DEFAULT_ITERS", "DEFAULT_TV", "PD_RESIDUAL_EVERY", "DEFAULT_SOLVER", "EXACT_SOLVER",
                  "Reconstruction", "lipschitz_bound", "reconstruct"],
-        "truth": ["resample_layer", "scene_truth", "depth_shares", "bin_planes"],
+        "truth": ["resample_layer", "scene_truth", "depth_shares", "truth_depths", "bin_planes"],
         "volume": ["volume_depths", "solve_volume"],
     },
 )

@@ -130,20 +130,46 @@ def decoded_truth(scene: Scene, op: ExactOperator, rotation_deg: float = 0.0, ce
     -------
     ndarray of shape ``op.dims`` (P, rows, cols), float64.
     """
-    P, R, C = op.dims
-    cam = op.camera
-    s = getattr(op, "subsamples", 1)                            # samples per lenslet and axis
+    truth = np.zeros(op.dims)
+    s = getattr(op, "subsamples", 1)
+    for L in scene.layers:
+        for p, wgt in depth_shares(op.depths_mm, L.depth_offset_mm):
+            truth[p] += wgt * decoded_plane_truth(L, op.camera, op.depths_mm[p], op.dims[1:], rotation_deg,
+                                                  centre_lenslets, s)
+    return truth
+
+
+def decoded_plane_truth(layer, camera, depth_mm: float, shape, rotation_deg: float = 0.0, centre_lenslets=(0.0, 0.0),
+                        subsamples: int = 1) -> np.ndarray:
+    """One layer's emission on the grid of a decoded plane at ``depth_mm`` (the layer wherever it
+    stands: :func:`decoded_truth`'s samples and values for one plane, without sharing it between
+    planes).
+
+    Parameters
+    ----------
+    layer : lf_flame.simulate.scenes.Layer
+    camera : PlenopticCamera
+        The decoded views' camera.
+    depth_mm : float
+        The plane's depth (mm from the focus distance).
+    shape : (int, int)
+        The plane's grid (rows, cols): ``subsamples`` samples per lenslet.
+    rotation_deg, centre_lenslets, subsamples
+        As :func:`decoded_truth`.
+
+    Returns
+    -------
+    ndarray of shape ``shape``, float64.
+    """
+    R, C = shape
+    s = subsamples
     ar, ac = np.meshgrid((np.arange(R) - (R - 1) / 2) / s + centre_lenslets[0],
                          (np.arange(C) - (C - 1) / 2) / s + centre_lenslets[1], indexing="ij")
     t = math.radians(rotation_deg)
     q_r = math.cos(t) * ar + math.sin(t) * ac                   # sensor-frame offsets (rows, cols), pitches
     q_c = -math.sin(t) * ar + math.cos(t) * ac
-    truth = np.zeros(op.dims)
-    for L in scene.layers:
-        for p, wgt in depth_shares(op.depths_mm, L.depth_offset_mm):
-            scale = cam.mla_pitch_mm * cam.object_distance_mm(op.depths_mm[p]) / cam.mla_distance_mm
-            truth[p] += wgt * _cell_means(L, -q_r * scale, q_c * scale, scale / (2 * s))
-    return truth
+    scale = camera.mla_pitch_mm * camera.object_distance_mm(depth_mm) / camera.mla_distance_mm
+    return _cell_means(layer, -q_r * scale, q_c * scale, scale / (2 * s))
 
 
 def fit_data(light_field, op: ExactOperator):

@@ -3,8 +3,8 @@
 :func:`save_reconstruction` writes the planes, their depths (mm), the grid's mm per
 sample, the solver's settings and its residual per iteration, atomically;
 :func:`load_reconstruction` reads them back and refuses a file that is not one;
-:func:`plot_reconstruction` draws each plane beside its refocused plane and the truth
-(for a volume: maximum-intensity projections and slices).
+:func:`reconstruction_figure` draws each plane beside its refocused plane and the truth
+(for a volume: maximum-intensity projections and slices), :func:`plot_reconstruction` writes it.
 """
 from __future__ import annotations
 
@@ -30,19 +30,23 @@ def save_reconstruction(path, rec: Reconstruction, arrays=None, **attrs) -> None
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".part")
-    with h5py.File(tmp, "w") as f:
-        f["planes"] = rec.planes.astype(np.float32)
-        f["depths_mm"] = np.asarray(rec.depths_mm, np.float64)
-        f["sample_mm"] = np.asarray(rec.sample_mm, np.float64)
-        f["residuals"] = np.asarray(rec.residuals, np.float64)
-        f.attrs["solver"] = rec.solver
-        f.attrs["settings"] = json.dumps(rec.settings)
-        f.attrs["time_s"] = rec.time_s
-        for k, v in (arrays or {}).items():
-            f[f"extra/{k}"] = np.asarray(v)
-        for k, v in attrs.items():
-            f.attrs[k] = v if isinstance(v, (int, float, str)) else json.dumps(v, default=float)
-    os.replace(tmp, path)
+    try:
+        with h5py.File(tmp, "w") as f:
+            f["planes"] = rec.planes.astype(np.float32)
+            f["depths_mm"] = np.asarray(rec.depths_mm, np.float64)
+            f["sample_mm"] = np.asarray(rec.sample_mm, np.float64)
+            f["residuals"] = np.asarray(rec.residuals, np.float64)
+            f.attrs["solver"] = rec.solver
+            f.attrs["settings"] = json.dumps(rec.settings)
+            f.attrs["time_s"] = rec.time_s
+            for k, v in (arrays or {}).items():
+                f[f"extra/{k}"] = np.asarray(v)
+            for k, v in attrs.items():
+                f.attrs[k] = v if isinstance(v, (int, float, str)) else json.dumps(v, default=float)
+        os.replace(tmp, path)
+    except BaseException:   # a full disk, Ctrl-C: no half-written file left (tomo does not import config's helper)
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def load_reconstruction(path) -> Reconstruction:
@@ -88,7 +92,14 @@ def _side_mesh(depths, sample_h, rows):
     return np.broadcast_to(edges, (rows + 1, len(edges))), (rows / 2 - r) * h[None, :]
 
 
-def plot_reconstruction(path, rec: Reconstruction, refocused=None, truth=None, title: str = "") -> None:
+def plot_reconstruction(path, rec: Reconstruction, refocused=None, truth=None, title: str = "",
+                        truth_depths_mm=None) -> None:
+    """Write :func:`reconstruction_figure` to ``path`` (PNG), atomically."""
+    from ..measure.figures import save_figure
+    save_figure(reconstruction_figure(rec, refocused, truth, title, truth_depths_mm), path, dpi=110)
+
+
+def reconstruction_figure(rec: Reconstruction, refocused=None, truth=None, title: str = "", truth_depths_mm=None):
     """Each plane beside its refocused plane and, when known, the truth (one row per plane).
 
     Every panel is in object-space mm (x right, y up; each plane on its own grid, centred on
@@ -103,18 +114,23 @@ def plot_reconstruction(path, rec: Reconstruction, refocused=None, truth=None, t
 
     Parameters
     ----------
-    path : str or Path
-        The figure (PNG).
     rec : Reconstruction
     refocused, truth : ndarray of shape (P, rows, cols) or None
         The planes refocused at the same depths on the same grid, and the true emission
         (:func:`lf_flame.tomo.truth.scene_truth`).
     title : str
         The figure's title (default: the solver, its iterations and time).
+    truth_depths_mm : sequence of P float or None
+        The true depth (mm) of what each truth plane holds (:func:`lf_flame.tomo.truth.truth_depths`),
+        which titles the truth's panels; None (or NaN): the plane's depth. Depths are written
+        with their sign and never as ``-0.0`` (:func:`lf_flame.measure.figures.signed`).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
     """
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
+    from ..measure.figures import add_colorbar, show_plane, signed
     cols = [("reconstructed", np.asarray(rec.planes))]
     cols += [("refocused", np.asarray(refocused))] if refocused is not None else []
     cols += [("truth", np.asarray(truth))] if truth is not None else []
@@ -131,16 +147,14 @@ def plot_reconstruction(path, rec: Reconstruction, refocused=None, truth=None, t
     P = len(rec.planes)
     if P <= 6:
         ext = _plane_extents(rec)
-        fig, ax = plt.subplots(P, len(cols), figsize=(2.4 * len(cols) + 1.0, 3.7 * P), squeeze=False,
-                               layout="constrained")
+        fig = Figure(figsize=(2.4 * len(cols) + 1.0, 3.7 * P), layout="constrained")
+        ax = fig.subplots(P, len(cols), squeeze=False)
+        true_d = np.full(P, np.nan) if truth_depths_mm is None else np.asarray(truth_depths_mm, np.float64)
         for k in range(P):
             for j, (name, st) in enumerate(cols):
-                images[name] = ax[k, j].imshow(st[k], extent=ext[k], **style(name))
-                ax[k, j].set_title(f"{name} {rec.depths_mm[k]:+.1f} mm", fontsize=8)
-                ax[k, j].tick_params(labelsize=6)
-                if j == 0:
-                    ax[k, j].set_ylabel("y (mm)", fontsize=7)
-                ax[k, j].set_xlabel("x (mm)", fontsize=7)
+                d = true_d[k] if name == "truth" and np.isfinite(true_d[k]) else rec.depths_mm[k]
+                images[name] = show_plane(ax[k, j], st[k], ext[k], title=f"{name} {signed(d)} mm", ylabel=j == 0,
+                                          **style(name))
     else:
         order = np.argsort(rec.depths_mm)
         depths = np.asarray(rec.depths_mm, np.float64)[order]
@@ -156,7 +170,8 @@ def plot_reconstruction(path, rec: Reconstruction, refocused=None, truth=None, t
         hi = np.clip(lo + 1, 0, ncol - 1)
         f = np.clip(cpos - lo, 0.0, 1.0)
         inside = (cpos >= -0.5) & (cpos <= ncol - 0.5)
-        fig, ax = plt.subplots(len(cols), 4, figsize=(13.5, 3.6 * len(cols)), squeeze=False, layout="constrained")
+        fig = Figure(figsize=(13.5, 3.6 * len(cols)), layout="constrained")
+        ax = fig.subplots(len(cols), 4, squeeze=False)
         for j, (name, st) in enumerate(cols):
             st = st[order]
             images[name] = ax[j, 0].imshow(st.max(axis=0), **style(name))
@@ -182,9 +197,6 @@ def plot_reconstruction(path, rec: Reconstruction, refocused=None, truth=None, t
     for name, label in (("reconstructed", "emission (the scene's radiance units)"),
                         ("refocused", "refocused (the scene's radiance units)")):
         if name in images:
-            cb = fig.colorbar(images[name], ax=ax, shrink=0.45)
-            cb.set_label(label, fontsize=8)
-            cb.ax.tick_params(labelsize=7)
+            add_colorbar(fig, images[name], ax, label, shrink=0.45)
     fig.suptitle(title or f"{rec.solver}, {rec.settings.get('iters', 0)} iterations, {rec.time_s:.2f} s", fontsize=9)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    return fig

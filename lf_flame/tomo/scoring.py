@@ -57,15 +57,19 @@ def score_planes(planes, truth, camera: PlenopticCamera, depths_mm, objects=None
     return df
 
 
-def _flame_truth(layer, camera, depth_mm, shape):
-    """A flame's emission on the grid of a plane at ``depth_mm`` (:func:`resample_layer`)."""
+def _flame_truth(layer, camera, depth_mm, shape, frame=None):
+    """A flame's emission on the grid of a plane at ``depth_mm`` (:func:`resample_layer`; decoded
+    views' planes, ``frame`` given: :func:`~lf_flame.tomo.decoded.decoded_plane_truth`)."""
+    if frame is not None:
+        from .decoded import decoded_plane_truth
+        return decoded_plane_truth(layer, camera, depth_mm, shape, frame.rotation_deg, frame.centre_lenslets)
     from .operator import plane_grid
     from .truth import resample_layer
     return resample_layer(layer, shape, plane_grid(camera, depth_mm))
 
 
 def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=None, emission: bool = True,
-                 near_mm: float = 1.0, time_s=float("nan"), **labels):
+                 near_mm: float = 1.0, time_s=float("nan"), frame=None, **labels):
     """The one scoring function of every route to flames at unknown depths, per flame (issue 36).
 
     Each flame of ``scene`` (layer ``k`` is flame ``k``, :mod:`lf_flame.simulate.scenes_depth`) is
@@ -111,6 +115,11 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
     near_mm : float
     time_s : float
         The route's wall time for the light field.
+    frame : lf_flame.real.own_camera.DecodedFrame or None
+        For planes of decoded views (``camera`` their camera): where they lie in the scene's
+        object space (:func:`~lf_flame.tomo.decoded.decoded_plane_truth`); each flame's height
+        is then measured in the columns of its truth's region, 3 lenslets either side, as the
+        scene's ``roi`` counts lenslets of the camera that rendered it.
     **labels
         Columns added to every row.
 
@@ -149,7 +158,7 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
     true_d = [float(o["depth_offset_mm"]) for o in scene.objects]
     regions = []
     for L, dz in zip(scene.layers, true_d):
-        t = _flame_truth(L, camera, dz, shape)
+        t = _flame_truth(L, camera, dz, shape, frame)
         regions.append(ndimage.binary_dilation(t > 0.02 * t.max(), iterations=2))
     est = [np.nan] * len(true_d)
     footprint = [None] * len(true_d)
@@ -181,11 +190,15 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
                    height_mm_found=np.nan, height_err_mm=np.nan, height_flags="", height_failure="", time_s=time_s)
         if np.isfinite(est[k]):
             p = int(np.argmin(np.abs(d - est[k])))
-            t = _flame_truth(L, camera, float(d[p]), shape)
+            t = _flame_truth(L, camera, float(d[p]), shape, frame)
             row.update(plane_mm=float(d[p]), rel_err=float(np.linalg.norm((x[p] - t)[M]) / np.linalg.norm(t[M])))
             try:
                 plane = xp[p] if footprint[k] is None else xp[p] * footprint[k]
-                m = measure_flame(plane, camera, float(d[p]), columns=tuple(scene.objects[k]["roi"][2:4]),
+                cols = tuple(scene.objects[k]["roi"][2:4])
+                on = np.flatnonzero(M.any(axis=0))
+                if frame is not None and on.size:
+                    cols = (max(int(on[0]) - 3, 0), min(int(on[-1]) + 4, shape[1]))
+                m = measure_flame(plane, camera, float(d[p]), columns=cols,
                                   **(EMISSION_MEASURE if emission else {}))
                 row.update(height_mm_found=m.height_mm, height_err_mm=m.height_mm - row["height_mm"],
                            height_flags=";".join(m.flags))

@@ -91,6 +91,35 @@ def depth_shares(depths_mm, depth_mm: float) -> list:
     return [(int(order[k - 1]), 1.0 - f), (int(order[k]), f)]
 
 
+def truth_depths(scene: Scene, depths_mm) -> np.ndarray:
+    """The true depth of what each plane's truth (:func:`scene_truth`) holds: the mean depth of the
+    scene's layers given to it, weighted by their shares (:func:`depth_shares`) and their light.
+
+    A plane at a found depth (``reconstruct --depths auto``) holds the layer it was found for:
+    its truth is titled with that layer's depth, not the found one.
+
+    Parameters
+    ----------
+    scene : Scene
+    depths_mm : sequence of P float
+        The planes' depths (mm).
+
+    Returns
+    -------
+    ndarray of shape (P,), float64
+        mm; NaN for a plane given no light.
+    """
+    P = len(depths_mm)
+    light, moment = np.zeros(P), np.zeros(P)
+    for L in scene.layers:
+        total = float(np.sum(L.radiance, dtype=np.float64)) * L.size_mm[0] * L.size_mm[1] / L.radiance.size
+        for p, wgt in depth_shares(depths_mm, L.depth_offset_mm):
+            light[p] += wgt * total
+            moment[p] += wgt * total * L.depth_offset_mm
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(light > 0, moment / np.where(light > 0, light, 1.0), np.nan)
+
+
 def bin_planes(planes, subsamples: int) -> np.ndarray:
     """Planes on a grid of ``subsamples x subsamples`` samples per lenslet, averaged back to one per lenslet.
 

@@ -1,0 +1,352 @@
+"""What a new user meets first on the command line: bad input files, outputs that cannot be
+written, Ctrl-C, options out of range, leftovers of a failed run. One exit status for bad input
+(2), one for a failure while running (1), 130 for Ctrl-C; each with one line naming the problem."""
+import json
+import os
+import stat
+import types
+
+import h5py
+import numpy as np
+import pytest
+
+import lf_flame.cli as cli
+from lf_flame.cli import main
+from lf_flame.cli._io import check_output
+
+
+def _one_error_line(err: str) -> str:
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+@pytest.fixture()
+def damaged(tmp_path):
+    """Empty and truncated .npz, .npy and .h5 files."""
+    good = tmp_path / "good.npz"
+    np.savez(good, raw=np.random.default_rng(0).random((60, 60)))
+    np.save(tmp_path / "good.npy", np.ones((60, 60)))
+    with h5py.File(tmp_path / "good.h5", "w") as f:
+        f["views"] = np.ones((3, 3, 20, 20), np.float32)
+    files = {}
+    for name in ("good.npz", "good.npy", "good.h5"):
+        data = (tmp_path / name).read_bytes()
+        ext = name.split(".")[1]
+        (tmp_path / f"empty.{ext}").write_bytes(b"")
+        (tmp_path / f"cut.{ext}").write_bytes(data[: len(data) // 2])
+        files[ext] = (tmp_path / f"empty.{ext}", tmp_path / f"cut.{ext}")
+    return files
+
+
+def test_damaged_inputs_are_refused_in_one_line_naming_the_file(damaged, tmp_path, capsys):
+    """Empty or truncated .npz/.npy (NumPy's EOFError, zipfile's BadZipFile, a reshape) and .h5
+    files (HDF5's OSError) given to refocus, reconstruct and sequence: exit 2, one line naming
+    the file and what is wrong with it, no traceback, nothing written."""
+    out = tmp_path / "out"
+    cases = [(["refocus", str(p), "--slope", "0", "--out", str(out / "r.npz")], p)
+             for p in (*damaged["npz"], *damaged["npy"])]
+    cases += [(["reconstruct", str(p), "--depth", "0", "--out", str(out / "r.h5")], p) for p in damaged["h5"]]
+    cases += [(["sequence", str(p), "--depth", "0", "--fps", "100", "--out", str(out / "seq")], p)
+              for p in damaged["h5"]]
+    for argv, path in cases:
+        assert main(argv) == 2, argv
+        line = _one_error_line(capsys.readouterr().err)
+        assert line.startswith("error: ") and str(path) in line, line
+        assert ("empty" if path.stat().st_size == 0 else "truncated") in line, line
+    assert not out.exists()
+
+
+def test_a_missing_input_gives_2_before_any_work(tmp_path, capsys, monkeypatch):
+    """refocus, reconstruct, profiles, sequence and temperature: a missing input file is bad
+    input (exit 2, one line naming it), refused before any computation starts."""
+    import lf_flame.tomo.solvers as solvers
+
+    def no_work(*a, **k):
+        raise AssertionError("the work started")
+    monkeypatch.setattr(solvers, "reconstruct", no_work)
+    gone = tmp_path / "gone.npz"
+    out = tmp_path / "out"
+    for argv in (["refocus", str(gone), "--slope", "0", "--out", str(out / "r.npz")],
+                 ["reconstruct", str(gone), "--out", str(out / "r.h5")],
+                 ["reconstruct", str(tmp_path / "gone.h5"), "--out", str(out / "r.h5")],
+                 ["profiles", str(gone), "--out", str(out / "p")],
+                 ["sequence", str(tmp_path / "gone.h5"), "--depth", "0", "--out", str(out / "s")],
+                 ["temperature", str(gone), "--calibration", str(tmp_path / "bb.json"), "--out", str(out / "t.h5")]):
+        assert main(argv) == 2, argv
+        line = _one_error_line(capsys.readouterr().err)
+        assert "gone." in line and "not found" in line, line
+    assert not out.exists()
+
+
+def test_an_output_that_cannot_be_written_is_refused_before_the_work(tmp_path, capsys, monkeypatch):
+    """An output under a regular file, or in a folder that is not writable, is refused (exit 2,
+    one line naming the path) before the command runs; the check itself refuses an unwritable
+    folder (chmod: not as root, who may write anywhere)."""
+    ran = []
+    monkeypatch.setattr(cli, "cmd_temperature", lambda a: ran.append(a))
+    monkeypatch.setattr(cli, "cmd_reconstruct", lambda a: ran.append(a))
+    afile = tmp_path / "afile.txt"
+    afile.write_text("x")
+    for argv in (["temperature", "in.npz", "--calibration", "bb.json", "--out", str(afile / "t.h5")],
+                 ["reconstruct", "in.npz", "--out", str(afile / "deeper" / "r.h5")]):
+        assert main(argv) == 2
+        line = _one_error_line(capsys.readouterr().err)
+        assert f"cannot write {afile}" in line and f"{afile} is a file, not a folder" in line, line
+    monkeypatch.setattr(os, "access", lambda path, mode: False)      # as an unwritable folder looks
+    assert main(["reconstruct", "in.npz", "--out", str(tmp_path / "new" / "r.h5")]) == 2
+    assert f"the folder {tmp_path} is not writable" in capsys.readouterr().err
+    monkeypatch.undo()
+    assert ran == []
+    check_output(tmp_path / "new" / "deeper" / "r.h5")                 # creatable: accepted
+    check_output(tmp_path)                                             # an existing folder (sequence --out)
+    if os.geteuid() == 0:
+        pytest.skip("root may write into any folder: the chmod case needs another user")
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(stat.S_IRUSR | stat.S_IXUSR)
+    try:
+        with pytest.raises(ValueError, match="is not writable"):
+            check_output(locked / "r.h5")
+    finally:
+        locked.chmod(stat.S_IRWXU)
+
+
+def test_ctrl_c_ends_with_one_line_and_130(capsys, monkeypatch):
+    def interrupted(a):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(cli, "cmd_resolution", interrupted)
+    assert main(["resolution"]) == 130
+    assert _one_error_line(capsys.readouterr().err) == "interrupted"
+
+
+def test_failures_while_running_give_1_and_bad_input_2(capsys, monkeypatch):
+    """A disk full (OSError) or a runtime failure: exit 1 in one line; a command's own refusal
+    raised as SystemExit("message"): exit 2."""
+    import errno
+
+    def failing(exc):
+        def cmd(a):
+            raise exc
+        return cmd
+    for exc, code, text in ((OSError(errno.ENOSPC, "No space left on device", "out.h5"), 1,
+                             "error: out.h5: No space left on device"),
+                            (RuntimeError("the solver diverged"), 1, "error: the solver diverged"),
+                            (SystemExit("error: give RAW"), 2, "error: give RAW"),
+                            (ValueError("bad\nvalue"), 2, "error: bad value")):
+        monkeypatch.setattr(cli, "cmd_resolution", failing(exc))
+        assert main(["resolution"]) == code
+        assert _one_error_line(capsys.readouterr().err) == text
+
+
+def test_an_interrupted_write_leaves_no_temporary_file(tmp_path, monkeypatch):
+    """Ctrl-C while a reconstruction's HDF5 or a text table is written: neither the output nor
+    its temporary file is left (an older text file is kept)."""
+    from lf_flame.config import atomic_write_text
+    from lf_flame.tomo.solvers import Reconstruction
+    from lf_flame.tomo.files import save_reconstruction
+
+    class Stop:
+        def __float__(self):
+            raise KeyboardInterrupt
+    rec = Reconstruction(planes=np.zeros((1, 2, 2)), depths_mm=np.zeros(1), sample_mm=np.ones((1, 2)),
+                         residuals=[], solver="adjoint", settings={}, time_s=0.0)
+    with pytest.raises(KeyboardInterrupt):
+        save_reconstruction(tmp_path / "r.h5", rec, note=[Stop()])
+    assert list(tmp_path.iterdir()) == []
+    atomic_write_text(tmp_path / "t.md", "old")
+    real = type(tmp_path).write_text
+
+    def half_then_stop(self, text):
+        real(self, text[:2])
+        raise KeyboardInterrupt
+    monkeypatch.setattr(type(tmp_path), "write_text", half_then_stop)
+    with pytest.raises(KeyboardInterrupt):
+        atomic_write_text(tmp_path / "t.md", "new table")
+    monkeypatch.undo()
+    assert [p.name for p in tmp_path.iterdir()] == ["t.md"] and (tmp_path / "t.md").read_text() == "old"
+
+
+@pytest.mark.parametrize("argv, option, text", [
+    (["sequence", "x.h5", "--depth", "0", "--workers", "0", "--out", "o"], "--workers", "whole number >= 1"),
+    (["dataset", "--data-config", "c.toml", "--scene", "shapes", "--slopes", "s.json", "--workers", "-2", "--out",
+      "d.h5"], "--workers", "whole number >= 1"),
+    (["reconstruct", "x.npz", "--iters", "0", "--out", "r.h5"], "--iters", "whole number >= 1"),
+    (["sequence", "x.h5", "--route", "reconstruct-admm", "--iters", "0", "--out", "o"], "--iters",
+     "whole number >= 1"),
+    (["temperature", "x.npz", "--calibration", "bb.json", "--min-fraction", "-1", "--out", "t.h5"], "--min-fraction",
+     "number from 0 to 1"),
+    (["temperature", "x.npz", "--calibration", "bb.json", "--min-fraction", "nan", "--out", "t.h5"],
+     "--min-fraction", "number from 0 to 1"),
+])
+def test_options_out_of_range_are_refused_by_their_own_name(argv, option, text, capsys):
+    """Refused while the arguments are parsed (exit 2, before any file is read), the message
+    naming the option as the user typed it (not the solver's internal 'fills and inner')."""
+    with pytest.raises(SystemExit) as e:
+        main(argv)
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert f"argument {option}: takes a {text}" in err and "fills" not in err, err
+
+
+def test_options_in_range_parse():
+    a = cli.build_parser().parse_args(["temperature", "x.npz", "--calibration", "c.json", "--min-fraction", "1",
+                                       "--out", "t.h5"])
+    assert a.min_fraction == 1.0
+    a = cli.build_parser().parse_args(["sequence", "x.h5", "--workers", "2", "--iters", "1", "--out", "o"])
+    assert (a.workers, a.iters) == (2, 1)
+
+
+def test_sequence_refuses_planes_outside_the_cameras_range(tmp_path, capsys, monkeypatch):
+    """``sequence --depth 500`` (or a slope of 5) is refused as reconstruct refuses it, naming
+    the camera's imaging range, before any frame is processed."""
+    import lf_flame.recordings.runner as runner
+    from lf_flame.optics.camera import PAPER_CAMERA
+    from lf_flame.real.lightfield import imaging_range_mm
+    monkeypatch.setattr(runner, "run", lambda *a, **k: pytest.fail("the run started"))
+    rec = tmp_path / "rec.h5"
+    with h5py.File(rec, "w") as f:
+        f["frames"] = np.zeros((2, 4, 4), np.uint16)
+        f.attrs["fps"] = 100.0
+    lo, hi = imaging_range_mm(PAPER_CAMERA)
+    for planes, shown in ((["--depth", "500", "--depth", "0"], "+500"), (["--slope", "5"], "")):
+        assert main(["sequence", str(rec), *planes, "--out", str(tmp_path / "o")]) == 2
+        line = _one_error_line(capsys.readouterr().err)
+        assert f"planes at {shown}" in line and "lie outside what this camera can refocus" in line, line
+        assert f"({lo:+.3g} .. {hi:+.3g} mm" in line
+    assert not (tmp_path / "o").exists()
+
+
+class _Frames:
+    """A stand-in for SimulatedSource: 6 frames of 4 x 5 pixels, frame i filled with i / 10; it
+    counts the frames rendered and stops (Ctrl-C) at frame ``stop_at``."""
+
+    def __init__(self, seed=0, stop_at=None):
+        self.n_frames, self.seed, self.stop_at, self.rendered = 6, seed, stop_at, []
+        self.camera = types.SimpleNamespace(sensor_shape=(4, 5), to_json=lambda: '{"camera": 1}')
+        self.sequence = types.SimpleNamespace(fps=100.0, to_dict=lambda: {"seed": seed})
+
+    def identity(self):
+        return dict(kind="simulated", sequence={"seed": self.seed}, rays_per_pixel=1)
+
+    def raw(self, i):
+        if i == self.stop_at:
+            raise KeyboardInterrupt
+        self.rendered.append(i)
+        return np.full((4, 5), (i + 1) / 10, np.float32)
+
+
+def test_simulate_sequence_resumes_its_partial_file(tmp_path, capsys):
+    """A recording stopped at frame 3 leaves OUT.partial with frames 0-2; the same run again
+    renders only frames 3-5 (the file equals an uninterrupted run's), a run of other settings
+    starts over and says so."""
+    from lf_flame.recordings.sources import write_frames
+    out = tmp_path / "rec.h5"
+    with pytest.raises(KeyboardInterrupt):
+        write_frames(out, _Frames(stop_at=3), progress=False)
+    partial = tmp_path / "rec.h5.partial"
+    assert not out.exists() and partial.exists()
+    src = _Frames()
+    write_frames(out, src, progress=False)
+    assert src.rendered == [3, 4, 5] and not partial.exists()
+    assert "resuming, 3 of 6 frames already written" in capsys.readouterr().out
+    clean = _Frames()
+    write_frames(tmp_path / "clean.h5", clean, progress=False)
+    with h5py.File(out) as f, h5py.File(tmp_path / "clean.h5") as g:
+        assert np.array_equal(f["frames"][:], g["frames"][:]) and "done" not in f
+        assert dict(f.attrs) == dict(g.attrs)
+    with pytest.raises(KeyboardInterrupt):
+        write_frames(out, _Frames(stop_at=2), progress=False)
+    other = _Frames(seed=1)
+    write_frames(out, other, progress=False)
+    assert other.rendered == list(range(6)) and "other settings" in capsys.readouterr().out
+
+
+def test_a_fixed_recording_is_run_again_in_the_folder_of_its_failed_run(tmp_path, capsys, monkeypatch):
+    """A run that failed on a bad frame leaves job.json and the chunks done; once the recording
+    is fixed (same path, new size or time) the rerun starts over with a message and removes the
+    stale chunks; other settings in a folder holding another run's chunks are still refused."""
+    import lf_flame.recordings.runner as runner
+    from lf_flame.optics.camera import PAPER_CAMERA
+    from lf_flame.recordings.job import SequenceJob
+    from lf_flame.recordings.sources import open_source
+    rec = tmp_path / "rec.h5"
+    with h5py.File(rec, "w") as f:
+        f["frames"] = np.zeros((4, 4, 4), np.float32)
+    out = tmp_path / "out"
+
+    def job(depth=0.0):
+        src, _ = open_source(rec)
+        return SequenceJob(src, PAPER_CAMERA, 100.0, (depth,), (PAPER_CAMERA.slope_for_depth(depth),), (None,),
+                           chunk=2)
+
+    calls = []
+
+    def chunk(c, j):
+        calls.append(c)
+        if c == 1:
+            raise ValueError("frame 2: frame holds NaN or inf")
+        return dict(rows=[dict(frame=i, plane=0) for i in (2 * c, 2 * c + 1)], read_s=0, refocus_s=0, measure_s=0)
+    monkeypatch.setattr(runner, "process_chunk", chunk)
+    monkeypatch.setattr(runner, "_write_csv", lambda path, df: path.write_text("frame\n"))
+    with pytest.raises(ValueError, match="frame 2"):
+        runner.run(job(), out, progress=False)
+    assert (out / "job.json").exists() and (out / "parts" / "chunk-00000.csv").exists()
+    with h5py.File(rec, "r+") as f:                      # the frame fixed (and the file rewritten)
+        f["extra"] = np.ones(1000)
+    calls.clear()
+    capsys.readouterr()
+    with pytest.raises(ValueError, match="frame 2"):     # it starts over: chunk 0 again, then the stub fails
+        runner.run(job(), out, progress=False)
+    assert calls == [0, 1]
+    assert f"{rec} changed since the run in {out}" in capsys.readouterr().out
+    with pytest.raises(ValueError, match="holds a run with other settings"):
+        runner.run(job(depth=5.0), out, progress=False)
+
+
+def test_a_failed_run_without_a_chunk_done_does_not_block_another(tmp_path, capsys):
+    from lf_flame.recordings.runner import _start_over_or_refuse
+    (tmp_path / "parts").mkdir()
+    old = json.dumps(dict(source=dict(kind="hdf5", path="/a.h5", size=1, mtime=1.0), depths_mm=[0.0]))
+    new = json.dumps(dict(source=dict(kind="hdf5", path="/b.h5", size=1, mtime=1.0), depths_mm=[0.0]))
+    _start_over_or_refuse(tmp_path, old, new)
+    assert "no chunk done: starting over" in capsys.readouterr().out
+    (tmp_path / "parts" / "chunk-00000.csv").write_text("frame\n")
+    with pytest.raises(ValueError, match="other settings"):
+        _start_over_or_refuse(tmp_path, old, new)
+    assert (tmp_path / "parts" / "chunk-00000.csv").exists()
+
+
+def test_calibration_json_gets_the_mode_of_a_plain_open(tmp_path):
+    """write_calibration's file has the permissions a plain open() gives under the umask
+    (0644 under 022, not a temporary file's 0600) and leaves no temporary file."""
+    from lf_flame.measure import pyrometry as P
+    from lf_flame.optics.colour import library_sensor
+    nikon = library_sensor()
+    cal = P.fit_calibration(nikon, [2000.0], [float(P.model_ratio(nikon, 2000.0, alpha=0.0))])
+    old = os.umask(0o022)
+    try:
+        path = P.write_calibration(tmp_path / "bb.json", cal)
+        plain = tmp_path / "plain.json"
+        plain.write_text("{}")
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE(path.stat().st_mode) == stat.S_IMODE(plain.stat().st_mode) == 0o644
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bb.json", "plain.json"]
+    assert P.load_calibration(path) == cal
+    (tmp_path / "bad.json").write_text("")
+    with pytest.raises(ValueError, match="bad.json is not an lf_flame temperature calibration"):
+        P.load_calibration(tmp_path / "bad.json")
+
+
+def test_reading_names_the_damaged_file(tmp_path):
+    from lf_flame.config import DamagedFileError, reading
+    p = tmp_path / "x.npz"
+    p.write_bytes(b"PK\x03\x04 not a whole zip")
+    with pytest.raises(DamagedFileError, match=r"x.npz is not a readable .npz file: it is truncated or damaged"):
+        with reading(p, ".npz file"):
+            np.load(p)
+    with pytest.raises(FileNotFoundError):                 # passes as it is: main says 'not found'
+        with reading(tmp_path / "gone.npz"):
+            np.load(tmp_path / "gone.npz")
+    assert issubclass(DamagedFileError, ValueError)
