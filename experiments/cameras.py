@@ -266,6 +266,7 @@ def main(argv=None) -> int:
     ap.add_argument("--rays", type=int, default=48, help="rays per pixel of the scenes' renders")
     ap.add_argument("--only", default=None, help="comma-separated camera names (default: all)")
     ap.add_argument("--quick", action="store_true", help="2 scenes, 16 rays: a check that it runs")
+    ap.add_argument("--seed0", type=int, default=SEED0, help="first scene seed (validation runs: another one)")
     a = ap.parse_args(argv)
     if a.quick:
         a.scenes, a.rays = 2, 16
@@ -274,7 +275,7 @@ def main(argv=None) -> int:
     flames, runs, facts = [], [], {}
     for name in names:
         print(f"camera {name}", flush=True)
-        rows, cmd_rows, f = run_camera(name, CAMERAS[name], a.cache, [SEED0 + i for i in range(a.scenes)], a.rays)
+        rows, cmd_rows, f = run_camera(name, CAMERAS[name], a.cache, [a.seed0 + i for i in range(a.scenes)], a.rays)
         flames += rows
         runs += cmd_rows
         facts[name] = f
@@ -285,7 +286,8 @@ def main(argv=None) -> int:
     atomic_write_text(a.out / "cameras_runs.csv", runs.to_csv(index=False, float_format="%.4g"))
     plot(flames, a.out / "cameras.png")
     cmd = "python experiments/cameras.py --out " + str(a.out) + ("" if a.scenes == 6 else f" --scenes {a.scenes}") + \
-        ("" if a.rays == 48 else f" --rays {a.rays}") + (f" --only {a.only}" if a.only else "")
+        ("" if a.rays == 48 else f" --rays {a.rays}") + (f" --only {a.only}" if a.only else "") + \
+        ("" if a.seed0 == SEED0 else f" --seed0 {a.seed0}")
     failed = runs[runs.exit_code != 0]
     md = ["# Cameras, end to end from the command line", "",
           f"`{cmd}` ({time.perf_counter() - t0:.0f} s on {provenance()['cpu_count']} cores). Per camera: its white "
@@ -304,7 +306,7 @@ def main(argv=None) -> int:
     md += ["A colour (Bayer) camera is not in the matrix: camera files do not yet name a colour filter array.", ""]
     atomic_write_text(a.out / "cameras.md", "\n".join(md))
     atomic_write_text(a.out / "cameras.json", json.dumps(dict(
-        command=cmd, scenes=a.scenes, rays=a.rays, seeds=[SEED0 + i for i in range(a.scenes)], snr_db=SNR_DB,
+        command=cmd, scenes=a.scenes, rays=a.rays, seeds=[a.seed0 + i for i in range(a.scenes)], snr_db=SNR_DB,
         bars=BARS, cameras=facts, wall_s=time.perf_counter() - t0, provenance=provenance()), indent=1, default=float))
     print(tab.to_string())
     return 0

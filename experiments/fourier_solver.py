@@ -62,7 +62,8 @@ from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.refocus.shift_and_sum import aperture_mask, focal_stack, raw_to_views  # noqa: E402
 from lf_flame.routes import measure_settings  # noqa: E402
-from lf_flame.simulate import scenes, tracer  # noqa: E402
+from lf_flame.simulate import tracer  # noqa: E402
+from lf_flame.simulate.scenes_volume import volume_flame_scene  # noqa: E402
 from lf_flame.tomo import defaults, fourier  # noqa: E402
 from lf_flame.tomo.exact import ExactOperator  # noqa: E402
 from lf_flame.tomo.operator import EmissionOperator  # noqa: E402
@@ -336,7 +337,7 @@ def timing(cam, rays, cache, repeats):
 
 def dense(cam, plane_counts=DENSE_P):
     rng = np.random.default_rng(R.TEST_SEEDS[0])
-    scene = scenes.volume_flame_scene(cam, rng)
+    scene = volume_flame_scene(cam, rng)
     views = raw_to_views(tracer.render(cam, scene, 16, R.TEST_SEEDS[0]), cam.pixels_per_lenslet)
     rows = []
     for P in plane_counts:

@@ -44,6 +44,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_refocus import _times  # noqa: E402
 
 from lf_flame.simulate import scenes  # noqa: E402
+from lf_flame.simulate.scenes_volume import volume_flame_scene  # noqa: E402
 from lf_flame.simulate import tracer as simulate
 from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
@@ -81,7 +82,7 @@ def build_scene(kind: str, cam, seed: int):
     if kind == "overlap":
         return scenes.overlap_scene(cam, rng)
     if kind == "volume":
-        return scenes.volume_flame_scene(cam, rng)
+        return volume_flame_scene(cam, rng)
     raise ValueError(kind)
 
 

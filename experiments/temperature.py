@@ -23,8 +23,8 @@ blackbody check), ``<out>/temperature.md`` (the bars and the table), ``<out>/tem
   own pixels on a 2 x 2 grid per lenslet, re-imaged and solved again on the other channel's
   pixels (both channels through both sampling patterns), binned to the lenslets, with the
   admm knobs ``MATCHED_KNOBS`` of the light field's noise regime and the ratio filtered by
-  ``MATCHED_RATIO_FILTER`` for that noise (:func:`lf_flame.tomo.colour.matched_channels`,
-  :func:`lf_flame.tomo.colour_ratio.filter_ratio`: averaged along the brightness contours when noisy, then
+  ``MATCHED_RATIO_FILTER`` for that noise (:func:`lf_flame.temperature.channels.matched_channels`,
+  :func:`lf_flame.temperature.ratio.filter_ratio`: averaged along the brightness contours when noisy, then
   a guided filter);
   ``admm-cfa``: the exact operator's admm on each channel's own pixels (the CFA complement
   as the missing-data mask); ``admm-cfa-smooth``: the same, both channels smoothed by a
@@ -61,7 +61,7 @@ import numpy as np
 import pandas as pd
 
 from lf_flame.config import atomic_write_text, provenance
-from lf_flame.measure import pyrometry as P
+from lf_flame.temperature import pyrometry as P
 from lf_flame.optics.camera import PAPER_CAMERA
 from lf_flame.optics.colour import library_sensor, mosaic
 from lf_flame.refocus.shift_and_sum import raw_to_views
@@ -69,10 +69,10 @@ from lf_flame.simulate import tracer
 from lf_flame.simulate.colour import render_colour
 from lf_flame.simulate.scenes_temperature import (BEHIND_PEAK_K, FLAME_PEAK_K, colour_behind_scene, colour_flame_scene,
                                                   furnace_scene)
-from lf_flame.tomo.colour import (CFA_FILLS as FILLS, CFA_LAM as LAM, CFA_TV as TV, MATCHED_KNOBS,
+from lf_flame.temperature.channels import (CFA_FILLS as FILLS, CFA_LAM as LAM, CFA_TV as TV, MATCHED_KNOBS,
                                   MATCHED_QUIET_NOISE, MATCHED_RATIO_FILTER, MATCHED_SUBSAMPLES, MATCHED_WIDE_NOISE,
                                   admm_channel, channel_emission, channel_views, colour_truth, route_operator)
-from lf_flame.tomo.colour_ratio import SMOOTH_SIGMA, smooth_planes
+from lf_flame.temperature.ratio import SMOOTH_SIGMA, smooth_planes
 from lf_flame.tomo.truth import bin_planes
 
 GAINS = (1.0, 1.25, 0.8)

@@ -1,6 +1,6 @@
 """Issue 37: what the matched route's accuracy costs in time, its admm knobs on validation scenes.
 
-``admm-cfa-matched`` (:func:`lf_flame.tomo.colour.matched_channels`, the 2 x 2 grid per lenslet,
+``admm-cfa-matched`` (:func:`lf_flame.temperature.channels.matched_channels`, the 2 x 2 grid per lenslet,
 binned to the lenslets) on the paper's four flames drawn with the validation seeds of
 ``temperature_grid.py`` (distinct from the scored 937000-937001), at ``--rays`` rays per pixel:
 
@@ -30,8 +30,8 @@ from temperature_grid import SEEDS  # noqa: E402
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
-from lf_flame.tomo.colour import MATCHED_KNOBS, MATCHED_SIGMA_NOISY, matched_channels  # noqa: E402
-from lf_flame.tomo.colour_ratio import smooth_planes  # noqa: E402
+from lf_flame.temperature.channels import MATCHED_KNOBS, MATCHED_SIGMA_NOISY, matched_channels  # noqa: E402
+from lf_flame.temperature.ratio import smooth_planes  # noqa: E402
 from lf_flame.tomo.truth import bin_planes  # noqa: E402
 
 FILLS, LAMS = (25, 100, 300), (0.003, 0.005, 0.01)

@@ -2,14 +2,14 @@
 
 On validation scenes only (the paper's four flames drawn with :data:`SEEDS`, distinct from the
 scored 937000-937001), at ``--rays`` rays per pixel, noise-free and at 14 dB, each channel's
-emission by admm (as ``admm-cfa``, :func:`lf_flame.tomo.colour.admm_channel`) on:
+emission by admm (as ``admm-cfa``, :func:`lf_flame.temperature.channels.admm_channel`) on:
 
 - the lenslet grid (``ExactOperator``, as ``results/temperature.md``) and the 2 x 2 grid per
   lenslet (``subsamples=2``, binned back to the lenslets before the ratio), through the CFA
   (each channel's own samples), unsmoothed and smoothed by a Gaussian of 0.7 lenslets
   (``admm-cfa-smooth``);
 - the same through the CFA by the matched route (each channel re-imaged and solved again
-  on the other channel's samples, :func:`lf_flame.tomo.colour.matched_channels`);
+  on the other channel's samples, :func:`lf_flame.temperature.channels.matched_channels`);
 - the same without the CFA (each channel rendered on every pixel: the operator's own limit),
   noise-free and at 14 dB (each channel's full image with the shot and read noise of the
   mosaic's 14 dB full well: the same noise per pixel as through the CFA), the latter also with
@@ -42,14 +42,14 @@ sys.path.insert(0, str(Path(__file__).parent))
 import temperature as E  # noqa: E402
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
-from lf_flame.measure import pyrometry as P  # noqa: E402
+from lf_flame.temperature import pyrometry as P  # noqa: E402
 from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.optics.colour import library_sensor  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_flame_scene  # noqa: E402
 from lf_flame.simulate import tracer  # noqa: E402
-from lf_flame.tomo.colour import CFA_LAM, admm_channel, channel_views, matched_channels  # noqa: E402
-from lf_flame.tomo.colour_ratio import smooth_planes  # noqa: E402
+from lf_flame.temperature.channels import CFA_LAM, admm_channel, channel_views, matched_channels  # noqa: E402
+from lf_flame.temperature.ratio import smooth_planes  # noqa: E402
 from lf_flame.tomo.defaults import ADMM_KNOBS  # noqa: E402
 from lf_flame.tomo.exact import ExactOperator  # noqa: E402
 from lf_flame.tomo.truth import bin_planes  # noqa: E402

@@ -32,14 +32,14 @@ sys.path.insert(0, str(Path(__file__).parent))
 import temperature as E  # noqa: E402
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
-from lf_flame.measure import pyrometry as P  # noqa: E402
+from lf_flame.temperature import pyrometry as P  # noqa: E402
 from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.optics.colour import library_sensor, mosaic  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate import tracer  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_flame_scene  # noqa: E402
-from lf_flame.tomo.colour import channel_emission, channel_views, colour_truth  # noqa: E402
-from lf_flame.tomo.colour_ratio import smooth_planes  # noqa: E402
+from lf_flame.temperature.channels import channel_emission, channel_views, colour_truth  # noqa: E402
+from lf_flame.temperature.ratio import smooth_planes  # noqa: E402
 from lf_flame.tomo.exact import ExactOperator  # noqa: E402
 
 SEEDS = (937500, 937501)

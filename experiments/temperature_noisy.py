@@ -1,22 +1,22 @@
 """Issue 37: the matched route's admm knobs and ratio filter together at 14-26 dB, on four validation scenes.
 
-``admm-cfa-matched`` (:func:`lf_flame.tomo.colour.matched_channels`, 25 fills, binned to the lenslets)
+``admm-cfa-matched`` (:func:`lf_flame.temperature.channels.matched_channels`, 25 fills, binned to the lenslets)
 on the paper's four flames drawn with the validation seeds :data:`SEEDS` (the two of
 ``temperature_grid.py`` and two more; not the scored 937000-937001), with the mosaic's shot and read
 noise at each SNR of :data:`SNRS_DB` (``temperature.add_noise``), for each admm gradient weight
 ``lam`` of :data:`KNOBS` (``MATCHED_KNOBS['noisy']``'s 0.01 among them, chosen on two scenes with lam
 fixed, ``results/temperature_fills.md``; TV 0.03 was no level's best at 14 or 17 dB in this script's first
 run, commit 0be9b8c), the ratio filtered by each filter of :data:`FILTERS`
-(:func:`lf_flame.tomo.colour_ratio.filter_ratio`: a guided filter of the log ratio, alone or after
-averaging the channels along the brightness contours, :func:`lf_flame.tomo.colour_ratio.contour_ratio`).
+(:func:`lf_flame.temperature.ratio.filter_ratio`: a guided filter of the log ratio, alone or after
+averaging the channels along the brightness contours, :func:`lf_flame.temperature.ratio.contour_ratio`).
 Scored as ``temperature.md`` (per plane over the pixels >= 10 % of the plane's true peak R+G
 emission). Each level's best setting (the smallest worst-plane p90 over the four scenes) is
-reported; per noise regime (:func:`lf_flame.tomo.colour.matched_regime` of the levels' measured
+reported; per noise regime (:func:`lf_flame.temperature.channels.matched_regime` of the levels' measured
 noise) the setting with the smallest mean over the regime's levels of their worst-plane p90 is
 chosen, and ``MATCHED_KNOBS`` and ``MATCHED_RATIO_FILTER`` of that regime are checked against it.
 Writes ``<out>/temperature_noisy.{csv,md}``.
 
-``--check``: the route as shipped (:func:`lf_flame.tomo.colour.channel_emission`, its knobs and filter by
+``--check``: the route as shipped (:func:`lf_flame.temperature.channels.channel_emission`, its knobs and filter by
 the measured noise) at 14 dB on the twelve validation scenes :data:`CHECK_SEEDS` (the four above and eight
 never tuned on), each with two noise realisations, and noise-free with the knobs and filter it chose at
 14 dB (the bias of that regularisation, apart from the noise): how far four scenes' choice carries.
@@ -39,9 +39,9 @@ import temperature as E  # noqa: E402
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
-from lf_flame.tomo.colour import (CFA_FILLS, MATCHED_KNOBS, MATCHED_RATIO_FILTER, cfa_noise,  # noqa: E402
+from lf_flame.temperature.channels import (CFA_FILLS, MATCHED_KNOBS, MATCHED_RATIO_FILTER, cfa_noise,  # noqa: E402
                                   channel_emission, matched_channels, matched_regime)
-from lf_flame.tomo.colour_ratio import filter_ratio  # noqa: E402
+from lf_flame.temperature.ratio import filter_ratio  # noqa: E402
 from lf_flame.tomo.truth import bin_planes  # noqa: E402
 
 SEEDS = (937500, 937501, 937502, 937503)
@@ -51,7 +51,7 @@ CHECK_SEEDS, CHECK_REALISATIONS, CHECK_DB = tuple(range(937500, 937512)), (0, 10
 BAR_K = 60.0
 SNRS_DB = (14.0, 17.0, 20.0, 26.0)
 KNOBS = tuple(dict(fills=CFA_FILLS, lam=lam, tv=0.0, l1=0.0) for lam in (0.01, 0.03, 0.1))
-#: ratio filters (:func:`lf_flame.tomo.colour_ratio.filter_ratio`): guided alone, and averaged along the contours first
+#: ratio filters (:func:`lf_flame.temperature.ratio.filter_ratio`): guided alone, and averaged along the contours first
 FILTERS = tuple(dict(radius=r, eps=e) for r, e in ((1, 0.1), (2, 0.1), (2, 0.3), (3, 0.1))) + tuple(
     dict(radius=1, eps=0.1, contour=length) for length in (3.0, 5.0, 8.0, 12.0))
 

@@ -1,11 +1,11 @@
 """Issue 37: the matched route's filter of the channels' ratio by noise level, on validation scenes.
 
-``admm-cfa-matched`` (:func:`lf_flame.tomo.colour.matched_channels`, binned to the lenslets) on the
+``admm-cfa-matched`` (:func:`lf_flame.temperature.channels.matched_channels`, binned to the lenslets) on the
 paper's four flames drawn with the validation seeds of ``temperature_grid.py`` (not the scored
 937000-937001), noise-free (the quiet knobs) and with the mosaic's shot and read noise at each SNR of
 :data:`SNRS_DB` (the noisy knobs; ``temperature.add_noise``), the two channels' emission filtered by:
 none; a Gaussian of ``MATCHED_SIGMA_NOISY`` lenslets on both (the route's filter before this
-experiment); or a guided filter of their log ratio (:func:`lf_flame.tomo.colour_ratio.guided_ratio`) of each
+experiment); or a guided filter of their log ratio (:func:`lf_flame.temperature.ratio.guided_ratio`) of each
 radius and eps of :data:`GUIDED`. Scored as ``temperature.md`` (per plane over the pixels >= 10 % of
 the plane's true peak R+G emission), beside the share of those pixels each leaves without a
 temperature. Also noise-free, two flames one behind another (``colour_behind_scene``, validation
@@ -13,7 +13,7 @@ seeds :data:`BEHIND_SEEDS`, not the scored 937200-937203), scored over the mixed
 ``temperature_behind.md``. Per noisy level: the filter with the smallest worst-plane p90 is chosen;
 noise-free, the one with the smallest larger of the flames' worst-plane p90 over 30 K and the behind
 scenes' over 50 K (their bars), the behind planes the CFA leaves blind apart
-(:func:`lf_flame.tomo.colour.cfa_blind`: at a slope near +-1 lenslet per view, half the lenslets hold
+(:func:`lf_flame.temperature.channels.cfa_blind`: at a slope near +-1 lenslet per view, half the lenslets hold
 no red sample in any view, a ratio no filter restores); ``MATCHED_RATIO_FILTER`` and
 ``MATCHED_WIDE_NOISE`` are checked against the choices, the relative noise ``cfa_noise`` measures
 beside each level. Writes ``<out>/temperature_ratio_filter.{csv,md}``.
@@ -37,10 +37,10 @@ from temperature_grid import SEEDS  # noqa: E402
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_behind_scene  # noqa: E402
-from lf_flame.tomo.colour import (MATCHED_KNOBS, MATCHED_QUIET_NOISE, MATCHED_RATIO_FILTER,  # noqa: E402
+from lf_flame.temperature.channels import (MATCHED_KNOBS, MATCHED_QUIET_NOISE, MATCHED_RATIO_FILTER,  # noqa: E402
                                   MATCHED_SIGMA_NOISY, MATCHED_WIDE_NOISE, cfa_blind, cfa_noise, matched_channels,
                                   matched_regime, route_operator)
-from lf_flame.tomo.colour_ratio import guided_ratio, smooth_planes  # noqa: E402
+from lf_flame.temperature.ratio import guided_ratio, smooth_planes  # noqa: E402
 from lf_flame.tomo.truth import bin_planes  # noqa: E402
 
 SNRS_DB = (14.0, 17.0, 20.0, 26.0, 30.0)

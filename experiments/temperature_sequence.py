@@ -43,13 +43,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import temperature as E  # noqa: E402  (camera, sensor, calibration, noise and scoring of make temperature)
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
-from lf_flame.measure import pyrometry as P  # noqa: E402
+from lf_flame.temperature import pyrometry as P  # noqa: E402
 from lf_flame.recordings.flicker import peaks, spectra  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.colour import render_colour  # noqa: E402
 from lf_flame.simulate.scenes_temperature import FLAME_PEAK_K, FLICKER_K, colour_flicker_frame  # noqa: E402
 from lf_flame.simulate.scenes_time import flicker_sequence  # noqa: E402
-from lf_flame.tomo.colour import channel_emission, channel_views, route_operator  # noqa: E402
+from lf_flame.temperature.channels import channel_emission, channel_views, route_operator  # noqa: E402
 
 #: the recording's seed (frequencies, amplitudes, phases, jitter; ray samples and noise from it)
 SEED = 2026_11_25

@@ -11,7 +11,7 @@ calibration). Given ``s`` the data are linear in ``f`` (the share step):
 with ``H`` the exact operator (:class:`lf_flame.tomo.exact.ExactOperator`, the matched route's
 2 x 2 grid per lenslet), ``M_R``, ``M_G`` each channel's unclipped samples, ``D_along`` and
 ``D_across`` the derivatives along and across the contours of ``s`` (the structure tensor's
-orientation, :func:`lf_flame.tomo.colour_ratio.contour_direction`, of ``s`` smoothed by 2 samples
+orientation, :func:`lf_flame.temperature.ratio.contour_direction`, of ``s`` smoothed by 2 samples
 over a window of 3), and ``w = sqrt(||H e||^2) s_ref``
 (``s_ref`` the median of ``s`` over its bright samples) the data's precision at a typical
 brightness, so that ``mu`` is relative to it and dim samples, whose precision goes as ``s^2``,
@@ -48,8 +48,8 @@ import temperature as E  # noqa: E402
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
-from lf_flame.tomo.colour import MATCHED_KNOBS, MATCHED_RATIO_FILTER, matched_channels  # noqa: E402
-from lf_flame.tomo.colour_ratio import contour_direction, filter_ratio  # noqa: E402
+from lf_flame.temperature.channels import MATCHED_KNOBS, MATCHED_RATIO_FILTER, matched_channels  # noqa: E402
+from lf_flame.temperature.ratio import contour_direction, filter_ratio  # noqa: E402
 from lf_flame.tomo.truth import bin_planes  # noqa: E402
 
 SEEDS = (937500, 937501, 937502, 937503)

@@ -4,7 +4,7 @@ The paper's four flames of ``temperature.py``'s flames stage (the same scenes an
 scene and one drawn, 400 rays per pixel), the mosaic's shot and read noise set to each SNR of
 :data:`SNRS_DB` (``temperature.add_noise``: measured over the image within 0.2 dB; per channel
 reported), temperature by the default route ``admm-cfa-matched`` with its knobs and ratio filter
-chosen by the noise it measures (:data:`lf_flame.tomo.colour.MATCHED_KNOBS`). Scored as
+chosen by the noise it measures (:data:`lf_flame.temperature.channels.MATCHED_KNOBS`). Scored as
 ``temperature.md``: per plane over the pixels >= 10 % of the plane's true peak R+G emission.
 Writes ``<out>/temperature_snr.{csv,md}``.
 
@@ -32,7 +32,7 @@ import temperature as E  # noqa: E402
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_flame_scene  # noqa: E402
-from lf_flame.tomo.colour import (MATCHED_KNOBS, MATCHED_QUIET_NOISE, MATCHED_RATIO_FILTER,  # noqa: E402
+from lf_flame.temperature.channels import (MATCHED_KNOBS, MATCHED_QUIET_NOISE, MATCHED_RATIO_FILTER,  # noqa: E402
                                   cfa_noise, channel_emission, route_operator)
 from temperature_grid import SEEDS as VALIDATION_SEEDS  # noqa: E402
 

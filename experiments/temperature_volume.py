@@ -15,7 +15,7 @@ Writes ``<out>/temperature_volume.{csv,md,json,png}``.
 - **Dense stack**: ``--planes`` planes every ``--step`` mm about 0 (ExactOperator, float32).
   Truth per voxel: each channel's ``scene_truth`` on it, R/G -> T by the calibration's lookup;
   on the ``(r, y)`` nodes: ``axisymmetric_node_truth`` (the analytic field).
-- **Routes**: ``axisymmetric`` (:func:`lf_flame.tomo.axisymmetric_colour.axisymmetric_temperature`:
+- **Routes**: ``axisymmetric`` (:func:`lf_flame.temperature.axisymmetric.axisymmetric_temperature`:
   the axis found once on the channels' sum, each channel solved on its own unsaturated
   samples, the ratio to T on nodes and voxels: the first pass of the matched call, its
   ``own_samples``); ``axisymmetric-matched`` (``matched=True``: each channel's volume then
@@ -44,16 +44,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import temperature as TE  # noqa: E402  (calibration, 14 dB noise of make temperature)
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
-from lf_flame.measure import pyrometry as P  # noqa: E402
+from lf_flame.temperature import pyrometry as P  # noqa: E402
 from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.optics.colour import library_sensor, mosaic  # noqa: E402
 from lf_flame.refocus.shift_and_sum import aperture_mask, raw_to_views  # noqa: E402
 from lf_flame.simulate import tracer  # noqa: E402
 from lf_flame.simulate.scenes_volume_temperature import (axisymmetric_node_truth, axisymmetric_voxel_truth,  # noqa: E402
                                                          colour_axisymmetric_scene)
-from lf_flame.tomo.axisymmetric_colour import (COLOUR_FILLS, COLOUR_INNER, axisymmetric_temperature,  # noqa: E402
+from lf_flame.temperature.axisymmetric import (COLOUR_FILLS, COLOUR_INNER, axisymmetric_temperature,  # noqa: E402
                                               volume_temperature)  # noqa: E402
-from lf_flame.tomo.colour import channel_views, refocus_channel  # noqa: E402
+from lf_flame.temperature.channels import channel_views, refocus_channel  # noqa: E402
 from lf_flame.tomo.exact import ExactOperator  # noqa: E402
 from lf_flame.tomo.truth import scene_truth  # noqa: E402
 

@@ -48,8 +48,8 @@ import reconstruct as R  # noqa: E402  (the 14 dB noise of make reconstruct)
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.refocus.shift_and_sum import aperture_mask, focal_stack  # noqa: E402
-from lf_flame.simulate.scenes import volume_flame_scene  # noqa: E402
-from lf_flame.simulate.scenes_volume import axisymmetric_flame_scene, nonaxisymmetric_flame_scene  # noqa: E402
+from lf_flame.simulate.scenes_volume import (axisymmetric_flame_scene, nonaxisymmetric_flame_scene,  # noqa: E402
+                                             volume_flame_scene)
 from lf_flame.tomo.axisymmetric import solve_axisymmetric  # noqa: E402
 from lf_flame.tomo.exact import ExactOperator  # noqa: E402
 from lf_flame.tomo.solvers import reconstruct  # noqa: E402

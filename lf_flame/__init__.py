@@ -9,6 +9,7 @@ The package's folders are its stages (``docs/architecture.md`` draws them):
 - :mod:`lf_flame.learn`: datasets, the paper's Keras model, its yardsticks, Tables I and II;
 - :mod:`lf_flame.measure`: flame diagnostics per plane, SSIM and PSNR;
 - :mod:`lf_flame.tomo`: each plane's emission by inverting the camera as a linear operator;
+- :mod:`lf_flame.temperature`: two-colour pyrometry, each colour channel's emission and their ratio to temperature;
 - :mod:`lf_flame.recordings`: flames over time, per-plane flicker, serially or on Dask;
 - :mod:`lf_flame.cli`: the ``lf-flame`` command line.
 

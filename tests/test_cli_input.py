@@ -320,7 +320,7 @@ def test_a_failed_run_without_a_chunk_done_does_not_block_another(tmp_path, caps
 def test_calibration_json_gets_the_mode_of_a_plain_open(tmp_path):
     """write_calibration's file has the permissions a plain open() gives under the umask
     (0644 under 022, not a temporary file's 0600) and leaves no temporary file."""
-    from lf_flame.measure import pyrometry as P
+    from lf_flame.temperature import pyrometry as P
     from lf_flame.optics.colour import library_sensor
     nikon = library_sensor()
     cal = P.fit_calibration(nikon, [2000.0], [float(P.model_ratio(nikon, 2000.0, alpha=0.0))])

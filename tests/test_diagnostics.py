@@ -334,7 +334,7 @@ def test_profiles_figure_explains_its_lines_and_units(small_flame_npz):
     import argparse
 
     from lf_flame.cli.profiles import profiles_table, value_label
-    from lf_flame.measure.diagnostics import profiles_figure
+    from lf_flame.measure.figures import profiles_figure
     a = argparse.Namespace(raw=str(small_flame_npz), route="shift-sum", slope=None, camera=None, model_dir=None)
     cam, stack, depths, ms, objects, df = profiles_table(a)
     fig = profiles_figure(cam, stack, depths, ms, objects, "shift-sum", value_label("shift-sum"))

@@ -6,6 +6,7 @@ import pytest
 from lf_flame.tomo import operator as operator_module
 from lf_flame.refocus import shift_and_sum as refocus
 from lf_flame.simulate import scenes
+from lf_flame.simulate.scenes_volume import volume_flame_scene
 from lf_flame.simulate import tracer as simulate
 from lf_flame.optics.camera import PlenopticCamera
 from lf_flame.tomo.operator import EmissionOperator
@@ -267,14 +268,14 @@ def test_score_planes_scores_each_plane_against_its_own_truth(small_camera):
 
 
 def test_the_volume_is_axisymmetric_and_its_light_does_not_depend_on_its_layers(small_camera):
-    v = scenes.volume_flame_scene(small_camera, n_layers=16)
+    v = volume_flame_scene(small_camera, n_layers=16)
     assert len(v.layers) == 16
     def light(L):  # radiance integrated over the layer's area
         return L.radiance.sum() * L.size_mm[0] * L.size_mm[1] / L.radiance.size
     a, b = v.layers[2], v.layers[13]                                    # mirror slabs about the centre
     assert abs(light(a) / light(b) - 1) < 0.02
     np.testing.assert_allclose(a.radiance, a.radiance[:, ::-1], atol=1e-6 * a.radiance.max())   # mirror in x
-    light = [sum(light(L) for L in scenes.volume_flame_scene(small_camera, n_layers=n).layers) for n in (16, 40)]
+    light = [sum(light(L) for L in volume_flame_scene(small_camera, n_layers=n).layers) for n in (16, 40)]
     assert abs(light[0] / light[1] - 1) < 0.03
     raw = simulate.render(small_camera, v, 2, 0)
     assert 0.05 < raw.max() <= 1.0

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.special import gamma, gammainc
 
-from lf_flame.measure import pyrometry as P
+from lf_flame.temperature import pyrometry as P
 from lf_flame.optics.camera import PlenopticCamera
 from lf_flame.optics.colour import LAMBDA0_NM, ColourSensor, band_integrals, cfa_channels, library_sensor
 from lf_flame.refocus.shift_and_sum import raw_to_views
@@ -208,7 +208,7 @@ def test_matched_route_keeps_a_uniform_ratio_off_focus():
     aliasing, about 7 % in the ratio (p90 over the bright lenslets); the matched route (each
     channel through both channels' samples) keeps the ratio within a third of that,
     unfiltered."""
-    from lf_flame.tomo.colour import MATCHED_KNOBS, channel_emission, channel_views, route_operator
+    from lf_flame.temperature.channels import MATCHED_KNOBS, channel_emission, channel_views, route_operator
     sensor = library_sensor(gains=GAINS)
     y, x = np.mgrid[0:42, 0:42]
     soot = np.exp(-(((x - 21) / 7.0) ** 2 + ((y - 21) / 12.0) ** 2)) * (1 + 0.5 * np.cos(1.3 * x) * np.cos(0.9 * y))
@@ -250,7 +250,7 @@ def test_cfa_noise_reads_each_channel_alone():
     """The noise of a colour light field measured on each channel's own samples: a smooth
     noise-free flame reads quiet (the CFA's pattern is not noise), the same at about 14 dB noisy;
     the sub-views hold one channel only."""
-    from lf_flame.tomo.colour import channel_subviews, cfa_noise, channel_views
+    from lf_flame.temperature.channels import channel_subviews, cfa_noise, channel_views
     from lf_flame.tomo.defaults import ADMM_QUIET_NOISE
     sensor, raw, noisy = _smooth_blob()
     n = CAM.pixels_per_lenslet
@@ -266,29 +266,29 @@ def test_matched_route_takes_its_knobs_by_the_noise(monkeypatch):
     the quiet knobs, one above it with the noisy knobs, each with the guided ratio filter of its
     noise (the very noisy knobs and the wider filter from ``MATCHED_WIDE_NOISE``); given knobs and
     filter, it measures nothing."""
-    from lf_flame.tomo import colour
+    from lf_flame.temperature import channels
     quiet = dict(fills=2, lam=0.003, tv=0.0, l1=0.0)            # (few fills: the test's time)
-    monkeypatch.setitem(colour.MATCHED_KNOBS, "quiet", quiet)
-    monkeypatch.setitem(colour.MATCHED_KNOBS, "noisy", dict(colour.MATCHED_KNOBS["noisy"], fills=3))
-    monkeypatch.setitem(colour.MATCHED_KNOBS, "very noisy", dict(colour.MATCHED_KNOBS["very noisy"], fills=4))
+    monkeypatch.setitem(channels.MATCHED_KNOBS, "quiet", quiet)
+    monkeypatch.setitem(channels.MATCHED_KNOBS, "noisy", dict(channels.MATCHED_KNOBS["noisy"], fills=3))
+    monkeypatch.setitem(channels.MATCHED_KNOBS, "very noisy", dict(channels.MATCHED_KNOBS["very noisy"], fills=4))
     sensor, raw, noisy = _smooth_blob()
-    n, op = CAM.pixels_per_lenslet, colour.route_operator(CAM, [0.0], "admm-cfa-matched")
-    chan = colour.channel_views(raw.shape, sensor, n)
+    n, op = CAM.pixels_per_lenslet, channels.route_operator(CAM, [0.0], "admm-cfa-matched")
+    chan = channels.channel_views(raw.shape, sensor, n)
     filtered = {}
     for image, thresholds, regime in ((raw, (0.01, 0.1), "quiet"), (raw, (0.003, 0.1), "noisy"),
                                       (noisy, (0.01, 0.1), "noisy"), (noisy, (0.01, 0.02), "very noisy")):
-        monkeypatch.setattr(colour, "MATCHED_QUIET_NOISE", thresholds[0])   # the blob reads 0.004, noisy 0.03
-        monkeypatch.setattr(colour, "MATCHED_WIDE_NOISE", thresholds[1])
+        monkeypatch.setattr(channels, "MATCHED_QUIET_NOISE", thresholds[0])   # the blob reads 0.004, noisy 0.03
+        monkeypatch.setattr(channels, "MATCHED_WIDE_NOISE", thresholds[1])
         info = {}
-        a, _ = colour.channel_emission("admm-cfa-matched", raw_to_views(image, n), chan, (0, 1), op=op, info=info)
+        a, _ = channels.channel_emission("admm-cfa-matched", raw_to_views(image, n), chan, (0, 1), op=op, info=info)
         assert info["regime"] == regime
-        assert info["knobs"] == colour.MATCHED_KNOBS[regime]
-        assert info["ratio_filter"] == colour.MATCHED_RATIO_FILTER.get(regime, {}) and info["sigma"] == 0.0
+        assert info["knobs"] == channels.MATCHED_KNOBS[regime]
+        assert info["ratio_filter"] == channels.MATCHED_RATIO_FILTER.get(regime, {}) and info["sigma"] == 0.0
         filtered[regime, image is noisy] = a
     assert not np.allclose(filtered["noisy", True], filtered["very noisy", True])   # the filter was applied
     info = {}
-    colour.channel_emission("admm-cfa-matched", raw_to_views(noisy, n), chan, (0, 1), op=op, sigma=0.2,
-                            knobs=quiet, ratio_filter={}, info=info)
+    channels.channel_emission("admm-cfa-matched", raw_to_views(noisy, n), chan, (0, 1), op=op, sigma=0.2,
+                              knobs=quiet, ratio_filter={}, info=info)
     assert info == dict(knobs=quiet, sigma=0.2, ratio_filter={}, subsamples=2)
 
 
@@ -299,7 +299,7 @@ def test_guided_ratio_averages_the_noise_and_keeps_what_follows_the_guide():
     instead bends the ratio where it follows the brightness. The pixels bright enough for a
     temperature are those of the smoothed sum: noise does not raise the threshold and drop
     the flame's dim edge."""
-    from lf_flame.tomo.colour_ratio import guided_filter, guided_ratio, smooth_planes
+    from lf_flame.temperature.ratio import guided_filter, guided_ratio, smooth_planes
     y, x = np.mgrid[0:40, 0:40]
     b = np.exp(-(((x - 20) / 8.0) ** 2 + ((y - 20) / 11.0) ** 2))[None] + 1e-6
     lr = 0.05 + 0.3 * np.log(b)                          # hotter where brighter: ln(a/b) linear in ln(b)
@@ -336,7 +336,7 @@ def test_contour_ratio_averages_along_the_sheath_and_keeps_its_profile_across():
     peaks across it, the profile across comes out nearly unchanged where an isotropic Gaussian of
     the same length flattens it; noise along the ring is averaged; a constant ratio stays exact
     and the sum is the smoothed sum; a length that is not positive is refused."""
-    from lf_flame.tomo.colour_ratio import contour_ratio, filter_ratio, guided_ratio, smooth_planes
+    from lf_flame.temperature.ratio import contour_ratio, filter_ratio, guided_ratio, smooth_planes
     y, x = np.mgrid[0:64, 0:64]
     r = np.hypot(x - 31.5, y - 31.5)
     b = np.exp(-((r - 18) / 4.0) ** 2)[None] + 1e-6
@@ -364,7 +364,7 @@ def test_cfa_blind_marks_the_slopes_where_half_the_lenslets_have_no_red_sample()
     """At an odd-integer slope (odd pixels per lenslet) the points on every other lenslet row
     have no red sample in any view; elsewhere every row has one. ``cfa_blind`` flags exactly
     the former among these slopes, and no plane with an even number of pixels per lenslet."""
-    from lf_flame.tomo.colour import cfa_blind, channel_views
+    from lf_flame.temperature.channels import cfa_blind, channel_views
     n = CAM.pixels_per_lenslet
     chan = channel_views((CAM.n_rows * n, CAM.n_cols * n), library_sensor(), n)
     red_row = (chan == 0).any(axis=(1, 3))                    # (view row u, lenslet row k)

@@ -12,7 +12,7 @@ from lf_flame.refocus.shift_and_sum import raw_to_views
 from lf_flame.simulate.colour import render_colour
 from lf_flame.simulate.scenes import Effects, Layer, Scene
 from lf_flame.simulate.scenes_temperature import furnace_scene
-from lf_flame.tomo.colour import channel_sum_views, channel_views
+from lf_flame.temperature.channels import channel_sum_views, channel_views
 
 CAM = PlenopticCamera(n_rows=21, n_cols=21)
 GAINS = (1.0, 1.3, 0.7)

@@ -4,7 +4,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from lf_flame.measure import pyrometry as P
+from lf_flame.temperature import pyrometry as P
 from lf_flame.optics.camera import PlenopticCamera
 from lf_flame.optics.colour import band_integrals, library_sensor, mosaic
 from lf_flame.refocus.shift_and_sum import raw_to_views
@@ -12,8 +12,8 @@ from lf_flame.simulate import tracer
 from lf_flame.simulate.scenes_temperature import blackbody_channels, colour_flame_scene
 from lf_flame.simulate.scenes_volume_temperature import (axisymmetric_node_truth, axisymmetric_temperature_field,
                                                          colour_axisymmetric_scene)
-from lf_flame.tomo.axisymmetric_colour import axisymmetric_temperature, volume_temperature
-from lf_flame.tomo.colour import channel_views
+from lf_flame.temperature.axisymmetric import axisymmetric_temperature, volume_temperature
+from lf_flame.temperature.channels import channel_views
 from lf_flame.tomo.exact import ExactOperator
 from lf_flame.tomo.truth import scene_truth
 

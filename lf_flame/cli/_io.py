@@ -249,10 +249,11 @@ def simulated_scene(record: dict, camera):
         from ..simulate.scenes_depth import camera_depth_scene
         return camera_depth_scene(camera, np.random.default_rng(record["seed"]))
     if record["kind"] == "volume":
+        from ..simulate.scenes_volume import volume_flame_scene
         dz = record.get("depth_mm") or 0.0
-        return scenes.volume_flame_scene(camera, None if record["nominal"] else np.random.default_rng(record["seed"]),
-                                         centre_depth_mm=dz, n_layers=VOLUME_LAYERS,
-                                         diameter_mm=min(10.0, 0.85 * camera.field_of_view_mm(dz)[1]))
+        return volume_flame_scene(camera, None if record["nominal"] else np.random.default_rng(record["seed"]),
+                                  centre_depth_mm=dz, n_layers=VOLUME_LAYERS,
+                                  diameter_mm=min(10.0, 0.85 * camera.field_of_view_mm(dz)[1]))
     return scenes.SCENES[record["kind"]](camera, np.random.default_rng(record["seed"]), vary=not record["nominal"])
 
 

@@ -1,6 +1,6 @@
 """The ``profiles`` command: flame diagnostics per plane (:mod:`lf_flame.measure.diagnostics`) of the
 planes of any route (default :data:`PROFILES_ROUTE`, admm's reconstruction); its figure is
-:func:`lf_flame.measure.diagnostics.profiles_figure`.
+:func:`lf_flame.measure.figures.profiles_figure`.
 """
 from __future__ import annotations
 
@@ -141,7 +141,7 @@ def value_label(route) -> str:
 def cmd_profiles(a):
     import pandas as pd
     from ..config import atomic_write_text
-    from ..measure.diagnostics import plot_profiles
+    from ..measure.figures import plot_profiles
     cam, stack, depths, ms, objects, df = profiles_table(a)
     out = Path(a.out)
     atomic_write_text(f"{out}.csv", df.to_csv(index=False, float_format="%.5g"))

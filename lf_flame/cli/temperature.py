@@ -1,6 +1,6 @@
 """The temperature commands (issue 37): ``calibrate-temperature`` (a blackbody calibration of
 two colour channels from furnace images) and ``temperature`` (each plane's temperature map from
-one colour light field, :mod:`lf_flame.tomo.colour` and :mod:`lf_flame.measure.pyrometry`),
+one colour light field, :mod:`lf_flame.temperature.channels` and :mod:`lf_flame.temperature.pyrometry`),
 written to HDF5 with a figure.
 
 The colour sensor of an image (sensitivities, CFA pattern and phase) is, in order: the
@@ -79,7 +79,7 @@ def _refuse_monochrome(path):
 
 def cmd_calibrate_temperature(a):
     """``calibrate-temperature BB... --temperature T... --out bb.json``."""
-    from ..measure.pyrometry import blackbody_ratio, fit_calibration, write_calibration
+    from ..temperature.pyrometry import blackbody_ratio, fit_calibration, write_calibration
     from ..optics.camera import PAPER_CAMERA
     temps = list(a.temperature or [])
     if len(temps) != len(a.images):
@@ -154,9 +154,9 @@ def cmd_temperature(a):
 
     from ..config import provenance
     from ..measure.figures import save_figure
-    from ..measure.pyrometry import bright_pixels, load_calibration, temperature_planes
+    from ..temperature.pyrometry import bright_pixels, load_calibration, temperature_planes
     from ..optics.colour import CHANNELS
-    from ..tomo.colour import cfa_blind, channel_emission, channel_sum_views, channel_views, route_operator
+    from ..temperature.channels import cfa_blind, channel_emission, channel_sum_views, channel_views, route_operator
     from .volume import found_planes, reconstruct_input
     src = str(a.raw)
     if src.endswith(".h5") and ".h5:" not in src:
@@ -210,7 +210,7 @@ def cmd_temperature(a):
         f["n_dim"] = np.asarray(n_dim, np.int64)
         f["cfa_blind"] = blind
         f["cfa_blind"].attrs["meaning"] = ("plane at a slope near an odd integer: half its lenslets have no sample of "
-                                           "a CFA phase in any view (lf_flame.tomo.colour.cfa_blind)")
+                                           "a CFA phase in any view (lf_flame.temperature.channels.cfa_blind)")
         attrs = dict(kind="lf_flame temperature", source=src, calibration=json.dumps(
             dict(path=str(a.calibration), **{k: getattr(cal, k) for k in cal.__dataclass_fields__})),
                      sensor=json.dumps(dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase),

@@ -7,8 +7,8 @@ The one place for diagnostics (issue 17). A refocused plane ``(R, C)`` is in len
 segments the in-focus flame with scikit-image and measures it;
 :func:`lf_flame.measure.scoring.score_stacks` compares measurements with the
 simulation's truth (the flame scene's ``objects``);
-:func:`profiles_figure` draws them (the figure of ``lf-flame profiles``, :func:`plot_profiles`
-writes it).
+:func:`lf_flame.measure.figures.profiles_figure` draws them (the figure of ``lf-flame profiles``,
+:func:`lf_flame.measure.figures.plot_profiles` writes it).
 
 How the other planes' out-of-focus flames bias each measurement, and what is done about
 it (``docs/diagnostics.md`` has the measured figures):
@@ -503,106 +503,3 @@ def flame_truth(obj: dict) -> dict:
     return dict(depth_offset_mm=float(obj["depth_offset_mm"]), height_mm=float(obj["height_mm"]),
                 base_y_mm=float(obj["base_y_mm"]), tip_y_mm=float(obj["base_y_mm"]) + float(obj["height_mm"]),
                 centre_x_mm=float(obj["centre_x_mm"]), columns=(int(obj["roi"][2]), int(obj["roi"][3])))
-
-
-def plot_profiles(path, cam, stack, depths, ms, objects, route, value_label: str = "radiance (a.u.)"):
-    """Write :func:`profiles_figure` to ``path`` (PNG), atomically."""
-    from .figures import save_figure
-    save_figure(profiles_figure(cam, stack, depths, ms, objects, route, value_label), path, dpi=100)
-
-
-def profiles_figure(cam, stack, depths, ms, objects, route, value_label: str = "radiance (a.u.)"):
-    """Each plane in object-space mm with the measured outline and edges (and the true ones),
-    then the axial and radial profiles of the planes.
-
-    A legend names the lines drawn on the planes (the measured region's outline, the
-    measured base and tip, the true base and tip); the planes share one colour bar. A
-    flagged plane (:attr:`FlameMeasurement.flags`) has a red title ending in
-    ``UNTRUSTED: <flags>`` and its measured edges and profiles drawn dotted.
-
-    Parameters
-    ----------
-    cam : PlenopticCamera
-    stack : ndarray of shape (P, R, C)
-        The planes on the camera's lenslet grid.
-    depths : sequence of P float
-        Depth (mm) of each plane.
-    ms : sequence of P FlameMeasurement or None
-        The measurements (None: no flame found).
-    objects : sequence of P flame objects or None
-        The truth, drawn when given.
-    route : str
-        Named in the axial profiles' title.
-    value_label : str
-        What the planes' values are, with units (the colour bar's and the profiles' axes).
-
-    Returns
-    -------
-    matplotlib.figure.Figure
-        Axes: the P planes, the axial profiles, the radial profiles (P > 1), the colour bar.
-    """
-    from matplotlib.figure import Figure
-    from matplotlib.lines import Line2D
-    from .figures import add_colorbar, plane_extent_mm, show_plane, signed
-    P = len(stack)
-    fig = Figure(figsize=(2.6 * P + 1.0, 9.6), layout="constrained")
-    grid = fig.add_gridspec(2, P, height_ratios=(2.2, 1.0))
-    vmax = max(float(np.max(stack)), 1e-9)
-    untrusted = False
-    panels = []
-    for k, (plane, d, m) in enumerate(zip(stack, depths, ms)):
-        ax = fig.add_subplot(grid[0, k])
-        panels.append(ax)
-        im = show_plane(ax, plane, plane_extent_mm(cam, d), vmax=vmax, ylabel=k == 0)
-        title = f"{signed(d, 0)} mm"
-        if m is not None:
-            rows, cols = np.arange(plane.shape[0]), np.arange(plane.shape[1])
-            y, x = lenslet_to_object_mm(cam, rows[:, None], cols[None, :], d)
-            ax.contour(np.broadcast_to(x, plane.shape), np.broadcast_to(y, plane.shape), m.mask, [0.5],
-                       colors="w", linewidths=0.7)
-            for yy in (m.base_y_mm, m.tip_y_mm):
-                ax.axhline(yy, color="w", ls="--" if m.trusted else ":", lw=0.8)
-            title += f"\nH {m.height_mm:.2f} mm"
-            untrusted |= not m.trusted
-        else:
-            title += "\nno flame found"
-        if objects:
-            t = flame_truth(objects[k])
-            for yy in (t["base_y_mm"], t["tip_y_mm"]):
-                ax.axhline(yy, color="c", lw=0.8)
-            title += f" (true {t['height_mm']:.2f})"
-        if m is not None and not m.trusted:
-            title += f"\nUNTRUSTED: {', '.join(m.flags)}"
-        ax.set_title(title, fontsize=9, color="k" if m is None or m.trusted else "red")
-    add_colorbar(fig, im, panels, value_label)
-    lines = [Line2D([], [], color="0.3", lw=0.9, label="measured flame region (outline)"),
-             Line2D([], [], color="0.3", ls="--", lw=0.9, label="measured base and tip")]
-    if untrusted:
-        lines.append(Line2D([], [], color="0.3", ls=":", lw=0.9, label="measured base and tip, untrusted"))
-    if objects:
-        lines.append(Line2D([], [], color="c", lw=0.9, label="true base and tip"))
-    fig.legend(handles=lines, loc="outside upper center", ncol=len(lines), fontsize=8, frameon=False)
-    axa = fig.add_subplot(grid[1, : max(1, P // 2)])
-    axr = fig.add_subplot(grid[1, max(1, P // 2):]) if P > 1 else None
-    styles = ("-", "--", ":")
-    for k, (d, m) in enumerate(zip(depths, ms)):
-        if m is None:
-            continue
-        axa.plot(m.axial_height_mm, m.axial_intensity, color=f"C{k}", ls="-" if m.trusted else ":",
-                 label=f"{signed(d, 0)} mm" + ("" if m.trusted else " (untrusted)"))
-        if axr is not None:
-            for r in m.radial:      # styled by the fraction of the height it stands at
-                j = int(np.argmin(np.abs(np.asarray(RADIAL_FRACTIONS) - r.height_mm / max(m.height_mm, 1e-9))))
-                axr.plot(r.x_mm, r.intensity, color=f"C{k}", ls=styles[j % 3], lw=0.9)
-    axa.set(xlabel="height above the measured base (mm)", ylabel=value_label,
-            title=f"axial profiles on the centreline ({route})")
-    axa.legend(fontsize=7, title="plane", title_fontsize=7)
-    if axr is not None:
-        axr.set(xlabel="offset from the centreline (mm)", ylabel=value_label,
-                title="radial profiles across the flame")
-        fractions = [f"{100 * f:.0f} % of the height" for f in RADIAL_FRACTIONS]
-        handles = [Line2D([], [], color=f"C{k}", label=f"{signed(d, 0)} mm") for k, (d, m) in
-                   enumerate(zip(depths, ms)) if m is not None and m.radial]
-        handles += [Line2D([], [], color="k", ls=styles[j % 3], lw=0.9, label=f) for j, f in enumerate(fractions)]
-        axr.legend(handles=handles, fontsize=6, ncol=2)
-    return fig

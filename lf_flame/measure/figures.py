@@ -4,11 +4,12 @@ A plane is drawn in object-space millimetres (x right, y up, the optical axis at
 depth (:func:`plane_extent_mm`: the lenslet grid's field there, which grows with the
 depth), with axes labelled in mm and a colour bar that names its units
 (:func:`show_plane`, :func:`add_colorbar`); :func:`planes_figure` lays out rows of planes
-(an estimate and its truth) on one colour scale; :func:`signed` writes a depth without
-``-0.0``. The figures are :class:`matplotlib.figure.Figure` objects built without pyplot
+(an estimate and its truth) on one colour scale; :func:`profiles_figure` draws the planes with
+their measured flames (:mod:`lf_flame.measure.diagnostics`) and their profiles; :func:`signed` writes
+a depth without ``-0.0``. The figures are :class:`matplotlib.figure.Figure` objects built without pyplot
 (nothing global to close), returned so that tests read them; :func:`save_figure` writes
 one atomically. ``lf-flame refocus``, ``temperature``, ``profiles``
-(:func:`lf_flame.measure.diagnostics.profiles_figure`) and ``reconstruct``
+(:func:`profiles_figure`) and ``reconstruct``
 (:func:`lf_flame.tomo.files.reconstruction_figure`) draw their planes with these.
 """
 from __future__ import annotations
@@ -208,3 +209,105 @@ def save_figure(fig, path, dpi: int = 110) -> Path:
     fig.savefig(tmp, dpi=dpi)
     tmp.replace(path)
     return path
+
+
+def plot_profiles(path, cam, stack, depths, ms, objects, route, value_label: str = "radiance (a.u.)"):
+    """Write :func:`profiles_figure` to ``path`` (PNG), atomically."""
+    save_figure(profiles_figure(cam, stack, depths, ms, objects, route, value_label), path, dpi=100)
+
+
+def profiles_figure(cam, stack, depths, ms, objects, route, value_label: str = "radiance (a.u.)"):
+    """Each plane in object-space mm with the measured outline and edges (and the true ones),
+    then the axial and radial profiles of the planes.
+
+    A legend names the lines drawn on the planes (the measured region's outline, the
+    measured base and tip, the true base and tip); the planes share one colour bar. A
+    flagged plane (:attr:`~lf_flame.measure.diagnostics.FlameMeasurement.flags`) has a red title ending in
+    ``UNTRUSTED: <flags>`` and its measured edges and profiles drawn dotted.
+
+    Parameters
+    ----------
+    cam : PlenopticCamera
+    stack : ndarray of shape (P, R, C)
+        The planes on the camera's lenslet grid.
+    depths : sequence of P float
+        Depth (mm) of each plane.
+    ms : sequence of P FlameMeasurement or None
+        The measurements (None: no flame found).
+    objects : sequence of P flame objects or None
+        The truth, drawn when given.
+    route : str
+        Named in the axial profiles' title.
+    value_label : str
+        What the planes' values are, with units (the colour bar's and the profiles' axes).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Axes: the P planes, the axial profiles, the radial profiles (P > 1), the colour bar.
+    """
+    from matplotlib.figure import Figure
+    from matplotlib.lines import Line2D
+    from .diagnostics import RADIAL_FRACTIONS, flame_truth, lenslet_to_object_mm
+    P = len(stack)
+    fig = Figure(figsize=(2.6 * P + 1.0, 9.6), layout="constrained")
+    grid = fig.add_gridspec(2, P, height_ratios=(2.2, 1.0))
+    vmax = max(float(np.max(stack)), 1e-9)
+    untrusted = False
+    panels = []
+    for k, (plane, d, m) in enumerate(zip(stack, depths, ms)):
+        ax = fig.add_subplot(grid[0, k])
+        panels.append(ax)
+        im = show_plane(ax, plane, plane_extent_mm(cam, d), vmax=vmax, ylabel=k == 0)
+        title = f"{signed(d, 0)} mm"
+        if m is not None:
+            rows, cols = np.arange(plane.shape[0]), np.arange(plane.shape[1])
+            y, x = lenslet_to_object_mm(cam, rows[:, None], cols[None, :], d)
+            ax.contour(np.broadcast_to(x, plane.shape), np.broadcast_to(y, plane.shape), m.mask, [0.5],
+                       colors="w", linewidths=0.7)
+            for yy in (m.base_y_mm, m.tip_y_mm):
+                ax.axhline(yy, color="w", ls="--" if m.trusted else ":", lw=0.8)
+            title += f"\nH {m.height_mm:.2f} mm"
+            untrusted |= not m.trusted
+        else:
+            title += "\nno flame found"
+        if objects:
+            t = flame_truth(objects[k])
+            for yy in (t["base_y_mm"], t["tip_y_mm"]):
+                ax.axhline(yy, color="c", lw=0.8)
+            title += f" (true {t['height_mm']:.2f})"
+        if m is not None and not m.trusted:
+            title += f"\nUNTRUSTED: {', '.join(m.flags)}"
+        ax.set_title(title, fontsize=9, color="k" if m is None or m.trusted else "red")
+    add_colorbar(fig, im, panels, value_label)
+    lines = [Line2D([], [], color="0.3", lw=0.9, label="measured flame region (outline)"),
+             Line2D([], [], color="0.3", ls="--", lw=0.9, label="measured base and tip")]
+    if untrusted:
+        lines.append(Line2D([], [], color="0.3", ls=":", lw=0.9, label="measured base and tip, untrusted"))
+    if objects:
+        lines.append(Line2D([], [], color="c", lw=0.9, label="true base and tip"))
+    fig.legend(handles=lines, loc="outside upper center", ncol=len(lines), fontsize=8, frameon=False)
+    axa = fig.add_subplot(grid[1, : max(1, P // 2)])
+    axr = fig.add_subplot(grid[1, max(1, P // 2):]) if P > 1 else None
+    styles = ("-", "--", ":")
+    for k, (d, m) in enumerate(zip(depths, ms)):
+        if m is None:
+            continue
+        axa.plot(m.axial_height_mm, m.axial_intensity, color=f"C{k}", ls="-" if m.trusted else ":",
+                 label=f"{signed(d, 0)} mm" + ("" if m.trusted else " (untrusted)"))
+        if axr is not None:
+            for r in m.radial:      # styled by the fraction of the height it stands at
+                j = int(np.argmin(np.abs(np.asarray(RADIAL_FRACTIONS) - r.height_mm / max(m.height_mm, 1e-9))))
+                axr.plot(r.x_mm, r.intensity, color=f"C{k}", ls=styles[j % 3], lw=0.9)
+    axa.set(xlabel="height above the measured base (mm)", ylabel=value_label,
+            title=f"axial profiles on the centreline ({route})")
+    axa.legend(fontsize=7, title="plane", title_fontsize=7)
+    if axr is not None:
+        axr.set(xlabel="offset from the centreline (mm)", ylabel=value_label,
+                title="radial profiles across the flame")
+        fractions = [f"{100 * f:.0f} % of the height" for f in RADIAL_FRACTIONS]
+        handles = [Line2D([], [], color=f"C{k}", label=f"{signed(d, 0)} mm") for k, (d, m) in
+                   enumerate(zip(depths, ms)) if m is not None and m.radial]
+        handles += [Line2D([], [], color="k", ls=styles[j % 3], lw=0.9, label=f) for j, f in enumerate(fractions)]
+        axr.legend(handles=handles, fontsize=6, ncol=2)
+    return fig

@@ -6,7 +6,7 @@ array (:func:`cfa_channels`), each channel's spectral sensitivity and gain
 (:class:`ColourSensor`) and the band integrals of a blackbody or of soot
 (:func:`band_integrals`). The simulator renders with it
 (:func:`lf_flame.simulate.colour.render_colour`), the pyrometer inverts it
-(:mod:`lf_flame.measure.pyrometry`).
+(:mod:`lf_flame.temperature.pyrometry`).
 
 Spectra
 -------

@@ -509,42 +509,6 @@ def overlap_scene(camera: PlenopticCamera, rng: np.random.Generator, *, depths_m
     return Scene("overlap", tuple(layers), FLAME_EFFECTS, tuple(objects))
 
 
-def volume_flame_scene(camera: PlenopticCamera, rng: np.random.Generator | None = None, *,
-                       centre_depth_mm: float = 0.0, diameter_mm: float = 10.0, height_mm: float | None = None,
-                       n_layers: int = 24, texels_per_lenslet: float = 3.0) -> Scene:
-    """An axisymmetric emitting volume (a laminar diffusion flame) sampled as thin layers.
-
-    Emission density ``e(r, y) = env(eta) exp(-(r - R(eta))^2 / (2 s^2))``: a luminous
-    sheath (Burke & Schumann 1928) of radius ``R(eta) = 0.4 D sqrt(1 - eta)`` and
-    thickness ``s = 0.08 D`` around the axis (``r`` from the axis, in x and depth), with
-    ``env(eta) = sin(pi eta^0.75)`` along the height (``eta`` = height above the base /
-    flame height). Layer ``k`` stands for the slab ``centre ± D/2`` cut in ``n_layers``
-    equal parts, at the slab's middle, with radiance ``e`` times the slab thickness (its
-    emission integrated through the slab), scaled so the brightest line of sight
-    carries 0.9 (no saturation). ``rng``, if given, jitters the height by ±10 %.
-
-    Returns
-    -------
-    Scene
-        ``n_layers`` layers nearest first; one object ``name="volume"`` with the centre
-        depth, diameter, height, base, ``layer_depths_mm``, ``layer_thickness_mm`` and the
-        ``peak_emission`` (per mm of depth) of the scaled density.
-
-    Raises
-    ------
-    ValueError
-        Fewer than 2 layers, a non-positive diameter, a slab the camera cannot image.
-    """
-    from .scenes_volume import _axisymmetric_layers    # the volumes' module (it imports this one)
-    layers, H, base_y, dzs, thick, peak = _axisymmetric_layers(camera, rng, centre_depth_mm, 0.0, diameter_mm,
-                                                               height_mm, 0.0, n_layers, texels_per_lenslet)
-    obj = dict(name="volume", depth_offset_mm=float(centre_depth_mm), diameter_mm=float(diameter_mm), height_mm=H,
-               base_y_mm=base_y, centre_x_mm=0.0, layer_depths_mm=[float(v) for v in dzs], layer_thickness_mm=thick,
-               peak_emission=peak, roi=_roi(camera, centre_depth_mm, base_y, base_y + H, -diameter_mm / 2,
-                                             diameter_mm / 2))
-    return Scene("volume", layers, FLAME_EFFECTS, (obj,))
-
-
 def point_scene(camera: PlenopticCamera, depth_offset_mm: float = 0.0, y_mm: float = 0.0, x_mm: float = 0.0,
                 size_mm: float | None = None, radiance: float = 1.0) -> Scene:
     """A point source (the camera's PSF): one small square emitter at ``(y, x)`` mm, depth ``dz``.

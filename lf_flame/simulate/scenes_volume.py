@@ -1,7 +1,7 @@
 """Volumetric flames (issue 36, step 2): axisymmetric (a luminous sheath, a filled core, or a mix, about any
 vertical axis) and non-axisymmetric (a leaning sheath with a brighter lobe inside).
 
-:func:`lf_flame.simulate.scenes.volume_flame_scene` draws the sheath on the optical axis;
+:func:`volume_flame_scene` draws the sheath on the optical axis;
 :func:`axisymmetric_flame_scene` draws the same sheath, a filled core or a blend of both,
 with its axis at any lateral position and depth; :func:`nonaxisymmetric_flame_scene` the sheath
 about an axis leaning in depth with a Gaussian lobe on one side; all sampled as thin layers, their
@@ -24,7 +24,7 @@ def sheath_density(r_mm, eta, diameter_mm: float, core: float = 0.0):
     sheath (Burke & Schumann 1928) of radius ``R(eta) = 0.4 D sqrt(1 - eta)`` and thickness
     ``s = 0.08 D``, ``env(eta) = sin(pi eta^0.75)`` on ``0 <= eta <= 1`` (0 outside); the core
     (``core`` in [0, 1]) of half the sheath's radius. The density of every volume generator
-    (:func:`~lf_flame.simulate.scenes.volume_flame_scene`, :func:`axisymmetric_flame_scene`,
+    (:func:`volume_flame_scene`, :func:`axisymmetric_flame_scene`,
     :func:`nonaxisymmetric_flame_scene`'s sheath,
     :func:`lf_flame.simulate.scenes_volume_temperature.axisymmetric_density`).
 
@@ -52,7 +52,7 @@ def sheath_density(r_mm, eta, diameter_mm: float, core: float = 0.0):
 
 def _axisymmetric_layers(camera, rng, centre_depth_mm, centre_x_mm, diameter_mm, height_mm, core, n_layers,
                          texels_per_lenslet):
-    """:func:`~lf_flame.simulate.scenes.volume_flame_scene`'s sheath blended with a filled core (``core`` in [0, 1]) about the axis at
+    """:func:`volume_flame_scene`'s sheath blended with a filled core (``core`` in [0, 1]) about the axis at
     ``(centre_x_mm, centre_depth_mm)``: (layers, height, base y, layer depths, thickness, peak per mm)."""
     if int(n_layers) < 2 or not diameter_mm > 0:
         raise ValueError(f"need n_layers >= 2 and diameter_mm > 0. Received: {n_layers}, {diameter_mm}")
@@ -71,6 +71,39 @@ def _axisymmetric_layers(camera, rng, centre_depth_mm, centre_x_mm, diameter_mm,
     return layers, H, base_y, dzs, thick, peak
 
 
+def volume_flame_scene(camera: PlenopticCamera, rng: np.random.Generator | None = None, *,
+                       centre_depth_mm: float = 0.0, diameter_mm: float = 10.0, height_mm: float | None = None,
+                       n_layers: int = 24, texels_per_lenslet: float = 3.0) -> Scene:
+    """An axisymmetric emitting volume (a laminar diffusion flame) sampled as thin layers.
+
+    Emission density ``e(r, y) = env(eta) exp(-(r - R(eta))^2 / (2 s^2))``: a luminous
+    sheath (Burke & Schumann 1928) of radius ``R(eta) = 0.4 D sqrt(1 - eta)`` and
+    thickness ``s = 0.08 D`` around the axis (``r`` from the axis, in x and depth), with
+    ``env(eta) = sin(pi eta^0.75)`` along the height (``eta`` = height above the base /
+    flame height). Layer ``k`` stands for the slab ``centre ± D/2`` cut in ``n_layers``
+    equal parts, at the slab's middle, with radiance ``e`` times the slab thickness (its
+    emission integrated through the slab), scaled so the brightest line of sight
+    carries 0.9 (no saturation). ``rng``, if given, jitters the height by ±10 %.
+
+    Returns
+    -------
+    Scene
+        ``n_layers`` layers nearest first; one object ``name="volume"`` with the centre
+        depth, diameter, height, base, ``layer_depths_mm``, ``layer_thickness_mm`` and the
+        ``peak_emission`` (per mm of depth) of the scaled density.
+
+    Raises
+    ------
+    ValueError
+        Fewer than 2 layers, a non-positive diameter, a slab the camera cannot image.
+    """
+    layers, H, base_y, dzs, thick, peak = _axisymmetric_layers(camera, rng, centre_depth_mm, 0.0, diameter_mm,
+                                                               height_mm, 0.0, n_layers, texels_per_lenslet)
+    obj = dict(name="volume", depth_offset_mm=float(centre_depth_mm), diameter_mm=float(diameter_mm), height_mm=H,
+               base_y_mm=base_y, centre_x_mm=0.0, layer_depths_mm=[float(v) for v in dzs], layer_thickness_mm=thick,
+               peak_emission=peak, roi=_roi(camera, centre_depth_mm, base_y, base_y + H, -diameter_mm / 2,
+                                             diameter_mm / 2))
+    return Scene("volume", layers, FLAME_EFFECTS, (obj,))
 
 
 def axisymmetric_flame_scene(camera: PlenopticCamera, rng: np.random.Generator | None = None, *,
@@ -80,7 +113,7 @@ def axisymmetric_flame_scene(camera: PlenopticCamera, rng: np.random.Generator |
     """An axisymmetric emitting volume (a laminar flame) about a vertical axis, sampled as thin layers.
 
     Emission density ``e(r, y) = env(eta) [(1 - core) exp(-(r - R)^2 / (2 s^2)) + core exp(-r^2 / (2 (R/2 + s)^2))]``:
-    the luminous sheath of :func:`~lf_flame.simulate.scenes.volume_flame_scene` (radius
+    the luminous sheath of :func:`volume_flame_scene` (radius
     ``R(eta) = 0.4 D sqrt(1 - eta)``, thickness ``s = 0.08 D``; Burke & Schumann 1928) blended
     with a filled core (soot across the whole cross-section, as in a sooting laminar flame's
     upper part) of half the sheath's radius; ``env(eta) = sin(pi eta^0.75)``, ``eta`` the
@@ -141,7 +174,7 @@ def nonaxisymmetric_flame_scene(camera: PlenopticCamera, rng: np.random.Generato
     """A volumetric flame that is not axisymmetric: a leaning sheath with a brighter lobe inside, as thin layers.
 
     Emission density ``e(x, y, z) = env(eta) exp(-(r - R(eta))^2 / (2 s^2)) + a exp(-|p - p_l|^2 / (2 s_l^2))``:
-    the luminous sheath of :func:`~lf_flame.simulate.scenes.volume_flame_scene` (radius
+    the luminous sheath of :func:`volume_flame_scene` (radius
     ``R(eta) = 0.4 D sqrt(1 - eta)``, thickness ``s = 0.08 D``, ``env(eta) = sin(pi eta^0.75)``;
     Burke & Schumann 1928) about an axis that leans in depth, ``r`` the distance in (x, depth)
     from ``(centre_x_mm, centre_depth_mm + tan(tilt) (y - y_mid))`` (``y_mid`` the flame's

@@ -8,7 +8,7 @@ temperature ``T(r, y)``, hottest on the sheath and cooling along the height
 coordinates); each layer's emission in channel ``c`` is, as in
 :mod:`lf_flame.simulate.scenes_temperature`,
 ``exposure · g_c · soot · ∫ S_c(λ) (λ/λ0)^-1.39 B(λ, T) dλ``. The truth per voxel is the
-per-channel emission (:func:`lf_flame.tomo.colour.colour_truth`-like, on a dense stack) and
+per-channel emission (:func:`lf_flame.temperature.channels.colour_truth`-like, on a dense stack) and
 the temperature; on the axisymmetric model's ``(r, y)`` nodes it is
 :func:`axisymmetric_node_truth`.
 """

@@ -9,12 +9,8 @@ camera's depth-resolution map from that map's per-frequency normal matrices; :mo
 recovers the emission with PyLops/PyProximal solvers, and :mod:`.fourier` on the exact
 operator's per-frequency normal matrices (ADMM; kernels in :mod:`._fourier_kernels`);
 :mod:`.depth` finds the depths that hold emission (depth from focus per region)
-and solves on them; :mod:`.colour` recovers two colour channels' emission per plane
-from a colour (Bayer) light field, for two-colour pyrometry, and :mod:`.colour_ratio`
-filters their ratio; :mod:`.axisymmetric` an
-axisymmetric flame's emission e(r, y) revolved onto a dense stack (its axis searched on the
-data residual); :mod:`.axisymmetric_colour` an axisymmetric flame's temperature T(r, y) and
-per voxel from each colour channel's own CFA samples; :mod:`.truth` puts a simulated
+and solves on them; :mod:`.axisymmetric` an axisymmetric flame's emission e(r, y) revolved
+onto a dense stack (its axis searched on the data residual); :mod:`.truth` puts a simulated
 scene's truth on the same grids; :mod:`.scoring` scores planes against it;
 :mod:`.volume` solves a dense stack with a prior (none, TV, sparse, axisymmetric) and
 states the depth resolution it carries; :mod:`.decoded` turns decoded views of a user's camera into the exact operator's data and
@@ -27,20 +23,11 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["axisymmetric", "axisymmetric_colour", "colour", "colour_ratio", "decoded", "defaults", "depth", "exact",
-                "files", "fourier", "operator", "resolution", "scoring", "solvers", "truth", "volume"],
+    submodules=["axisymmetric", "decoded", "defaults", "depth", "exact", "files", "fourier", "operator", "resolution",
+                "scoring", "solvers", "truth", "volume"],
     submod_attrs={
         "axisymmetric": ["AXI_LAM", "AXI_FILLS", "AXI_INNER", "RevolveOperator", "AxisymmetricVolume",
                          "axis_x_from_views", "solve_axisymmetric"],
-        "axisymmetric_colour": ["COLOUR_FILLS", "COLOUR_INNER", "AxisymmetricTemperature", "volume_temperature",
-                                "axisymmetric_temperature"],
-        "colour": ["CFA_ROUTES", "CFA_FILLS", "CFA_LAM", "CFA_TV", "MATCHED_SUBSAMPLES",
-                   "MATCHED_SIGMA_NOISY", "MATCHED_KNOBS", "MATCHED_QUIET_NOISE", "MATCHED_RATIO_FILTER",
-                   "MATCHED_WIDE_NOISE", "channel_views", "admm_channel", "matched_channels", "channel_subviews",
-                   "cfa_blind", "matched_regime", "cfa_noise", "route_operator", "refocus_channel", "channel_emission",
-                   "channel_sum_views", "colour_truth"],
-        "colour_ratio": ["SMOOTH_SIGMA", "smooth_planes", "guided_filter", "guided_ratio", "contour_ratio",
-                         "filter_ratio"],
         "decoded": ["MIN_WHITE", "white_views", "decoded_problem", "decoded_truth"],
         "depth": ["DEPTH_RANGE_MM", "SLOPE_STEP", "MERGE_MM", "FoundDepths", "find_depths", "merge_depths",
                   "find_planes"],

@@ -167,12 +167,41 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         (shape), NaN or inf in the views, a saturation level that is not positive, a
         saturation mask that is not boolean of the views' shape.
     """
+    iters_given, tv_given = iters is not None, tv is not None
+    solver, iters, tv, y = _checked_inputs(views, op, solver, iters, damp, tv, saturation)
+    t0 = time.perf_counter()
+    p = _fitted_problem(op, y, saturation)
+    settings = dict(iters=iters, rays_per_pixel=op.rays_per_pixel, seed=op.seed,
+                    saturation="mask" if np.ndim(saturation) > 0 else saturation, n_saturated=p.n_sat)
+    step = _Steps(iters, f"reconstruct ({solver})", progress, callback)
+    if (support is not None or l1 or start is not None or tol is not None) and solver != "admm":
+        raise ValueError(f"a support, l1, start and tol are for the admm only. Received solver={solver!r}")
+    if solver == "admm":
+        x, residuals = _solve_admm(p, settings, step, iters if iters_given else None, tv if tv_given else None,
+                                   lam=lam, l1=l1, start=start, tol=tol, support=support)
+    elif solver == "adjoint":
+        x, residuals = _solve_adjoint(p)
+    elif solver == "lsqr":
+        x, residuals = _solve_lsqr(p, settings, step, iters, damp)
+    elif solver == "fista":
+        x, residuals = _solve_fista(p, settings, step, iters)
+    elif solver == "pd-tv":
+        x, residuals = _solve_pd_tv(p, settings, step, iters, tv)
+    else:  # rl
+        x, residuals = _solve_rl(p, step, iters)
+    step.bar.close()
+    return _reconstruction(op, x, solver, settings, residuals, t0)
+
+
+def _checked_inputs(views, op, solver, iters, damp, tv, saturation):
+    """:func:`reconstruct`'s inputs checked: ``(solver, iters, tv, y)``, the solver (None: the
+    operator's default), iterations and TV weight with their defaults, and the views flat
+    (:func:`~lf_flame.tomo.operator.check_views`); the saturation level or mask refused if invalid."""
     if solver is None:
         from .exact import ExactOperator
         solver = EXACT_SOLVER if isinstance(op, ExactOperator) else DEFAULT_SOLVER
     if solver not in SOLVERS:
         raise ValueError(f"solver must be one of {SOLVERS}. Received: {solver!r}")
-    iters_given, tv_given = iters is not None, tv is not None
     iters = DEFAULT_ITERS[solver] if iters is None else int(iters)
     tv = DEFAULT_TV if tv is None else tv
     if iters < 0 or damp < 0 or tv < 0 or not (math.isfinite(damp) and math.isfinite(tv)):
@@ -183,90 +212,139 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
                          f"{np.asarray(saturation).dtype} of shape {np.shape(saturation)}")
     if not mask and saturation is not None and not (math.isfinite(saturation) and saturation > 0):
         raise ValueError(f"saturation must be a positive finite level, a mask or None. Received: {saturation!r}")
-    y = check_views(views, op).ravel()
-    t0 = time.perf_counter()
-    n = op.shape[1]
+    return solver, iters, tv, check_views(views, op).ravel()
+
+
+@dataclass
+class _Problem:
+    """What a solver fits: the views ``y`` (flat), the samples that carry their light (``fit``), the
+    fitted operator and data ``W A`` and ``W y`` (``W`` the 0/1 weight of ``fit``), and ``||y||``."""
+
+    op: EmissionOperator
+    y: np.ndarray
+    fit: np.ndarray
+    n_sat: int
+    A: object
+    yw: np.ndarray
+    norm: float
+
+
+def _fitted_problem(op: EmissionOperator, y: np.ndarray, saturation) -> _Problem:
+    """The saturation mask: samples at or above the level, or True in a mask, left out of the fit
+    (none for None), and the operator and data weighted to match."""
+    mask = np.ndim(saturation) > 0
     # pixels that carry their light
     fit = ~np.ravel(saturation) if mask else np.ones(y.size, bool) if saturation is None else y < saturation
     n_sat = int(y.size - fit.sum())
     # the fitted operator and data: W A and W y, W the 0/1 weight of the unsaturated pixels
     A, yw = (op, y) if n_sat == 0 else (pylops.Diagonal(fit.astype(np.float64)) @ op, np.where(fit, y, 0.0))
-    settings = dict(iters=iters, rays_per_pixel=op.rays_per_pixel, seed=op.seed,
-                    saturation="mask" if mask else saturation, n_saturated=n_sat)
-    bar = tqdm(total=iters, desc=f"reconstruct ({solver})", unit="it", disable=not progress)
-    norm = float(np.linalg.norm(y)) or 1.0
-    residuals = []
-    count = [0]
+    return _Problem(op, y, fit, n_sat, A, yw, float(np.linalg.norm(y)) or 1.0)
 
-    def step(x):
-        count[0] += 1
-        bar.update()
-        if callback is not None:
-            callback(count[0], np.ravel(x))
-    if (support is not None or l1 or start is not None or tol is not None) and solver != "admm":
-        raise ValueError(f"a support, l1, start and tol are for the admm only. Received solver={solver!r}")
-    if solver == "admm":
-        from .exact import ExactOperator
-        from .defaults import COARSE_KNOBS
-        from .fourier import admm_knobs, noise_regime, solve_admm
-        if not isinstance(op, ExactOperator):
-            raise ValueError("the admm solver works on the exact operator's per-frequency matrices: give an "
-                             "lf_flame.tomo.exact.ExactOperator")
-        knobs = admm_knobs(y.reshape(op.dimsd), fit.reshape(op.dimsd), iters if iters_given else None,
-                           tv if tv_given else None, lam, op.subsamples, l1, start, tol)
-        iters = knobs.pop("fills")
-        settings.update(iters=iters, subsamples=op.subsamples, **knobs)
-        bar.total = iters                                            # the fills the noise chose
-        bar.refresh()
-        planes, residuals, settings["system_s"] = solve_admm(
-            y.reshape(op.dimsd), op, fit.reshape(op.dimsd), fills=iters, lam=knobs["lam"], tv=knobs["tv"],
-            l1=knobs["l1"], start=knobs["start"], tol=knobs["tol"], support=support, callback=lambda j, x: step(x),
-            coarse_knobs=COARSE_KNOBS[noise_regime(knobs["noise"])] if math.isfinite(knobs["noise"]) else None)
-        settings["fills_run"] = len(residuals) + 1
-        x = planes.ravel()
-    elif solver == "adjoint":
-        x = op.normalised_adjoint(y.reshape(op.dimsd)).ravel()
-        residuals = [float(np.linalg.norm(op.matvec(x) - y)) / norm]
-    elif solver == "lsqr":
-        settings["damp"] = damp
-        out = lsqr(A, yw, np.zeros(n), damp=damp, niter=iters, calc_var=False, callback=step)
-        x = np.ravel(out[0])
-        residuals = np.asarray(out[-1])[1:] / norm   # LSQR's own ||A x - y|| estimate per iteration
-    elif solver == "fista":
-        settings["step"] = tau = 1.0 / lipschitz_bound(op)
-        f = _TrackedL2(A, yw)
-        x = ProximalGradient(f, pyproximal.Box(lower=0.0), np.zeros(n), tau=tau, niter=iters, acceleration="fista",
-                             callback=step)
-        residuals = f.history
-    elif solver == "pd-tv":
-        # the gradient block scaled by c to the norm of A (||c grad||^2 <= 8 c^2 = ||A||^2 bound):
-        # with one step for both blocks, an unscaled TV term would move ~sqrt(||A||^2 / 8) times slower
-        La = lipschitz_bound(op)
-        c = math.sqrt(La / 8.0)
-        grad = pylops.VStack([c * pylops.FirstDerivative(op.dims, axis=a, edge=True, kind="forward") for a in (1, 2)])
-        K = pylops.VStack([A, grad])
-        tau = mu = 0.99 / math.sqrt(2.0 * La)
-        g = pyproximal.VStack([pyproximal.L2(b=yw), pyproximal.L21(ndim=2, sigma=tv / c)], nn=[op.shape[0], 2 * n])
-        settings.update(tv=tv, step=tau)
 
-        def track(xk):  # the primal-dual iteration exposes no residual: one more A, so only now and then
-            k = count[0] + 1
-            residuals.append(float(np.linalg.norm(A.matvec(xk) - yw)) / norm
-                             if k == 1 or k % PD_RESIDUAL_EVERY == 0 or k == iters else math.nan)
-            step(xk)
-        x = PrimalDual(pyproximal.Box(lower=0.0), g, K, np.zeros(n), tau=tau, mu=mu, niter=iters, callback=track)
-    else:  # rl
-        ones = op.rmatvec(fit.astype(np.float64))
-        seen = ones > 0
-        yp = np.clip(yw, 0.0, None)
-        x = np.full(n, max(float(yp[fit].mean()) if n_sat < y.size else 0.0, 1e-12))   # flat start, the data's level
-        for _ in range(iters):
-            ax = op.matvec(x)
-            residuals.append(float(np.linalg.norm(np.where(fit, ax - y, 0.0))) / norm)
-            ratio = np.where(fit, yp / np.maximum(ax, 1e-12), 0.0)
-            x = np.where(seen, x * op.rmatvec(ratio) / np.where(seen, ones, 1.0), 0.0)
-            step(x)
-    bar.close()
+class _Steps:
+    """Called after each iteration with the iterate: counts it, moves the tqdm bar and calls
+    :func:`reconstruct`'s ``callback(k, x)`` (``k`` 1-based, ``x`` flat)."""
+
+    def __init__(self, total: int, desc: str, progress: bool, callback):
+        self.count, self.callback = 0, callback
+        self.bar = tqdm(total=total, desc=desc, unit="it", disable=not progress)
+
+    def __call__(self, x):
+        self.count += 1
+        self.bar.update()
+        if self.callback is not None:
+            self.callback(self.count, np.ravel(x))
+
+
+def _solve_admm(p: _Problem, settings: dict, step: _Steps, iters, tv, *, lam, l1, start, tol, support):
+    """``"admm"`` (:func:`lf_flame.tomo.fourier.solve_admm`), the knobs not given by the data's noise
+    (:func:`lf_flame.tomo.fourier.admm_knobs`): ``(x, residuals)``."""
+    from .exact import ExactOperator
+    from .defaults import COARSE_KNOBS
+    from .fourier import admm_knobs, noise_regime, solve_admm
+    op = p.op
+    if not isinstance(op, ExactOperator):
+        raise ValueError("the admm solver works on the exact operator's per-frequency matrices: give an "
+                         "lf_flame.tomo.exact.ExactOperator")
+    knobs = admm_knobs(p.y.reshape(op.dimsd), p.fit.reshape(op.dimsd), iters, tv, lam, op.subsamples, l1, start, tol)
+    iters = knobs.pop("fills")
+    settings.update(iters=iters, subsamples=op.subsamples, **knobs)
+    step.bar.total = iters                                            # the fills the noise chose
+    step.bar.refresh()
+    planes, residuals, settings["system_s"] = solve_admm(
+        p.y.reshape(op.dimsd), op, p.fit.reshape(op.dimsd), fills=iters, lam=knobs["lam"], tv=knobs["tv"],
+        l1=knobs["l1"], start=knobs["start"], tol=knobs["tol"], support=support, callback=lambda j, x: step(x),
+        coarse_knobs=COARSE_KNOBS[noise_regime(knobs["noise"])] if math.isfinite(knobs["noise"]) else None)
+    settings["fills_run"] = len(residuals) + 1
+    return planes.ravel(), residuals
+
+
+def _solve_adjoint(p: _Problem):
+    """``"adjoint"``: ``A^T y / A^T 1``, no iterations: ``(x, residuals)``."""
+    x = p.op.normalised_adjoint(p.y.reshape(p.op.dimsd)).ravel()
+    return x, [float(np.linalg.norm(p.op.matvec(x) - p.y)) / p.norm]
+
+
+def _solve_lsqr(p: _Problem, settings: dict, step: _Steps, iters: int, damp: float):
+    """``"lsqr"``: damped LSQR (PyLops): ``(x, residuals)``, LSQR's own ``||A x - y||`` estimates."""
+    settings["damp"] = damp
+    out = lsqr(p.A, p.yw, np.zeros(p.op.shape[1]), damp=damp, niter=iters, calc_var=False, callback=step)
+    return np.ravel(out[0]), np.asarray(out[-1])[1:] / p.norm   # LSQR's own ||A x - y|| estimate per iteration
+
+
+def _solve_fista(p: _Problem, settings: dict, step: _Steps, iters: int):
+    """``"fista"``: accelerated proximal gradient with ``x >= 0``, step ``1 / L``: ``(x, residuals)``."""
+    settings["step"] = tau = 1.0 / lipschitz_bound(p.op)
+    f = _TrackedL2(p.A, p.yw)
+    x = ProximalGradient(f, pyproximal.Box(lower=0.0), np.zeros(p.op.shape[1]), tau=tau, niter=iters,
+                         acceleration="fista", callback=step)
+    return x, f.history
+
+
+def _solve_pd_tv(p: _Problem, settings: dict, step: _Steps, iters: int, tv: float):
+    """``"pd-tv"``: primal-dual with TV per plane and ``x >= 0``: ``(x, residuals)``, the residual
+    recorded every :data:`PD_RESIDUAL_EVERY` iterations (NaN between)."""
+    op, n, residuals = p.op, p.op.shape[1], []
+    # the gradient block scaled by c to the norm of A (||c grad||^2 <= 8 c^2 = ||A||^2 bound):
+    # with one step for both blocks, an unscaled TV term would move ~sqrt(||A||^2 / 8) times slower
+    La = lipschitz_bound(op)
+    c = math.sqrt(La / 8.0)
+    grad = pylops.VStack([c * pylops.FirstDerivative(op.dims, axis=a, edge=True, kind="forward") for a in (1, 2)])
+    K = pylops.VStack([p.A, grad])
+    tau = mu = 0.99 / math.sqrt(2.0 * La)
+    g = pyproximal.VStack([pyproximal.L2(b=p.yw), pyproximal.L21(ndim=2, sigma=tv / c)], nn=[op.shape[0], 2 * n])
+    settings.update(tv=tv, step=tau)
+
+    def track(xk):  # the primal-dual iteration exposes no residual: one more A, so only now and then
+        k = step.count + 1
+        residuals.append(float(np.linalg.norm(p.A.matvec(xk) - p.yw)) / p.norm
+                         if k == 1 or k % PD_RESIDUAL_EVERY == 0 or k == iters else math.nan)
+        step(xk)
+    x = PrimalDual(pyproximal.Box(lower=0.0), g, K, np.zeros(n), tau=tau, mu=mu, niter=iters, callback=track)
+    return x, residuals
+
+
+def _solve_rl(p: _Problem, step: _Steps, iters: int):
+    """``"rl"``: Richardson-Lucy from a flat start at the data's level, the saturated samples'
+    ratio left out: ``(x, residuals)``."""
+    op, y, fit, residuals = p.op, p.y, p.fit, []
+    ones = op.rmatvec(fit.astype(np.float64))
+    seen = ones > 0
+    yp = np.clip(p.yw, 0.0, None)
+    n = op.shape[1]
+    x = np.full(n, max(float(yp[fit].mean()) if p.n_sat < y.size else 0.0, 1e-12))   # flat start, the data's level
+    for _ in range(iters):
+        ax = op.matvec(x)
+        residuals.append(float(np.linalg.norm(np.where(fit, ax - y, 0.0))) / p.norm)
+        ratio = np.where(fit, yp / np.maximum(ax, 1e-12), 0.0)
+        x = np.where(seen, x * op.rmatvec(ratio) / np.where(seen, ones, 1.0), 0.0)
+        step(x)
+    return x, residuals
+
+
+def _reconstruction(op: EmissionOperator, x, solver: str, settings: dict, residuals, t0: float) -> Reconstruction:
+    """The result record: the planes on the operator's grids, each grid's sample size (mm) and the wall
+    time since ``t0``."""
     sample = tuple((h / op.dims[1], w / op.dims[2]) for h, w in op.sizes_mm)
     return Reconstruction(np.asarray(x).reshape(op.dims), op.depths_mm, sample, solver, settings,
                           np.asarray(residuals, np.float64), time.perf_counter() - t0)

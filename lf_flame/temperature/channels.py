@@ -4,7 +4,7 @@ A colour plenoptic camera records one channel per pixel (the colour filter array
 into sub-aperture views, each view sample keeps the channel of the pixel it came from
 (:func:`channel_views`), so each channel's data are its own samples and the others are
 missing. Routes from those samples to each plane's emission in two channels, whose ratio
-:func:`lf_flame.measure.pyrometry.temperature_planes` turns into temperature:
+:func:`lf_flame.temperature.pyrometry.temperature_planes` turns into temperature:
 
 - ``admm-cfa-matched`` (the default): the two channels' resolution matched. Each channel's
   reconstruction from its own samples (``admm-cfa``, on the 2 x 2 grid per lenslet of
@@ -14,7 +14,7 @@ missing. Routes from those samples to each plane's emission in two channels, who
   counterpart of matching two images' point-spread functions before a colour ratio in
   multi-band photometry. Binned to the lenslets; the admm knobs of :data:`MATCHED_KNOBS` by
   the light field's noise (:func:`cfa_noise`), the ratio filtered by
-  :data:`MATCHED_RATIO_FILTER` for that noise (:func:`lf_flame.tomo.colour_ratio.filter_ratio`);
+  :data:`MATCHED_RATIO_FILTER` for that noise (:func:`lf_flame.temperature.ratio.filter_ratio`);
 - ``admm-cfa``: the exact operator's admm (:func:`lf_flame.tomo.solvers.reconstruct`) on
   each channel's own samples, the other channels' samples left out of the fit as missing
   data (the ``saturation`` mask), as are clipped samples (:func:`admm_channel`);
@@ -37,10 +37,10 @@ import numpy as np
 
 from ..optics.colour import ColourSensor
 from ..refocus.shift_and_sum import aperture_mask, focal_stack, raw_to_views
-from .colour_ratio import SMOOTH_SIGMA, filter_ratio, smooth_planes
-from .fourier import relative_noise
-from .solvers import reconstruct
-from .truth import bin_planes, resample_layer
+from ..tomo.fourier import relative_noise
+from ..tomo.solvers import reconstruct
+from ..tomo.truth import bin_planes, resample_layer
+from .ratio import SMOOTH_SIGMA, filter_ratio, smooth_planes
 
 #: The routes from a colour light field to two channels' emission per plane (the first: the default).
 CFA_ROUTES = ("admm-cfa-matched", "admm-cfa", "admm-cfa-smooth", "refocus-cfa")
@@ -80,7 +80,7 @@ MATCHED_KNOBS = {"quiet": dict(fills=300, lam=0.003, tv=0.0, l1=0.0),
 MATCHED_QUIET_NOISE = 0.004
 #: ``admm-cfa-matched``'s filter of the two channels' ratio by the light field's noise regime (in
 #: place of a Gaussian on both channels, which blurs the temperature across the luminous sheath),
-#: :func:`lf_flame.tomo.colour_ratio.filter_ratio`: when noisy, the channels averaged along the brightness contours over
+#: :func:`lf_flame.temperature.ratio.filter_ratio`: when noisy, the channels averaged along the brightness contours over
 #: ``contour`` lenslets (``contour_ratio``), then a guided filter (``guided_ratio``) of the log
 #: ratio, the log of the summed emission as its guide, of ``radius`` lenslets and regularisation
 #: ``eps``. Noise-free: chosen on validation scenes (``experiments/temperature_ratio_filter.py``) as the
@@ -273,7 +273,7 @@ def cfa_noise(views: np.ndarray, chan: np.ndarray, channels) -> float:
 def route_operator(camera, depths_mm, route: str):
     """The planes' operator a route of :data:`CFA_ROUTES` solves on: None for ``refocus-cfa``; the
     :data:`MATCHED_SUBSAMPLES` grid for ``admm-cfa-matched``; the lenslet grid otherwise (float32)."""
-    from .exact import ExactOperator
+    from ..tomo.exact import ExactOperator
     if route not in CFA_ROUTES:
         raise ValueError(f"unknown route {route!r}; one of {CFA_ROUTES}")
     if route == "refocus-cfa":
@@ -334,7 +334,7 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
         :data:`MATCHED_KNOBS` by the light field's noise (:func:`cfa_noise`; texture finer
         than two lenslets also reads as noise there).
     ratio_filter : dict or None
-        ``admm-cfa-matched``'s :func:`~lf_flame.tomo.colour_ratio.filter_ratio` ``radius``, ``eps`` and
+        ``admm-cfa-matched``'s :func:`~lf_flame.temperature.ratio.filter_ratio` ``radius``, ``eps`` and
         ``contour`` (an empty dict: none); None: :data:`MATCHED_RATIO_FILTER` by the light field's
         noise (the very noisy one from :data:`MATCHED_WIDE_NOISE`).
     info : dict or None

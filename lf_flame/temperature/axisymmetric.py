@@ -10,16 +10,16 @@ samples still differ, and so do their errors; the matched second pass (step 2) e
 :func:`axisymmetric_temperature`:
 
 1. the axis, once: :func:`~lf_flame.tomo.axisymmetric.solve_axisymmetric`'s search on the
-   channels' sum (:func:`lf_flame.tomo.colour.channel_sum_views`, the CFA's checkerboard
+   channels' sum (:func:`lf_flame.temperature.channels.channel_sum_views`, the CFA's checkerboard
    interpolated away), unless given; both channels' solves get the same axis, radius and
    radial nodes;
 2. ``e_a(r, y)`` and ``e_b(r, y)`` of the calibration's two channels, each on its own samples,
    then (``matched``, the default) each imaged again and solved on the other channel's samples
-   so that both carry both sampling patterns' errors (:func:`lf_flame.tomo.colour.matched_channels`);
+   so that both carry both sampling patterns' errors (:func:`lf_flame.temperature.channels.matched_channels`);
 3. the ratio ``e_a / e_b`` to temperature by the calibration's band-integrated lookup
-   (:func:`lf_flame.measure.pyrometry.ratio_to_temperature`) on the ``(r, y)`` nodes and on
+   (:func:`lf_flame.temperature.pyrometry.ratio_to_temperature`) on the ``(r, y)`` nodes and on
    every voxel of the dense stack (the revolved emissions' ratio); nodes or voxels whose
-   ``e_a + e_b`` is below :data:`~lf_flame.measure.pyrometry.MIN_FRACTION` of its peak, or
+   ``e_a + e_b`` is below :data:`~lf_flame.temperature.pyrometry.MIN_FRACTION` of its peak, or
    whose ratio has no temperature, are masked and counted (:func:`volume_temperature`).
 """
 from __future__ import annotations
@@ -29,10 +29,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..measure.pyrometry import MIN_FRACTION, TemperatureCalibration, temperature_planes
 from ..optics.colour import ALPHA_SOOT, CHANNELS, ColourSensor
-from .axisymmetric import solve_axisymmetric
-from .colour import channel_sum_views
+from ..tomo.axisymmetric import solve_axisymmetric
+from .channels import channel_sum_views
+from .pyrometry import MIN_FRACTION, TemperatureCalibration, temperature_planes
 
 #: Fills of the missing data and FISTA steps per fill of each channel's solve. A channel's own samples
 #: are a quarter (R) or half (G) of the views', the rest filled from the prediction: each fill shrinks the
@@ -50,7 +50,7 @@ def volume_temperature(emission_a, emission_b, cal: TemperatureCalibration, sens
                        alpha: float = ALPHA_SOOT, min_fraction: float = MIN_FRACTION):
     """Temperature of each sample of two channels' emission (any shape), masked against the whole array's peak.
 
-    :func:`lf_flame.measure.pyrometry.temperature_planes` with the whole array as one plane: a
+    :func:`lf_flame.temperature.pyrometry.temperature_planes` with the whole array as one plane: a
     sample is bright when ``a + b`` is at least ``min_fraction`` of the largest ``a + b`` of the
     whole array (the volume or the ``(r, y)`` nodes), not of its own plane.
 
@@ -77,7 +77,7 @@ def volume_temperature(emission_a, emission_b, cal: TemperatureCalibration, sens
     ------
     ValueError
         Shapes that differ, no positive emission, and the errors of
-        :func:`~lf_flame.measure.pyrometry.temperature_planes` (``min_fraction`` outside [0, 1)).
+        :func:`~lf_flame.temperature.pyrometry.temperature_planes` (``min_fraction`` outside [0, 1)).
     """
     a, b = np.asarray(emission_a, float), np.asarray(emission_b, float)
     if a.shape != b.shape:
@@ -157,7 +157,7 @@ def axisymmetric_temperature(views, op, chan, cal: TemperatureCalibration, senso
     op : ExactOperator
         The dense stack (``subsamples=1``) the volume is returned on.
     chan : ndarray of shape (N, N, R, C), int
-        Each sample's channel (:func:`lf_flame.tomo.colour.channel_views`).
+        Each sample's channel (:func:`lf_flame.temperature.channels.channel_views`).
     cal : TemperatureCalibration
         Its ``channels`` (e.g. ``("R", "G")``) are the ratio's numerator and denominator.
     sensor : ColourSensor
@@ -175,7 +175,7 @@ def axisymmetric_temperature(views, op, chan, cal: TemperatureCalibration, senso
         Each channel's solve (:func:`~lf_flame.tomo.axisymmetric.solve_axisymmetric`;
         defaults :data:`COLOUR_LAM`, :data:`COLOUR_FILLS`, :data:`COLOUR_INNER`).
     matched : bool
-        Match the channels' resolution as :func:`lf_flame.tomo.colour.matched_channels`:
+        Match the channels' resolution as :func:`lf_flame.temperature.channels.matched_channels`:
         each channel's volume imaged again by ``op`` and solved on the other channel's
         samples (twice the solves). False: each channel from its own samples alone. On the
         small camera of ``tests/test_temperature_volume.py`` (noise-free, 32 rays) matching

@@ -310,7 +310,7 @@ def wien_temperature(ratio, cal: TemperatureCalibration, sensor: ColourSensor, a
 def write_calibration(path, cal: TemperatureCalibration) -> Path:
     """Write ``cal`` as JSON atomically (``PATH.partial`` beside it, then renamed; removed if the
     write fails), with the permissions of any file this process creates (its umask), as
-    :func:`lf_flame.config.atomic_write_text` writes (``measure`` does not import ``config``)."""
+    :func:`lf_flame.config.atomic_write_text` writes (``temperature`` does not import ``config``)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".partial")

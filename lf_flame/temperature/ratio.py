@@ -1,6 +1,6 @@
 """Filters of two colour channels' ratio per plane, before it becomes temperature (issue 37, step 4).
 
-Two channels' emission reconstructed per plane (:mod:`lf_flame.tomo.colour`) carry noise and
+Two channels' emission reconstructed per plane (:mod:`lf_flame.temperature.channels`) carry noise and
 sampling artefacts that do not cancel in their ratio, and two-colour pyrometry turns a 1 % error
 in the ratio into about 12 K. These filters smooth the ratio, not the emission, so that the
 temperature keeps the flame's structure:
@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..measure.pyrometry import MIN_FRACTION, bright_pixels
+from .pyrometry import MIN_FRACTION, bright_pixels
 
 #: Gaussian (lenslets) of ``admm-cfa-smooth``.
 SMOOTH_SIGMA = 0.7
@@ -147,7 +147,7 @@ def contour_ratio(a: np.ndarray, b: np.ndarray, length: float, guide_sigma: floa
     guide_sigma : float, lenslets
         The Gaussian on the sum (0: none).
     min_fraction : float
-        As :func:`lf_flame.measure.pyrometry.temperature_planes`.
+        As :func:`lf_flame.temperature.pyrometry.temperature_planes`.
     support_fraction : float
         Below ``min_fraction``, so that a contour's samples near that threshold are not cut off
         (validation scenes 937500 and 937502 at 14 dB, a ``/tmp`` probe: the dim -10 mm plane's p90
@@ -213,7 +213,7 @@ def guided_ratio(a: np.ndarray, b: np.ndarray, radius: int, eps: float, guide_si
     guide_sigma : float, lenslets
         0: the sum is not smoothed (``a + b`` is returned unchanged).
     min_fraction : float
-        As :func:`lf_flame.measure.pyrometry.temperature_planes`.
+        As :func:`lf_flame.temperature.pyrometry.temperature_planes`.
 
     Returns
     -------
