@@ -72,6 +72,8 @@ SNR_DB = 14.0
 #: The bars (noise-free; at 14 dB twice these): depth error in slope units, p90 and worst;
 #: emission error on 90 % of flames.
 BARS = dict(depth_p90=0.03, depth_worst=0.1, emission_p90=0.10)
+#: The reconstruct routes scored: the default, and each found plane held to its regions (``--support``).
+ROUTES = {"admm": (), "support": ("--support",)}
 
 
 def _toml(sheet: dict) -> str:
@@ -162,10 +164,7 @@ def run_camera(name, sheet, cache: Path, seeds, rays: int) -> tuple[list, list, 
                 if not src.exists():
                     _noisy_copy(raw, src, seed)
             views = d / f"views{seed}_{noise}.h5"
-            rec_file = d / f"rec{seed}_{noise}.h5"
-            run("decode", src, "--calibration", d / "calibration.json", "--out", views)
-            rc, _ = run("reconstruct", views, "--camera", cam_file, "--calibration", d / "calibration.json",
-                        "--out", rec_file)
+            rc, _ = run("decode", src, "--calibration", d / "calibration.json", "--out", views)
             if rc:
                 continue
             if i == 0 and noise == "clean":
@@ -177,37 +176,43 @@ def run_camera(name, sheet, cache: Path, seeds, rays: int) -> tuple[list, list, 
                 if cam.grid_pitch_px is None:
                     run("profiles", raw, "--route", "reconstruct-admm", "--out", d / "profiles")
             lf = read_light_field(views, cam, d / "calibration.json")
-            rec = load_reconstruction(rec_file)
-            with h5py.File(rec_file, "r") as f:
-                found_rec = json.loads(f.attrs["found_depths"])
-                masks = f["extra/found_masks"][...]
-                labels = f["extra/found_regions"][...]
-            found = [(r["depth_mm"], m, labels == r["region"]) for r, m in zip(found_rec, masks)]
-            df = score_flames(rec.planes, rec.depths_mm, scene, lf.camera, found=found, frame=lf.frame,
-                              time_s=rec.time_s, noise=noise, seed=seed)
-            df.insert(0, "camera", name)
-            df["slope_err"] = [abs(cam.slope_for_depth(e) - cam.slope_for_depth(t)) if np.isfinite(e) else np.nan
-                               for e, t in zip(df.depth_mm, df.depth_mm_true)]
-            P, R, C = rec.planes.shape
-            df["us_per_lenslet_plane"] = 1e6 * rec.time_s / (P * R * C)
-            rows.extend(df.to_dict("records"))
-            print(f"  [{name}] seed {seed} {noise}: " + "; ".join(
-                f"{t:+.2f} -> {e:+.2f} mm ({s:.3f} slope), {100 * r:.1f} %"
-                for t, e, s, r in zip(df.depth_mm_true, df.depth_mm, df.slope_err, df.rel_err)), flush=True)
+            for route, flags in ROUTES.items():
+                rec_file = d / f"rec{seed}_{noise}_{route}.h5"
+                rc, _ = run("reconstruct", views, "--camera", cam_file, "--calibration", d / "calibration.json",
+                            "--out", rec_file, *flags, step=f"reconstruct ({route})")
+                if rc:
+                    continue
+                rec = load_reconstruction(rec_file)
+                with h5py.File(rec_file, "r") as f:
+                    found_rec = json.loads(f.attrs["found_depths"])
+                    masks = f["extra/found_masks"][...]
+                    labels = f["extra/found_regions"][...]
+                found = [(r["depth_mm"], m, labels == r["region"]) for r, m in zip(found_rec, masks)]
+                df = score_flames(rec.planes, rec.depths_mm, scene, lf.camera, found=found, frame=lf.frame,
+                                  time_s=rec.time_s, route=route, noise=noise, seed=seed)
+                df.insert(0, "camera", name)
+                df["slope_err"] = [abs(cam.slope_for_depth(e) - cam.slope_for_depth(t)) if np.isfinite(e) else np.nan
+                                   for e, t in zip(df.depth_mm, df.depth_mm_true)]
+                P, R, C = rec.planes.shape
+                df["us_per_lenslet_plane"] = 1e6 * rec.time_s / (P * R * C)
+                rows.extend(df.to_dict("records"))
+                print(f"  [{name}] seed {seed} {noise} {route}: " + "; ".join(
+                    f"{t:+.2f} -> {e:+.2f} mm ({s:.3f} slope), {100 * r:.1f} %"
+                    for t, e, s, r in zip(df.depth_mm_true, df.depth_mm, df.slope_err, df.rel_err)), flush=True)
     return rows, run.rows, facts
 
 
 def summary(flames, runs, facts):
     import pandas as pd
     out = []
-    for (name, noise), g in flames.groupby(["camera", "noise"], sort=False):
+    for (name, route, noise), g in flames.groupby(["camera", "route", "noise"], sort=False):
         k = 1.0 if noise == "clean" else 2.0
         slope = g.slope_err.fillna(np.inf)
         err = g.rel_err.fillna(np.inf)
         f = facts[name]
-        rec = runs[(runs.camera == name) & (runs.step == "reconstruct")]
+        rec = runs[(runs.camera == name) & (runs.step == f"reconstruct ({route})")]
         out.append(dict(
-            camera=name, noise=noise, flames=len(g), missed=int(g.depth_mm.isna().sum()),
+            camera=name, route=route, noise=noise, flames=len(g), missed=int(g.depth_mm.isna().sum()),
             depth_p90_slope=float(np.quantile(slope, 0.9)), depth_worst_slope=float(slope.max()),
             depth_p90_mm=float(np.quantile(g.depth_err_mm.abs().fillna(np.inf), 0.9)),
             emission_p90=float(np.quantile(err, 0.9)), emission_worst=float(err.max()),
@@ -222,7 +227,7 @@ def summary(flames, runs, facts):
             depth_bar=bool(np.quantile(slope, 0.9) <= k * BARS["depth_p90"] and slope.max() <= k * BARS["depth_worst"]),
             emission_bar=bool(np.quantile(err, 0.9) <= k * BARS["emission_p90"])))
     tab = pd.DataFrame(out)
-    paper = tab[(tab.camera == "paper") & (tab.noise == "clean")].admm_us_per_lenslet_plane_median
+    paper = tab[(tab.camera == "paper") & (tab.route == "admm") & (tab.noise == "clean")].admm_us_per_lenslet_plane_median
     if len(paper):
         tab["admm_time_vs_paper"] = tab.admm_us_per_lenslet_plane_median / float(paper.iloc[0])
     return tab
@@ -233,15 +238,19 @@ def plot(flames, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     names = list(dict.fromkeys(flames.camera))
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    for j, noise in enumerate(("clean", "14dB")):
-        g = flames[flames.noise == noise]
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))
+    combos = [(r, n) for r in ROUTES for n in ("clean", "14dB")]
+    for j, (route, noise) in enumerate(combos):
+        g = flames[(flames.noise == noise) & (flames.route == route)]
+        dx = (j - (len(combos) - 1) / 2) * 0.16
+        label = f"{route}, {noise}"
         for x, name in enumerate(names):
             h = g[g.camera == name]
-            axes[0].scatter(x + (j - 0.5) * 0.25 + 0 * h.slope_err, h.slope_err, s=12,
-                            c=f"C{j}", label=noise if x == 0 else None)
-            axes[1].scatter(x + (j - 0.5) * 0.25 + 0 * h.rel_err, 100 * h.rel_err, s=12, c=f"C{j}",
-                            label=noise if x == 0 else None)
+            if route == "admm":      # the depths are the found ones, the same for every route
+                axes[0].scatter(np.full(len(h), x + dx), h.slope_err, s=12, c=f"C{j}",
+                                label=label if x == 0 else None)
+            axes[1].scatter(np.full(len(h), x + dx), 100 * h.rel_err, s=12, c=f"C{j}",
+                            marker="o" if route == "admm" else "^", label=label if x == 0 else None)
     for ax, bar, label in ((axes[0], BARS["depth_p90"], "depth error (lenslets per view step)"),
                            (axes[1], 100 * BARS["emission_p90"], "emission error per flame (%)")):
         ax.axhline(bar, color="k", lw=0.8, ls="--", label="bar (noise-free; 14 dB: 2x)")

@@ -368,11 +368,11 @@ def test_profiles_default_route_measures_where_refocused_planes_merge(tmp_path):
 
 
 def test_flame_tail_experiment_writes_csv_and_md(tmp_path):
-    """``experiments/flame_tail.py`` at a tiny size: every plane in the CSV, the tail in the md."""
+    """``experiments/studies/flame_tail.py`` at a tiny size: every plane in the CSV, the tail in the md."""
     import importlib.util
     from pathlib import Path
     spec = importlib.util.spec_from_file_location(
-        "flame_tail", Path(__file__).resolve().parents[1] / "experiments" / "flame_tail.py")
+        "flame_tail", Path(__file__).resolve().parents[1] / "experiments" / "studies" / "flame_tail.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     assert mod.main(["--n", "2", "--seed0", "990000", "--out", str(tmp_path / "tail")]) == 0

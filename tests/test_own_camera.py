@@ -3,6 +3,7 @@ and the exact operator on the decoded views (issue 35, step 6)."""
 import dataclasses
 import importlib.util
 import json
+import types
 from pathlib import Path
 
 import h5py
@@ -319,3 +320,28 @@ def test_images_smaller_than_the_datasheet_sensor_are_its_centred_crop(route):
     big = dataclasses.replace(cam, sensor_rows=H + 40, sensor_cols=W + 30)
     with pytest.warns(UserWarning, match="centred crop"):
         assert views_camera(big, cal, views.shape) == views_camera(cam, cal, views.shape)
+
+
+def test_support_holds_each_found_plane_to_its_regions(route, tmp_path, capsys):
+    """``reconstruct --support``: each found plane's emission is zero outside the (dilated) regions
+    its depths were found in; refused with planes given (no regions) and with another solver."""
+    from lf_flame.tomo.depth import plane_support
+    cam, _, _, d = route
+    base = ["reconstruct", str(d / "views.h5"), "--camera", str(EXAMPLE), "--calibration", str(d / "cal.json")]
+    assert cli.main(base + ["--support", "--out", str(tmp_path / "s.h5")]) == 0
+    rec = load_reconstruction(tmp_path / "s.h5")
+    with h5py.File(tmp_path / "s.h5") as f:
+        assert bool(f.attrs["support"]) is True
+        found = json.loads(f.attrs["found_depths"])
+        masks, labels = f["extra/found_masks"][...], f["extra/found_regions"][...]
+    assert rec.settings["lam"] == 0.01 and rec.settings["tv"] == 0.0
+    fd = types.SimpleNamespace(planes_mm=np.array(rec.depths_mm), labels=labels,
+                               plane_of=np.array([int(np.argmin(np.abs(np.array(rec.depths_mm) - r["plane_mm"])))
+                                                  for r in found]), region=np.array([r["region"] for r in found]))
+    sup = plane_support(fd).repeat(2, axis=1).repeat(2, axis=2)
+    assert np.all(rec.planes[~sup] == 0) and rec.planes[sup].max() > 0 and (~sup).any()
+    assert masks.shape[0] == len(found)
+    assert cli.main(base + ["--support", "--depth", "0", "--out", str(tmp_path / "x.h5")]) == 2
+    assert "goes with the found depths" in capsys.readouterr().err
+    assert cli.main(base + ["--support", "--solver", "fista", "--out", str(tmp_path / "y.h5")]) == 2
+    assert "takes the admm solver" in capsys.readouterr().err

@@ -69,13 +69,16 @@ def found_planes(lf, views=None):
 
 
 def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None, saturation="file",
-                       rays_per_pixel=None, progress=False, subsamples=None):
+                       rays_per_pixel=None, progress=False, subsamples=None, support_of=None):
     """Build the operator of the light field's camera at ``depths``
     (:func:`lf_flame.tomo.exact.emission_operator`: exact unless ``rays_per_pixel`` is given) and
     solve (:func:`lf_flame.tomo.solvers.reconstruct`; solver None: the operator's default) on the
     light field's data (:func:`lf_flame.tomo.decoded.fit_data`: decoded views times the model's
     white views). The exact operator's grid: ``subsamples`` samples per lenslet; None: admm's
-    (:func:`lf_flame.tomo.fourier.admm_subsamples`), 1 for the other solvers. ``saturation``: "file" (the light field's own mask or level), a level or None."""
+    (:func:`lf_flame.tomo.fourier.admm_subsamples`), 1 for the other solvers. ``saturation``: "file" (the light field's own mask or level), a level or None.
+    ``support_of``: found depths (:class:`~lf_flame.tomo.depth.FoundDepths`) whose regions hold each plane's
+    emission (:func:`~lf_flame.tomo.depth.plane_support`, admm only, with
+    :data:`~lf_flame.tomo.depth.SUPPORT_KNOBS`)."""
     from ..tomo.decoded import fit_data
     from ..tomo.defaults import EXACT_SOLVER
     from ..tomo.exact import emission_operator
@@ -94,7 +97,16 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
                              "--saturation takes only 'none' for them (fit every sample)")
         lf = dataclasses.replace(lf, leave_out=None, saturation=saturation)
     data, fit = fit_data(lf, op)
-    return op, reconstruct(data, op, solver, iters, damp=damp, tv=tv, saturation=fit, progress=progress)
+    knobs = {}
+    if support_of is not None:
+        from ..tomo.depth import SUPPORT_KNOBS, plane_support
+        if not admm:
+            raise ValueError("--support holds admm's planes to their regions: it takes the admm solver")
+        s = getattr(op, "subsamples", 1)
+        knobs = dict(SUPPORT_KNOBS, support=plane_support(support_of).repeat(s, axis=1).repeat(s, axis=2))
+        own_tv = knobs.pop("tv")
+        tv = own_tv if tv is None else tv
+    return op, reconstruct(data, op, solver, iters, damp=damp, tv=tv, saturation=fit, progress=progress, **knobs)
 
 
 def iterations_note(rec) -> str:
@@ -128,10 +140,13 @@ def cmd_reconstruct(a):
         raise ValueError(" and ".join(given) + " go with --volume")
     lf, depths, objects = reconstruct_input(a)
     cam, views = lf.camera, lf.views
-    extra, arrays = {}, None
+    extra, arrays, voters = {}, None, None
+    if getattr(a, "support", False) and depths != "auto":
+        raise ValueError("--support holds each plane to the regions its depth was found in: it goes with the found "
+                         "depths (--depths auto, the default), not with planes given")
     if depths == "auto":
         depths, found, voters = found_planes(lf)
-        extra = dict(depths_from="auto", found_depths=found)
+        extra = dict(depths_from="auto", found_depths=found, support=bool(getattr(a, "support", False)))
         arrays = dict(found_masks=np.asarray(voters.masks, bool), found_regions=voters.labels)
     if lf.decoded:
         extra.update(own_camera=lf.capture_camera.to_json(), frame=lf.frame.to_dict(), operator="exact",
@@ -140,7 +155,8 @@ def cmd_reconstruct(a):
             extra["camera_file"] = lf.camera_file
     op, rec = run_reconstruction(lf, depths, a.solver, a.iters, damp=a.damp, tv=a.tv,
                                  saturation=getattr(a, "saturation", "file"), rays_per_pixel=a.rays_per_pixel,
-                                 progress=True, subsamples=getattr(a, "subsamples", None))
+                                 progress=True, subsamples=getattr(a, "subsamples", None),
+                                 support_of=voters if getattr(a, "support", False) else None)
     print(saturation_note(rec) if not lf.decoded else
           f"{rec.settings['n_saturated']} samples left out of the fit (clipped, or outside the aperture's image)")
     out = Path(a.out)

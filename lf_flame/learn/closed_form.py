@@ -329,7 +329,7 @@ def freeze_for_probe(decoder, layers=("dense",)) -> None:
     By default only the Dense layer trains; the output 3×3 convolution stays the identity
     the start set. Trained at the paper's settings it lowers validation SSIM (varied shapes:
     0.848 → 0.826 in one epoch, validation MSE 0.002427 → 0.002386; with the Dense layer
-    alone 0.848 → 0.848, MSE → 0.002420; ``experiments/learning_causes.py``).
+    alone 0.848 → 0.848, MSE → 0.002420; ``experiments/studies/learning_causes.py``).
 
     Raises
     ------

@@ -64,7 +64,7 @@ it (``docs/diagnostics.md`` has the measured figures):
   region, above the fitted range. Widths, centroid and integrated intensity of a
   trusted plane may still include blur where the region touches a neighbour's blur
   below the tip (they are not flagged). Measured on 200 fresh scenes per regime
-  (``experiments/flame_tail.py``, ``docs/diagnostics.md``).
+  (``experiments/studies/flame_tail.py``, ``docs/diagnostics.md``).
 - **Axial and radial profiles** are samples of the plane, out-of-focus light included:
   they are biased upward wherever a neighbour's blur overlaps, most near the base, where
   all flames stand at the same image row.
@@ -93,7 +93,7 @@ TAIL_FALL = 0.25
 #: in-focus flame's own edge) to measure the pedestal other flames' blur puts under an edge.
 PEDESTAL_GAP = 3
 #: A tip whose fitted rows stand on a pedestal worth more than this many mm of edge shift
-#: (pedestal / slope of the fit) is flagged "merged" (threshold from ``experiments/flame_tail.py``).
+#: (pedestal / slope of the fit) is flagged "merged" (threshold from ``experiments/studies/flame_tail.py``).
 TIP_PEDESTAL_MM = 0.35
 #: Flags a :class:`FlameMeasurement` may carry: measurements the method cannot trust.
 FLAGS = ("merged", "cut", "no-edge")

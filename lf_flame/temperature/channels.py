@@ -71,7 +71,7 @@ MATCHED_KNOBS = {"quiet": dict(fills=300, lam=0.003, tv=0.0, l1=0.0),
                  "very noisy": dict(fills=CFA_FILLS, lam=0.03, tv=CFA_TV, l1=CFA_L1)}
 #: The relative noise (:func:`cfa_noise`) below which ``admm-cfa-matched`` takes the quiet knobs: lower
 #: than the monochrome ``ADMM_QUIET_NOISE`` (0.005), as the quiet knobs' many fills fit the noise. Chosen on
-#: the validation scenes (``experiments/temperature_snr.py --validation``, each knob set with its
+#: the validation scenes (``experiments/studies/temperature_snr.py --validation``, each knob set with its
 #: :data:`MATCHED_RATIO_FILTER`): the quiet knobs' worst-plane p90 beat the noisy knobs' from 30 dB
 #: (noise up to 0.0033; 32.6 against 39.3 K with the contour filter) and lost at 26 dB (noise from 0.0047;
 #: 38.8 against 38.0 K) and below; 0.004 splits them (their geometric mean 0.0039). (With the guided filter
@@ -83,10 +83,10 @@ MATCHED_QUIET_NOISE = 0.004
 #: :func:`lf_flame.temperature.ratio.filter_ratio`: when noisy, the channels averaged along the brightness contours over
 #: ``contour`` lenslets (``contour_ratio``), then a guided filter (``guided_ratio``) of the log
 #: ratio, the log of the summed emission as its guide, of ``radius`` lenslets and regularisation
-#: ``eps``. Noise-free: chosen on validation scenes (``experiments/temperature_ratio_filter.py``) as the
+#: ``eps``. Noise-free: chosen on validation scenes (``experiments/studies/temperature_ratio_filter.py``) as the
 #: smaller of the flames' p90 over 30 K and the two-flames-behind p90 over 50 K (their bars), as the
 #: filter trades the in-focus plane's detail for the CFA's aliasing on the planes out of focus.
-#: Noisy: chosen with the admm knobs on four validation scenes (``experiments/temperature_noisy.py``,
+#: Noisy: chosen with the admm knobs on four validation scenes (``experiments/studies/temperature_noisy.py``,
 #: seeds 937500-3): the smallest mean over the regime's levels (17, 20, 26 dB) of the worst-plane p90,
 #: 44 K against 57 K with the guided filter alone (17 dB: 52 against 75 K; 26 dB: 38 against 38 K);
 #: very noisy (14 dB): the smallest worst-plane p90, 62 K against 77 K with the guided filter of

@@ -28,7 +28,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
     submod_attrs={
         "axisymmetric": ["AXI_LAM", "AXI_FILLS", "AXI_INNER", "RevolveOperator", "AxisymmetricVolume",
                          "axis_x_from_views", "solve_axisymmetric"],
-        "decoded": ["MIN_WHITE", "white_views", "decoded_problem", "decoded_truth"],
+        "decoded": ["MIN_WHITE", "white_views", "decoded_problem", "decoded_truth", "decoded_plane_truth", "fit_data"],
         "depth": ["DEPTH_RANGE_MM", "SLOPE_STEP", "MERGE_MM", "FoundDepths", "find_depths", "merge_depths",
                   "find_planes"],
         "exact": ["QUADRATURE_NODES", "SHIFT_TOLERANCE", "PRECISIONS", "ExactKernels", "exact_kernels",

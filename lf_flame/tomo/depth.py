@@ -47,6 +47,13 @@ SLOPE_STEP = 0.04
 MERGE_MM = 1.0
 #: Lenslets a region is grown by to make its planes' support (:func:`plane_support`).
 SUPPORT_DILATION = 3
+#: admm's knobs with a support (``lf-flame reconstruct --support``, ``find_planes(support=True)``): TV 0.3 flattens
+#: flames a few lenslets wide (``experiments/depth.py --variant support``, validation seeds 100-107). Where planes
+#: lie within a lenslet of parallax of each other (a camera of few views and a deep field: the rotated camera of
+#: ``experiments/cameras.py``) their emission otherwise splits between them: on that camera's validation scenes
+#: (seeds 57000-57004) the support took the worst flame per scene from 43-66 % to 2-20 %. On the paper camera
+#: without it the flames' p90 is 6.1 % against 14.6 % with it (``results/depth.md``, ``results/depth_support.md``).
+SUPPORT_KNOBS = {"lam": 0.01, "tv": 0.0}
 #: The found planes' admm knobs where they differ from admm's own for the planes' grid and the light field's
 #: noise level (:data:`~lf_flame.tomo.defaults.ADMM_KNOBS`), chosen on validation scenes of flames at random
 #: depths (``python experiments/depth.py --tune``, ``results/depth_tune.md``; 20 scenes, 68 flames): flames a few

@@ -13,7 +13,7 @@ plane's, the worst pixel, and the wall time of the four solves per scene (median
 The quiet knobs chosen: the smallest noise-free worst-plane p90 (ties within 1 K: fewer fills);
 ``MATCHED_KNOBS["quiet"]`` is checked against the choice. Writes ``<out>/temperature_fills.{csv,md}``.
 
-Usage: ``python experiments/temperature_fills.py --out results [--rays 400]``.
+Usage: ``python experiments/studies/temperature_fills.py --out results [--rays 400]``.
 """
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ from pathlib import Path
 
 import pandas as pd
 
-sys.path.insert(0, str(Path(__file__).parent))
+sys.path[:0] = [str(Path(__file__).resolve().parents[1]), str(Path(__file__).resolve().parent)]  # experiments/, studies/
 import temperature as E  # noqa: E402
 from temperature_grid import SEEDS  # noqa: E402
 
@@ -78,7 +78,7 @@ def main(argv=None):
     prov = provenance()
     atomic_write_text(args.out / "temperature_fills.md", "\n".join([
         "# The matched route's accuracy against its time: admm fills and weight (issue 37), validation scenes", "",
-        f"Command: `python experiments/temperature_fills.py --out {args.out} --rays {args.rays}`; wall time "
+        f"Command: `python experiments/studies/temperature_fills.py --out {args.out} --rays {args.rays}`; wall time "
         f"{time.perf_counter() - t0:.0f} s; commit {prov.get('git_commit')}; seeds {SEEDS} (validation, not the scored "
         f"ones); own error of the renders {[round(v, 4) for v in own.values()]}; `admm-cfa-matched` on the 2 x 2 "
         f"grid, binned to the lenslets; 14 dB smoothed by {MATCHED_SIGMA_NOISY} lenslets; tv 0, l1 0.", "",

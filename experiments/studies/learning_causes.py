@@ -11,7 +11,7 @@ epochs at the paper's settings, and validation MSE, SSIM and PSNR are logged per
 
 Usage::
 
-    python experiments/learning_causes.py --dataset data/paper/varied/shapes.h5 \\
+    python experiments/studies/learning_causes.py --dataset data/paper/varied/shapes.h5 \\
         --experiment-config experiments/paper.toml --start-dir models/causes/varied/shapes \\
         --epochs 1 --out results/paper/learning_causes.csv
 

@@ -24,7 +24,7 @@ the red samples all land on one parity.
 
 Writes ``<out>/temperature_grid.{csv,md}``.
 
-Usage: ``python experiments/temperature_grid.py --out results [--rays 400]``.
+Usage: ``python experiments/studies/temperature_grid.py --out results [--rays 400]``.
 """
 from __future__ import annotations
 
@@ -38,7 +38,7 @@ import dataclasses
 import numpy as np
 import pandas as pd
 
-sys.path.insert(0, str(Path(__file__).parent))
+sys.path[:0] = [str(Path(__file__).resolve().parents[1]), str(Path(__file__).resolve().parent)]  # experiments/, studies/
 import temperature as E  # noqa: E402
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
@@ -125,7 +125,7 @@ def main(argv=None):
     prov = provenance()
     atomic_write_text(args.out / "temperature_grid.md", "\n".join([
         "# Two-colour pyrometry: the planes' grid or the CFA? (issue 37), validation scenes", "",
-        f"Command: `python experiments/temperature_grid.py --out {args.out} --rays {args.rays}`; wall time "
+        f"Command: `python experiments/studies/temperature_grid.py --out {args.out} --rays {args.rays}`; wall time "
         f"{time.perf_counter() - t0:.0f} s; commit {prov.get('git_commit')}; seeds {SEEDS} (validation, not the scored "
         f"ones); own error of the renders {[round(v, 4) for v in own.values()]}; admm as `admm-cfa` "
         f"(lam {CFA_LAM}), except `14 dB knobs`: {mono}; the 2 x 2 grid binned to the lenslets before the ratio; "

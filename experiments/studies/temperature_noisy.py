@@ -22,7 +22,7 @@ never tuned on), each with two noise realisations, and noise-free with the knobs
 14 dB (the bias of that regularisation, apart from the noise): how far four scenes' choice carries.
 Writes ``<out>/temperature_noisy_check.{csv,md}``.
 
-Usage: ``python experiments/temperature_noisy.py --out results [--rays 400] [--check]``.
+Usage: ``python experiments/studies/temperature_noisy.py --out results [--rays 400] [--check]``.
 """
 from __future__ import annotations
 
@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-sys.path.insert(0, str(Path(__file__).parent))
+sys.path[:0] = [str(Path(__file__).resolve().parents[1]), str(Path(__file__).resolve().parent)]  # experiments/, studies/
 import temperature as E  # noqa: E402
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
@@ -113,7 +113,7 @@ def main(argv=None):
     prov = provenance()
     atomic_write_text(args.out / "temperature_noisy.md", "\n".join([
         "# The matched route's admm knobs and ratio filter at 14-26 dB (issue 37), validation scenes", "",
-        f"Command: `python experiments/temperature_noisy.py --out {args.out} --rays {args.rays}`; wall time "
+        f"Command: `python experiments/studies/temperature_noisy.py --out {args.out} --rays {args.rays}`; wall time "
         f"{time.perf_counter() - t0:.0f} s; commit {prov.get('git_commit')}; seeds {SEEDS} (validation, not the "
         f"scored ones); `admm-cfa-matched` ({CFA_FILLS} fills) binned to the lenslets; shot + 2 e- read noise on "
         "the mosaic, the SNR measured over the image; `noise`: `cfa_noise` (the route's measure).", "",
@@ -164,7 +164,7 @@ def check(args):
     prov = provenance()
     atomic_write_text(args.out / "temperature_noisy_check.md", "\n".join([
         "# The matched route at 14 dB on twelve validation scenes (issue 37)", "",
-        f"Command: `python experiments/temperature_noisy.py --out {args.out} --rays {args.rays} --check`; wall time "
+        f"Command: `python experiments/studies/temperature_noisy.py --out {args.out} --rays {args.rays} --check`; wall time "
         f"{time.perf_counter() - t0:.0f} s; commit {prov.get('git_commit')}; seeds {CHECK_SEEDS[0]}-{CHECK_SEEDS[-1]} "
         f"(validation; {SEEDS} are those the 14 dB knobs and filter were chosen on), noise seeds seed + "
         f"{CHECK_REALISATIONS}; `admm-cfa-matched` as shipped (knobs and ratio filter by the measured noise: "

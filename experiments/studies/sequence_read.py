@@ -3,7 +3,7 @@ open per chunk (:meth:`lf_flame.recordings.sources.H5Source.frames`), on the sam
 interleaved, repeated; and what the opens alone cost (open and close, nothing read).
 Writes ``results/sequence_read.csv`` (one row per pass).
 
-    python experiments/sequence_read.py --h5 data/sequence/speed.h5 --out results
+    python experiments/studies/sequence_read.py --h5 data/sequence/speed.h5 --out results
 
 The file is the speed stage's (``experiments/sequence.py``: 320 frames, uint16, lzf).
 """

@@ -14,7 +14,7 @@ tail of the height error (share of planes off by more than 1 mm, 90th percentile
 over all planes and over the trusted ones only, and the detector's confusion (how many
 planes off by more than 1 mm are flagged, how many good planes, off by less than 0.5 mm).
 
-Usage: ``python experiments/flame_tail.py [--n 200] [--seed0 910000] [--regimes varied paper]
+Usage: ``python experiments/studies/flame_tail.py [--n 200] [--seed0 910000] [--regimes varied paper]
 [--aperture square] [--out results/flame_tail]``
 """
 from __future__ import annotations
@@ -152,7 +152,7 @@ def main(argv=None) -> int:
         p.error(f"--n must be at least 1. Received: {a.n}")
     scores = pd.concat([score_regime(r, a.n, a.seed0, a.aperture) for r in a.regimes], ignore_index=True)
     out = Path(a.out)
-    command = "python experiments/flame_tail.py " + " ".join(argv if argv is not None else sys.argv[1:])
+    command = "python experiments/studies/flame_tail.py " + " ".join(argv if argv is not None else sys.argv[1:])
     atomic_write_text(f"{out}.csv", scores[list(CSV_COLUMNS)].to_csv(index=False, float_format="%.4g"))
     atomic_write_text(f"{out}.md", report(scores, command.strip()))
     print(report(scores, command.strip()))

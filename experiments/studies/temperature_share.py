@@ -29,7 +29,7 @@ noise realisations each, and noise-free (the scheme's own bias).
 
 Writes ``<out>/temperature_share.{csv,md}``.
 
-Usage: ``python experiments/temperature_share.py --out results [--rays 400] [--seeds 937500 937501]``.
+Usage: ``python experiments/studies/temperature_share.py --out results [--rays 400] [--seeds 937500 937501]``.
 """
 from __future__ import annotations
 
@@ -43,7 +43,7 @@ import pandas as pd
 import pylops
 from pylops.optimization.basic import lsqr
 
-sys.path.insert(0, str(Path(__file__).parent))
+sys.path[:0] = [str(Path(__file__).resolve().parents[1]), str(Path(__file__).resolve().parent)]  # experiments/, studies/
 import temperature as E  # noqa: E402
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
@@ -155,7 +155,7 @@ def main(argv=None):
     prov = provenance()
     atomic_write_text(args.out / "temperature_share.md", "\n".join([
         "# The red channel's share solved from the data, alternating with the sum (issue 37), validation scenes", "",
-        f"Command: `python experiments/temperature_share.py --out {args.out} --rays {args.rays} --seeds "
+        f"Command: `python experiments/studies/temperature_share.py --out {args.out} --rays {args.rays} --seeds "
         f"{' '.join(map(str, args.seeds))}`; wall time {time.perf_counter() - t0:.0f} s; commit "
         f"{prov.get('git_commit')}; validation seeds (not the scored ones); {SNR:g} dB noise seeds seed + "
         f"{REALISATIONS}; share step mu along {MU_ALONG:g}, across {MU_ACROSS:g}; sum step nu {NU:g}; LSQR "

@@ -18,7 +18,7 @@ no red sample in any view, a ratio no filter restores); ``MATCHED_RATIO_FILTER``
 ``MATCHED_WIDE_NOISE`` are checked against the choices, the relative noise ``cfa_noise`` measures
 beside each level. Writes ``<out>/temperature_ratio_filter.{csv,md}``.
 
-Usage: ``python experiments/temperature_ratio_filter.py --out results [--rays 400]``.
+Usage: ``python experiments/studies/temperature_ratio_filter.py --out results [--rays 400]``.
 """
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-sys.path.insert(0, str(Path(__file__).parent))
+sys.path[:0] = [str(Path(__file__).resolve().parents[1]), str(Path(__file__).resolve().parent)]  # experiments/, studies/
 import temperature as E  # noqa: E402
 from temperature_grid import SEEDS  # noqa: E402
 
@@ -131,7 +131,7 @@ def main(argv=None):
     prov = provenance()
     atomic_write_text(args.out / "temperature_ratio_filter.md", "\n".join([
         "# The matched route's filter of the channels' ratio by noise level (issue 37), validation scenes", "",
-        f"Command: `python experiments/temperature_ratio_filter.py --out {args.out} --rays {args.rays}`; wall time "
+        f"Command: `python experiments/studies/temperature_ratio_filter.py --out {args.out} --rays {args.rays}`; wall time "
         f"{time.perf_counter() - t0:.0f} s; commit {prov.get('git_commit')}; seeds {SEEDS} (validation, not the "
         f"scored ones); `admm-cfa-matched` binned to the lenslets, noise-free with the quiet knobs "
         f"{MATCHED_KNOBS['quiet']}, noisy with {MATCHED_KNOBS['noisy']}; shot + 2 e- read noise on the mosaic, "

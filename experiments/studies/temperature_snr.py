@@ -14,7 +14,7 @@ ratio filter of ``MATCHED_RATIO_FILTER`` (quiet; noisy), with the relative noise
 measures: where the quiet knobs stop winning chooses ``MATCHED_QUIET_NOISE``.
 Writes ``<out>/temperature_snr_validation.{csv,md}``.
 
-Usage: ``python experiments/temperature_snr.py --out results [--rays 400] [--scenes 2] [--validation]``.
+Usage: ``python experiments/studies/temperature_snr.py --out results [--rays 400] [--scenes 2] [--validation]``.
 """
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-sys.path.insert(0, str(Path(__file__).parent))
+sys.path[:0] = [str(Path(__file__).resolve().parents[1]), str(Path(__file__).resolve().parent)]  # experiments/, studies/
 import temperature as E  # noqa: E402
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
@@ -108,7 +108,7 @@ def main(argv=None):
     prov = provenance()
     atomic_write_text(args.out / f"{name}.md", "\n".join([
         "# Two-colour pyrometry against the noise: an SNR sweep of the default route (issue 37)", "",
-        f"Command: `python experiments/temperature_snr.py --out {args.out} --rays {args.rays}"
+        f"Command: `python experiments/studies/temperature_snr.py --out {args.out} --rays {args.rays}"
         f"{' --validation' if args.validation else f' --scenes {args.scenes}'}`; wall time "
         f"{time.perf_counter() - t0:.0f} s; commit {prov.get('git_commit')}; seeds {seeds} "
         f"({'validation, not the scored ones' if args.validation else 'the flames stage scenes'}); "

@@ -12,7 +12,7 @@ paper's four flames drawn with seeds :data:`SEEDS` (distinct from the scored one
 rule: keep the joint solve only if its noise-free worst-plane p90 beats ``admm-cfa-smooth``'s
 on these scenes. Writes ``<out>/temperature_joint.{csv,md}``.
 
-Usage: ``python experiments/temperature_joint.py --out results [--rays 50]``.
+Usage: ``python experiments/studies/temperature_joint.py --out results [--rays 50]``.
 """
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ import pylops
 import scipy.sparse as sp
 from pylops.optimization.basic import lsqr
 
-sys.path.insert(0, str(Path(__file__).parent))
+sys.path[:0] = [str(Path(__file__).resolve().parents[1]), str(Path(__file__).resolve().parent)]  # experiments/, studies/
 import temperature as E  # noqa: E402
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
@@ -110,7 +110,7 @@ def main(argv=None):
     prov = provenance()
     atomic_write_text(args.out / "temperature_joint.md", "\n".join([
         "# Two-colour pyrometry through the CFA: a joint solve (issue 37), validation scenes", "",
-        f"Command: `python experiments/temperature_joint.py --out {args.out} --rays {args.rays}`; wall time "
+        f"Command: `python experiments/studies/temperature_joint.py --out {args.out} --rays {args.rays}`; wall time "
         f"{time.perf_counter() - t0:.0f} s; commit {prov.get('git_commit')}; seeds {SEEDS} (validation, not the scored "
         f"ones); LSQR {ITERS} iterations.", "",
         "Worst plane's p90 |T error| (K) over the pixels >= 10 % of each plane's true peak, as temperature.md:", "",
