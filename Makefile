@@ -66,12 +66,12 @@ temperature: $(STAMP) ## two-colour pyrometry with a colour (Bayer) light-field 
 	$(VENV)/bin/python experiments/temperature.py --out results --stage flames $(if $(filter quick,$(PRESET)),--quick,)
 	$(VENV)/bin/python experiments/temperature.py --out results --stage behind $(if $(filter quick,$(PRESET)),--quick,)
 
-# temperature of a recording's planes over time (issue 37's Goal): the paper's four flames flickering in colour, each
+# temperature of a recording's planes over time: the paper's four flames flickering in colour, each
 # frame through the shipped route at 14 and 20 dB, against the truth; uses make temperature's calibration
 temperature-sequence: $(STAMP) ## temperature of a flickering recording's planes over time -> results/temperature_sequence.{csv,md,json,png}
 	$(VENV)/bin/python experiments/temperature_sequence.py $(if $(filter quick,$(PRESET)),--out results/quick --quick,--out results)
 
-# two-colour temperature per voxel of axisymmetric colour flames (issue 37's Goal): each channel's e(r, y) on its
+# two-colour temperature per voxel of axisymmetric colour flames: each channel's e(r, y) on its
 # own CFA samples, unmatched and matched (re-solved on the other channel's), the ratio to T; renders cached in
 # data/temperature_volume
 temperature-volume: $(STAMP) ## temperature per voxel of axisymmetric flames -> results/temperature_volume.{csv,md,json,png}
@@ -149,7 +149,7 @@ reconstruct: $(STAMP) ## 3-D emission reconstruction, every solver against refoc
 resolution: $(STAMP) ## smallest resolvable plane spacing against feature size -> results/depth_resolution.{csv,md,png}
 	$(VENV)/bin/python experiments/depth_resolution.py --out $(TRADEOFF_OUT)
 
-# find the planes (issue 36): flames at random depths, found and reconstructed, beside the baselines (about 50 min
+# find the planes: flames at random depths, found and reconstructed, beside the baselines (about 50 min
 # on 2 cores for 100 scenes; each scene's rows cached in data/depth, so a rerun resumes)
 cameras: $(STAMP) ## five cameras end to end from the CLI (white image, calibrate, decode, found depths, emission) -> results/cameras.{csv,md,json,png}
 	$(VENV)/bin/python experiments/cameras.py --out $(TRADEOFF_OUT) $(if $(filter quick,$(PRESET)),--quick,)
@@ -157,12 +157,12 @@ cameras: $(STAMP) ## five cameras end to end from the CLI (white image, calibrat
 depth: $(STAMP) ## flames at unknown depths: depth, emission and share errors per flame -> results/depth.{csv,md,json,png}
 	$(VENV)/bin/python experiments/depth.py --out $(TRADEOFF_OUT) $(DEPTH_ARGS_$(PRESET))
 
-# axisymmetric volumetric flames (issue 36, step 2): the axisymmetric prior beside the dense admm stack and
+# axisymmetric volumetric flames: the axisymmetric prior beside the dense admm stack and
 # shift-and-sum, noise-free and at 14 dB (about 15-20 min on 2 cores; renders cached in data/volume)
 volume: $(STAMP) ## axisymmetric volumes: 3-D, projection and depth-centroid errors -> results/volume.{csv,md,json,png}
 	$(VENV)/bin/python experiments/volume.py --out $(TRADEOFF_OUT)
 
-# non-axisymmetric volumetric flames (issue 36's bar: centroid mean <= 0.3 mm, <= 10 % outside the true depth
+# non-axisymmetric volumetric flames (the bar: centroid mean <= 0.3 mm, <= 10 % outside the true depth
 # range): admm without prior, + TV, + l1 (weights chosen on validation volumes), the axisymmetric prior and
 # shift-and-sum (over 15 min on 2 cores from no cache, so its own target; renders cached in data/volume)
 volume-nonaxi: $(STAMP) ## non-axisymmetric volumes: centroid and outside-range shares -> results/volume_nonaxi.{csv,md,json,png}
