@@ -48,6 +48,7 @@ import pandas as pd
 from scipy import ndimage, signal
 
 from lf_flame.real import calibration as calibrate
+from lf_flame.real.images import load_image
 from lf_flame.real import decoding as decode
 from lf_flame.config import atomic_write_text, provenance
 from lf_flame.refocus.shift_and_sum import aperture_mask, find_sharpest_slope, refocus_views
@@ -274,9 +275,9 @@ def run(data: Path, out: Path, plenopticam_dir=None, figures_only: bool = False)
     pcam = None if figures_only else _load_plenopticam(plenopticam_dir)
     rows = []
     for name, (lf_file, white_file, dark_file, optics_files) in CAPTURES.items():
-        raw = calibrate.load_image(data / lf_file)
-        white = calibrate.load_image(data / white_file)
-        dark = calibrate.load_image(data / dark_file)
+        raw = load_image(data / lf_file)
+        white = load_image(data / white_file)
+        dark = load_image(data / dark_file)
         t = time.perf_counter()
         cal = calibrate.calibrate(white, dark, camera_id=name)
         t_cal = time.perf_counter() - t

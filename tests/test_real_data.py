@@ -11,6 +11,7 @@ import pytest
 
 from lf_flame.real import calibration as calibrate
 from lf_flame.real import decoding as decode
+from lf_flame.real.images import load_image
 from lf_flame.refocus.shift_and_sum import aperture_mask, find_sharpest_slope
 
 EXAMPLES = Path(__file__).resolve().parents[1] / ".bench" / "napari-lf" / "napari_lf" / "examples"
@@ -31,9 +32,9 @@ def _periodogram_pitch(img):
 
 
 def test_real_capture_calibrates_decodes_and_refocuses():
-    white = calibrate.load_image(GUV / "Radiometry_GUVExperim1.tif")
-    dark = calibrate.load_image(GUV / "DarkFrame_GUVExperim1.tif")
-    raw = calibrate.load_image(GUV / "Lightfield_GUVExperim1.tif")
+    white = load_image(GUV / "Radiometry_GUVExperim1.tif")
+    dark = load_image(GUV / "DarkFrame_GUVExperim1.tif")
+    raw = load_image(GUV / "Lightfield_GUVExperim1.tif")
     cal = calibrate.calibrate(white, dark)
     # independent pitch: the periodogram of the mean row and column profiles (15.40 px);
     # the stated optics (100 um lenslets / 6.5 um pixels, 1:1 relay) give 15.385 px
@@ -47,6 +48,6 @@ def test_real_capture_calibrates_decodes_and_refocuses():
     s = find_sharpest_slope(views, (12, 20, 14, 22), lo=-2, hi=2, mask=aperture_mask(15, "circular"))
     assert -1.5 < s.slope < 1.5 and s.scores.max() > 10 * max(s.scores[0], s.scores[-1])
     # another capture's white image is not this calibration's grid
-    other = calibrate.load_image(EXAMPLES / "antleg" / "radiometry_frame.png")[:436, :436]
+    other = load_image(EXAMPLES / "antleg" / "radiometry_frame.png")[:436, :436]
     with pytest.raises(ValueError, match="another camera"):
         decode.decode(other, cal)

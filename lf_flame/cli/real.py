@@ -9,7 +9,8 @@ from pathlib import Path
 
 
 def cmd_calibrate(a):
-    from ..real.calibration import calibrate, file_digest, load_image
+    from ..real.calibration import calibrate
+    from ..real.images import file_digest, load_image
     white = load_image(a.white)
     dark = load_image(a.dark) if a.dark else None
     t = time.perf_counter()
@@ -24,7 +25,8 @@ def cmd_calibrate(a):
 
 
 def cmd_decode(a):
-    from ..real.calibration import GridCalibration, calibration_image, load_image
+    from ..real.calibration import GridCalibration
+    from ..real.images import calibration_image, load_image
     from ..real.decoding import clipped_samples, decode, save_views
     cal = GridCalibration.load(a.calibration)
     raw = load_image(a.raw)

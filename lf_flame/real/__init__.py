@@ -1,7 +1,8 @@
 """Real cameras: white-image grid calibration and decoding of captures into views.
 
-:mod:`.calibration` finds the lenslet grid (pitch, rotation, offset, layout) from a white
-image (Dansereau et al., CVPR 2013); :mod:`.decoding` resamples a capture onto that
+:mod:`.images` reads and checks white, dark and raw images; :mod:`.calibration` finds the
+lenslet grid (pitch, rotation, offset, layout) from a white
+image (Dansereau et al., CVPR 2013), with the lattice's steps in :mod:`.lattice`; :mod:`.decoding` resamples a capture onto that
 grid and writes its sub-aperture views, with the samples from clipped pixels;
 :mod:`.own_camera` gives the perfect-grid camera of those views (a camera file and the
 calibration checked against each other) and the frame of its planes; :mod:`.lightfield`
@@ -14,11 +15,11 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["calibration", "decoding", "own_camera", "lightfield"],
+    submodules=["images", "lattice", "calibration", "decoding", "own_camera", "lightfield"],
     submod_attrs={
-        "calibration": ["CALIBRATION_FORMAT", "CALIBRATION_VERSION", "CalibrationError", "GridCalibration",
-                 "load_image", "file_digest", "lattice_from_autocorrelation", "spot_centres",
-                 "calibrate"],
+        "images": ["load_image", "file_digest", "calibration_image"],
+        "lattice": ["CalibrationError", "lattice_from_autocorrelation", "spot_centres"],
+        "calibration": ["CALIBRATION_FORMAT", "CALIBRATION_VERSION", "GridCalibration", "calibrate"],
         "decoding": ["check_grid", "view_positions", "hex_to_square", "decode", "clipped_samples", "save_views",
                      "load_views", "load_clipped"],
         "own_camera": ["PITCH_WARN", "PITCH_TOLERANCE", "DecodedFrame", "decoded_frame", "views_camera"],

@@ -21,7 +21,9 @@ import numpy as np
 import scipy.fft
 from scipy import ndimage
 
-from .calibration import _H, GridCalibration, _image
+from .calibration import GridCalibration
+from .images import _image
+from .lattice import _H
 
 
 def check_grid(image: np.ndarray, calibration: GridCalibration, significance: float = 50.0) -> None:

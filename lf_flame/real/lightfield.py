@@ -321,7 +321,7 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
 
 def _decode_here(raw, src, cam, cal, n_views, cam_file) -> LightField:
     """A raw capture decoded with its calibration's white (and dark) image."""
-    from .calibration import calibration_image
+    from .images import calibration_image
     from .decoding import clipped_samples, decode
     white, dark = calibration_image(cal.white, "white"), calibration_image(cal.dark, "dark")
     v = decode(raw, cal, white, dark, n_views=n_views)
@@ -347,7 +347,7 @@ def _read_raw(p: Path):
         with reading(p, ".npy file"):
             raw = np.load(p)
     else:
-        from .calibration import load_image
+        from .images import load_image
         raw = load_image(p)
     if "camera" in meta:
         stored = PlenopticCamera.from_dict(json.loads(meta["camera"]))

@@ -19,7 +19,8 @@ import numpy as np
 
 from ..optics.camera import PlenopticCamera
 from ..optics.camera_file import decoded_camera
-from .calibration import _H, GridCalibration
+from .calibration import GridCalibration
+from .lattice import _H
 
 #: Relative difference between the lenslet image pitch a camera file implies
 #: (``pitch (1 + g/d) / pixel``) and the calibrated one above which :func:`views_camera`

@@ -169,7 +169,8 @@ class SequenceJob:
                 raise ValueError(f"frame of {raw.shape[0]} x {raw.shape[1]} pixels; the camera's sensor is "
                                  f"{self.camera.sensor_shape[0]} x {self.camera.sensor_shape[1]}")
             return raw_to_views(raw, self.camera.pixels_per_lenslet)
-        from ..real.calibration import GridCalibration, load_image
+        from ..real.calibration import GridCalibration
+        from ..real.images import load_image
         from ..real.decoding import decode
         if "cal" not in self._cache:
             self._cache.update(cal=GridCalibration.from_dict(self.calibration),
