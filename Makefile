@@ -178,8 +178,9 @@ $(RES)/tables.md: $(foreach r,$(REGIMES),$(foreach s,$(SCENES),$(RES)/$(r)/table
 
 tables: $(RES)/tables.md ## Tables I and II, slopes and figures in results/$(PRESET)
 
-test: $(STAMP) $(NLF)/.installed ## run the test suite (includes an end-to-end run of the quick pipeline and a real capture's decode)
+test: $(STAMP) $(NLF)/.installed $(DOCS_STAMP) ## run the test suite (includes an end-to-end run of the quick pipeline and a real capture's decode) and build the docs (strict)
 	$(VENV)/bin/python -m pytest -q --durations=10
+	$(VENV)/bin/mkdocs build --strict --quiet
 
 clean-quick: ## remove the quick preset's data, models and results
 	rm -rf data/quick models/quick results/quick
