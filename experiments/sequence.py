@@ -18,6 +18,10 @@ Stages:
   and scheduling; what it means for 10,000 frames. Beside them, interleaved in the same
   run, 1 worker reading the HDF5 file as before issue 34 (one open per frame,
   :class:`PerFrameH5`) against one open per chunk.
+- ``stream``: each plane's emission by admm frame after frame on one thread (one core):
+  every frame solved from scratch against each chunk's frames continuing the previous
+  frame's solve (the recordings' route), interleaved frame by frame, both scored against
+  the truth; writes ``results/sequence_stream.{csv,md}``.
 """
 from __future__ import annotations
 
@@ -142,6 +146,67 @@ def stage_operators(work: Path, n_frames: int, repeats: int) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+#: The stream stage: recordings (kind, seed) at 100 frames/s, rendered at this many rays per pixel (their own
+#: error well below the solves'), and the sensor noise of ``lf-flame sequence --noise`` for the noisy rows.
+STREAM_SCENES = (("overlap", SEED_RECON), ("paper", SEED_PAPER))
+STREAM_RAYS = 64
+
+
+def stage_stream(n_frames: int) -> pd.DataFrame:
+    """Per frame, the solve time on one thread and the worst plane's error against the truth of admm from
+    scratch (``state=None``) and continuing the chunk's previous frame (:meth:`SequenceJob.planes_and_saturated`),
+    interleaved, noise-free and with the sensor noise of ``lf-flame sequence --noise``."""
+    import numba
+    from lf_flame.tomo.truth import scene_truth
+    numba.set_num_threads(1)
+    rows = []
+    for (kind, seed), noise in ((k, n) for k in STREAM_SCENES for n in (None, NOISE)):
+        seq = flicker_sequence(PAPER_CAMERA, np.random.default_rng(seed), kind, fps=100.0,
+                               duration_s=n_frames / 100.0, noise=noise)
+        job, _ = simulated_job(seq, PAPER_CAMERA, SimulatedSource(seq, PAPER_CAMERA, STREAM_RAYS),
+                               route="reconstruct-admm")
+        op = job.operator()
+        op.workers = 1                                                    # SciPy's FFTs on one thread too
+        knobs = job.reconstruction()
+        state = {}
+        for i, raw in enumerate(job.source.frames(0, n_frames)):
+            views = job.views(raw)
+            truth = scene_truth(seq.scene(PAPER_CAMERA, i), op)
+            if i % job.chunk == 0:
+                state = {}
+            row = dict(scene=kind, noise="noise-free" if noise is None else "shot+read, 12 bit", frame=i,
+                       admm_noise=knobs.get("admm_noise"), stream_first=not state)
+            for mode, st in (("scratch", None), ("stream", state)):
+                t0 = time.perf_counter()
+                planes, _ = job.planes_and_saturated(views, st)
+                row[f"{mode}_s"] = time.perf_counter() - t0
+                err = np.linalg.norm((planes - truth).reshape(len(truth), -1), axis=1)
+                row[f"{mode}_err"] = float((err / np.linalg.norm(truth.reshape(len(truth), -1), axis=1)).max())
+            rows.append(row)
+        print(f"  stream {kind} {row['noise']} done", flush=True)
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    return pd.DataFrame(rows)
+
+
+def stream_table(d: pd.DataFrame) -> pd.DataFrame:
+    """Per recording: each mode's solve time (median, p90; frames/s per core) and worst-plane error (mean, p90,
+    worst) over the frames that continue a solve (each chunk's first is solved from scratch in both)."""
+    out = []
+    for (scene, noise), g in d.groupby(["scene", "noise"], sort=False):
+        g = g[~g.stream_first]
+        row = dict(scene=scene, noise=noise, frames=len(g))
+        for mode in ("scratch", "stream"):
+            row.update({f"{mode}_ms_median": 1e3 * g[f"{mode}_s"].median(),
+                        f"{mode}_ms_p90": 1e3 * g[f"{mode}_s"].quantile(0.9),
+                        f"{mode}_frames_per_s_core": 1 / g[f"{mode}_s"].median(),
+                        f"{mode}_err_mean": g[f"{mode}_err"].mean(), f"{mode}_err_p90": g[f"{mode}_err"].quantile(0.9),
+                        f"{mode}_err_worst": g[f"{mode}_err"].max()})
+        row["x_faster"] = row["scratch_ms_median"] / row["stream_ms_median"]
+        row["share_stream_over_1.1x_scratch"] = float((g.stream_err > 1.1 * g.scratch_err).mean())
+        out.append(row)
+    return pd.DataFrame(out)
+
+
 def stage_speed(work: Path, n_frames: int, repeats: int) -> tuple[pd.DataFrame, float]:
     seq = flicker_sequence(PAPER_CAMERA, np.random.default_rng(SEED_PAPER), "paper", fps=500.0,
                            duration_s=n_frames / 500.0)
@@ -256,6 +321,16 @@ def report(out: Path) -> None:
                "inside the first frame's task time (`refocus_ms`: the planes' work, here the solve). The machine "
                "was shared with other jobs: compare the rows of one run. Medians of the runs:", "",
                t.reset_index().to_markdown(index=False, floatfmt=".3g"), ""]
+    if (out / "sequence_stream.csv").exists():
+        st = stream_table(pd.read_csv(out / "sequence_stream.csv"))
+        md += ["## Each plane's emission frame after frame: continuing the previous frame's solve", "",
+               f"Recordings at 100 frames/s rendered at {STREAM_RAYS} rays per pixel, each frame's planes by admm on "
+               "one thread (the exact operator, the lenslet grid, the knobs of the first frame's noise), from scratch "
+               "against continuing the chunk's previous frame (at most "
+               "`lf_flame.tomo.defaults.ADMM_STREAM_FILLS` fills), interleaved frame by frame "
+               "(`python experiments/sequence.py --stage stream`); errors are the worst plane's relative L2 error "
+               "against the truth, over the frames that continue a solve. The machine was shared: compare the "
+               "columns of one row.", "", st.to_markdown(index=False, floatfmt=".3g"), ""]
     md += ["![paper recording](sequence.png)", "", "![overlap recording](sequence_overlap.png)", ""]
     if (out / "sequence_overlap_reconstruct.png").exists():
         md += ["![overlap, each plane's emission](sequence_overlap_reconstruct.png)", ""]
@@ -266,12 +341,14 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--out", default="results")
     p.add_argument("--work", default="data/sequence", help="recordings and per-run folders (not in git)")
-    p.add_argument("--stage", choices=["all", "bars", "speed", "reconstruct", "operators", "report"], default="all")
+    p.add_argument("--stage", choices=["all", "bars", "speed", "reconstruct", "operators", "stream", "report"],
+                   default="all")
     p.add_argument("--fps", type=float, default=500.0)
     p.add_argument("--duration", type=float, default=1.0)
     p.add_argument("--speed-frames", type=int, default=320)
     p.add_argument("--repeats", type=int, default=2)
     p.add_argument("--operator-frames", type=int, default=8, help="frames of the operators stage")
+    p.add_argument("--stream-frames", type=int, default=32, help="frames of each recording of the stream stage")
     a = p.parse_args(argv)
     out, work = Path(a.out), Path(a.work)
     out.mkdir(parents=True, exist_ok=True)
@@ -300,6 +377,10 @@ def main(argv=None):
         d = stage_operators(work, a.operator_frames, a.repeats)
         atomic_write_text(out / "sequence_operators.csv", d.to_csv(index=False, float_format="%.6g"))
         meta.update(operator_frames=a.operator_frames, operators_seed=SEED_RECON)
+    if a.stage == "stream":
+        d = stage_stream(a.stream_frames)
+        atomic_write_text(out / "sequence_stream.csv", d.to_csv(index=False, float_format="%.6g"))
+        meta.update(stream_frames=a.stream_frames, stream_rays=STREAM_RAYS, stream_scenes=STREAM_SCENES)
     if a.stage != "report":
         meta.setdefault("wall_s", {})[a.stage] = time.perf_counter() - t0
         meta.update(provenance=provenance(), command=" ".join(sys.argv))

@@ -280,3 +280,26 @@ def test_the_packed_cholesky_solve_matches_a_dense_solve(complex_matrices, dtype
     got = np.array(b, np.result_type(dtype, np.complex64))
     K.cholesky_solve(packed, got)
     np.testing.assert_allclose(got, want, rtol=0, atol=(1e-4 if dtype == np.float32 else 1e-10) * np.abs(want).max())
+
+
+def test_a_recording_continues_the_previous_frames_solve(camera, op, planted):
+    """A state carried from frame to frame: the next frame's one fill starts from the last one's planes,
+    duals and prediction of the missing data, and lands far closer to that frame's emission than one fill
+    from scratch, as close as four; a state from another operator is refused."""
+    x, views = planted
+    fit = np.ones(op.dimsd, bool)
+    knobs = dict(tv=0.0, lam=0.03, start="refocused")
+    state = {}
+    fourier.solve_admm(views, op, fit, fills=4, state=state, **knobs)
+    assert {"s", "d", "z", "tv", "lam_max"} <= set(state)
+    x2 = 1.04 * x                                                      # the next frame: 4 % brighter (a flicker)
+    views2 = op.matvec(x2.ravel()).reshape(op.dimsd)
+    cont, res, _ = fourier.solve_admm(views2, op, fit, fills=1, state=state, **knobs)
+    assert len(res) == 1                                               # its one fill had a prediction to score
+    one = rel(fourier.solve_admm(views2, op, fit, fills=1, **knobs)[0], x2).max()
+    four = rel(fourier.solve_admm(views2, op, fit, fills=4, **knobs)[0], x2).max()
+    assert rel(cont, x2).max() < 0.3 * one and rel(cont, x2).max() < 1.2 * four
+    other = ExactOperator(camera, DEPTHS[:2])
+    with pytest.raises(ValueError, match="another operator"):
+        fourier.solve_admm(other.matvec(np.ones(other.shape[1])).reshape(other.dimsd), other,
+                           np.ones(other.dimsd, bool), state=state)

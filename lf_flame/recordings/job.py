@@ -140,6 +140,8 @@ class SequenceJob:
         out = dict(solver=self.solver, iters=iters, tv=tv,
                    saturation=None if self.saturation is None else float(self.saturation),
                    operator_rays=None if self.operator_rays is None else int(self.operator_rays))
+        if self.solver == "admm":   # each chunk's frames after its first continue the previous frame's solve
+            out["stream_fills"] = D.ADMM_STREAM_FILLS
         if self.solver == "admm" and (self.iters is None or self.tv is None):
             key = ("admm", self.iters, self.tv, self.saturation)
             if key not in self._cache:
@@ -190,17 +192,24 @@ class SequenceJob:
         """The focal stack (P, R, C) of one frame, by the job's route."""
         return self.planes_and_saturated(views)[0]
 
-    def planes_and_saturated(self, views: np.ndarray) -> tuple[np.ndarray, int | None]:
+    def planes_and_saturated(self, views: np.ndarray, state: dict | None = None) -> tuple[np.ndarray, int | None]:
         """The focal stack (P, R, C) of one frame by the job's route, and the count of its
-        pixels left out of the fit as saturated (``reconstruct-*``; None for shift-and-sum)."""
+        pixels left out of the fit as saturated (``reconstruct-*``; None for shift-and-sum).
+
+        ``state`` (admm): the solve carried from the previous frame of the chunk
+        (:func:`lf_flame.tomo.fourier.solve_admm`): empty for a chunk's first frame (solved
+        from scratch), then at most ``stream_fills`` fills per frame
+        (:data:`~lf_flame.tomo.defaults.ADMM_STREAM_FILLS`)."""
         if self.solver is None:
             from ..refocus.shift_and_sum import aperture_mask, focal_stack
             n = views.shape[0]
             return focal_stack(views, self.slopes, aperture_mask(n, "circular")), None
         from ..tomo.solvers import reconstruct
         r = self.reconstruction()
-        rec = reconstruct(views, self.operator(), r["solver"], r["iters"], tv=r["tv"], lam=r.get("lam"), l1=r.get("l1"),
-                          start=r.get("start"), tol=r.get("tol"), saturation=r["saturation"])
+        iters = min(r["iters"], r["stream_fills"]) if state else r["iters"]
+        rec = reconstruct(views, self.operator(), r["solver"], iters, tv=r["tv"], lam=r.get("lam"), l1=r.get("l1"),
+                          start=r.get("start"), tol=r.get("tol"), saturation=r["saturation"],
+                          state=state if r["solver"] == "admm" else None)
         return rec.planes, int(rec.settings["n_saturated"])
 
     def operator(self):
@@ -283,6 +292,7 @@ def _process_frames(job: SequenceJob, start: int, stop: int) -> dict:
     kw = measure_settings(job.route)
     t = dict(read_s=0.0, refocus_s=0.0, measure_s=0.0)
     rows = []
+    state = {}                                   # admm: the solve carried from frame to frame within the chunk
     raws = job.source.frames(start, stop)
     for i in range(start, stop):
         t0 = time.perf_counter()
@@ -290,7 +300,7 @@ def _process_frames(job: SequenceJob, start: int, stop: int) -> dict:
         t1 = time.perf_counter()
         t["read_s"] += t1 - t0
         try:
-            stack, n_sat = job.planes_and_saturated(job.views(raw))
+            stack, n_sat = job.planes_and_saturated(job.views(raw), state)
         except ValueError as e:
             raise ValueError(f"frame {i}: {e}") from e
         t2 = time.perf_counter()

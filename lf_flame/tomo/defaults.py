@@ -65,6 +65,14 @@ ADMM_QUIET = {"fills": 4, "tv": 0.0}
 #: tol 0.02: 1.92 % worst validation plane after 3.0 fills on average, 0.32 s median, against the lenslet solve's
 #: refocused start (2.05 %, 0.31 s: a tie in time, the better score taken); caps of 1 or 2 lenslet fills left the
 #: fine fills more to do (2 zero-start fills: 2.09 %, 0.36 s).
+#: A recording's admm (:mod:`lf_flame.recordings.job`): each chunk's frames after its first continue the previous
+#: frame's solve (:func:`lf_flame.tomo.fourier.solve_admm`'s ``state``) with at most this many fills (the noise level's
+#: ``tol`` may stop it after one). Chosen by a probe (not a committed command) on validation recordings of
+#: ``flicker_sequence`` seed 3 (12 frames at 64 rays, the lenslet grid, the knobs of the first frame's noise:
+#: the overlap at 100 frames/s, worst plane per frame against the truth): 2 fills mean 3.5 %, worst 4.1 %, against
+#: solving every frame from scratch 3.8 % / 4.2 % in 0.56 of its time; 1 fill 4.0 % / 5.1 % in 0.40 (the paper's
+#: flames at 500 frames/s, 1 fill: 5.2 % / 6.1 % against 5.3 % / 6.4 %).
+ADMM_STREAM_FILLS = 2
 ADMM_KNOBS = {(1, "quiet"): dict(ADMM_QUIET, lam=ADMM_LAM, l1=0.001, start="refocused", tol=0.05),
               (1, "noisy"): {"fills": ADMM_FILLS, "tv": ADMM_TV, "lam": ADMM_LAM, "l1": 0.0, "start": "zero", "tol": 0.05},
               (2, "quiet"): {"fills": 5, "tv": 0.0, "lam": 0.003, "l1": 0.0, "start": "coarse", "tol": 0.02},

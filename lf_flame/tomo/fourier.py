@@ -312,7 +312,8 @@ def fill_data(views, fit, op):
 
 def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INNER, lam: float = ADMM_LAM,
                rho: float = ADMM_RHO, tv: float = ADMM_TV, rho_tv: float = ADMM_RHO_TV, momentum: float = ADMM_MOMENTUM,
-               l1: float = 0.0, support=None, start: str = "zero", tol: float = 0.0, coarse_knobs=None, callback=None):
+               l1: float = 0.0, support=None, start: str = "zero", tol: float = 0.0, coarse_knobs=None, callback=None,
+               state: dict | None = None):
     """Non-negative emission on the exact operator's planes by Fourier ADMM with missing data.
 
     Parameters
@@ -368,13 +369,23 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         :func:`lf_flame.tomo.solvers.reconstruct` passes). None: the quiet ones.
     callback : callable or None
         ``callback(j, x)`` after fill ``j`` (1-based) with the planes (flat).
+    state : dict or None
+        A recording's solve carried from frame to frame (the EM fills continued across
+        frames, as an online EM does: Cappé & Moulines, J. R. Stat. Soc. B 71 (2009)). Empty:
+        this solve runs as asked and leaves in it its planes, ADMM duals, the l1 scale and
+        the next fill's prediction of the views (one ``H`` more). Holding them (the previous
+        frame's, same operator and knobs): the solve continues from them (``start`` is not
+        used): its first fill takes the missing data from that prediction (no ``H`` spent on
+        it), its ADMM steps start from the planes and duals, and ``tol`` may stop it after
+        that fill. With ``fills=1`` a frame then costs one ``H`` and one ``H^H``.
 
     Returns
     -------
     planes : ndarray of shape (P, rows, cols), float64, non-negative
     residuals : list of float
         ``||M (w H v - y)|| / ||M y||`` at the point ``v`` each fill after the first predicts
-        from (no extra operator application is spent on it): ``len(residuals) + 1`` fills ran.
+        from (no extra operator application is spent on it): ``len(residuals) + 1`` fills ran
+        (every fill's, ``len(residuals)`` fills, when continuing a ``state``).
     system_s : float
         Seconds spent building the :class:`FourierSystem` (0 when ``op`` had it), and for the
         coarse start the lenslet grid's operator and system where this call built them.
@@ -384,7 +395,7 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     ValueError
         Fills or inner iterations below 1, a momentum outside [0, 1), negative weights, a
         support that is not boolean of the planes' shape, an unknown start, a negative tol, the
-        coarse start on the lenslet grid.
+        coarse start on the lenslet grid, a ``state`` from another operator.
     """
     if support is not None and (np.asarray(support).dtype != bool or np.shape(support) != tuple(op.dims)):
         raise ValueError(f"support must be boolean of the planes' shape {tuple(op.dims)}. Received: "
@@ -399,13 +410,19 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     if start not in ADMM_STARTS or not (tol >= 0 and math.isfinite(tol)):
         raise ValueError(f"start must be one of {ADMM_STARTS} and tol finite and >= 0. Received: start={start!r}, "
                          f"tol={tol!r}")
-    if start == "coarse" and op.subsamples == 1:
+    P, gr, gc = op.phase_dims                                        # the lenslet grid's planes (phases)
+    canvas = op.canvas_shape
+    cont = bool(state)                                               # continuing a recording's solve
+    if cont and (state["s"].shape != (P,) + canvas or state["z"].shape != (len(op._lit),) + canvas):
+        raise ValueError(f"the state holds planes {state['s'].shape} and views {state['z'].shape}: another "
+                         f"operator's (planes {(P,) + canvas}, views {(len(op._lit),) + canvas} here)")
+    if cont:
+        start = "zero"                                               # not used: the state is the start
+    elif start == "coarse" and op.subsamples == 1:
         raise ValueError("the coarse start solves on the lenslet grid first: it needs a finer grid (subsamples > 1)")
     kept = list(op.__dict__.get("_fourier_systems", {}).values())
     system = admm_system(op, lam, tv, rho, rho_tv)
     system_s = 0.0 if any(system is k for k in kept) else system.setup_s
-    P, gr, gc = op.phase_dims                                        # the lenslet grid's planes (phases)
-    canvas = op.canvas_shape
     if start == "coarse":   # the lenslet grid's solve: each lenslet's value on its s x s samples is on every phase
         kn = COARSE_KNOBS["quiet"] if coarse_knobs is None else coarse_knobs
         coarse, coarse_s = coarse_operator(op)
@@ -443,6 +460,9 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         z *= a
     s_prev, d, r = s, np.zeros_like(s), np.empty_like(s)
     gy, gx, ey, ex = (np.zeros_like(s) for _ in range(4))
+    if cont:
+        s, d, (gy, gx, ey, ex), z, lam_max = state["s"], state["d"], state["tv"], state["z"], state["lam_max"]
+        s_prev = s
     if support is None:
         support = np.ones((P, gr, gc), bool)
     kappa = tv / (rho_tv * system.g0) if tv > 0 else 0.0
@@ -451,7 +471,7 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         if j > 1:   # predict from the extrapolated planes (heavy-ball momentum on the fills), data where measured
             z = _forward_views(op, s + momentum * (s - s_prev))
         residual = _fourier_kernels.fill(z, yt, y, w, m)
-        if j > 1:
+        if j > 1 or cont:
             residuals.append(math.sqrt(residual) / norm)
         b = _fourier_kernels.spectra_adjoint(S, scipy.fft.rfft2(z, workers=op.workers))   # H^H z, (P, Lr, F)
         if j == 1:   # the l1 step from H^H y (without a start the first fill's z is the data)
@@ -469,9 +489,12 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
                 _fourier_kernels.tv_shrink(x, kappa, gy, gx, ey, ex)
         if callback is not None:
             callback(j, op.from_phases(s[:, :gr, :gc]).astype(np.float64).ravel())
-        if tol > 0 and j > 1 and (np.linalg.norm(s[:, :gr, :gc] - s_prev[:, :gr, :gc])
+        if tol > 0 and (j > 1 or cont) and (np.linalg.norm(s[:, :gr, :gc] - s_prev[:, :gr, :gc])
                                   <= tol * np.linalg.norm(s[:, :gr, :gc])):
             break
+    if state is not None:   # the next frame's first fill predicts from these planes, as the next fill would
+        state.update(s=s, d=d, tv=(gy, gx, ey, ex), lam_max=lam_max,
+                     z=_forward_views(op, s + momentum * (s - s_prev)).astype(op._real, copy=False))
     return op.from_phases(s[:, :gr, :gc]).astype(np.float64), residuals, system_s
 
 

@@ -91,7 +91,7 @@ def lipschitz_bound(op: EmissionOperator) -> float:
 def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: int | None = None, *,
                 damp: float = 0.0, tv: float | None = None, lam: float | None = None, saturation=1.0,
                 progress: bool = False, callback=None, support=None, l1: float | None = None, start: str | None = None,
-                tol: float | None = None) -> Reconstruction:
+                tol: float | None = None, state: dict | None = None) -> Reconstruction:
     """Recover the emission on the operator's planes from one light field.
 
     Parameters
@@ -155,6 +155,11 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         ``settings["fills_run"]`` counts the fills that ran. The coarse start's lenslet-grid
         solve takes the lenslet grid's knobs for the noise level (the quiet ones where the
         noise was not measured).
+    state : dict or None
+        admm only: a recording's solve carried from frame to frame
+        (:func:`lf_flame.tomo.fourier.solve_admm`): give an empty dict with the first frame
+        and the same dict with each next one; ``settings["start"]`` is then ``"continued"``
+        from the second frame on.
 
     Returns
     -------
@@ -174,11 +179,11 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
     settings = dict(iters=iters, rays_per_pixel=op.rays_per_pixel, seed=op.seed,
                     saturation="mask" if np.ndim(saturation) > 0 else saturation, n_saturated=p.n_sat)
     step = _Steps(iters, f"reconstruct ({solver})", progress, callback)
-    if (support is not None or l1 or start is not None or tol is not None) and solver != "admm":
-        raise ValueError(f"a support, l1, start and tol are for the admm only. Received solver={solver!r}")
+    if (support is not None or l1 or start is not None or tol is not None or state is not None) and solver != "admm":
+        raise ValueError(f"a support, l1, start, tol and state are for the admm only. Received solver={solver!r}")
     if solver == "admm":
         x, residuals = _solve_admm(p, settings, step, iters if iters_given else None, tv if tv_given else None,
-                                   lam=lam, l1=l1, start=start, tol=tol, support=support)
+                                   lam=lam, l1=l1, start=start, tol=tol, support=support, state=state)
     elif solver == "adjoint":
         x, residuals = _solve_adjoint(p)
     elif solver == "lsqr":
@@ -256,7 +261,7 @@ class _Steps:
             self.callback(self.count, np.ravel(x))
 
 
-def _solve_admm(p: _Problem, settings: dict, step: _Steps, iters, tv, *, lam, l1, start, tol, support):
+def _solve_admm(p: _Problem, settings: dict, step: _Steps, iters, tv, *, lam, l1, start, tol, support, state=None):
     """``"admm"`` (:func:`lf_flame.tomo.fourier.solve_admm`), the knobs not given by the data's noise
     (:func:`lf_flame.tomo.fourier.admm_knobs`): ``(x, residuals)``."""
     from .exact import ExactOperator
@@ -269,13 +274,16 @@ def _solve_admm(p: _Problem, settings: dict, step: _Steps, iters, tv, *, lam, l1
     knobs = admm_knobs(p.y.reshape(op.dimsd), p.fit.reshape(op.dimsd), iters, tv, lam, op.subsamples, l1, start, tol)
     iters = knobs.pop("fills")
     settings.update(iters=iters, subsamples=op.subsamples, **knobs)
+    if state:
+        settings["start"] = "continued"                               # from the previous frame's solve
     step.bar.total = iters                                            # the fills the noise chose
     step.bar.refresh()
     planes, residuals, settings["system_s"] = solve_admm(
         p.y.reshape(op.dimsd), op, p.fit.reshape(op.dimsd), fills=iters, lam=knobs["lam"], tv=knobs["tv"],
         l1=knobs["l1"], start=knobs["start"], tol=knobs["tol"], support=support, callback=lambda j, x: step(x),
-        coarse_knobs=COARSE_KNOBS[noise_regime(knobs["noise"])] if math.isfinite(knobs["noise"]) else None)
-    settings["fills_run"] = len(residuals) + 1
+        coarse_knobs=COARSE_KNOBS[noise_regime(knobs["noise"])] if math.isfinite(knobs["noise"]) else None,
+        state=state)
+    settings["fills_run"] = step.count
     return planes.ravel(), residuals
 
 
