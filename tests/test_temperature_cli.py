@@ -157,3 +157,73 @@ def test_temperature_refuses_a_monochrome_light_field(files, tmp_path, capsys):
         assert main(["temperature", str(path), "--calibration", str(d["cal"]), "--out", str(tmp_path / "t.h5")]) == 2
         assert why in capsys.readouterr().err
     assert not (tmp_path / "t.h5").exists()
+
+
+COLOUR_FILE = """[main_lens]
+focal_length_mm = 100.0
+f_number = 10.0
+focus_distance_mm = 200.0
+
+[microlens_array]
+pitch_um = 150.0
+focal_length_mm = 3.0
+
+[sensor]
+pixel_size_um = 12.6875      # lenslet images 150 um x (1 + 3/200) / 12.6875 um = 12 px apart
+rows = 144
+cols = 120
+"""
+
+
+def test_a_camera_file_names_its_colour_filter_array(tmp_path):
+    """[sensor] cfa, cfa_phase and sensitivities make the file's colour sensor; a file without them is monochrome;
+    bad values are refused naming the key. Whole-pixel lenslet images tiling the sensor are a perfect grid (no
+    decoding), even where the pitch's float arithmetic lands a hair below 12 px."""
+    from lf_flame.optics.camera_file import load_camera_file, load_colour_sensor
+    mono = tmp_path / "mono.toml"
+    mono.write_text(COLOUR_FILE)
+    assert load_colour_sensor(mono) is None
+    cam = load_camera_file(mono)
+    assert cam.perfect_grid and cam.pixels_per_lenslet == 12 and (cam.n_rows, cam.n_cols) == (12, 10)
+    colour = tmp_path / "colour.toml"
+    colour.write_text(COLOUR_FILE + 'cfa = "BGGR"\ncfa_phase = [1, 0]\nsensitivities = "Sigma SDMerill (NPL)"\n')
+    s = load_colour_sensor(colour)
+    assert (s.name, s.pattern, s.phase) == ("Sigma SDMerill (NPL)", "BGGR", (1, 0))
+    for extra, key in (('cfa = "RGBX"\n', "cfa must be one of"), ('cfa = "RGGB"\ncfa_phase = [2, 0]\n', "cfa_phase"),
+                       ("cfa_phase = [0, 1]\n", "give cfa too"), ('cfa = "RGGB"\nsensitivities = "Nope"\n', "Nope")):
+        bad = tmp_path / "bad.toml"
+        bad.write_text(COLOUR_FILE + extra)
+        with pytest.raises(ValueError, match=key):
+            load_camera_file(bad)
+
+
+def test_simulate_renders_colour_scenes_of_any_camera_file(tmp_path, capsys):
+    """``simulate --camera FILE --scene furnace|colour-depth`` mosaics with the file's CFA and stores its sensor:
+    on a blackbody each channel's pixels hold that channel's band integral (a mosaic of another phase would put
+    blue where red is); a furnace without its temperature is refused."""
+    from lf_flame.optics.colour import CHANNELS, cfa_channels
+    from lf_flame.simulate.scenes_temperature import blackbody_channels
+    cam_file = tmp_path / "colour.toml"
+    cam_file.write_text(COLOUR_FILE + 'cfa = "BGGR"\n')
+    out = tmp_path / "furnace.npz"
+    assert main(["simulate", "--camera", str(cam_file), "--scene", "furnace", "--temperature", "2000",
+                 "--rays-per-pixel", "4", "--out", str(out)]) == 0
+    z = np.load(out)
+    rec = json.loads(str(z["sensor"]))
+    assert (rec["pattern"], rec["phase"]) == ("BGGR", [0, 0])
+    raw = z["raw"]
+    chan = cfa_channels(raw.shape, "BGGR", (0, 0))
+    rr, cc = np.indices(raw.shape) % 12
+    lit = (rr >= 4) & (rr < 8) & (cc >= 4) & (cc < 8)                  # each lenslet image's centre: all channels
+    means = np.array([raw[(chan == c) & lit].mean() for c in range(3)])
+    want = blackbody_channels(library_sensor(rec["name"], "BGGR", (0, 0)), 2000.0)
+    assert np.allclose(means[0] / means[1], want[0] / want[1], rtol=0.03), (means, want, CHANNELS)
+    assert np.allclose(means[2] / means[1], want[2] / want[1], rtol=0.03)
+    flames = tmp_path / "flames.npz"
+    assert main(["simulate", "--camera", str(cam_file), "--scene", "colour-depth", "--seed", "1",
+                 "--rays-per-pixel", "2", "--out", str(flames)]) == 0
+    objects = json.loads(str(np.load(flames)["objects"]))
+    assert objects and all(1800 <= o["peak_k"] <= 2200 for o in objects)
+    capsys.readouterr()
+    assert main(["simulate", "--scene", "furnace", "--out", str(tmp_path / "f.npz")]) == 2
+    assert "--temperature" in capsys.readouterr().err

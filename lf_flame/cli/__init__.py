@@ -116,14 +116,20 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
 
     s = sub.add_parser("simulate", help="render a raw light-field image of a scene")
-    s.add_argument("--scene", choices=["shapes", "flame", "point", "volume", "depth", "white"], required=True,
+    s.add_argument("--scene", choices=["shapes", "flame", "point", "volume", "depth", "white", "colour-flame",
+                                       "colour-depth", "furnace"], required=True,
                    help="shapes: the paper's four shapes (rectangle, triangle, circle, square); flame: four "
                         "flames; both at the paper's depths " + ", ".join(f"{d:+g}" for d in PAPER_DEPTHS_MM) +
                         " mm; point: one point of light (--depth, --y, --x); volume: a volumetric laminar flame "
                         "(a luminous sheath 10 mm across, at most 85 %% of the field, about a vertical axis through "
                         "--depth, default 0, in 32 layers; 'reconstruct --volume'); depth: 2-4 flames at random "
                         "depths, sizes and places (--seed), scaled to the camera (its depth of field and lenslet "
-                        "footprint); white: a flat field, the white image that 'lf-flame calibrate' takes")
+                        "footprint); white: a flat field, the white image that 'lf-flame calibrate' takes; seen "
+                        "by a colour (Bayer) sensor, for 'lf-flame temperature': colour-flame: the four flames with "
+                        "their temperature fields; colour-depth: the depth scene's flames, each with a drawn "
+                        "temperature; furnace: a blackbody at --temperature filling the field, for "
+                        "'lf-flame calibrate-temperature'. The colour sensor is the camera file's [sensor] cfa "
+                        "(docs/own_camera.md), else colour-science's Nikon 5100 behind an RGGB CFA")
     s.add_argument("--out", required=True, help=".npz (raw, camera, objects, scene[, views]) or .png (the raw "
                    "image in 16 bits, clipped at 1, with the camera, objects and scene in its text); both read by "
                    "the commands that take a raw image")
@@ -138,6 +144,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--crosstalk", action="store_true", help="add crosstalk through neighbouring lenslets")
     s.add_argument("--bit-depth", type=_bit_depth, help="quantise the raw image to this many bits, 1-32 (default: "
                    "not quantised)")
+    s.add_argument("--temperature", type=float, help="furnace scene: the blackbody's temperature (K)")
     s.add_argument("--depth", type=float, default=0.0, help="point scene: depth offset (mm)")
     s.add_argument("--y", type=float, default=0.0, help="point scene: height (mm)")
     s.add_argument("--x", type=float, default=0.0, help="point scene: lateral position (mm)")

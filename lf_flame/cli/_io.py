@@ -235,12 +235,44 @@ def _raw_objects(path):
     return json.loads(meta["objects"]) if "objects" in meta else None
 
 
+#: ``lf-flame simulate``'s scenes seen by a colour (Bayer) sensor (:func:`colour_scene`).
+COLOUR_SCENES = ("colour-flame", "colour-depth", "furnace")
+
+
+def colour_scene(record: dict, camera):
+    """A colour scene of ``lf-flame simulate`` from its record: ``(scene, channel_radiance, sensor)`` for
+    :func:`lf_flame.simulate.colour.render_colour`.
+
+    The record holds ``kind`` (one of :data:`COLOUR_SCENES`), ``seed``, ``nominal``, ``sensor`` (``name``,
+    ``pattern``, ``phase``) and for a furnace ``temperature_k``. ``colour-flame``: the paper's four flames
+    with their temperature fields (:func:`lf_flame.simulate.scenes_temperature.colour_flame_scene`);
+    ``colour-depth``: 2-4 flames at random depths scaled to the camera, each with a drawn sheath temperature
+    (:func:`~lf_flame.simulate.scenes_temperature.colour_depth_scene`); ``furnace``: a blackbody filling the
+    field (:func:`~lf_flame.simulate.scenes_temperature.furnace_scene`), the flat field that
+    ``lf-flame calibrate-temperature`` takes.
+    """
+    from ..optics.colour import library_sensor
+    from ..simulate import scenes_temperature as st
+    sr = record["sensor"]
+    sensor = library_sensor(sr["name"], sr["pattern"], tuple(sr["phase"]))
+    rng = np.random.default_rng(record["seed"])
+    if record["kind"] == "furnace":
+        scene, chans = st.furnace_scene(camera, sensor, record["temperature_k"])
+        return scene, chans, sensor
+    cs = (st.colour_flame_scene(camera, sensor, None if record["nominal"] else rng) if record["kind"] == "colour-flame"
+          else st.colour_depth_scene(camera, sensor, rng))
+    return cs.scene, list(cs.channel_radiance), sensor
+
+
 def simulated_scene(record: dict, camera):
     """The scene of ``lf-flame simulate`` from its record (``kind``, ``seed``, ``nominal``; a
     point: ``depth_mm``, ``y_mm``, ``x_mm``; a volume: ``depth_mm``, its axis's depth; ``depth``:
-    :func:`lf_flame.simulate.scenes_depth.camera_depth_scene`; ``white``: a flat field), the one it
-    renders and stores beside the raw image."""
+    :func:`lf_flame.simulate.scenes_depth.camera_depth_scene`; ``white``: a flat field; a colour
+    scene: :func:`colour_scene`'s, its layers' radiance the green channel's), the one it renders and
+    stores beside the raw image."""
     from ..simulate import scenes
+    if record["kind"] in COLOUR_SCENES:
+        return colour_scene(record, camera)[0]
     if record["kind"] == "point":
         return scenes.point_scene(camera, record["depth_mm"], record["y_mm"], record["x_mm"])
     if record["kind"] == "white":

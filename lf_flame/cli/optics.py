@@ -10,7 +10,23 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import _raw_objects, _save_image, _write_stack, camera_config, light_field, simulated_scene
+from ._io import (COLOUR_SCENES, _raw_objects, _save_image, _write_stack, camera_config, colour_scene, light_field,
+                  simulated_scene)
+
+
+def _colour_sensor(a):
+    """The colour sensor of ``simulate``'s colour scenes: the camera file's ``[sensor] cfa`` (and phase,
+    sensitivities), else colour-science's default camera behind an RGGB CFA of phase (0, 0); and where it
+    came from."""
+    from ..optics.colour import DEFAULT_SENSITIVITIES, library_sensor
+    from ..optics.camera_file import DATASHEET_KEYS, load_colour_sensor
+    if a.data_config:
+        from ..config import load_toml
+        if set(load_toml(a.data_config)) & set(DATASHEET_KEYS):
+            sensor = load_colour_sensor(a.data_config)
+            if sensor is not None:
+                return sensor, f"{a.data_config} [sensor]"
+    return library_sensor(DEFAULT_SENSITIVITIES, "RGGB", (0, 0)), "default: the camera file names no cfa"
 
 
 def cmd_simulate(a):
@@ -18,17 +34,34 @@ def cmd_simulate(a):
     from ..optics.camera import PAPER_CAMERA
     cam = camera_config(a.data_config) if a.data_config else PAPER_CAMERA
     record = dict(kind=a.scene, seed=a.seed, nominal=a.nominal, depth_mm=a.depth, y_mm=a.y, x_mm=a.x)
-    sc = simulated_scene(record, cam)
+    colour = a.scene in COLOUR_SCENES
+    if a.scene == "furnace" and a.temperature is None:
+        raise ValueError("--scene furnace needs its blackbody temperature: give --temperature K")
+    if colour:
+        sensor, where = _colour_sensor(a)
+        record.update(sensor=dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase)))
+        if a.scene == "furnace":
+            record["temperature_k"] = float(a.temperature)
+        sc, chans, _ = colour_scene(record, cam)
+        print(f"colour sensor {sensor.name}, {sensor.pattern} phase {sensor.phase} ({where})")
+    else:
+        sc = simulated_scene(record, cam)
     if a.crosstalk or a.bit_depth:
         import dataclasses
         sc = dataclasses.replace(sc, effects=dataclasses.replace(sc.effects, crosstalk=a.crosstalk or
                                                                  sc.effects.crosstalk, bit_depth=a.bit_depth))
     t = time.perf_counter()
-    raw = simulate.render(cam, sc, a.rays_per_pixel, a.seed)
+    if colour:
+        from ..simulate.colour import render_colour
+        raw = render_colour(cam, sc, chans, sensor, a.rays_per_pixel, a.seed)
+    else:
+        raw = simulate.render(cam, sc, a.rays_per_pixel, a.seed)
     dt = time.perf_counter() - t
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     meta = dict(camera=cam.to_json(), objects=json.dumps(sc.objects, default=float), scene=json.dumps(record))
+    if colour:
+        meta["sensor"] = json.dumps(record["sensor"])
     if out.suffix == ".png":
         _save_image(out, raw, {f"lf_flame.{k}": v for k, v in meta.items()}, bits=16)
     else:

@@ -23,6 +23,9 @@ are ``p = pitch (1 + g/d) / pixel`` pixels apart, ``p`` in general not a whole n
     pixel_size_um = 14.4
     rows = 480                   # sensor size, pixels
     cols = 360
+    cfa = "RGGB"                 # optional: a colour (Bayer) sensor's 2 x 2 tile, row-major
+    cfa_phase = [0, 0]           # optional: the tile's row and column at pixel (0, 0); default [0, 0]
+    sensitivities = "Nikon 5100 (NPL)"   # optional: colour-science's camera sensitivities (the default)
 
 ``docs/own_camera.md`` describes the fields and the route from a white image to a
 reconstruction; ``examples/own_camera.toml`` is a complete file.
@@ -49,7 +52,7 @@ from .camera import GRID_LAYOUTS, PlenopticCamera
 DATASHEET_KEYS = {
     "main_lens": (("focal_length_mm",), ("f_number", "aperture_mm", "focus_distance_mm", "mla_distance_mm")),
     "microlens_array": (("pitch_um", "focal_length_mm"), ("layout", "rotation_deg", "offset_px", "rows", "cols")),
-    "sensor": (("pixel_size_um", "rows", "cols"), ()),
+    "sensor": (("pixel_size_um", "rows", "cols"), ("cfa", "cfa_phase", "sensitivities")),
 }
 #: Relative disagreement tolerated between two values of the same quantity given twice
 #: (f-number and aperture, focus distance and MLA distance): datasheets round to 3 digits.
@@ -86,6 +89,10 @@ def _fit_grid(base: dict, rows, cols):
         over_r = rows is None and bool(lo[0] < -H / 2 or hi[0] > H / 2)
         over_c = cols is None and bool(lo[1] < -W / 2 or hi[1] > W / 2)
         if not (over_r or over_c):
+            if (p == base["pixels_per_lenslet"] and base["grid_rotation_deg"] == 0 and not any(off) and not hexa
+                    and (H, W) == (r * p, c * p)):       # whole-pixel images tiling the sensor: a perfect grid
+                keep = {k: v for k, v in free.items() if k not in ("grid_pitch_px", "grid_rotation_deg", "grid_layout")}
+                return PlenopticCamera(**keep, n_rows=r, n_cols=c)
             return PlenopticCamera(**base, n_rows=r, n_cols=c)
         r, c = r - int(over_r), c - int(over_c)
     raise ValueError(f"no lenslet grid fits on the {H} x {W}-pixel sensor at a pitch of {p:.3f} px, offset {off} px")
@@ -152,6 +159,7 @@ def camera_from_datasheet(sheet: dict, where: str = "camera file") -> PlenopticC
             raise ValueError(f"{where} [{table}]: missing {', '.join(miss)}")
         t[table] = d
     lens, mla, sensor = t["main_lens"], t["microlens_array"], t["sensor"]
+    colour_sensor(t, where)                                          # a colour filter array named: checked now
     w = f"{where} [main_lens] "
     F = _number(w, "focal_length_mm", lens["focal_length_mm"])
     if "focus_distance_mm" not in lens and "mla_distance_mm" not in lens:
@@ -188,6 +196,8 @@ def camera_from_datasheet(sheet: dict, where: str = "camera file") -> PlenopticC
     H = _number(w, "rows", sensor["rows"], integer=True)
     W = _number(w, "cols", sensor["cols"], integer=True)
     p = pitch * (1.0 + g / d) / s
+    if abs(p - round(p)) <= 1e-9 * p:
+        p = float(round(p))                  # a whole number of pixels but for float rounding: a perfect grid
     if p < 2:
         raise ValueError(f"{where}: the lenslet images are {p:.3f} px apart (pitch {pitch * 1000:g} µm x (1 + g/d) / "
                          f"pixel {s * 1000:g} µm): fewer than 2 pixels per lenslet give no views; check the units "
@@ -249,6 +259,64 @@ def load_camera_file(path) -> PlenopticCamera:
         except (TypeError, ValueError) as e:
             raise ValueError(f"camera file {p} [camera]: {e}") from None
     return camera_from_datasheet(sheet, where=str(p))
+
+
+def colour_sensor(sheet: dict, where: str = "camera file"):
+    """The colour sensor a camera file's ``[sensor]`` table names, or None for a monochrome one.
+
+    Parameters
+    ----------
+    sheet : dict
+        A camera file's tables (:func:`camera_from_datasheet`); ``[sensor]`` may hold ``cfa``
+        (a key of :data:`lf_flame.optics.colour.CFA_PATTERNS`, the 2 x 2 tile row-major),
+        ``cfa_phase`` (the tile's row and column, 0 or 1, at pixel (0, 0); default [0, 0]) and
+        ``sensitivities`` (a camera of colour-science's ``MSDS_CAMERA_SENSITIVITIES``; default
+        :data:`lf_flame.optics.colour.DEFAULT_SENSITIVITIES`).
+    where : str
+        Names the source in error messages.
+
+    Returns
+    -------
+    ColourSensor or None
+        None where ``cfa`` is not given (``cfa_phase`` or ``sensitivities`` without it are refused).
+
+    Raises
+    ------
+    ValueError
+        An unknown pattern, a phase that is not two 0/1 integers, unknown sensitivities, or the
+        colour keys without ``cfa``.
+    """
+    from .colour import CFA_PATTERNS, DEFAULT_SENSITIVITIES, library_sensor
+    t = sheet.get("sensor", {}) if isinstance(sheet, dict) else {}
+    w = f"{where} [sensor] "
+    if "cfa" not in t:
+        if "cfa_phase" in t or "sensitivities" in t:
+            raise ValueError(f"{w}cfa_phase and sensitivities describe a colour filter array: give cfa too "
+                             f"(one of {sorted(CFA_PATTERNS)})")
+        return None
+    if t["cfa"] not in CFA_PATTERNS:
+        raise ValueError(f"{w}cfa must be one of {sorted(CFA_PATTERNS)}. Received: cfa={t['cfa']!r}")
+    phase = t.get("cfa_phase", [0, 0])
+    if (not isinstance(phase, list) or len(phase) != 2
+            or not all(isinstance(v, int) and not isinstance(v, bool) and v in (0, 1) for v in phase)):
+        raise ValueError(f"{w}cfa_phase must be two integers, 0 or 1 (row, column). Received: cfa_phase={phase!r}")
+    try:
+        return library_sensor(str(t.get("sensitivities", DEFAULT_SENSITIVITIES)), t["cfa"], tuple(phase))
+    except ValueError as e:
+        raise ValueError(f"{w}{e}") from None
+
+
+def load_colour_sensor(path):
+    """The colour sensor of a camera file (:func:`colour_sensor`), None for a monochrome one or a file of a
+    ``[camera]`` table. Raises as :func:`load_camera_file` and :func:`colour_sensor`."""
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"camera file not found: {p}")
+    try:
+        sheet = tomllib.loads(p.read_text())
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
+        raise ValueError(f"camera file {p} is not valid TOML: {e}") from None
+    return colour_sensor(sheet, str(p))
 
 
 def decoded_camera(camera: PlenopticCamera, n_views: int, n_rows: int, n_cols: int) -> PlenopticCamera:

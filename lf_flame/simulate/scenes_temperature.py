@@ -144,6 +144,46 @@ def colour_flame_scene(camera: PlenopticCamera, sensor: ColourSensor, rng: np.ra
     return _in_colour(mono, "colour_flame", temps, soots, sensor, alpha, peak, peaks_k, base_k)
 
 
+#: Sheath temperatures (K) drawn for :func:`colour_depth_scene`'s flames: the span of :data:`FLAME_PEAK_K`, widened.
+DEPTH_PEAK_RANGE_K = (1800.0, 2200.0)
+
+
+def colour_depth_scene(camera: PlenopticCamera, sensor: ColourSensor, rng: np.random.Generator, *,
+                       base_k: float = FLAME_BASE_K, alpha: float = ALPHA_SOOT, peak: float = 0.8,
+                       texels_per_lenslet: float = 3.0) -> ColourFlameScene:
+    """Flames at random depths of any camera, each with its own temperature field, seen by a colour sensor.
+
+    The geometry and soot of :func:`lf_flame.simulate.scenes_depth.camera_depth_scene` (2-4
+    flames scaled to the camera's depth of field and lenslet footprint); flame ``k`` has
+    :func:`flame_temperature` with a sheath temperature drawn uniformly from
+    :data:`DEPTH_PEAK_RANGE_K` (after the geometry, from the same ``rng``).
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+    sensor : ColourSensor
+    rng : numpy.random.Generator
+    base_k, alpha, peak, texels_per_lenslet : as :func:`colour_flame_scene`
+
+    Returns
+    -------
+    ColourFlameScene
+        Its objects carry ``peak_k`` and ``base_k``.
+
+    Raises
+    ------
+    ValueError
+        ``peak`` not in (0, 1], or the errors of :func:`~lf_flame.simulate.scenes_depth.camera_depth_scene`.
+    """
+    from .scenes_depth import camera_depth_scene
+    if not (0 < peak <= 1):
+        raise ValueError(f"peak must be in (0, 1]. Received: {peak}")
+    mono = camera_depth_scene(camera, rng, texels_per_lenslet=texels_per_lenslet)
+    peaks_k = rng.uniform(*DEPTH_PEAK_RANGE_K, size=len(mono.layers))
+    temps, soots = _layer_temperatures(camera, mono, peaks_k, base_k, texels_per_lenslet)
+    return _in_colour(mono, "colour_depth", temps, soots, sensor, alpha, peak, peaks_k, base_k)
+
+
 def _flame_coordinates(camera: PlenopticCamera, layer, obj: dict, texels_per_lenslet: float):
     """A flame layer's normalised coordinates (eta, xi) per texel, as its luminosity was drawn
     (:func:`lf_flame.simulate.scenes._flame_layer`): height over the flame's height, and lateral offset
