@@ -168,6 +168,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--no-white", action="store_true", help="no white-image normalisation")
     s.add_argument("--views", type=int, help="views per axis (default: the pitch rounded down)")
     s.add_argument("--camera-id", help="refuse a calibration of another camera")
+    s.add_argument("--camera", help="camera file (docs/own_camera.md): where its [sensor] names a colour filter array "
+                   "(cfa), each view sample is taken from its nearest pixel and keeps that pixel's channel (the "
+                   "views' channel map, which 'lf-flame temperature' reads); a raw image from 'lf-flame simulate' "
+                   "with a colour sensor is decoded so without it")
     s.add_argument("--saturation", default="auto",
                    help="the sensor's clipping level in the raw image's units: the views' samples from pixels at or "
                         "above it are stored as 'clipped' (reconstruct leaves them out); auto: 1.0 when the raw "
@@ -393,9 +397,12 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("temperature", help="each plane's temperature map (K) from one colour light field by "
                        "two-colour pyrometry -> HDF5 and a figure")
-    s.add_argument("raw", help="raw colour image (the CFA's mosaic): " + RAW_FORMATS)
+    s.add_argument("raw", help="raw colour image (the CFA's mosaic): " + RAW_FORMATS + "; or VIEWS.h5 of a colour "
+                   "capture decoded with its channels apart ('lf-flame decode --camera cam.toml') with --camera")
     s.add_argument("--calibration", required=True, help="JSON of 'lf-flame calibrate-temperature'; refused when "
                    "made for another sensor or CFA")
+    s.add_argument("--camera", help="camera file (docs/own_camera.md) of decoded views (VIEWS.h5), or of a raw image "
+                   "that stores none")
     s.add_argument("--depth", type=float, action="append", help="plane depth (mm from the focal plane; repeatable). "
                    "Default: --depths auto")
     s.add_argument("--depths", default=None, help="'auto' (default): the depths holding emission found by depth from "

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import time
 from pathlib import Path
 
@@ -32,17 +33,48 @@ def cmd_decode(a):
     raw = load_image(a.raw)
     white = None if a.no_white else calibration_image(cal.white, "white", a.white)
     dark = calibration_image(cal.dark, "dark", a.dark)
+    sensor, where = _decode_sensor(a)
     t = time.perf_counter()
-    views = decode(raw, cal, white, dark, n_views=a.views, camera_id=a.camera_id)
+    channels = None
+    if sensor is None:
+        views = decode(raw, cal, white, dark, n_views=a.views, camera_id=a.camera_id)
+    else:
+        from ..real.decoding import decode_colour
+        if a.camera_id is not None and cal.camera_id and a.camera_id != cal.camera_id:
+            raise ValueError(f"the calibration is of camera {cal.camera_id!r}, not {a.camera_id!r}")
+        views, channels = decode_colour(raw, cal, sensor, white, dark, n_views=a.views)
+        print(f"colour sensor {sensor.name}, {sensor.pattern} phase {sensor.phase} ({where}): each sample from its "
+              "nearest pixel, channels apart")
     level = _saturation_level(a.saturation, raw)
     clipped = None if level is None else clipped_samples(raw, cal, level, n_views=a.views)
     dt = time.perf_counter() - t
     extra = {} if level is None else {"saturation": level}
-    save_views(a.out, views, cal, clipped, raw=str(Path(a.raw).resolve()), white_normalised=white is not None,
-               **extra)
+    if sensor is not None:
+        extra["sensor"] = json.dumps(dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase)))
+    save_views(a.out, views, cal, clipped, channels, raw=str(Path(a.raw).resolve()),
+               white_normalised=white is not None, **extra)
     note = "no clipping level" if level is None else f"{int(clipped.sum())} samples from pixels at or above {level:g}"
     print(f"decoded {Path(a.raw).name} into {views.shape[0]} x {views.shape[1]} views of {views.shape[2]} x "
           f"{views.shape[3]} lenslets ({note}) in {dt:.2f} s -> {a.out}")
+
+
+def _decode_sensor(a):
+    """``decode``'s colour sensor and where it came from: the ``--camera`` file's ``[sensor] cfa``, else the
+    sensor ``lf-flame simulate`` stored beside the raw image; (None, "") for a monochrome capture."""
+    from ..optics.camera_file import DATASHEET_KEYS, load_colour_sensor
+    from ..optics.colour import library_sensor
+    from ._io import _raw_meta
+    if a.camera:
+        from ..config import load_toml
+        if set(load_toml(a.camera)) & set(DATASHEET_KEYS):
+            sensor = load_colour_sensor(a.camera)
+            if sensor is not None:
+                return sensor, f"{a.camera} [sensor]"
+    rec = _raw_meta(a.raw).get("sensor")
+    if rec:
+        r = json.loads(rec)
+        return library_sensor(r["name"], r["pattern"], tuple(r["phase"])), f"stored in {a.raw}"
+    return None, ""
 
 
 def _saturation_level(text, raw):

@@ -25,6 +25,10 @@ def _sensor(path, a, cal=None):
     """The colour sensor of the image at ``path`` and a phrase saying where it came from."""
     from ..optics.colour import DEFAULT_SENSITIVITIES, library_sensor
     meta = _raw_meta(path)
+    if str(path).endswith(".h5") and Path(path).is_file():          # decoded views: the sensor decode stored
+        import h5py
+        with h5py.File(path, "r") as f:
+            meta = {"sensor": str(f.attrs["sensor"])} if "sensor" in f.attrs else {}
     rec = json.loads(meta["sensor"]) if "sensor" in meta else {}
     given = {k: v for k, v in (("name", a.sensor), ("pattern", a.cfa),
                                ("phase", None if a.cfa_phase is None else tuple(a.cfa_phase))) if v is not None}
@@ -88,7 +92,7 @@ def cmd_calibrate_temperature(a):
     channels = _channels(a.channels)
     ratios, sensor0 = [], None
     for path, t in zip(a.images, temps):
-        raw, cam = _load_raw(path)
+        raw, cam = (None, None) if str(path).endswith(".h5") else _load_raw(path)
         sensor, where = _sensor(path, a)
         if sensor0 is not None and (sensor.name, sensor.pattern, sensor.phase) != (
                 sensor0.name, sensor0.pattern, sensor0.phase):
@@ -96,7 +100,16 @@ def cmd_calibrate_temperature(a):
                              f"image from {sensor0.name!r} {sensor0.pattern} phase {sensor0.phase}: one camera per "
                              "calibration")
         sensor0 = sensor
-        r = blackbody_ratio(raw, sensor, (cam or PAPER_CAMERA).pixels_per_lenslet, channels)
+        if str(path).endswith(".h5"):                                 # a colour capture decoded with its channels
+            from ..real.decoding import load_channels, load_views
+            from ..temperature.pyrometry import views_blackbody_ratio
+            v, chan = load_views(path)[0], load_channels(path)
+            if chan is None:
+                raise ValueError(f"{path}: decoded views without their colour channels ('lf-flame decode --camera "
+                                 "cam.toml' keeps them apart)")
+            r = views_blackbody_ratio(v, chan, channels)
+        else:
+            r = blackbody_ratio(raw, sensor, (cam or PAPER_CAMERA).pixels_per_lenslet, channels)
         ratios.append(r)
         print(f"{path}: {t:g} K, {channels[0]}/{channels[1]} = {r:.5f} (sensor {sensor.name}, {sensor.pattern} "
               f"phase {sensor.phase}: {where})")
@@ -158,10 +171,10 @@ def cmd_temperature(a):
     from ..optics.colour import CHANNELS
     from ..temperature.channels import cfa_blind, channel_emission, channel_sum_views, channel_views, route_operator
     from .volume import found_planes, reconstruct_input
+    from ..tomo.decoded import fit_data
     src = str(a.raw)
-    if src.endswith(".h5") and ".h5:" not in src:
-        raise ValueError(f"{src}: temperature reads a raw colour image (the CFA's mosaic), not decoded views")
-    _refuse_monochrome(src)
+    if not (src.endswith(".h5") and ".h5:" not in src):
+        _refuse_monochrome(src)
     cal = load_calibration(a.calibration)
     sensor, where = _sensor(src, a, cal)
     cal.check_sensor(sensor)
@@ -172,12 +185,13 @@ def cmd_temperature(a):
     import argparse
     # --calibration is the blackbody calibration here: the light field is a raw image of its own camera
     lf, depths, _ = reconstruct_input(argparse.Namespace(**{**vars(a), "calibration": None}))
-    if lf.decoded:
-        raise ValueError(f"{src}: temperature reads a raw colour image of a perfect lenslet grid (the CFA's mosaic "
-                         "under each lenslet); decoding a colour capture does not keep its channels apart yet")
     cam, views = lf.camera, lf.views
     n = cam.pixels_per_lenslet
-    chan = channel_views((views.shape[2] * n, views.shape[3] * n), sensor, n)
+    if lf.decoded and lf.channels is None:
+        raise ValueError(f"{src}: decoded views without their colour channels (a monochrome capture, or a colour one "
+                         "decoded without its camera file): 'lf-flame decode RAW --camera cam.toml' keeps them apart "
+                         "where the file's [sensor] names its cfa")
+    chan = lf.channels if lf.decoded else channel_views((views.shape[2] * n, views.shape[3] * n), sensor, n)
     ch = tuple(CHANNELS.index(c) for c in cal.channels)
     extra = {}
     if depths == "auto":
@@ -185,8 +199,9 @@ def cmd_temperature(a):
         extra = dict(depths_from="auto (channel sum)", found_depths=found)
     chosen = {}
     slopes = [cam.slope_for_depth(d) for d in depths]
-    emission = channel_emission(a.route, views, chan, ch, op=route_operator(cam, depths, a.route), slopes=slopes,
-                                saturation=a.saturation, info=chosen)
+    op = route_operator(cam, depths, a.route)
+    data, sat = (fit_data(lf, op) if op is not None else (views, None)) if lf.decoded else (views, a.saturation)
+    emission = channel_emission(a.route, data, chan, ch, op=op, slopes=slopes, saturation=sat, info=chosen)
     temp, valid, n_masked = temperature_planes(emission[0], emission[1], cal, sensor, a.alpha, a.min_fraction)
     dim = ~bright_pixels(emission[0] + emission[1], a.min_fraction)
     blind = cfa_blind(slopes, n)

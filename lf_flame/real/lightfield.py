@@ -60,6 +60,9 @@ class LightField:
         The real camera (its camera file) of decoded views.
     camera_file : str or None
         The camera file's path, when one was read.
+    channels : ndarray of int8 of the views' shape, or None
+        A colour capture decoded with its channels apart
+        (:func:`lf_flame.real.decoding.decode_colour`): each sample's channel (0 R, 1 G, 2 B).
     """
 
     views: np.ndarray
@@ -72,6 +75,7 @@ class LightField:
     capture_camera: PlenopticCamera | None = None
     camera_file: str | None = None
     meta: dict = field(default_factory=dict)
+    channels: np.ndarray | None = None
 
     def __post_init__(self):
         v = self.views
@@ -216,7 +220,8 @@ def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation
 
 
 def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "decoded views", clipped=None,
-                 white_normalised: bool = True, camera_file: str | None = None) -> LightField:
+                 white_normalised: bool = True, camera_file: str | None = None, channels=None,
+                 meta: dict | None = None) -> LightField:
     """The light field of views decoded from a capture of ``camera`` with ``calibration``.
 
     Parameters
@@ -227,6 +232,10 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
     camera : PlenopticCamera
         The real camera (its camera file).
     clipped : ndarray of bool of the views' shape, or None
+    channels : ndarray of int8 of the views' shape, or None
+        A colour capture's channel map (:func:`lf_flame.real.decoding.decode_colour`).
+    meta : dict or None
+        Records kept with the views (``sensor``: a colour capture's sensor, JSON).
 
     Raises
     ------
@@ -240,8 +249,11 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
         raise ValueError(f"{source}: the views contain NaN or infinite values")
     vcam = views_camera(camera, calibration, v.shape)
     frame = decoded_frame(calibration, *v.shape[2:])
+    if channels is not None and np.shape(channels) != v.shape:
+        raise ValueError(f"{source}: a channel map of shape {np.shape(channels)} for views of shape {v.shape}")
     return LightField(v, vcam, source, leave_out=clipped, saturation=None, white_normalised=white_normalised,
-                      frame=frame, capture_camera=camera, camera_file=camera_file)
+                      frame=frame, capture_camera=camera, camera_file=camera_file, meta=dict(meta or {}),
+                      channels=None if channels is None else np.asarray(channels, np.int8))
 
 
 def read_light_field(path, camera=None, calibration=None, *, views: int | None = None,
@@ -292,7 +304,7 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
     p = Path(src)
     if p.suffix.lower() == ".h5" and ".h5:" not in src:
         from ..config import DamagedFileError
-        from .decoding import load_clipped, load_views
+        from .decoding import load_channels, load_clipped, load_views
         try:
             v, vcal = load_views(p)
         except DamagedFileError:
@@ -308,7 +320,8 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
         import h5py
         with h5py.File(p, "r") as f:
             white = bool(f.attrs.get("white_normalised", True))
-        return from_decoded(v, vcal, cam, src, load_clipped(p), white, cam_file)
+            meta = {"sensor": str(f.attrs["sensor"])} if "sensor" in f.attrs else {}
+        return from_decoded(v, vcal, cam, src, load_clipped(p), white, cam_file, load_channels(p), meta)
     raw, stored, meta = (raw_reader or _read_raw)(p)
     cam = cam or stored
     if cam is None:

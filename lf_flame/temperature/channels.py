@@ -325,8 +325,9 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
         On a grid finer than the lenslets the emission is binned to them.
     slopes : sequence of float
         The planes' slopes, lenslets per view (``refocus-cfa``).
-    saturation : float or None
-        Clipping level: admm leaves samples at or above it out of the fit (None: none).
+    saturation : float, ndarray of bool of the views' shape, or None
+        Clipping level: admm leaves samples at or above it out of the fit; or the samples to
+        leave out (True; decoded views, :func:`lf_flame.tomo.decoded.fit_data`); None: none.
     sigma : float or None
         ``admm-cfa-matched``'s Gaussian on both channels, lenslets; None: 0 (none).
     knobs : dict or None
@@ -365,7 +366,8 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
     if op is None:
         raise ValueError(f"{route} needs the planes' operator")
     info = {} if info is None else info
-    ok = np.ones(views.shape, bool) if saturation is None else views < saturation
+    ok = (np.ones(views.shape, bool) if saturation is None else ~np.asarray(saturation, bool)
+          if np.ndim(saturation) else views < saturation)
     fits = [(chan == c) & ok for c in channels]
     if route == "admm-cfa-matched":
         sigma = 0.0 if sigma is None else sigma

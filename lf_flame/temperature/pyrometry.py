@@ -134,6 +134,51 @@ def blackbody_ratio(raw: np.ndarray, sensor: ColourSensor, pixels_per_lenslet: i
     return means[0] / means[1]
 
 
+def views_blackbody_ratio(views: np.ndarray, chan: np.ndarray, channels=("R", "G"), radius: float = 0.4,
+                          centre_fraction: float = 0.5) -> float:
+    """:func:`blackbody_ratio` of a blackbody's decoded views (a colour capture decoded with its channels
+    apart, :func:`lf_flame.real.decoding.decode_colour`).
+
+    The mean of each channel's samples over the central ``centre_fraction`` of the lenslets (each
+    axis) and the views within ``radius`` x N of the central view, where they hold light.
+
+    Parameters
+    ----------
+    views : ndarray of shape (N, N, R, C)
+    chan : ndarray of int of the views' shape
+        Each sample's channel (0 R, 1 G, 2 B).
+    channels : (str, str)
+    radius, centre_fraction : float
+
+    Returns
+    -------
+    float: mean of channel a over mean of channel b.
+
+    Raises
+    ------
+    ValueError
+        Views not (N, N, R, C), a channel map of another shape, or a channel with no lit sample.
+    """
+    v = np.asarray(views, float)
+    if v.ndim != 4 or v.shape[0] != v.shape[1] or np.shape(chan) != v.shape:
+        raise ValueError(f"views (N, N, R, C) and a channel map of their shape are needed. Received {v.shape} and "
+                         f"{np.shape(chan)}")
+    a, b = _channel_index(channels)
+    N, _, R, C = v.shape
+    u = np.arange(N) - (N - 1) / 2
+    disc = (u[:, None] ** 2 + u[None, :] ** 2 <= (radius * N) ** 2)[:, :, None, None]
+    mr, mc = int(R * (1 - centre_fraction) / 2), int(C * (1 - centre_fraction) / 2)
+    box = np.zeros((R, C), bool)
+    box[mr:R - mr, mc:C - mc] = True
+    means = []
+    for c in (a, b):
+        s = v[disc & box & (np.asarray(chan) == c) & (v > 0)]
+        if s.size == 0:
+            raise ValueError(f"no lit sample of channel {CHANNELS[c]} in the blackbody's views")
+        means.append(float(s.mean()))
+    return means[0] / means[1]
+
+
 def fit_calibration(sensor: ColourSensor, temperatures_k, ratios, channels=("R", "G")) -> TemperatureCalibration:
     """The gain ratio from blackbody images at known temperatures.
 

@@ -1,0 +1,101 @@
+"""The lenslet-grid check of a raw image against its calibration (:func:`lf_flame.real.decoding.check_grid`):
+a capture of the calibrated camera passes whatever it shows; a capture of another grid is refused,
+naming the grid it shows.
+
+The cameras are ``examples/own_camera.toml`` (10.57 px pitch, rotated 0.4°, on a 520 x 340 px
+sensor) with a square or a hexagonal grid and other lenslet pitches, as ``experiments/cameras.py``
+builds them; the captures are its ``simulate --scene depth`` scenes (flames at random depths).
+"""
+import re
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lf_flame.optics.camera_file import camera_from_datasheet
+from lf_flame.real import calibration as calibrate
+from lf_flame.real import decoding as decode
+from lf_flame.simulate import scenes, tracer
+from lf_flame.simulate.scenes_depth import camera_depth_scene
+
+EXAMPLE = tomllib.loads((Path(__file__).resolve().parents[1] / "examples" / "own_camera.toml").read_text())
+RAYS = 16
+#: The scene of experiments/cameras.py whose captures the hexagonal camera's calibration refused
+#: (two flames of 0.9 mm out of focus: the strongest peak of period 9.91 px, the grid's 9.16 px).
+SEED = 56003
+
+
+def _camera(layout, pitch_um=150.0):
+    """The example camera with another grid; the main lens stopped down to the lenslets where they are smaller."""
+    lens = {**EXAMPLE["main_lens"], "f_number": EXAMPLE["main_lens"]["f_number"] * max(1.0, 150.0 / pitch_um)}
+    return camera_from_datasheet({**EXAMPLE, "main_lens": lens,
+                                  "microlens_array": {**EXAMPLE["microlens_array"], "layout": layout,
+                                                      "pitch_um": pitch_um}})
+
+
+@pytest.fixture(scope="module")
+def grids():
+    """``grids(layout, pitch_um)``: (camera, its white image, a depth capture), rendered once."""
+    made = {}
+
+    def get(layout, pitch_um=150.0):
+        if (layout, pitch_um) not in made:
+            cam = _camera(layout, pitch_um)
+            white = tracer.render(cam, scenes.white_scene(cam), RAYS, 0)
+            raw = tracer.render(cam, camera_depth_scene(cam, np.random.default_rng(SEED)), RAYS, SEED)
+            made[layout, pitch_um] = cam, white, raw
+        return made[layout, pitch_um]
+    return get
+
+
+@pytest.fixture(scope="module")
+def calibrations(grids):
+    made = {}
+
+    def get(layout):
+        if layout not in made:
+            made[layout] = calibrate.calibrate(grids(layout)[1])
+        return made[layout]
+    return get
+
+
+@pytest.mark.parametrize("layout", ["hex", "square"])
+def test_a_capture_of_the_calibrated_camera_passes(grids, calibrations, layout):
+    """Flames out of focus light part of each lenslet image, a part that moves from lenslet to
+    lenslet: the hexagonal capture's strongest peak is off the grid's reciprocal lattice (at
+    16 times the power of its fundamentals); the grid's harmonics stay on it, and it passes."""
+    cam, white, raw = grids(layout)
+    cal = calibrations(layout)
+    assert cal.layout == layout and abs(cal.pitch_px / cam.grid_pitch_px - 1) < 1e-3
+    decode.check_grid(raw, cal)
+    decode.check_grid(white, cal)
+    views = decode.decode(raw, cal, white)               # decode checks the grid too
+    assert np.isfinite(views).all() and views.max() > 0
+    rng = np.random.default_rng(1)                       # with shot and read noise (about 14 dB)
+    noisy = rng.poisson(200 * raw) / 200 + 0.05 * raw.max() * rng.standard_normal(raw.shape)
+    decode.check_grid(noisy, cal)
+
+
+@pytest.mark.parametrize("calibrated, shown", [
+    ("hex", ("square", 150.0)),            # the other layout, same pitch
+    ("square", ("hex", 150.0)),
+    ("hex", ("hex", 135.0)),               # 0.9 x the pitch
+    ("hex", ("hex", 165.0)),               # 1.1 x
+    ("square", ("square", 165.0)),
+], ids=str)
+def test_a_capture_of_another_grid_is_refused(grids, calibrations, calibrated, shown):
+    cal = calibrations(calibrated)
+    cam, white, raw = grids(*shown)
+    for img in (raw, white):
+        with pytest.raises(ValueError, match="another camera") as err:
+            decode.check_grid(img, cal)
+        got = re.search(r"shows a (\w+) lenslet grid of pitch ([\d.]+) px", str(err.value))
+        assert got and got[1] == cam.grid_layout, str(err.value)
+        assert abs(float(got[2]) / cam.grid_pitch_px - 1) < 0.03, str(err.value)    # a bin at the fundamentals
+
+
+def test_a_dark_image_cannot_be_checked_and_passes(calibrations):
+    cal = calibrations("hex")
+    decode.check_grid(np.zeros(cal.sensor_shape), cal)
+    decode.check_grid(np.random.default_rng(0).normal(size=cal.sensor_shape), cal)
