@@ -151,8 +151,9 @@ resolution: $(STAMP) ## smallest resolvable plane spacing against feature size -
 
 # find the planes: flames at random depths, found and reconstructed, beside the baselines (about 50 min
 # on 2 cores for 100 scenes; each scene's rows cached in data/depth, so a rerun resumes)
-cameras: $(STAMP) ## five cameras end to end from the CLI (white image, calibrate, decode, found depths, emission) -> results/cameras.{csv,md,json,png}
+cameras: $(STAMP) ## five cameras end to end from the CLI (white image, calibrate, decode, found depths, emission) and a colour camera's temperature -> results/cameras{,_colour}.{csv,md,json}, cameras.png
 	$(VENV)/bin/python experiments/cameras.py --out $(TRADEOFF_OUT) $(if $(filter quick,$(PRESET)),--quick,)
+	$(VENV)/bin/python experiments/cameras_colour.py --out $(TRADEOFF_OUT) $(if $(filter quick,$(PRESET)),--quick,)
 
 depth: $(STAMP) ## flames at unknown depths: depth, emission and share errors per flame -> results/depth.{csv,md,json,png}
 	$(VENV)/bin/python experiments/depth.py --out $(TRADEOFF_OUT) $(DEPTH_ARGS_$(PRESET))

@@ -312,7 +312,7 @@ def main(argv=None) -> int:
           .to_markdown(index=False, floatfmt=".3g"), ""]
     if len(failed):
         md += ["Failed commands:", ""] + [f"- {r.camera} `{r.step}`: {r.message}" for r in failed.itertuples()] + [""]
-    md += ["A colour (Bayer) camera is not in the matrix yet: its captures decode with their channels apart (`lf-flame decode --camera` with a camera file naming its cfa) and `lf-flame temperature` reads them, but its temperature is not yet scored against the truth in the decoded frame.", ""]
+    md += ["The colour (Bayer) camera, its captures decoded with their channels apart and each plane's temperature scored against the truth: [cameras_colour.md](cameras_colour.md) (`experiments/cameras_colour.py`).", ""]
     atomic_write_text(a.out / "cameras.md", "\n".join(md))
     atomic_write_text(a.out / "cameras.json", json.dumps(dict(
         command=cmd, scenes=a.scenes, rays=a.rays, seeds=[a.seed0 + i for i in range(a.scenes)], snr_db=SNR_DB,

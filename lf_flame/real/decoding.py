@@ -473,7 +473,7 @@ def decode_colour(raw: np.ndarray, calibration: GridCalibration, sensor, white: 
         raise ValueError(f"n_views must be an integer in [1, {n_max}] (the pitch is {calibration.pitch_px:.2f} px). "
                          f"Received: n_views={n_views!r}")
     H, W = calibration.sensor_shape
-    q = np.rint(view_positions(calibration, int(n))).astype(np.int64)
+    q = np.floor(view_positions(calibration, int(n))).astype(np.int64)    # pixel (i, j) spans [i, i + 1) x [j, j + 1)
     on = (q[..., 0] >= 0) & (q[..., 0] < H) & (q[..., 1] >= 0) & (q[..., 1] < W)
     qr, qc = np.clip(q[..., 0], 0, H - 1), np.clip(q[..., 1], 0, W - 1)
     cfa = cfa_channels((H, W), sensor.pattern, sensor.phase)
