@@ -133,8 +133,9 @@ RECON_ARGS_quick := --tests 1 --tail 8
 DEPTH_ARGS_quick := --quick
 # flame recordings over time (lf_flame.recordings): each plane's flicker frequency, the overlap, and the
 # per-frame cost serially and on Dask; `--stage reconstruct` (about 30 min) adds the overlap's emission route
-sequence: $(STAMP) ## flame recordings: per-plane flicker spectra, serial and Dask frames/s -> results/sequence.{csv,md,json,png}
+sequence: $(STAMP) ## flame recordings: per-plane flicker spectra, serial and Dask frames/s, admm frame after frame -> results/sequence{,_stream}.{csv,md,json,png}
 	$(VENV)/bin/python experiments/sequence.py --out $(TRADEOFF_OUT)
+	$(VENV)/bin/python experiments/sequence.py --out $(TRADEOFF_OUT) --stage stream
 
 # a new user's first light field through the command line (the README quick start's simulate, then profiles per route)
 new-user: $(STAMP) ## the quick start's simulate and profiles commands, each route's heights -> results/new_user.{csv,md}
