@@ -243,13 +243,7 @@ def load_camera_file(path) -> PlenopticCamera:
         Not valid TOML, both kinds of tables, an unknown ``[camera]`` field, or the errors of
         :func:`camera_from_datasheet` and of the camera (naming the file).
     """
-    p = Path(path)
-    if not p.is_file():
-        raise FileNotFoundError(f"camera file not found: {p}")
-    try:
-        sheet = tomllib.loads(p.read_text())
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
-        raise ValueError(f"camera file {p} is not valid TOML: {e}") from None
+    p, sheet = _read_sheet(path)
     if "camera" in sheet:
         if set(sheet) & set(DATASHEET_KEYS) or not isinstance(sheet["camera"], dict):
             raise ValueError(f"camera file {p}: give a [camera] table or the datasheet tables "
@@ -309,14 +303,19 @@ def colour_sensor(sheet: dict, where: str = "camera file"):
 def load_colour_sensor(path):
     """The colour sensor of a camera file (:func:`colour_sensor`), None for a monochrome one or a file of a
     ``[camera]`` table. Raises as :func:`load_camera_file` and :func:`colour_sensor`."""
+    p, sheet = _read_sheet(path)
+    return colour_sensor(sheet, str(p))
+
+
+def _read_sheet(path):
+    """A camera file's path and tables; FileNotFoundError or ValueError (not TOML) naming it."""
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"camera file not found: {p}")
     try:
-        sheet = tomllib.loads(p.read_text())
+        return p, tomllib.loads(p.read_text())
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as e:
         raise ValueError(f"camera file {p} is not valid TOML: {e}") from None
-    return colour_sensor(sheet, str(p))
 
 
 def decoded_camera(camera: PlenopticCamera, n_views: int, n_rows: int, n_cols: int) -> PlenopticCamera:

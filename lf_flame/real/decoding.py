@@ -344,6 +344,24 @@ def max_views(calibration) -> int:
     return int(math.floor(calibration.pitch_px + PITCH_SNAP_PX))
 
 
+def _prepared(raw, calibration: GridCalibration, dark, n_views, check: bool):
+    """The decoders' raw image, dark subtracted and checked against the calibration's grid
+    (:func:`check_grid`), the dark frame (or None) and the views per axis (default :func:`max_views`),
+    each refused as :func:`decode` says."""
+    img = _image("raw image", raw, calibration.sensor_shape)
+    d = None if dark is None else _image("dark frame", dark, calibration.sensor_shape)
+    if d is not None:
+        img = img - d
+    if check:
+        check_grid(img, calibration)
+    n_max = max_views(calibration)
+    n = n_max if n_views is None else n_views
+    if int(n) != n or not 1 <= n <= n_max:
+        raise ValueError(f"n_views must be an integer in [1, {n_max}] (the pitch is {calibration.pitch_px:.2f} px). "
+                         f"Received: n_views={n_views!r}")
+    return img, d, int(n)
+
+
 def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | None = None,
            dark: np.ndarray | None = None, *, n_views: int | None = None, min_white: float = 0.05,
            camera_id: str | None = None, check: bool = True) -> np.ndarray:
@@ -387,20 +405,10 @@ def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | No
         lenslet grid is not the calibration's.
     """
     calibration.validate()
-    img = _image("raw image", raw, calibration.sensor_shape)
     if camera_id is not None and calibration.camera_id and camera_id != calibration.camera_id:
         raise ValueError(f"the calibration is of camera {calibration.camera_id!r}, not {camera_id!r}")
-    d = None if dark is None else _image("dark frame", dark, calibration.sensor_shape)
-    if d is not None:
-        img = img - d
-    if check:
-        check_grid(img, calibration)
-    n_max = max_views(calibration)
-    n = n_max if n_views is None else n_views
-    if int(n) != n or not 1 <= n <= n_max:
-        raise ValueError(f"n_views must be an integer in [1, {n_max}] (the pitch is {calibration.pitch_px:.2f} px). "
-                         f"Received: n_views={n_views!r}")
-    pos = view_positions(calibration, int(n))
+    img, d, n = _prepared(raw, calibration, dark, n_views, check)
+    pos = view_positions(calibration, n)
     views = _sample(img, pos)
     if white is not None:
         w = _image("white image", white, calibration.sensor_shape)
@@ -461,19 +469,9 @@ def decode_colour(raw: np.ndarray, calibration: GridCalibration, sensor, white: 
     if calibration.layout == "hex":
         raise ValueError("a hexagonal colour capture cannot be decoded with its channels apart yet: the resampling "
                          "onto a square grid blends neighbouring lenslets' samples, of other channels")
-    img = _image("raw image", raw, calibration.sensor_shape)
-    d = None if dark is None else _image("dark frame", dark, calibration.sensor_shape)
-    if d is not None:
-        img = img - d
-    if check:
-        check_grid(img, calibration)
-    n_max = max_views(calibration)
-    n = n_max if n_views is None else n_views
-    if int(n) != n or not 1 <= n <= n_max:
-        raise ValueError(f"n_views must be an integer in [1, {n_max}] (the pitch is {calibration.pitch_px:.2f} px). "
-                         f"Received: n_views={n_views!r}")
+    img, d, n = _prepared(raw, calibration, dark, n_views, check)
     H, W = calibration.sensor_shape
-    q = np.floor(view_positions(calibration, int(n))).astype(np.int64)    # pixel (i, j) spans [i, i + 1) x [j, j + 1)
+    q = np.floor(view_positions(calibration, n)).astype(np.int64)    # pixel (i, j) spans [i, i + 1) x [j, j + 1)
     on = (q[..., 0] >= 0) & (q[..., 0] < H) & (q[..., 1] >= 0) & (q[..., 1] < W)
     qr, qc = np.clip(q[..., 0], 0, H - 1), np.clip(q[..., 1], 0, W - 1)
     cfa = cfa_channels((H, W), sensor.pattern, sensor.phase)

@@ -125,11 +125,17 @@ def blackbody_ratio(raw: np.ndarray, sensor: ColourSensor, pixels_per_lenslet: i
     disc = (i % n - c0) ** 2 + (j % n - c0) ** 2 <= (radius * n) ** 2
     mh, mw = int(H * (1 - centre_fraction) / 2), int(W * (1 - centre_fraction) / 2)
     box = (i >= mh) & (i < H - mh) & (j >= mw) & (j < W - mw)
+    return _channel_means_ratio(raw, box & disc, chan, (a, b), "pixel", "image")
+
+
+def _channel_means_ratio(values, where, chan, pair, what: str, of: str) -> float:
+    """Mean of ``values`` over ``where`` and channel ``pair[0]`` over the same for ``pair[1]``; ValueError where a
+    channel has no lit ``what`` (a pixel, a sample) in the blackbody's ``of``."""
     means = []
-    for c in (a, b):
-        v = raw[box & disc & (chan == c)]
-        if v.size == 0 or v.mean() <= 0:
-            raise ValueError(f"no lit pixel of channel {CHANNELS[c]} in the blackbody image")
+    for c in pair:
+        v = values[where & (chan == c)]
+        if v.size == 0 or not v.mean() > 0:
+            raise ValueError(f"no lit {what} of channel {CHANNELS[c]} in the blackbody {of}")
         means.append(float(v.mean()))
     return means[0] / means[1]
 
@@ -170,13 +176,7 @@ def views_blackbody_ratio(views: np.ndarray, chan: np.ndarray, channels=("R", "G
     mr, mc = int(R * (1 - centre_fraction) / 2), int(C * (1 - centre_fraction) / 2)
     box = np.zeros((R, C), bool)
     box[mr:R - mr, mc:C - mc] = True
-    means = []
-    for c in (a, b):
-        s = v[disc & box & (np.asarray(chan) == c) & (v > 0)]
-        if s.size == 0:
-            raise ValueError(f"no lit sample of channel {CHANNELS[c]} in the blackbody's views")
-        means.append(float(s.mean()))
-    return means[0] / means[1]
+    return _channel_means_ratio(v, disc & box & (v > 0), np.asarray(chan), (a, b), "sample", "views")
 
 
 def fit_calibration(sensor: ColourSensor, temperatures_k, ratios, channels=("R", "G")) -> TemperatureCalibration:
