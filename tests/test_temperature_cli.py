@@ -231,7 +231,7 @@ def test_simulate_renders_colour_scenes_of_any_camera_file(tmp_path, capsys):
 
 def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, capsys):
     """The example camera (10.57 px lenslet images, rotated 0.4°) with an RGGB CFA, from the command line:
-    white image -> calibrate; blackbodies decoded with their channels apart -> calibrate-temperature; a
+    white image (a mosaic too) -> calibrate; blackbodies decoded with their channels apart -> calibrate-temperature; a
     blackbody at 1800 K decoded -> temperature (emissivity exponent 0): 1800 K within 15 K over the field. Each
     decoded sample keeps its nearest pixel's channel; decoded views without channels are refused."""
     from pathlib import Path
@@ -248,6 +248,7 @@ def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, 
         assert main([str(x) for x in argv]) == 0, capsys.readouterr().err
 
     run("simulate", "--camera", cam_file, "--scene", "white", "--rays-per-pixel", 8, "--out", f"{d}/white.npz")
+    assert json.loads(str(np.load(f"{d}/white.npz")["sensor"]))["pattern"] == "RGGB"      # rendered through the CFA
     run("calibrate", f"{d}/white.npz", "--out", f"{d}/cal.json")
     for t in (1600, 1800, 2400):
         run("simulate", "--camera", cam_file, "--scene", "furnace", "--temperature", t, "--rays-per-pixel", 4,
@@ -265,7 +266,10 @@ def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, 
         t = f["temperature_k"][0][f["valid"][0]]
     assert t.size > 0.5 * cal.n_rows * cal.n_cols
     assert abs(np.median(t) - 1800) < 15 and np.percentile(np.abs(t - 1800), 90) < 30
-    run("decode", f"{d}/white.npz", "--calibration", f"{d}/cal.json", "--out", f"{d}/mono.h5")    # a monochrome capture
+    mono_file = tmp_path / "mono.toml"                                   # the same camera, monochrome
+    mono_file.write_text(example)
+    run("simulate", "--camera", mono_file, "--scene", "white", "--rays-per-pixel", 4, "--out", f"{d}/mono.npz")
+    run("decode", f"{d}/mono.npz", "--calibration", f"{d}/cal.json", "--out", f"{d}/mono.h5")
     capsys.readouterr()
     assert main(["temperature", f"{d}/mono.h5", "--camera", str(cam_file), "--calibration", f"{d}/bb.json",
                  "--depth", "0", "--out", f"{d}/t2.h5"]) == 2

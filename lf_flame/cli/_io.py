@@ -249,7 +249,8 @@ def colour_scene(record: dict, camera):
     ``colour-depth``: 2-4 flames at random depths scaled to the camera, each with a drawn sheath temperature
     (:func:`~lf_flame.simulate.scenes_temperature.colour_depth_scene`); ``furnace``: a blackbody filling the
     field (:func:`~lf_flame.simulate.scenes_temperature.furnace_scene`), the flat field that
-    ``lf-flame calibrate-temperature`` takes.
+    ``lf-flame calibrate-temperature`` takes; ``white`` (a camera file naming its CFA): the white target
+    through the mosaic (:func:`~lf_flame.simulate.scenes_temperature.white_target_scene`).
     """
     from ..optics.colour import library_sensor
     from ..simulate import scenes_temperature as st
@@ -258,6 +259,9 @@ def colour_scene(record: dict, camera):
     rng = np.random.default_rng(record["seed"])
     if record["kind"] == "furnace":
         scene, chans = st.furnace_scene(camera, sensor, record["temperature_k"])
+        return scene, chans, sensor
+    if record["kind"] == "white":
+        scene, chans = st.white_target_scene(camera, sensor)
         return scene, chans, sensor
     cs = (st.colour_flame_scene(camera, sensor, None if record["nominal"] else rng) if record["kind"] == "colour-flame"
           else st.colour_depth_scene(camera, sensor, rng))

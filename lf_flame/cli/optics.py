@@ -26,7 +26,11 @@ def _colour_sensor(a):
             sensor = load_colour_sensor(a.data_config)
             if sensor is not None:
                 return sensor, f"{a.data_config} [sensor]"
-    return library_sensor(DEFAULT_SENSITIVITIES, "RGGB", (0, 0)), "default: the camera file names no cfa"
+    return library_sensor(DEFAULT_SENSITIVITIES, "RGGB", (0, 0)), _DEFAULT_SENSOR
+
+
+#: Where :func:`_colour_sensor` says the default sensor came from.
+_DEFAULT_SENSOR = "default: the camera file names no cfa"
 
 
 def cmd_simulate(a):
@@ -34,11 +38,11 @@ def cmd_simulate(a):
     from ..optics.camera import PAPER_CAMERA
     cam = camera_config(a.data_config) if a.data_config else PAPER_CAMERA
     record = dict(kind=a.scene, seed=a.seed, nominal=a.nominal, depth_mm=a.depth, y_mm=a.y, x_mm=a.x)
-    colour = a.scene in COLOUR_SCENES
     if a.scene == "furnace" and a.temperature is None:
         raise ValueError("--scene furnace needs its blackbody temperature: give --temperature K")
+    sensor, where = _colour_sensor(a) if a.scene in COLOUR_SCENES + ("white",) else (None, "")
+    colour = a.scene in COLOUR_SCENES or (sensor is not None and where != _DEFAULT_SENSOR)   # a colour camera's white
     if colour:
-        sensor, where = _colour_sensor(a)
         record.update(sensor=dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase)))
         if a.scene == "furnace":
             record["temperature_k"] = float(a.temperature)

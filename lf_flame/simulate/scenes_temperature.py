@@ -352,6 +352,19 @@ def blackbody_channels(sensor: ColourSensor, temperature_k: float, peak: float =
     return s * (peak / s.max())
 
 
+def white_target_scene(camera: PlenopticCamera, sensor: ColourSensor, peak: float = 1.0):
+    """The white (flat-field) target of :func:`lf_flame.simulate.scenes.white_scene` seen by a colour sensor:
+    ``(scene, channel_radiance)`` for :func:`lf_flame.simulate.colour.render_colour`, each channel's signal
+    the integral of its sensitivity (an equal-energy spectrum), gains included, the brightest at ``peak``:
+    the white image of a Bayer camera is a mosaic too."""
+    from .scenes import white_scene
+    s = np.trapezoid(np.asarray(sensor.sensitivities, float), np.asarray(sensor.wavelengths_nm, float), axis=0)
+    s = s * np.asarray(sensor.gains, float)
+    scene = white_scene(camera, 1.0)
+    ch = (s * (peak / s.max())).astype(np.float32)
+    return scene, [np.broadcast_to(ch[:, None, None], (3,) + scene.layers[0].radiance.shape).astype(np.float32)]
+
+
 def furnace_scene(camera: PlenopticCamera, sensor: ColourSensor, temperature_k: float, peak: float = 0.8,
                   effects=None):
     """A blackbody furnace's opening filling the field at the focal plane (a flat-field target).
