@@ -167,8 +167,8 @@ def main(argv=None):
             wall = time.perf_counter() - t0
             with h5py.File(v.with_name(v.stem + "_T.h5")) as f:
                 T, valid = f["temperature_k"][...], f["valid"][...]
-            lf = read_light_field(v, cam)
-            Tt, vt, body = truth_temperature(clean, lf, depths, cal, model)
+            if noise == "clean":   # the truth in the decoded frame, the same for both renders (one calibration)
+                Tt, vt, body = truth_temperature(clean, read_light_field(v, cam), depths, cal, model)
             for k, d in enumerate(depths):
                 sel = valid[k] & vt[k]
                 err = np.abs(T[k] - Tt[k])[sel]

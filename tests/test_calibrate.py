@@ -8,6 +8,7 @@ import pytest
 from lf_flame.real import calibration as calibrate
 from lf_flame import cli
 from lf_flame.real import decoding as decode
+from lf_flame.real.views_file import load_views
 from lf_flame.simulate import scenes
 from lf_flame.simulate import tracer as simulate
 from lf_flame.real.calibration import CalibrationError, GridCalibration
@@ -180,7 +181,7 @@ def test_cli_calibrate_decode_refocus_slopes(square_lf, tmp_path, capsys):
     assert got.pitch_px == pytest.approx(cal.pitch_px) and got.white["sha256"] and got.camera_id == "sim"
     assert cli.main(["decode", str(tmp_path / "raw.npy"), "--calibration", str(tmp_path / "c.json"),
                      "--views", "25", "--out", str(tmp_path / "v.h5")]) == 0
-    views, _ = decode.load_views(tmp_path / "v.h5")
+    views, _ = load_views(tmp_path / "v.h5")
     assert np.allclose(views, decode.decode(raw, cal, white, dark, n_views=25), atol=1e-5)
     assert cli.main(["refocus", str(tmp_path / "v.h5"), "--slope", "0", "--slope", "1.25",
                      "--out", str(tmp_path / "s.npz")]) == 0

@@ -1,4 +1,4 @@
-"""The lenslet-grid check of a raw image against its calibration (:func:`lf_flame.real.decoding.check_grid`):
+"""The lenslet-grid check of a raw image against its calibration (:func:`lf_flame.real.grid_check.check_grid`):
 a capture of the calibrated camera passes whatever it shows; a capture of another grid is refused,
 naming the grid it shows.
 
@@ -16,6 +16,7 @@ import pytest
 from lf_flame.optics.camera_file import camera_from_datasheet
 from lf_flame.real import calibration as calibrate
 from lf_flame.real import decoding as decode
+from lf_flame.real.grid_check import check_grid
 from lf_flame.simulate import scenes, tracer
 from lf_flame.simulate.scenes_depth import camera_depth_scene
 
@@ -68,13 +69,13 @@ def test_a_capture_of_the_calibrated_camera_passes(grids, calibrations, layout):
     cam, white, raw = grids(layout)
     cal = calibrations(layout)
     assert cal.layout == layout and abs(cal.pitch_px / cam.grid_pitch_px - 1) < 1e-3
-    decode.check_grid(raw, cal)
-    decode.check_grid(white, cal)
+    check_grid(raw, cal)
+    check_grid(white, cal)
     views = decode.decode(raw, cal, white)               # decode checks the grid too
     assert np.isfinite(views).all() and views.max() > 0
     rng = np.random.default_rng(1)                       # with shot and read noise (about 14 dB)
     noisy = rng.poisson(200 * raw) / 200 + 0.05 * raw.max() * rng.standard_normal(raw.shape)
-    decode.check_grid(noisy, cal)
+    check_grid(noisy, cal)
 
 
 @pytest.mark.parametrize("calibrated, shown", [
@@ -89,7 +90,7 @@ def test_a_capture_of_another_grid_is_refused(grids, calibrations, calibrated, s
     cam, white, raw = grids(*shown)
     for img in (raw, white):
         with pytest.raises(ValueError, match="another camera") as err:
-            decode.check_grid(img, cal)
+            check_grid(img, cal)
         got = re.search(r"shows a (\w+) lenslet grid of pitch ([\d.]+) px", str(err.value))
         assert got and got[1] == cam.grid_layout, str(err.value)
         assert abs(float(got[2]) / cam.grid_pitch_px - 1) < 0.03, str(err.value)    # a bin at the fundamentals
@@ -97,5 +98,5 @@ def test_a_capture_of_another_grid_is_refused(grids, calibrations, calibrated, s
 
 def test_a_dark_image_cannot_be_checked_and_passes(calibrations):
     cal = calibrations("hex")
-    decode.check_grid(np.zeros(cal.sensor_shape), cal)
-    decode.check_grid(np.random.default_rng(0).normal(size=cal.sensor_shape), cal)
+    check_grid(np.zeros(cal.sensor_shape), cal)
+    check_grid(np.random.default_rng(0).normal(size=cal.sensor_shape), cal)

@@ -13,7 +13,7 @@ import pytest
 from lf_flame import cli
 from lf_flame.optics.camera import PAPER_CAMERA
 from lf_flame.optics.camera_file import camera_from_datasheet, decoded_camera, load_camera_file
-from lf_flame.real import decoding
+from lf_flame.real import decoding, views_file
 from lf_flame.real.calibration import GridCalibration
 from lf_flame.real.own_camera import decoded_frame, views_camera
 from lf_flame.simulate import scenes, tracer
@@ -76,7 +76,7 @@ def test_decoded_views_of_another_camera_are_reconstructed(route):
     cam, scene, raw, d = route
     assert cam.grid_pitch_px % 1 > 0.1 and cam.grid_rotation_deg == 0.4
     cal = GridCalibration.load(d / "cal.json")
-    views, _ = decoding.load_views(d / "views.h5")
+    views, _ = views_file.load_views(d / "views.h5")
     rec = load_reconstruction(d / "vol.h5")
     assert rec.solver == "admm" and rec.settings["subsamples"] == 2
     with h5py.File(d / "vol.h5") as f:
@@ -202,7 +202,7 @@ def test_clipped_samples_are_marked_and_left_out(route):
     np.save(d / "bright.npy", bright)
     assert cli.main(["decode", str(d / "bright.npy"), "--calibration", str(d / "cal.json"), "--out",
                      str(d / "bright.h5")]) == 0
-    mask = decoding.load_clipped(d / "bright.h5")
+    mask = views_file.load_clipped(d / "bright.h5")
     pos = decoding.view_positions(cal, 10) - 0.5            # bilinear: the four pixels about each sample
     i0, j0 = np.floor(pos[..., 0]).astype(int), np.floor(pos[..., 1]).astype(int)
     fi, fj = pos[..., 0] - i0, pos[..., 1] - j0
@@ -210,8 +210,8 @@ def test_clipped_samples_are_marked_and_left_out(route):
     for di, dj, wgt in ((0, 0, (1 - fi) * (1 - fj)), (1, 0, fi * (1 - fj)), (0, 1, (1 - fi) * fj), (1, 1, fi * fj)):
         want |= (wgt > 1e-6) & (bright[i0 + di, j0 + dj] >= 1.0)
     assert np.array_equal(mask, want) and 0.02 < mask.mean() < 0.3
-    assert decoding.load_clipped(d / "views.h5").sum() == 0            # the unclipped capture: none
-    views, _ = decoding.load_views(d / "bright.h5")
+    assert views_file.load_clipped(d / "views.h5").sum() == 0            # the unclipped capture: none
+    views, _ = views_file.load_views(d / "bright.h5")
     op = ExactOperator(views_camera(cam, cal, views.shape), DEPTHS)
     y, leave = decoded_problem(views, op, mask)
     w = white_views(op)
@@ -235,7 +235,7 @@ def test_depths_are_found_on_any_camera_and_a_raw_capture_is_decoded_on_the_fly(
     assert cli.main(["reconstruct", str(d / "views.h5"), "--camera", EXAMPLE, "--out", str(out)]) == 0
     rec = load_reconstruction(out)
     assert len(rec.depths_mm) == 3
-    vcam = views_camera(cam, GridCalibration.load(d / "cal.json"), decoding.load_views(d / "views.h5")[0].shape)
+    vcam = views_camera(cam, GridCalibration.load(d / "cal.json"), views_file.load_views(d / "views.h5")[0].shape)
     assert vcam.pixels_per_lenslet == 10
     found = [vcam.slope_for_depth(z) for z in sorted(rec.depths_mm)]
     true = [vcam.slope_for_depth(z) for z in sorted(DEPTHS)]
@@ -299,7 +299,7 @@ def test_simulate_refocus_and_slopes_take_a_camera_file(route, tmp_path, capsys)
     stack = tmp_path / "stack.npz"
     assert cli.main(["refocus", str(d / "views.h5"), *views, "--depth", "20", "--depth", "-10", "--out",
                      str(stack)]) == 0
-    vcam = views_camera(cam, GridCalibration.load(d / "cal.json"), decoding.load_views(d / "views.h5")[0].shape)
+    vcam = views_camera(cam, GridCalibration.load(d / "cal.json"), views_file.load_views(d / "views.h5")[0].shape)
     with np.load(stack) as z:
         assert np.allclose(z["slopes"], [vcam.slope_for_depth(20.0), vcam.slope_for_depth(-10.0)])
     assert cli.main(["slopes", str(d / "views.h5"), *views, "--method", "fourier", "--out-prefix",
@@ -315,7 +315,7 @@ def test_images_smaller_than_the_datasheet_sensor_are_its_centred_crop(route):
     test_camera_file_and_calibration_must_agree)."""
     cam, _, _, d = route
     cal = GridCalibration.load(d / "cal.json")
-    views, _ = decoding.load_views(d / "views.h5")
+    views, _ = views_file.load_views(d / "views.h5")
     H, W = cam.sensor_shape
     big = dataclasses.replace(cam, sensor_rows=H + 40, sensor_cols=W + 30)
     with pytest.warns(UserWarning, match="centred crop"):

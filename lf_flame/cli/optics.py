@@ -14,23 +14,6 @@ from ._io import (COLOUR_SCENES, _raw_objects, _save_image, _write_stack, camera
                   simulated_scene)
 
 
-def _colour_sensor(a):
-    """The colour sensor of ``simulate``'s colour scenes: the camera file's ``[sensor] cfa`` (and phase,
-    sensitivities), else colour-science's default camera behind an RGGB CFA of phase (0, 0); and where it
-    came from."""
-    from ..optics.colour import DEFAULT_SENSITIVITIES, library_sensor
-    from ..optics.camera_file import DATASHEET_KEYS, load_colour_sensor
-    if a.data_config:
-        from ..config import load_toml
-        if set(load_toml(a.data_config)) & set(DATASHEET_KEYS):
-            sensor = load_colour_sensor(a.data_config)
-            if sensor is not None:
-                return sensor, f"{a.data_config} [sensor]"
-    return library_sensor(DEFAULT_SENSITIVITIES, "RGGB", (0, 0)), _DEFAULT_SENSOR
-
-
-#: Where :func:`_colour_sensor` says the default sensor came from.
-_DEFAULT_SENSOR = "default: the camera file names no cfa"
 
 
 def cmd_simulate(a):
@@ -40,13 +23,19 @@ def cmd_simulate(a):
     record = dict(kind=a.scene, seed=a.seed, nominal=a.nominal, depth_mm=a.depth, y_mm=a.y, x_mm=a.x)
     if a.scene == "furnace" and a.temperature is None:
         raise ValueError("--scene furnace needs its blackbody temperature: give --temperature K")
-    sensor, where = _colour_sensor(a) if a.scene in COLOUR_SCENES + ("white",) else (None, "")
-    colour = a.scene in COLOUR_SCENES or (sensor is not None and where != _DEFAULT_SENSOR)   # a colour camera's white
+    # the colour sensor the camera file names ([sensor] cfa): a colour camera's white image is a mosaic too
+    from ..optics.camera_file import load_colour_sensor
+    sensor = load_colour_sensor(a.data_config) if a.data_config and a.scene in COLOUR_SCENES + ("white",) else None
+    colour = a.scene in COLOUR_SCENES or sensor is not None
     if colour:
+        where = f"{a.data_config} [sensor]" if sensor is not None else "default: the camera file names no cfa"
+        if sensor is None:
+            from ..optics.colour import DEFAULT_SENSITIVITIES, library_sensor
+            sensor = library_sensor(DEFAULT_SENSITIVITIES, "RGGB", (0, 0))
         record.update(sensor=dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase)))
         if a.scene == "furnace":
             record["temperature_k"] = float(a.temperature)
-        sc, chans, _ = colour_scene(record, cam)
+        sc, chans, sensor = colour_scene(record, cam)
         print(f"colour sensor {sensor.name}, {sensor.pattern} phase {sensor.phase} ({where})")
     else:
         sc = simulated_scene(record, cam)
@@ -82,7 +71,7 @@ def views_and_camera(a):
     without ``--camera`` come with None (slopes only, no depths)."""
     src = str(a.raw)
     if src.endswith(".h5") and ".h5:" not in src and not getattr(a, "camera", None):
-        from ..real.decoding import load_views
+        from ..real.views_file import load_views
         return load_views(src)[0], None
     lf = light_field(a)
     return lf.views, lf.camera

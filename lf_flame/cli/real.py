@@ -28,7 +28,8 @@ def cmd_calibrate(a):
 def cmd_decode(a):
     from ..real.calibration import GridCalibration
     from ..real.images import calibration_image, load_image
-    from ..real.decoding import clipped_samples, decode, save_views
+    from ..real.decoding import clipped_samples, decode
+    from ..real.views_file import save_views
     cal = GridCalibration.load(a.calibration)
     raw = load_image(a.raw)
     white = None if a.no_white else calibration_image(cal.white, "white", a.white)
@@ -61,15 +62,12 @@ def cmd_decode(a):
 def _decode_sensor(a):
     """``decode``'s colour sensor and where it came from: the ``--camera`` file's ``[sensor] cfa``, else the
     sensor ``lf-flame simulate`` stored beside the raw image; (None, "") for a monochrome capture."""
-    from ..optics.camera_file import DATASHEET_KEYS, load_colour_sensor
+    from ..optics.camera_file import load_colour_sensor
     from ..optics.colour import library_sensor
     from ._io import _raw_meta
-    if a.camera:
-        from ..config import load_toml
-        if set(load_toml(a.camera)) & set(DATASHEET_KEYS):
-            sensor = load_colour_sensor(a.camera)
-            if sensor is not None:
-                return sensor, f"{a.camera} [sensor]"
+    sensor = load_colour_sensor(a.camera) if a.camera else None
+    if sensor is not None:
+        return sensor, f"{a.camera} [sensor]"
     rec = _raw_meta(a.raw).get("sensor")
     if rec:
         r = json.loads(rec)

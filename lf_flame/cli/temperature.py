@@ -101,7 +101,7 @@ def cmd_calibrate_temperature(a):
                              "calibration")
         sensor0 = sensor
         if str(path).endswith(".h5"):                                 # a colour capture decoded with its channels
-            from ..real.decoding import load_channels, load_views
+            from ..real.views_file import load_channels, load_views
             from ..temperature.pyrometry import views_blackbody_ratio
             v, chan = load_views(path)[0], load_channels(path)
             if chan is None:
@@ -200,7 +200,12 @@ def cmd_temperature(a):
     chosen = {}
     slopes = [cam.slope_for_depth(d) for d in depths]
     op = route_operator(cam, depths, a.route)
-    data, sat = (fit_data(lf, op) if op is not None else (views, None)) if lf.decoded else (views, a.saturation)
+    if not lf.decoded:
+        data, sat = views, a.saturation
+    elif op is None:                                    # refocus-cfa: the decoded views as they are
+        data, sat = views, None
+    else:                                               # the operator's data: views times its white views
+        data, sat = fit_data(lf, op)
     emission = channel_emission(a.route, data, chan, ch, op=op, slopes=slopes, saturation=sat, info=chosen)
     temp, valid, n_masked = temperature_planes(emission[0], emission[1], cal, sensor, a.alpha, a.min_fraction)
     dim = ~bright_pixels(emission[0] + emission[1], a.min_fraction)

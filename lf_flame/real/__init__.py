@@ -3,7 +3,8 @@
 :mod:`.images` reads and checks white, dark and raw images; :mod:`.calibration` finds the
 lenslet grid (pitch, rotation, offset, layout) from a white
 image (Dansereau et al., CVPR 2013), with the lattice's steps in :mod:`.lattice`; :mod:`.decoding` resamples a capture onto that
-grid and writes its sub-aperture views, with the samples from clipped pixels;
+grid into its sub-aperture views, with the samples from clipped pixels, once :mod:`.grid_check` has found
+the calibration's grid in it; :mod:`.views_file` writes and reads those views;
 :mod:`.own_camera` gives the perfect-grid camera of those views (a camera file and the
 calibration checked against each other) and the frame of its planes; :mod:`.lightfield`
 reads any light field (a simulated raw image, decoded views, a raw capture decoded on the
@@ -15,13 +16,14 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["images", "lattice", "calibration", "decoding", "own_camera", "lightfield"],
+    submodules=["images", "lattice", "calibration", "grid_check", "decoding", "views_file", "own_camera", "lightfield"],
     submod_attrs={
         "images": ["load_image", "file_digest", "calibration_image"],
         "lattice": ["CalibrationError", "lattice_from_autocorrelation", "spot_centres"],
         "calibration": ["CALIBRATION_FORMAT", "CALIBRATION_VERSION", "GridCalibration", "calibrate"],
-        "decoding": ["check_grid", "view_positions", "hex_to_square", "decode", "clipped_samples", "save_views",
-                     "load_views", "load_clipped"],
+        "grid_check": ["check_grid"],
+        "decoding": ["view_positions", "hex_to_square", "max_views", "decode", "decode_colour", "clipped_samples"],
+        "views_file": ["save_views", "load_views", "load_clipped", "load_channels"],
         "own_camera": ["PITCH_WARN", "PITCH_TOLERANCE", "DecodedFrame", "decoded_frame", "views_camera"],
         "lightfield": ["LightField", "MAX_SEARCH_SLOPE", "imaging_range_mm", "check_imaging_range", "from_raw",
                        "from_decoded", "read_light_field", "same_grid"],

@@ -304,7 +304,7 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
     p = Path(src)
     if p.suffix.lower() == ".h5" and ".h5:" not in src:
         from ..config import DamagedFileError
-        from .decoding import load_channels, load_clipped, load_views
+        from .views_file import load_channels, load_clipped, load_views
         try:
             v, vcal = load_views(p)
         except DamagedFileError:
