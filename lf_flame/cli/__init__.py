@@ -328,10 +328,14 @@ def build_parser() -> argparse.ArgumentParser:
                         "the paper's four planes, " + ", ".join(f"{d:+g}" for d in PAPER_DEPTHS_MM) + " mm; or "
                         "depths in mm separated by commas")
     s.add_argument("--slope", type=float, action="append", help="plane slope instead of a depth (repeatable)")
-    s.add_argument("--solver", choices=list(SOLVERS),
+    s.add_argument("--solver", choices=list(SOLVERS) + ["learned"],
                    help=f"the default is the one chosen on validation renders: {EXACT_SOLVER} on the exact operator, "
                         f"{DEFAULT_SOLVER} on a traced one (--rays-per-pixel); adjoint: plain refocusing through "
-                        f"the operator's rays (default: {EXACT_SOLVER}, traced: {DEFAULT_SOLVER})")
+                        f"the operator's rays; learned: a trained network on a one-pass Wiener start (lenslet grid; "
+                        f"--model; make train-reconstructor) (default: {EXACT_SOLVER}, traced: {DEFAULT_SOLVER})")
+    s.add_argument("--model", default=None,
+                   help="--solver learned: the folder of a reconstructor trained for this camera (default: "
+                        "models/reconstructor/paper, make train-reconstructor)")
     s.add_argument("--iters", type=positive_int, help="iterations, >= 1 (default: the solver's, chosen on validation "
                    "renders: " + ", ".join(f"{k} {v}" for k, v in DEFAULT_ITERS.items() if k not in ("adjoint", "admm"))
                    + "; " + ADMM_FILLS_HELP + "; adjoint: none)")

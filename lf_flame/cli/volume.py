@@ -69,7 +69,7 @@ def found_planes(lf, views=None):
 
 
 def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None, saturation="file",
-                       rays_per_pixel=None, progress=False, subsamples=None, support_of=None):
+                       rays_per_pixel=None, progress=False, subsamples=None, support_of=None, model_dir=None):
     """Build the operator of the light field's camera at ``depths``
     (:func:`lf_flame.tomo.exact.emission_operator`: exact unless ``rays_per_pixel`` is given) and
     solve (:func:`lf_flame.tomo.solvers.reconstruct`; solver None: the operator's default) on the
@@ -78,13 +78,17 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
     (:func:`lf_flame.tomo.fourier.admm_subsamples`), 1 for the other solvers. ``saturation``: "file" (the light field's own mask or level), a level or None.
     ``support_of``: found depths (:class:`~lf_flame.tomo.depth.FoundDepths`) whose regions hold each plane's
     emission (:func:`~lf_flame.tomo.depth.plane_support`, admm only, with
-    :data:`~lf_flame.tomo.depth.SUPPORT_KNOBS`)."""
+    :data:`~lf_flame.tomo.depth.SUPPORT_KNOBS`). ``solver`` "learned": the reconstructor saved in ``model_dir``
+    (:func:`lf_flame.learn.reconstructor.reconstruction`, lenslet grid; None: its default folder)."""
     from ..tomo.decoded import fit_data
     from ..tomo.defaults import EXACT_SOLVER
     from ..tomo.exact import emission_operator
     from ..tomo.fourier import admm_subsamples
     from ..tomo.solvers import reconstruct
     admm = rays_per_pixel is None and (solver or EXACT_SOLVER) == "admm"
+    if solver == "learned" and (rays_per_pixel is not None or support_of is not None or subsamples not in (None, 1)):
+        raise ValueError("the learned reconstructor runs on the exact operator's lenslet grid: it takes neither "
+                         "--rays-per-pixel, --support nor --subsamples")
     if subsamples is None:
         subsamples = admm_subsamples(len(depths)) if admm else 1
     if rays_per_pixel is not None and lf.decoded:
@@ -97,6 +101,14 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
                              "--saturation takes only 'none' for them (fit every sample)")
         lf = dataclasses.replace(lf, leave_out=None, saturation=saturation)
     data, fit = fit_data(lf, op)
+    if solver == "learned":
+        from ..learn.reconstructor import DEFAULT_MODEL_DIR, LearnedReconstructor, reconstruction
+        if not hasattr(op, "canvas_shape"):
+            raise ValueError("the learned reconstructor needs the exact operator: this camera is not a perfect "
+                             "lenslet grid")
+        fitted = (np.ones(data.shape, bool) if fit is None else ~np.asarray(fit, bool) if np.ndim(fit)
+                  else data < float(fit))                              # fit_data's saturation, as the pixels to use
+        return op, reconstruction(data, op, LearnedReconstructor.load(model_dir or DEFAULT_MODEL_DIR), fitted)
     knobs = {}
     if support_of is not None:
         from ..tomo.depth import SUPPORT_KNOBS, plane_support
@@ -113,6 +125,8 @@ def iterations_note(rec) -> str:
     """The iterations that ran: admm's fills (``settings["fills_run"]``, "of at most" the cap where
     they converged sooner), else the solver's ``settings["iters"]``."""
     cap = int(rec.settings["iters"])
+    if rec.solver == "learned":
+        return f"the network of {rec.settings.get('model')}"
     if rec.solver != "admm":
         return f"{cap} iterations"
     ran = int(rec.settings.get("fills_run", cap))
@@ -156,7 +170,8 @@ def cmd_reconstruct(a):
     op, rec = run_reconstruction(lf, depths, a.solver, a.iters, damp=a.damp, tv=a.tv,
                                  saturation=getattr(a, "saturation", "file"), rays_per_pixel=a.rays_per_pixel,
                                  progress=True, subsamples=getattr(a, "subsamples", None),
-                                 support_of=voters if getattr(a, "support", False) else None)
+                                 support_of=voters if getattr(a, "support", False) else None,
+                                 model_dir=getattr(a, "model", None))
     print(saturation_note(rec) if not lf.decoded else
           f"{rec.settings['n_saturated']} samples left out of the fit (clipped, or outside the aperture's image)")
     out = Path(a.out)

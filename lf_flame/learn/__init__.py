@@ -4,7 +4,8 @@
 :mod:`.model` builds the paper's frozen ResNet-50 + decoder; :mod:`.features` caches the
 backbone's features; :mod:`.baselines` the honest yardsticks (mean image, closed-form
 linear decoders); :mod:`.closed_form` the network's closed-form start; :mod:`.training`
-the training run; :mod:`.model_files` loads trained models; :mod:`.evaluation` scores
+the training run; :mod:`.model_files` loads trained models; :mod:`.reconstructor` learns each
+plane's emission on a physics start (the learned reconstructor); :mod:`.evaluation` scores
 every route on the test split and writes Tables I and II.
 
 Its public names are importable from here (loaded on first use, as scikit-image does).
@@ -13,7 +14,8 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["baselines", "closed_form", "dataset", "evaluation", "features", "model", "model_files", "training"],
+    submodules=["baselines", "closed_form", "dataset", "evaluation", "features", "model", "model_files", "reconstructor",
+                "training"],
     submod_attrs={
         "baselines": ["RELATIVE_ALPHAS", "pool_features", "RidgePath", "ridge_path", "MeanImage",
                  "LinearDecoder", "choose_alpha_per_plane", "BASELINE_FILES", "load_baselines",
@@ -32,6 +34,8 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "model": ["CAFFE_MEAN", "NOTOP_FILE", "resolve_weights", "build_feature_extractor",
                  "DROPOUT_PLACES", "build_decoder", "build_model", "compose"],
         "model_files": ["load_decoder", "load_full_model", "save_random_backbone"],
+        "reconstructor": ["ReconstructorConfig", "LearnedReconstructor", "training_samples", "plane_inputs",
+                          "build_network", "sensor_noise", "reconstruction"],
         "training": ["validation_scores", "train"],
     },
 )
