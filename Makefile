@@ -21,7 +21,7 @@ HELDOUT_paper := 20
 HELDOUT_quick := 4
 HELDOUT_SEED := 770077
 
-.PHONY: cameras temperature temperature-volume temperature-sequence help install docs dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi sequence new-user heights test clean-quick
+.PHONY: train-reconstructor cameras temperature temperature-volume temperature-sequence help install docs dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi sequence new-user heights test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -143,6 +143,14 @@ new-user: $(STAMP) ## the quick start's simulate and profiles commands, each rou
 
 reconstruct: $(STAMP) ## 3-D emission reconstruction, every solver against refocusing -> results/reconstruct.{csv,md,json,png}
 	$(VENV)/bin/python experiments/reconstruct.py --out $(TRADEOFF_OUT) $(RECON_ARGS_$(PRESET))
+	if [ -f $(TRADEOFF_OUT)/tradeoff.csv ]; then \
+		$(VENV)/bin/python experiments/tradeoff.py --reconstruction-only --out $(TRADEOFF_OUT); fi
+
+# the learned reconstructor: training data by the exact operator (cached in data/learned), the network
+# (models/reconstructor/paper, about 35 min on 2 cores), scored on traced renders beside admm (renders
+# cached in data/fourier_solver)
+train-reconstructor: $(STAMP) ## train the learned reconstructor of each plane's emission and score it -> models/reconstructor/paper, results/learned.{csv,md,json}, its rows in results/tradeoff.md
+	$(VENV)/bin/python experiments/learned.py --out $(TRADEOFF_OUT) $(if $(filter quick,$(PRESET)),--quick --models models/reconstructor/quick,)
 	if [ -f $(TRADEOFF_OUT)/tradeoff.csv ]; then \
 		$(VENV)/bin/python experiments/tradeoff.py --reconstruction-only --out $(TRADEOFF_OUT); fi
 

@@ -28,12 +28,15 @@ Sections (column ``section``):
 - ``depth`` and ``volume``: the routes to flames at unknown depths (``make depth``) and to
   volumes (``make volume``), read from their own results: time per light field against the
   per-flame emission error and the 3-D error.
+- ``emission``: the learned reconstructor, its start, admm started from it, admm and
+  shift-and-sum on the same scored renders (``make train-reconstructor``, ``learned.csv``).
 
 Usage: ``python experiments/tradeoff.py --preset paper|quick --data-dir D --model-dir M --out O``;
 ``python experiments/tradeoff.py --plot-only --out O`` measures nothing and redraws the
 figures from ``O/tradeoff.csv``; ``--reconstruction-only`` measures nothing either and refreshes
-the ``reconstruction`` section (rows, figure ``tradeoff_reconstruct.png``, tables) from
-``O/reconstruct_iters.csv`` (``make reconstruct`` runs it).
+the ``reconstruction``, ``depth``, ``volume`` and ``emission`` sections (rows, figure
+``tradeoff_reconstruct.png``, tables) from their results in ``O`` (``make reconstruct`` and
+``make train-reconstructor`` run it).
 The second, smaller backbone input size is trained here if its model folder is missing
 (settings in the ``[tradeoff]`` table of ``experiments/<preset>.toml``).
 """
@@ -288,6 +291,23 @@ def depth_volume_rows(folder: Path) -> list[dict]:
                              error_tail=float(g.rel_3d.max()), centroid_mm_mean=float(g.centroid_mean_mm.mean()),
                              n_samples=len(g)))
     return rows
+
+
+def emission_rows(folder: Path) -> list[dict]:
+    """Each plane's emission by every route of ``make train-reconstructor`` (``folder/learned.csv``: the learned
+    reconstructor, its Wiener start, admm started from it, admm, shift-and-sum, on the same traced scored
+    renders; [] when missing): per route, scene and noise, the worst plane per render (median and worst over
+    renders) against the time per light field (median; p90: the largest of the renders' own)."""
+    f = folder / "learned.csv"
+    if not f.exists():
+        return []
+    c = pd.read_csv(f)
+    per = c.groupby(["route", "scene", "noise", "seed"], sort=False).agg(
+        worst=("rel_err", "max"), t=("time_s", "first"), t90=("time_p90_s", "first")).reset_index()
+    return [dict(section="emission", route=route, scene=scene, noise="noise-free" if noise == "clean" else "14 dB",
+                 latency_ms_median=1e3 * float(g.t.median()), latency_ms_p90=1e3 * float(g.t90.max()),
+                 error_median=float(g.worst.median()), error_tail=float(g.worst.max()), n_samples=len(g))
+            for (route, scene, noise), g in per.groupby(["route", "scene", "noise"], sort=False)]
 
 
 def plot_reconstruction(df: pd.DataFrame, out: Path) -> None:
@@ -553,6 +573,14 @@ def summary(df: pd.DataFrame, prov: dict, n_test: int, ref_rpp: int, gt_heights:
                   dv[["section", "scene", "route", "noise", "latency_ms_median", "latency_ms_p90", "error_median",
                       "error_tail", "depth_err_mm_p90", "centroid_mm_mean", "n_samples"]].to_markdown(
                       index=False, floatfmt=".3g"), ""]
+    em = df[df.section == "emission"]
+    if len(em):
+        lines += ["## Each plane's emission, learned and solved: error against time per light field", "",
+                  "From `make train-reconstructor` (`learned.csv`: traced scored renders; `error_median` and "
+                  "`error_tail`: the worst plane per render, median and worst over renders). Time per light field, "
+                  "median and 90th percentile, the operator and the network built.", "",
+                  em[["scene", "noise", "route", "latency_ms_median", "latency_ms_p90", "error_median", "error_tail",
+                      "n_samples"]].to_markdown(index=False, floatfmt=".3g"), ""]
     return "\n".join(lines)
 
 
@@ -567,9 +595,10 @@ def main(argv=None):
     p.add_argument("--plot-only", action="store_true",
                    help="measure nothing: redraw the two figures in --out from the tradeoff.csv there")
     p.add_argument("--reconstruction-only", action="store_true",
-                   help="measure nothing: replace the reconstruction, depth and volume rows of --out's tradeoff.csv "
-                        "with those of its reconstruct_iters.csv (make reconstruct), depth.csv (make depth) and "
-                        "volume*.csv (make volume), redraw the figures and rewrite tradeoff.md")
+                   help="measure nothing: replace the reconstruction, depth, volume and emission rows of --out's "
+                        "tradeoff.csv with those of its reconstruct_iters.csv (make reconstruct), depth.csv (make "
+                        "depth), volume*.csv (make volume) and learned.csv (make train-reconstructor), redraw the "
+                        "figures and rewrite tradeoff.md")
     p.add_argument("dirs", nargs="*", help=argparse.SUPPRESS)
     a = p.parse_args(argv)
     if a.models_only:
@@ -591,8 +620,9 @@ def main(argv=None):
     if a.reconstruction_only:
         out = Path(a.out)
         old = pd.read_csv(out / "tradeoff.csv")
-        df = pd.concat([old[~old.section.isin(["reconstruction", "depth", "volume"])],
-                        pd.DataFrame(reconstruction_rows(out) + depth_volume_rows(out))], ignore_index=True)
+        df = pd.concat([old[~old.section.isin(["reconstruction", "depth", "volume", "emission"])],
+                        pd.DataFrame(reconstruction_rows(out) + depth_volume_rows(out) + emission_rows(out))],
+                       ignore_index=True)
         atomic_write_text(out / "tradeoff.csv", df.to_csv(index=False))
         plot(df, out)
         j = json.loads((out / "tradeoff.json").read_text())
@@ -640,7 +670,7 @@ def main(argv=None):
                               ds.camera if quick else PAPER_CAMERA)
     shapes = [models / "shapes"] if (models / "shapes" / "train_info.json").exists() else []
     rows += training_rows(model_dirs + shapes)
-    rows += reconstruction_rows(out) + depth_volume_rows(out)
+    rows += reconstruction_rows(out) + depth_volume_rows(out) + emission_rows(out)
     df = pd.DataFrame(rows)
     prov = provenance()
     tmp = out / "tradeoff.csv.partial"

@@ -61,8 +61,8 @@ class ReconstructorConfig:
         Range of the training data's SNR (dB, uniform); a share ``clean_share`` is noise-free.
     clean_share : float
     epochs, batch_size, learning_rate, patience :
-        Adam on the relative squared error per plane; the epoch kept is the best on the
-        validation samples (``patience`` epochs without gain stop it).
+        Adam on the relative squared error per plane (:func:`train`); the epoch kept is the best
+        on the validation samples (``patience`` epochs without gain stop it).
     seed : int
     """
     base_channels: int = 16
@@ -384,8 +384,9 @@ def train(camera, train_data, val_data, config: ReconstructorConfig = Reconstruc
           verbose: int = 2, checkpoint=None) -> LearnedReconstructor:
     """Train a reconstructor on samples of :func:`training_samples`.
 
-    Adam on the relative squared error per plane (:func:`relative_weights`); the epoch kept is the
-    best on ``val_data`` (Keras ``EarlyStopping`` with ``restore_best_weights``).
+    Adam on the relative squared error per plane (:func:`relative_weights`), its rate halved after 2
+    epochs without gain on ``val_data`` (Keras ``ReduceLROnPlateau``); the epoch kept is the best on
+    ``val_data`` (``EarlyStopping`` with ``restore_best_weights``).
 
     Parameters
     ----------
@@ -408,7 +409,8 @@ def train(camera, train_data, val_data, config: ReconstructorConfig = Reconstruc
     (x, y), (xv, yv) = train_data, val_data
     net = build_network(config)
     net.compile(optimizer=keras.optimizers.Adam(config.learning_rate), loss=plane_mse)
-    calls = [keras.callbacks.EarlyStopping(patience=config.patience, restore_best_weights=True)]
+    calls = [keras.callbacks.EarlyStopping(patience=config.patience, restore_best_weights=True),
+             keras.callbacks.ReduceLROnPlateau(factor=0.5, patience=2)]
     if checkpoint is not None:
         calls.append(keras.callbacks.ModelCheckpoint(str(checkpoint), save_best_only=True, save_weights_only=True))
     t0 = time.perf_counter()

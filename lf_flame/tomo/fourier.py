@@ -266,7 +266,8 @@ def fourier_system(op, lam: float = ADMM_LAM, rho: float = ADMM_RHO) -> FourierS
     cache = op.__dict__.setdefault("_fourier_systems", {})
     key = (float(lam), float(rho))
     if key not in cache:
-        cache.clear()                                                # one at a time: they are large
+        if len(cache) >= 3:                                          # a few at a time: a dense stack's are large
+            cache.pop(next(iter(cache)))
         cache[key] = FourierSystem(op, lam, rho)
     return cache[key]
 
@@ -313,7 +314,7 @@ def fill_data(views, fit, op):
 def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INNER, lam: float = ADMM_LAM,
                rho: float = ADMM_RHO, tv: float = ADMM_TV, rho_tv: float = ADMM_RHO_TV, momentum: float = ADMM_MOMENTUM,
                l1: float = 0.0, support=None, start: str = "zero", tol: float = 0.0, coarse_knobs=None, callback=None,
-               state: dict | None = None):
+               state: dict | None = None, start_planes=None):
     """Non-negative emission on the exact operator's planes by Fourier ADMM with missing data.
 
     Parameters
@@ -369,6 +370,10 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         :func:`lf_flame.tomo.solvers.reconstruct` passes). None: the quiet ones.
     callback : callable or None
         ``callback(j, x)`` after fill ``j`` (1-based) with the planes (flat).
+    start_planes : ndarray of shape (P, rows / s, cols / s) or None
+        Planes on the lenslet grid to start from (a learned reconstructor's,
+        :func:`lf_flame.learn.reconstructor.reconstruction`): they take the coarse start's place
+        (``start`` is then not used), on any grid.
     state : dict or None
         A recording's solve carried from frame to frame (the EM fills continued across
         frames, as an online EM does: Cappé & Moulines, J. R. Stat. Soc. B 71 (2009)). Empty:
@@ -418,15 +423,21 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
                          f"operator's (planes {(P,) + canvas}, views {(len(op._lit),) + canvas} here)")
     if cont:
         start = "zero"                                               # not used: the state is the start
+    elif start_planes is not None:                                   # the given planes take the coarse solve's place
+        xc = np.asarray(start_planes, op._real)
+        if xc.shape != (P // op.subsamples ** 2, gr, gc) or not np.all(np.isfinite(xc)):
+            raise ValueError(f"start_planes must be finite planes of shape {(P // op.subsamples ** 2, gr, gc)} (the "
+                             f"lenslet grid). Received: {xc.shape}")
+        start = "coarse"
     elif start == "coarse" and op.subsamples == 1:
         raise ValueError("the coarse start solves on the lenslet grid first: it needs a finer grid (subsamples > 1)")
     kept = list(op.__dict__.get("_fourier_systems", {}).values())
     system = admm_system(op, lam, tv, rho, rho_tv)
     system_s = 0.0 if any(system is k for k in kept) else system.setup_s
-    if start == "coarse":   # the lenslet grid's solve: each lenslet's value on its s x s samples is on every phase
+    sub = op.subsamples
+    if start == "coarse" and start_planes is None:   # the lenslet grid's solve: each lenslet's value on its s x s samples is on every phase
         kn = COARSE_KNOBS["quiet"] if coarse_knobs is None else coarse_knobs
         coarse, coarse_s = coarse_operator(op)
-        sub = op.subsamples
         coarse_support = None if support is None else \
             np.asarray(support).reshape(P // sub ** 2, gr, sub, gc, sub).any(axis=(2, 4))
         xc, _, cs = solve_admm(views, coarse, fit, fills=kn["fills"], inner=inner, lam=kn["lam"], rho=rho,

@@ -91,7 +91,7 @@ def lipschitz_bound(op: EmissionOperator) -> float:
 def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: int | None = None, *,
                 damp: float = 0.0, tv: float | None = None, lam: float | None = None, saturation=1.0,
                 progress: bool = False, callback=None, support=None, l1: float | None = None, start: str | None = None,
-                tol: float | None = None, state: dict | None = None) -> Reconstruction:
+                tol: float | None = None, state: dict | None = None, start_planes=None) -> Reconstruction:
     """Recover the emission on the operator's planes from one light field.
 
     Parameters
@@ -161,6 +161,10 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         and the same dict with each next one; ``settings["start"]`` is then ``"continued"``
         from the second frame on.
 
+    start_planes : ndarray of shape (P, rows, cols) on the lenslet grid, or None
+        admm only: planes to start from in place of the coarse start (a learned reconstructor's),
+        ``settings["start"]`` ``"given"`` (:func:`lf_flame.tomo.fourier.solve_admm`).
+
     Returns
     -------
     Reconstruction
@@ -179,11 +183,14 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
     settings = dict(iters=iters, rays_per_pixel=op.rays_per_pixel, seed=op.seed,
                     saturation="mask" if np.ndim(saturation) > 0 else saturation, n_saturated=p.n_sat)
     step = _Steps(iters, f"reconstruct ({solver})", progress, callback)
-    if (support is not None or l1 or start is not None or tol is not None or state is not None) and solver != "admm":
-        raise ValueError(f"a support, l1, start, tol and state are for the admm only. Received solver={solver!r}")
+    if (support is not None or l1 or start is not None or tol is not None or state is not None
+            or start_planes is not None) and solver != "admm":
+        raise ValueError(f"a support, l1, start, start planes, tol and state are for the admm only. Received "
+                         f"solver={solver!r}")
     if solver == "admm":
         x, residuals = _solve_admm(p, settings, step, iters if iters_given else None, tv if tv_given else None,
-                                   lam=lam, l1=l1, start=start, tol=tol, support=support, state=state)
+                                   lam=lam, l1=l1, start=start, tol=tol, support=support, state=state,
+                                   start_planes=start_planes)
     elif solver == "adjoint":
         x, residuals = _solve_adjoint(p)
     elif solver == "lsqr":
@@ -261,7 +268,8 @@ class _Steps:
             self.callback(self.count, np.ravel(x))
 
 
-def _solve_admm(p: _Problem, settings: dict, step: _Steps, iters, tv, *, lam, l1, start, tol, support, state=None):
+def _solve_admm(p: _Problem, settings: dict, step: _Steps, iters, tv, *, lam, l1, start, tol, support, state=None,
+                start_planes=None):
     """``"admm"`` (:func:`lf_flame.tomo.fourier.solve_admm`), the knobs not given by the data's noise
     (:func:`lf_flame.tomo.fourier.admm_knobs`): ``(x, residuals)``."""
     from .exact import ExactOperator
@@ -276,13 +284,15 @@ def _solve_admm(p: _Problem, settings: dict, step: _Steps, iters, tv, *, lam, l1
     settings.update(iters=iters, subsamples=op.subsamples, **knobs)
     if state:
         settings["start"] = "continued"                               # from the previous frame's solve
+    elif start_planes is not None:
+        settings["start"] = "given"
     step.bar.total = iters                                            # the fills the noise chose
     step.bar.refresh()
     planes, residuals, settings["system_s"] = solve_admm(
         p.y.reshape(op.dimsd), op, p.fit.reshape(op.dimsd), fills=iters, lam=knobs["lam"], tv=knobs["tv"],
         l1=knobs["l1"], start=knobs["start"], tol=knobs["tol"], support=support, callback=lambda j, x: step(x),
         coarse_knobs=COARSE_KNOBS[noise_regime(knobs["noise"])] if math.isfinite(knobs["noise"]) else None,
-        state=state)
+        state=state, start_planes=start_planes)
     settings["fills_run"] = step.count
     return planes.ravel(), residuals
 
