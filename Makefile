@@ -148,10 +148,11 @@ reconstruct: $(STAMP) ## 3-D emission reconstruction, every solver against refoc
 
 # the learned reconstructor: training data by the exact operator (cached in data/learned), the network
 # (models/reconstructor/paper, about 35 min on 2 cores), scored on traced renders beside admm (renders
-# cached in data/fourier_solver)
+# cached in data/fourier_solver). CAMERA=cam.toml trains for that camera -> models/reconstructor/cam,
+# results/learned_cam/ (lf-flame reconstruct --solver learned --model models/reconstructor/cam)
 train-reconstructor: $(STAMP) ## train the learned reconstructor of each plane's emission and score it -> models/reconstructor/paper, results/learned.{csv,md,json}, its rows in results/tradeoff.md
-	$(VENV)/bin/python experiments/learned.py --out $(TRADEOFF_OUT) $(if $(filter quick,$(PRESET)),--quick --models models/reconstructor/quick,)
-	if [ -f $(TRADEOFF_OUT)/tradeoff.csv ]; then \
+	$(VENV)/bin/python experiments/learned.py $(if $(CAMERA),--camera $(CAMERA) --models models/reconstructor/$(basename $(notdir $(CAMERA))) --out results/learned_$(basename $(notdir $(CAMERA))),--out $(TRADEOFF_OUT) $(if $(filter quick,$(PRESET)),--quick --models models/reconstructor/quick,))
+	if [ -z "$(CAMERA)" ] && [ -f $(TRADEOFF_OUT)/tradeoff.csv ]; then \
 		$(VENV)/bin/python experiments/tradeoff.py --reconstruction-only --out $(TRADEOFF_OUT); fi
 
 # the camera's depth-resolution map (lf_flame.tomo.resolution; about 1.5 min on 2 cores)

@@ -22,8 +22,9 @@ Writes ``learned.csv`` (one row per route, render, noise and plane), ``learned.m
 ``learned.json`` (config, seeds, provenance, wall time) in ``--out``. Timings come from a
 shared 2-core machine: compare rows of one run.
 
-Usage: ``python experiments/learned.py --out results [--scenes 200] [--tests 3] [--epochs 30]``
-(``--quick``: a tiny run for the tests).
+Usage: ``python experiments/learned.py --out results [--scenes 240] [--tests 3] [--epochs 30] [--camera FILE
+--models DIR]`` (``--quick``: a tiny run for the tests; ``--camera``: train for another camera, scored on its
+random-depth scenes).
 """
 from __future__ import annotations
 
@@ -46,6 +47,7 @@ import reconstruct as R  # noqa: E402
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.learn import reconstructor as L  # noqa: E402
 from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
+from lf_flame.optics.camera_file import load_camera_file  # noqa: E402
 from lf_flame.refocus.shift_and_sum import aperture_mask, focal_stack  # noqa: E402
 from lf_flame.routes import measure_settings  # noqa: E402
 from lf_flame.simulate.scenes_depth import camera_depth_scene  # noqa: E402
@@ -76,13 +78,21 @@ def cached_samples(cam, n, seed, cfg, cache: Path, name: str):
     return f["x"], f["y"]
 
 
+def camera_tag(cam) -> str:
+    """'' for the paper's camera, else a short digest of the camera (the caches' names)."""
+    if cam == PAPER_CAMERA:
+        return ""
+    return hashlib.blake2b(json.dumps(cam.to_dict(), sort_keys=True).encode(), digest_size=4).hexdigest() + "_"
+
+
 def traced_set(cam, kind, seed, rays, cache):
     """(scene, views clean, views at 14 dB, own error) of one traced render, cached."""
     if kind != "depth":
         scene, clean, noisy, own, _ = FS.render_set(cam, kind, seed, rays, cache)
         return scene, clean, noisy, own
     scene = camera_depth_scene(cam, np.random.default_rng(seed))
-    clean, noisy, own, _ = R.cached_render(cam, scene, rays, seed, cache / f"depth_{seed}_{rays}.npz", FS.SNR_DB)
+    path = cache / f"{camera_tag(cam)}depth_{seed}_{rays}.npz"
+    clean, noisy, own, _ = R.cached_render(cam, scene, rays, seed, path, FS.SNR_DB)
     return scene, clean, noisy, own
 
 
@@ -97,11 +107,11 @@ def timed(f, repeats):
     return out, float(np.median(t)), float(np.percentile(t, 90))
 
 
-def score(cam, model, rays, cache, seeds, repeats):
+def score(cam, model, rays, cache, seeds, repeats, kinds=KINDS):
     rows = []
     mask = aperture_mask(cam.pixels_per_lenslet, "circular")
     emission = measure_settings("reconstruct-admm")
-    for kind, seed in itertools.product(KINDS, seeds):
+    for kind, seed in itertools.product(kinds, seeds):
         scene, clean, noisy, own = traced_set(cam, kind, seed, rays, cache)
         depths = L.scene_depths(scene)
         fine = ExactOperator(cam, depths, precision=FS.PRECISION, subsamples=2)
@@ -143,11 +153,14 @@ def summary(df):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", type=Path, default=Path("results"))
+    ap.add_argument("--camera", type=Path, default=None,
+                    help="a camera file (lf_flame.optics.camera_file) to train for; default the paper's camera. "
+                         "Its scored renders are the random-depth family alone (the paper's scenes are its camera's)")
     ap.add_argument("--models", type=Path, default=Path("models/reconstructor/paper"))
     ap.add_argument("--cache", type=Path, default=Path("data/learned"))
     ap.add_argument("--render-cache", type=Path, default=Path("data/fourier_solver"))
     ap.add_argument("--stage", choices=("all", "data", "train", "score"), default="all")
-    ap.add_argument("--scenes", type=int, default=200, help="training scenes (4 light fields each)")
+    ap.add_argument("--scenes", type=int, default=240, help="training scenes (4 light fields each)")
     ap.add_argument("--val-scenes", type=int, default=25)
     ap.add_argument("--epochs", type=int, default=30)
     ap.add_argument("--base-channels", type=int, default=16)
@@ -158,7 +171,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
     if a.quick:
         a.scenes, a.val_scenes, a.epochs, a.tests, a.rays, a.repeats = 2, 1, 1, 1, 16, 2
-    cam = PAPER_CAMERA
+    cam = PAPER_CAMERA if a.camera is None else load_camera_file(a.camera)
     cfg = L.ReconstructorConfig(epochs=a.epochs, base_channels=a.base_channels)
     t_start = time.perf_counter()
     if a.stage in ("all", "data", "train"):
@@ -173,7 +186,8 @@ def main(argv=None):
                   f"{model.record['train_s']:.0f} s -> {a.models}", flush=True)
     if a.stage in ("all", "score"):
         model = L.LearnedReconstructor.load(a.models)
-        df = score(cam, model, a.rays, a.render_cache, R.TEST_SEEDS[:a.tests], a.repeats)
+        df = score(cam, model, a.rays, a.render_cache, R.TEST_SEEDS[:a.tests], a.repeats,
+                   KINDS if a.camera is None else ("depth",))
         a.out.mkdir(parents=True, exist_ok=True)
         df.to_csv(a.out / "learned.csv", index=False)
         s = summary(df)
