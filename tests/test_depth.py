@@ -227,6 +227,37 @@ def test_cli_reconstruct_finds_the_planes_by_default(cam, planted, tmp_path, cap
     assert "--depths takes" in capsys.readouterr().err
 
 
+def test_the_cli_solves_found_planes_as_the_library_route(cam, planted, tmp_path, capsys):
+    """On noisy data, ``lf-flame reconstruct`` with found depths takes the found planes' own knobs, as
+    ``find_planes`` (whose runs the published figures are): the same settings and the same planes; a TV weight
+    given is kept."""
+    import json
+
+    import h5py
+
+    from lf_flame.cli import main
+    from lf_flame.refocus.shift_and_sum import views_to_raw
+    _, views = planted
+    loud = np.clip(views + np.random.default_rng(2).normal(scale=0.03 * views.max(), size=views.shape), 0, None)
+    raw = tmp_path / "loud.npz"
+    np.savez(raw, raw=views_to_raw(loud), camera=cam.to_json())
+    out = tmp_path / "auto.h5"
+    assert main(["reconstruct", str(raw), "--out", str(out)]) == 0
+    from lf_flame.real.lightfield import imaging_range_mm
+    found, _, rec = find_planes(raw_to_views(views_to_raw(loud), cam.pixels_per_lenslet), cam,
+                                depth_range_mm=imaging_range_mm(cam))          # the CLI searches the camera's range
+    with h5py.File(out) as f:
+        got = json.loads(f.attrs["settings"])
+        np.testing.assert_allclose(f["depths_mm"][...], found.planes_mm)
+        np.testing.assert_allclose(f["planes"][...], rec.planes, rtol=1e-4, atol=1e-5 * rec.planes.max())
+    keys = ("tv", "lam", "l1", "iters")
+    assert {k: got[k] for k in keys} == {k: rec.settings[k] for k in keys}
+    assert main(["reconstruct", str(raw), "--tv", "0.3", "--out", str(out)]) == 0
+    with h5py.File(out) as f:
+        assert json.loads(f.attrs["settings"])["tv"] == 0.3
+    capsys.readouterr()
+
+
 def test_support_holds_each_plane_to_its_regions(cam, planted):
     from lf_flame.tomo.depth import plane_support
     from lf_flame.tomo.solvers import reconstruct

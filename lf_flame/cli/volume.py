@@ -69,7 +69,8 @@ def found_planes(lf, views=None):
 
 
 def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None, saturation="file",
-                       rays_per_pixel=None, progress=False, subsamples=None, support_of=None, model_dir=None):
+                       rays_per_pixel=None, progress=False, subsamples=None, support_of=None, model_dir=None,
+                       found=False):
     """Build the operator of the light field's camera at ``depths``
     (:func:`lf_flame.tomo.exact.emission_operator`: exact unless ``rays_per_pixel`` is given) and
     solve (:func:`lf_flame.tomo.solvers.reconstruct`; solver None: the operator's default) on the
@@ -79,7 +80,9 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
     ``support_of``: found depths (:class:`~lf_flame.tomo.depth.FoundDepths`) whose regions hold each plane's
     emission (:func:`~lf_flame.tomo.depth.plane_support`, admm only, with
     :data:`~lf_flame.tomo.depth.SUPPORT_KNOBS`). ``solver`` "learned": the reconstructor saved in ``model_dir``
-    (:func:`lf_flame.learn.reconstructor.reconstruction`, lenslet grid; None: its default folder)."""
+    (:func:`lf_flame.learn.reconstructor.reconstruction`, lenslet grid; None: its default folder). ``found``:
+    the depths were found in the data, so admm takes the found planes' knobs where they differ from its own
+    and none were given (:func:`lf_flame.tomo.depth.found_planes_knobs`, as :func:`lf_flame.tomo.depth.find_planes`)."""
     from ..tomo.decoded import fit_data
     from ..tomo.defaults import EXACT_SOLVER
     from ..tomo.exact import emission_operator
@@ -118,6 +121,11 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
         knobs = dict(SUPPORT_KNOBS, support=plane_support(support_of).repeat(s, axis=1).repeat(s, axis=2))
         own_tv = knobs.pop("tv")
         tv = own_tv if tv is None else tv
+    elif found and admm and iters is None:
+        from ..tomo.depth import found_planes_knobs
+        knobs = dict(found_planes_knobs(data, fit, getattr(op, "subsamples", 1)) or {})
+        found_tv = knobs.pop("tv", None)
+        tv = found_tv if tv is None else tv
     return op, reconstruct(data, op, solver, iters, damp=damp, tv=tv, saturation=fit, progress=progress, **knobs)
 
 
@@ -171,7 +179,7 @@ def cmd_reconstruct(a):
                                  saturation=getattr(a, "saturation", "file"), rays_per_pixel=a.rays_per_pixel,
                                  progress=True, subsamples=getattr(a, "subsamples", None),
                                  support_of=voters if getattr(a, "support", False) else None,
-                                 model_dir=getattr(a, "model", None))
+                                 model_dir=getattr(a, "model", None), found=extra.get("depths_from") == "auto")
     print(saturation_note(rec) if not lf.decoded else
           f"{rec.settings['n_saturated']} samples left out of the fit (clipped, or outside the aperture's image)")
     out = Path(a.out)

@@ -334,6 +334,29 @@ def plane_support(found: FoundDepths, dilation: int = SUPPORT_DILATION) -> np.nd
     return out
 
 
+def found_planes_knobs(views, saturation, subsamples: int):
+    """admm's knobs on found planes: :data:`FOUND_PLANES_KNOBS` for the planes' grid and the light field's
+    noise level, measured as :func:`~lf_flame.tomo.solvers.reconstruct` measures it (on its fitted pixels).
+
+    Parameters
+    ----------
+    views : ndarray of shape (N, N, R, C)
+    saturation : float, ndarray of bool (True: left out) or None
+        As :func:`~lf_flame.tomo.solvers.reconstruct`'s.
+    subsamples : int
+        Samples per lenslet and axis of the planes' grid.
+
+    Returns
+    -------
+    dict or None
+        ``reconstruct``'s keywords; None where admm's own knobs hold.
+    """
+    from .fourier import noise_regime, relative_noise
+    fit = None if saturation is None else ~np.asarray(saturation, bool) if np.ndim(saturation) else \
+        np.asarray(views) < saturation
+    return FOUND_PLANES_KNOBS.get((int(subsamples), noise_regime(relative_noise(views, fit))))
+
+
 def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturation=1.0, support: bool = False,
                 dilation: int = SUPPORT_DILATION, solve=None, subsamples: int | None = None, **find_kw):
     """Found depths (:func:`find_depths`) and the emission on their planes.
@@ -373,10 +396,7 @@ def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturat
     op = emission_operator(camera, [float(d) for d in found.planes_mm], subsamples=subsamples)
     s = getattr(op, "subsamples", 1)
     sup = plane_support(found, dilation).repeat(s, axis=1).repeat(s, axis=2) if support and solver == "admm" else None
-    if solve is None and solver == "admm":   # the noise as reconstruct measures it (its fitted pixels)
-        from .fourier import noise_regime, relative_noise
-        fit = None if saturation is None else ~np.asarray(saturation) if np.ndim(saturation) else \
-            np.asarray(views) < saturation
-        solve = FOUND_PLANES_KNOBS.get((s, noise_regime(relative_noise(views, fit))))
+    if solve is None and solver == "admm":
+        solve = found_planes_knobs(views, saturation, s)
     rec = reconstruct(np.asarray(views, np.float64), op, solver, saturation=saturation, support=sup, **(solve or {}))
     return found, op, rec
