@@ -258,6 +258,33 @@ def test_the_cli_solves_found_planes_as_the_library_route(cam, planted, tmp_path
     capsys.readouterr()
 
 
+def test_reconstruct_warns_when_a_plane_reaches_the_fields_edge(cam, planted, tmp_path, capsys):
+    """A flame cut by the field's edge: ``reconstruct`` warns and records each plane's share of emission in the
+    border band; flames inside the field give no warning."""
+    import json
+
+    import h5py
+
+    from lf_flame.cli import main
+    from lf_flame.refocus.shift_and_sum import views_to_raw
+    from lf_flame.simulate import scenes
+    h, w = cam.field_of_view_mm(5.0)
+    yy, xx = np.mgrid[-1:1:64j, -1:1:64j]
+    blob = np.exp(-(yy ** 2 + xx ** 2) / 0.2).astype(np.float32)
+    cut = scenes.Scene("cut", (scenes.Layer(blob, None, 5.0, (0.0, w / 2), (0.6 * h, 0.6 * w)),), scenes.FLAME_EFFECTS)
+    for name, views, planes, cut_by_edge in (("cut", _views(cam, cut, 1), ["--depth", "5"], True),
+                                             ("inside", planted[1], [], False)):    # its found depths
+        raw = tmp_path / f"{name}.npz"
+        np.savez(raw, raw=views_to_raw(views), camera=cam.to_json())
+        out = tmp_path / f"{name}.h5"
+        assert main(["reconstruct", str(raw), *planes, "--out", str(out)]) == 0
+        err = capsys.readouterr().err
+        with h5py.File(out) as f:
+            share = json.loads(f.attrs["edge_share"])
+        assert ("cut by the field of view" in err) == cut_by_edge, (name, share)
+        assert (max(share) > 0.01) == cut_by_edge, (name, share)
+
+
 def test_support_holds_each_plane_to_its_regions(cam, planted):
     from lf_flame.tomo.depth import plane_support
     from lf_flame.tomo.solvers import reconstruct

@@ -5,6 +5,7 @@ the depths holding emission are found first (:mod:`lf_flame.tomo.depth`).
 from __future__ import annotations
 
 import dataclasses
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -182,6 +183,14 @@ def cmd_reconstruct(a):
                                  model_dir=getattr(a, "model", None), found=extra.get("depths_from") == "auto")
     print(saturation_note(rec) if not lf.decoded else
           f"{rec.settings['n_saturated']} samples left out of the fit (clipped, or outside the aperture's image)")
+    from ..tomo.solvers import EDGE_BAND_LENSLETS, EDGE_SHARE_WARN, edge_shares
+    edge = edge_shares(rec.planes, getattr(op, "subsamples", 1))
+    extra["edge_share"] = [float(v) for v in edge]
+    for d, e in zip(rec.depths_mm, edge):
+        if e > EDGE_SHARE_WARN:
+            print(f"warning: the plane at {d:+.2f} mm holds {100 * e:.1f} % of its emission within "
+                  f"{EDGE_BAND_LENSLETS} lenslets of the field's edge: its flame is cut by the field of view, and "
+                  "the light that falls outside the views is not recovered", file=sys.stderr)
     out = Path(a.out)
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), **extra)
     n = cam.pixels_per_lenslet

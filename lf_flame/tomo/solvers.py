@@ -64,6 +64,36 @@ class Reconstruction:
     time_s: float = 0.0
 
 
+#: Width (lenslets) of the band along a plane's border whose share of the emission :func:`edge_shares` reports.
+EDGE_BAND_LENSLETS = 2
+#: A plane holding more than this share of its emission in that band reaches the field's edge: light of its
+#: flame falls outside the views, which no solver recovers (``lf-flame reconstruct`` warns and records it).
+EDGE_SHARE_WARN = 0.01
+
+
+def edge_shares(planes, samples_per_lenslet: int = 1, band_lenslets: int = EDGE_BAND_LENSLETS) -> np.ndarray:
+    """Each plane's share of its emission within ``band_lenslets`` of the grid's border.
+
+    Parameters
+    ----------
+    planes : ndarray of shape (P, rows, cols)
+        Emission (non-negative parts are counted).
+    samples_per_lenslet : int
+        The grid's samples per lenslet and axis (an operator's ``subsamples``).
+    band_lenslets : int
+
+    Returns
+    -------
+    ndarray of shape (P,)
+        ``sum(band) / sum(plane)`` of the positive emission; 0 for an empty plane.
+    """
+    x = np.clip(np.asarray(planes, np.float64), 0, None)
+    b = int(band_lenslets) * int(samples_per_lenslet)
+    inner = x[:, b:x.shape[1] - b, b:x.shape[2] - b].sum(axis=(1, 2))
+    total = x.sum(axis=(1, 2))
+    return np.where(total > 0, (total - inner) / np.where(total > 0, total, 1.0), 0.0)
+
+
 class _TrackedL2(pyproximal.L2):
     """``1/2 ||A x - b||^2`` that records the relative residual at every gradient it gives."""
 
