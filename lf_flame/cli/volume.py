@@ -88,7 +88,7 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
     from ..tomo.defaults import EXACT_SOLVER
     from ..tomo.exact import emission_operator
     from ..tomo.fourier import admm_subsamples
-    from ..tomo.solvers import reconstruct
+    from ..tomo.solvers import fitted_pixels, reconstruct
     admm = rays_per_pixel is None and (solver or EXACT_SOLVER) == "admm"
     if solver == "learned" and (rays_per_pixel is not None or support_of is not None or subsamples not in (None, 1)):
         raise ValueError("the learned reconstructor runs on the exact operator's lenslet grid: it takes neither "
@@ -110,9 +110,8 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
         if not hasattr(op, "canvas_shape"):
             raise ValueError("the learned reconstructor needs the exact operator: this camera is not a perfect "
                              "lenslet grid")
-        fitted = (np.ones(data.shape, bool) if fit is None else ~np.asarray(fit, bool) if np.ndim(fit)
-                  else data < float(fit))                              # fit_data's saturation, as the pixels to use
-        return op, reconstruction(data, op, LearnedReconstructor.load(model_dir or DEFAULT_MODEL_DIR), fitted)
+        return op, reconstruction(data, op, LearnedReconstructor.load(model_dir or DEFAULT_MODEL_DIR),
+                                  fitted_pixels(data, fit))
     knobs = {}
     if support_of is not None:
         from ..tomo.depth import SUPPORT_KNOBS, plane_support

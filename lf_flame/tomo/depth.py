@@ -352,8 +352,8 @@ def found_planes_knobs(views, saturation, subsamples: int):
         ``reconstruct``'s keywords; None where admm's own knobs hold.
     """
     from .fourier import noise_regime, relative_noise
-    fit = None if saturation is None else ~np.asarray(saturation, bool) if np.ndim(saturation) else \
-        np.asarray(views) < saturation
+    from .solvers import fitted_pixels
+    fit = fitted_pixels(views, saturation)
     return FOUND_PLANES_KNOBS.get((int(subsamples), noise_regime(relative_noise(views, fit))))
 
 

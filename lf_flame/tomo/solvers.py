@@ -271,12 +271,28 @@ class _Problem:
     norm: float
 
 
+def fitted_pixels(views, saturation) -> np.ndarray:
+    """The pixels :func:`reconstruct` fits: below the saturation level, False in a saturation mask, all for None.
+
+    Parameters
+    ----------
+    views : ndarray (any shape)
+    saturation : float, ndarray of bool of the views' shape (True: clipped) or None
+
+    Returns
+    -------
+    ndarray of bool of the views' shape
+    """
+    views = np.asarray(views)
+    if np.ndim(saturation) > 0:
+        return ~np.asarray(saturation, bool).reshape(views.shape)
+    return np.ones(views.shape, bool) if saturation is None else views < saturation
+
+
 def _fitted_problem(op: EmissionOperator, y: np.ndarray, saturation) -> _Problem:
     """The saturation mask: samples at or above the level, or True in a mask, left out of the fit
     (none for None), and the operator and data weighted to match."""
-    mask = np.ndim(saturation) > 0
-    # pixels that carry their light
-    fit = ~np.ravel(saturation) if mask else np.ones(y.size, bool) if saturation is None else y < saturation
+    fit = fitted_pixels(y, np.ravel(saturation) if np.ndim(saturation) > 0 else saturation)   # carry their light
     n_sat = int(y.size - fit.sum())
     # the fitted operator and data: W A and W y, W the 0/1 weight of the unsaturated pixels
     A, yw = (op, y) if n_sat == 0 else (pylops.Diagonal(fit.astype(np.float64)) @ op, np.where(fit, y, 0.0))
