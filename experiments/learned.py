@@ -7,7 +7,8 @@ Stages (``--stage``, default all):
   10-24 dB) from seeds ``TRAIN_SEED`` and ``VAL_SEED``, kept in ``--cache`` (.npz, written to a
   temporary file and renamed; a run finds them there).
 - **train**: the network, its epoch chosen on the validation samples; saved with its config,
-  camera, seeds and record in ``--models`` (``reconstructor.json`` + weights).
+  camera, seeds and record in ``--models`` (``reconstructor.json`` + weights); the score stage adds
+  its scores to that record.
 - **score**: on traced renders at ``--rays`` per pixel (the ray tracer, never the operator that made
   the training data; ``experiments/fourier_solver.py``'s cache and seeds), noise-free and at 14 dB:
   the paper's, varied and overlap scenes (the overlap family and the paper's fixed depths are
@@ -191,6 +192,8 @@ def main(argv=None):
         a.out.mkdir(parents=True, exist_ok=True)
         df.to_csv(a.out / "learned.csv", index=False)
         s = summary(df)
+        model.record.update(scores=s.to_dict("records"), scores_file=str(a.out / "learned.csv"))
+        model.save(a.models)                                      # the weights, their config and their scores together
         meta = dict(config=dataclasses.asdict(model.config), record=model.record, rays=a.rays,
                     test_seeds=list(R.TEST_SEEDS[:a.tests]), own_errors=df.groupby(["scene", "seed"]).own_error.first()
                     .reset_index().to_dict("records"), wall_s=time.perf_counter() - t_start, provenance=provenance())

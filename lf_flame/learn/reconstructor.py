@@ -348,8 +348,9 @@ class LearnedReconstructor:
         tmp = folder / (WEIGHTS_FILE + ".partial.weights.h5")
         self.network.save_weights(tmp)
         os.replace(tmp, folder / WEIGHTS_FILE)
+        record = {k: v for k, v in self.record.items() if k != "folder"}        # where it was loaded from
         atomic_write_text(folder / CONFIG_FILE, json.dumps(dict(config=dataclasses.asdict(self.config),
-                                                                camera=self.camera.to_dict(), record=self.record),
+                                                                camera=self.camera.to_dict(), record=record),
                                                            indent=1, default=str))
         return folder
 
