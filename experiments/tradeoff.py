@@ -35,7 +35,7 @@ Usage: ``python experiments/tradeoff.py --preset paper|quick --data-dir D --mode
 ``python experiments/tradeoff.py --plot-only --out O`` measures nothing and redraws the
 figures from ``O/tradeoff.csv``; ``--reconstruction-only`` measures nothing either and refreshes
 the ``reconstruction``, ``depth``, ``volume`` and ``emission`` sections (rows, figure
-``tradeoff_reconstruct.png``, tables) from their results in ``O`` (``make reconstruct`` and
+``tradeoff_reconstruct.png``, ``tradeoff_emission.png``, tables) from their results in ``O`` (``make reconstruct`` and
 ``make train-reconstructor`` run it).
 The second, smaller backbone input size is trained here if its model folder is missing
 (settings in the ``[tradeoff]`` table of ``experiments/<preset>.toml``).
@@ -332,6 +332,36 @@ def plot_reconstruction(df: pd.DataFrame, out: Path) -> None:
     plt.close(fig)
 
 
+def plot_emission(df: pd.DataFrame, out: Path) -> None:
+    """``tradeoff_emission.png``: each route of ``make train-reconstructor`` (learned, its start, admm from it,
+    admm, shift-and-sum) as a point, worst-plane error (worst render) against time per light field (median, the
+    bar to the p90), one panel per scene and noise, on the same traced scored renders."""
+    em = df[df.section == "emission"]
+    panels = list(em.groupby(["scene", "noise"], sort=False))
+    cols = (len(panels) + 1) // 2
+    fig, axes = plt.subplots(2, cols, figsize=(3.6 * cols, 7.2), squeeze=False, sharey=True, sharex=True)
+    markers = dict(zip(em.route.unique(), "osD^vx"))
+    for ax, ((scene, noise), g) in zip(axes.ravel(), panels):
+        for r in g.itertuples():
+            t, t90 = r.latency_ms_median / 1e3, r.latency_ms_p90 / 1e3
+            ax.errorbar(t, r.error_tail, xerr=[[0], [max(t90 - t, 0)]], fmt=markers[r.route], ms=6, label=r.route)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_title(f"{scene}, {noise}", fontsize=9)
+        ax.grid(alpha=0.3, which="both")
+    for ax in axes[1]:
+        ax.set_xlabel("time per light field (s)")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("worst plane relative error")
+    for ax in axes.ravel()[len(panels):]:
+        ax.axis("off")
+    axes[0, -1].legend(fontsize=7)
+    fig.suptitle("Each plane's emission: learned and solved, error against time (traced scored renders)")
+    fig.tight_layout()
+    fig.savefig(out / "tradeoff_emission.png", dpi=100)
+    plt.close(fig)
+
+
 def pareto(df: pd.DataFrame) -> pd.Series:
     """True for the routes that no other route beats in both latency and mean SSIM."""
     lat, acc = df.latency_ms_median.values, df.ssim_mean.values
@@ -479,6 +509,8 @@ def plot(df: pd.DataFrame, out: Path) -> None:
     plt.close(fig)
     if (df.section == "reconstruction").any():
         plot_reconstruction(df, out)
+    if (df.section == "emission").any():
+        plot_emission(df, out)
 
 
 def summary(df: pd.DataFrame, prov: dict, n_test: int, ref_rpp: int, gt_heights: dict | None = None) -> str:
@@ -580,7 +612,8 @@ def summary(df: pd.DataFrame, prov: dict, n_test: int, ref_rpp: int, gt_heights:
                   "`error_tail`: the worst plane per render, median and worst over renders). Time per light field, "
                   "median and 90th percentile, the operator and the network built.", "",
                   em[["scene", "noise", "route", "latency_ms_median", "latency_ms_p90", "error_median", "error_tail",
-                      "n_samples"]].to_markdown(index=False, floatfmt=".3g"), ""]
+                      "n_samples"]].to_markdown(index=False, floatfmt=".3g"), "",
+                  "![emission](tradeoff_emission.png)", ""]
     return "\n".join(lines)
 
 

@@ -54,14 +54,15 @@ def test_make_tradeoff_quick():
 
 def test_plot_only_redraws_the_figures_from_the_committed_csv(tmp_path):
     """``--plot-only`` measures nothing: it reads ``<out>/tradeoff.csv`` and writes the PNGs only
-    (the reconstruction's, from the rows of ``make reconstruct``'s curves, among them)."""
+    (the reconstruction's, from the rows of ``make reconstruct``'s curves, and the emission routes', from
+    ``make train-reconstructor``'s, among them)."""
     import importlib.util
     spec = importlib.util.spec_from_file_location("tradeoff_script", ROOT / "experiments" / "tradeoff.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     shutil.copy(ROOT / "results" / "tradeoff.csv", tmp_path / "tradeoff.csv")
     assert mod.main(["--plot-only", "--out", str(tmp_path)]) == 0
-    pngs = ["tradeoff_knobs.png", "tradeoff_pareto.png", "tradeoff_reconstruct.png"]
+    pngs = ["tradeoff_emission.png", "tradeoff_knobs.png", "tradeoff_pareto.png", "tradeoff_reconstruct.png"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["tradeoff.csv"] + pngs
     for png in pngs:
         assert (tmp_path / png).stat().st_size > 10_000
