@@ -64,7 +64,7 @@ from lf_flame.refocus.shift_and_sum import aperture_mask, focal_stack, raw_to_vi
 from lf_flame.routes import measure_settings  # noqa: E402
 from lf_flame.simulate import tracer  # noqa: E402
 from lf_flame.simulate.scenes_volume import volume_flame_scene  # noqa: E402
-from lf_flame.tomo import defaults, fourier  # noqa: E402
+from lf_flame.tomo import defaults, fourier, fourier_system, noise_knobs  # noqa: E402
 from lf_flame.tomo.exact import ExactOperator  # noqa: E402
 from lf_flame.tomo.operator import EmissionOperator  # noqa: E402
 from lf_flame.tomo.scoring import score_planes  # noqa: E402
@@ -137,7 +137,7 @@ def tune(cam, rays, cache, starts=STARTS, grids=(1, 2), pd_tv=True, coarse_varia
             if noises is not None and noise not in noises:
                 continue
             labels = dict(scene=kind, seed=seed, noise=noise, own_error=own,
-                          noise_level=fourier.relative_noise(views, views < 1.0))
+                          noise_level=noise_knobs.relative_noise(views, views < 1.0))
             if pd_tv:
                 t0 = time.perf_counter()
                 rec = reconstruct(views, mc, "pd-tv")
@@ -274,7 +274,7 @@ def score(cam, rays, cache, n_tests):
                                      route="reconstruct-pd-tv (4-ray operator)",
                                      measure=measure_settings("reconstruct-pd-tv"), **labels))
             # its defaults: the grid and the knobs of the data's noise level (as lf-flame reconstruct)
-            for name, o in (("reconstruct-admm (exact operator)", fine if fourier.admm_subsamples(len(depths)) == 2 else op),
+            for name, o in (("reconstruct-admm (exact operator)", fine if noise_knobs.admm_subsamples(len(depths)) == 2 else op),
                             ("reconstruct-admm (exact operator, lenslet grid)", op)):
                 rec = reconstruct(views, o, "admm")
                 rows.append(score_planes(bin_planes(rec.planes, o.subsamples), truth, cam, depths, scene.objects,
@@ -346,7 +346,7 @@ def dense(cam, plane_counts=DENSE_P):
         op = ExactOperator(cam, depths, precision=PRECISION)
         op_s = time.perf_counter() - t0
         rec = reconstruct(views, op, "admm")   # the 16-ray render is quiet: 8 fills, no TV
-        system = fourier.admm_system(op, rec.settings["lam"], rec.settings["tv"])   # the one it built
+        system = fourier_system.admm_system(op, rec.settings["lam"], rec.settings["tv"])   # the one it built
         solve_s = rec.time_s - rec.settings["system_s"]
         # the same setup again in this process: its memory's first touch is then paid (a virtual machine backs a
         # guest's fresh pages on first touch, at a cost that varies from run to run)
@@ -357,7 +357,7 @@ def dense(cam, plane_counts=DENSE_P):
         del op, system                                             # the system holds the operator's spectra
         t0 = time.perf_counter()
         again = ExactOperator(cam, depths, precision=PRECISION)
-        row["setup_again_s"] = time.perf_counter() - t0 + fourier.FourierSystem(again, lam, rho).setup_s
+        row["setup_again_s"] = time.perf_counter() - t0 + fourier_system.FourierSystem(again, lam, rho).setup_s
         del again
         rows.append(dict(row, peak_rss_mb=resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024))
         print(f"  dense P={P}: setup {row['setup_s']:.1f} s (again {row['setup_again_s']:.1f} s), "
@@ -450,7 +450,7 @@ def write_md(out: Path, meta):
              f"(two seeds): " + (", ".join(f"{k} {100 * v:.2f} %" for k, v in meta.get("own_errors", {}).items())
                                  or "see the json") + f". Noise: shot + read at {meta['snr_db']:g} dB (measured).",
              f"Chosen on validation renders, per noise level: {meta.get('chosen')}; the renders' relative noise "
-             f"(`lf_flame.tomo.fourier.relative_noise`): {meta.get('noise_levels')}; the package's defaults "
+             f"(`lf_flame.tomo.noise_knobs.relative_noise`): {meta.get('noise_levels')}; the package's defaults "
              f"hold the choice: {meta.get('defaults_hold_the_choice')}. pd-tv's worst validation plane: "
              f"{meta.get('pd_tv_validation_worst')}.", ""]
     p = out / "fourier_solver_score.csv"

@@ -218,7 +218,7 @@ def test_the_binned_operator_is_the_lenslet_grids(camera):
         assert np.linalg.norm(a - b) < 1e-4 * np.linalg.norm(b)   # the quadrature's accuracy (1.8e-5 here)
     np.random.seed(0)   # dottest draws from numpy's global generator
     assert pylops.utils.dottest(coarse, *coarse.shape, rtol=1e-10, raiseerror=False)
-    from lf_flame.tomo.fourier import normal_matrices
+    from lf_flame.tomo.fourier_system import normal_matrices
     G, G0 = normal_matrices(coarse), normal_matrices(plain)
     low = np.tril_indices(len(depths))
     assert np.abs(G[low] - G0[low]).max() < 1e-4 * np.abs(G0[low]).max()

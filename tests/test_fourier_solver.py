@@ -8,7 +8,8 @@ import pytest
 
 from lf_flame.optics.camera import PlenopticCamera
 from lf_flame.tomo import _fourier_kernels as K
-from lf_flame.tomo import fourier
+from lf_flame.tomo import noise_knobs as knobs_mod
+from lf_flame.tomo import fourier, fourier_system
 from lf_flame.tomo.exact import ExactOperator
 from lf_flame.tomo.operator import EmissionOperator
 from lf_flame.tomo.solvers import reconstruct
@@ -47,7 +48,7 @@ def rel(a, b):
 
 
 def test_the_numba_sums_are_the_einsums(op):
-    S = fourier.fourier_system(op).spec
+    S = fourier_system.fourier_system(op).spec
     rng = np.random.default_rng(0)
     xs = rng.normal(size=S.shape[1:]) + 1j * rng.normal(size=S.shape[1:])
     ys = rng.normal(size=(S.shape[0],) + S.shape[2:]) + 1j * rng.normal(size=(S.shape[0],) + S.shape[2:])
@@ -84,7 +85,7 @@ def _gram(op):
 
 
 def test_the_normal_matrices_from_the_taps_are_those_of_the_spectra(op):
-    G = fourier.normal_matrices(op)
+    G = fourier_system.normal_matrices(op)
     ref = _gram(op)
     P = G.shape[0]
     low = np.tril_indices(P)
@@ -96,7 +97,7 @@ def test_the_normal_matrices_from_the_taps_are_those_of_the_spectra(op):
 
 def test_the_per_frequency_solve_inverts_the_normal_matrices(op):
     """(G + ...)^-1 applied to H^H H x gives back x (lam, rho -> 0): G is H^H H per frequency."""
-    system = fourier.FourierSystem(op, lam=0.0, rho=1e-9)
+    system = fourier_system.FourierSystem(op, lam=0.0, rho=1e-9)
     S = system.spec
     P, Lr, F = S.shape[1:]
     rng = np.random.default_rng(1)
@@ -117,7 +118,7 @@ def test_a_matrix_that_is_not_positive_definite_is_refused(op):
     broken.kernels = op.kernels.copy()
     broken.kernels[0, 0, 0, 0, 0] = np.nan
     with pytest.raises(ValueError, match="not positive definite"):
-        fourier.FourierSystem(broken)
+        fourier_system.FourierSystem(broken)
 
 
 def test_planted_emission_is_recovered_and_the_fills_are_what_recover_it(op, planted):
@@ -138,11 +139,11 @@ def test_the_noise_estimate_and_the_knobs_it_picks(op, planted):
     rng = np.random.default_rng(3)
     for sigma in (0.003, 0.03):   # white noise of known deviation on smooth emission: measured within 10 %
         noisy = views + rng.normal(scale=sigma * peak, size=views.shape)
-        assert fourier.relative_noise(noisy) == pytest.approx(sigma, rel=0.1)
-    assert fourier.relative_noise(views) < 0.5 * fourier.ADMM_QUIET_NOISE      # exact light field: quiet
-    assert fourier.relative_noise(np.zeros_like(views)) == 0.0
+        assert knobs_mod.relative_noise(noisy) == pytest.approx(sigma, rel=0.1)
+    assert knobs_mod.relative_noise(views) < 0.5 * knobs_mod.ADMM_QUIET_NOISE      # exact light field: quiet
+    assert knobs_mod.relative_noise(np.zeros_like(views)) == 0.0
     # the defaults follow the noise: the quiet knobs on the exact light field, the noisy ones at 3 %
-    knobs = fourier.ADMM_KNOBS
+    knobs = knobs_mod.ADMM_KNOBS
     quiet = reconstruct(views, op, "admm", saturation=None).settings
     assert (quiet["iters"], quiet["tv"], quiet["lam"], quiet["l1"]) == tuple(knobs[1, "quiet"][k] for k in
                                                                              ("fills", "tv", "lam", "l1"))
@@ -150,22 +151,22 @@ def test_the_noise_estimate_and_the_knobs_it_picks(op, planted):
     loud = reconstruct(loud_views, op, "admm", saturation=None).settings
     assert (loud["iters"], loud["tv"], loud["lam"], loud["l1"]) == tuple(knobs[1, "noisy"][k] for k in
                                                                          ("fills", "tv", "lam", "l1"))
-    assert loud["noise"] > fourier.ADMM_QUIET_NOISE > quiet["noise"]
+    assert loud["noise"] > knobs_mod.ADMM_QUIET_NOISE > quiet["noise"]
     # a knob given is kept, the others still follow the noise
     mixed = reconstruct(views, op, "admm", 2, saturation=None).settings
     assert (mixed["iters"], mixed["tv"]) == (2, knobs[1, "quiet"]["tv"])
     # the finer grid has its own knobs; the routes take it on all but dense stacks
     names = ("fills", "tv", "lam", "l1", "start", "tol")
     for v, regime in ((views, "quiet"), (loud_views, "noisy")):
-        got = fourier.admm_knobs(v, None, subsamples=2)
+        got = knobs_mod.admm_knobs(v, None, subsamples=2)
         assert tuple(got[k] for k in names) == tuple(knobs[2, regime][k] for k in names)
     # every knob given: the noise is not measured, the fills given all run from the default start
-    given = fourier.admm_knobs(views, None, 3, 0.0, 0.01, 2, 0.0)
-    assert math.isnan(given["noise"]) and (given["start"], given["tol"]) == (fourier.ADMM_START, 0.0)
-    assert fourier.admm_subsamples(4) == fourier.ADMM_SUBSAMPLES == 2
-    assert fourier.admm_subsamples(fourier.SUBSAMPLES_MAX_PLANES + 1) == 1
+    given = knobs_mod.admm_knobs(views, None, 3, 0.0, 0.01, 2, 0.0)
+    assert math.isnan(given["noise"]) and (given["start"], given["tol"]) == (knobs_mod.ADMM_START, 0.0)
+    assert knobs_mod.admm_subsamples(4) == knobs_mod.ADMM_SUBSAMPLES == 2
+    assert knobs_mod.admm_subsamples(knobs_mod.SUBSAMPLES_MAX_PLANES + 1) == 1
     with pytest.raises(ValueError, match="subsamples"):
-        fourier.admm_knobs(views, None, subsamples=3)
+        knobs_mod.admm_knobs(views, None, subsamples=3)
 
 
 def test_saturated_pixels_are_left_out(op, planted):
@@ -191,7 +192,7 @@ def test_refusals(camera, op, planted):
     with pytest.raises(ValueError, match="momentum"):
         fourier.solve_admm(views, op, np.ones(op.dimsd, bool), momentum=1.0)
     with pytest.raises(ValueError, match="lam"):
-        fourier.FourierSystem(op, lam=-1.0)
+        fourier_system.FourierSystem(op, lam=-1.0)
 
 
 def test_the_default_solver_follows_the_operator(camera, op, planted):

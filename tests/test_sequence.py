@@ -305,7 +305,7 @@ def test_reconstruction_settings_reach_the_solver_and_the_run_identity(small_seq
     default = dataclasses.replace(job, iters=None, tv=None).identity()["reconstruction"]
     assert (default["iters"], default["tv"]) == (DEFAULT_ITERS["pd-tv"], DEFAULT_TV)
     # admm's knobs not given follow the first frame's noise, once for the whole recording
-    from lf_flame.tomo.fourier import admm_knobs
+    from lf_flame.tomo.noise_knobs import admm_knobs
     admm = dataclasses.replace(job, route="reconstruct-admm", iters=None, tv=None, operator_rays=None)
     r = admm.identity()["reconstruction"]
     v0 = admm.views(frames[0])

@@ -82,7 +82,7 @@ def test_the_tv_and_l1_weights_follow_the_noise(volume_raw):
     from lf_flame.cli._io import _raw_reader
     from lf_flame.real.lightfield import read_light_field
     from lf_flame.tomo.defaults import VOLUME_L1, VOLUME_TV
-    from lf_flame.tomo.fourier import noise_regime, relative_noise
+    from lf_flame.tomo.noise_knobs import noise_regime, relative_noise
     lf = read_light_field(volume_raw, raw_reader=_raw_reader)
     views, cam = lf.views, lf.camera
     noisy = np.clip(views + np.random.default_rng(0).normal(0, 0.05, views.shape), 0, None)

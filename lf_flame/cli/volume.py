@@ -77,7 +77,7 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
     solve (:func:`lf_flame.tomo.solvers.reconstruct`; solver None: the operator's default) on the
     light field's data (:func:`lf_flame.tomo.decoded.fit_data`: decoded views times the model's
     white views). The exact operator's grid: ``subsamples`` samples per lenslet; None: admm's
-    (:func:`lf_flame.tomo.fourier.admm_subsamples`), 1 for the other solvers. ``saturation``: "file" (the light field's own mask or level), a level or None.
+    (:func:`lf_flame.tomo.noise_knobs.admm_subsamples`), 1 for the other solvers. ``saturation``: "file" (the light field's own mask or level), a level or None.
     ``support_of``: found depths (:class:`~lf_flame.tomo.depth.FoundDepths`) whose regions hold each plane's
     emission (:func:`~lf_flame.tomo.depth.plane_support`, admm only, with
     :data:`~lf_flame.tomo.depth.SUPPORT_KNOBS`). ``solver`` "learned": the reconstructor saved in ``model_dir``
@@ -86,8 +86,8 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
     and none were given (:func:`lf_flame.tomo.depth.found_planes_knobs`, as :func:`lf_flame.tomo.depth.find_planes`)."""
     from ..tomo.decoded import fit_data
     from ..tomo.defaults import EXACT_SOLVER
-    from ..tomo.exact import emission_operator
-    from ..tomo.fourier import admm_subsamples
+    from ..tomo.exact import ExactOperator, emission_operator
+    from ..tomo.noise_knobs import admm_subsamples
     from ..tomo.solvers import fitted_pixels, reconstruct
     admm = rays_per_pixel is None and (solver or EXACT_SOLVER) == "admm"
     if solver == "learned" and (rays_per_pixel is not None or support_of is not None or subsamples not in (None, 1)):
@@ -107,7 +107,7 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
     data, fit = fit_data(lf, op)
     if solver == "learned":
         from ..learn.reconstructor import DEFAULT_MODEL_DIR, LearnedReconstructor, reconstruction
-        if not hasattr(op, "canvas_shape"):
+        if not isinstance(op, ExactOperator):
             raise ValueError("the learned reconstructor needs the exact operator: this camera is not a perfect "
                              "lenslet grid")
         return op, reconstruction(data, op, LearnedReconstructor.load(model_dir or DEFAULT_MODEL_DIR),
@@ -153,6 +153,7 @@ def saturation_note(rec) -> str:
 
 def cmd_reconstruct(a):
     from ..tomo.files import plot_reconstruction, save_reconstruction
+    from ..tomo.solvers import EDGE_BAND_LENSLETS, EDGE_SHARE_WARN, edge_shares
     from ..tomo.truth import scene_truth, truth_depths
     from ..refocus.shift_and_sum import aperture_mask, focal_stack
     if getattr(a, "volume", False):
@@ -182,7 +183,6 @@ def cmd_reconstruct(a):
                                  model_dir=getattr(a, "model", None), found=extra.get("depths_from") == "auto")
     print(saturation_note(rec) if not lf.decoded else
           f"{rec.settings['n_saturated']} samples left out of the fit (clipped, or outside the aperture's image)")
-    from ..tomo.solvers import EDGE_BAND_LENSLETS, EDGE_SHARE_WARN, edge_shares
     edge = edge_shares(rec.planes, getattr(op, "subsamples", 1))
     extra["edge_share"] = [float(v) for v in edge]
     for d, e in zip(rec.depths_mm, edge):

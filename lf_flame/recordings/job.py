@@ -130,7 +130,7 @@ class SequenceJob:
         :data:`~lf_flame.tomo.defaults.DEFAULT_ITERS`, TV weight :data:`~lf_flame.tomo.defaults.DEFAULT_TV`
         for pd-tv, None for the solvers without one); None for shift-and-sum. admm's knobs
         not given are chosen once for the recording by its first frame's noise
-        (:func:`lf_flame.tomo.fourier.admm_knobs`; ``admm_noise``), so that every frame is
+        (:func:`lf_flame.tomo.noise_knobs.admm_knobs`; ``admm_noise``), so that every frame is
         solved alike."""
         if self.solver is None:
             return None
@@ -145,7 +145,7 @@ class SequenceJob:
         if self.solver == "admm" and (self.iters is None or self.tv is None):
             key = ("admm", self.iters, self.tv, self.saturation)
             if key not in self._cache:
-                from ..tomo.fourier import admm_knobs
+                from ..tomo.noise_knobs import admm_knobs
                 views = self.views(np.asarray(next(iter(self.source.frames(0, 1))), np.float64))
                 fit = None if self.saturation is None else views < self.saturation
                 self._cache[key] = admm_knobs(views, fit, self.iters, self.tv)

@@ -37,7 +37,7 @@ import numpy as np
 
 from ..optics.colour import ColourSensor
 from ..refocus.shift_and_sum import aperture_mask, focal_stack, raw_to_views
-from ..tomo.fourier import relative_noise
+from ..tomo.noise_knobs import relative_noise
 from ..tomo.solvers import reconstruct
 from ..tomo.truth import bin_planes, resample_layer
 from .ratio import SMOOTH_SIGMA, filter_ratio, smooth_planes
@@ -265,7 +265,7 @@ def matched_regime(noise: float) -> str:
 
 
 def cfa_noise(views: np.ndarray, chan: np.ndarray, channels) -> float:
-    """A colour light field's relative noise: the largest of ``channels``' (:func:`lf_flame.tomo.fourier.relative_noise`
+    """A colour light field's relative noise: the largest of ``channels``' (:func:`lf_flame.tomo.noise_knobs.relative_noise`
     of :func:`channel_subviews`, each channel's samples only, so the CFA's pattern is not taken for noise)."""
     return max(relative_noise(channel_subviews(views, chan, c)) for c in channels)
 

@@ -23,8 +23,8 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["axisymmetric", "decoded", "defaults", "depth", "exact", "files", "fourier", "operator", "resolution",
-                "scoring", "solvers", "truth", "volume"],
+    submodules=["axisymmetric", "decoded", "defaults", "depth", "exact", "files", "fourier", "fourier_system",
+                "noise_knobs", "operator", "resolution", "scoring", "solvers", "truth", "volume"],
     submod_attrs={
         "axisymmetric": ["AXI_LAM", "AXI_FILLS", "AXI_INNER", "RevolveOperator", "AxisymmetricVolume",
                          "axis_x_from_views", "solve_axisymmetric"],
@@ -33,8 +33,9 @@ __getattr__, __dir__, __all__ = lazy.attach(
                   "find_planes"],
         "exact": ["QUADRATURE_NODES", "SHIFT_TOLERANCE", "PRECISIONS", "ExactKernels", "exact_kernels",
                   "ExactOperator", "emission_operator"],
-        "fourier": ["FourierSystem", "fourier_system", "admm_system", "solve_admm", "admm_knobs", "admm_subsamples",
-                    "relative_noise", "backprojection_weight", "coarse_operator"],
+        "fourier": ["solve_admm", "fill_data", "wiener_start", "backprojection_weight", "coarse_operator"],
+        "fourier_system": ["FourierSystem", "fourier_system", "admm_system", "normal_matrices"],
+        "noise_knobs": ["relative_noise", "noise_regime", "admm_knobs", "admm_subsamples"],
         "files": ["save_reconstruction", "load_reconstruction", "plot_reconstruction", "reconstruction_figure"],
         "operator": ["ADJOINT_BLOCKS", "RAY_TABLE_MAX_BYTES", "plane_grid", "EmissionOperator",
                      "normalised_adjoint", "check_views"],

@@ -15,7 +15,7 @@ flame tomography; e.g. Dasch, Appl. Opt. 31 (1992), here composed with the light
 - :func:`solve_axisymmetric`: non-negative least squares on ``e`` with a small
   smoothness ``lam ||D e||^2`` (first differences along ``r`` and ``y``), by projected
   FISTA (Beck & Teboulle, SIAM J. Imaging Sci. 2 (2009)) on the exact operator's
-  per-frequency normal matrices ``G(f)`` (:func:`lf_flame.tomo.fourier.normal_matrices`),
+  per-frequency normal matrices ``G(f)`` (:func:`lf_flame.tomo.fourier_system.normal_matrices`),
   with the sensor window's and saturated pixels' missing data filled from the prediction
   as :func:`lf_flame.tomo.fourier.solve_admm` does (each *fill* one ``H`` and one ``H^H``
   over the views; the FISTA steps between fills run on the planes alone).
@@ -37,10 +37,12 @@ import scipy.sparse
 from scipy import optimize
 
 from . import _fourier_kernels
-from .fourier import fill_data, noise_regime, normal_matrices, relative_noise
+from .noise_knobs import noise_regime, relative_noise
+from .fourier import fill_data
+from .fourier_system import normal_matrices
 
 #: Smoothness weight of :func:`solve_axisymmetric`, relative to the mean diagonal of ``R^T G R``, per noise level
-#: of the light field (:func:`lf_flame.tomo.fourier.noise_regime`), chosen on 3 validation volumes by the lowest
+#: of the light field (:func:`lf_flame.tomo.noise_knobs.noise_regime`), chosen on 3 validation volumes by the lowest
 #: worst 3-D error (``python experiments/volume.py --set axi-lam``, ``results/volume_axi_lam.md``): at 14 dB
 #: 9.4 % at 1 against 11.8 % at the 1e-3 set by hand before; noise-free the worst volume (a filled core, 15.2 %)
 #: barely moves from 1e-3 to 3 (0.01 the lowest by 0.02 %), the median is lowest at 1 (4.0 against 4.5 %).
@@ -372,7 +374,7 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
     lam : float or None
         Weight of ``||D e||^2`` (first differences in ``y`` and ``r``) relative to the mean
         diagonal of ``R^T G R`` (>= 0); None: :data:`AXI_LAM` for the light field's noise level
-        (:func:`lf_flame.tomo.fourier.relative_noise` of the fitted pixels).
+        (:func:`lf_flame.tomo.noise_knobs.relative_noise` of the fitted pixels).
     fills, inner : int
         Fills of the missing data and FISTA steps per fill of the final solve (>= 1).
     search_half_width_mm, search_fills, search_inner, search_tol_mm : float, int, int, float

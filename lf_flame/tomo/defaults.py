@@ -35,7 +35,7 @@ WIENER_RHO = 1e-3
 ADMM_RHO_TV = 1.0
 ADMM_MOMENTUM = 0.6
 ADMM_TV = 0.3
-#: admm's knobs follow the light field's noise unless told (:func:`lf_flame.tomo.fourier.relative_noise`,
+#: admm's knobs follow the light field's noise unless told (:func:`lf_flame.tomo.noise_knobs.relative_noise`,
 #: the noise's standard deviation over the views' 99.9th percentile): below :data:`ADMM_QUIET_NOISE`
 #: the fills run on without TV (:data:`ADMM_QUIET`), above it :data:`ADMM_FILLS` and :data:`ADMM_TV`
 #: regularise (the early-stopped fills and TV). Chosen per noise level on the validation renders
@@ -108,7 +108,7 @@ VOLUME_STEP_MM = 0.5
 #: ... at most this many planes (the per-frequency matrices grow as P^2: 81 planes peak at 3.0 GB on the
 #: paper's camera, ``results/fourier_solver.md``) ...
 VOLUME_MAX_PLANES = 81
-#: ... and the weights of the "tv" and "sparse" priors per noise level (:func:`lf_flame.tomo.fourier.noise_regime`),
+#: ... and the weights of the "tv" and "sparse" priors per noise level (:func:`lf_flame.tomo.noise_knobs.noise_regime`),
 #: chosen on 2 validation volumes by the bar score max(centroid mean / 0.3 mm, share outside the depth range / 10 %)
 #: (``python experiments/volume.py --set nonaxi``, ``results/volume_nonaxi.md``; l1 a fraction of lambda_max: from
 #: 0.002 up the centroids drifted 0.4-6 mm, 0.02 emptied the stack). The quiet TV weight went from 0.3 to 0.1 when

@@ -351,7 +351,7 @@ def found_planes_knobs(views, saturation, subsamples: int):
     dict or None
         ``reconstruct``'s keywords; None where admm's own knobs hold.
     """
-    from .fourier import noise_regime, relative_noise
+    from .noise_knobs import noise_regime, relative_noise
     from .solvers import fitted_pixels
     fit = fitted_pixels(views, saturation)
     return FOUND_PLANES_KNOBS.get((int(subsamples), noise_regime(relative_noise(views, fit))))
@@ -371,7 +371,7 @@ def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturat
     ``experiments/depth.py --variant support`` measures ``support=True, solve=dict(lam=0.01,
     tv=0.0)`` (TV 0.3 flattens flames a few lenslets wide; chosen on validation renders, seeds
     100-107). ``subsamples``: samples per lenslet and axis of the planes' grid; None: admm's
-    (:func:`lf_flame.tomo.fourier.admm_subsamples`), 1 for the other solvers.
+    (:func:`lf_flame.tomo.noise_knobs.admm_subsamples`), 1 for the other solvers.
 
     Returns
     -------
@@ -391,7 +391,7 @@ def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturat
     if not len(found.planes_mm):
         raise ValueError("no emission found in the views: lower threshold or check the light field")
     if subsamples is None:
-        from .fourier import admm_subsamples
+        from .noise_knobs import admm_subsamples
         subsamples = admm_subsamples(len(found.planes_mm)) if solver == "admm" else 1
     op = emission_operator(camera, [float(d) for d in found.planes_mm], subsamples=subsamples)
     s = getattr(op, "subsamples", 1)

@@ -28,7 +28,7 @@ What is not diagonal in frequency, and how it is handled (:func:`solve_admm`):
 - **Non-negativity and the plane's support.** ADMM (Boyd et al., Found. Trends Mach.
   Learn. 3 (2011), scaled form) on ``x = s``: the ``x``-step is the per-frequency solve
   ``(G + lam |D|^2 + rho) x = H^H z + rho (s - d)``, with ``(G + lam |D|^2 + rho)^-1``
-  computed once per operator and weight (:class:`FourierSystem`); the ``s``-step keeps
+  computed once per operator and weight (:class:`~lf_flame.tomo.fourier_system.FourierSystem`); the ``s``-step keeps
   ``x + d`` non-negative and zero outside the plane's grid.
 - **Smoothness.** ``lam ||grad x_k||^2`` per plane (periodic differences on the canvas,
   symbol ``|D(f)|^2 = 4 sin^2(pi f_r / L_r) + 4 sin^2(pi f_c / L_c)``): Tikhonov on the
@@ -56,227 +56,14 @@ from __future__ import annotations
 
 import hashlib
 import math
-import time
 
 import numpy as np
 import scipy.fft
 
 from . import _fourier_kernels
-
-from .defaults import (ADMM_FILLS, ADMM_INNER, ADMM_KNOBS, ADMM_LAM, ADMM_MOMENTUM, ADMM_QUIET_NOISE, ADMM_RHO,
-                       ADMM_RHO_TV, ADMM_START, ADMM_STARTS, ADMM_SUBSAMPLES, ADMM_TV, COARSE_KNOBS,
-                       SUBSAMPLES_MAX_PLANES, WIENER_RHO)
-
-
-#: Largest imaginary part of the normal matrices, relative to their largest entry, that is
-#: float64 rounding: below it (a camera symmetric under a half turn of the views, as every
-#: perfect grid is) they are real, and factorised and applied in real arithmetic.
-REAL_TOLERANCE = 1e-9
-
-
-def normal_matrices(op) -> np.ndarray:
-    """The lower triangles of the exact operator's per-frequency normal matrices ``G(f) = H(f)^H H(f)``.
-
-    Computed from the taps, not from the spectra: per pair of planes ``(k, l)``, the
-    circular cross-correlation of their kernels summed over the views (at most
-    ``V Ty Tx Ty Tx`` products, a few hundred thousand on the paper's camera), whose real FFT
-    is ``G_lk`` (Wiener-Khinchin). On the paper's 4-plane stack this is some 50 x cheaper
-    than the ``V P^2`` products per frequency of the spectra.
-
-    Parameters
-    ----------
-    op : ExactOperator
-
-    Returns
-    -------
-    G : ndarray of shape (P, P, Lr, Lc // 2 + 1), float64 or complex128
-        ``G[l, k]`` for ``l >= k`` (the upper triangle is not written); float64 when every
-        imaginary part is below :data:`REAL_TOLERANCE` of the largest entry.
-    """
-    h = np.ascontiguousarray(op.kernels, np.float64)
-    oy = np.ascontiguousarray(op.tap_origin_y, np.int64)
-    ox = np.ascontiguousarray(op.tap_origin_x, np.int64)
-    P = h.shape[2]
-    Lr, Lc = op.canvas_shape
-    G = np.empty((P, P, Lr, Lc // 2 + 1), np.float64)
-    for k in range(P):
-        c = np.zeros((P - k, Lr, Lc))
-        _fourier_kernels.correlate_taps(h, oy, ox, k, c)
-        col = scipy.fft.rfft2(c, workers=op.workers)                  # conj(G_kl) = G_lk, l >= k
-        if G.dtype == np.float64 and np.abs(col.imag).max() > REAL_TOLERANCE * np.abs(col).max():
-            G = G.astype(np.complex128)                               # the columns so far were real
-        G[k:, k] = col if G.dtype == np.complex128 else col.real
-    return G
-
-
-class FourierSystem:
-    """The per-frequency Cholesky factors of ``G(f) + lam |D(f)|^2 + rho`` of an exact operator.
-
-    Parameters
-    ----------
-    op : ExactOperator
-    lam, rho : float
-        Gradient weight and ADMM penalty, relative to :attr:`g0` (>= 0 and > 0).
-
-    Attributes
-    ----------
-    g0 : float
-        Mean of ``G``'s diagonal at zero frequency.
-    factor : ndarray of shape (n_blocks, 1 or 2, P (P + 1) / 2, BLOCK)
-        The lower Cholesky factors, computed in float64 (complex128 where ``G`` is complex),
-        packed by rows in blocks of frequencies, real and imaginary parts apart, diagonals as
-        their reciprocals (:func:`~lf_flame.tomo._fourier_kernels.factor_packed`: a block's
-        factors lie together in memory) and kept in the operator's real precision (float32
-        on a float32 operator: a solve reads them at every ADMM step, so their memory is the
-        solves' time); frequency last, in SIMD lanes.
-    spec : ndarray of shape (V', P, Lr, Lc // 2 + 1)
-        The operator's spectra of its lit views (``op``'s own array, not a copy).
-    lit : ndarray of int
-        The views with light.
-    setup_s : float
-        Wall time of the construction, seconds.
-    nbytes : int
-        Memory of the factors.
-
-    Raises
-    ------
-    ValueError
-        A negative, zero (``rho``) or non-finite weight; a matrix that is not positive
-        definite (NaN taps).
-    """
-
-    def __init__(self, op, lam: float = ADMM_LAM, rho: float = ADMM_RHO):
-        t0 = time.perf_counter()
-        if not (math.isfinite(lam) and math.isfinite(rho) and lam >= 0 and rho > 0):
-            raise ValueError(f"lam must be finite and >= 0 and rho finite and > 0. Received: lam={lam!r}, rho={rho!r}")
-        self.spec, self.lit = op._spec, op._lit
-        G = normal_matrices(op)
-        P, _, Lr, F = G.shape
-        self.g0 = float(np.mean(np.diagonal(G[:, :, 0, 0]).real))
-        lap = (4 * np.sin(np.pi * np.arange(Lr) / Lr)[:, None] ** 2
-               + 4 * np.sin(np.pi * np.arange(F) / op.canvas_shape[1])[None, :] ** 2)   # |D(f)|^2, (Lr, F)
-        for k in range(P):
-            G[k, k] += self.g0 * (lam * lap + rho)
-        self.factor, bad = _fourier_kernels.factor_packed(G.reshape(P, P, -1), op._real)
-        del G
-        if bad:
-            raise ValueError(f"{bad} of the per-frequency normal matrices are not positive definite: the operator's "
-                             "kernels hold NaN or infinite taps")
-        self.lam, self.rho = float(lam), float(rho)
-        self.nbytes = int(self.factor.nbytes)
-        self.setup_s = time.perf_counter() - t0
-
-    def solve(self, rhs):
-        """``(G + lam |D|^2 + rho)^-1 rhs`` per frequency; rhs and result of shape (P, Lr, F), complex."""
-        out = np.array(rhs, dtype=np.result_type(rhs.dtype, np.complex64), order="C")
-        _fourier_kernels.cholesky_solve(self.factor, out.reshape(len(out), -1))
-        return out
-
-
-#: Immerkaer's mask: the difference of two Laplacians, blind to a plane's first and second
-#: derivatives, whose response to white noise of deviation sigma has deviation 6 sigma.
-_IMMERKAER = np.array([[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]])
-
-
-def relative_noise(views, fit=None) -> float:
-    """The light field's noise: its standard deviation over the views' 99.9th percentile.
-
-    Per central view (the 3 x 3 around the optical axis, lit in any camera), Immerkaer's
-    estimate ``sqrt(pi / 2) mean|I * M| / 6`` (J. Immerkaer, "Fast noise variance
-    estimation", Comput. Vis. Image Underst. 64 (1996)) over the pixels whose 3 x 3
-    neighbourhood is fitted; the median over those views. Smooth emission (flames) barely
-    moves it; sharp edges raise it.
-
-    Parameters
-    ----------
-    views : ndarray of shape (N, N, R, C)
-    fit : ndarray of bool of shape (N, N, R, C) or None
-        The pixels to use (False: saturated); None: all.
-
-    Returns
-    -------
-    float
-        0 for central views without light.
-    """
-    import scipy.ndimage
-    c = views.shape[0] // 2
-    sl = (slice(max(c - 1, 0), c + 2),) * 2
-    v = np.asarray(views[sl], np.float64)
-    flat = v.reshape((-1,) + v.shape[2:])
-    ok = np.ones(flat.shape, bool) if fit is None else np.asarray(fit, bool)[sl].reshape(flat.shape)
-    peak = float(np.percentile(flat, 99.9))
-    if not peak > 0:
-        return 0.0
-    r = np.abs(scipy.ndimage.convolve(flat, _IMMERKAER[None], mode="nearest"))
-    ok = scipy.ndimage.binary_erosion(ok, np.ones((1, 3, 3), bool), border_value=1)
-    sig = [r[i][ok[i]].mean() for i in range(len(flat)) if ok[i].any()]
-    return float(math.sqrt(math.pi / 2) * np.median(sig) / 6 / peak) if sig else 0.0
-
-
-def admm_knobs(views, fit, fills=None, tv=None, lam=None, subsamples: int = 1, l1=None, start=None, tol=None) -> dict:
-    """admm's knobs for these views: those given, the others by their noise.
-
-    The knobs not given come from :data:`~lf_flame.tomo.defaults.ADMM_KNOBS` for the
-    planes' grid (``subsamples``) and the light field's noise level (quiet below
-    :data:`~lf_flame.tomo.defaults.ADMM_QUIET_NOISE`). The noise is measured when any of
-    ``fills``, ``tv``, ``lam``, ``l1`` is not given; otherwise ``start`` not given is
-    :data:`~lf_flame.tomo.defaults.ADMM_START`. ``tol`` not given is the grid's and noise
-    level's where ``fills`` was not given, else 0 (the fills given all run).
-
-    Returns
-    -------
-    dict
-        ``fills`` (int), ``tv``, ``lam``, ``l1`` (float), ``start`` (str), ``tol`` (float) and
-        ``noise``: :func:`relative_noise` of the views (NaN when not measured).
-
-    Raises
-    ------
-    ValueError
-        A grid the knobs were not chosen for.
-    """
-    if (subsamples, "quiet") not in ADMM_KNOBS:
-        raise ValueError(f"admm's knobs were chosen for subsamples in {sorted({k for k, _ in ADMM_KNOBS})}; give "
-                         f"fills, tv, lam and l1 for subsamples={subsamples!r}")
-    given = dict(fills=fills, tv=tv, lam=lam, l1=l1)
-    noise = math.nan if None not in given.values() else relative_noise(views, fit)
-    chosen = ADMM_KNOBS[subsamples, noise_regime(noise)] if math.isfinite(noise) else {}
-    out = {k: chosen[k] if v is None else v for k, v in given.items()}
-    out = dict(fills=int(out["fills"]), tv=float(out["tv"]), lam=float(out["lam"]), l1=float(out["l1"]))
-    out["start"] = str(chosen.get("start", ADMM_START) if start is None else start)
-    out["tol"] = float((chosen["tol"] if fills is None else 0.0) if tol is None else tol)
-    out["noise"] = noise
-    return out
-
-
-def noise_regime(noise: float) -> str:
-    """``"quiet"`` below :data:`~lf_flame.tomo.defaults.ADMM_QUIET_NOISE` of relative noise, else ``"noisy"``."""
-    return "quiet" if noise < ADMM_QUIET_NOISE else "noisy"
-
-
-def admm_subsamples(n_planes: int) -> int:
-    """The planes' grid (samples per lenslet and axis) of the routes that build their operator:
-    :data:`~lf_flame.tomo.defaults.ADMM_SUBSAMPLES`, or 1 for stacks of more than
-    :data:`~lf_flame.tomo.defaults.SUBSAMPLES_MAX_PLANES` planes (the per-frequency matrices
-    grow as ``(P s^2)^2``: dense stacks stay on the lenslet grid)."""
-    return 1 if n_planes > SUBSAMPLES_MAX_PLANES else ADMM_SUBSAMPLES
-
-
-def fourier_system(op, lam: float = ADMM_LAM, rho: float = ADMM_RHO) -> FourierSystem:
-    """The operator's :class:`FourierSystem` for ``(lam, rho)``, built once and kept on ``op``."""
-    cache = op.__dict__.setdefault("_fourier_systems", {})
-    key = (float(lam), float(rho))
-    if key not in cache:
-        if len(cache) >= 3:                                          # a few at a time: a dense stack's are large
-            cache.pop(next(iter(cache)))
-        cache[key] = FourierSystem(op, lam, rho)
-    return cache[key]
-
-
-def admm_system(op, lam: float = ADMM_LAM, tv: float = ADMM_TV, rho: float = ADMM_RHO,
-                rho_tv: float = ADMM_RHO_TV) -> FourierSystem:
-    """The :class:`FourierSystem` that :func:`solve_admm` uses for these knobs (kept on ``op``):
-    with TV on, its split's penalty ``rho_tv`` joins ``lam`` in the same per-frequency matrix."""
-    return fourier_system(op, lam + (rho_tv if tv > 0 else 0.0), rho)
+from .defaults import (ADMM_FILLS, ADMM_INNER, ADMM_LAM, ADMM_MOMENTUM, ADMM_RHO, ADMM_RHO_TV, ADMM_STARTS, ADMM_TV,
+                       COARSE_KNOBS, WIENER_RHO)
+from .fourier_system import admm_system, fourier_system
 
 
 def fill_data(views, fit, op):
@@ -330,7 +117,7 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     inner : int
         ADMM iterations per fill (>= 1), on the planes alone.
     lam, rho : float
-        Weight of ``||grad x||^2`` and the ADMM penalty, relative to ``g0`` (:class:`FourierSystem`).
+        Weight of ``||grad x||^2`` and the ADMM penalty, relative to ``g0`` (:class:`~lf_flame.tomo.fourier_system.FourierSystem`).
     tv, rho_tv : float
         Weight of isotropic TV per plane (absolute, as :func:`~lf_flame.tomo.solvers.reconstruct`'s
         ``pd-tv``; 0: none) and its split's penalty relative to ``g0``.
@@ -392,7 +179,7 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         from (no extra operator application is spent on it): ``len(residuals) + 1`` fills ran
         (every fill's, ``len(residuals)`` fills, when continuing a ``state``).
     system_s : float
-        Seconds spent building the :class:`FourierSystem` (0 when ``op`` had it), and for the
+        Seconds spent building the :class:`~lf_flame.tomo.fourier_system.FourierSystem` (0 when ``op`` had it), and for the
         coarse start the lenslet grid's operator and system where this call built them.
 
     Raises
@@ -563,7 +350,7 @@ def wiener_start(views, op, fit=None, *, lam: float = ADMM_LAM, rho: float = WIE
     normalised back-projection, on the lenslet grid.
 
     ``x = (G + lam |D|^2 + rho)^-1 H^H (M y~)``: the normal equations of the whole stack solved once per
-    frequency (:class:`FourierSystem`), with the unmeasured samples (the canvas outside the sensor's
+    frequency (:class:`~lf_flame.tomo.fourier_system.FourierSystem`), with the unmeasured samples (the canvas outside the sensor's
     window, pixels left out of the fit) taken as zero rather than filled (:func:`solve_admm` fills them),
     and no non-negativity: near the field's edge and between planes it is biased, which is what a
     learned stage on top of it corrects. Its numerator's normalised form ``H^H (M y~) / H^H (M 1)`` is
@@ -579,7 +366,7 @@ def wiener_start(views, op, fit=None, *, lam: float = ADMM_LAM, rho: float = WIE
     fit : ndarray of bool of shape (N, N, R, C) or None
         The pixels to use (False: clipped); None: all.
     lam, rho : float
-        Gradient weight and ridge, relative to ``g0`` (:class:`FourierSystem`).
+        Gradient weight and ridge, relative to ``g0`` (:class:`~lf_flame.tomo.fourier_system.FourierSystem`).
 
     Returns
     -------

@@ -153,10 +153,10 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
     damp, tv : float
         LSQR's damping and the TV weight (>= 0; None: pd-tv's :data:`DEFAULT_TV`, admm's by
         the data's noise); ignored by the other solvers. admm with ``iters``, ``tv`` or ``lam``
-        None measures the views' relative noise (:func:`lf_flame.tomo.fourier.relative_noise`,
+        None measures the views' relative noise (:func:`lf_flame.tomo.noise_knobs.relative_noise`,
         ``settings["noise"]``) and takes the knobs it was not given from
         :data:`~lf_flame.tomo.defaults.ADMM_KNOBS` for the operator's grid (``op.subsamples``)
-        and the noise level (:func:`lf_flame.tomo.fourier.admm_knobs`).
+        and the noise level (:func:`lf_flame.tomo.noise_knobs.admm_knobs`).
     lam : float or None
         admm's gradient weight relative to the stack's light; None: by the noise (above).
     saturation : float, ndarray of bool of shape (N, N, R, C), or None
@@ -181,7 +181,7 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
     start, tol : str, float or None
         admm only: where the first fill predicts the missing data from and the stopping
         tolerance (:func:`lf_flame.tomo.fourier.solve_admm`); None: by the noise with the other
-        knobs (:func:`lf_flame.tomo.fourier.admm_knobs`; ``tol`` 0 when ``iters`` is given).
+        knobs (:func:`lf_flame.tomo.noise_knobs.admm_knobs`; ``tol`` 0 when ``iters`` is given).
         ``settings["fills_run"]`` counts the fills that ran. The coarse start's lenslet-grid
         solve takes the lenslet grid's knobs for the noise level (the quiet ones where the
         noise was not measured).
@@ -317,10 +317,11 @@ class _Steps:
 def _solve_admm(p: _Problem, settings: dict, step: _Steps, iters, tv, *, lam, l1, start, tol, support, state=None,
                 start_planes=None):
     """``"admm"`` (:func:`lf_flame.tomo.fourier.solve_admm`), the knobs not given by the data's noise
-    (:func:`lf_flame.tomo.fourier.admm_knobs`): ``(x, residuals)``."""
+    (:func:`lf_flame.tomo.noise_knobs.admm_knobs`): ``(x, residuals)``."""
     from .exact import ExactOperator
     from .defaults import COARSE_KNOBS
-    from .fourier import admm_knobs, noise_regime, solve_admm
+    from .noise_knobs import admm_knobs, noise_regime
+    from .fourier import solve_admm
     op = p.op
     if not isinstance(op, ExactOperator):
         raise ValueError("the admm solver works on the exact operator's per-frequency matrices: give an "

@@ -77,7 +77,7 @@ def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, p
     tv, l1 : float or None
         The ``"tv"`` and ``"sparse"`` priors' weights; None: :data:`~lf_flame.tomo.defaults.VOLUME_TV`,
         :data:`~lf_flame.tomo.defaults.VOLUME_L1` for the light field's noise level
-        (:func:`lf_flame.tomo.fourier.relative_noise`). Refused with another prior.
+        (:func:`lf_flame.tomo.noise_knobs.relative_noise`). Refused with another prior.
     resolution : bool
         Also map the stack's depth resolution (about 2 s on the paper's camera).
     progress : bool
@@ -137,7 +137,7 @@ def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, p
         if prior in ("tv", "sparse"):
             key, weight, table = ("tv", tv, VOLUME_TV) if prior == "tv" else ("l1", l1, VOLUME_L1)
             if weight is None:                                            # the weight by the noise
-                from .fourier import noise_regime, relative_noise
+                from .noise_knobs import noise_regime, relative_noise
                 from .operator import check_views
                 v = check_views(views, op)
                 weight = table[noise_regime(relative_noise(v, fitted(v)))]
