@@ -300,3 +300,58 @@ def test_support_holds_each_plane_to_its_regions(cam, planted):
         reconstruct(views, op, "admm", support=sup[:1])
     with pytest.raises(ValueError, match="admm only"):
         reconstruct(views, op, "fista", support=sup)
+
+
+def _found(cam, planes_mm, regions_of_plane, labels):
+    """FoundDepths with one found depth per (plane, region) pair, for the support masks."""
+    from lf_flame.tomo.depth import FoundDepths
+    pairs = [(p, r) for p, regs in enumerate(regions_of_plane) for r in regs]
+    k = len(pairs)
+    depths = np.array([planes_mm[p] for p, _ in pairs], float)
+    return FoundDepths(depths_mm=depths, slopes=np.array([cam.slope_for_depth(d) for d in depths]),
+                       uncertainty_mm=np.zeros(k), width_mm=np.ones(k), weight=np.ones(k),
+                       region=np.array([r for _, r in pairs]), masks=np.array([labels == r for _, r in pairs]),
+                       labels=labels, planes_mm=np.asarray(planes_mm, float),
+                       plane_of=np.array([p for p, _ in pairs]), curves=[], grid_slopes=np.zeros(1))
+
+
+def test_near_plane_support_holds_only_near_planes(cam):
+    """Planes within the parallax bar are kept out of each other's regions, not out of their own nor out of a
+    region they share; planes farther apart are free everywhere."""
+    from lf_flame.tomo.depth import found_support, near_plane_support
+    labels = np.zeros((cam.n_rows, cam.n_cols), int)
+    labels[5:20, 3:12], labels[5:20, 25:35], labels[35:50, 10:30] = 1, 2, 3
+    per_mm = abs(cam.slope_for_depth(1.0) - cam.slope_for_depth(0.0)) * (cam.pixels_per_lenslet - 1)
+    near = 2.0 / per_mm                                   # two lenslets of parallax apart, in mm
+    found = _found(cam, [0.0, near], [(1, 3), (2, 3)], labels)   # region 3 holds both planes
+    sup = near_plane_support(found, cam, parallax=3.0, dilation=0)
+    assert sup.shape == (2,) + labels.shape
+    assert not sup[0][labels == 2].any() and not sup[1][labels == 1].any()      # out of the other's region
+    assert sup[0][labels == 1].all() and sup[1][labels == 2].all()              # in its own
+    assert sup[:, labels == 3].all() and sup[:, labels == 0].all()             # shared region, empty field
+    assert near_plane_support(found, cam, parallax=1.5, dilation=0) is None    # 2 lenslets apart: not near
+    far = _found(cam, [0.0, 4 * near], [(1,), (2,)], labels)
+    assert near_plane_support(far, cam, parallax=3.0) is None
+    grid = found_support(found, cam, 2, near_parallax=3.0, dilation=0)
+    assert grid.shape == (2, 2 * cam.n_rows, 2 * cam.n_cols) and np.array_equal(grid[:, ::2, ::2], sup)
+    with pytest.raises(ValueError, match="parallax"):
+        near_plane_support(found, cam, parallax=float("nan"))
+
+
+def test_near_planes_keep_their_light_apart(cam):
+    """Two flames side by side about two lenslets of parallax apart: without the near planes' support a little
+    of each flame's light lands on the other's plane; with it (the default) none does, and no flame is worse."""
+    from lf_flame.simulate import scenes
+    from lf_flame.simulate.scenes_depth import _flame
+    flames = [_flame(cam, d, 4.0, 0.3, cx, -2.0, 0.8, 4.0, f"flame_{k}") for k, (d, cx) in
+              enumerate(((5.0, -1.2), (6.3, 1.2)))]
+    scene = scenes.Scene("pair", tuple(f[0] for f in flames), scenes.FLAME_EFFECTS, tuple(f[1] for f in flames))
+    views = _views(cam, scene, 1)
+    scores = {}
+    for parallax in (3.0, 0.0):
+        found, _, rec = find_planes(views, cam, near_parallax=parallax)
+        assert len(found.planes_mm) == 2
+        scores[parallax] = score_flames(rec.planes, found.planes_mm, scene, cam,
+                                        found=list(zip(found.depths_mm, found.masks)))
+    assert scores[3.0].share_near.min() > 0.999 and scores[0.0].share_near.min() < 0.995, scores
+    assert scores[3.0].rel_err.max() < scores[0.0].rel_err.max() + 0.005, scores

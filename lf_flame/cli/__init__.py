@@ -350,9 +350,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "or 2 (detail finer than a lenslet, seen off focus in the views' parallax; 4x the unknowns). "
                         f"Default 'auto': {ADMM_SUBSAMPLES} for admm on at most {SUBSAMPLES_MAX_PLANES} planes, else 1")
     s.add_argument("--support", action="store_true",
-                   help="hold each found plane's emission to the regions its depth was found in (admm, found depths): "
-                        "for cameras whose found planes lie within a lenslet of parallax of each other (few views, a "
-                        "deep field), where their emission otherwise splits between them; docs/own_camera.md")
+                   help="hold every found plane's emission to the regions its depth was found in (admm, found "
+                        "depths). Without it only planes within 3 lenslets of parallax of each other are held so, where "
+                        "they meet (their emission would otherwise split between them); docs/own_camera.md")
     s.add_argument("--saturation", type=_level_or_none, default=argparse.SUPPRESS,
                    help="the sensor's clipping level in the views' units: pixels at or above it are left out of the "
                         "fit ('none': fit every pixel; default 1.0). Decoded views take only 'none' (fit every "

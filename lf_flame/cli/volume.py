@@ -70,27 +70,28 @@ def found_planes(lf, views=None):
 
 
 def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None, saturation="file",
-                       rays_per_pixel=None, progress=False, subsamples=None, support_of=None, model_dir=None,
-                       found=False):
+                       rays_per_pixel=None, progress=False, subsamples=None, found_depths=None, support=False,
+                       model_dir=None):
     """Build the operator of the light field's camera at ``depths``
     (:func:`lf_flame.tomo.exact.emission_operator`: exact unless ``rays_per_pixel`` is given) and
     solve (:func:`lf_flame.tomo.solvers.reconstruct`; solver None: the operator's default) on the
     light field's data (:func:`lf_flame.tomo.decoded.fit_data`: decoded views times the model's
     white views). The exact operator's grid: ``subsamples`` samples per lenslet; None: admm's
     (:func:`lf_flame.tomo.noise_knobs.admm_subsamples`), 1 for the other solvers. ``saturation``: "file" (the light field's own mask or level), a level or None.
-    ``support_of``: found depths (:class:`~lf_flame.tomo.depth.FoundDepths`) whose regions hold each plane's
-    emission (:func:`~lf_flame.tomo.depth.plane_support`, admm only, with
-    :data:`~lf_flame.tomo.depth.SUPPORT_KNOBS`). ``solver`` "learned": the reconstructor saved in ``model_dir``
-    (:func:`lf_flame.learn.reconstructor.reconstruction`, lenslet grid; None: its default folder). ``found``:
-    the depths were found in the data, so admm takes the found planes' knobs where they differ from its own
-    and none were given (:func:`lf_flame.tomo.depth.found_planes_knobs`, as :func:`lf_flame.tomo.depth.find_planes`)."""
+    ``found_depths``: the :class:`~lf_flame.tomo.depth.FoundDepths` the planes were found as, or None (planes
+    given). With them admm (as :func:`lf_flame.tomo.depth.find_planes`) holds near planes to their own regions
+    where they meet (:func:`~lf_flame.tomo.depth.found_support`) and takes the found planes' knobs where they
+    differ from its own and none were given (:func:`lf_flame.tomo.depth.found_planes_knobs`); ``support``: every
+    plane held to its regions, with :data:`~lf_flame.tomo.depth.SUPPORT_KNOBS`. ``solver`` "learned": the
+    reconstructor saved in ``model_dir`` (:func:`lf_flame.learn.reconstructor.reconstruction`, lenslet grid;
+    None: its default folder)."""
     from ..tomo.decoded import fit_data
     from ..tomo.defaults import EXACT_SOLVER
     from ..tomo.exact import ExactOperator, emission_operator
     from ..tomo.noise_knobs import admm_subsamples
     from ..tomo.solvers import fitted_pixels, reconstruct
     admm = rays_per_pixel is None and (solver or EXACT_SOLVER) == "admm"
-    if solver == "learned" and (rays_per_pixel is not None or support_of is not None or subsamples not in (None, 1)):
+    if solver == "learned" and (rays_per_pixel is not None or support or subsamples not in (None, 1)):
         raise ValueError("the learned reconstructor runs on the exact operator's lenslet grid: it takes neither "
                          "--rays-per-pixel, --support nor --subsamples")
     if subsamples is None:
@@ -113,20 +114,25 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
         return op, reconstruction(data, op, LearnedReconstructor.load(model_dir or DEFAULT_MODEL_DIR),
                                   fitted_pixels(data, fit))
     knobs = {}
-    if support_of is not None:
-        from ..tomo.depth import SUPPORT_KNOBS, plane_support
-        if not admm:
-            raise ValueError("--support holds admm's planes to their regions: it takes the admm solver")
+    if support and (found_depths is None or not admm):
+        raise ValueError("--support holds admm's planes to the regions their depths were found in: it takes the "
+                         "admm solver and found depths")
+    if found_depths is not None and admm:
+        from ..tomo.depth import SUPPORT_KNOBS, found_planes_knobs, found_support
         s = getattr(op, "subsamples", 1)
-        knobs = dict(SUPPORT_KNOBS, support=plane_support(support_of).repeat(s, axis=1).repeat(s, axis=2))
-        own_tv = knobs.pop("tv")
-        tv = own_tv if tv is None else tv
-    elif found and admm and iters is None:
-        from ..tomo.depth import found_planes_knobs
-        knobs = dict(found_planes_knobs(data, fit, getattr(op, "subsamples", 1)) or {})
-        found_tv = knobs.pop("tv", None)
-        tv = found_tv if tv is None else tv
-    return op, reconstruct(data, op, solver, iters, damp=damp, tv=tv, saturation=fit, progress=progress, **knobs)
+        if support:
+            knobs = dict(SUPPORT_KNOBS)
+        elif iters is None:
+            knobs = dict(found_planes_knobs(data, fit, s) or {})
+        knob_tv = knobs.pop("tv", None)
+        tv = knob_tv if tv is None else tv
+        mask = found_support(found_depths, lf.camera, s, support=support)
+        if mask is not None:
+            knobs["support"] = mask
+    rec = reconstruct(data, op, solver, iters, damp=damp, tv=tv, saturation=fit, progress=progress, **knobs)
+    if found_depths is not None and admm:
+        rec.settings["support"] = "regions" if support else ("near planes" if "support" in knobs else "none")
+    return op, rec
 
 
 def iterations_note(rec) -> str:
@@ -179,8 +185,12 @@ def cmd_reconstruct(a):
     op, rec = run_reconstruction(lf, depths, a.solver, a.iters, damp=a.damp, tv=a.tv,
                                  saturation=getattr(a, "saturation", "file"), rays_per_pixel=a.rays_per_pixel,
                                  progress=True, subsamples=getattr(a, "subsamples", None),
-                                 support_of=voters if getattr(a, "support", False) else None,
-                                 model_dir=getattr(a, "model", None), found=extra.get("depths_from") == "auto")
+                                 found_depths=voters, support=bool(getattr(a, "support", False)),
+                                 model_dir=getattr(a, "model", None))
+    if rec.settings.get("support") == "near planes":
+        from ..tomo.depth import NEAR_PARALLAX
+        print(f"planes within {NEAR_PARALLAX:g} lenslets of parallax of each other are held to the regions their "
+              "depths were found in, where they meet (the data barely tell such planes apart)")
     print(saturation_note(rec) if not lf.decoded else
           f"{rec.settings['n_saturated']} samples left out of the fit (clipped, or outside the aperture's image)")
     edge = edge_shares(rec.planes, getattr(op, "subsamples", 1))

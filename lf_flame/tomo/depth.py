@@ -47,6 +47,13 @@ SLOPE_STEP = 0.04
 MERGE_MM = 1.0
 #: Lenslets a region is grown by to make its planes' support (:func:`plane_support`).
 SUPPORT_DILATION = 3
+#: Planes whose parallax across the aperture differs by less than this (lenslets) hold emission only in their own
+#: regions where they meet (:func:`near_plane_support`). Chosen on validation scenes of ``experiments/cameras.py``
+#: (seeds 57000-57005): on the rotated camera (12 views, a deep field) found planes lie 0.3-3 lenslets apart and
+#: without it the flames' emission error p90 is 57 % (1 lenslet: 25 %; 2: 7.5 %; 3: 7.5 %; every plane held to its
+#: regions: 7.1 %); on the paper camera 3 lenslets holds one pair (2.1 apart), its worst flame 11.0 -> 6.3 %, the
+#: p90 unchanged (5.6 %), where holding every plane costs it (8.4 %).
+NEAR_PARALLAX = 3.0
 #: admm's knobs with a support (``lf-flame reconstruct --support``, ``find_planes(support=True)``): TV 0.3 flattens
 #: flames a few lenslets wide (``experiments/depth.py --variant support``, validation seeds 100-107). Where planes
 #: lie within a lenslet of parallax of each other (a camera of few views and a deep field: the rotated camera of
@@ -334,6 +341,54 @@ def plane_support(found: FoundDepths, dilation: int = SUPPORT_DILATION) -> np.nd
     return out
 
 
+def near_plane_support(found: FoundDepths, camera: PlenopticCamera, parallax: float = NEAR_PARALLAX,
+                       dilation: int = SUPPORT_DILATION) -> np.ndarray | None:
+    """Where each plane may hold emission where found planes lie within ``parallax`` lenslets of
+    each other: a plane is kept out of the regions of its near planes, unless it was found there too.
+
+    Two planes whose refocus slopes differ by ``ds`` lenslets per view step move a point's image
+    by ``|ds| (N - 1)`` lenslets between the outermost views (its parallax across the aperture,
+    ``N`` views per axis): below about a lenslet the data barely tell them apart and a flame's
+    light splits between them. Each lateral region then holds only the planes it was found on.
+    Planes farther apart stay free everywhere (their data separate them): on a camera of many
+    views this is no constraint at all.
+
+    Parameters
+    ----------
+    found : FoundDepths
+    camera : PlenopticCamera
+        The camera of the views the depths were found in (slope <-> depth, views per axis).
+    parallax : float
+        Lenslets of parallax across the aperture below which two planes are near, >= 0.
+    dilation : int
+        Lenslets the regions are grown by (:func:`plane_support`).
+
+    Returns
+    -------
+    ndarray of bool, shape (P, R, C), or None
+        None where no two planes are near (nothing to hold).
+
+    Raises
+    ------
+    ValueError
+        ``parallax`` negative or not finite; ``dilation`` as :func:`plane_support`.
+    """
+    if not (math.isfinite(float(parallax)) and parallax >= 0):
+        raise ValueError(f"parallax must be finite and >= 0 (lenslets). Received: {parallax!r}")
+    own = plane_support(found, dilation)
+    slopes = np.array([camera.slope_for_depth(float(d)) for d in found.planes_mm])
+    near = np.abs(slopes[:, None] - slopes[None, :]) * (camera.pixels_per_lenslet - 1) < parallax
+    np.fill_diagonal(near, False)
+    if not near.any():
+        return None
+    out = np.ones_like(own)
+    for p in range(len(own)):
+        for q in np.flatnonzero(near[p]):
+            out[p] &= ~own[q]
+        out[p] |= own[p]
+    return out
+
+
 def found_planes_knobs(views, saturation, subsamples: int):
     """admm's knobs on found planes: :data:`FOUND_PLANES_KNOBS` for the planes' grid and the light field's
     noise level, measured as :func:`~lf_flame.tomo.solvers.reconstruct` measures it (on its fitted pixels).
@@ -357,15 +412,47 @@ def found_planes_knobs(views, saturation, subsamples: int):
     return FOUND_PLANES_KNOBS.get((int(subsamples), noise_regime(relative_noise(views, fit))))
 
 
+def found_support(found: FoundDepths, camera: PlenopticCamera, subsamples: int = 1, *, support: bool = False,
+                  near_parallax: float = NEAR_PARALLAX, dilation: int = SUPPORT_DILATION) -> np.ndarray | None:
+    """admm's support of the found planes on the planes' grid: each plane held to its own regions
+    (``support``, :func:`plane_support`), or only where near planes meet (:func:`near_plane_support`).
+
+    Parameters
+    ----------
+    found : FoundDepths
+    camera : PlenopticCamera
+        The camera of the views the depths were found in.
+    subsamples : int
+        Samples per lenslet and axis of the planes' grid (the masks are repeated to it), >= 1.
+    support : bool
+        Every plane held to its regions; else only near planes, within ``near_parallax`` lenslets
+        (0: none).
+    near_parallax, dilation : float, int
+        As :func:`near_plane_support`.
+
+    Returns
+    -------
+    ndarray of bool, shape (P, s R, s C), or None (no support)
+    """
+    if int(subsamples) != subsamples or subsamples < 1:
+        raise ValueError(f"subsamples must be an integer >= 1. Received: {subsamples!r}")
+    m = plane_support(found, dilation) if support else near_plane_support(found, camera, near_parallax, dilation)
+    s = int(subsamples)
+    return None if m is None else m.repeat(s, axis=1).repeat(s, axis=2)
+
+
 def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturation=1.0, support: bool = False,
-                dilation: int = SUPPORT_DILATION, solve=None, subsamples: int | None = None, **find_kw):
+                near_parallax: float = NEAR_PARALLAX, dilation: int = SUPPORT_DILATION, solve=None,
+                subsamples: int | None = None, **find_kw):
     """Found depths (:func:`find_depths`) and the emission on their planes.
 
     The planes' emission is ``reconstruct(views, emission_operator(camera, planes_mm), solver)``
     (:func:`lf_flame.tomo.solvers.reconstruct`, :func:`lf_flame.tomo.exact.emission_operator`),
     with ``support`` (admm) each plane's emission held to the regions its depths were found
     in (:func:`plane_support`): a flame's light cannot leak onto a plane found for another
-    region, the prior of few depths per line of sight. ``solve``: more keywords of
+    region, the prior of few depths per line of sight; without it, only planes within
+    ``near_parallax`` lenslets of parallax of each other are held so where they meet
+    (:func:`near_plane_support`; 0: never). ``solve``: more keywords of
     ``reconstruct`` (``iters``, ``lam``, ``tv``); None: admm's knobs by the noise, with
     :data:`FOUND_PLANES_KNOBS` for the grid and noise level where it holds them.
     ``experiments/depth.py --variant support`` measures ``support=True, solve=dict(lam=0.01,
@@ -395,7 +482,8 @@ def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturat
         subsamples = admm_subsamples(len(found.planes_mm)) if solver == "admm" else 1
     op = emission_operator(camera, [float(d) for d in found.planes_mm], subsamples=subsamples)
     s = getattr(op, "subsamples", 1)
-    sup = plane_support(found, dilation).repeat(s, axis=1).repeat(s, axis=2) if support and solver == "admm" else None
+    sup = found_support(found, camera, s, support=support, near_parallax=near_parallax,
+                        dilation=dilation) if solver == "admm" else None
     if solve is None and solver == "admm":
         solve = found_planes_knobs(views, saturation, s)
     rec = reconstruct(np.asarray(views, np.float64), op, solver, saturation=saturation, support=sup, **(solve or {}))
