@@ -17,7 +17,8 @@ For each camera, every step is an ``lf-flame`` command run in-process
 (:func:`lf_flame.cli.main`, the same parser and code as the shell):
 ``simulate --scene white`` -> ``calibrate`` -> per scene ``simulate --scene depth --seed S``
 (2-4 flames at random depths, sizes and places scaled to the camera:
-:func:`lf_flame.simulate.scenes_depth.camera_depth_scene`) -> ``decode`` -> ``reconstruct``
+:func:`lf_flame.simulate.scenes_depth.camera_depth_scene`) -> ``decode`` (its default binning: the 48 px
+camera's views 3 x 3 pixels each) -> ``reconstruct``
 (depths found over the camera's imaging range, admm on the exact operator of the decoded
 views' camera); on the first scene also ``refocus --depth``, ``slopes``, and ``profiles``
 where the camera's grid is perfect. Noise: the noise-free render, and 14 dB of shot and read

@@ -95,6 +95,37 @@ def test_decoded_views_of_another_camera_are_reconstructed(route):
         assert max(np.linalg.norm(planes[k] - t[k]) / np.linalg.norm(t[k]) for k in range(3)) > err.max() + 0.01
 
 
+def test_binned_views_are_the_views_of_larger_pixels(route):
+    """Views decoded 2 x 2 pixels per sample are the views of the decoded camera with 2-pixel views: one view step
+    is two pixels' angle (slopes double), and its exact operator recovers the planes from them, where the same
+    views taken for 1-pixel views do not."""
+    from lf_flame.cli.volume import run_reconstruction
+    from lf_flame.real.lightfield import from_decoded
+    cam, scene, raw, d = route
+    cal = GridCalibration.load(d / "cal.json")
+    white = tracer.render(cam, scenes.white_scene(cam), 16)
+    fine = decoding.decode(raw, cal, white)
+    v = decoding.decode(raw, cal, white, bin_views=2)
+    assert v.shape == (fine.shape[0] // 2, fine.shape[0] // 2) + fine.shape[2:]
+    assert decoding.auto_bin(cal) == 1 and decoding.auto_bin(dataclasses.replace(cal, pitch_px=48.2)) == 3
+    assert decoding.auto_bin(dataclasses.replace(cal, pitch_px=48.2), n_views=47) == 1
+    vcam = views_camera(cam, cal, fine.shape)
+    errs = {}
+    for k in (2, 1):
+        lf = from_decoded(v, cal, cam, "binned", bin_views=k)
+        if k == 2:
+            assert lf.camera.slope_for_depth(20.0) == pytest.approx(2 * vcam.slope_for_depth(20.0), rel=1e-9)
+        op, rec = run_reconstruction(lf, DEPTHS)
+        truth = decoded_truth(scene, ExactOperator(lf.camera, DEPTHS), lf.frame.rotation_deg, lf.frame.centre_lenslets)
+        planes = bin_planes(rec.planes, op.subsamples)
+        errs[k] = max(np.linalg.norm(planes[j] - truth[j]) / np.linalg.norm(truth[j]) for j in range(len(DEPTHS)))
+    assert errs[2] <= WORST_PLANE_BAR + 0.02 and errs[1] > errs[2] + 0.05, errs
+    with pytest.raises(ValueError, match="n_views must be"):
+        decoding.decode(raw, cal, white, n_views=6, bin_views=2)
+    with pytest.raises(ValueError, match="bin_views"):
+        decoding.decode(raw, cal, white, bin_views=0)
+
+
 def test_decoded_frame_is_the_grids(route):
     """The decoded grid's centre from the axis, in lenslets along the grid's axes, is the camera's."""
     cam, _, _, d = route

@@ -90,6 +90,15 @@ def _subsamples(text: str):
     return int(text)
 
 
+def _bin_views(text: str):
+    """``decode --bin``: a positive integer, or None for 'auto'."""
+    if text.lower() == "auto":
+        return None
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"--bin takes auto or a positive integer (pixels per view). Received: {text!r}")
+    return int(text)
+
+
 def _sequence_scene_args(s, simulate_only=False):
     """Arguments of a simulated recording (``simulate-sequence``; ``sequence --simulate``)."""
     pre = "--simulate: " if simulate_only else ""
@@ -166,7 +175,11 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--white", help="white image (default: the calibration's, checked by its SHA-256)")
     s.add_argument("--dark", help="dark frame (default: the calibration's, if any)")
     s.add_argument("--no-white", action="store_true", help="no white-image normalisation")
-    s.add_argument("--views", type=int, help="views per axis (default: the pitch rounded down)")
+    s.add_argument("--views", type=int, help="views per axis (default: as many as the lenslet image holds)")
+    s.add_argument("--bin", default="auto", type=_bin_views,
+                   help="pixels per view sample and axis, summed: views of a camera with larger pixels, as much light "
+                        "and parallax, fewer views for the solvers ('auto': 1 up to 29 pixels per lenslet image, "
+                        "else enough for at least 15 views, e.g. 3 for 48; 1 with --views or a colour sensor)")
     s.add_argument("--camera-id", help="refuse a calibration of another camera")
     s.add_argument("--camera", help="camera file (docs/own_camera.md): where its [sensor] names a colour filter array "
                    "(cfa), each view sample is taken from its nearest pixel and keeps that pixel's channel (the "

@@ -28,7 +28,7 @@ def cmd_calibrate(a):
 def cmd_decode(a):
     from ..real.calibration import GridCalibration
     from ..real.images import calibration_image, load_image
-    from ..real.decoding import clipped_samples, decode
+    from ..real.decoding import auto_bin, clipped_samples, decode
     from ..real.views_file import save_views
     cal = GridCalibration.load(a.calibration)
     raw = load_image(a.raw)
@@ -37,25 +37,31 @@ def cmd_decode(a):
     sensor, where = _decode_sensor(a)
     t = time.perf_counter()
     channels = None
+    k = getattr(a, "bin", None)
+    if k is None:
+        k = 1 if sensor is not None else auto_bin(cal, a.views)
     if sensor is None:
-        views = decode(raw, cal, white, dark, n_views=a.views, camera_id=a.camera_id)
+        views = decode(raw, cal, white, dark, n_views=a.views, camera_id=a.camera_id, bin_views=k)
     else:
         from ..real.decoding import decode_colour
+        if k != 1:
+            raise ValueError("a colour capture is decoded one pixel per sample, its channels apart: --bin 1 (or auto)")
         if a.camera_id is not None and cal.camera_id and a.camera_id != cal.camera_id:
             raise ValueError(f"the calibration is of camera {cal.camera_id!r}, not {a.camera_id!r}")
         views, channels = decode_colour(raw, cal, sensor, white, dark, n_views=a.views)
         print(f"colour sensor {sensor.name}, {sensor.pattern} phase {sensor.phase} ({where}): each sample from its "
               "nearest pixel, channels apart")
     level = _saturation_level(a.saturation, raw)
-    clipped = None if level is None else clipped_samples(raw, cal, level, n_views=a.views)
+    clipped = None if level is None else clipped_samples(raw, cal, level, n_views=a.views, bin_views=k)
     dt = time.perf_counter() - t
-    extra = {} if level is None else {"saturation": level}
+    extra = {"bin_views": k} if level is None else {"saturation": level, "bin_views": k}
     if sensor is not None:
         extra["sensor"] = json.dumps(dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase)))
     save_views(a.out, views, cal, clipped, channels, raw=str(Path(a.raw).resolve()),
                white_normalised=white is not None, **extra)
     note = "no clipping level" if level is None else f"{int(clipped.sum())} samples from pixels at or above {level:g}"
-    print(f"decoded {Path(a.raw).name} into {views.shape[0]} x {views.shape[1]} views of {views.shape[2]} x "
+    binned = f", {k} x {k} pixels each" if k > 1 else ""
+    print(f"decoded {Path(a.raw).name} into {views.shape[0]} x {views.shape[1]} views{binned} of {views.shape[2]} x "
           f"{views.shape[3]} lenslets ({note}) in {dt:.2f} s -> {a.out}")
 
 

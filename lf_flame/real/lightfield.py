@@ -221,7 +221,7 @@ def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation
 
 def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "decoded views", clipped=None,
                  white_normalised: bool = True, camera_file: str | None = None, channels=None,
-                 meta: dict | None = None) -> LightField:
+                 meta: dict | None = None, bin_views: int = 1) -> LightField:
     """The light field of views decoded from a capture of ``camera`` with ``calibration``.
 
     Parameters
@@ -236,6 +236,8 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
         A colour capture's channel map (:func:`lf_flame.real.decoding.decode_colour`).
     meta : dict or None
         Records kept with the views (``sensor``: a colour capture's sensor, JSON).
+    bin_views : int
+        Pixels per view sample and axis they were decoded with.
 
     Raises
     ------
@@ -247,7 +249,7 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
     v = np.asarray(views, np.float32)
     if not np.all(np.isfinite(v)):
         raise ValueError(f"{source}: the views contain NaN or infinite values")
-    vcam = views_camera(camera, calibration, v.shape)
+    vcam = views_camera(camera, calibration, v.shape, bin_views)
     frame = decoded_frame(calibration, *v.shape[2:])
     if channels is not None and np.shape(channels) != v.shape:
         raise ValueError(f"{source}: a channel map of shape {np.shape(channels)} for views of shape {v.shape}")
@@ -257,7 +259,7 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
 
 
 def read_light_field(path, camera=None, calibration=None, *, views: int | None = None,
-                     raw_reader=None, formats: str = "") -> LightField:
+                     bin_views: int | None = None, raw_reader=None, formats: str = "") -> LightField:
     """Read a light field: ``VIEWS.h5`` from ``lf-flame decode``, or a raw image.
 
     Parameters
@@ -273,7 +275,10 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
         decoded with it (its white image, checked by its SHA-256); decoded views are checked
         against it.
     views : int or None
-        Views per axis when decoding here (default: every view the lenslet image holds).
+        Views per axis when decoding here (default: as many as the lenslet image holds).
+    bin_views : int or None
+        Pixels per view sample and axis when decoding here; None: ``lf-flame decode``'s default
+        (:func:`lf_flame.real.decoding.auto_bin`; 1 where ``views`` is given).
     raw_reader : callable or None
         ``raw_reader(path) -> (raw, stored camera or None, meta dict)``; None: the
         command line's reader (:func:`lf_flame.cli._io` formats) is not imported here, so
@@ -321,7 +326,8 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
         with h5py.File(p, "r") as f:
             white = bool(f.attrs.get("white_normalised", True))
             meta = {"sensor": str(f.attrs["sensor"])} if "sensor" in f.attrs else {}
-        return from_decoded(v, vcal, cam, src, load_clipped(p), white, cam_file, load_channels(p), meta)
+            k = int(f.attrs.get("bin_views", 1))
+        return from_decoded(v, vcal, cam, src, load_clipped(p), white, cam_file, load_channels(p), meta, k)
     raw, stored, meta = (raw_reader or _read_raw)(p)
     cam = cam or stored
     if cam is None:
@@ -329,18 +335,21 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
         cam = PAPER_CAMERA
     if cal is None:
         return from_raw(raw, cam, src, camera_file=cam_file, meta=meta)
-    return _decode_here(raw, src, cam, cal, views, cam_file)
+    return _decode_here(raw, src, cam, cal, views, cam_file, bin_views)
 
 
-def _decode_here(raw, src, cam, cal, n_views, cam_file) -> LightField:
-    """A raw capture decoded with its calibration's white (and dark) image."""
+def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None) -> LightField:
+    """A raw capture decoded with its calibration's white (and dark) image; ``bin_views`` None: as
+    ``lf-flame decode`` bins by default (:func:`lf_flame.real.decoding.auto_bin`, one pixel per view
+    where ``n_views`` is given)."""
     from .images import calibration_image
-    from .decoding import clipped_samples, decode
+    from .decoding import auto_bin, clipped_samples, decode
     white, dark = calibration_image(cal.white, "white"), calibration_image(cal.dark, "dark")
-    v = decode(raw, cal, white, dark, n_views=n_views)
+    k = auto_bin(cal, n_views) if bin_views is None else bin_views
+    v = decode(raw, cal, white, dark, n_views=n_views, bin_views=k)
     level = 1.0 if float(np.max(raw)) <= 1.0 else None
-    clipped = None if level is None else clipped_samples(raw, cal, level, n_views=n_views)
-    return from_decoded(v, cal, cam, src, clipped, white is not None, cam_file)
+    clipped = None if level is None else clipped_samples(raw, cal, level, n_views=n_views, bin_views=k)
+    return from_decoded(v, cal, cam, src, clipped, white is not None, cam_file, bin_views=k)
 
 
 def _read_raw(p: Path):

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -87,7 +87,8 @@ def decoded_frame(calibration: GridCalibration, n_rows: int, n_cols: int) -> Dec
     return DecodedFrame(float(calibration.rotation_deg), (float(lat[0]), float(lat[1])))
 
 
-def views_camera(camera: PlenopticCamera, calibration: GridCalibration, views_shape) -> PlenopticCamera:
+def views_camera(camera: PlenopticCamera, calibration: GridCalibration, views_shape,
+                 bin_views: int = 1) -> PlenopticCamera:
     """The perfect-grid camera of views decoded from ``camera`` with ``calibration``.
 
     Parameters
@@ -97,12 +98,15 @@ def views_camera(camera: PlenopticCamera, calibration: GridCalibration, views_sh
     calibration : GridCalibration
         The white-image calibration the views were decoded with.
     views_shape : (N, N, R, C)
+    bin_views : int
+        Pixels per view sample and axis (:func:`lf_flame.real.decoding.decode`'s ``bin_views``).
 
     Returns
     -------
     PlenopticCamera
-        :func:`lf_flame.optics.camera_file.decoded_camera` of ``(N, R, C)``; what it
-        leaves out is stated there.
+        :func:`lf_flame.optics.camera_file.decoded_camera` of ``(N k, R, C)`` (``k`` = ``bin_views``)
+        with ``N`` pixels per lenslet: its pixel is ``k`` of the decoded camera's, at the same
+        distance behind the lenslets. What it leaves out is stated there.
 
     Raises
     ------
@@ -141,4 +145,7 @@ def views_camera(camera: PlenopticCamera, calibration: GridCalibration, views_sh
     if off > PITCH_WARN:
         warnings.warn(msg + "; the views' angles are taken from the file", UserWarning, stacklevel=2)
     decoded_frame(calibration, shape[2], shape[3])                      # views of this calibration
-    return decoded_camera(camera, shape[0], shape[2], shape[3])
+    if isinstance(bin_views, bool) or int(bin_views) != bin_views or bin_views < 1:
+        raise ValueError(f"bin_views must be an integer >= 1. Received: {bin_views!r}")
+    k = int(bin_views)
+    return replace(decoded_camera(camera, shape[0] * k, shape[2], shape[3]), pixels_per_lenslet=shape[0])
