@@ -31,6 +31,8 @@ Usage: ``python experiments/depth.py --out results [--quick] [--scenes 100] [--b
 ``--tune [N]``: the found planes' admm knobs at 14 dB (``TUNE_KNOBS``) on N validation scenes
 (``SEED_VAL``), ``depth_tune.{csv,md}``; the package holds the choice in
 ``lf_flame.tomo.depth.FOUND_PLANES_KNOBS``.
+``--columns [N]``: N scenes of two or three flames in one column band (``column_scene``, ``SEED_COLUMNS``;
+with ``--validation`` other seeds, ``SEED_COLUMNS_VAL``), the same routes, ``depth_columns.{csv,md}``.
 ``--bias [N]``: the depth finder's bias near focus: N single flames at depths U(-5, 5) mm
 (``SEED_BIAS``), noise-free and at 14 dB, the error of the depth found with the most votes per
 depth band, ``depth_bias.{csv,md}`` (the bar: |bias| <= 0.05 mm and p90 |error| <= 0.15 mm
@@ -51,7 +53,7 @@ from lf_flame.optics.camera import PAPER_CAMERA
 from lf_flame.refocus.shift_and_sum import aperture_mask, find_sharpest_slope, focal_stack, raw_to_views
 from lf_flame.simulate import tracer
 from lf_flame.simulate.scenes import PAPER_DEPTHS_MM
-from lf_flame.simulate.scenes_depth import behind_scene, random_depth_scene
+from lf_flame.simulate.scenes_depth import behind_scene, column_scene, random_depth_scene
 from lf_flame.tomo.depth import find_planes
 from lf_flame.tomo.exact import emission_operator
 from lf_flame.tomo.scoring import score_flames
@@ -60,6 +62,8 @@ from lf_flame.tomo.solvers import reconstruct
 SEED0 = 3_600_000          # random-depth scenes: SEED0 + i; behind scenes: SEED0 + 50_000 + i
 SEED_VAL = 3_900_000       # --tune's validation scenes: SEED_VAL + i (never scored)
 SEED_BIAS = 3_680_000      # --bias: single flames near focus, SEED_BIAS + i
+SEED_COLUMNS = 3_700_000   # --columns: two or three flames in one column band, SEED_COLUMNS + i
+SEED_COLUMNS_VAL = 3_950_000   # their validation scenes (--columns N --validation; never scored)
 BIAS_RANGE_MM = (-5.0, 5.0)
 BIAS_BANDS_MM = (-5.0, -3.0, -1.0, 1.0, 3.0, 5.0)
 #: --tune: the found planes' admm knobs tried at 14 dB (the others by the noise, as reconstruct takes them); the
@@ -142,16 +146,23 @@ def routes(cam, scene, views, fixed_op, mask, labels, variant="default"):
     return rows
 
 
-def run(cam, n_scenes, n_behind, rays, cache: Path, variant="default"):
+def run(cam, n_scenes, n_behind, rays, cache: Path, variant="default", n_columns=0, columns_seed0=SEED_COLUMNS):
+    """Every job's rows (cached per scene in ``cache``: a rerun resumes) and the renders' own errors. Jobs: the behind
+    scenes, ``n_scenes`` random-depth scenes, or (``n_columns``) only that many column scenes."""
     mask = aperture_mask(cam.pixels_per_lenslet, "circular")
     fixed_op = emission_operator(cam, list(PAPER_DEPTHS_MM))
-    jobs = [("behind", SEED0 + 50_000 + 100 * int(sep) + i, sep) for sep in SEPARATIONS_MM for i in range(n_behind)]
-    jobs += [("random", SEED0 + i, None) for i in range(n_scenes)]
+    if n_columns:
+        jobs = [("column", columns_seed0 + i, None) for i in range(n_columns)]
+    else:
+        jobs = [("behind", SEED0 + 50_000 + 100 * int(sep) + i, sep) for sep in SEPARATIONS_MM
+                for i in range(n_behind)]
+        jobs += [("random", SEED0 + i, None) for i in range(n_scenes)]
     rows, own = [], {}
     cache.mkdir(parents=True, exist_ok=True)
     for i, (kind, seed, sep) in enumerate(jobs):
         rng = np.random.default_rng(seed)
-        scene = random_depth_scene(cam, rng) if kind == "random" else behind_scene(cam, rng, sep)
+        scene = {"random": lambda: random_depth_scene(cam, rng), "behind": lambda: behind_scene(cam, rng, sep),
+                 "column": lambda: column_scene(cam, rng)}[kind]()
         part = cache / f"{kind}_{seed}_{rays}{'' if variant == 'default' else '_' + variant}.csv"
         if part.exists():
             cached = pd.read_csv(part)
@@ -312,6 +323,54 @@ def plot(out: Path, df, stem="depth"):
     plt.close(fig)
 
 
+def column_bars(df: pd.DataFrame) -> pd.DataFrame:
+    """The column scenes' bars per route and noise: flames found, depth error (missed: inf), emission error,
+    flames near focus, and the closest pairs."""
+    out = []
+    for (route, noise), g in df.groupby(["route", "noise"], sort=False):
+        e = g.depth_err_mm.abs().fillna(np.inf)
+        near = g[g.depth_mm_true.abs() <= 3.0]
+        per = g.groupby("seed")
+        sep = per.depth_mm_true.apply(lambda d: float(np.diff(np.sort(d.values)).min()))
+        ok = per.apply(lambda s: bool(s.depth_err_mm.notna().all() and (s.rel_err <= 0.15).all()), include_groups=False)
+        close = sep[sep <= 5.0].index
+        out.append(dict(route=route, noise=noise, scenes=len(sep), flames=len(g), found=float(g.depth_mm.notna().mean()),
+                        depth_err_p90_mm=float(e.quantile(0.9)), depth_err_worst_mm=float(e.max()),
+                        rel_err_median=float(g.rel_err.median()), rel_err_p90=float(g.rel_err.fillna(np.inf).quantile(0.9)),
+                        frac_rel_err_le_15pct=float((g.rel_err <= 0.15).mean()),
+                        near_focus_flames=len(near),
+                        near_focus_depth_err_p90_mm=float(near.depth_err_mm.abs().fillna(np.inf).quantile(0.9))
+                        if len(near) else np.nan,
+                        scenes_all_found_le_15pct=float(ok.mean()),
+                        close_scenes=len(close), close_all_found_le_15pct=float(ok[close].mean()) if len(close) else np.nan,
+                        time_median_s=float(per.time_s.first().median())))
+    return pd.DataFrame(out)
+
+
+def columns_report(out: Path, df, own, settings, wall, stem="depth_columns"):
+    tb = column_bars(df)
+    auto = df[df.route == "auto"]
+    worst = auto.assign(err=auto.depth_err_mm.abs().fillna(np.inf)).sort_values(["err", "rel_err"], ascending=False)
+    lines = ["# Flames one behind another: two or three per column band", "",
+             f"`python experiments/depth.py {settings['argv']}`: {settings['n_columns']} column scenes "
+             f"(`column_scene`, seeds {settings['seed0']}-{settings['seed0'] + settings['n_columns'] - 1}): 2-3 flames "
+             "in one column band 3-15 mm apart, brightness ratios 0.3-3, heights 0.3-0.8 of the field, a flame within "
+             f"3 mm of focus in a third of the scenes; paper camera; renders at {settings['rays']} rays per pixel "
+             "(own error " + ", ".join(f"{k} {100 * v:.2f} %" for k, v in own.items()) + "), noise-free and "
+             f"{SNR_DB:g} dB. Routes and scoring as `make depth` (`score_flames`: one found depth per flame; a flame "
+             f"without one is missed). Wall time {wall / 60:.1f} min.", "",
+             "Bars (noise-free; 14 dB within 2x): >= 95 % of flames found; depth error p90 <= 0.3 mm, worst <= 1 mm "
+             "(missed: infinite); emission <= 15 % on 90 % of flames. Goal: pairs 3 mm apart both found, each "
+             "<= 15 %, in 90 % of cases (`close_*`: scenes whose nearest two flames are <= 5 mm apart).", "",
+             tb.to_markdown(index=False, floatfmt=".3g"), "",
+             "## Worst flames of the auto route", "",
+             worst.head(12)[["seed", "noise", "flame", "depth_mm_true", "height_mm", "depth_mm", "depth_err_mm",
+                             "rel_err", "share_near"]].to_markdown(index=False, floatfmt=".3g"), "",
+             "Provenance: `" + json.dumps(provenance()) + "`", ""]
+    atomic_write_text(out / f"{stem}.md", "\n".join(lines))
+    return tb
+
+
 def bias(cam, n_scenes, rays, out: Path):
     """``--bias``: single flames at depths U(BIAS_RANGE_MM), the depth found with the most votes against the
     truth, noise-free and at 14 dB, per depth band; depth_bias.{csv,md}."""
@@ -369,6 +428,10 @@ def main(argv=None):
     ap.add_argument("--tune", type=int, nargs="?", const=20, default=0, metavar="N",
                     help="choose the found planes' knobs at 14 dB on N validation scenes (default 20): "
                          "depth_tune.{csv,md}")
+    ap.add_argument("--columns", type=int, nargs="?", const=40, default=0, metavar="N",
+                    help="N column scenes (default 40): flames one behind another -> depth_columns.{csv,md}")
+    ap.add_argument("--validation", action="store_true",
+                    help="with --columns: the validation scenes (other seeds, never scored) -> depth_columns_val.*")
     ap.add_argument("--bias", type=int, nargs="?", const=60, default=0, metavar="N",
                     help="the depth finder's bias near focus on N single flames (default 60): depth_bias.{csv,md}")
     ap.add_argument("--variant", choices=list(VARIANTS), default="default",
@@ -381,6 +444,17 @@ def main(argv=None):
         return tune(PAPER_CAMERA, a.tune, a.rays, out)
     if a.bias:
         return bias(PAPER_CAMERA, a.bias, a.rays, out)
+    if a.columns:
+        t0 = time.perf_counter()
+        seed0 = SEED_COLUMNS_VAL if a.validation else SEED_COLUMNS
+        df, own = run(PAPER_CAMERA, 0, 0, a.rays, Path(a.cache), a.variant, n_columns=a.columns, columns_seed0=seed0)
+        stem = "depth_columns" + ("_val" if a.validation else "") + ("" if a.variant == "default" else f"_{a.variant}")
+        out.mkdir(parents=True, exist_ok=True)
+        df.to_csv(out / f"{stem}.csv", index=False)
+        settings = dict(argv=" ".join(argv if argv is not None else __import__("sys").argv[1:]), n_columns=a.columns,
+                        seed0=seed0, rays=a.rays)
+        print(columns_report(out, df, own, settings, time.perf_counter() - t0, stem).to_string())
+        return 0
     t0 = time.perf_counter()
     df, own = run(PAPER_CAMERA, a.scenes, a.behind, a.rays, Path(a.cache), a.variant)
     wall = time.perf_counter() - t0

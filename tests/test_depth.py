@@ -355,3 +355,26 @@ def test_near_planes_keep_their_light_apart(cam):
                                         found=list(zip(found.depths_mm, found.masks)))
     assert scores[3.0].share_near.min() > 0.999 and scores[0.0].share_near.min() < 0.995, scores
     assert scores[3.0].rel_err.max() < scores[0.0].rel_err.max() + 0.005, scores
+
+
+def test_column_scenes_stand_flames_one_behind_another():
+    """Two or three flames in one column band, 3-15 mm apart in depth, brightness within the ratio, a flame near
+    focus in at least a third of the scenes; bad counts and short ranges refused."""
+    from lf_flame.optics.camera import PAPER_CAMERA
+    from lf_flame.simulate.scenes_depth import COLUMN_RATIO, COLUMN_SEPARATION_MM, column_scene
+    counts, near = set(), 0
+    for seed in range(30):
+        sc = column_scene(PAPER_CAMERA, np.random.default_rng(seed))
+        d = np.array([o["depth_offset_mm"] for o in sc.objects])
+        counts.add(len(d))
+        assert np.all(np.diff(d) >= COLUMN_SEPARATION_MM[0]) and np.all(np.diff(d) <= COLUMN_SEPARATION_MM[1])
+        x = np.array([o["centre_x_mm"] for o in sc.objects])
+        assert np.ptp(x) <= 0.8 + 1e-9                                     # one column band
+        r = np.array([o["radiance"] for o in sc.objects])
+        assert r.max() <= 1.0 and r.max() / r.min() <= (COLUMN_RATIO[1] / COLUMN_RATIO[0]) + 1e-9
+        near += bool(np.any(np.abs(d) <= 3.0))
+    assert counts == {2, 3} and near >= 10, (counts, near)            # at least the third drawn so
+    with pytest.raises(ValueError, match="n_flames"):
+        column_scene(PAPER_CAMERA, np.random.default_rng(0), n_flames=4)
+    with pytest.raises(ValueError, match="too short"):
+        column_scene(PAPER_CAMERA, np.random.default_rng(0), n_flames=3, depth_range=(-5.0, 5.0))

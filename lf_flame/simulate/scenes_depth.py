@@ -1,8 +1,9 @@
-"""Scenes of flames at depths nobody gave (issue 36): random continuous depths, flames behind one another.
+"""Scenes of flames at depths nobody gave: random continuous depths, flames behind one another.
 
 :func:`random_depth_scene` draws 2-4 flame-like emitters at continuous random depths
 (never on a grid), random heights and lateral positions; :func:`behind_scene` stands two
-flames in the same columns a given distance apart in depth. Each flame is one layer of
+flames in the same columns a given distance apart in depth; :func:`column_scene` stands two
+or three flames of varied size and brightness in one column band, 3-15 mm apart. Each flame is one layer of
 :func:`lf_flame.simulate.scenes.flame_luminosity` (a luminous sheath about a dark core), so
 the truth of flame ``k`` is ``scene.layers[k]`` at ``scene.objects[k]["depth_offset_mm"]``.
 """
@@ -234,3 +235,81 @@ def behind_scene(camera: PlenopticCamera, rng: np.random.Generator, separation_m
         layers.append(layer)
         objects.append(obj)
     return Scene("behind", tuple(layers), FLAME_EFFECTS, tuple(objects))
+
+
+#: :func:`column_scene`: depths between neighbouring flames of a column (mm), their brightness ratio to the first
+#: flame (log-uniform), and the share of scenes with a flame within :data:`NEAR_FOCUS_MM` of the focal plane.
+COLUMN_SEPARATION_MM = (3.0, 15.0)
+COLUMN_RATIO = (0.3, 3.0)
+NEAR_FOCUS_SHARE = 1.0 / 3.0
+NEAR_FOCUS_MM = 3.0
+
+
+def column_scene(camera: PlenopticCamera, rng: np.random.Generator, *, n_flames: int | None = None,
+                 depth_range=DEPTH_RANGE_MM, texels_per_lenslet: float = 3.0) -> Scene:
+    """Two or three flames in one column band, one behind another, of varied size and brightness.
+
+    Depths: in a share :data:`NEAR_FOCUS_SHARE` of scenes one flame stands within
+    :data:`NEAR_FOCUS_MM` of the focal plane; the others follow at separations
+    ``U(COLUMN_SEPARATION_MM)`` on either side, all within ``depth_range`` (drawn again
+    otherwise). Per flame: height ``U(0.3, 0.8)`` of the field's height at its depth, half-width
+    ``U(0.06, 0.12)`` of the height (at least :data:`MIN_HALF_WIDTH_MM`), lateral offset
+    ``U(-0.4, 0.4)`` mm from the band's centre, base ``U(-0.45, -0.3)`` of the field's height;
+    brightness relative to the first flame log-uniform in :data:`COLUMN_RATIO`, the brightest at
+    a peak radiance ``U(0.6, 1.0)``.
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+    rng : numpy.random.Generator
+    n_flames : int or None
+        2 or 3; None: drawn.
+    depth_range : (float, float)
+        mm from the focal plane; it must hold the flames' separations.
+    texels_per_lenslet : float
+
+    Returns
+    -------
+    Scene
+        ``name="column"``, objects as :func:`random_depth_scene`'s, ordered by depth.
+
+    Raises
+    ------
+    ValueError
+        A bad ``n_flames`` or range, or a range too short for the separations.
+    """
+    lo, hi = _check(camera, depth_range, None)
+    n = int(rng.integers(2, 4)) if n_flames is None else n_flames
+    if n not in (2, 3):
+        raise ValueError(f"n_flames must be 2 or 3 (or None: drawn). Received: {n_flames!r}")
+    s_lo, s_hi = COLUMN_SEPARATION_MM
+    if hi - lo < (n - 1) * s_hi:
+        raise ValueError(f"depth_range {depth_range!r} is too short for {n} flames up to {s_hi:g} mm apart")
+    near_focus = bool(rng.random() < NEAR_FOCUS_SHARE) and lo < 0 < hi
+    for _ in range(1000):
+        seps = rng.uniform(s_lo, s_hi, n - 1)
+        if near_focus:
+            first = float(rng.uniform(-NEAR_FOCUS_MM, NEAR_FOCUS_MM))
+            k = int(rng.integers(0, n))                      # which flame stands near focus
+            depths = first + np.concatenate([[0.0], np.cumsum(seps)]) - np.concatenate([[0.0], np.cumsum(seps)])[k]
+        else:
+            depths = float(rng.uniform(lo, hi)) + np.concatenate([[0.0], np.cumsum(seps)])
+        if depths.min() >= lo and depths.max() <= hi:
+            break
+    else:
+        raise ValueError(f"no depths for {n} flames within {depth_range!r}")
+    ratios = np.exp(rng.uniform(np.log(COLUMN_RATIO[0]), np.log(COLUMN_RATIO[1]), n))
+    ratios[0] = 1.0
+    levels = ratios / ratios.max() * float(rng.uniform(0.6, 1.0))
+    cx = float(rng.uniform(-0.15, 0.15)) * camera.field_of_view_mm(0.0)[1]
+    layers, objects = [], []
+    for k in np.argsort(depths):
+        dz = float(depths[k])
+        fh = camera.field_of_view_mm(dz)[0]
+        H = float(rng.uniform(0.3, 0.8)) * fh
+        hw = max(float(rng.uniform(0.06, 0.12)) * H, MIN_HALF_WIDTH_MM)
+        layer, obj = _flame(camera, dz, H, hw, cx + float(rng.uniform(-0.4, 0.4)), float(rng.uniform(-0.45, -0.3)) * fh,
+                            float(levels[k]), texels_per_lenslet, f"flame_{len(layers)}")
+        layers.append(layer)
+        objects.append(obj)
+    return Scene("column", tuple(layers), FLAME_EFFECTS, tuple(objects))
