@@ -84,6 +84,10 @@ SEPARATIONS_MM = (5.0, 10.0)
 #: "heights-region-box": the slope search's flames also measured within their boxes (the regions it is given), as
 #: before "heights-region", which measured them in their columns alone (3 % off by > 1 mm: other flames' blur).
 SCORE_VERSION = "heights-region-box"
+#: The auto route the cached rows were solved by (rows of another are solved again): "near-peel", found planes near
+#: in parallax held to their regions (``NEAR_PARALLAX``) and depths missed by the votes found in the residual
+#: (``peel_planes``).
+ROUTE_VERSION = "near-peel"
 
 
 def add_noise(raw, snr_db, seed):
@@ -166,7 +170,8 @@ def run(cam, n_scenes, n_behind, rays, cache: Path, variant="default", n_columns
         part = cache / f"{kind}_{seed}_{rays}{'' if variant == 'default' else '_' + variant}.csv"
         if part.exists():
             cached = pd.read_csv(part)
-            if "score_version" in cached and (cached.score_version == SCORE_VERSION).all():
+            if "route_version" in cached and (cached.score_version == SCORE_VERSION).all() and \
+                    (cached.route_version == ROUTE_VERSION).all():
                 rows.append(cached)
                 continue
         raw = tracer.render(cam, scene, rays, seed)
@@ -181,7 +186,7 @@ def run(cam, n_scenes, n_behind, rays, cache: Path, variant="default", n_columns
                           dict(kind=kind, seed=seed, separation_mm=sep if sep else np.nan, noise=noise,
                                snr_db=snr if noise != "clean" else np.inf), variant)
         df = pd.concat(out, ignore_index=True)
-        df["score_version"] = SCORE_VERSION
+        df["score_version"], df["route_version"] = SCORE_VERSION, ROUTE_VERSION
         df.to_csv(part, index=False)
         rows.append(df)
         print(f"  {i + 1}/{len(jobs)} {kind} {seed}: auto depth errors "

@@ -59,14 +59,45 @@ def found_planes(lf, views=None):
     found = find_depths(lf.views if views is None else views, lf.camera, depth_range_mm=lf.depth_range_mm())
     if not len(found.planes_mm):
         raise ValueError("--depths auto found no emission in the views; give the planes (--depth or --depths)")
-    record = [dict(depth_mm=float(d), uncertainty_mm=float(u), width_mm=float(w), plane_mm=float(found.planes_mm[p]),
-                   region=int(r), lenslets=int(m.sum()))
-              for d, u, w, p, r, m in zip(found.depths_mm, found.uncertainty_mm, found.width_mm, found.plane_of,
-                                          found.region, found.masks)]
+    record = found_record(found)
     print(f"found {len(record)} depths in {found.time_s:.2f} s: " + ", ".join(
         f"{r['depth_mm']:+.2f} +- {r['uncertainty_mm']:.2f} mm" for r in record)
         + f" -> {len(found.planes_mm)} planes")
     return [float(d) for d in found.planes_mm], record, found
+
+
+def found_record(found):
+    """Each found depth's record for the HDF5: depth, uncertainty, peak width (mm), plane, region, lenslets."""
+    return [dict(depth_mm=float(d), uncertainty_mm=float(u), width_mm=float(w), plane_mm=float(found.planes_mm[p]),
+                 region=int(r), lenslets=int(m.sum()))
+            for d, u, w, p, r, m in zip(found.depths_mm, found.uncertainty_mm, found.width_mm, found.plane_of,
+                                        found.region, found.masks)]
+
+
+def _fitted_light_field(lf, saturation):
+    """The light field with ``reconstruct``'s ``--saturation`` in place of its own ("file": as it is)."""
+    if saturation == "file":
+        return lf
+    if lf.white_normalised and saturation is not None:
+        raise ValueError("decoded views carry their clipped samples ('lf-flame decode --saturation'): "
+                         "--saturation takes only 'none' for them (fit every sample)")
+    return dataclasses.replace(lf, leave_out=None, saturation=saturation)
+
+
+def solve_found(lf, found, **kw):
+    """The found planes solved (:func:`run_reconstruction` with ``found_depths``), then the residual searched for
+    depths the votes missed and solved again with them (:func:`lf_flame.tomo.depth.peel_planes`, as
+    :func:`lf_flame.tomo.depth.find_planes`): ``(found, op, rec)``."""
+    from ..tomo.decoded import fit_data
+    from ..tomo.depth import peel_planes
+    from ..tomo.solvers import fitted_pixels
+
+    def solve(f):
+        return run_reconstruction(lf, [float(d) for d in f.planes_mm], found_depths=f, **kw)
+
+    op, rec = solve(found)
+    data, fit = fit_data(_fitted_light_field(lf, kw.get("saturation", "file")), op)
+    return peel_planes(found, op, rec, data, fitted_pixels(data, fit), lf.camera, solve)
 
 
 def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None, saturation="file",
@@ -100,11 +131,7 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
         raise ValueError("--rays-per-pixel traces the simulated camera; decoded views are solved on their camera's "
                          "exact operator")
     op = emission_operator(lf.camera, depths, rays_per_pixel=rays_per_pixel, subsamples=subsamples)
-    if saturation != "file":
-        if lf.white_normalised and saturation is not None:
-            raise ValueError("decoded views carry their clipped samples ('lf-flame decode --saturation'): "
-                             "--saturation takes only 'none' for them (fit every sample)")
-        lf = dataclasses.replace(lf, leave_out=None, saturation=saturation)
+    lf = _fitted_light_field(lf, saturation)
     data, fit = fit_data(lf, op)
     if solver == "learned":
         from ..learn.reconstructor import DEFAULT_MODEL_DIR, LearnedReconstructor, reconstruction
@@ -182,11 +209,21 @@ def cmd_reconstruct(a):
                      n_clipped=0 if lf.leave_out is None else int(lf.leave_out.sum()))
         if lf.camera_file:
             extra["camera_file"] = lf.camera_file
-    op, rec = run_reconstruction(lf, depths, a.solver, a.iters, damp=a.damp, tv=a.tv,
-                                 saturation=getattr(a, "saturation", "file"), rays_per_pixel=a.rays_per_pixel,
-                                 progress=True, subsamples=getattr(a, "subsamples", None),
-                                 found_depths=voters, support=bool(getattr(a, "support", False)),
-                                 model_dir=getattr(a, "model", None))
+    kw = dict(solver=a.solver, iters=a.iters, damp=a.damp, tv=a.tv, saturation=getattr(a, "saturation", "file"),
+              rays_per_pixel=a.rays_per_pixel, progress=True, subsamples=getattr(a, "subsamples", None),
+              model_dir=getattr(a, "model", None))
+    if voters is None:
+        op, rec = run_reconstruction(lf, depths, **kw)
+    else:
+        voted = set(voters.depths_mm.tolist())
+        voters, op, rec = solve_found(lf, voters, support=bool(getattr(a, "support", False)), **kw)
+        if len(voters.depths_mm) > len(voted):
+            added = sorted(set(voters.depths_mm.tolist()) - voted)
+            print("found in the residual (behind or before other flames): " + ", ".join(f"{d:+.2f} mm" for d in added)
+                  + f" -> {len(voters.planes_mm)} planes")
+            depths = [float(d) for d in voters.planes_mm]
+            extra["found_depths"] = found_record(voters)
+            arrays = dict(found_masks=np.asarray(voters.masks, bool), found_regions=voters.labels)
     if rec.settings.get("support") == "near planes":
         from ..tomo.depth import NEAR_PARALLAX
         print(f"planes within {NEAR_PARALLAX:g} lenslets of parallax of each other are held to the regions their "
