@@ -169,6 +169,8 @@ depth: $(STAMP) ## flames at unknown depths: depth, emission and share errors pe
 	$(VENV)/bin/python experiments/depth.py --out $(TRADEOFF_OUT) $(DEPTH_ARGS_$(PRESET))
 	$(VENV)/bin/python experiments/depth.py --out $(TRADEOFF_OUT) --bias $(if $(filter quick,$(PRESET)),6,60) --rays 100
 	$(VENV)/bin/python experiments/depth.py --out $(TRADEOFF_OUT) --columns $(if $(filter quick,$(PRESET)),4,40) $(DEPTH_ARGS_$(PRESET))
+	if [ -f $(TRADEOFF_OUT)/tradeoff.csv ]; then \
+		$(VENV)/bin/python experiments/tradeoff.py --reconstruction-only --out $(TRADEOFF_OUT); fi
 
 # axisymmetric volumetric flames: the axisymmetric prior beside the dense admm stack and
 # shift-and-sum, noise-free and at 14 dB (about 15-20 min on 2 cores; renders cached in data/volume)
