@@ -400,3 +400,29 @@ def test_a_flame_behind_others_is_found_in_the_residual(cam):
     found, op, rec = find_planes(views, cam)
     noise = np.random.default_rng(0).normal(0.0, 0.01, views.shape)
     assert missed_depths(noise, cam, found) is None
+
+
+def test_the_cli_finds_the_hidden_flame_as_the_library_route(cam, tmp_path, capsys):
+    """``lf-flame reconstruct`` searches its solve's residual as ``find_planes`` does: it says what it found there,
+    and records every depth with the planes of the library route."""
+    import json
+
+    import h5py
+
+    from lf_flame.cli import main
+    from lf_flame.real.lightfield import imaging_range_mm
+    from lf_flame.refocus.shift_and_sum import views_to_raw
+    from lf_flame.simulate.scenes_depth import column_scene
+    views = _views(cam, column_scene(cam, np.random.default_rng(4)), 4)
+    raw = tmp_path / "column.npz"
+    np.savez(raw, raw=views_to_raw(views), camera=cam.to_json())
+    out = tmp_path / "column.h5"
+    assert main(["reconstruct", str(raw), "--out", str(out)]) == 0
+    assert "found in the residual" in capsys.readouterr().out
+    found, _, rec = find_planes(raw_to_views(views_to_raw(views), cam.pixels_per_lenslet), cam,
+                                depth_range_mm=imaging_range_mm(cam))
+    assert len(found.depths_mm) == 3
+    with h5py.File(out) as f:
+        np.testing.assert_allclose([d["depth_mm"] for d in json.loads(f.attrs["found_depths"])], found.depths_mm)
+        np.testing.assert_allclose(f["depths_mm"][...], found.planes_mm)
+        np.testing.assert_allclose(f["planes"][...], rec.planes, rtol=1e-4, atol=1e-5 * rec.planes.max())
