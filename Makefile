@@ -165,7 +165,7 @@ cameras: $(STAMP) ## five cameras end to end from the CLI (white image, calibrat
 	$(VENV)/bin/python experiments/cameras.py --out $(TRADEOFF_OUT) $(if $(filter quick,$(PRESET)),--quick,)
 	$(VENV)/bin/python experiments/cameras_colour.py --out $(TRADEOFF_OUT) $(if $(filter quick,$(PRESET)),--quick,)
 
-depth: $(STAMP) ## flames at unknown depths: depth, emission and share errors per flame -> results/depth.{csv,md,json,png}
+depth: $(STAMP) ## flames at unknown depths (apart, one behind another, near focus): depth, emission and share errors per flame -> results/depth{,_columns,_bias}.{csv,md}, depth.png
 	$(VENV)/bin/python experiments/depth.py --out $(TRADEOFF_OUT) $(DEPTH_ARGS_$(PRESET))
 	$(VENV)/bin/python experiments/depth.py --out $(TRADEOFF_OUT) --bias $(if $(filter quick,$(PRESET)),6,60) --rays 100
 	$(VENV)/bin/python experiments/depth.py --out $(TRADEOFF_OUT) --columns $(if $(filter quick,$(PRESET)),4,40) $(DEPTH_ARGS_$(PRESET))
