@@ -602,9 +602,9 @@ def summary(df: pd.DataFrame, prov: dict, n_test: int, ref_rpp: int, gt_heights:
                   "scenes). `error_tail`: the 90th percentile over flames (depth), the worst scene (volume). "
                   "Time: the whole route per light field (depth search, "
                   "operator, solve), median and 90th percentile.", "",
-                  dv[["section", "scene", "route", "noise", "latency_ms_median", "latency_ms_p90", "error_median",
-                      "error_tail", "depth_err_mm_p90", "centroid_mm_mean", "n_samples"]].to_markdown(
-                      index=False, floatfmt=".3g"), ""]
+                  dv.reindex(columns=["section", "scene", "route", "noise", "latency_ms_median", "latency_ms_p90",
+                                      "error_median", "error_tail", "depth_err_mm_p90", "centroid_mm_mean",
+                                      "n_samples"]).to_markdown(index=False, floatfmt=".3g"), ""]   # a run may lack one
     em = df[df.section == "emission"]
     if len(em):
         lines += ["## Each plane's emission, learned and solved: error against time per light field", "",
