@@ -12,7 +12,7 @@ that gives 14 dB (measured), clipped at 1 as the sensor does.
 
 Routes, on the same renders, each scored by :func:`lf_flame.tomo.scoring.score_flames`:
 
-- ``auto``: :func:`lf_flame.tomo.depth.find_planes` (depth from focus per region, then
+- ``auto``: :func:`lf_flame.tomo.found_planes.find_planes` (depth from focus per region, then
   admm on the exact operator of the found planes); its time is the depth search, the
   operator's build and the solve.
 - ``fixed-paper-planes``: admm on the exact operator of the paper's planes (+20, +10, 0,
@@ -30,7 +30,7 @@ Usage: ``python experiments/depth.py --out results [--quick] [--scenes 100] [--b
 (each scene's rows are kept in ``--cache``, default ``data/depth``: a rerun resumes).
 ``--tune [N]``: the found planes' admm knobs at 14 dB (``TUNE_KNOBS``) on N validation scenes
 (``SEED_VAL``), ``depth_tune.{csv,md}``; the package holds the choice in
-``lf_flame.tomo.depth.FOUND_PLANES_KNOBS``.
+``lf_flame.tomo.found_planes.FOUND_PLANES_KNOBS``.
 ``--columns [N]``: N scenes of two or three flames in one column band (``column_scene``, ``SEED_COLUMNS``;
 with ``--validation`` other seeds, ``SEED_COLUMNS_VAL``), the same routes, ``depth_columns.{csv,md}``.
 ``--bias [N]``: the depth finder's bias near focus: N single flames at depths U(-5, 5) mm
@@ -54,7 +54,7 @@ from lf_flame.refocus.shift_and_sum import aperture_mask, find_sharpest_slope, f
 from lf_flame.simulate import tracer
 from lf_flame.simulate.scenes import PAPER_DEPTHS_MM
 from lf_flame.simulate.scenes_depth import behind_scene, column_scene, random_depth_scene
-from lf_flame.tomo.depth import find_planes
+from lf_flame.tomo.found_planes import find_planes
 from lf_flame.tomo.exact import emission_operator
 from lf_flame.tomo.scoring import score_flames
 from lf_flame.tomo.solvers import reconstruct
@@ -106,7 +106,7 @@ def add_noise(raw, snr_db, seed):
     return noisy.astype(np.float32), snr
 
 
-#: ``--variant``: the knobs of the auto route's solve (:func:`lf_flame.tomo.depth.find_planes`)
+#: ``--variant``: the knobs of the auto route's solve (:func:`lf_flame.tomo.found_planes.find_planes`)
 VARIANTS = {"default": {}, "support": dict(support=True, solve=dict(lam=0.01, tv=0.0))}
 
 
@@ -272,7 +272,7 @@ def write_report(out: Path, df, tb, own, settings, wall, prov, stem="depth"):
     cov = auto.dropna(subset=["depth_err_mm", "uncertainty_mm"])
     lines = ["# Find the planes: flames at random depths (issue 36, step 1)", "",
              f"Auto route's solve: variant `{settings['variant']}` {settings['auto_knobs']} "
-             "(`lf_flame.tomo.depth.find_planes`).", "",
+             "(`lf_flame.tomo.found_planes.find_planes`).", "",
              f"`python experiments/depth.py {settings['argv']}`; {settings['n_scenes']} random-depth scenes "
              f"({int((df.kind == 'random').sum() / 6)} flames), {settings['n_behind']} behind scenes per separation "
              f"{list(SEPARATIONS_MM)} mm; paper camera; renders at {settings['rays']} rays per pixel, own error "

@@ -6,7 +6,8 @@ from lf_flame.optics.camera import PlenopticCamera
 from lf_flame.refocus.shift_and_sum import raw_to_views
 from lf_flame.simulate import tracer
 from lf_flame.simulate.scenes_depth import behind_scene, random_depth_scene
-from lf_flame.tomo.depth import find_depths, find_planes, merge_depths
+from lf_flame.tomo.depth import find_depths, merge_depths
+from lf_flame.tomo.found_planes import find_planes
 from lf_flame.tomo.operator import plane_grid
 from lf_flame.tomo.scoring import score_flames
 from lf_flame.tomo.truth import resample_layer
@@ -64,7 +65,7 @@ def test_find_planes_emission_scored(cam, behind):
 
 def test_the_found_planes_take_their_own_knobs_on_noisy_data(cam, planted):
     from lf_flame.tomo.defaults import ADMM_KNOBS
-    from lf_flame.tomo.depth import FOUND_PLANES_KNOBS
+    from lf_flame.tomo.found_planes import FOUND_PLANES_KNOBS
     _, views = planted
     loud = views + np.random.default_rng(2).normal(scale=0.03 * views.max(), size=views.shape)
     (key, own), = FOUND_PLANES_KNOBS.items()
@@ -286,7 +287,7 @@ def test_reconstruct_warns_when_a_plane_reaches_the_fields_edge(cam, planted, tm
 
 
 def test_support_holds_each_plane_to_its_regions(cam, planted):
-    from lf_flame.tomo.depth import plane_support
+    from lf_flame.tomo.found_planes import plane_support
     from lf_flame.tomo.solvers import reconstruct
     scene, views = planted
     found, op, rec = find_planes(views, cam, support=True, solve=dict(lam=0.01, tv=0.0))
@@ -318,7 +319,7 @@ def _found(cam, planes_mm, regions_of_plane, labels):
 def test_near_plane_support_holds_only_near_planes(cam):
     """Planes within the parallax bar are kept out of each other's regions, not out of their own nor out of a
     region they share; planes farther apart are free everywhere."""
-    from lf_flame.tomo.depth import found_support, near_plane_support
+    from lf_flame.tomo.found_planes import found_support, near_plane_support
     labels = np.zeros((cam.n_rows, cam.n_cols), int)
     labels[5:20, 3:12], labels[5:20, 25:35], labels[35:50, 10:30] = 1, 2, 3
     per_mm = abs(cam.slope_for_depth(1.0) - cam.slope_for_depth(0.0)) * (cam.pixels_per_lenslet - 1)
@@ -384,7 +385,7 @@ def test_a_flame_behind_others_is_found_in_the_residual(cam):
     """Three flames in one column band: the votes find two (the third's lenslets vote for the others), the solve's
     residual refocuses sharply at the third's depth, and the planes solved again with it recover every flame."""
     from lf_flame.simulate.scenes_depth import column_scene
-    from lf_flame.tomo.depth import missed_depths
+    from lf_flame.tomo.peel import missed_depths
     scene = column_scene(cam, np.random.default_rng(4))
     views = _views(cam, scene, 4)
     true = [o["depth_offset_mm"] for o in scene.objects]

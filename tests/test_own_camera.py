@@ -356,7 +356,7 @@ def test_images_smaller_than_the_datasheet_sensor_are_its_centred_crop(route):
 def test_support_holds_each_found_plane_to_its_regions(route, tmp_path, capsys):
     """``reconstruct --support``: each found plane's emission is zero outside the (dilated) regions
     its depths were found in; refused with planes given (no regions) and with another solver."""
-    from lf_flame.tomo.depth import plane_support
+    from lf_flame.tomo.found_planes import plane_support
     cam, _, _, d = route
     base = ["reconstruct", str(d / "views.h5"), "--camera", str(EXAMPLE), "--calibration", str(d / "cal.json")]
     assert cli.main(base + ["--support", "--out", str(tmp_path / "s.h5")]) == 0

@@ -86,10 +86,10 @@ def _fitted_light_field(lf, saturation):
 
 def solve_found(lf, found, **kw):
     """The found planes solved (:func:`run_reconstruction` with ``found_depths``), then the residual searched for
-    depths the votes missed and solved again with them (:func:`lf_flame.tomo.depth.peel_planes`, as
-    :func:`lf_flame.tomo.depth.find_planes`): ``(found, op, rec)``."""
+    depths the votes missed and solved again with them (:func:`lf_flame.tomo.peel.peel_planes`, as
+    :func:`lf_flame.tomo.found_planes.find_planes`): ``(found, op, rec)``."""
     from ..tomo.decoded import fit_data
-    from ..tomo.depth import peel_planes
+    from ..tomo.peel import peel_planes
     from ..tomo.solvers import fitted_pixels
 
     def solve(f):
@@ -110,10 +110,10 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
     white views). The exact operator's grid: ``subsamples`` samples per lenslet; None: admm's
     (:func:`lf_flame.tomo.noise_knobs.admm_subsamples`), 1 for the other solvers. ``saturation``: "file" (the light field's own mask or level), a level or None.
     ``found_depths``: the :class:`~lf_flame.tomo.depth.FoundDepths` the planes were found as, or None (planes
-    given). With them admm (as :func:`lf_flame.tomo.depth.find_planes`) holds near planes to their own regions
-    where they meet (:func:`~lf_flame.tomo.depth.found_support`) and takes the found planes' knobs where they
-    differ from its own and none were given (:func:`lf_flame.tomo.depth.found_planes_knobs`); ``support``: every
-    plane held to its regions, with :data:`~lf_flame.tomo.depth.SUPPORT_KNOBS`. ``solver`` "learned": the
+    given). With them admm (as :func:`lf_flame.tomo.found_planes.find_planes`) holds near planes to their own regions
+    where they meet (:func:`~lf_flame.tomo.found_planes.found_support`) and takes the found planes' knobs where they
+    differ from its own and none were given (:func:`lf_flame.tomo.found_planes.found_planes_knobs`); ``support``: every
+    plane held to its regions, with :data:`~lf_flame.tomo.found_planes.SUPPORT_KNOBS`. ``solver`` "learned": the
     reconstructor saved in ``model_dir`` (:func:`lf_flame.learn.reconstructor.reconstruction`, lenslet grid;
     None: its default folder)."""
     from ..tomo.decoded import fit_data
@@ -145,7 +145,7 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
         raise ValueError("--support holds admm's planes to the regions their depths were found in: it takes the "
                          "admm solver and found depths")
     if found_depths is not None and admm:
-        from ..tomo.depth import SUPPORT_KNOBS, found_planes_knobs, found_support
+        from ..tomo.found_planes import SUPPORT_KNOBS, found_planes_knobs, found_support
         s = getattr(op, "subsamples", 1)
         if support:
             knobs = dict(SUPPORT_KNOBS)
@@ -225,7 +225,7 @@ def cmd_reconstruct(a):
             extra["found_depths"] = found_record(voters)
             arrays = dict(found_masks=np.asarray(voters.masks, bool), found_regions=voters.labels)
     if rec.settings.get("support") == "near planes":
-        from ..tomo.depth import NEAR_PARALLAX
+        from ..tomo.found_planes import NEAR_PARALLAX
         print(f"planes within {NEAR_PARALLAX:g} lenslets of parallax of each other are held to the regions their "
               "depths were found in, where they meet (the data barely tell such planes apart)")
     print(saturation_note(rec) if not lf.decoded else

@@ -8,8 +8,8 @@ quadrature, applied by FFT; kernels in :mod:`._exact_kernels`); :mod:`.resolutio
 camera's depth-resolution map from that map's per-frequency normal matrices; :mod:`.solvers`
 recovers the emission with PyLops/PyProximal solvers, and :mod:`.fourier` on the exact
 operator's per-frequency normal matrices (ADMM; kernels in :mod:`._fourier_kernels`);
-:mod:`.depth` finds the depths that hold emission (depth from focus per region)
-and solves on them; :mod:`.axisymmetric` an axisymmetric flame's emission e(r, y) revolved
+:mod:`.depth` finds the depths that hold emission (depth from focus per region),
+:mod:`.found_planes` solves on them and :mod:`.peel` searches that solve's residual for depths the votes missed; :mod:`.axisymmetric` an axisymmetric flame's emission e(r, y) revolved
 onto a dense stack (its axis searched on the data residual); :mod:`.truth` puts a simulated
 scene's truth on the same grids; :mod:`.scoring` scores planes against it;
 :mod:`.volume` solves a dense stack with a prior (none, TV, sparse, axisymmetric) and
@@ -23,14 +23,17 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["axisymmetric", "decoded", "defaults", "depth", "exact", "files", "fourier", "fourier_system",
-                "noise_knobs", "operator", "resolution", "scoring", "solvers", "truth", "volume"],
+    submodules=["axisymmetric", "decoded", "defaults", "depth", "exact", "files", "found_planes", "fourier",
+                "fourier_system", "noise_knobs", "operator", "peel", "resolution", "scoring", "solvers", "truth",
+                "volume"],
     submod_attrs={
         "axisymmetric": ["AXI_LAM", "AXI_FILLS", "AXI_INNER", "RevolveOperator", "AxisymmetricVolume",
                          "axis_x_from_views", "solve_axisymmetric"],
         "decoded": ["MIN_WHITE", "white_views", "decoded_problem", "decoded_truth", "decoded_plane_truth", "fit_data"],
-        "depth": ["DEPTH_RANGE_MM", "SLOPE_STEP", "MERGE_MM", "NEAR_PARALLAX", "FoundDepths", "find_depths",
-                  "merge_depths", "plane_support", "near_plane_support", "found_support", "find_planes"],
+        "depth": ["DEPTH_RANGE_MM", "SLOPE_STEP", "MERGE_MM", "FoundDepths", "find_depths", "merge_depths"],
+        "peel": ["RESIDUAL_CONTRAST", "RESIDUAL_SHARE", "PEEL_ROUNDS", "missed_depths", "peel_planes"],
+        "found_planes": ["SUPPORT_DILATION", "NEAR_PARALLAX", "SUPPORT_KNOBS", "FOUND_PLANES_KNOBS", "plane_support",
+                         "near_plane_support", "found_support", "found_planes_knobs", "find_planes"],
         "exact": ["QUADRATURE_NODES", "SHIFT_TOLERANCE", "PRECISIONS", "ExactKernels", "exact_kernels",
                   "ExactOperator", "emission_operator"],
         "fourier": ["solve_admm", "fill_data", "wiener_start", "backprojection_weight", "coarse_operator"],

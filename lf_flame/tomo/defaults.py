@@ -87,7 +87,7 @@ ADMM_KNOBS = {(1, "quiet"): dict(ADMM_QUIET, lam=ADMM_LAM, l1=0.001, start="refo
 #: knobs, the fastest stopped solve within 10 % of the best score, as the starts are chosen).
 COARSE_KNOBS = {"quiet": dict(ADMM_KNOBS[1, "quiet"], start="zero"), "noisy": ADMM_KNOBS[1, "noisy"]}
 #: The planes' grid of the routes that build their operator (``lf-flame reconstruct``,
-#: :func:`lf_flame.tomo.depth.find_planes`): a light field carries detail finer than a lenslet in
+#: :func:`lf_flame.tomo.found_planes.find_planes`): a light field carries detail finer than a lenslet in
 #: its views' parallax off focus, and the 2 x 2 grid beat the lenslet grid on the validation
 #: renders at both noise levels (worst plane 2.0 % against 6.2 % noise-free, 8.1 % against 13.2 %
 #: at 14 dB), at 1.6-3.7 times the time per solve. Decoded views of any camera take it too: on the example

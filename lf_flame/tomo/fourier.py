@@ -132,7 +132,7 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     support : ndarray of bool, shape (P, rows, cols), or None
         Where each plane may hold emission (the non-negativity projection also zeroes the
         rest): the lateral footprints of the flames found at each depth
-        (:func:`lf_flame.tomo.depth.find_planes`). None: everywhere.
+        (:func:`lf_flame.tomo.found_planes.find_planes`). None: everywhere.
     start : {"zero", "refocused", "coarse"}
         Where the first fill predicts the missing data from. ``"zero"``: nothing (the
         missing data start at 0). ``"refocused"``: the normalised back-projection
