@@ -116,3 +116,39 @@ def test_bad_input_is_refused(op):
     fine = ExactOperator(op.camera, op.depths_mm[:2], subsamples=2)
     with pytest.raises(ValueError, match="subsamples=1"):
         solve_axisymmetric(np.zeros(fine.dimsd), fine, axis_x_mm=0.0, axis_z_mm=0.0, r_max_mm=1.0)
+
+
+def test_a_flame_cut_by_the_fields_edge(op):
+    """A ring whose far side leaves the field (axis 2.0 mm from the centre of a 5.4 mm field): its light from beyond
+    the field is modelled on the widened grid, the axis comes back and the field's part of the volume with it."""
+    from lf_flame.tomo.axisymmetric import wide_operator
+    from lf_flame.tomo.depth import reaches_edge
+    wide = wide_operator(op)
+    (_, gr, gc), (_, wr, wc) = op.dims, wide.dims
+    assert (wr - gr) % 2 == 0 and (wc - gc) % 2 == 0 and wc - gc >= 2 * int(-op.tap_origin_x.min())
+    axis = (2.0, AXIS[1])
+    rev = RevolveOperator(wide, *axis, R_MAX)
+    views, e = data(wide, ring(rev), rev)
+    r0, c0 = (wr - gr) // 2, (wc - gc) // 2
+    whole = (rev @ e.ravel()).reshape(wide.dims)
+    truth = whole[:, r0:r0 + gr, c0:c0 + gc]
+    assert 0.1 < 1 - truth.sum() / whole.sum() < 0.4                                      # a cut flame
+    assert reaches_edge(views) == (False, False, False, True)
+    centred = RevolveOperator(op, *AXIS, R_MAX)
+    assert reaches_edge(data(op, ring(centred), centred)[0]) == (False,) * 4                # the ring inside the field
+    kw = dict(r_max_mm=R_MAX, fills=8, inner=100, lam=0.0)
+    res = solve_axisymmetric(views, op, np.ones(views.shape, bool), axis_x_mm=axis[0], axis_z_mm=axis[1], **kw)
+    assert res.beyond_field and res.volume.shape == op.dims
+    assert np.linalg.norm(res.volume - truth) / np.linalg.norm(truth) < 0.03
+    inside = solve_axisymmetric(views, op, np.ones(views.shape, bool), axis_x_mm=axis[0], axis_z_mm=axis[1],
+                                beyond_field=False, **kw)
+    # what it replaces: the field's grid alone cannot explain the light from beyond the edge
+    assert inside.residual > 5 * res.residual and not inside.beyond_field
+    assert np.linalg.norm(inside.volume - truth) > 2 * np.linalg.norm(res.volume - truth)
+    # the axis found: the central view's profile is cut, its mirror centre is the axis
+    assert abs(axis_x_from_views(views, op, axis[1]) - axis[0]) < 0.05
+    found = solve_axisymmetric(views, op, np.ones(views.shape, bool), start_z_mm=-0.8, search_half_width_mm=2.0,
+                               r_max_mm=R_MAX, fills=2, inner=100)
+    assert abs(found.axis_x_mm - axis[0]) < 0.05 and abs(found.axis_z_mm - axis[1]) < 0.1
+    with pytest.raises(ValueError, match="margin and subsamples 1"):
+        wide_operator(wide)

@@ -46,6 +46,8 @@ def test_volume_cli_priors_write_the_stack_and_the_axisymmetric_one_wins(volume_
             assert ("extra/emission_r_y" in f) == (prior == "axisymmetric")
             if prior == "axisymmetric":
                 assert abs(settings["axis_z_mm"]) < 0.5 and abs(settings["axis_x_mm"]) < 0.2   # the sheath's axis: 0, 0
+                assert settings["beyond_field"] is False                     # the sheath stands inside the field
+            assert len(json.loads(f.attrs["edge_share"])) == 11
         assert (tmp_path / f"{prior}.png").stat().st_size > 0
     # the sheath is axisymmetric: its prior resolves what the data alone leave to the dense stack
     assert errs["axisymmetric"] < 0.5 * errs["none"], errs
@@ -95,3 +97,20 @@ def test_the_tv_and_l1_weights_follow_the_noise(volume_raw):
     assert noise_regime(relative_noise(noisy, noisy < 1.0)) == "noisy"
     rec, _ = solve_volume(views, cam, -1.0, 1.0, 0.5, "sparse", l1=0.01, resolution=False)
     assert rec.settings["l1"] == 0.01
+
+
+def test_the_edge_warning_names_the_planes_cut_and_says_when_the_light_beyond_was_modelled(capsys):
+    from lf_flame.cli.volume import edge_warning
+    from lf_flame.tomo.solvers import Reconstruction
+    planes = np.zeros((6, 20, 20))
+    planes[:, 8:12, 8:12] = 1.0                                            # inside the field on every plane
+    planes[:5, 8:12, 18:] = 1.0                                            # cut by the right edge on five
+    rec = Reconstruction(planes, tuple(float(d) for d in range(6)), ((0.1, 0.1),) * 6, "admm")
+    edge = edge_warning(rec, None)
+    assert len(edge) == 6 and edge[5] == 0.0 and min(edge[:5]) > 0.3
+    out, err = capsys.readouterr()
+    assert "warning: the emission reaches the field's edge" in err and "+0.00 mm" in err and "and 1 more" in err
+    assert "+5.00 mm" not in err and not out
+    edge_warning(rec, None, modelled=True)
+    out, err = capsys.readouterr()
+    assert "modelled its light from beyond the field" in out and not err

@@ -184,9 +184,29 @@ def saturation_note(rec) -> str:
     return f"{n} saturated pixels (at or above {level:g}) left out of the fit"
 
 
+def edge_warning(rec, op, modelled: bool = False):
+    """Each plane's share of its emission within :data:`~lf_flame.tomo.solvers.EDGE_BAND_LENSLETS` of the field's
+    edge (:func:`~lf_flame.tomo.solvers.edge_shares`), for the file; where a plane's exceeds
+    :data:`~lf_flame.tomo.solvers.EDGE_SHARE_WARN`, one warning (stderr) naming those planes, or with ``modelled``
+    (the axisymmetric prior's light from beyond the field) a note that it was modelled."""
+    from ..tomo.solvers import EDGE_BAND_LENSLETS, EDGE_SHARE_WARN, edge_shares
+    edge = [float(v) for v in edge_shares(rec.planes, getattr(op, "subsamples", 1))]
+    cut = [(d, e) for d, e in zip(rec.depths_mm, edge) if e > EDGE_SHARE_WARN]
+    if cut:
+        which = ", ".join(f"{d:+.2f} mm ({100 * e:.1f} %)" for d, e in cut[:4]) + (
+            f" and {len(cut) - 4} more" if len(cut) > 4 else "")
+        lead = (f"the emission reaches the field's edge (share within {EDGE_BAND_LENSLETS} lenslets of it: {which})")
+        if modelled:
+            print(f"{lead}: the axisymmetric prior modelled its light from beyond the field; the volume holds the "
+                  "field's part")
+        else:
+            print(f"warning: {lead}: the flame is cut by the field of view, and the light that falls outside the "
+                  "views is not recovered", file=sys.stderr)
+    return edge
+
+
 def cmd_reconstruct(a):
     from ..tomo.files import plot_reconstruction, save_reconstruction
-    from ..tomo.solvers import EDGE_BAND_LENSLETS, EDGE_SHARE_WARN, edge_shares
     from ..tomo.truth import scene_truth, truth_depths
     from ..refocus.shift_and_sum import aperture_mask, focal_stack
     if getattr(a, "volume", False):
@@ -230,13 +250,7 @@ def cmd_reconstruct(a):
               "depths were found in, where they meet (the data barely tell such planes apart)")
     print(saturation_note(rec) if not lf.decoded else
           f"{rec.settings['n_saturated']} samples left out of the fit (clipped, or outside the aperture's image)")
-    edge = edge_shares(rec.planes, getattr(op, "subsamples", 1))
-    extra["edge_share"] = [float(v) for v in edge]
-    for d, e in zip(rec.depths_mm, edge):
-        if e > EDGE_SHARE_WARN:
-            print(f"warning: the plane at {d:+.2f} mm holds {100 * e:.1f} % of its emission within "
-                  f"{EDGE_BAND_LENSLETS} lenslets of the field's edge: its flame is cut by the field of view, and "
-                  "the light that falls outside the views is not recovered", file=sys.stderr)
+    extra["edge_share"] = edge_warning(rec, op)
     out = Path(a.out)
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), **extra)
     n = cam.pixels_per_lenslet
@@ -290,8 +304,9 @@ def volume_reconstruct(a):
     table = res.to_frame()
     arrays = {} if axi is None else dict(emission_r_y=axi.emission, radii_mm=axi.radii_mm, heights_mm=axi.heights_mm)
     out = Path(a.out)
+    edge = edge_warning(rec, op, modelled=axi is not None and axi.beyond_field)
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), volume=True,
-                        depth_resolution=table.to_dict("list"))
+                        depth_resolution=table.to_dict("list"), edge_share=edge)
     scene = None if lf.decoded else _raw_scene(a.raw, cam)
     truth = None if scene is None else scene_truth(scene, op)
     refocused = focal_stack(views, [cam.slope_for_depth(d) for d in rec.depths_mm],

@@ -51,7 +51,7 @@ def sheath_density(r_mm, eta, diameter_mm: float, core: float = 0.0):
 
 
 def _axisymmetric_layers(camera, rng, centre_depth_mm, centre_x_mm, diameter_mm, height_mm, core, n_layers,
-                         texels_per_lenslet):
+                         texels_per_lenslet, field_margin=1.2):
     """:func:`volume_flame_scene`'s sheath blended with a filled core (``core`` in [0, 1]) about the axis at
     ``(centre_x_mm, centre_depth_mm)``: (layers, height, base y, layer depths, thickness, peak per mm)."""
     if int(n_layers) < 2 or not diameter_mm > 0:
@@ -62,7 +62,7 @@ def _axisymmetric_layers(camera, rng, centre_depth_mm, centre_x_mm, diameter_mm,
     thick, base_y, raw = diameter_mm / n_layers, -0.45 * h0, []
     for dz in dzs:
         camera.image_distance_mm(camera.object_distance_mm(dz))
-        y, x, (h, w), _ = _layer_grid(camera, dz, texels_per_lenslet, 1.2)
+        y, x, (h, w), _ = _layer_grid(camera, dz, texels_per_lenslet, field_margin)
         r = np.sqrt((x - centre_x_mm) ** 2 + (dz - centre_depth_mm) ** 2)
         raw.append((dz, h, w, sheath_density(r, (y - base_y) / H, diameter_mm, core)))
     peak = 0.9 / (thick * max(float(np.max(sum(e for *_, e in raw))), 1e-12))   # brightest line of sight -> 0.9
@@ -109,7 +109,7 @@ def volume_flame_scene(camera: PlenopticCamera, rng: np.random.Generator | None 
 def axisymmetric_flame_scene(camera: PlenopticCamera, rng: np.random.Generator | None = None, *,
                              centre_depth_mm: float = 0.0, centre_x_mm: float = 0.0, diameter_mm: float = 10.0,
                              height_mm: float | None = None, core: float = 0.0, n_layers: int = 32,
-                             texels_per_lenslet: float = 3.0) -> Scene:
+                             texels_per_lenslet: float = 3.0, field_margin: float = 1.2) -> Scene:
     """An axisymmetric emitting volume (a laminar flame) about a vertical axis, sampled as thin layers.
 
     Emission density ``e(r, y) = env(eta) [(1 - core) exp(-(r - R)^2 / (2 s^2)) + core exp(-r^2 / (2 (R/2 + s)^2))]``:
@@ -138,6 +138,10 @@ def axisymmetric_flame_scene(camera: PlenopticCamera, rng: np.random.Generator |
     n_layers : int
         Layers (>= 2).
     texels_per_lenslet : float
+    field_margin : float
+        Each layer's extent as a multiple of the field of view at its depth: the default
+        1.2 clips a flame that reaches farther; a flame cut by the field's edge needs its
+        whole width drawn, about ``2 (|centre_x_mm| + 0.9 diameter_mm) / width``.
 
     Returns
     -------
@@ -157,7 +161,8 @@ def axisymmetric_flame_scene(camera: PlenopticCamera, rng: np.random.Generator |
     if not (math.isfinite(centre_depth_mm) and math.isfinite(centre_x_mm)):
         raise ValueError(f"the axis must be finite. Received: depth {centre_depth_mm!r}, x {centre_x_mm!r}")
     layers, H, base_y, dzs, thick, peak = _axisymmetric_layers(camera, rng, centre_depth_mm, centre_x_mm, diameter_mm,
-                                                               height_mm, core, n_layers, texels_per_lenslet)
+                                                               height_mm, core, n_layers, texels_per_lenslet,
+                                                               field_margin)
     obj = dict(name="volume", depth_offset_mm=float(centre_depth_mm), centre_x_mm=float(centre_x_mm),
                diameter_mm=float(diameter_mm), height_mm=H, base_y_mm=base_y, core=float(core),
                layer_depths_mm=[float(v) for v in dzs], layer_thickness_mm=thick, peak_emission=peak,

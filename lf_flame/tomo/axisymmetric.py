@@ -37,8 +37,9 @@ import scipy.sparse
 from scipy import optimize
 
 from . import _fourier_kernels
-from .noise_knobs import noise_regime, relative_noise
+from .depth import reaches_edge
 from .fourier import fill_data
+from .noise_knobs import noise_regime, relative_noise
 from .fourier_system import normal_matrices
 
 #: Smoothness weight of :func:`solve_axisymmetric`, relative to the mean diagonal of ``R^T G R``, per noise level
@@ -61,6 +62,10 @@ SEARCH_TOL_MM = 0.05
 #: spacing of the scan's best: the short trials' residual is not unimodal over the bracket for a filled core
 #: (a validation core at -1.6 mm, seed 603: the bounded search alone stopped at -0.87 mm, 3-D error 31.7 %).
 SEARCH_SCAN_MM = 0.5
+#: Weight of the one-sided light in :func:`_mirror_centre`'s cost. On the validation renders (``experiments/volume.py
+#: --set edge --validation``) a sheath 11.5 % outside the field at 14 dB has two near-perfect mirror centres: its axis
+#: (87 % of the light both sides) and its right limb (28 %), 0.000 and 0.000 apart in the symmetric term alone.
+MIRROR_ONE_SIDED = 0.005
 
 
 def _grid_coordinates(op, p):
@@ -192,6 +197,9 @@ class AxisymmetricVolume:
         Wall time, seconds (normal matrices, search and solve).
     lam : float
         The smoothness weight used (given, or :data:`AXI_LAM` for the light field's noise).
+    beyond_field : bool
+        Whether the light from beyond the field was modelled (``solve_axisymmetric``'s
+        ``beyond_field``); ``heights_mm`` then span the widened grid.
     """
 
     emission: np.ndarray
@@ -204,6 +212,7 @@ class AxisymmetricVolume:
     search: list = field(default_factory=list)
     time_s: float = float("nan")
     lam: float = float("nan")
+    beyond_field: bool = False
 
 
 class _Normal:
@@ -255,6 +264,16 @@ def _check(views, op, fit):
     if f.shape != v.shape or f.dtype != bool:
         raise ValueError(f"fit must be boolean of the views' shape {v.shape}. Received: {f.dtype} of shape {f.shape}")
     return v, f
+
+
+def _resized(e, dims):
+    """``e`` (rows, n_r) cut or padded with zeros to ``dims`` along the radius; None stays None."""
+    if e is None:
+        return None
+    out = np.zeros(dims)
+    n = min(dims[1], e.shape[1])
+    out[:, :n] = e[:, :n]
+    return out.ravel()
 
 
 def _fit_emission(op, normal, yt, y, w, m, lit, revolve, lam, fills, inner, e0=None):
@@ -311,12 +330,77 @@ def _fit_emission(op, normal, yt, y, w, m, lit, revolve, lam, fills, inner, e0=N
     return e, residual
 
 
+def wide_operator(op):
+    """The exact operator's planes on a grid wider than the field by the kernels' reach.
+
+    A view pixel at the field's edge reads the planes up to the kernels' largest offset
+    beyond it (its parallax): emission there is light in the data that a grid the size
+    of the field cannot explain. This operator's planes (same camera, depths, effects and
+    precision) hold it; the field's grid is its central ``op.dims[1:]`` samples (an even
+    number of extra samples per axis, so the two grids' samples coincide).
+
+    Parameters
+    ----------
+    op : ExactOperator
+        With ``margin`` 1 and ``subsamples`` 1.
+
+    Returns
+    -------
+    ExactOperator
+        ``margin`` the smallest ``1 + t`` with ``t n_rows`` and ``t n_cols`` even integers
+        that reach as far as the kernels on both axes.
+
+    Raises
+    ------
+    ValueError
+        An operator with a margin or subsamples other than 1.
+    """
+    from .exact import ExactOperator
+    if op.margin != 1 or op.subsamples != 1:
+        raise ValueError(f"wide_operator widens a field-sized lenslet grid: margin and subsamples 1. "
+                         f"Received: margin={op.margin!r}, subsamples={op.subsamples!r}")
+    _, _, R, C = op.dimsd
+    ty, tx = op.kernels.shape[3:]
+    reach_y = max(-int(op.tap_origin_y.min()), int((op.tap_origin_y + ty - 1).max()), 1)
+    reach_x = max(-int(op.tap_origin_x.min()), int((op.tap_origin_x + tx - 1).max()), 1)
+    k = reach_x                                                  # k extra columns per side; rows k R / C per side
+    while (k * R) % C or (k * R) // C < reach_y:
+        k += 1
+    return ExactOperator(op.camera, list(op.depths_mm), margin=1.0 + 2.0 * k / C, effects=op.effects,
+                         precision=op.precision, quadrature_nodes=op.quadrature_nodes, workers=op.workers)
+
+
+def _mirror_centre(prof):
+    """Column (fractional, every 0.1) about which ``prof`` is most nearly mirror-symmetric over the columns both
+    sides hold: the lowest ``sum (p - q)^2 / sum (p^2 + q^2)`` there (``q`` the mirror image) plus
+    :data:`MIRROR_ONE_SIDED` x the share of the light whose mirror falls beyond the view, so that a limb's own
+    symmetry near the edge does not pass for the flame's."""
+    C = len(prof)
+    cols = np.arange(C)
+    lit = np.flatnonzero(prof > 0)
+    best, best_cost = None, np.inf
+    for c0 in np.arange(lit[0], lit[-1] + 1e-9, 0.1):
+        both = (cols >= 2 * c0 - (C - 1)) & (cols <= 2 * c0)
+        p = prof[both]
+        q = np.interp(2 * c0 - cols[both], cols, prof)
+        energy = float(np.sum(p * p + q * q))
+        if not energy > 0:
+            continue
+        cost = float(np.sum((p - q) ** 2)) / energy + MIRROR_ONE_SIDED * (1.0 - p.sum() / prof.sum())
+        if cost < best_cost:
+            best, best_cost = float(c0), cost
+    return best
+
+
 def axis_x_from_views(views, op, axis_z_mm: float, fit=None) -> float:
     """Lateral position (mm) of a vertical axis of symmetry: the central view's column centroid at depth ``axis_z_mm``.
 
     The central sub-aperture view is a pinhole image: its column ``c`` sees the plane
     sample ``c`` at every depth, so the centroid column of an axisymmetric flame's image is
     its axis's, and the axis's position is that column's on the grid at the axis's depth.
+    Where the lit columns reach the view's edge (a flame cut by the field's edge) the
+    centroid is pulled inward: the axis is then the column about which the lit profile is
+    most nearly mirror-symmetric over the columns both sides hold.
 
     Parameters
     ----------
@@ -343,6 +427,8 @@ def axis_x_from_views(views, op, axis_z_mm: float, fit=None) -> float:
     if not prof.sum() > 0:
         raise ValueError("the central view holds no light: no axis to find")
     cbar = float(np.sum(np.arange(len(prof)) * prof) / prof.sum())
+    if prof[0] > 0 or prof[-1] > 0:
+        cbar = _mirror_centre(prof)
     _, w = _frame_at(op, axis_z_mm)
     gc = op.dims[2]
     return ((cbar + 0.5) / gc - 0.5) * w
@@ -353,7 +439,7 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
                        fills: int = AXI_FILLS, inner: int = AXI_INNER, search_half_width_mm: float = SEARCH_HALF_WIDTH_MM,
                        search_fills: int = SEARCH_FILLS, search_inner: int = SEARCH_INNER,
                        search_tol_mm: float = SEARCH_TOL_MM, start_z_mm: float | None = None, camera=None,
-                       normal=None) -> AxisymmetricVolume:
+                       normal=None, beyond_field: bool | None = None) -> AxisymmetricVolume:
     """An axisymmetric flame's emission ``e(r, y)`` and its volume from one light field (module docstring).
 
     Parameters
@@ -368,7 +454,8 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
         The axis (mm); None: found (``x0`` by :func:`axis_x_from_views`, ``z0`` by the search).
     r_max_mm : float or None
         Outermost radius (mm); None: 0.6 x the width of the central view's lit columns at
-        the axis's depth (a flame's half width with a margin).
+        the axis's depth (a flame's half width with a margin); where they reach the view's
+        edge, 1.2 x the distance from the axis to their farther end (the uncut side's).
     dr_mm : float or None
         Radial node spacing (:class:`RevolveOperator`).
     lam : float or None
@@ -388,7 +475,12 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
         For :func:`~lf_flame.tomo.depth.find_depths`; None: ``op.camera``.
     normal : object or None
         Normal matrices from an earlier call (``result``'s operator cache); None: computed
-        (and kept on ``op``).
+        (and kept on the operator solved on).
+    beyond_field : bool or None
+        Model the flame's light from beyond the field: ``e`` is revolved onto the planes of
+        :func:`wide_operator` (``op``'s planes widened by the kernels' reach) and fitted there,
+        and the volume returned is its part on ``op``'s grid. None: when the light reaches
+        the field's edge (:func:`reaches_edge`) and ``op`` has margin 1.
 
     Returns
     -------
@@ -415,11 +507,17 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
         raise ValueError(f"search_half_width_mm and search_tol_mm must be > 0. Received: {search_half_width_mm!r}, "
                          f"{search_tol_mm!r}")
     N = op.dimsd[0]
+    if beyond_field is None:
+        beyond_field = op.margin == 1 and any(reaches_edge(v))
+    model = op
+    if beyond_field:
+        model = op.__dict__.get("_axisymmetric_wide") or wide_operator(op)
+        op.__dict__["_axisymmetric_wide"] = model
     if normal is None:
-        normal = op.__dict__.get("_axisymmetric_normal") or _Normal(op)
-        op.__dict__["_axisymmetric_normal"] = normal
-    lit = op._lit
-    y, yt, w, m, _ = fill_data(v, f, op)
+        normal = model.__dict__.get("_axisymmetric_normal") or _Normal(model)
+        model.__dict__["_axisymmetric_normal"] = normal
+    lit = model._lit
+    y, yt, w, m, _ = fill_data(v, f, model)
 
     def revolve_at(z0):
         x0 = axis_x_from_views(v, op, z0, f) if axis_x_mm is None else float(axis_x_mm)
@@ -429,10 +527,17 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
             prof = np.clip(v[c, c], 0, None).sum(axis=0)
             lit_cols = np.flatnonzero(prof > 0.05 * prof.max())
             _, wz = _frame_at(op, z0)
-            rmax = 0.6 * (lit_cols[-1] - lit_cols[0] + 1) * wz / op.dims[2]
-        return RevolveOperator(op, x0, z0, rmax, dr_mm)
+            left, right = (np.array([lit_cols[0], lit_cols[-1] + 1]) / op.dims[2] - 0.5) * wz
+            half = 0.5 * (right - left)
+            if lit_cols[0] == 0 or lit_cols[-1] == len(prof) - 1:          # cut by the edge: the far side's
+                half = max(x0 - left, right - x0)
+            rmax = 1.2 * half
+        return RevolveOperator(model, x0, z0, rmax, dr_mm)
 
     search = []
+    # on the widened grid the light beyond the field is known through the fills alone: each trial, and the final
+    # solve, start from the best trial's e (from zero, 3 fills leave it dark and bias the residual's minimum)
+    warm = {}
     if axis_z_mm is None:
         if start_z_mm is None:
             from .depth import find_depths
@@ -443,8 +548,11 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
 
         def trial(z0):
             rev = revolve_at(z0)
-            _, res = _fit_emission(op, normal, yt, y, w, m, lit, rev, lam, search_fills, search_inner)
+            e, res = _fit_emission(model, normal, yt, y, w, m, lit, rev, lam, search_fills, search_inner,
+                                   _resized(warm.get("e"), rev.dims) if beyond_field else None)
             search.append((float(z0), float(res)))
+            if res < warm.get("residual", np.inf):
+                warm.update(e=e.reshape(rev.dims), residual=res)
             return res
         lo, hi = start_z_mm - search_half_width_mm, start_z_mm + search_half_width_mm
         scan = np.linspace(lo, hi, max(int(round((hi - lo) / SEARCH_SCAN_MM)), 1) + 1)
@@ -453,8 +561,11 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
                                         method="bounded", options=dict(xatol=search_tol_mm))
         axis_z_mm = float(best.x)
     rev = revolve_at(float(axis_z_mm))
-    e, res = _fit_emission(op, normal, yt, y, w, m, lit, rev, lam, fills, inner)
+    e, res = _fit_emission(model, normal, yt, y, w, m, lit, rev, lam, fills, inner,
+                           _resized(warm.get("e"), rev.dims) if beyond_field else None)
+    (_, gr, gc), (_, wr, wc) = op.dims, model.dims
+    volume = (rev.matrix @ e).reshape(model.dims)[:, (wr - gr) // 2:(wr + gr) // 2, (wc - gc) // 2:(wc + gc) // 2]
     return AxisymmetricVolume(emission=e.reshape(rev.dims), radii_mm=rev.radii_mm, heights_mm=rev.heights_mm,
-                              volume=(rev.matrix @ e).reshape(op.dims), axis_x_mm=rev.axis_x_mm,
-                              axis_z_mm=float(axis_z_mm), residual=float(res), search=search,
-                              time_s=time.perf_counter() - t0, lam=float(lam))
+                              volume=volume, axis_x_mm=rev.axis_x_mm, axis_z_mm=float(axis_z_mm), residual=float(res),
+                              search=search, time_s=time.perf_counter() - t0, lam=float(lam),
+                              beyond_field=bool(beyond_field))

@@ -88,7 +88,8 @@ def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, p
     rec : Reconstruction
         ``planes`` (P, R, C) on the stack (float64, non-negative); ``solver`` is ``"admm"`` or
         ``"axisymmetric"``; ``settings`` hold the prior, its weights and, for the
-        axisymmetric prior, the axis (mm), the residual and the search.
+        axisymmetric prior, the axis (mm), the residual, the search and ``beyond_field``
+        (whether the flame's light from beyond the field was modelled).
     extra : dict
         ``"axisymmetric"``: the :class:`~lf_flame.tomo.axisymmetric.AxisymmetricVolume`
         (None for the other priors); ``"resolution"``: the
@@ -129,6 +130,7 @@ def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, p
         sample = tuple((h / op.dims[1], w / op.dims[2]) for h, w in op.sizes_mm)
         rec = Reconstruction(axi.volume, tuple(float(d) for d in depths), sample, "axisymmetric",
                              dict(prior=prior, axis_x_mm=axi.axis_x_mm, axis_z_mm=axi.axis_z_mm, lam=axi.lam,
+                                  beyond_field=axi.beyond_field,
                                   saturation="mask" if np.ndim(saturation) else saturation, n_saturated=int((~fit).sum()),
                                   search=[list(s) for s in axi.search]),
                              np.array([axi.residual]), axi.time_s)
