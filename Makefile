@@ -21,7 +21,7 @@ HELDOUT_paper := 20
 HELDOUT_quick := 4
 HELDOUT_SEED := 770077
 
-.PHONY: train-reconstructor cameras temperature temperature-volume temperature-sequence help install docs dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi sequence new-user heights test clean-quick
+.PHONY: train-reconstructor cameras temperature temperature-volume temperature-sequence help install docs dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi volume-edge sequence new-user heights test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -182,6 +182,12 @@ volume: $(STAMP) ## axisymmetric volumes: 3-D, projection and depth-centroid err
 # shift-and-sum (over 15 min on 2 cores from no cache, so its own target; renders cached in data/volume)
 volume-nonaxi: $(STAMP) ## non-axisymmetric volumes: centroid and outside-range shares -> results/volume_nonaxi.{csv,md,json,png}
 	$(VENV)/bin/python experiments/volume.py --set nonaxi --out $(TRADEOFF_OUT)
+
+# axisymmetric flames cut by the field's edge (0-30 % of their light outside): the axisymmetric prior with the light
+# from beyond the field modelled, the same on the field's grid alone, admm (about 30 min on 2 cores; renders cached
+# in data/volume)
+volume-edge: $(STAMP) ## axisymmetric flames cut by the field's edge: axis and 3-D errors -> results/volume_edge.{csv,md,json}
+	$(VENV)/bin/python experiments/volume.py --set edge --out $(TRADEOFF_OUT)
 
 # the stem is REGIME/table_SCENE
 $(RES)/%.md: $(MODELS)/$$(*D)/$$(subst table_,,$$(*F))/train_info.json

@@ -19,10 +19,14 @@ flame tomography; e.g. Dasch, Appl. Opt. 31 (1992), here composed with the light
   with the sensor window's and saturated pixels' missing data filled from the prediction
   as :func:`lf_flame.tomo.fourier.solve_admm` does (each *fill* one ``H`` and one ``H^H``
   over the views; the FISTA steps between fills run on the planes alone).
+- **Flames cut by the field's edge.** Where the light reaches an edge of the field
+  (:func:`lf_flame.tomo.depth.reaches_edge`), ``e`` is revolved onto the planes of
+  :func:`wide_operator` (the field's planes widened by the exact operator's reach), so the light
+  that parallax brings in from beyond the field is fitted too; the volume returned is the field's part.
 - **The axis.** ``x0`` from the central view's (a pinhole image's) column centroid at the
-  axis's depth; ``z0`` searched by :func:`scipy.optimize.minimize_scalar` (bounded) on the
+  axis's depth (its mirror centre where the lit columns reach the view's edge); ``z0`` searched by :func:`scipy.optimize.minimize_scalar` (bounded) on the
   data residual of a shorter solve, about a start from
-  :func:`lf_flame.tomo.depth.find_depths` (the found depths' vote-weighted mean) unless given.
+  :func:`lf_flame.tomo.depth.find_depths` (its found depth with the most votes) unless given.
 """
 from __future__ import annotations
 
@@ -469,8 +473,8 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
         the tolerance (mm). The bracket is scanned every :data:`SEARCH_SCAN_MM` first; the
         bounded search (Brent) then refines within one spacing of the scan's lowest residual.
     start_z_mm : float or None
-        Start of the search; None: the vote-weighted mean of :func:`lf_flame.tomo.depth.find_depths`
-        (needs ``camera``).
+        Start of the search; None: the depth of :func:`lf_flame.tomo.depth.find_depths` with the
+        most votes (``camera``'s).
     camera : PlenopticCamera or None
         For :func:`~lf_flame.tomo.depth.find_depths`; None: ``op.camera``.
     normal : object or None
@@ -544,7 +548,7 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
             found = find_depths(v, camera if camera is not None else op.camera)
             if not len(found.depths_mm):
                 raise ValueError("find_depths found no flame in the views: give axis_z_mm or start_z_mm")
-            start_z_mm = float(np.average(found.depths_mm, weights=np.maximum(found.weight, 1e-12)))
+            start_z_mm = float(found.depths_mm[np.argmax(found.weight)])     # the flame's: the most votes
 
         def trial(z0):
             rev = revolve_at(z0)

@@ -53,9 +53,9 @@ EDGE_SHARE = 0.05
 #: Share of a refocused lenslet's reach (``|slope| (N - 1) / 2`` lenslets) within which a lit edge makes its focus
 #: energy untrusted (:func:`_within_field`). Chosen on Gaussian flames cut by the paper camera's right edge (0-28 %
 #: of their light outside, -6 to +15 mm; exact-operator light fields, a ``/tmp`` probe): with no such band +4 mm was
-#: found at +3.1 mm and -2 mm at -1.6 mm (3 % outside); the whole reach found all within 0.06 mm but took the votes
+#: found at +3.1 mm and -2 mm at -1.6 mm (3 % outside); the whole reach found all within 0.14 mm but took the votes
 #: of a flame whose base the bottom edge cuts (``tests/test_depth.py``'s behind scene, the far flame lost); 0.5
-#: left +9 mm at +8.7 mm; 0.75 keeps the behind scene and finds all within 0.13 mm but +15 mm (0.52 mm short).
+#: left +9 mm at +8.7 mm; 0.75 keeps the behind scene and finds all within 0.13 mm but +15 mm (0.53 mm short).
 EDGE_REACH = 0.75
 
 
@@ -224,13 +224,11 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
     ten, lap = _focus_energy(v, slopes, sigma, laplacian=True)
     best = np.argmax(ten, axis=0)
     contrast = ten.max(axis=0) - np.median(ten, axis=0)
-    # near the field's edge a lenslet's energy is trusted over a range of slopes only: its largest at that range's
-    # end may stand for a peak beyond it, and casts no vote
+    # a lenslet's energy is trusted over the grid's slopes, and near a lit edge of the field over fewer: its largest
+    # at that range's end may stand for a peak beyond it (or none: energy rising to the grid's end), and casts no vote
     valid = _within_field(ten.shape[1:], slopes, n, sigma, reaches_edge(v))
     first, last = np.argmax(valid, axis=0), len(slopes) - 1 - np.argmax(valid[::-1], axis=0)
-    inside = (((best > first) | (first == 0)) & ((best < last) | (last == len(slopes) - 1))
-              & (valid.sum(axis=0) >= 3))
-    contrast = np.where(inside, contrast, 0.0)
+    contrast = np.where((best > first) & (best < last), contrast, 0.0)
 
     # 3. depths per region
     dz_ds = abs(camera.depth_for_slope(slope_step) - camera.depth_for_slope(0.0)) / slope_step   # mm per slope
