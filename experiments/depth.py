@@ -84,10 +84,10 @@ SEPARATIONS_MM = (5.0, 10.0)
 #: "heights-region-box": the slope search's flames also measured within their boxes (the regions it is given), as
 #: before "heights-region", which measured them in their columns alone (3 % off by > 1 mm: other flames' blur).
 SCORE_VERSION = "heights-region-box"
-#: The auto route the cached rows were solved by (rows of another are solved again): "edge-votes", the focus votes
-#: kept away from the lit edges of the field (``tomo.depth.EDGE_REACH``), after "near-peel" (found planes near in
-#: parallax held to their regions, ``NEAR_PARALLAX``, and depths missed by the votes found in the residual).
-ROUTE_VERSION = "edge-votes"
+#: The auto route the cached rows were solved by (rows of another are solved again): "near-peel", found planes near
+#: in parallax held to their regions (``NEAR_PARALLAX``) and depths missed by the votes found in the residual
+#: (``peel_planes``).
+ROUTE_VERSION = "near-peel"
 
 
 def add_noise(raw, snr_db, seed):

@@ -427,26 +427,3 @@ def test_the_cli_finds_the_hidden_flame_as_the_library_route(cam, tmp_path, caps
         np.testing.assert_allclose([d["depth_mm"] for d in json.loads(f.attrs["found_depths"])], found.depths_mm)
         np.testing.assert_allclose(f["depths_mm"][...], found.planes_mm)
         np.testing.assert_allclose(f["planes"][...], rec.planes, rtol=1e-4, atol=1e-5 * rec.planes.max())
-
-
-def test_a_flame_cut_by_the_fields_edge_is_found_at_its_depth(cam, monkeypatch):
-    """Light beyond the field (an exact-operator light field of planes wider than the field): the lenslets near the
-    lit edge vote only at the slopes their refocus stays clear of it, so the cut flame is not pulled toward focus."""
-    from lf_flame.tomo import depth
-    from lf_flame.tomo.exact import ExactOperator
-    for d in (-4.0, 6.0):
-        op = ExactOperator(cam, [d], margin=1.4, precision="float32")
-        _, gr, gc = op.dims
-        yy, xx = np.mgrid[0:gr, 0:gc]
-        x = np.exp(-((yy - gr / 2) ** 2 / (2 * 8.0 ** 2) + (xx - (gc - 8 - 6)) ** 2 / (2 * 5.0 ** 2)))
-        r0, c0 = (gr - cam.n_rows) // 2, (gc - cam.n_cols) // 2
-        assert 0.05 < 1 - x[r0:r0 + cam.n_rows, c0:c0 + cam.n_cols].sum() / x.sum() < 0.3     # cut by the right edge
-        views = (op @ x.ravel()).reshape(op.dimsd)
-        views *= 0.8 / views.max()
-        assert depth.reaches_edge(views) == (False, False, False, True)
-        found = find_depths(views, cam)
-        assert len(found.depths_mm) == 1 and abs(found.depths_mm[0] - d) < 0.15, (d, found.depths_mm)
-        with monkeypatch.context() as m:              # every lenslet trusted: pulled toward focus, or a depth too many
-            m.setattr(depth, "_within_field", lambda shape, slopes, *a: np.ones((len(slopes),) + shape, bool))
-            pulled = find_depths(views, cam).depths_mm
-            assert len(pulled) > 1 or abs(pulled[0] - d) > 0.2, (d, pulled)

@@ -30,7 +30,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "axisymmetric": ["AXI_LAM", "AXI_FILLS", "AXI_INNER", "RevolveOperator", "AxisymmetricVolume",
                          "axis_x_from_views", "solve_axisymmetric", "wide_operator"],
         "decoded": ["MIN_WHITE", "white_views", "decoded_problem", "decoded_truth", "decoded_plane_truth", "fit_data"],
-        "depth": ["DEPTH_RANGE_MM", "EDGE_SHARE", "EDGE_REACH", "SLOPE_STEP", "MERGE_MM", "FoundDepths", "find_depths", "merge_depths",
+        "depth": ["DEPTH_RANGE_MM", "EDGE_SHARE", "SLOPE_STEP", "MERGE_MM", "FoundDepths", "find_depths", "merge_depths",
                   "reaches_edge"],
         "peel": ["RESIDUAL_CONTRAST", "RESIDUAL_SHARE", "PEEL_ROUNDS", "missed_depths", "peel_planes"],
         "found_planes": ["SUPPORT_DILATION", "NEAR_PARALLAX", "SUPPORT_KNOBS", "FOUND_PLANES_KNOBS", "plane_support",

@@ -47,16 +47,9 @@ SLOPE_STEP = 0.04
 MERGE_MM = 1.0
 #: Light in the outermost column or row of the views summed over the aperture (the slope-0 image), as a share of
 #: its brightest column's or row's, above which the light reaches that edge of the field (:func:`reaches_edge`): a
-#: flame cut by it. The focus energy is then trusted only away from that edge (:func:`_within_field`), and the
-#: axisymmetric prior models the light from beyond it (:func:`lf_flame.tomo.axisymmetric.wide_operator`).
+#: flame cut by it, whose light from beyond the field the axisymmetric prior then models
+#: (:func:`lf_flame.tomo.axisymmetric.wide_operator`).
 EDGE_SHARE = 0.05
-#: Share of a refocused lenslet's reach (``|slope| (N - 1) / 2`` lenslets) within which a lit edge makes its focus
-#: energy untrusted (:func:`_within_field`). Chosen on Gaussian flames cut by the paper camera's right edge (0-28 %
-#: of their light outside, -6 to +15 mm; exact-operator light fields, a ``/tmp`` probe): with no such band +4 mm was
-#: found at +3.1 mm and -2 mm at -1.6 mm (3 % outside); the whole reach found all within 0.14 mm but took the votes
-#: of a flame whose base the bottom edge cuts (``tests/test_depth.py``'s behind scene, the far flame lost); 0.5
-#: left +9 mm at +8.7 mm; 0.75 keeps the behind scene and finds all within 0.13 mm but +15 mm (0.53 mm short).
-EDGE_REACH = 0.75
 
 
 @dataclass
@@ -224,11 +217,6 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
     ten, lap = _focus_energy(v, slopes, sigma, laplacian=True)
     best = np.argmax(ten, axis=0)
     contrast = ten.max(axis=0) - np.median(ten, axis=0)
-    # a lenslet's energy is trusted over the grid's slopes, and near a lit edge of the field over fewer: its largest
-    # at that range's end may stand for a peak beyond it (or none: energy rising to the grid's end), and casts no vote
-    valid = _within_field(ten.shape[1:], slopes, n, sigma, reaches_edge(v))
-    first, last = np.argmax(valid, axis=0), len(slopes) - 1 - np.argmax(valid[::-1], axis=0)
-    contrast = np.where((best > first) & (best < last), contrast, 0.0)
 
     # 3. depths per region
     dz_ds = abs(camera.depth_for_slope(slope_step) - camera.depth_for_slope(0.0)) / slope_step   # mm per slope
@@ -299,39 +287,17 @@ def reaches_edge(views) -> tuple:
     return (bool(rows[0] > top_r), bool(rows[-1] > top_r), bool(cols[0] > top_c), bool(cols[-1] > top_c))
 
 
-def _within_field(shape, slopes, n, sigma, edges):
-    """(S, R, C) bool: where a lenslet's focus energy at each slope is free of the lit edges of the field.
-
-    Refocused at slope ``s`` a lenslet averages the views up to ``|s| (n - 1) / 2`` lenslets away; nearer an
-    edge the light reaches (``edges``: top, bottom, left, right, :func:`reaches_edge`) some of them fall outside
-    the sensor where light was, and the cut, the same in every view, is a feature in focus at slope 0. A
-    lenslet's energy is trusted at the slopes where such an edge lies farther than :data:`EDGE_REACH` of that
-    reach plus the energy's own footprint (the Sobel's lenslet and two smoothing ``sigma``); dark edges are no
-    cut.
-    """
-    R, C = shape
-    rr, cc = np.arange(R)[:, None], np.arange(C)[None, :]
-    dist = np.full((R, C), np.inf)
-    for lit, d in zip(edges, (rr, R - 1 - rr, cc, C - 1 - cc)):
-        if lit:
-            dist = np.minimum(dist, d)
-    reach = EDGE_REACH * np.abs(np.asarray(slopes, np.float64)) * (n - 1) / 2 + math.ceil(1 + 2 * sigma)
-    return dist[None] >= reach[:, None, None]
-
-
 def _focus_energy(views, slopes, sigma, laplacian=False):
     """The views refocused band-limited at ``slopes`` (:class:`FourierSlice`, circular aperture); per slope and
     lenslet the Tenengrad energy (squared Sobel gradient), and with ``laplacian`` the squared Laplacian, each
-    smoothed over ``sigma`` lenslets and 0 where a lit edge of the field reaches it (:func:`_within_field`):
-    (S, R, C) float64 arrays."""
+    smoothed over ``sigma`` lenslets: (S, R, C) float64 arrays."""
     mask = aperture_mask(views.shape[0], "circular")
     stack = FourierSlice(views, float(np.max(np.abs(slopes))) + 1e-9, mask).stack(slopes).astype(np.float64)
-    valid = _within_field(stack.shape[1:], slopes, views.shape[0], sigma, reaches_edge(views))
     ten = np.array([ndimage.gaussian_filter(ndimage.sobel(im, 0) ** 2 + ndimage.sobel(im, 1) ** 2, sigma)
-                    for im in stack]) * valid
+                    for im in stack])
     if not laplacian:
         return ten
-    return ten, np.array([ndimage.gaussian_filter(ndimage.laplace(im) ** 2, sigma) for im in stack]) * valid
+    return ten, np.array([ndimage.gaussian_filter(ndimage.laplace(im) ** 2, sigma) for im in stack])
 
 
 def merge_depths(depths_mm, weights, merge_mm: float = MERGE_MM):
