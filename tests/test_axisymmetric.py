@@ -135,7 +135,11 @@ def test_a_flame_cut_by_the_fields_edge(op):
     assert 0.1 < 1 - truth.sum() / whole.sum() < 0.4                                      # a cut flame
     assert reaches_edge(views) == (False, False, False, True)
     centred = RevolveOperator(op, *AXIS, R_MAX)
-    assert reaches_edge(data(op, ring(centred), centred)[0]) == (False,) * 4                # the ring inside the field
+    inside = data(op, ring(centred), centred)[0]
+    assert reaches_edge(inside) == (False,) * 4                                           # the ring inside the field
+    noise = np.random.default_rng(1).normal(scale=0.05, size=views.shape)           # clipped at 0, as a sensor's
+    assert reaches_edge(np.clip(inside + noise, 0, None)) == (False,) * 4           # its floor is no light
+    assert reaches_edge(np.clip(views + noise, 0, None)) == (False, False, False, True)
     kw = dict(r_max_mm=R_MAX, fills=8, inner=100, lam=0.0)
     res = solve_axisymmetric(views, op, np.ones(views.shape, bool), axis_x_mm=axis[0], axis_z_mm=axis[1], **kw)
     assert res.beyond_field and res.volume.shape == op.dims

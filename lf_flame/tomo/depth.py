@@ -268,9 +268,9 @@ def reaches_edge(views) -> tuple:
     """Which edges of the field a light field's light reaches (a flame cut by the field's edge).
 
     The views summed over the aperture (the slope-0 image, which holds the light that
-    parallax brings in from beyond the field) are summed along rows and along columns; an
-    edge is reached where the outermost column or row holds more than :data:`EDGE_SHARE`
-    of the brightest one.
+    parallax brings in from beyond the field), less its dark floor (its 5th percentile: the
+    mean of clipped noise), are summed along rows and along columns; an edge is reached where
+    the outermost column or row holds more than :data:`EDGE_SHARE` of the brightest one.
 
     Parameters
     ----------
@@ -282,6 +282,7 @@ def reaches_edge(views) -> tuple:
         Top, bottom, left, right.
     """
     img = np.clip(np.asarray(views, np.float64), 0.0, None).sum(axis=(0, 1))
+    img = img - np.percentile(img, 5)
     rows, cols = img.sum(axis=1), img.sum(axis=0)
     top_r, top_c = EDGE_SHARE * rows.max(), EDGE_SHARE * cols.max()
     return (bool(rows[0] > top_r), bool(rows[-1] > top_r), bool(cols[0] > top_c), bool(cols[-1] > top_c))
