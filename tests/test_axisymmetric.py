@@ -121,8 +121,7 @@ def test_bad_input_is_refused(op):
 def test_a_flame_cut_by_the_fields_edge(op):
     """A ring whose far side leaves the field (axis 2.0 mm from the centre of a 5.4 mm field): its light from beyond
     the field is modelled on the widened grid, the axis comes back and the field's part of the volume with it."""
-    from lf_flame.tomo.axisymmetric import wide_operator
-    from lf_flame.tomo.depth import reaches_edge
+    from lf_flame.tomo.axisymmetric import reaches_edge, wide_operator
     wide = wide_operator(op)
     (_, gr, gc), (_, wr, wc) = op.dims, wide.dims
     assert (wr - gr) % 2 == 0 and (wc - gc) % 2 == 0 and wc - gc >= 2 * int(-op.tap_origin_x.min())

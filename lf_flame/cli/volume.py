@@ -195,7 +195,7 @@ def edge_warning(rec, op, modelled: bool = False):
     if cut:
         which = ", ".join(f"{d:+.2f} mm ({100 * e:.1f} %)" for d, e in cut[:4]) + (
             f" and {len(cut) - 4} more" if len(cut) > 4 else "")
-        lead = (f"the emission reaches the field's edge (share within {EDGE_BAND_LENSLETS} lenslets of it: {which})")
+        lead = f"the emission reaches the field's edge (share within {EDGE_BAND_LENSLETS} lenslets of it: {which})"
         if modelled:
             print(f"{lead}: the axisymmetric prior modelled its light from beyond the field; the volume holds the "
                   "field's part")

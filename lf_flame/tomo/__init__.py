@@ -28,10 +28,9 @@ __getattr__, __dir__, __all__ = lazy.attach(
                 "volume"],
     submod_attrs={
         "axisymmetric": ["AXI_LAM", "AXI_FILLS", "AXI_INNER", "RevolveOperator", "AxisymmetricVolume",
-                         "axis_x_from_views", "solve_axisymmetric", "wide_operator"],
+                         "axis_x_from_views", "solve_axisymmetric", "wide_operator", "EDGE_SHARE", "reaches_edge"],
         "decoded": ["MIN_WHITE", "white_views", "decoded_problem", "decoded_truth", "decoded_plane_truth", "fit_data"],
-        "depth": ["DEPTH_RANGE_MM", "EDGE_SHARE", "SLOPE_STEP", "MERGE_MM", "FoundDepths", "find_depths", "merge_depths",
-                  "reaches_edge"],
+        "depth": ["DEPTH_RANGE_MM", "SLOPE_STEP", "MERGE_MM", "FoundDepths", "find_depths", "merge_depths"],
         "peel": ["RESIDUAL_CONTRAST", "RESIDUAL_SHARE", "PEEL_ROUNDS", "missed_depths", "peel_planes"],
         "found_planes": ["SUPPORT_DILATION", "NEAR_PARALLAX", "SUPPORT_KNOBS", "FOUND_PLANES_KNOBS", "plane_support",
                          "near_plane_support", "found_support", "found_planes_knobs", "find_planes"],

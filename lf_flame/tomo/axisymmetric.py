@@ -20,7 +20,7 @@ flame tomography; e.g. Dasch, Appl. Opt. 31 (1992), here composed with the light
   as :func:`lf_flame.tomo.fourier.solve_admm` does (each *fill* one ``H`` and one ``H^H``
   over the views; the FISTA steps between fills run on the planes alone).
 - **Flames cut by the field's edge.** Where the light reaches an edge of the field
-  (:func:`lf_flame.tomo.depth.reaches_edge`), ``e`` is revolved onto the planes of
+  (:func:`reaches_edge`), ``e`` is revolved onto the planes of
   :func:`wide_operator` (the field's planes widened by the exact operator's reach), so the light
   that parallax brings in from beyond the field is fitted too; the volume returned is the field's part.
 - **The axis.** ``x0`` from the central view's (a pinhole image's) column centroid at the
@@ -42,7 +42,6 @@ import scipy.sparse
 from scipy import optimize
 
 from . import _fourier_kernels
-from .depth import reaches_edge
 from .fourier import fill_data
 from .noise_knobs import noise_regime, relative_noise
 from .fourier_system import normal_matrices
@@ -73,6 +72,10 @@ SEARCH_SCAN_MM = 0.5
 #: (28 %), and without the term the limb won (5.25 mm for an axis at 3.5 mm); 0.02 moved the sheath 28.5 % outside
 #: 0.1 mm inward, 0.005 found both within 0.05 mm.
 MIRROR_ONE_SIDED = 0.005
+#: Light in the outermost column or row of the views summed over the aperture (the slope-0 image), as a share of
+#: its brightest column's or row's, above which the light reaches that edge of the field (:func:`reaches_edge`): a
+#: flame cut by it, whose light from beyond the field :func:`solve_axisymmetric` then models (:func:`wide_operator`).
+EDGE_SHARE = 0.05
 
 
 def _grid_coordinates(op, p):
@@ -337,6 +340,30 @@ def _fit_emission(op, normal, yt, y, w, m, lit, revolve, lam, fills, inner, e0=N
     return e, residual
 
 
+def reaches_edge(views) -> tuple:
+    """Which edges of the field a light field's light reaches (a flame cut by the field's edge).
+
+    The views summed over the aperture (the slope-0 image, which holds the light that
+    parallax brings in from beyond the field), less its dark floor (its 5th percentile: the
+    mean of clipped noise), are summed along rows and along columns; an edge is reached where
+    the outermost column or row holds more than :data:`EDGE_SHARE` of the brightest one.
+
+    Parameters
+    ----------
+    views : ndarray of shape (N, N, R, C)
+
+    Returns
+    -------
+    (bool, bool, bool, bool)
+        Top, bottom, left, right.
+    """
+    img = np.clip(np.asarray(views, np.float64), 0.0, None).sum(axis=(0, 1))
+    img = img - np.percentile(img, 5)
+    rows, cols = img.sum(axis=1), img.sum(axis=0)
+    top_r, top_c = EDGE_SHARE * rows.max(), EDGE_SHARE * cols.max()
+    return (bool(rows[0] > top_r), bool(rows[-1] > top_r), bool(cols[0] > top_c), bool(cols[-1] > top_c))
+
+
 def wide_operator(op):
     """The exact operator's planes on a grid wider than the field by the kernels' reach.
 
@@ -375,6 +402,13 @@ def wide_operator(op):
         k += 1
     return ExactOperator(op.camera, list(op.depths_mm), margin=1.0 + 2.0 * k / C, effects=op.effects,
                          precision=op.precision, quadrature_nodes=op.quadrature_nodes, workers=op.workers)
+
+
+def _lit_profile(views):
+    """The central view's column sums (clipped at 0), those below 5 % of the largest set to 0: its lit columns."""
+    c = views.shape[0] // 2
+    prof = np.clip(np.asarray(views[c, c], np.float64), 0.0, None).sum(axis=0)
+    return np.where(prof > 0.05 * prof.max(), prof, 0.0) if prof.max() > 0 else prof
 
 
 def _mirror_centre(prof):
@@ -427,10 +461,7 @@ def axis_x_from_views(views, op, axis_z_mm: float, fit=None) -> float:
     ValueError
         A central view without light.
     """
-    c = views.shape[0] // 2
-    img = np.clip(np.asarray(views[c, c], np.float64), 0.0, None)
-    prof = img.sum(axis=0)
-    prof = np.where(prof > 0.05 * prof.max(), prof, 0.0) if prof.max() > 0 else prof
+    prof = _lit_profile(views)
     if not prof.sum() > 0:
         raise ValueError("the central view holds no light: no axis to find")
     cbar = float(np.sum(np.arange(len(prof)) * prof) / prof.sum())
@@ -513,7 +544,6 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
     if not (search_half_width_mm > 0 and search_tol_mm > 0):
         raise ValueError(f"search_half_width_mm and search_tol_mm must be > 0. Received: {search_half_width_mm!r}, "
                          f"{search_tol_mm!r}")
-    N = op.dimsd[0]
     if beyond_field is None:
         beyond_field = op.margin == 1 and any(reaches_edge(v))
     model = op
@@ -526,19 +556,16 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
     lit = model._lit
     y, yt, w, m, _ = fill_data(v, f, model)
 
+    lit_cols = np.flatnonzero(_lit_profile(v))
+    cut = len(lit_cols) and (lit_cols[0] == 0 or lit_cols[-1] == v.shape[3] - 1)
+
     def revolve_at(z0):
         x0 = axis_x_from_views(v, op, z0, f) if axis_x_mm is None else float(axis_x_mm)
         rmax = r_max_mm
         if rmax is None:
-            c = N // 2
-            prof = np.clip(v[c, c], 0, None).sum(axis=0)
-            lit_cols = np.flatnonzero(prof > 0.05 * prof.max())
             _, wz = _frame_at(op, z0)
             left, right = (np.array([lit_cols[0], lit_cols[-1] + 1]) / op.dims[2] - 0.5) * wz
-            half = 0.5 * (right - left)
-            if lit_cols[0] == 0 or lit_cols[-1] == len(prof) - 1:          # cut by the edge: the far side's
-                half = max(x0 - left, right - x0)
-            rmax = 1.2 * half
+            rmax = 1.2 * (max(x0 - left, right - x0) if cut else 0.5 * (right - left))   # cut: the far side's
         return RevolveOperator(model, x0, z0, rmax, dr_mm)
 
     search = []

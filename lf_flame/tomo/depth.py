@@ -45,11 +45,6 @@ DEPTH_RANGE_MM = (-15.0, 25.0)
 SLOPE_STEP = 0.04
 #: Found depths closer than this (mm) are solved as one plane.
 MERGE_MM = 1.0
-#: Light in the outermost column or row of the views summed over the aperture (the slope-0 image), as a share of
-#: its brightest column's or row's, above which the light reaches that edge of the field (:func:`reaches_edge`): a
-#: flame cut by it, whose light from beyond the field the axisymmetric prior then models
-#: (:func:`lf_flame.tomo.axisymmetric.wide_operator`).
-EDGE_SHARE = 0.05
 
 
 @dataclass
@@ -262,30 +257,6 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
                        masks=np.array([r["mask"] for r in rows], bool).reshape(len(rows), R, C), labels=labels,
                        planes_mm=planes, plane_of=plane_of, curves=[r["curve"] for r in rows], grid_slopes=slopes,
                        time_s=time.perf_counter() - t0)
-
-
-def reaches_edge(views) -> tuple:
-    """Which edges of the field a light field's light reaches (a flame cut by the field's edge).
-
-    The views summed over the aperture (the slope-0 image, which holds the light that
-    parallax brings in from beyond the field), less its dark floor (its 5th percentile: the
-    mean of clipped noise), are summed along rows and along columns; an edge is reached where
-    the outermost column or row holds more than :data:`EDGE_SHARE` of the brightest one.
-
-    Parameters
-    ----------
-    views : ndarray of shape (N, N, R, C)
-
-    Returns
-    -------
-    (bool, bool, bool, bool)
-        Top, bottom, left, right.
-    """
-    img = np.clip(np.asarray(views, np.float64), 0.0, None).sum(axis=(0, 1))
-    img = img - np.percentile(img, 5)
-    rows, cols = img.sum(axis=1), img.sum(axis=0)
-    top_r, top_c = EDGE_SHARE * rows.max(), EDGE_SHARE * cols.max()
-    return (bool(rows[0] > top_r), bool(rows[-1] > top_r), bool(cols[0] > top_c), bool(cols[-1] > top_c))
 
 
 def _focus_energy(views, slopes, sigma, laplacian=False):
