@@ -22,6 +22,11 @@ What is not diagonal in frequency, and how it is handled (:func:`solve_admm`):
   The fills converge slowly where flames stand near the window's edge (their defocused
   light leaves the sensor), so each fill predicts from ``s + momentum (s - s_prev)``
   (heavy-ball momentum, chosen on validation renders; it beat FISTA's schedule in a probe).
+  Momentum on inexact ADMM steps (a few per fill) is not monotone, and where most samples
+  are missing it can diverge: once a fill's residual exceeds :data:`~lf_flame.tomo.defaults.ADMM_DIVERGENCE`
+  times the best so far, the fills restart from the best fill's planes without momentum and
+  with :data:`~lf_flame.tomo.defaults.ADMM_RESTART_INNER` times the ADMM steps (an adaptive
+  restart: O'Donoghue & Candès, Found. Comput. Math. 15 (2015)).
   Dividing by ``w`` (0.97-1.02 on the paper's camera) weights the pixels by ``w^2`` in
   the fit, not as the sensor's noise would: a 3-6 % change of weight at the rim, far
   below the noise's own spread.
@@ -61,8 +66,8 @@ import numpy as np
 import scipy.fft
 
 from . import _fourier_kernels
-from .defaults import (ADMM_FILLS, ADMM_INNER, ADMM_LAM, ADMM_MOMENTUM, ADMM_RHO, ADMM_RHO_TV, ADMM_STARTS, ADMM_TV,
-                       COARSE_KNOBS, WIENER_RHO)
+from .defaults import (ADMM_DIVERGENCE, ADMM_FILLS, ADMM_INNER, ADMM_LAM, ADMM_MOMENTUM, ADMM_RESTART_INNER, ADMM_RHO,
+                       ADMM_RHO_TV, ADMM_STARTS, ADMM_TV, COARSE_KNOBS, WIENER_RHO)
 from .fourier_system import admm_system, fourier_system
 
 
@@ -122,7 +127,8 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         Weight of isotropic TV per plane (absolute, as :func:`~lf_flame.tomo.solvers.reconstruct`'s
         ``pd-tv``; 0: none) and its split's penalty relative to ``g0``.
     momentum : float
-        In [0, 1): each fill predicts the missing data from ``s + momentum (s - s_prev)``.
+        In [0, 1): each fill predicts the missing data from ``s + momentum (s - s_prev)``;
+        0 after a restart (the fills diverging: module docstring).
     l1 : float
         Weight of ``||x||_1`` (sparsity: with ``x >= 0`` it is the emission's sum, which a dense
         stack can spend on fewer planes per line of sight), in [0, 1) as a fraction of
@@ -264,13 +270,21 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     if support is None:
         support = np.ones((P, gr, gc), bool)
     kappa = tv / (rho_tv * system.g0) if tv > 0 else 0.0
-    residuals = []
+    residuals, best, s_best, inner_given = [], math.inf, s, int(inner)
     for j in range(1, int(fills) + 1):
         if j > 1:   # predict from the extrapolated planes (heavy-ball momentum on the fills), data where measured
             z = _forward_views(op, s + momentum * (s - s_prev))
         residual = _fourier_kernels.fill(z, yt, y, w, m)
         if j > 1 or cont:
+            if inner == int(inner_given) and math.sqrt(residual) / norm > ADMM_DIVERGENCE * best:
+                # the fills diverge (momentum on inexact ADMM steps): restart from the planes of the best fill so
+                # far, without momentum and with ADMM_RESTART_INNER times the ADMM steps per fill
+                momentum, inner, s = 0.0, ADMM_RESTART_INNER * int(inner_given), s_best
+                z = _forward_views(op, s)
+                residual = _fourier_kernels.fill(z, yt, y, w, m)
             residuals.append(math.sqrt(residual) / norm)
+            if residuals[-1] < best:
+                best, s_best = residuals[-1], s
         b = _fourier_kernels.spectra_adjoint(S, scipy.fft.rfft2(z, workers=op.workers))   # H^H z, (P, Lr, F)
         if j == 1:   # the l1 step from H^H y (without a start the first fill's z is the data)
             if l1 > 0 and lam_max is None:
