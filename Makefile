@@ -21,7 +21,7 @@ HELDOUT_paper := 20
 HELDOUT_quick := 4
 HELDOUT_SEED := 770077
 
-.PHONY: train-reconstructor cameras temperature temperature-volume temperature-sequence help install docs dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi volume-edge sequence new-user heights test clean-quick
+.PHONY: train-reconstructor cameras temperature temperature-volume temperature-sequence help install docs dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi volume-edge volume-search sequence new-user heights test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -188,6 +188,10 @@ volume-nonaxi: $(STAMP) ## non-axisymmetric volumes: centroid and outside-range 
 # in data/volume)
 volume-edge: $(STAMP) ## axisymmetric flames cut by the field's edge: axis and 3-D errors -> results/volume_edge.{csv,md,json}
 	$(VENV)/bin/python experiments/volume.py --set edge --out $(TRADEOFF_OUT)
+
+# the axis search's trial length (SEARCH_INNER), chosen on the validation volumes of axi-lam and edge
+volume-search: $(STAMP) ## the axis search's trial length on validation volumes -> results/volume_search.{csv,md,json}
+	$(VENV)/bin/python experiments/volume.py --set search --out $(TRADEOFF_OUT)
 
 # the stem is REGIME/table_SCENE
 $(RES)/%.md: $(MODELS)/$$(*D)/$$(subst table_,,$$(*F))/train_info.json

@@ -34,7 +34,11 @@ outside the field, measured): the axisymmetric prior as shipped (the light beyon
 the field's grid alone (``beyond_field=False``) and admm without prior; axis and 3-D errors against the bar (axis
 within 0.2 mm, 3-D error <= 15 % up to 10 % outside); writes results/volume_edge.{csv,md,json}.
 
-Usage: ``python experiments/volume.py --out results [--set nonaxi|axi-lam|edge] [--quick]``.
+``--set search``: the axis search's trial length (FISTA steps per fill of each trial, ``SEARCH_INNER``) on the
+validation volumes of ``axi-lam`` and ``edge`` (never the scored ones), each candidate of ``SEARCH_INNERS``;
+writes results/volume_search.{csv,md,json}.
+
+Usage: ``python experiments/volume.py --out results [--set nonaxi|axi-lam|edge|search] [--quick]``.
 """
 from __future__ import annotations
 
@@ -386,10 +390,7 @@ def run_edge(a):
     rows, renders = [], []
     for split, scenes in sets:
         for name, seed, kw in scenes:
-            margin = max(1.2, 2 * (abs(kw["centre_x_mm"]) + 0.9 * kw["diameter_mm"])
-                         / cam.field_of_view_mm(kw["centre_depth_mm"])[1])
-            scene = axisymmetric_flame_scene(cam, np.random.default_rng(seed), n_layers=N_LAYERS, field_margin=margin,
-                                             **kw)
+            scene = edge_scene(cam, seed, kw)
             t0 = time.perf_counter()
             clean, noisy, own, snr = R.cached_render(cam, scene, a.rays, seed, a.cache / f"volume_edge_{seed}_{a.rays}.npz",
                                                      SNR_DB)
@@ -461,6 +462,70 @@ def report_edge(a, df, renders, op_s, depths, wall):
                 validation=[dict(name=n, seed=s, **k) for n, s, k in EDGE_VAL],
                 test=[dict(name=n, seed=s, **k) for n, s, k in EDGE_TEST], renders=renders, wall_s=wall,
                 operator_setup_s=op_s, provenance=provenance())
+    atomic_write_text(a.out / f"{stem}.json", json.dumps(meta, indent=1, default=str))
+    print("\n".join(L))
+
+
+#: --set search: the axis search's trials' FISTA steps per fill tried (``SEARCH_INNER`` chosen from them)
+SEARCH_INNERS = (15, 50)
+
+
+def edge_scene(cam, seed, kw):
+    """An edge volume's scene, drawn whole beyond the field (``field_margin`` wide enough for its flame)."""
+    margin = max(1.2, 2 * (abs(kw["centre_x_mm"]) + 0.9 * kw["diameter_mm"]) / cam.field_of_view_mm(kw["centre_depth_mm"])[1])
+    return axisymmetric_flame_scene(cam, np.random.default_rng(seed), n_layers=N_LAYERS, field_margin=margin, **kw)
+
+
+def run_search(a):
+    """The validation volumes of ``axi-lam`` and ``edge``, solved with each trial length of :data:`SEARCH_INNERS`."""
+    cam, depths, op, op_s, _, _ = dense_stack(a)
+    items = []
+    for name, seed, kw in (EDGE_VAL[-1:] if a.quick else EDGE_VAL):
+        scene = edge_scene(cam, seed, kw)
+        clean, noisy, _, _ = R.cached_render(cam, scene, a.rays, seed, a.cache / f"volume_edge_{seed}_{a.rays}.npz",
+                                             SNR_DB)
+        items.append((name, seed, kw, scene, clean, noisy))
+    for name, seed, kw in ((() if a.quick else AXI_VAL)):
+        scene, clean, noisy, _, _, _ = render_set(cam, name, seed, kw, a.rays, a.cache)
+        items.append((name, seed, kw, scene, clean, noisy))
+    rows = []
+    for name, seed, kw, scene, clean, noisy in items:
+        truth = scene_truth(scene, op)
+        for noise, views in (("noise-free", clean), ("14 dB", noisy)):
+            for inner in SEARCH_INNERS:
+                t = time.perf_counter()
+                res = solve_axisymmetric(views, op, views < 1.0, camera=cam, search_inner=inner)
+                dx, dz = res.axis_x_mm - kw.get("centre_x_mm", 0.0), res.axis_z_mm - kw["centre_depth_mm"]
+                rows.append(dict(scene=name, seed=seed, noise=noise, search_inner=inner, time_s=time.perf_counter() - t,
+                                 axis_error_mm=float(np.hypot(dx, dz)), depth_error_mm=float(dz),
+                                 **metrics(res.volume, truth, depths)))
+                print(f"{name} {noise} search_inner {inner}: axis {rows[-1]['axis_error_mm']:.3f} mm, "
+                      f"3-D {rows[-1]['rel_3d']:.3f}, {rows[-1]['time_s']:.0f} s", flush=True)
+    return pd.DataFrame(rows), op_s, depths
+
+
+def report_search(a, df, op_s, depths, wall):
+    stem = "volume_search_quick" if a.quick else "volume_search"
+    df.to_csv(a.out / f"{stem}.csv", index=False)
+    cmd = "python experiments/volume.py --set search --out " + str(a.out) + (" --quick" if a.quick else "")
+    g = df.groupby(["search_inner", "noise"], sort=False).agg(
+        axis_error_worst_mm=("axis_error_mm", "max"), axis_error_median_mm=("axis_error_mm", "median"),
+        rel_3d_worst=("rel_3d", "max"), rel_3d_median=("rel_3d", "median"), time_s_median=("time_s", "median"))
+    t = df.pivot_table(index=["scene", "noise"], columns="search_inner", values="time_s")
+    ratio = t.div(t[SEARCH_INNERS[0]], axis=0).median()
+    L = ["# The axis search's trial length, chosen on validation volumes", "",
+         f"`{cmd}` ({wall / 60:.1f} min wall on this 2-core machine). The validation volumes of `--set axi-lam` and "
+         f"`--set edge` (seeds {', '.join(str(s) for s in sorted(set(df.seed)))}; the scored volumes are others), "
+         f"traced at {a.rays} rays per pixel, noise-free and at 14 dB, {a.planes} planes every {a.step} mm; "
+         "`solve_axisymmetric` as shipped but for the FISTA steps per fill of each of the axis search's trials "
+         f"(`search_inner`; {SEARCH_INNERS[0]} before). Axis error: distance from the true axis in the (x, depth) "
+         "plane.", "", df.to_markdown(index=False, floatfmt=".4g"), "", "Per trial length:", "",
+         g.reset_index().to_markdown(index=False, floatfmt=".4g"), "",
+         "Time of each solve against the same volume's with " + f"{SEARCH_INNERS[0]} steps (median): " +
+         ", ".join(f"{k}: {v:.2f}x" for k, v in ratio.items()) + ".", ""]
+    atomic_write_text(a.out / f"{stem}.md", "\n".join(L))
+    meta = dict(command=cmd, rays=a.rays, planes=a.planes, step_mm=a.step, snr_db=SNR_DB, search_inners=SEARCH_INNERS,
+                wall_s=wall, operator_setup_s=op_s, provenance=provenance())
     atomic_write_text(a.out / f"{stem}.json", json.dumps(meta, indent=1, default=str))
     print("\n".join(L))
 
@@ -619,11 +684,12 @@ def main(argv=None):
     ap.add_argument("--planes", type=int, default=41)
     ap.add_argument("--step", type=float, default=0.5)
     ap.add_argument("--quick", action="store_true", help="one scene, 16 rays, 21 planes every 1 mm (a smoke test)")
-    ap.add_argument("--set", choices=("axi", "nonaxi", "axi-lam", "edge"), default="axi",
+    ap.add_argument("--set", choices=("axi", "nonaxi", "axi-lam", "edge", "search"), default="axi",
                     help="axi: axisymmetric volumes (results/volume.*); nonaxi: leaning, lobed volumes with the priors' "
                          "weights chosen on validation volumes (results/volume_nonaxi.*); axi-lam: the axisymmetric "
                          "prior's smoothness weight per noise level on validation volumes (results/volume_axi_lam.*); "
-                         "edge: axisymmetric flames cut by the field's edge (results/volume_edge.*)")
+                         "edge: axisymmetric flames cut by the field's edge (results/volume_edge.*); search: the axis search's "
+                         "trial length on validation volumes (results/volume_search.*)")
     a = ap.parse_args(argv)
     if a.quick:
         a.rays, a.planes, a.step = 16, 21, 1.0
@@ -632,6 +698,11 @@ def main(argv=None):
         res = run_axi_lam(a)
         a.out.mkdir(parents=True, exist_ok=True)
         report_axi_lam(a, *res, time.perf_counter() - t0)
+        return
+    if a.set == "search":
+        res = run_search(a)
+        a.out.mkdir(parents=True, exist_ok=True)
+        report_search(a, *res, time.perf_counter() - t0)
         return
     if a.set == "edge":
         res = run_edge(a)

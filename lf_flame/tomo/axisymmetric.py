@@ -56,9 +56,12 @@ AXI_LAM = {"quiet": 0.01, "noisy": 1.0}
 #: core converges slowly near the axis (25 steps left a core 15.9 % off with its true axis, 100 steps 6.7 %).
 AXI_FILLS = 8
 AXI_INNER = 100
-#: ... and of each solve of the axis search (a shorter one: only the residual's minimum matters).
+#: ... and of each solve of the axis search (a shorter one: only the residual's minimum matters). 50 steps per fill,
+#: chosen on the validation volumes (``python experiments/volume.py --set search``, ``results/volume_search.md``):
+#: with 15 the trials had not converged near a filled core's axis and their residual's minimum lay off it (cores
+#: 0.24 and 0.37 mm off in depth noise-free, 0.01 and 0.12 mm with 50), at about 1.7 times the search's time.
 SEARCH_FILLS = 3
-SEARCH_INNER = 15
+SEARCH_INNER = 50
 #: Half width (mm) of the bracket the axis depth is searched in about its start, and the search's tolerance.
 SEARCH_HALF_WIDTH_MM = 3.0
 SEARCH_TOL_MM = 0.05
