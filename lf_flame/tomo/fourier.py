@@ -270,16 +270,16 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     if support is None:
         support = np.ones((P, gr, gc), bool)
     kappa = tv / (rho_tv * system.g0) if tv > 0 else 0.0
-    residuals, best, s_best, inner_given = [], math.inf, s, int(inner)
+    residuals, best, s_best, restarted = [], math.inf, s, False
     for j in range(1, int(fills) + 1):
         if j > 1:   # predict from the extrapolated planes (heavy-ball momentum on the fills), data where measured
             z = _forward_views(op, s + momentum * (s - s_prev))
         residual = _fourier_kernels.fill(z, yt, y, w, m)
         if j > 1 or cont:
-            if inner == int(inner_given) and math.sqrt(residual) / norm > ADMM_DIVERGENCE * best:
+            if not restarted and math.sqrt(residual) / norm > ADMM_DIVERGENCE * best:
                 # the fills diverge (momentum on inexact ADMM steps): restart from the planes of the best fill so
                 # far, without momentum and with ADMM_RESTART_INNER times the ADMM steps per fill
-                momentum, inner, s = 0.0, ADMM_RESTART_INNER * int(inner_given), s_best
+                restarted, momentum, inner, s = True, 0.0, ADMM_RESTART_INNER * int(inner), s_best
                 z = _forward_views(op, s)
                 residual = _fourier_kernels.fill(z, yt, y, w, m)
             residuals.append(math.sqrt(residual) / norm)
