@@ -485,7 +485,7 @@ def run_search(a):
         clean, noisy, _, _ = R.cached_render(cam, scene, a.rays, seed, a.cache / f"volume_edge_{seed}_{a.rays}.npz",
                                              SNR_DB)
         items.append((name, seed, kw, scene, clean, noisy))
-    for name, seed, kw in ((() if a.quick else AXI_VAL)):
+    for name, seed, kw in (() if a.quick else AXI_VAL):
         scene, clean, noisy, _, _, _ = render_set(cam, name, seed, kw, a.rays, a.cache)
         items.append((name, seed, kw, scene, clean, noisy))
     rows = []
