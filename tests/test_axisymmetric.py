@@ -5,8 +5,10 @@ import pytest
 
 from lf_flame.optics.camera import PlenopticCamera
 from lf_flame.simulate.scenes_volume import axisymmetric_flame_scene
-from lf_flame.tomo.axisymmetric import RevolveOperator, axis_x_from_views, solve_axisymmetric
+from lf_flame.tomo.axis import axis_x_from_views
+from lf_flame.tomo.axisymmetric import solve_axisymmetric
 from lf_flame.tomo.exact import ExactOperator
+from lf_flame.tomo.revolve import RevolveOperator
 
 AXIS = (0.3, 0.2)           # x0, z0 (mm)
 R_MAX = 2.0
@@ -121,7 +123,8 @@ def test_bad_input_is_refused(op):
 def test_a_flame_cut_by_the_fields_edge(op):
     """A ring whose far side leaves the field (axis 2.0 mm from the centre of a 5.4 mm field): its light from beyond
     the field is modelled on the widened grid, the axis comes back and the field's part of the volume with it."""
-    from lf_flame.tomo.axisymmetric import reaches_edge, wide_operator
+    from lf_flame.tomo.axis import reaches_edge
+    from lf_flame.tomo.revolve import wide_operator
     wide = wide_operator(op)
     (_, gr, gc), (_, wr, wc) = op.dims, wide.dims
     assert (wr - gr) % 2 == 0 and (wc - gc) % 2 == 0 and wc - gc >= 2 * int(-op.tap_origin_x.min())

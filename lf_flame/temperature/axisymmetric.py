@@ -1,7 +1,7 @@
 """Temperature per voxel of an axisymmetric flame from one colour (Bayer) light field (issue 37's Goal).
 
 An axisymmetric flame's emission ``e(r, y)`` has ``rows x n_r`` unknowns
-(:class:`lf_flame.tomo.axisymmetric.RevolveOperator`), far fewer than one colour channel's own
+(:class:`lf_flame.tomo.revolve.RevolveOperator`), far fewer than one colour channel's own
 samples (a quarter of the views' samples for R, half for G under a Bayer CFA), so each
 channel's ``e_c(r, y)`` is solved on its own samples alone
 (:func:`lf_flame.tomo.axisymmetric.solve_axisymmetric` with ``fit`` = that channel's
@@ -165,7 +165,7 @@ def axisymmetric_temperature(views, op, chan, cal: TemperatureCalibration, senso
     axis_x_mm, axis_z_mm : float or None
         The axis (mm); None: found on the channels' sum (both must be given to skip the search).
     r_max_mm, dr_mm : float or None
-        Radial extent and node spacing (:class:`~lf_flame.tomo.axisymmetric.RevolveOperator`);
+        Radial extent and node spacing (:class:`~lf_flame.tomo.revolve.RevolveOperator`);
         None: ``r_max_mm`` as the axis search sets it on the channels' sum, ``dr_mm`` one lateral sample.
     saturation : float or None
         Samples at or above it are left out of the fits (None: none).

@@ -10,7 +10,8 @@ recovers the emission with PyLops/PyProximal solvers, and :mod:`.fourier` on the
 operator's per-frequency normal matrices (ADMM; kernels in :mod:`._fourier_kernels`);
 :mod:`.depth` finds the depths that hold emission (depth from focus per region),
 :mod:`.found_planes` solves on them and :mod:`.peel` searches that solve's residual for depths the votes missed; :mod:`.axisymmetric` an axisymmetric flame's emission e(r, y) revolved
-onto a dense stack (its axis searched on the data residual); :mod:`.truth` puts a simulated
+onto a dense stack (its axis searched on the data residual; the model and its fit in :mod:`.revolve`,
+the axis's lateral position and the field's edge from the views in :mod:`.axis`); :mod:`.truth` puts a simulated
 scene's truth on the same grids; :mod:`.scoring` scores planes against it;
 :mod:`.volume` solves a dense stack with a prior (none, TV, sparse, axisymmetric) and
 states the depth resolution it carries; :mod:`.decoded` turns decoded views of a user's camera into the exact operator's data and
@@ -23,12 +24,13 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["axisymmetric", "decoded", "defaults", "depth", "exact", "files", "found_planes", "fourier",
-                "fourier_system", "noise_knobs", "operator", "peel", "resolution", "scoring", "solvers", "truth",
-                "volume"],
+    submodules=["axis", "axisymmetric", "decoded", "defaults", "depth", "exact", "files", "found_planes", "fourier",
+                "fourier_system", "noise_knobs", "operator", "peel", "resolution", "revolve", "scoring", "solvers",
+                "truth", "volume"],
     submod_attrs={
-        "axisymmetric": ["AXI_LAM", "AXI_FILLS", "AXI_INNER", "RevolveOperator", "AxisymmetricVolume",
-                         "axis_x_from_views", "solve_axisymmetric", "wide_operator", "EDGE_SHARE", "reaches_edge"],
+        "axisymmetric": ["AXI_LAM", "AXI_FILLS", "AXI_INNER", "AxisymmetricVolume", "solve_axisymmetric"],
+        "revolve": ["RevolveOperator", "NormalMatrices", "fit_emission", "wide_operator"],
+        "axis": ["EDGE_SHARE", "MIRROR_ONE_SIDED", "reaches_edge", "lit_profile", "axis_x_from_views"],
         "decoded": ["MIN_WHITE", "white_views", "decoded_problem", "decoded_truth", "decoded_plane_truth", "fit_data"],
         "depth": ["DEPTH_RANGE_MM", "SLOPE_STEP", "MERGE_MM", "FoundDepths", "find_depths", "merge_depths"],
         "peel": ["RESIDUAL_CONTRAST", "RESIDUAL_SHARE", "PEEL_ROUNDS", "missed_depths", "peel_planes"],
