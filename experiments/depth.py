@@ -83,11 +83,14 @@ SEPARATIONS_MM = (5.0, 10.0)
 #: are the sharper one); outside the others' footprints alone (1 of 295: the merged flame's tip beyond its voters).
 #: "heights-region-box": the slope search's flames also measured within their boxes (the regions it is given), as
 #: before "heights-region", which measured them in their columns alone (3 % off by > 1 mm: other flames' blur).
-SCORE_VERSION = "heights-region-box"
+#: "side-by-side": a found depth may be each one's of flames side by side (regions apart), not of flames in the same
+#: lines of sight.
+SCORE_VERSION = "side-by-side"
 #: The auto route the cached rows were solved by (rows of another are solved again): "near-peel", found planes near
 #: in parallax held to their regions (``NEAR_PARALLAX``) and depths missed by the votes found in the residual
-#: (``peel_planes``).
-ROUTE_VERSION = "near-peel"
+#: (``peel_planes``). "near-peel-prominence": the residual's peak judged by its prominence over the curve's spread
+#: (``RESIDUAL_PROMINENCE``), not by its ratio to the median.
+ROUTE_VERSION = "near-peel-prominence"
 
 
 def add_noise(raw, snr_db, seed):

@@ -48,6 +48,8 @@ def test_volume_cli_priors_write_the_stack_and_the_axisymmetric_one_wins(volume_
                 assert abs(settings["axis_z_mm"]) < 0.5 and abs(settings["axis_x_mm"]) < 0.2   # the sheath's axis: 0, 0
                 assert settings["beyond_field"] is False                     # the sheath stands inside the field
             assert len(json.loads(f.attrs["edge_share"])) == 11
+            misfit = json.loads(f.attrs["misfit"])       # the stack holds the sheath: no light left unexplained
+            assert misfit["misfit"] < 0.05 and misfit["relative_residual"] < 0.1, misfit
         assert (tmp_path / f"{prior}.png").stat().st_size > 0
     # the sheath is axisymmetric: its prior resolves what the data alone leave to the dense stack
     assert errs["axisymmetric"] < 0.5 * errs["none"], errs

@@ -205,6 +205,22 @@ def edge_warning(rec, op, modelled: bool = False):
     return edge
 
 
+def misfit_warning(lf, op, rec, saturation="file"):
+    """The solve's misfit on the light field's data as it was fitted (:func:`lf_flame.tomo.solvers.data_misfit`),
+    for the file; where it is high (:func:`~lf_flame.tomo.solvers.misfit_is_high`), one warning (stderr) saying what
+    it means."""
+    from ..tomo.decoded import fit_data
+    from ..tomo.solvers import data_misfit, misfit_is_high
+    data, fit = fit_data(_fitted_light_field(lf, saturation), op)
+    m = data_misfit(data, op, rec.planes, fit)
+    if misfit_is_high(m):
+        print(f"warning: the planes leave {100 * m['misfit']:.0f} % of the light field unexplained beyond its noise "
+              f"(relative residual {m['relative_residual']:.3f}, of which noise {m['noise_share']:.3f}): light "
+              "from flames off these planes or beyond the field, or a camera file that is not this camera's",
+              file=sys.stderr)
+    return m
+
+
 def cmd_reconstruct(a):
     from ..tomo.files import plot_reconstruction, save_reconstruction
     from ..tomo.truth import scene_truth, truth_depths
@@ -251,6 +267,7 @@ def cmd_reconstruct(a):
     print(saturation_note(rec) if not lf.decoded else
           f"{rec.settings['n_saturated']} samples left out of the fit (clipped, or outside the aperture's image)")
     extra["edge_share"] = edge_warning(rec, op)
+    extra["misfit"] = misfit_warning(lf, op, rec, kw["saturation"])
     out = Path(a.out)
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), **extra)
     n = cam.pixels_per_lenslet
@@ -305,8 +322,9 @@ def volume_reconstruct(a):
     arrays = {} if axi is None else dict(emission_r_y=axi.emission, radii_mm=axi.radii_mm, heights_mm=axi.heights_mm)
     out = Path(a.out)
     edge = edge_warning(rec, op, modelled=axi is not None and axi.beyond_field)
+    misfit = misfit_warning(lf, op, rec, level)
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), volume=True,
-                        depth_resolution=table.to_dict("list"), edge_share=edge)
+                        depth_resolution=table.to_dict("list"), edge_share=edge, misfit=misfit)
     scene = None if lf.decoded else _raw_scene(a.raw, cam)
     truth = None if scene is None else scene_truth(scene, op)
     refocused = focal_stack(views, [cam.slope_for_depth(d) for d in rec.depths_mm],

@@ -77,8 +77,10 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
     dilated by 2 samples):
 
     - **depth**: with ``found``, the found depth whose footprint meets ``M`` nearest the
-      flame's true depth, each found depth given to at most one flame (greedy, nearest
-      first); none: the flame is missed (NaN). Without ``found`` (fixed planes), the plane
+      flame's true depth, each found depth given to at most one flame of the same lines of
+      sight (greedy, nearest first: flames whose regions ``M`` meet; flames side by side may
+      share a depth found over both, as a camera whose depth resolution is coarser than their
+      separation finds them); none: the flame is missed (NaN). Without ``found`` (fixed planes), the plane
       holding most of the route's non-negative emission in ``M``.
     - **emission error**: ``||x_p - t_p|| / ||t_p||`` in ``M`` on the plane ``p`` nearest
       that depth, ``t_p`` the flame's truth resampled onto that plane's grid.
@@ -166,9 +168,9 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
         pairs = sorted((abs(f[0] - true_d[k]), k, j) for j, f in enumerate(found)
                        for k in range(len(true_d)) if np.any(np.asarray(f[1], bool) & regions[k]))
         on_plane = [int(np.argmin(np.abs(d - f[0]))) for f in found]
-        used_f, used_j = set(), set()
+        used_f, holders = set(), [[] for _ in found]
         for _, k, j in pairs:
-            if k not in used_f and j not in used_j:
+            if k not in used_f and not any(np.any(regions[k] & regions[h]) for h in holders[j]):
                 est[k] = float(found[j][0])
                 foot = np.ones(shape, bool)
                 if len(found[j]) > 2:    # the region the depth was found in
@@ -179,7 +181,7 @@ def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=Non
                     foot &= ~ndimage.binary_dilation(np.any(others, axis=0), iterations=2)
                 footprint[k] = foot
                 used_f.add(k)
-                used_j.add(j)
+                holders[j].append(k)
     else:
         for k, M in enumerate(regions):
             est[k] = float(d[int(np.argmax(xp[:, M].sum(axis=1)))])
