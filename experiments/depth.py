@@ -89,8 +89,9 @@ SCORE_VERSION = "side-by-side"
 #: The auto route the cached rows were solved by (rows of another are solved again): "near-peel", found planes near
 #: in parallax held to their regions (``NEAR_PARALLAX``) and depths missed by the votes found in the residual
 #: (``peel_planes``). "near-peel-prominence": the residual's peak judged by its prominence over the curve's spread
-#: (``RESIDUAL_PROMINENCE``), not by its ratio to the median.
-ROUTE_VERSION = "near-peel-prominence"
+#: (``RESIDUAL_PROMINENCE``), not by its ratio to the median. "...-refine": the depths of flames one behind another
+#: refined by Gauss-Newton on the residual (``refine_planes``); "-unmerged": planes that merged several depths left.
+ROUTE_VERSION = "near-peel-prominence-refine-unmerged"
 
 
 def add_noise(raw, snr_db, seed):

@@ -86,10 +86,12 @@ def _fitted_light_field(lf, saturation):
 
 def solve_found(lf, found, **kw):
     """The found planes solved (:func:`run_reconstruction` with ``found_depths``), then the residual searched for
-    depths the votes missed and solved again with them (:func:`lf_flame.tomo.peel.peel_planes`, as
-    :func:`lf_flame.tomo.found_planes.find_planes`): ``(found, op, rec)``."""
+    depths the votes missed and solved again with them (:func:`lf_flame.tomo.peel.peel_planes`), and the depths of
+    flames one behind another refined by the residual (:func:`lf_flame.tomo.refine.refine_planes`), as
+    :func:`lf_flame.tomo.found_planes.find_planes`: ``(found, op, rec)``."""
     from ..tomo.decoded import fit_data
     from ..tomo.peel import peel_planes
+    from ..tomo.refine import refine_planes
     from ..tomo.solvers import fitted_pixels
 
     def solve(f):
@@ -97,7 +99,11 @@ def solve_found(lf, found, **kw):
 
     op, rec = solve(found)
     data, fit = fit_data(_fitted_light_field(lf, kw.get("saturation", "file")), op)
-    return peel_planes(found, op, rec, data, fitted_pixels(data, fit), lf.camera, solve)
+    fit = fitted_pixels(data, fit)
+    found, op, rec = peel_planes(found, op, rec, data, fit, lf.camera, solve)
+    if rec.solver == "learned":       # a network's planes are not a least-squares solution: no residual to refine on
+        return found, op, rec
+    return refine_planes(found, op, rec, data, fit, lf.camera, solve)
 
 
 def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None, saturation="file",
@@ -251,12 +257,15 @@ def cmd_reconstruct(a):
     if voters is None:
         op, rec = run_reconstruction(lf, depths, **kw)
     else:
-        voted = set(voters.depths_mm.tolist())
+        voted = np.array(voters.planes_mm)
         voters, op, rec = solve_found(lf, voters, support=bool(getattr(a, "support", False)), **kw)
-        if len(voters.depths_mm) > len(voted):
-            added = sorted(set(voters.depths_mm.tolist()) - voted)
-            print("found in the residual (behind or before other flames): " + ", ".join(f"{d:+.2f} mm" for d in added)
-                  + f" -> {len(voters.planes_mm)} planes")
+        if len(voters.planes_mm) != len(voted) or not np.allclose(voters.planes_mm, voted):
+            added = voters.depths_mm[voters.weight == 0]       # no votes: found in the residual
+            if len(added):
+                print("found in the residual (behind or before other flames): " + ", ".join(
+                    f"{d:+.2f} mm" for d in added) + f" -> {len(voters.planes_mm)} planes")
+            print("planes after the residual's search and refinement: " + ", ".join(
+                f"{d:+.2f}" for d in voters.planes_mm) + " mm")
             depths = [float(d) for d in voters.planes_mm]
             extra["found_depths"] = found_record(voters)
             arrays = dict(found_masks=np.asarray(voters.masks, bool), found_regions=voters.labels)

@@ -9,7 +9,8 @@ camera's depth-resolution map from that map's per-frequency normal matrices; :mo
 recovers the emission with PyLops/PyProximal solvers, and :mod:`.fourier` on the exact
 operator's per-frequency normal matrices (ADMM; kernels in :mod:`._fourier_kernels`);
 :mod:`.depth` finds the depths that hold emission (depth from focus per region),
-:mod:`.found_planes` solves on them and :mod:`.peel` searches that solve's residual for depths the votes missed; :mod:`.axisymmetric` an axisymmetric flame's emission e(r, y) revolved
+:mod:`.found_planes` solves on them, :mod:`.peel` searches that solve's residual for depths the votes missed and
+:mod:`.refine` moves the depths of flames one behind another to the residual's least; :mod:`.axisymmetric` an axisymmetric flame's emission e(r, y) revolved
 onto a dense stack (its axis searched on the data residual; the model and its fit in :mod:`.revolve`,
 the axis's lateral position and the field's edge from the views in :mod:`.axis`); :mod:`.truth` puts a simulated
 scene's truth on the same grids; :mod:`.scoring` scores planes against it;
@@ -25,8 +26,8 @@ import lazy_loader as lazy
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
     submodules=["axis", "axisymmetric", "decoded", "defaults", "depth", "exact", "files", "found_planes", "fourier",
-                "fourier_system", "noise_knobs", "operator", "peel", "resolution", "revolve", "scoring", "solvers",
-                "truth", "volume"],
+                "fourier_system", "noise_knobs", "operator", "peel", "refine", "resolution", "revolve", "scoring",
+                "solvers", "truth", "volume"],
     submod_attrs={
         "axisymmetric": ["AXI_LAM", "AXI_FILLS", "AXI_INNER", "AxisymmetricVolume", "solve_axisymmetric"],
         "revolve": ["RevolveOperator", "NormalMatrices", "fit_emission", "wide_operator"],
@@ -34,6 +35,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "decoded": ["MIN_WHITE", "white_views", "decoded_problem", "decoded_truth", "decoded_plane_truth", "fit_data"],
         "depth": ["DEPTH_RANGE_MM", "SLOPE_STEP", "MERGE_MM", "FoundDepths", "find_depths", "merge_depths"],
         "peel": ["RESIDUAL_PROMINENCE", "RESIDUAL_SHARE", "PEEL_ROUNDS", "missed_depths", "peel_planes"],
+        "refine": ["REFINE_STEPS", "REFINE_MAX_SLOPE", "REFINE_TOL", "REFINE_REACH", "slope_jacobian", "refine_planes"],
         "found_planes": ["SUPPORT_DILATION", "NEAR_PARALLAX", "SUPPORT_KNOBS", "FOUND_PLANES_KNOBS", "plane_support",
                          "near_plane_support", "found_support", "found_planes_knobs", "find_planes"],
         "exact": ["QUADRATURE_NODES", "SHIFT_TOLERANCE", "PRECISIONS", "ExactKernels", "exact_kernels",

@@ -1,6 +1,7 @@
 """The emission on found planes: each plane's support, the found planes' admm knobs, and the route
 :func:`find_planes` (depths found, :mod:`lf_flame.tomo.depth`; solved; the residual searched for
-depths the votes missed, :mod:`lf_flame.tomo.peel`; solved again).
+depths the votes missed, :mod:`lf_flame.tomo.peel`; solved again; the depths of flames one behind another
+refined by the residual, :mod:`lf_flame.tomo.refine`).
 """
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from scipy import ndimage
 from ..optics.camera import PlenopticCamera
 from .depth import FoundDepths, find_depths
 from .peel import PEEL_ROUNDS, peel_planes
+from .refine import REFINE_STEPS, refine_planes
 
 #: Lenslets a region is grown by to make its planes' support (:func:`plane_support`).
 SUPPORT_DILATION = 3
@@ -162,7 +164,8 @@ def found_planes_knobs(views, saturation, subsamples: int):
 
 def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturation=1.0, support: bool = False,
                 near_parallax: float = NEAR_PARALLAX, dilation: int = SUPPORT_DILATION, solve=None,
-                subsamples: int | None = None, peel_rounds: int = PEEL_ROUNDS, **find_kw):
+                subsamples: int | None = None, peel_rounds: int = PEEL_ROUNDS, refine_steps: int = REFINE_STEPS,
+                **find_kw):
     """Found depths (:func:`~lf_flame.tomo.depth.find_depths`) and the emission on their planes.
 
     The planes' emission is ``reconstruct(views, emission_operator(camera, planes_mm), solver)``
@@ -180,7 +183,8 @@ def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturat
     (:func:`lf_flame.tomo.noise_knobs.admm_subsamples`), 1 for the other solvers.
     ``peel_rounds``: up to this many times the solve's residual is searched for depths the
     votes missed (:func:`~lf_flame.tomo.peel.missed_depths`: flames behind others in the same columns) and the
-    planes solved again with them (0: never).
+    planes solved again with them (0: never). ``refine_steps``: Gauss-Newton steps on the slopes of the planes
+    that hold flames one behind another, each solved again (:func:`~lf_flame.tomo.refine.refine_planes`; 0: none).
 
     Returns
     -------
@@ -214,4 +218,6 @@ def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturat
         return op, reconstruct(y, op, solver, saturation=saturation, support=sup, **(knobs or {}))
 
     op, rec = solved(found)
-    return peel_planes(found, op, rec, y, fitted_pixels(y, saturation), camera, solved, peel_rounds)
+    fit = fitted_pixels(y, saturation)
+    found, op, rec = peel_planes(found, op, rec, y, fit, camera, solved, peel_rounds)
+    return refine_planes(found, op, rec, y, fit, camera, solved, refine_steps)
