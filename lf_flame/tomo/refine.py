@@ -64,12 +64,12 @@ def slope_jacobian(op, planes, fit, which=None) -> np.ndarray:
     Returns
     -------
     ndarray of shape (len(which), N, N, R, C)
-        0 where not fitted. View ``(i, j)`` lies ``(i - N // 2, j - N // 2)`` view steps from the centre;
+        0 where not fitted. View ``(i, j)`` lies ``(i - (N - 1) / 2, j - (N - 1) / 2)`` view steps from the centre;
         a plane at slope ``s`` moves by ``s`` lenslets per view step along rows and columns.
     """
     x = np.asarray(planes, np.float64)
     n = op.dimsd[0]
-    u = np.arange(n) - n // 2
+    u = np.arange(n) - (n - 1) / 2            # about the aperture's centre (a view there for odd N)
     which = range(len(x)) if which is None else list(which)
     out = np.zeros((len(which),) + tuple(op.dimsd))
     for k, p in enumerate(which):
