@@ -472,7 +472,8 @@ SEARCH_INNERS = (15, 50)
 
 def edge_scene(cam, seed, kw):
     """An edge volume's scene, drawn whole beyond the field (``field_margin`` wide enough for its flame)."""
-    margin = max(1.2, 2 * (abs(kw["centre_x_mm"]) + 0.9 * kw["diameter_mm"]) / cam.field_of_view_mm(kw["centre_depth_mm"])[1])
+    width = cam.field_of_view_mm(kw["centre_depth_mm"])[1]
+    margin = max(1.2, 2 * (abs(kw["centre_x_mm"]) + 0.9 * kw["diameter_mm"]) / width)
     return axisymmetric_flame_scene(cam, np.random.default_rng(seed), n_layers=N_LAYERS, field_margin=margin, **kw)
 
 

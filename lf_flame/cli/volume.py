@@ -101,8 +101,6 @@ def solve_found(lf, found, **kw):
     data, fit = fit_data(_fitted_light_field(lf, kw.get("saturation", "file")), op)
     fit = fitted_pixels(data, fit)
     found, op, rec = peel_planes(found, op, rec, data, fit, lf.camera, solve)
-    if rec.solver == "learned":       # a network's planes are not a least-squares solution: no residual to refine on
-        return found, op, rec
     return refine_planes(found, op, rec, data, fit, lf.camera, solve)
 
 

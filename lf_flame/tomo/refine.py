@@ -90,17 +90,8 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
 
     Parameters
     ----------
-    found : FoundDepths
-        The depths ``rec`` was solved on.
-    op, rec : the operator of the planes and its :class:`~lf_flame.tomo.solvers.Reconstruction`
-    data : ndarray of shape (N, N, R, C)
-        The data ``rec`` fitted (the operator's units).
-    fit : ndarray of bool of the data's shape
-        The samples it fitted.
-    camera : PlenopticCamera
-        The views' camera.
-    solve : callable
-        ``solve(found) -> (op, rec)``: the planes of ``found`` solved as ``rec`` was.
+    found, op, rec, data, fit, camera, solve
+        As :func:`~lf_flame.tomo.peel.peel_planes`.
     steps : int
         Gauss-Newton steps, >= 0 (:data:`REFINE_STEPS`).
 
@@ -108,7 +99,8 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
     -------
     found, op, rec
         At the refined depths (each depth of a refined plane moved with it), or the ones given where
-        no plane holds flames one behind another or no step lowered the residual.
+        no plane holds flames one behind another, no step lowered the residual, or ``rec`` is a learned
+        reconstructor's (not a least-squares solution: the gradient above does not hold).
 
     Raises
     ------
@@ -119,7 +111,7 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
         raise ValueError(f"steps must be an integer >= 0. Received: {steps!r}")
     per_region, per_plane = np.bincount(found.region), np.bincount(found.plane_of)
     todo = sorted({int(p) for p, r in zip(found.plane_of, found.region) if per_region[r] > 1 and per_plane[p] == 1})
-    if not todo:
+    if not todo or rec.solver == "learned":
         return found, op, rec
     y = np.asarray(data, np.float64)
     fit = np.asarray(fit, bool)
