@@ -87,11 +87,11 @@ def _fitted_light_field(lf, saturation):
 def solve_found(lf, found, **kw):
     """The found planes solved (:func:`run_reconstruction` with ``found_depths``), then the residual searched for
     depths the votes missed and solved again with them (:func:`lf_flame.tomo.peel.peel_planes`), and the depths of
-    flames one behind another refined by the residual (:func:`lf_flame.tomo.refine.refine_planes`), as
-    :func:`lf_flame.tomo.found_planes.find_planes`: ``(found, op, rec)``."""
+    flames one behind another refined by the residual and their regions searched once more
+    (:func:`lf_flame.tomo.refine.peel_and_refine`), as :func:`lf_flame.tomo.found_planes.find_planes`:
+    ``(found, op, rec)``."""
     from ..tomo.decoded import fit_data
-    from ..tomo.peel import peel_planes
-    from ..tomo.refine import refine_planes
+    from ..tomo.refine import peel_and_refine
     from ..tomo.solvers import fitted_pixels
 
     def solve(f):
@@ -100,8 +100,7 @@ def solve_found(lf, found, **kw):
     op, rec = solve(found)
     data, fit = fit_data(_fitted_light_field(lf, kw.get("saturation", "file")), op)
     fit = fitted_pixels(data, fit)
-    found, op, rec = peel_planes(found, op, rec, data, fit, lf.camera, solve)
-    return refine_planes(found, op, rec, data, fit, lf.camera, solve)
+    return peel_and_refine(found, op, rec, data, fit, lf.camera, solve)
 
 
 def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None, saturation="file",

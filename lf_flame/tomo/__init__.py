@@ -10,8 +10,8 @@ recovers the emission with PyLops/PyProximal solvers, and :mod:`.fourier` on the
 operator's per-frequency normal matrices (ADMM; kernels in :mod:`._fourier_kernels`);
 :mod:`.depth` finds the depths that hold emission (depth from focus per region),
 :mod:`.found_planes` solves on them, :mod:`.peel` searches that solve's residual for depths the votes missed and
-:mod:`.refine` moves the depths of flames one behind another to the residual's least; :mod:`.axisymmetric`
-an axisymmetric flame's emission e(r, y) revolved onto a dense stack (its axis searched on the data residual; the
+:mod:`.refine` moves the depths of flames one behind another to the residual's least (and searches it once more);
+:mod:`.axisymmetric` an axisymmetric flame's emission e(r, y) revolved onto a dense stack (its axis searched on the data residual; the
 model and its fit in :mod:`.revolve`, the axis's lateral position and the field's edge from the views in
 :mod:`.axis`); :mod:`.truth` puts a simulated scene's truth on the same grids; :mod:`.scoring` scores planes against it;
 :mod:`.volume` solves a dense stack with a prior (none, TV, sparse, axisymmetric) and
@@ -34,8 +34,10 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "axis": ["EDGE_SHARE", "MIRROR_ONE_SIDED", "reaches_edge", "lit_profile", "axis_x_from_views"],
         "decoded": ["MIN_WHITE", "white_views", "decoded_problem", "decoded_truth", "decoded_plane_truth", "fit_data"],
         "depth": ["DEPTH_RANGE_MM", "SLOPE_STEP", "MERGE_MM", "FoundDepths", "find_depths", "merge_depths"],
-        "peel": ["RESIDUAL_PROMINENCE", "RESIDUAL_SHARE", "PEEL_ROUNDS", "missed_depths", "peel_planes"],
-        "refine": ["REFINE_STEPS", "REFINE_MAX_SLOPE", "REFINE_TOL", "REFINE_REACH", "slope_jacobian", "refine_planes"],
+        "peel": ["RESIDUAL_PROMINENCE", "RESIDUAL_SHARE", "PEEL_ROUNDS", "missed_depths", "solve_residual",
+                 "peel_planes"],
+        "refine": ["REFINE_STEPS", "REFINE_MAX_SLOPE", "REFINE_TOL", "REFINE_REACH", "REFINED_PROMINENCE",
+                   "REFINED_SHARE", "slope_jacobian", "refine_planes", "peel_and_refine"],
         "found_planes": ["SUPPORT_DILATION", "NEAR_PARALLAX", "SUPPORT_KNOBS", "FOUND_PLANES_KNOBS", "plane_support",
                          "near_plane_support", "found_support", "found_planes_knobs", "find_planes"],
         "exact": ["QUADRATURE_NODES", "SHIFT_TOLERANCE", "PRECISIONS", "ExactKernels", "exact_kernels",

@@ -12,8 +12,8 @@ from scipy import ndimage
 
 from ..optics.camera import PlenopticCamera
 from .depth import FoundDepths, find_depths
-from .peel import PEEL_ROUNDS, peel_planes
-from .refine import REFINE_STEPS, refine_planes
+from .peel import PEEL_ROUNDS
+from .refine import REFINE_STEPS, peel_and_refine
 
 #: Lenslets a region is grown by to make its planes' support (:func:`plane_support`).
 SUPPORT_DILATION = 3
@@ -184,7 +184,8 @@ def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturat
     ``peel_rounds``: up to this many times the solve's residual is searched for depths the
     votes missed (:func:`~lf_flame.tomo.peel.missed_depths`: flames behind others in the same columns) and the
     planes solved again with them (0: never). ``refine_steps``: Gauss-Newton steps on the slopes of the planes
-    that hold flames one behind another, each solved again (:func:`~lf_flame.tomo.refine.refine_planes`; 0: none).
+    that hold flames one behind another, each solved again (:func:`~lf_flame.tomo.refine.refine_planes`; 0: none),
+    after which their regions are searched once more (:func:`~lf_flame.tomo.refine.peel_and_refine`).
 
     Returns
     -------
@@ -219,5 +220,4 @@ def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturat
 
     op, rec = solved(found)
     fit = fitted_pixels(y, saturation)
-    found, op, rec = peel_planes(found, op, rec, y, fit, camera, solved, peel_rounds)
-    return refine_planes(found, op, rec, y, fit, camera, solved, refine_steps)
+    return peel_and_refine(found, op, rec, y, fit, camera, solved, peel_rounds, refine_steps)

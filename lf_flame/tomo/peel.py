@@ -35,7 +35,7 @@ PEEL_ROUNDS = 2
 
 def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prominence: float = RESIDUAL_PROMINENCE,
                   share: float = RESIDUAL_SHARE, sigma: float = 1.5, min_separation_mm: float = 2.5,
-                  merge_mm: float = MERGE_MM):
+                  merge_mm: float = MERGE_MM, regions=None):
     """Depths the votes missed, found in a solve's residual: a flame behind (or before) another in the same
     columns, whose lenslets voted for the other.
 
@@ -63,6 +63,8 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
         Peak over the data's, >= 0 (:data:`RESIDUAL_SHARE`).
     sigma, min_separation_mm, merge_mm : float
         As :func:`~lf_flame.tomo.depth.find_depths`.
+    regions : sequence of int or None
+        The regions (``found.region`` labels) to search; None: all.
 
     Returns
     -------
@@ -91,7 +93,7 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
     depth_of = np.array([camera.depth_for_slope(float(s)) for s in slopes])
     dz_ds = abs(depth_of[-1] - depth_of[0]) / max(abs(slopes[-1] - slopes[0]), 1e-12)
     rows = []
-    for lab in np.unique(found.region):
+    for lab in np.unique(found.region) if regions is None else np.intersect1d(found.region, regions):
         reg = found.labels == lab
         curve = ten[:, reg].sum(axis=1)
         have = found.depths_mm[found.region == lab]
@@ -123,6 +125,12 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
                        curves=[curves[k] for k in order], grid_slopes=slopes, time_s=found.time_s)
 
 
+def solve_residual(op, rec, data, fit) -> np.ndarray:
+    """Data minus the solve's prediction, 0 where not fitted: ndarray of the data's shape (N, N, R, C), float64."""
+    y = np.asarray(data, np.float64)
+    return np.where(fit, y - (op @ np.ravel(rec.planes)).reshape(y.shape), 0.0)
+
+
 def peel_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamera, solve, rounds: int = PEEL_ROUNDS):
     """Search a solve's residual for depths the votes missed and solve again with them, up to ``rounds`` times
     (:func:`missed_depths`): :func:`~lf_flame.tomo.found_planes.find_planes`' and ``lf-flame reconstruct``'s route.
@@ -150,10 +158,8 @@ def peel_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamera,
     """
     if int(rounds) != rounds or rounds < 0:
         raise ValueError(f"rounds must be an integer >= 0. Received: {rounds!r}")
-    y = np.asarray(data, np.float64)
     for _ in range(int(rounds)):
-        residual = np.where(fit, y - (op @ np.ravel(rec.planes)).reshape(y.shape), 0.0)
-        more = missed_depths(residual, camera, found)
+        more = missed_depths(solve_residual(op, rec, data, fit), camera, found)
         if more is None:
             break
         found = more
