@@ -91,8 +91,9 @@ SCORE_VERSION = "side-by-side"
 #: (``peel_planes``). "near-peel-prominence": the residual's peak judged by its prominence over the curve's spread
 #: (``RESIDUAL_PROMINENCE``), not by its ratio to the median. "...-refine": the depths of flames one behind another
 #: refined by Gauss-Newton on the residual (``refine_planes``); "-unmerged": planes that merged several depths left;
-#: "-search": their regions searched once more after the refinement (``peel_and_refine``).
-ROUTE_VERSION = "near-peel-prominence-refine-unmerged-search"
+#: "-search-own-planes": their regions searched once more after the refinement where each depth has a plane of its
+#: own (``peel_and_refine``).
+ROUTE_VERSION = "near-peel-prominence-refine-unmerged-search-own-planes"
 
 
 def add_noise(raw, snr_db, seed):

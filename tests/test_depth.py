@@ -433,6 +433,19 @@ def test_a_faint_flame_behind_refined_ones_is_found_in_their_residual(cam, monke
     assert after.rel_err.max() < 0.1, after
 
 
+def test_the_search_after_the_refinement_skips_regions_of_merged_planes(cam, behind):
+    """Only regions of several depths, each on its own plane, are searched again: a merged plane is not refined and
+    keeps its misfit."""
+    import dataclasses
+
+    from lf_flame.tomo.refine import refined_regions
+    found = find_depths(behind[1], cam)
+    five = dataclasses.replace(found, region=np.array([0, 0, 1, 1, 2]), plane_of=np.array([0, 1, 2, 2, 3]))
+    assert refined_regions(five) == [0]                 # region 1 shares a plane, region 2 holds one depth
+    apart = dataclasses.replace(five, plane_of=np.arange(5))
+    assert refined_regions(apart) == [0, 1]
+
+
 def test_the_cli_finds_the_hidden_flame_as_the_library_route(cam, tmp_path, capsys):
     """``lf-flame reconstruct`` searches its solve's residual as ``find_planes`` does: it says what it found there,
     and records every depth with the planes of the library route."""

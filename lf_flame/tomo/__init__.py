@@ -37,7 +37,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "peel": ["RESIDUAL_PROMINENCE", "RESIDUAL_SHARE", "PEEL_ROUNDS", "missed_depths", "solve_residual",
                  "peel_planes"],
         "refine": ["REFINE_STEPS", "REFINE_MAX_SLOPE", "REFINE_TOL", "REFINE_REACH", "REFINED_PROMINENCE",
-                   "REFINED_SHARE", "slope_jacobian", "refine_planes", "peel_and_refine"],
+                   "REFINED_SHARE", "slope_jacobian", "refine_planes", "refined_regions", "peel_and_refine"],
         "found_planes": ["SUPPORT_DILATION", "NEAR_PARALLAX", "SUPPORT_KNOBS", "FOUND_PLANES_KNOBS", "plane_support",
                          "near_plane_support", "found_support", "found_planes_knobs", "find_planes"],
         "exact": ["QUADRATURE_NODES", "SHIFT_TOLERANCE", "PRECISIONS", "ExactKernels", "exact_kernels",

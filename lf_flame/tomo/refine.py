@@ -51,6 +51,7 @@ REFINE_REACH = 3.0
 #: rays per pixel, noise-free and 14 dB; a ``/tmp`` probe of each region's highest peak after the refinement):
 #: the 5 flames still missed stand 18.9-77 deviations high with 0.0071-0.0092 of the data's energy; misfits about
 #: found flames holding 0.002 of it or more reach 7.1 deviations, and those standing 12 or more hold at most 0.0002.
+#: Only regions whose depths each have a plane of their own are searched so (:func:`peel_and_refine`).
 REFINED_PROMINENCE = 12.0
 REFINED_SHARE = 0.002
 
@@ -166,12 +167,22 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
     return found, op, rec
 
 
+def refined_regions(found: FoundDepths) -> list:
+    """The regions (``found.region`` labels) that hold several depths, each on a plane of its own: those whose
+    planes :func:`refine_planes` moves. A plane that merged depths keeps its misfit (it is not refined), which
+    the finer search of :func:`peel_and_refine` would take for a flame."""
+    merged = np.bincount(found.plane_of)[found.plane_of] > 1
+    return [int(r) for r in np.unique(found.region)
+            if np.sum(found.region == r) > 1 and not merged[found.region == r].any()]
+
+
 def peel_and_refine(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamera, solve,
                     rounds: int = PEEL_ROUNDS, steps: int = REFINE_STEPS):
     """The found planes' route after their first solve: the residual searched for depths the votes missed
     (:func:`~lf_flame.tomo.peel.peel_planes`, up to ``rounds`` times), the planes of flames one behind another
-    refined (:func:`refine_planes`, ``steps``), and then, once, the regions that hold several depths searched
-    again (:data:`REFINED_PROMINENCE`, :data:`REFINED_SHARE`) and, where a depth is found, solved and refined again.
+    refined (:func:`refine_planes`, ``steps``), and then, once, the regions that hold several depths, each on a
+    plane of its own (the planes the refinement moves), searched again (:data:`REFINED_PROMINENCE`,
+    :data:`REFINED_SHARE`) and, where a depth is found, solved and refined again.
 
     Parameters
     ----------
@@ -188,7 +199,7 @@ def peel_and_refine(found: FoundDepths, op, rec, data, fit, camera: PlenopticCam
     """
     found, op, rec = peel_planes(found, op, rec, data, fit, camera, solve, rounds)
     found, op, rec = refine_planes(found, op, rec, data, fit, camera, solve, steps)
-    several = np.flatnonzero(np.bincount(found.region) > 1)
+    several = refined_regions(found)
     if not (rounds and steps and len(several)) or rec.solver == "learned":
         return found, op, rec
     more = missed_depths(solve_residual(op, rec, data, fit), camera, found, prominence=REFINED_PROMINENCE,
