@@ -21,7 +21,7 @@ HELDOUT_paper := 20
 HELDOUT_quick := 4
 HELDOUT_SEED := 770077
 
-.PHONY: train-reconstructor cameras temperature temperature-volume temperature-sequence help install docs dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi volume-edge volume-search sequence new-user heights test clean-quick
+.PHONY: train-reconstructor cameras thread-wait temperature temperature-volume temperature-sequence help install docs dataset bench-sim bench-refocus real-data train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi volume-edge volume-search sequence new-user heights test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -161,6 +161,11 @@ resolution: $(STAMP) ## smallest resolvable plane spacing against feature size -
 
 # find the planes: flames at random depths, found and reconstructed, beside the baselines (about 50 min
 # on 2 cores for 100 scenes; each scene's rows cached in data/depth, so a rerun resumes)
+# admm's solve with OpenMP threads waiting passively (the package's setting) or spinning, on the light fields
+# make cameras decoded (about 3 min on 2 cores)
+thread-wait: $(STAMP) ## (after make cameras) admm's solve time, OpenMP threads waiting passively against spinning -> results/thread_wait.{csv,md,json}
+	$(VENV)/bin/python experiments/thread_wait.py --out $(TRADEOFF_OUT)
+
 cameras: $(STAMP) ## five cameras end to end from the CLI (white image, calibrate, decode, found depths, emission) and a colour camera's temperature -> results/cameras{,_colour}.{csv,md,json}, cameras.png
 	$(VENV)/bin/python experiments/cameras.py --out $(TRADEOFF_OUT) $(if $(filter quick,$(PRESET)),--quick,)
 	$(VENV)/bin/python experiments/cameras_colour.py --out $(TRADEOFF_OUT) $(if $(filter quick,$(PRESET)),--quick,)

@@ -16,4 +16,12 @@ The package's folders are its stages (``docs/architecture.md`` draws them):
 Shared by every stage: :mod:`lf_flame.config` (configs, provenance, atomic writes) and
 :mod:`lf_flame.parallel` (Dask clients and an unordered map).
 """
+import os
+
 __version__ = "0.1.0"
+
+# Numba's OpenMP threads busy-wait after each parallel kernel (libgomp's default: 300,000 spins), holding the cores
+# that SciPy's FFT threads and the next kernel want at once; waiting passively made admm's solve faster on 2 cores
+# (``experiments/thread_wait.py``, results/thread_wait.md). Set before any OpenMP runtime starts; a user's own
+# setting is kept (libgomp manual, OMP_WAIT_POLICY and GOMP_SPINCOUNT).
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")

@@ -366,3 +366,18 @@ def test_fills_that_diverge_restart_without_momentum(tmp_path, monkeypatch):
     _, unguarded, _ = fourier.solve_admm(views, op, fit, fills=25, lam=0.01, tv=0.0)
     assert unguarded[-1] > 10 * min(unguarded)                    # the hard case: without the restart it diverges
     assert guarded[-1] < 1.5 * min(guarded) and guarded[-1] < 0.3
+
+
+def test_openmp_threads_wait_passively_unless_the_user_says_otherwise():
+    """Importing lf_flame sets OMP_WAIT_POLICY=PASSIVE (spinning threads hold the cores the FFTs need) and keeps a
+    user's own setting."""
+    import os
+    import subprocess
+    import sys
+    code = "import os, lf_flame; print(os.environ['OMP_WAIT_POLICY'])"
+    env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"}
+    got = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout
+    assert got.strip() == "PASSIVE"
+    got = subprocess.run([sys.executable, "-c", code], env={**env, "OMP_WAIT_POLICY": "ACTIVE"}, capture_output=True,
+                         text=True, check=True).stdout
+    assert got.strip() == "ACTIVE"
