@@ -159,17 +159,17 @@ train-reconstructor: $(STAMP) ## train the learned reconstructor of each plane's
 resolution: $(STAMP) ## smallest resolvable plane spacing against feature size -> results/depth_resolution.{csv,md,png}
 	$(VENV)/bin/python experiments/depth_resolution.py --out $(TRADEOFF_OUT)
 
-# find the planes: flames at random depths, found and reconstructed, beside the baselines (about 50 min
-# on 2 cores for 100 scenes; each scene's rows cached in data/depth, so a rerun resumes)
+cameras: $(STAMP) ## five cameras end to end from the CLI (white image, calibrate, decode, found depths, emission) and a colour camera's temperature -> results/cameras{,_colour}.{csv,md,json}, cameras.png
+	$(VENV)/bin/python experiments/cameras.py --out $(TRADEOFF_OUT) $(if $(filter quick,$(PRESET)),--quick,)
+	$(VENV)/bin/python experiments/cameras_colour.py --out $(TRADEOFF_OUT) $(if $(filter quick,$(PRESET)),--quick,)
+
 # admm's solve with OpenMP threads waiting passively (the package's setting) or spinning, on the light fields
 # make cameras decoded (about 3 min on 2 cores)
 thread-wait: $(STAMP) ## (after make cameras) admm's solve time, OpenMP threads waiting passively against spinning -> results/thread_wait.{csv,md,json}
 	$(VENV)/bin/python experiments/thread_wait.py --out $(TRADEOFF_OUT)
 
-cameras: $(STAMP) ## five cameras end to end from the CLI (white image, calibrate, decode, found depths, emission) and a colour camera's temperature -> results/cameras{,_colour}.{csv,md,json}, cameras.png
-	$(VENV)/bin/python experiments/cameras.py --out $(TRADEOFF_OUT) $(if $(filter quick,$(PRESET)),--quick,)
-	$(VENV)/bin/python experiments/cameras_colour.py --out $(TRADEOFF_OUT) $(if $(filter quick,$(PRESET)),--quick,)
-
+# find the planes: flames at random depths, found and reconstructed, beside the baselines (about 50 min
+# on 2 cores for 100 scenes; each scene's rows cached in data/depth, so a rerun resumes)
 depth: $(STAMP) ## flames at unknown depths (apart, one behind another, near focus): depth, emission and share errors per flame -> results/depth{,_columns,_bias}.{csv,md}, depth.png
 	$(VENV)/bin/python experiments/depth.py --out $(TRADEOFF_OUT) $(DEPTH_ARGS_$(PRESET))
 	$(VENV)/bin/python experiments/depth.py --out $(TRADEOFF_OUT) --bias $(if $(filter quick,$(PRESET)),6,60) --rays 100

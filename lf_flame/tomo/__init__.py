@@ -11,9 +11,10 @@ operator's per-frequency normal matrices (ADMM; kernels in :mod:`._fourier_kerne
 :mod:`.depth` finds the depths that hold emission (depth from focus per region),
 :mod:`.found_planes` solves on them, :mod:`.peel` searches that solve's residual for depths the votes missed and
 :mod:`.refine` moves the depths of flames one behind another to the residual's least (and searches it once more);
-:mod:`.axisymmetric` an axisymmetric flame's emission e(r, y) revolved onto a dense stack (its axis searched on the data residual; the
-model and its fit in :mod:`.revolve`, the axis's lateral position and the field's edge from the views in
-:mod:`.axis`); :mod:`.truth` puts a simulated scene's truth on the same grids; :mod:`.scoring` scores planes against it;
+:mod:`.axisymmetric` an axisymmetric flame's emission e(r, y) revolved onto a dense stack (its axis searched on the
+data residual; the model and its fit in :mod:`.revolve`, the axis's lateral position and the field's edge from the
+views in :mod:`.axis`); :mod:`.truth` puts a simulated scene's truth on the same grids; :mod:`.scoring` scores
+planes against it;
 :mod:`.volume` solves a dense stack with a prior (none, TV, sparse, axisymmetric) and
 states the depth resolution it carries; :mod:`.decoded` turns decoded views of a user's camera into the exact operator's data and
 puts a simulated scene's truth in their frame;

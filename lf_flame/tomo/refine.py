@@ -196,6 +196,11 @@ def peel_and_refine(found: FoundDepths, op, rec, data, fit, camera: PlenopticCam
     Returns
     -------
     found, op, rec
+
+    Raises
+    ------
+    ValueError
+        ``rounds`` or ``steps`` not an integer >= 0.
     """
     found, op, rec = peel_planes(found, op, rec, data, fit, camera, solve, rounds)
     found, op, rec = refine_planes(found, op, rec, data, fit, camera, solve, steps)
