@@ -25,3 +25,6 @@ __version__ = "0.1.0"
 # (``experiments/thread_wait.py``, results/thread_wait.md). Set before any OpenMP runtime starts; a user's own
 # setting is kept (libgomp manual, OMP_WAIT_POLICY and GOMP_SPINCOUNT).
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+# PyLops imports JAX at its own import where JAX is installed (0.35-0.46 s of every command's start); lf_flame hands
+# it NumPy arrays only. A user's own setting is kept.
+os.environ.setdefault("JAX_PYLOPS", "0")

@@ -368,16 +368,18 @@ def test_fills_that_diverge_restart_without_momentum(tmp_path, monkeypatch):
     assert guarded[-1] < 1.5 * min(guarded) and guarded[-1] < 0.3
 
 
-def test_openmp_threads_wait_passively_unless_the_user_says_otherwise():
-    """Importing lf_flame sets OMP_WAIT_POLICY=PASSIVE (spinning threads hold the cores the FFTs need) and keeps a
-    user's own setting."""
+def test_the_package_sets_its_runtime_defaults_unless_the_user_says_otherwise():
+    """Importing lf_flame sets OMP_WAIT_POLICY=PASSIVE (spinning threads hold the cores the FFTs need) and
+    JAX_PYLOPS=0 (PyLops does not import JAX, which lf_flame does not hand it), and keeps a user's own settings."""
     import os
     import subprocess
     import sys
-    code = "import os, lf_flame; print(os.environ['OMP_WAIT_POLICY'])"
-    env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"}
-    got = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True).stdout
-    assert got.strip() == "PASSIVE"
-    got = subprocess.run([sys.executable, "-c", code], env={**env, "OMP_WAIT_POLICY": "ACTIVE"}, capture_output=True,
-                         text=True, check=True).stdout
-    assert got.strip() == "ACTIVE"
+    code = ("import os, sys, lf_flame, pylops; "
+            "print(os.environ['OMP_WAIT_POLICY'], os.environ['JAX_PYLOPS'], 'jax' in sys.modules)")
+    env = {k: v for k, v in os.environ.items() if k not in ("OMP_WAIT_POLICY", "JAX_PYLOPS")}
+
+    def run(**extra):
+        return subprocess.run([sys.executable, "-c", code], env={**env, **extra}, capture_output=True, text=True,
+                              check=True).stdout.split()
+    assert run() == ["PASSIVE", "0", "False"]
+    assert run(OMP_WAIT_POLICY="ACTIVE", JAX_PYLOPS="1") == ["ACTIVE", "1", "True"]
