@@ -125,12 +125,6 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
                        curves=[curves[k] for k in order], grid_slopes=slopes, time_s=found.time_s)
 
 
-def solve_residual(op, rec, data, fit) -> np.ndarray:
-    """Data minus the solve's prediction, 0 where not fitted: ndarray of the data's shape (N, N, R, C), float64."""
-    y = np.asarray(data, np.float64)
-    return np.where(fit, y - (op @ np.ravel(rec.planes)).reshape(y.shape), 0.0)
-
-
 def peel_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamera, solve, rounds: int = PEEL_ROUNDS):
     """Search a solve's residual for depths the votes missed and solve again with them, up to ``rounds`` times
     (:func:`missed_depths`): :func:`~lf_flame.tomo.found_planes.find_planes`' and ``lf-flame reconstruct``'s route.
@@ -156,10 +150,11 @@ def peel_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamera,
     found, op, rec
         With the missed depths, or the ones given.
     """
+    from .solvers import fitted_residual
     if int(rounds) != rounds or rounds < 0:
         raise ValueError(f"rounds must be an integer >= 0. Received: {rounds!r}")
     for _ in range(int(rounds)):
-        more = missed_depths(solve_residual(op, rec, data, fit), camera, found)
+        more = missed_depths(fitted_residual(op, rec.planes, data, fit), camera, found)
         if more is None:
             break
         found = more

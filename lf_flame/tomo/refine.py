@@ -26,7 +26,7 @@ import numpy as np
 
 from ..optics.camera import PlenopticCamera
 from .depth import FoundDepths
-from .peel import PEEL_ROUNDS, missed_depths, peel_planes, solve_residual
+from .peel import PEEL_ROUNDS, missed_depths, peel_planes
 
 #: Gauss-Newton steps of :func:`refine_planes` (each a solve at the new depths). Chosen on 25 validation column
 #: scenes (``column_scene``, seeds 3950000-3950015 and 3960000-3960008, 100 rays per pixel; a ``/tmp`` probe), 66
@@ -132,14 +132,15 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
     todo = sorted({int(p) for p, r in zip(found.plane_of, found.region) if per_region[r] > 1 and per_plane[p] == 1})
     if not todo or rec.solver == "learned":
         return found, op, rec
+    from .solvers import fitted_residual
     y = np.asarray(data, np.float64)
     fit = np.asarray(fit, bool)
     k_of = {int(p): k for k, p in enumerate(found.plane_of)}          # each refined plane holds one depth
     lo = {p: found.depths_mm[k_of[p]] - REFINE_REACH * found.uncertainty_mm[k_of[p]] for p in todo}
     hi = {p: found.depths_mm[k_of[p]] + REFINE_REACH * found.uncertainty_mm[k_of[p]] for p in todo}
 
-    def residual(op, rec):
-        return np.where(fit, (op @ np.ravel(rec.planes)).reshape(y.shape) - y, 0.0)
+    def residual(op, rec):                                            # prediction minus data
+        return -fitted_residual(op, rec.planes, y, fit)
 
     r = residual(op, rec)
     cost = float(np.vdot(r, r))
@@ -207,7 +208,8 @@ def peel_and_refine(found: FoundDepths, op, rec, data, fit, camera: PlenopticCam
     several = refined_regions(found)
     if not (rounds and steps and len(several)) or rec.solver == "learned":
         return found, op, rec
-    more = missed_depths(solve_residual(op, rec, data, fit), camera, found, prominence=REFINED_PROMINENCE,
+    from .solvers import fitted_residual
+    more = missed_depths(fitted_residual(op, rec.planes, data, fit), camera, found, prominence=REFINED_PROMINENCE,
                          share=REFINED_SHARE, regions=several)
     if more is None:
         return found, op, rec

@@ -106,6 +106,25 @@ MISFIT_WARN = 0.1
 MISFIT_NOISE = 0.6
 
 
+def fitted_residual(op, planes, data, fit) -> np.ndarray:
+    """Data minus the planes' prediction where fitted, 0 elsewhere.
+
+    Parameters
+    ----------
+    op : EmissionOperator or ExactOperator
+    planes : ndarray of the operator's ``dims`` (P, rows, cols)
+    data : ndarray of shape (N, N, R, C)
+    fit : ndarray of bool of the data's shape
+        The fitted samples (:func:`fitted_pixels`).
+
+    Returns
+    -------
+    ndarray of shape (N, N, R, C), float64
+    """
+    y = np.asarray(data, np.float64)
+    return np.where(fit, y - (op @ np.ravel(planes)).reshape(y.shape), 0.0)
+
+
 def data_misfit(views, op: EmissionOperator, planes, saturation=1.0) -> dict:
     """How much of a light field its planes leave unexplained beyond the noise.
 
@@ -146,7 +165,7 @@ def data_misfit(views, op: EmissionOperator, planes, saturation=1.0) -> dict:
                          f"Received: {x.shape}")
     fit = fitted_pixels(y, saturation)
     norm = float(np.linalg.norm(np.where(fit, y, 0.0))) or 1.0
-    res = float(np.linalg.norm(np.where(fit, op.matvec(x.ravel()).reshape(y.shape) - y, 0.0))) / norm
+    res = float(np.linalg.norm(fitted_residual(op, x, y, fit))) / norm
     noise = noise_norm(y, fit) / norm
     return dict(relative_residual=res, noise_share=noise, misfit=math.sqrt(max(res * res - noise * noise, 0.0)))
 
