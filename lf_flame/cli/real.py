@@ -28,7 +28,7 @@ def cmd_calibrate(a):
 def cmd_decode(a):
     from ..real.calibration import GridCalibration
     from ..real.images import calibration_image, load_image
-    from ..real.decoding import auto_bin, clipped_samples, decode
+    from ..real.decoding import auto_bin, clipped_samples, decode, on_square_grid
     from ..real.views_file import save_views
     cal = GridCalibration.load(a.calibration)
     raw = load_image(a.raw)
@@ -40,8 +40,10 @@ def cmd_decode(a):
     k = getattr(a, "bin", None)
     if k is None:
         k = 1 if sensor is not None else auto_bin(cal, a.views)
-    if sensor is None:
-        views = decode(raw, cal, white, dark, n_views=a.views, camera_id=a.camera_id, bin_views=k)
+    lattice = None
+    if sensor is None:        # a hexagonal grid keeps its lattice's views beside the square grid's
+        lattice = decode(raw, cal, white, dark, n_views=a.views, camera_id=a.camera_id, bin_views=k, resample=False)
+        views = on_square_grid(lattice, cal)
     else:
         from ..real.decoding import decode_colour
         if k != 1:
@@ -52,12 +54,15 @@ def cmd_decode(a):
         print(f"colour sensor {sensor.name}, {sensor.pattern} phase {sensor.phase} ({where}): each sample from its "
               "nearest pixel, channels apart")
     level = _saturation_level(a.saturation, raw)
-    clipped = None if level is None else clipped_samples(raw, cal, level, n_views=a.views, bin_views=k)
+    hit = None if level is None else clipped_samples(raw, cal, level, n_views=a.views, bin_views=k, resample=False)
+    clipped = None if hit is None else on_square_grid(hit, cal)
+    if cal.layout != "hex" or sensor is not None:
+        lattice = hit = None
     dt = time.perf_counter() - t
     extra = {"bin_views": k} if level is None else {"saturation": level, "bin_views": k}
     if sensor is not None:
         extra["sensor"] = json.dumps(dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase)))
-    save_views(a.out, views, cal, clipped, channels, raw=str(Path(a.raw).resolve()),
+    save_views(a.out, views, cal, clipped, channels, lattice, hit, raw=str(Path(a.raw).resolve()),
                white_normalised=white is not None, **extra)
     note = "no clipping level" if level is None else f"{int(clipped.sum())} samples from pixels at or above {level:g}"
     binned = f", {k} x {k} pixels each" if k > 1 else ""

@@ -208,20 +208,37 @@ def edge_warning(rec, op, modelled: bool = False):
     return edge
 
 
-def misfit_warning(lf, op, rec, saturation="file"):
-    """The solve's misfit on the light field's data as it was fitted (:func:`lf_flame.tomo.solvers.data_misfit`),
-    for the file; where it is high (:func:`~lf_flame.tomo.solvers.misfit_is_high`), one warning (stderr) saying what
-    it means."""
+def misfit_warning(lf, op, rec, saturation="file", lattice=None):
+    """The solve's misfit on the light field's data as it was fitted (:func:`lf_flame.tomo.solvers.data_misfit`;
+    a :class:`~lf_flame.tomo.hexagonal.LatticeSolve` on its lattice's), for the file; where it is high
+    (:func:`~lf_flame.tomo.solvers.misfit_is_high`), one warning (stderr) saying what it means."""
     from ..tomo.decoded import fit_data
     from ..tomo.solvers import data_misfit, misfit_is_high
-    data, fit = fit_data(_fitted_light_field(lf, saturation), op)
-    m = data_misfit(data, op, rec.planes, fit)
+    if lattice is not None:
+        m = data_misfit(lattice.data, lattice.op, lattice.rec.planes, lattice.leave_out)
+    else:
+        data, fit = fit_data(_fitted_light_field(lf, saturation), op)
+        m = data_misfit(data, op, rec.planes, fit)
     if misfit_is_high(m):
         print(f"warning: the planes leave {100 * m['misfit']:.0f} % of the light field unexplained beyond its noise "
               f"(relative residual {m['relative_residual']:.3f}, of which noise {m['noise_share']:.3f}): light "
               "from flames off these planes or beyond the field, or a camera file that is not this camera's",
               file=sys.stderr)
     return m
+
+
+def lattice_solve(lf, op, rec, found=None, support: bool = False):
+    """A hexagonal camera's planes solved again on its lenslets' own lattice with admm's knobs and support
+    (:func:`lf_flame.tomo.hexagonal.solve_on_lattice`): ``(rec on the square grid, LatticeSolve)``."""
+    from ..tomo.hexagonal import solve_on_lattice
+    mask = None
+    if found is not None and rec.settings.get("support", "none") != "none":
+        from ..tomo.found_planes import found_support
+        mask = found_support(found, lf.camera, getattr(op, "subsamples", 1), support=support)
+    lattice = solve_on_lattice(lf, rec, op, support=mask)
+    print(f"solved again on the hexagonal lattice of the lenslets ({lattice.rec.time_s:.2f} s, operator "
+          f"{lattice.op.setup_s:.2f} s), resampled onto the square grid")
+    return lattice.square, lattice
 
 
 def cmd_reconstruct(a):
@@ -266,6 +283,9 @@ def cmd_reconstruct(a):
             depths = [float(d) for d in voters.planes_mm]
             extra["found_depths"] = found_record(voters)
             arrays = dict(found_masks=np.asarray(voters.masks, bool), found_regions=voters.labels)
+    lattice = None
+    if lf.lattice_views is not None and rec.solver == "admm":
+        rec, lattice = lattice_solve(lf, op, rec, voters, bool(getattr(a, "support", False)))
     if rec.settings.get("support") == "near planes":
         from ..tomo.found_planes import NEAR_PARALLAX
         print(f"planes within {NEAR_PARALLAX:g} lenslets of parallax of each other are held to the regions their "
@@ -273,7 +293,7 @@ def cmd_reconstruct(a):
     print(saturation_note(rec) if not lf.decoded else
           f"{rec.settings['n_saturated']} samples left out of the fit (clipped, or outside the aperture's image)")
     extra["edge_share"] = edge_warning(rec, op)
-    extra["misfit"] = misfit_warning(lf, op, rec, kw["saturation"])
+    extra["misfit"] = misfit_warning(lf, op, rec, kw["saturation"], lattice)
     out = Path(a.out)
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), **extra)
     n = cam.pixels_per_lenslet

@@ -103,6 +103,17 @@ def hex_to_square(views: np.ndarray) -> np.ndarray:
     return out
 
 
+def on_square_grid(a: np.ndarray, calibration: GridCalibration) -> np.ndarray:
+    """:func:`decode`'s (or :func:`clipped_samples`') output with ``resample=False`` as it is with
+    resampling: a hexagonal grid's views (a boolean mask: any of its three samples) on the square
+    grid (:func:`hex_to_square`), a square grid's as they are."""
+    if calibration.layout != "hex":
+        return a
+    if a.dtype == bool:
+        return np.ascontiguousarray(hex_to_square(a.astype(np.float32)) > 1e-6)
+    return np.ascontiguousarray(hex_to_square(a))
+
+
 def max_views(calibration) -> int:
     """Views per axis a lenslet image holds: ``floor(pitch_px + PITCH_SNAP_PX)``
     (:data:`lf_flame.optics.camera_file.PITCH_SNAP_PX`).
@@ -150,7 +161,7 @@ def _prepared(raw, calibration: GridCalibration, dark, n_views, check: bool, bin
 
 def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | None = None,
            dark: np.ndarray | None = None, *, n_views: int | None = None, min_white: float = 0.05,
-           camera_id: str | None = None, check: bool = True, bin_views: int = 1) -> np.ndarray:
+           camera_id: str | None = None, check: bool = True, bin_views: int = 1, resample: bool = True) -> np.ndarray:
     """Decode a raw plenoptic image into sub-aperture views with its grid calibration.
 
     Dark subtraction, then every lenslet image is resampled (bilinearly) at
@@ -159,7 +170,8 @@ def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | No
     With ``bin_views`` = k each view sample sums k x k such samples, of the raw and of the white
     image alike, before the division (the views of a camera with k-times larger pixels,
     :func:`lf_flame.real.own_camera.views_camera`).
-    A hexagonal grid is then resampled onto a square one (:func:`hex_to_square`).
+    A hexagonal grid is then resampled onto a square one (:func:`hex_to_square`) unless
+    ``resample`` is False.
 
     Parameters
     ----------
@@ -179,6 +191,10 @@ def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | No
         If given and the calibration names a camera, they must agree.
     check : bool
         Check that the raw image shows the calibration's grid (:func:`check_grid`).
+    resample : bool
+        False: a hexagonal grid's views stay on its own lattice (the calibration's R x C
+        lenslets, odd rows half a pitch right), the data of
+        :class:`lf_flame.tomo.hexagonal.HexLatticeOperator`.
 
     Returns
     -------
@@ -214,7 +230,7 @@ def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | No
         lit = wv > floor
         views = np.where(lit, views / np.where(lit, wv, 1.0), 0.0)
     views = views.astype(np.float32)
-    if calibration.layout == "hex":
+    if calibration.layout == "hex" and resample:
         views = hex_to_square(views)
     return np.ascontiguousarray(views)
 
@@ -287,7 +303,7 @@ def decode_colour(raw: np.ndarray, calibration: GridCalibration, sensor, white: 
 
 
 def clipped_samples(raw: np.ndarray, calibration: GridCalibration, saturation: float, *,
-                    n_views: int | None = None, bin_views: int = 1) -> np.ndarray:
+                    n_views: int | None = None, bin_views: int = 1, resample: bool = True) -> np.ndarray:
     """Which decoded samples come from clipped raw pixels: the clipping level in the views' units.
 
     A sample of :func:`decode` is a bilinear mix of up to four raw pixels; it holds only a
@@ -305,14 +321,14 @@ def clipped_samples(raw: np.ndarray, calibration: GridCalibration, saturation: f
     saturation : float
         The sensor's clipping level in the raw image's units (1.0 for the simulator's
         images; ``2**bits - 1`` for integer counts).
-    n_views, bin_views : int or None, int
+    n_views, bin_views, resample : int or None, int, bool
         As :func:`decode` (a binned sample is clipped when any of its pixels is).
 
     Returns
     -------
     clipped : ndarray of bool, the shape of :func:`decode`'s views (N, N, R, C)
-        Hexagonal grids: a square-lattice sample is clipped when any of the three samples
-        it is interpolated from is (:func:`hex_to_square`).
+        Hexagonal grids resampled: a square-lattice sample is clipped when any of the three
+        samples it is interpolated from is (:func:`hex_to_square`).
 
     Raises
     ------
@@ -327,6 +343,6 @@ def clipped_samples(raw: np.ndarray, calibration: GridCalibration, saturation: f
         raise ValueError(f"saturation must be a positive finite level (raw units). Received: {saturation!r}")
     n, k = _view_count(calibration, n_views, bin_views), int(bin_views)
     hit = _bin(_sample((img >= saturation).astype(np.float64), view_positions(calibration, n * k)), k)
-    if calibration.layout == "hex":
+    if calibration.layout == "hex" and resample:
         hit = hex_to_square(hit)
     return np.ascontiguousarray(hit > 1e-6)

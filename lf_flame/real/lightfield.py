@@ -63,6 +63,13 @@ class LightField:
     channels : ndarray of int8 of the views' shape, or None
         A colour capture decoded with its channels apart
         (:func:`lf_flame.real.decoding.decode_colour`): each sample's channel (0 R, 1 G, 2 B).
+    lattice_views : ndarray of shape (N, N, rows, lenslets per row), float32, or None
+        A hexagonal grid's views on its own lattice, before ``views`` resampled them onto the
+        square grid (``decode(..., resample=False)``): the data of
+        :class:`lf_flame.tomo.hexagonal.HexLatticeOperator`, which ``lf-flame reconstruct``
+        solves on. None: a square grid (or views decoded without them).
+    lattice_leave_out : ndarray of bool of the lattice views' shape, or None
+        Their samples from clipped pixels.
     """
 
     views: np.ndarray
@@ -76,6 +83,8 @@ class LightField:
     camera_file: str | None = None
     meta: dict = field(default_factory=dict)
     channels: np.ndarray | None = None
+    lattice_views: np.ndarray | None = None
+    lattice_leave_out: np.ndarray | None = None
 
     def __post_init__(self):
         v = self.views
@@ -88,6 +97,12 @@ class LightField:
                              "(N, N, rows, cols)")
         if self.leave_out is not None and (self.leave_out.shape != v.shape or self.leave_out.dtype != bool):
             raise ValueError(f"{self.source}: leave_out must be boolean of the views' shape {v.shape}")
+        lv = self.lattice_views
+        if lv is not None and (lv.ndim != 4 or lv.shape[:2] != v.shape[:2] or not np.all(np.isfinite(lv))):
+            raise ValueError(f"{self.source}: lattice views of shape {lv.shape} are not finite views (N, N, rows, "
+                             f"cols) with the views' N = {v.shape[0]}")
+        if self.lattice_leave_out is not None and (lv is None or self.lattice_leave_out.shape != lv.shape):
+            raise ValueError(f"{self.source}: lattice_leave_out must have the lattice views' shape")
 
     @property
     def decoded(self) -> bool:
@@ -221,7 +236,7 @@ def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation
 
 def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "decoded views", clipped=None,
                  white_normalised: bool = True, camera_file: str | None = None, channels=None,
-                 meta: dict | None = None, bin_views: int = 1) -> LightField:
+                 meta: dict | None = None, bin_views: int = 1, lattice_views=None, lattice_clipped=None) -> LightField:
     """The light field of views decoded from a capture of ``camera`` with ``calibration``.
 
     Parameters
@@ -238,6 +253,8 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
         Records kept with the views (``sensor``: a colour capture's sensor, JSON).
     bin_views : int
         Pixels per view sample and axis they were decoded with.
+    lattice_views, lattice_clipped : ndarray or None
+        A hexagonal grid's views on its own lattice and their clipped samples (:class:`LightField`).
 
     Raises
     ------
@@ -255,7 +272,9 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
         raise ValueError(f"{source}: a channel map of shape {np.shape(channels)} for views of shape {v.shape}")
     return LightField(v, vcam, source, leave_out=clipped, saturation=None, white_normalised=white_normalised,
                       frame=frame, capture_camera=camera, camera_file=camera_file, meta=dict(meta or {}),
-                      channels=None if channels is None else np.asarray(channels, np.int8))
+                      channels=None if channels is None else np.asarray(channels, np.int8),
+                      lattice_views=None if lattice_views is None else np.asarray(lattice_views, np.float32),
+                      lattice_leave_out=lattice_clipped)
 
 
 def read_light_field(path, camera=None, calibration=None, *, views: int | None = None,
@@ -309,7 +328,7 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
     p = Path(src)
     if p.suffix.lower() == ".h5" and ".h5:" not in src:
         from ..config import DamagedFileError
-        from .views_file import load_channels, load_clipped, load_views
+        from .views_file import load_channels, load_clipped, load_lattice, load_views
         try:
             v, vcal = load_views(p)
         except DamagedFileError:
@@ -327,7 +346,8 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
             white = bool(f.attrs.get("white_normalised", True))
             meta = {"sensor": str(f.attrs["sensor"])} if "sensor" in f.attrs else {}
             k = int(f.attrs.get("bin_views", 1))
-        return from_decoded(v, vcal, cam, src, load_clipped(p), white, cam_file, load_channels(p), meta, k)
+        return from_decoded(v, vcal, cam, src, load_clipped(p), white, cam_file, load_channels(p), meta, k,
+                            *load_lattice(p))
     raw, stored, meta = (raw_reader or _read_raw)(p)
     cam = cam or stored
     if cam is None:
@@ -343,13 +363,16 @@ def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None) -> Light
     ``lf-flame decode`` bins by default (:func:`lf_flame.real.decoding.auto_bin`, one pixel per view
     where ``n_views`` is given)."""
     from .images import calibration_image
-    from .decoding import auto_bin, clipped_samples, decode
+    from .decoding import auto_bin, clipped_samples, decode, on_square_grid
     white, dark = calibration_image(cal.white, "white"), calibration_image(cal.dark, "dark")
     k = auto_bin(cal, n_views) if bin_views is None else bin_views
-    v = decode(raw, cal, white, dark, n_views=n_views, bin_views=k)
+    lattice = decode(raw, cal, white, dark, n_views=n_views, bin_views=k, resample=False)
     level = 1.0 if float(np.max(raw)) <= 1.0 else None
-    clipped = None if level is None else clipped_samples(raw, cal, level, n_views=n_views, bin_views=k)
-    return from_decoded(v, cal, cam, src, clipped, white is not None, cam_file, bin_views=k)
+    hit = None if level is None else clipped_samples(raw, cal, level, n_views=n_views, bin_views=k, resample=False)
+    hexagonal = cal.layout == "hex"
+    return from_decoded(on_square_grid(lattice, cal), cal, cam, src, None if hit is None else on_square_grid(hit, cal),
+                        white is not None, cam_file, bin_views=k, lattice_views=lattice if hexagonal else None,
+                        lattice_clipped=hit if hexagonal else None)
 
 
 def _read_raw(p: Path):

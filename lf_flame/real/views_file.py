@@ -2,7 +2,7 @@
 
 :func:`save_views` writes the views of :mod:`lf_flame.real.decoding` (with their calibration,
 the samples from clipped pixels and, for a colour capture, each sample's channel) atomically;
-:func:`load_views`, :func:`load_clipped` and :func:`load_channels` read them back.
+:func:`load_views`, :func:`load_clipped`, :func:`load_channels` and :func:`load_lattice` read them back.
 """
 from __future__ import annotations
 
@@ -15,12 +15,15 @@ from .calibration import GridCalibration
 
 
 def save_views(path, views: np.ndarray, calibration: GridCalibration, clipped: np.ndarray | None = None,
-               channels: np.ndarray | None = None, **attrs) -> Path:
+               channels: np.ndarray | None = None, lattice_views: np.ndarray | None = None,
+               lattice_clipped: np.ndarray | None = None, **attrs) -> Path:
     """Write decoded views to HDF5 (dataset ``views``, (N, N, R, C) float32; the calibration
     as JSON in attribute ``calibration``), atomically: a temporary file, then renamed.
     ``clipped`` (bool, the views' shape; :func:`clipped_samples`) goes in dataset ``clipped``,
     a colour capture's ``channels`` (int8, the views' shape; :func:`decode_colour`) in dataset
-    ``channels``."""
+    ``channels``; a hexagonal grid's views on its own lattice (``decode(..., resample=False)``,
+    (N, N, rows, lenslets per row)) and their clipped samples in ``lattice_views`` and
+    ``lattice_clipped``."""
     import os
 
     import h5py
@@ -40,6 +43,17 @@ def save_views(path, views: np.ndarray, calibration: GridCalibration, clipped: n
                 raise ValueError(f"channels must have the views' shape {np.shape(views)}. Received: "
                                  f"{np.shape(channels)}")
             f.create_dataset("channels", data=np.asarray(channels, np.int8), compression="gzip", compression_opts=1)
+        if lattice_views is not None:
+            if np.ndim(lattice_views) != 4 or np.shape(lattice_views)[:2] != np.shape(views)[:2]:
+                raise ValueError(f"lattice views must be (N, N, rows, cols) with the views' N. Received: shape "
+                                 f"{np.shape(lattice_views)}")
+            f.create_dataset("lattice_views", data=np.asarray(lattice_views, np.float32), compression="gzip",
+                             compression_opts=1)
+            if lattice_clipped is not None:
+                if np.shape(lattice_clipped) != np.shape(lattice_views):
+                    raise ValueError("lattice_clipped must have the lattice views' shape")
+                f.create_dataset("lattice_clipped", data=np.asarray(lattice_clipped, bool), compression="gzip",
+                                 compression_opts=1)
         f.attrs["format"] = "lf_flame.decoded_views"
         f.attrs["calibration"] = json.dumps(calibration.to_dict())
         for k, v in attrs.items():
@@ -79,3 +93,16 @@ def load_clipped(path) -> np.ndarray | None:
     import h5py
     with h5py.File(Path(path), "r") as f:
         return f["clipped"][...].astype(bool) if "clipped" in f else None
+
+
+def load_lattice(path) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """A hexagonal grid's views on its own lattice and their clipped samples from :func:`save_views`'
+    file: ``(views, clipped)``, float32 and bool of shape (N, N, rows, lenslets per row); ``(None,
+    None)`` where the file has none (a square grid, or decoded before they were kept), the clipped
+    samples None where it has no mask."""
+    import h5py
+    with h5py.File(Path(path), "r") as f:
+        if "lattice_views" not in f:
+            return None, None
+        return (f["lattice_views"][...].astype(np.float32),
+                f["lattice_clipped"][...].astype(bool) if "lattice_clipped" in f else None)

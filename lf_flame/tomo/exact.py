@@ -178,18 +178,8 @@ def exact_kernels(camera: PlenopticCamera, depths_mm, *, margin: float = 1.0, ef
         raise ValueError(f"margin must be positive and give whole samples on the {R} x {C} lenslet grid "
                          f"(margin * n_rows, margin * n_cols whole). Received: margin={margin!r}")
     sizes = [plane_grid(camera, d, margin) for d in depths]      # raises for a plane the camera cannot image
-    zero = np.zeros((gr, gc), np.float32)
-    scene = Scene("operator", tuple(Layer(zero, None, d, (0.0, 0.0), s) for d, s in zip(depths, sizes)), effects)
-    layers, z, _, _ = _stack_layers(camera, scene)               # nearest first
-    order = sorted(range(len(depths)), key=lambda k: depths[k])
-    ky_sorted, kx_sorted = trace_coefficients(camera, layers, z)
     P = len(depths)
-    inv = np.empty(P, np.int64)
-    inv[order] = np.arange(P)                                    # plane k is kernel layer inv[k]
-    ky = np.concatenate([ky_sorted[:2], ky_sorted[2 + inv]])
-    kx = np.concatenate([kx_sorted[:2], kx_sorted[2 + inv]])
-    cy, ay, ty, dty = ExactOperator._axis(ky, N, R, "row")
-    cx, ax, tx, dtx = ExactOperator._axis(kx, N, C, "column")
+    (cy, ay, ty, dty), (cx, ax, tx, dtx) = chain_coefficients(camera, depths, sizes, (gr, gc), effects)
     cy, cx = cy * sub, cx * sub                                  # texel coordinates on the finer grid
 
     # taps of each view and plane, and the canvas no wrap-around reaches
@@ -222,6 +212,47 @@ def exact_kernels(camera: PlenopticCamera, depths_mm, *, margin: float = 1.0, ef
         h, m0y, n0x = _phase_kernels(h, m0y, n0x, sub)
     return ExactKernels(h, m0y, n0x, weights, tuple(depths), tuple(tuple(float(v) for v in s) for s in sizes),
                         margin, (P, sub * gr, sub * gc), (N, N, R, C), sub)
+
+
+def chain_coefficients(camera: PlenopticCamera, depths, sizes, grid, effects: Effects = FLAME_EFFECTS):
+    """Per axis, the ray chain of a pixel in lenslet 0 as affine functions of its ray samples.
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+        A perfect lenslet grid.
+    depths : sequence of float
+        The planes' depths (mm), in the caller's order.
+    sizes : sequence of (float, float)
+        Each plane's grid frame (height, width), mm (:func:`~lf_flame.tomo.operator.plane_grid`).
+    grid : (int, int)
+        Samples per plane (rows, columns): one per lenslet footprint.
+    effects : Effects
+
+    Returns
+    -------
+    (row, column) : two tuples ``(texel, height, angle, step)``
+        ``texel`` (N, P, 3): the texel coordinate read on each plane, ``c0 + c1 du + c2 da``
+        (``du`` the ray's place in its pixel, ``da`` in its lenslet, each in [-1/2, 1/2) of a
+        pitch); ``height`` (N, 3) on the main lens (mm) and ``angle`` (N, 3) at the field's
+        centre alike; ``step`` (N,) the angle's change per lenslet (:meth:`ExactOperator._axis`).
+
+    Raises
+    ------
+    ValueError
+        A chain that is not shift-invariant across lenslets.
+    """
+    R, C, N = camera.n_rows, camera.n_cols, camera.pixels_per_lenslet
+    zero = np.zeros(tuple(grid), np.float32)
+    scene = Scene("operator", tuple(Layer(zero, None, d, (0.0, 0.0), s) for d, s in zip(depths, sizes)), effects)
+    layers, z, _, _ = _stack_layers(camera, scene)               # nearest first
+    order = sorted(range(len(depths)), key=lambda k: depths[k])
+    ky_sorted, kx_sorted = trace_coefficients(camera, layers, z)
+    inv = np.empty(len(depths), np.int64)
+    inv[order] = np.arange(len(depths))                          # plane k is kernel layer inv[k]
+    ky = np.concatenate([ky_sorted[:2], ky_sorted[2 + inv]])
+    kx = np.concatenate([kx_sorted[:2], kx_sorted[2 + inv]])
+    return ExactOperator._axis(ky, N, R, "row"), ExactOperator._axis(kx, N, C, "column")
 
 
 def _phase_kernels(h, m0y, n0x, s):
@@ -348,7 +379,7 @@ class ExactOperator(pylops.LinearOperator):
         t_start = time.perf_counter()
         if precision not in PRECISIONS:
             raise ValueError(f"precision must be one of {PRECISIONS}. Received: {precision!r}")
-        ek = exact_kernels(camera, depths_mm, margin=margin, effects=effects, quadrature_nodes=quadrature_nodes,
+        ek = self._kernels(camera, depths_mm, margin=margin, effects=effects, quadrature_nodes=quadrature_nodes,
                            subsamples=subsamples)
         h, weights, m0y, n0x = ek.kernels, ek.weights, ek.tap_origin_y, ek.tap_origin_x
         sub = ek.subsamples
@@ -396,6 +427,15 @@ class ExactOperator(pylops.LinearOperator):
         super().__init__(dtype=np.float64, dims=ek.dims, dimsd=(N, N, R, C))
         self.setup_s = time.perf_counter() - t_start
 
+    #: What :meth:`binned` copies as it is (a subclass adds its own).
+    _SHARED = ("camera", "effects", "precision", "quadrature_nodes", "depths_mm", "sizes_mm", "centres_mm", "margin",
+               "rays_per_pixel", "seed", "weights", "canvas_shape", "workers", "_lit", "_real", "_w")
+
+    @staticmethod
+    def _kernels(camera, depths_mm, **kw) -> ExactKernels:
+        """The map's kernels (:func:`exact_kernels`); a subclass on another lattice gives its own."""
+        return exact_kernels(camera, depths_mm, **kw)
+
     def binned(self) -> "ExactOperator":
         """The same planes on the lenslet grid (``subsamples`` 1), from this operator's kernels.
 
@@ -415,8 +455,7 @@ class ExactOperator(pylops.LinearOperator):
             return self
         t0 = time.perf_counter()
         new = object.__new__(type(self))
-        for name in ("camera", "effects", "precision", "quadrature_nodes", "depths_mm", "sizes_mm", "centres_mm",
-                     "margin", "rays_per_pixel", "seed", "weights", "canvas_shape", "workers", "_lit", "_real", "_w"):
+        for name in self._SHARED:
             setattr(new, name, getattr(self, name))
         (Pp, gr, gc), (N, _) = self.phase_dims, self.dimsd[:2]
         P = Pp // s2

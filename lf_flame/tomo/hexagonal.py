@@ -1,0 +1,388 @@
+"""The exact operator on a hexagonal lenslet lattice, with no resampling of the views.
+
+A hexagonal microlens array's views sample the object on the lattice of its lenslets. Decoding
+resamples them onto a square grid (:func:`lf_flame.real.decoding.hex_to_square`) so that
+refocusing and the depth search run unchanged; but that interpolation blurs the views by an
+amount that depends on each sample's place in its lattice triangle, which no convolution on the
+square grid models, and the square camera's operator fitted to them leaves the flames about
+15 % off. Here the planes are sampled on the hexagonal lattice itself, and the map to the
+views on the lenslets' own lattice is still a convolution per view and plane: every lenslet
+sees the same texel offsets (the argument of :mod:`lf_flame.tomo.exact`), only the lattice
+differs.
+
+Storage (axial, or skew, coordinates): site ``(j, i)`` of the lattice lies at ``(j sqrt(3)/2,
+i + j/2)`` pitches (row, column), so translation by a lattice vector is a shift of the array
+and the FFT convolutions of :class:`~lf_flame.tomo.exact.ExactOperator` apply as they are.
+The decoded views, rows of lenslets each shifted by half a pitch from the one before (the
+calibration's offset rows), become a parallelogram in that array (:func:`to_axial`); the
+array's other samples are missing data, left out of the fit like clipped ones. The planes fill
+the whole array; ``subsamples`` = s puts s x s sites of the s-times finer hexagonal lattice in
+each lenslet's (the polyphase grouping of :func:`lf_flame.tomo.exact._phase_kernels`).
+
+The kernels: per view and plane, the mean over a pixel's rays (the pixel's area times the
+lenslet's hexagonal cell, as the renderer draws them: :func:`hexagon_points`) of aperture x
+cos^4 x [the ray reads the plane at site offset (m, n)], from the same affine ray chain as the
+square camera's (:func:`lf_flame.tomo.exact.chain_coefficients`). The nearest site is not
+separable by axis, so the mean is taken by scrambled Sobol points (SciPy's ``qmc.Sobol``,
+fixed seed: the same kernels every run) rather than the square grid's closed-form quadrature;
+on a square lattice the same code gives the exact kernels within 6e-4 (L1, 2^16 points;
+``tests/test_hexagonal.py``).
+
+The result is resampled onto the decoded square grid (:meth:`HexLatticeOperator.to_square`,
+barycentric in the fine lattice's triangles), where the depth search, the scores and the files
+of every other camera live.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from ..real.lattice import _H
+from ..simulate.scenes import FLAME_EFFECTS, Effects
+from .exact import ExactKernels, ExactOperator, _phase_kernels, chain_coefficients
+from .operator import plane_grid
+
+#: Sobol points per view and plane of the kernels' mean (a power of two): against 2^18 the taps
+#: differ by 2e-3 of their sum (L1) at 2^14, 1e-3 at 2^16 (``tests/test_hexagonal.py`` measures
+#: the square lattice's against the exact quadrature).
+KERNEL_POINTS = 2 ** 14
+LAYOUTS = ("hex", "square")
+
+
+def nearest_site(y, x, layout: str = "hex"):
+    """The lattice site nearest to points ``(y, x)`` (pitches from site (0, 0), rows down).
+
+    Parameters
+    ----------
+    y, x : ndarray
+        Points, pitches.
+    layout : {'hex', 'square'}
+        ``hex``: site ``(j, i)`` at ``(j sqrt(3)/2, i + j/2)``; ``square``: at ``(j, i)``.
+
+    Returns
+    -------
+    j, i : ndarray of int64
+        Axial indices of the nearest site (its Voronoi cell: the hexagon, or the square).
+    """
+    y, x = np.asarray(y, np.float64), np.asarray(x, np.float64)
+    if layout == "square":
+        return np.floor(y + 0.5).astype(np.int64), np.floor(x + 0.5).astype(np.int64)
+    j0 = np.floor(y / _H)
+    best_j = best_i = best_d = None
+    for j in (j0, j0 + 1):                      # the two lattice rows about the point
+        i = np.round(x - j / 2)
+        d = (y - j * _H) ** 2 + (x - i - j / 2) ** 2
+        if best_d is None:
+            best_j, best_i, best_d = j, i, d
+        else:
+            closer = d < best_d
+            best_j, best_i, best_d = np.where(closer, j, best_j), np.where(closer, i, best_i), np.where(closer, d, best_d)
+    return best_j.astype(np.int64), best_i.astype(np.int64)
+
+
+def hexagon_points(a_row, a_col):
+    """Uniform points of the unit square ``[-1/2, 1/2)^2`` mapped onto the hexagonal cell of a
+    lattice site, uniform there: the rhombus ``(1, 0), (1/2, sqrt(3)/2)`` (column, row) they span,
+    each point moved into the hexagon by the lattice vector that brings it nearest the centre
+    (the renderer's draw, :func:`lf_flame.simulate._kernels.render_points`).
+
+    Returns
+    -------
+    rows, cols : ndarray
+        Offsets from the cell's centre, pitches.
+    """
+    col = np.asarray(a_row, np.float64) + 0.5 * np.asarray(a_col, np.float64)
+    row = _H * np.asarray(a_col, np.float64)
+    best_c, best_r, best_d = np.zeros_like(col), np.zeros_like(row), col ** 2 + row ** 2
+    for vc, vr in ((1.0, 0.0), (-1.0, 0.0), (0.5, _H), (-0.5, -_H), (-0.5, _H), (0.5, -_H)):
+        d = (col - vc) ** 2 + (row - vr) ** 2
+        closer = d < best_d
+        best_c, best_r, best_d = np.where(closer, vc, best_c), np.where(closer, vr, best_r), np.where(closer, d, best_d)
+    return row - best_r, col - best_c
+
+
+def lattice_kernels(camera, depths_mm, shape, *, layout: str = "hex", subsamples: int = 1,
+                    points: int = KERNEL_POINTS, effects: Effects = FLAME_EFFECTS, seed: int = 0) -> ExactKernels:
+    """The exact map's kernels on a lenslet lattice, by quasi-Monte Carlo over each pixel's rays.
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+        The decoded views' square camera (:func:`lf_flame.real.own_camera.views_camera`): its optics,
+        pitch and views; its grid's size is not used.
+    depths_mm : sequence of float
+        The planes' depths, mm from the focus distance.
+    shape : (int, int)
+        The views' axial array, rows x columns of lenslets (:func:`to_axial`).
+    layout : {'hex', 'square'}
+        The lenslets' lattice and cells (the square one checks this route against
+        :func:`lf_flame.tomo.exact.exact_kernels`).
+    subsamples : int
+        Sites of the s-times finer lattice per lenslet and axis.
+    points : int
+        Scrambled Sobol points per view and plane (a power of two).
+    effects : Effects
+        Aperture and cos^4 as asked (occlusion and crosstalk off).
+    seed : int
+        The points' scrambling.
+
+    Returns
+    -------
+    ExactKernels
+        ``dims`` (P, s rows, s cols) and ``dimsd`` (N, N, rows, cols) on the axial array; the
+        per-pixel weights 1 (the cos^4 drift across the field is the white image's, divided out
+        by decoding and left out of data and model alike).
+
+    Raises
+    ------
+    ValueError
+        An unknown layout, occlusion or crosstalk on, fewer than one subsample, a plane the
+        camera cannot image.
+    """
+    from scipy.stats import qmc
+    if layout not in LAYOUTS:
+        raise ValueError(f"layout must be one of {LAYOUTS}. Received: {layout!r}")
+    if effects.occlusion or effects.crosstalk:
+        raise ValueError("the exact operator needs occlusion and crosstalk off (flames are optically thin)")
+    if int(subsamples) != subsamples or subsamples < 1:
+        raise ValueError(f"subsamples must be a positive integer. Received: {subsamples!r}")
+    s = int(subsamples)
+    depths = [float(d) for d in np.atleast_1d(depths_mm)]
+    R, C = (int(v) for v in shape)
+    N, P = camera.pixels_per_lenslet, len(depths)
+    sizes = [plane_grid(camera, d, 1.0) for d in depths]
+    (cy, ay, ty, _), (cx, ax, tx, _) = chain_coefficients(camera, depths, sizes, (camera.n_rows, camera.n_cols),
+                                                          effects)
+    u = qmc.Sobol(4, scramble=True, seed=seed).random(int(points)) - 0.5
+    du_y, du_x = u[:, 0], u[:, 1]
+    da_y, da_x = hexagon_points(u[:, 2], u[:, 3]) if layout == "hex" else (u[:, 2], u[:, 3])
+    r2 = (camera.aperture_diameter_mm / 2) ** 2 if effects.aperture else np.inf
+    reads = {}
+    for a in range(N):
+        hy = ay[a, 0] + ay[a, 1] * du_y + ay[a, 2] * da_y
+        ang_y = ty[a, 0] + ty[a, 1] * du_y + ty[a, 2] * da_y
+        for b in range(N):
+            hx = ax[b, 0] + ax[b, 1] * du_x + ax[b, 2] * da_x
+            lit = hy ** 2 + hx ** 2 <= r2
+            if not lit.any():
+                continue
+            w = np.ones(lit.sum())
+            if effects.cos4:
+                ang_x = tx[b, 0] + tx[b, 1] * du_x + tx[b, 2] * da_x
+                w = 1.0 / (1.0 + ang_y[lit] ** 2 + ang_x[lit] ** 2) ** 2
+            for k in range(P):     # texel coordinate less the lenslet's own footprint centre (0.5), fine pitches
+                y = s * (cy[a, k, 0] + cy[a, k, 1] * du_y[lit] + cy[a, k, 2] * da_y[lit] - 0.5)
+                x = s * (cx[b, k, 0] + cx[b, k, 1] * du_x[lit] + cx[b, k, 2] * da_x[lit] - 0.5)
+                reads[a, b, k] = (*nearest_site(y, x, layout), w / len(u))
+    if not reads:
+        raise ValueError("no pixel's rays pass the main lens's aperture")
+    j0 = min(int(j.min()) for j, _, _ in reads.values())
+    i0 = min(int(i.min()) for _, i, _ in reads.values())
+    n_j = max(int(j.max()) for j, _, _ in reads.values()) - j0 + 1
+    n_i = max(int(i.max()) for _, i, _ in reads.values()) - i0 + 1
+    h = np.zeros((N, N, P, n_j, n_i))
+    for (a, b, k), (j, i, w) in reads.items():
+        np.add.at(h[a, b, k], (j - j0, i - i0), w)
+    m0y, n0x = np.full((N, P), j0, np.int64), np.full((N, P), i0, np.int64)
+    if s > 1:
+        h, m0y, n0x = _phase_kernels(h, m0y, n0x, s)
+    return ExactKernels(h, m0y, n0x, np.ones((N, N, R, C)), tuple(depths),
+                        tuple(tuple(float(v) for v in z) for z in sizes), 1.0, (P, s * R, s * C), (N, N, R, C), s)
+
+
+def to_axial(a: np.ndarray):
+    """Arrays on a hexagonal grid's offset rows (row 0 unshifted, odd rows half a pitch right:
+    the calibration's grid) in axial storage.
+
+    Parameters
+    ----------
+    a : ndarray of shape (..., R, C)
+
+    Returns
+    -------
+    axial : ndarray of shape (..., R, C + (R - 1) // 2)
+        Lenslet ``(j, c)`` at column ``c - j // 2 + (R - 1) // 2``; 0 (False) elsewhere.
+    inside : ndarray of bool of shape (R, C + (R - 1) // 2)
+        Where the array holds a lenslet.
+    """
+    a = np.asarray(a)
+    R, C = a.shape[-2:]
+    off = (R - 1) // 2
+    out = np.zeros(a.shape[:-1] + (C + off,), a.dtype)
+    inside = np.zeros((R, C + off), bool)
+    for j in range(R):
+        c0 = off - j // 2
+        out[..., j, c0:c0 + C] = a[..., j, :]
+        inside[j, c0:c0 + C] = True
+    return out, inside
+
+
+class HexLatticeOperator(ExactOperator):
+    """The light field of a hexagonal lenslet lattice as a linear map of the emission on the
+    same lattice, exact (module docstring): an :class:`~lf_flame.tomo.exact.ExactOperator`
+    whose planes and views are axial arrays, so every solver of :mod:`lf_flame.tomo.solvers`
+    (admm included) takes it.
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+        The decoded views' square camera (:func:`lf_flame.real.own_camera.views_camera`).
+    depths_mm : sequence of float
+    lattice_shape : (int, int)
+        The decoded views' hexagonal grid, rows x lenslets per row (offset rows).
+    precision, workers, subsamples
+        As :class:`~lf_flame.tomo.exact.ExactOperator`.
+    points : int
+        Sobol points of the kernels' mean (:data:`KERNEL_POINTS`).
+
+    Attributes
+    ----------
+    dims : (P, s R, s C')
+        The planes, axial (``C' = C + (R - 1) // 2``).
+    dimsd : (N, N, R, C')
+        The views, axial (:func:`to_axial`).
+    lattice_shape : (int, int)
+    inside : ndarray of bool of shape (R, C')
+        The axial array's lenslets (the rest is missing data).
+
+    Raises
+    ------
+    ValueError
+        As :func:`lattice_kernels`; a lattice of fewer than 2 x 2 lenslets.
+    """
+
+    _SHARED = ExactOperator._SHARED + ("lattice_shape", "inside", "points")
+
+    def __init__(self, camera, depths_mm, lattice_shape, *, precision: str = "float32", workers: int | None = None,
+                 subsamples: int = 1, points: int = KERNEL_POINTS):
+        R, C = (int(v) for v in lattice_shape)
+        if R < 2 or C < 2:
+            raise ValueError(f"a hexagonal lattice of {R} x {C} lenslets is too small")
+        self.lattice_shape, self.points = (R, C), int(points)
+        self.inside = to_axial(np.zeros((R, C)))[1]
+        super().__init__(camera, depths_mm, precision=precision, workers=workers, subsamples=subsamples)
+
+    def _kernels(self, camera, depths_mm, *, effects, subsamples, **_):
+        return lattice_kernels(camera, depths_mm, self.inside.shape, subsamples=subsamples, points=self.points,
+                               effects=effects)
+
+    def to_square(self, planes, rows: int, cols: int) -> np.ndarray:
+        """Planes on the lattice resampled onto the decoded square grid (barycentric in the fine
+        lattice's triangles; :func:`lf_flame.real.decoding.hex_to_square`'s geometry: square row
+        ``r`` at ``r`` pitches below lenslet (0, 0), column ``c`` at ``c + 1/2`` right of it).
+
+        Parameters
+        ----------
+        planes : ndarray of shape ``dims`` (P, s R, s C')
+        rows, cols : int
+            The square grid's lenslets (``s`` samples each per axis).
+
+        Returns
+        -------
+        ndarray of shape (P, s rows, s cols), float64
+        """
+        s, off = self.subsamples, (self.lattice_shape[0] - 1) // 2
+        x = np.reshape(planes, self.dims)
+        y, xx = np.meshgrid((np.arange(s * rows) + 0.5) / s - 0.5, (np.arange(s * cols) + 0.5) / s, indexing="ij")
+        j = y * s / _H                               # fine lattice rows, fractional
+        i = s * xx - j / 2 + s * off                 # fine axial columns
+        j0, i0 = np.floor(j), np.floor(i)
+        fj, fi = j - j0, i - i0
+        lower = fi + fj < 1
+        verts = [(np.where(lower, j0, j0 + 1), np.where(lower, i0, i0 + 1), np.where(lower, 1 - fi - fj, fi + fj - 1)),
+                 (j0, i0 + 1, np.where(lower, fi, 1 - fj)),
+                 (j0 + 1, i0, np.where(lower, fj, 1 - fi))]
+        out = np.zeros((x.shape[0],) + y.shape)
+        for vj, vi, w in verts:
+            out += w * x[:, np.clip(vj, 0, x.shape[1] - 1).astype(int), np.clip(vi, 0, x.shape[2] - 1).astype(int)]
+        return out
+
+    def from_square(self, planes) -> np.ndarray:
+        """Square-grid planes (P, s rows, s cols) at this lattice's fine sites, each from the square
+        sample it falls in (nearest; 0 outside): for masks such as admm's support.
+
+        Returns
+        -------
+        ndarray of shape ``dims``, the input's dtype.
+        """
+        s, off = self.subsamples, (self.lattice_shape[0] - 1) // 2
+        sq = np.asarray(planes)
+        j, i = np.meshgrid(np.arange(self.dims[1]), np.arange(self.dims[2]), indexing="ij")
+        y, x = j * _H / s, (i - s * off) / s + j / (2 * s)
+        r, c = np.floor(s * (y + 0.5)).astype(int), np.floor(s * x).astype(int)
+        ok = (r >= 0) & (r < sq.shape[1]) & (c >= 0) & (c < sq.shape[2])
+        out = np.zeros((sq.shape[0],) + r.shape, sq.dtype)
+        out[:, ok] = sq[:, r[ok], c[ok]]
+        return out
+
+
+@dataclasses.dataclass
+class LatticeSolve:
+    """:func:`solve_on_lattice`'s result.
+
+    Attributes
+    ----------
+    op : HexLatticeOperator
+    rec : Reconstruction
+        The solve on the lattice (planes: ``op.dims``, axial).
+    square : Reconstruction
+        The same planes resampled onto the decoded square grid (:meth:`HexLatticeOperator.to_square`).
+    data, leave_out : ndarray of shape ``op.dimsd``
+        The lattice views as the operator's data and the samples left out (clipped, dark, no lenslet).
+    """
+
+    op: HexLatticeOperator
+    rec: object
+    square: object
+    data: np.ndarray
+    leave_out: np.ndarray
+
+
+def solve_on_lattice(lf, rec, op, support=None) -> LatticeSolve:
+    """A hexagonal camera's planes solved again on its own lattice, with the knobs the square grid's
+    admm chose.
+
+    Parameters
+    ----------
+    lf : lf_flame.real.lightfield.LightField
+        Decoded views of a hexagonal grid with their lattice views (``lf.lattice_views``).
+    rec : Reconstruction
+        admm's solve of ``lf.views`` (the square grid) at the planes' depths: its knobs
+        (fills, weights, start, tolerance) and its support are taken.
+    op : ExactOperator
+        That solve's operator (its ``subsamples``).
+    support : ndarray of bool of shape ``op.dims`` or None
+        That solve's support (:func:`lf_flame.tomo.found_planes.found_support`), taken to the
+        lattice by :meth:`HexLatticeOperator.from_square`.
+
+    Returns
+    -------
+    LatticeSolve
+
+    Raises
+    ------
+    ValueError
+        A light field without lattice views, a solve that was not admm's.
+    """
+    from .decoded import decoded_problem
+    from .solvers import reconstruct
+    if lf.lattice_views is None:
+        raise ValueError(f"{lf.source}: no hexagonal lattice views to solve on")
+    if rec.solver != "admm":
+        raise ValueError(f"the lattice solve takes admm's knobs; this solve is {rec.solver!r}")
+    s = getattr(op, "subsamples", 1)
+    hop = HexLatticeOperator(lf.camera, rec.depths_mm, lf.lattice_views.shape[2:], subsamples=s)
+    views, _ = to_axial(lf.lattice_views)
+    clipped = None if lf.lattice_leave_out is None else to_axial(lf.lattice_leave_out)[0]
+    data, leave_out = decoded_problem(views, hop, clipped)
+    leave_out = leave_out | ~hop.inside
+    st = rec.settings
+    knobs = dict(iters=int(st["iters"]), tv=st["tv"], lam=st["lam"], l1=st["l1"], start=st["start"], tol=st["tol"])
+    lat = reconstruct(data, hop, "admm", saturation=leave_out,
+                      support=None if support is None else hop.from_square(support), **knobs)
+    lat.settings.update(lattice="hexagonal", noise=st.get("noise", math.nan))
+    planes = hop.to_square(lat.planes, op.dims[1] // s, op.dims[2] // s)
+    square = dataclasses.replace(lat, planes=planes, sample_mm=rec.sample_mm, settings=dict(lat.settings))
+    return LatticeSolve(hop, lat, square, data, leave_out)
