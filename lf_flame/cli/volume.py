@@ -107,7 +107,8 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
                        rays_per_pixel=None, progress=False, subsamples=None, found_depths=None, support=False,
                        model_dir=None):
     """Build the operator of the light field's camera at ``depths``
-    (:func:`lf_flame.tomo.exact.emission_operator`: exact unless ``rays_per_pixel`` is given) and
+    (:func:`lf_flame.tomo.exact.emission_operator`: exact unless ``rays_per_pixel`` is given; decoded views':
+    :class:`lf_flame.tomo.lattice.LatticeOperator`, with decoding's interpolation) and
     solve (:func:`lf_flame.tomo.solvers.reconstruct`; solver None: the operator's default) on the
     light field's data (:func:`lf_flame.tomo.decoded.fit_data`: decoded views times the model's
     white views). The exact operator's grid: ``subsamples`` samples per lenslet; None: admm's
@@ -133,7 +134,12 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
     if rays_per_pixel is not None and lf.decoded:
         raise ValueError("--rays-per-pixel traces the simulated camera; decoded views are solved on their camera's "
                          "exact operator")
-    op = emission_operator(lf.camera, depths, rays_per_pixel=rays_per_pixel, subsamples=subsamples)
+    if lf.interpolation is not None and rays_per_pixel is None:     # decoded views: their interpolation modelled
+        from ..tomo.lattice import LatticeOperator
+        op = LatticeOperator(lf.camera, depths, lf.views.shape[2:], layout="square", subsamples=subsamples,
+                             interpolation=lf.interpolation)
+    else:
+        op = emission_operator(lf.camera, depths, rays_per_pixel=rays_per_pixel, subsamples=subsamples)
     lf = _fitted_light_field(lf, saturation)
     data, fit = fit_data(lf, op)
     if solver == "learned":
@@ -210,7 +216,7 @@ def edge_warning(rec, op, modelled: bool = False):
 
 def misfit_warning(lf, op, rec, saturation="file", lattice=None):
     """The solve's misfit on the light field's data as it was fitted (:func:`lf_flame.tomo.solvers.data_misfit`;
-    a :class:`~lf_flame.tomo.hexagonal.LatticeSolve` on its lattice's), for the file; where it is high
+    a :class:`~lf_flame.tomo.lattice.LatticeSolve` on its lattice's), for the file; where it is high
     (:func:`~lf_flame.tomo.solvers.misfit_is_high`), one warning (stderr) saying what it means."""
     from ..tomo.decoded import fit_data
     from ..tomo.solvers import data_misfit, misfit_is_high
@@ -229,8 +235,8 @@ def misfit_warning(lf, op, rec, saturation="file", lattice=None):
 
 def lattice_solve(lf, op, rec, found=None, support: bool = False):
     """A hexagonal camera's planes solved again on its lenslets' own lattice with admm's knobs and support
-    (:func:`lf_flame.tomo.hexagonal.solve_on_lattice`): ``(rec on the square grid, LatticeSolve)``."""
-    from ..tomo.hexagonal import solve_on_lattice
+    (:func:`lf_flame.tomo.lattice.solve_on_lattice`): ``(rec on the square grid, LatticeSolve)``."""
+    from ..tomo.lattice import solve_on_lattice
     mask = None
     if found is not None and rec.settings.get("support", "none") != "none":
         from ..tomo.found_planes import found_support

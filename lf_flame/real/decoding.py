@@ -35,6 +35,32 @@ def view_positions(calibration: GridCalibration, n_views: int) -> np.ndarray:
     return calibration.centres_px()[None, None] + (du @ rot.T)[:, :, None, None]
 
 
+def interpolation_phases(calibration: GridCalibration, n_views: int, bin_views: int = 1) -> np.ndarray:
+    """Where each decoded sample falls between the pixels :func:`decode` interpolates it from.
+
+    Bilinear sampling at a position ``f`` of the way from one pixel's centre to the next reads
+    the first with weight ``1 - f`` and the second with ``f``: on average over the lenslets,
+    whose centres fall anywhere between pixels on a grid of non-integer pitch, a blur of the
+    lenslet images (a triangle of half-width one pixel for phases spread evenly), and none on
+    a grid whose centres sit on pixel centres. The exact operator of decoded views models it
+    from these phases (:func:`lf_flame.tomo.lattice.lattice_kernels`).
+
+    Parameters
+    ----------
+    calibration : GridCalibration
+    n_views, bin_views : int
+        As :func:`decode`.
+
+    Returns
+    -------
+    ndarray of shape (2, M), float64
+        Per sensor axis (rows, columns), the phases ``f`` in [0, 1) of the samples of every view of
+        every lenslet (``M = (N bin_views)^2 R C``).
+    """
+    pos = view_positions(calibration, int(n_views) * int(bin_views)) - 0.5     # pixel (i, j) centred at (i + ½, j + ½)
+    return (pos - np.floor(pos)).reshape(-1, 2).T
+
+
 def _sample(img, pos):
     """Bilinear samples of ``img`` at pixel-coordinate positions ``pos`` (..., 2); 0 off the image."""
     coords = np.moveaxis(pos, -1, 0).reshape(2, -1) - 0.5      # pixel (i, j) is centred at (i + ½, j + ½)
@@ -194,7 +220,7 @@ def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | No
     resample : bool
         False: a hexagonal grid's views stay on its own lattice (the calibration's R x C
         lenslets, odd rows half a pitch right), the data of
-        :class:`lf_flame.tomo.hexagonal.HexLatticeOperator`.
+        :class:`lf_flame.tomo.lattice.LatticeOperator`.
 
     Returns
     -------

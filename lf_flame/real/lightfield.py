@@ -66,10 +66,15 @@ class LightField:
     lattice_views : ndarray of shape (N, N, rows, lenslets per row), float32, or None
         A hexagonal grid's views on its own lattice, before ``views`` resampled them onto the
         square grid (``decode(..., resample=False)``): the data of
-        :class:`lf_flame.tomo.hexagonal.HexLatticeOperator`, which ``lf-flame reconstruct``
+        :class:`lf_flame.tomo.lattice.LatticeOperator`, which ``lf-flame reconstruct``
         solves on. None: a square grid (or views decoded without them).
     lattice_leave_out : ndarray of bool of the lattice views' shape, or None
         Their samples from clipped pixels.
+    interpolation : (ndarray of shape (2, M), int) or None
+        Decoded views (bilinear, not a colour capture's nearest pixels): where their samples fell
+        between pixels (:func:`lf_flame.real.decoding.interpolation_phases`) and the pixels per
+        view sample and axis, for the operator that models decoding's interpolation
+        (:class:`lf_flame.tomo.lattice.LatticeOperator`).
     """
 
     views: np.ndarray
@@ -85,6 +90,7 @@ class LightField:
     channels: np.ndarray | None = None
     lattice_views: np.ndarray | None = None
     lattice_leave_out: np.ndarray | None = None
+    interpolation: tuple | None = None
 
     def __post_init__(self):
         v = self.views
@@ -262,6 +268,7 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
         As :func:`lf_flame.real.own_camera.views_camera` (another sensor, layout or pitch);
         NaN or inf in the views.
     """
+    from .decoding import interpolation_phases
     from .own_camera import decoded_frame, views_camera
     v = np.asarray(views, np.float32)
     if not np.all(np.isfinite(v)):
@@ -274,7 +281,9 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
                       frame=frame, capture_camera=camera, camera_file=camera_file, meta=dict(meta or {}),
                       channels=None if channels is None else np.asarray(channels, np.int8),
                       lattice_views=None if lattice_views is None else np.asarray(lattice_views, np.float32),
-                      lattice_leave_out=lattice_clipped)
+                      lattice_leave_out=lattice_clipped,
+                      interpolation=None if channels is not None else
+                      (interpolation_phases(calibration, v.shape[0], bin_views), int(bin_views)))
 
 
 def read_light_field(path, camera=None, calibration=None, *, views: int | None = None,

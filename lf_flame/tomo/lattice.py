@@ -1,36 +1,47 @@
-"""The exact operator on a hexagonal lenslet lattice, with no resampling of the views.
+"""The exact operator of decoded views: on the lenslets' own lattice, square or hexagonal, with
+decoding's interpolation.
 
-A hexagonal microlens array's views sample the object on the lattice of its lenslets. Decoding
+Decoding (:func:`lf_flame.real.decoding.decode`) reads each view sample by bilinear interpolation
+at a position that falls between pixels wherever the lenslet grid's pitch is not a whole number
+of pixels: a sample a fraction ``f`` of the way to the next pixel mixes the two with weights
+``1 - f`` and ``f``. Over the lenslets that is a blur of their images (a triangle one pixel wide
+each side where the phases ``f`` spread evenly: :func:`lf_flame.real.decoding.interpolation_phases`),
+which the square camera's operator, built for pixels read whole, leaves out; on a grid whose
+lenslet centres sit on pixel centres it is nil. Here each ray's pixel is the one before or after
+the sample's position with the interpolation's weights, at a phase drawn from the decoded views'
+own (their mean over the lenslets, per axis; what varies from lenslet to lenslet is left out).
+
+A hexagonal microlens array's views sample the object on the lattice of its lenslets, and decoding
 resamples them onto a square grid (:func:`lf_flame.real.decoding.hex_to_square`) so that
 refocusing and the depth search run unchanged; but that interpolation blurs the views by an
 amount that depends on each sample's place in its lattice triangle, which no convolution on the
-square grid models, and the square camera's operator fitted to them leaves the flames about
-15 % off. Here the planes are sampled on the hexagonal lattice itself, and the map to the
-views on the lenslets' own lattice is still a convolution per view and plane: every lenslet
-sees the same texel offsets (the argument of :mod:`lf_flame.tomo.exact`), only the lattice
-differs.
+square grid models. So a hexagonal camera's planes are solved on its lattice itself: the map to
+the views on the lenslets' own lattice is still a convolution per view and plane, as every
+lenslet sees the same texel offsets (the argument of :mod:`lf_flame.tomo.exact`); only the
+lattice differs.
 
-Storage (axial, or skew, coordinates): site ``(j, i)`` of the lattice lies at ``(j sqrt(3)/2,
-i + j/2)`` pitches (row, column), so translation by a lattice vector is a shift of the array
-and the FFT convolutions of :class:`~lf_flame.tomo.exact.ExactOperator` apply as they are.
-The decoded views, rows of lenslets each shifted by half a pitch from the one before (the
-calibration's offset rows), become a parallelogram in that array (:func:`to_axial`); the
+Storage (axial, or skew, coordinates): site ``(j, i)`` of the hexagonal lattice lies at
+``(j sqrt(3)/2, i + j/2)`` pitches (row, column), so translation by a lattice vector is a shift
+of the array and the FFT convolutions of :class:`~lf_flame.tomo.exact.ExactOperator` apply as
+they are. The decoded views, rows of lenslets each shifted by half a pitch from the one before
+(the calibration's offset rows), become a parallelogram in that array (:func:`to_axial`); the
 array's other samples are missing data, left out of the fit like clipped ones. The planes fill
-the whole array; ``subsamples`` = s puts s x s sites of the s-times finer hexagonal lattice in
-each lenslet's (the polyphase grouping of :func:`lf_flame.tomo.exact._phase_kernels`).
+the whole array; ``subsamples`` = s puts s x s sites of the s-times finer lattice in each
+lenslet's (the polyphase grouping of :func:`lf_flame.tomo.exact._phase_kernels`).
 
-The kernels: per view and plane, the mean over a pixel's rays (the pixel's area times the
-lenslet's hexagonal cell, as the renderer draws them: :func:`hexagon_points`) of aperture x
-cos^4 x [the ray reads the plane at site offset (m, n)], from the same affine ray chain as the
-square camera's (:func:`lf_flame.tomo.exact.chain_coefficients`). The nearest site is not
-separable by axis, so the mean is taken by scrambled Sobol points (SciPy's ``qmc.Sobol``,
-fixed seed: the same kernels every run) rather than the square grid's closed-form quadrature;
-on a square lattice the same code gives the exact kernels within 6e-4 (L1, 2^16 points;
-``tests/test_hexagonal.py``).
+The kernels: per view and plane, the mean over a pixel's rays (the pixel's area, shifted by the
+interpolation, times the lenslet's cell, square or hexagonal as the renderer draws it:
+:func:`hexagon_points`) of aperture x cos^4 x [the ray reads the plane at site offset (m, n)],
+from the same affine ray chain as the square camera's
+(:func:`lf_flame.tomo.exact.chain_coefficients`). Neither the interpolation's two pixels nor the
+hexagon's nearest site are separable by axis, so the mean is taken by scrambled Sobol points
+(SciPy's ``qmc.Sobol``, fixed seed: the same kernels every run) rather than the closed-form
+quadrature of :func:`~lf_flame.tomo.exact.exact_kernels`; on a square lattice without
+interpolation the two agree within 6e-4 (L1, 2^16 points; ``tests/test_lattice_operator.py``).
 
-The result is resampled onto the decoded square grid (:meth:`HexLatticeOperator.to_square`,
-barycentric in the fine lattice's triangles), where the depth search, the scores and the files
-of every other camera live.
+A hexagonal lattice's planes are resampled onto the decoded square grid afterwards
+(:meth:`LatticeOperator.to_square`, barycentric in the fine lattice's triangles), where the depth
+search, the scores and the files of every other camera live.
 """
 from __future__ import annotations
 
@@ -39,13 +50,14 @@ import math
 
 import numpy as np
 
-from ..real.lattice import _H
 from ..simulate.scenes import FLAME_EFFECTS, Effects
 from .exact import ExactKernels, ExactOperator, _phase_kernels, chain_coefficients
 from .operator import plane_grid
 
+#: A hexagonal lattice's row spacing, pitches.
+_H = math.sqrt(3) / 2
 #: Sobol points per view and plane of the kernels' mean (a power of two): against 2^18 the taps
-#: differ by 2e-3 of their sum (L1) at 2^14, 1e-3 at 2^16 (``tests/test_hexagonal.py`` measures
+#: differ by 2e-3 of their sum (L1) at 2^14, 1e-3 at 2^16 (``tests/test_lattice_operator.py`` measures
 #: the square lattice's against the exact quadrature).
 KERNEL_POINTS = 2 ** 14
 LAYOUTS = ("hex", "square")
@@ -104,7 +116,8 @@ def hexagon_points(a_row, a_col):
 
 
 def lattice_kernels(camera, depths_mm, shape, *, layout: str = "hex", subsamples: int = 1,
-                    points: int = KERNEL_POINTS, effects: Effects = FLAME_EFFECTS, seed: int = 0) -> ExactKernels:
+                    points: int = KERNEL_POINTS, effects: Effects = FLAME_EFFECTS, interpolation=None,
+                    seed: int = 0) -> ExactKernels:
     """The exact map's kernels on a lenslet lattice, by quasi-Monte Carlo over each pixel's rays.
 
     Parameters
@@ -125,6 +138,12 @@ def lattice_kernels(camera, depths_mm, shape, *, layout: str = "hex", subsamples
         Scrambled Sobol points per view and plane (a power of two).
     effects : Effects
         Aperture and cos^4 as asked (occlusion and crosstalk off).
+    interpolation : (ndarray of shape (2, M), int) or None
+        Decoding's bilinear interpolation (:attr:`lf_flame.real.lightfield.LightField.interpolation`):
+        the samples' phases between pixels per sensor axis and the pixels binned per view sample.
+        Each ray's pixel is then the one before or after the sample's position, with the
+        interpolation's weights, at a phase drawn from these (their mean over the lenslets; per
+        axis). None: each sample is one pixel (simulated views).
     seed : int
         The points' scrambling.
 
@@ -155,10 +174,21 @@ def lattice_kernels(camera, depths_mm, shape, *, layout: str = "hex", subsamples
     sizes = [plane_grid(camera, d, 1.0) for d in depths]
     (cy, ay, ty, _), (cx, ax, tx, _) = chain_coefficients(camera, depths, sizes, (camera.n_rows, camera.n_cols),
                                                           effects)
-    u = qmc.Sobol(4, scramble=True, seed=seed).random(int(points)) - 0.5
-    du_y, du_x = u[:, 0], u[:, 1]
+    u = qmc.Sobol(8, scramble=True, seed=seed).random(int(points))
+    du_y, du_x = u[:, 0] - 0.5, u[:, 1] - 0.5
+    if interpolation is not None:      # the pixel after the sample's position with weight f, the one before with 1 - f
+        phases, binned = interpolation
+        phases = np.asarray(phases, np.float64)
+        f_y = phases[0, np.minimum((u[:, 4] * phases.shape[1]).astype(np.int64), phases.shape[1] - 1)]
+        f_x = phases[1, np.minimum((u[:, 6] * phases.shape[1]).astype(np.int64), phases.shape[1] - 1)]
+        du_y = du_y + np.where(u[:, 5] < f_y, 1.0 - f_y, -f_y) / binned
+        du_x = du_x + np.where(u[:, 7] < f_x, 1.0 - f_x, -f_x) / binned
+    u = u - 0.5
     da_y, da_x = hexagon_points(u[:, 2], u[:, 3]) if layout == "hex" else (u[:, 2], u[:, 3])
     r2 = (camera.aperture_diameter_mm / 2) ** 2 if effects.aperture else np.inf
+    # fine site 0 of a lenslet: at its centre on the hexagonal lattice; on the square one at the first of its
+    # s x s cells, as the square camera's polyphase grid (exact_kernels)
+    centre = 0.0 if layout == "hex" else (s - 1) / 2
     reads = {}
     for a in range(N):
         hy = ay[a, 0] + ay[a, 1] * du_y + ay[a, 2] * da_y
@@ -173,8 +203,8 @@ def lattice_kernels(camera, depths_mm, shape, *, layout: str = "hex", subsamples
                 ang_x = tx[b, 0] + tx[b, 1] * du_x + tx[b, 2] * da_x
                 w = 1.0 / (1.0 + ang_y[lit] ** 2 + ang_x[lit] ** 2) ** 2
             for k in range(P):     # texel coordinate less the lenslet's own footprint centre (0.5), fine pitches
-                y = s * (cy[a, k, 0] + cy[a, k, 1] * du_y[lit] + cy[a, k, 2] * da_y[lit] - 0.5)
-                x = s * (cx[b, k, 0] + cx[b, k, 1] * du_x[lit] + cx[b, k, 2] * da_x[lit] - 0.5)
+                y = s * (cy[a, k, 0] + cy[a, k, 1] * du_y[lit] + cy[a, k, 2] * da_y[lit] - 0.5) + centre
+                x = s * (cx[b, k, 0] + cx[b, k, 1] * du_x[lit] + cx[b, k, 2] * da_x[lit] - 0.5) + centre
                 reads[a, b, k] = (*nearest_site(y, x, layout), w / len(u))
     if not reads:
         raise ValueError("no pixel's rays pass the main lens's aperture")
@@ -219,10 +249,10 @@ def to_axial(a: np.ndarray):
     return out, inside
 
 
-class HexLatticeOperator(ExactOperator):
-    """The light field of a hexagonal lenslet lattice as a linear map of the emission on the
-    same lattice, exact (module docstring): an :class:`~lf_flame.tomo.exact.ExactOperator`
-    whose planes and views are axial arrays, so every solver of :mod:`lf_flame.tomo.solvers`
+class LatticeOperator(ExactOperator):
+    """Decoded views as a linear map of the emission on their lenslets' lattice, with decoding's
+    interpolation (module docstring): an :class:`~lf_flame.tomo.exact.ExactOperator` (hexagonal:
+    whose planes and views are axial arrays), so every solver of :mod:`lf_flame.tomo.solvers`
     (admm included) takes it.
 
     Parameters
@@ -231,21 +261,26 @@ class HexLatticeOperator(ExactOperator):
         The decoded views' square camera (:func:`lf_flame.real.own_camera.views_camera`).
     depths_mm : sequence of float
     lattice_shape : (int, int)
-        The decoded views' hexagonal grid, rows x lenslets per row (offset rows).
+        The decoded views' grid, rows x lenslets per row (hexagonal: offset rows).
+    layout : {'square', 'hex'}
     precision, workers, subsamples
         As :class:`~lf_flame.tomo.exact.ExactOperator`.
     points : int
         Sobol points of the kernels' mean (:data:`KERNEL_POINTS`).
+    interpolation : (ndarray, int) or None
+        Decoding's interpolation (:func:`lattice_kernels`;
+        :attr:`lf_flame.real.lightfield.LightField.interpolation`).
 
     Attributes
     ----------
     dims : (P, s R, s C')
-        The planes, axial (``C' = C + (R - 1) // 2``).
+        The planes (hexagonal: axial, ``C' = C + (R - 1) // 2``; square: ``C' = C``).
     dimsd : (N, N, R, C')
-        The views, axial (:func:`to_axial`).
+        The views (hexagonal: axial, :func:`to_axial`).
     lattice_shape : (int, int)
+    layout : str
     inside : ndarray of bool of shape (R, C')
-        The axial array's lenslets (the rest is missing data).
+        The array's lenslets (hexagonal: the rest is missing data).
 
     Raises
     ------
@@ -253,23 +288,25 @@ class HexLatticeOperator(ExactOperator):
         As :func:`lattice_kernels`; a lattice of fewer than 2 x 2 lenslets.
     """
 
-    _SHARED = ExactOperator._SHARED + ("lattice_shape", "inside", "points")
+    _SHARED = ExactOperator._SHARED + ("lattice_shape", "layout", "inside", "points", "interpolation")
 
-    def __init__(self, camera, depths_mm, lattice_shape, *, precision: str = "float32", workers: int | None = None,
-                 subsamples: int = 1, points: int = KERNEL_POINTS):
+    def __init__(self, camera, depths_mm, lattice_shape, *, layout: str = "hex", precision: str = "float32",
+                 workers: int | None = None, subsamples: int = 1, points: int = KERNEL_POINTS, interpolation=None):
         R, C = (int(v) for v in lattice_shape)
         if R < 2 or C < 2:
-            raise ValueError(f"a hexagonal lattice of {R} x {C} lenslets is too small")
-        self.lattice_shape, self.points = (R, C), int(points)
-        self.inside = to_axial(np.zeros((R, C)))[1]
+            raise ValueError(f"a lenslet lattice of {R} x {C} lenslets is too small")
+        if layout not in LAYOUTS:
+            raise ValueError(f"layout must be one of {LAYOUTS}. Received: {layout!r}")
+        self.lattice_shape, self.layout, self.points, self.interpolation = (R, C), layout, int(points), interpolation
+        self.inside = to_axial(np.zeros((R, C)))[1] if layout == "hex" else np.ones((R, C), bool)
         super().__init__(camera, depths_mm, precision=precision, workers=workers, subsamples=subsamples)
 
     def _kernels(self, camera, depths_mm, *, effects, subsamples, **_):
-        return lattice_kernels(camera, depths_mm, self.inside.shape, subsamples=subsamples, points=self.points,
-                               effects=effects)
+        return lattice_kernels(camera, depths_mm, self.inside.shape, layout=self.layout, subsamples=subsamples,
+                               points=self.points, effects=effects, interpolation=self.interpolation)
 
     def to_square(self, planes, rows: int, cols: int) -> np.ndarray:
-        """Planes on the lattice resampled onto the decoded square grid (barycentric in the fine
+        """A hexagonal lattice's planes resampled onto the decoded square grid (barycentric in the fine
         lattice's triangles; :func:`lf_flame.real.decoding.hex_to_square`'s geometry: square row
         ``r`` at ``r`` pitches below lenslet (0, 0), column ``c`` at ``c + 1/2`` right of it).
 
@@ -282,7 +319,13 @@ class HexLatticeOperator(ExactOperator):
         Returns
         -------
         ndarray of shape (P, s rows, s cols), float64
+
+        Raises
+        ------
+        ValueError
+            A square lattice (its planes are on that grid).
         """
+        self._hexagonal("to_square")
         s, off = self.subsamples, (self.lattice_shape[0] - 1) // 2
         x = np.reshape(planes, self.dims)
         y, xx = np.meshgrid((np.arange(s * rows) + 0.5) / s - 0.5, (np.arange(s * cols) + 0.5) / s, indexing="ij")
@@ -299,6 +342,10 @@ class HexLatticeOperator(ExactOperator):
             out += w * x[:, np.clip(vj, 0, x.shape[1] - 1).astype(int), np.clip(vi, 0, x.shape[2] - 1).astype(int)]
         return out
 
+    def _hexagonal(self, what):
+        if self.layout != "hex":
+            raise ValueError(f"{what} resamples a hexagonal lattice's planes; these are on a square grid")
+
     def from_square(self, planes) -> np.ndarray:
         """Square-grid planes (P, s rows, s cols) at this lattice's fine sites, each from the square
         sample it falls in (nearest; 0 outside): for masks such as admm's support.
@@ -307,6 +354,7 @@ class HexLatticeOperator(ExactOperator):
         -------
         ndarray of shape ``dims``, the input's dtype.
         """
+        self._hexagonal("from_square")
         s, off = self.subsamples, (self.lattice_shape[0] - 1) // 2
         sq = np.asarray(planes)
         j, i = np.meshgrid(np.arange(self.dims[1]), np.arange(self.dims[2]), indexing="ij")
@@ -324,16 +372,17 @@ class LatticeSolve:
 
     Attributes
     ----------
-    op : HexLatticeOperator
+    op : LatticeOperator
+        On the hexagonal lattice.
     rec : Reconstruction
         The solve on the lattice (planes: ``op.dims``, axial).
     square : Reconstruction
-        The same planes resampled onto the decoded square grid (:meth:`HexLatticeOperator.to_square`).
+        The same planes resampled onto the decoded square grid (:meth:`LatticeOperator.to_square`).
     data, leave_out : ndarray of shape ``op.dimsd``
         The lattice views as the operator's data and the samples left out (clipped, dark, no lenslet).
     """
 
-    op: HexLatticeOperator
+    op: LatticeOperator
     rec: object
     square: object
     data: np.ndarray
@@ -355,7 +404,7 @@ def solve_on_lattice(lf, rec, op, support=None) -> LatticeSolve:
         That solve's operator (its ``subsamples``).
     support : ndarray of bool of shape ``op.dims`` or None
         That solve's support (:func:`lf_flame.tomo.found_planes.found_support`), taken to the
-        lattice by :meth:`HexLatticeOperator.from_square`.
+        lattice by :meth:`LatticeOperator.from_square`.
 
     Returns
     -------
@@ -373,7 +422,8 @@ def solve_on_lattice(lf, rec, op, support=None) -> LatticeSolve:
     if rec.solver != "admm":
         raise ValueError(f"the lattice solve takes admm's knobs; this solve is {rec.solver!r}")
     s = getattr(op, "subsamples", 1)
-    hop = HexLatticeOperator(lf.camera, rec.depths_mm, lf.lattice_views.shape[2:], subsamples=s)
+    hop = LatticeOperator(lf.camera, rec.depths_mm, lf.lattice_views.shape[2:], subsamples=s,
+                          interpolation=lf.interpolation)
     views, _ = to_axial(lf.lattice_views)
     clipped = None if lf.lattice_leave_out is None else to_axial(lf.lattice_leave_out)[0]
     data, leave_out = decoded_problem(views, hop, clipped)
