@@ -31,7 +31,7 @@ RAYS = 48
 
 
 def test_square_lattice_kernels_are_the_exact_quadratures():
-    """The same Sobol means on a square lattice give the closed-form quadrature's taps: the ray chain,
+    """The same low-discrepancy means on a square lattice give the closed-form quadrature's taps: the ray chain,
     the aperture, cos^4 and the texel offsets are read as the square camera's."""
     tiny = PlenopticCamera(n_rows=15, n_cols=17, pixels_per_lenslet=9)
     depths = [-8.0, 0.0, 6.0]
@@ -55,8 +55,7 @@ def test_square_lattice_kernels_are_the_exact_quadratures():
 def test_hexagon_points_fill_the_cell_uniformly():
     """Every point lies in the site's hexagon, and as many fall in the central band |col| < 1/4 as its
     area's share, 7/12 (a pointy hexagon of inradius 1/2: heights (2/sqrt 3)(1 - |col|))."""
-    from scipy.stats import qmc
-    u = qmc.Sobol(2, seed=1).random(2 ** 14) - 0.5
+    u = hx.rd_points(2 ** 14, 2) - 0.5
     rows, cols = hx.hexagon_points(u[:, 0], u[:, 1])
     j, i = hx.nearest_site(rows, cols)
     assert np.all(j == 0) and np.all(i == 0)

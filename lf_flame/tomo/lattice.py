@@ -34,10 +34,11 @@ interpolation, times the lenslet's cell, square or hexagonal as the renderer dra
 :func:`hexagon_points`) of aperture x cos^4 x [the ray reads the plane at site offset (m, n)],
 from the same affine ray chain as the square camera's
 (:func:`lf_flame.tomo.exact.chain_coefficients`). Neither the interpolation's two pixels nor the
-hexagon's nearest site are separable by axis, so the mean is taken by scrambled Sobol points
-(SciPy's ``qmc.Sobol``, fixed seed: the same kernels every run) rather than the closed-form
-quadrature of :func:`~lf_flame.tomo.exact.exact_kernels`; on a square lattice without
-interpolation the two agree within 6e-4 (L1, 2^16 points; ``tests/test_lattice_operator.py``).
+hexagon's nearest site are separable by axis, so the mean is taken over the points of a
+low-discrepancy sequence (:func:`rd_points`, the renderer's: the same kernels every run) rather
+than by the closed-form quadrature of :func:`~lf_flame.tomo.exact.exact_kernels`; on a square
+lattice without interpolation the two agree within 3e-3 of the taps' sum (L1) at 2^14 points and
+1e-3 at 2^16 (``tests/test_lattice_operator.py``).
 
 A hexagonal lattice's planes are resampled onto the decoded square grid afterwards
 (:meth:`LatticeOperator.to_square`, barycentric in the fine lattice's triangles), where the depth
@@ -56,9 +57,9 @@ from .operator import plane_grid
 
 #: A hexagonal lattice's row spacing, pitches.
 _H = math.sqrt(3) / 2
-#: Sobol points per view and plane of the kernels' mean (a power of two): against 2^18 the taps
-#: differ by 2e-3 of their sum (L1) at 2^14, 1e-3 at 2^16 (``tests/test_lattice_operator.py`` measures
-#: the square lattice's against the exact quadrature).
+#: Points per view and plane of the kernels' mean (:func:`rd_points`): on a square lattice the taps
+#: differ from the exact quadrature's by 7e-3 of their sum (L1) at 2^12, 3e-3 at 2^14, 1e-3 at 2^16 and
+#: 5e-4 at 2^18 (``tests/test_lattice_operator.py`` checks 2^16).
 KERNEL_POINTS = 2 ** 14
 LAYOUTS = ("hex", "square")
 
@@ -115,9 +116,20 @@ def hexagon_points(a_row, a_col):
     return row - best_r, col - best_c
 
 
+def rd_points(n: int, dims: int) -> np.ndarray:
+    """The first ``n`` points of the ``dims``-dimensional R_d low-discrepancy sequence in [0, 1)^dims:
+    ``frac(1/2 + k alpha)``, ``alpha_i = phi^-i``, phi the real root of ``x^(dims + 1) = x + 1``
+    (M. Roberts, "The unreasonable effectiveness of quasirandom sequences", 2018), the sequence the
+    renderer draws its rays from (:mod:`lf_flame.simulate._kernels`). Shape (n, dims), float64."""
+    phi = 2.0
+    for _ in range(60):                                    # Newton on x^(d+1) - x - 1
+        phi -= (phi ** (dims + 1) - phi - 1) / ((dims + 1) * phi ** dims - 1)
+    alpha = phi ** -np.arange(1.0, dims + 1)
+    return (0.5 + np.arange(1, n + 1)[:, None] * alpha) % 1.0
+
+
 def lattice_kernels(camera, depths_mm, shape, *, layout: str = "hex", subsamples: int = 1,
-                    points: int = KERNEL_POINTS, effects: Effects = FLAME_EFFECTS, interpolation=None,
-                    seed: int = 0) -> ExactKernels:
+                    points: int = KERNEL_POINTS, effects: Effects = FLAME_EFFECTS, interpolation=None) -> ExactKernels:
     """The exact map's kernels on a lenslet lattice, by quasi-Monte Carlo over each pixel's rays.
 
     Parameters
@@ -135,7 +147,7 @@ def lattice_kernels(camera, depths_mm, shape, *, layout: str = "hex", subsamples
     subsamples : int
         Sites of the s-times finer lattice per lenslet and axis.
     points : int
-        Scrambled Sobol points per view and plane (a power of two).
+        Points of the R_d sequence (:func:`rd_points`) per view and plane.
     effects : Effects
         Aperture and cos^4 as asked (occlusion and crosstalk off).
     interpolation : (ndarray of shape (2, M), int) or None
@@ -144,8 +156,6 @@ def lattice_kernels(camera, depths_mm, shape, *, layout: str = "hex", subsamples
         Each ray's pixel is then the one before or after the sample's position, with the
         interpolation's weights, at a phase drawn from these (their mean over the lenslets; per
         axis). None: each sample is one pixel (simulated views).
-    seed : int
-        The points' scrambling.
 
     Returns
     -------
@@ -160,7 +170,6 @@ def lattice_kernels(camera, depths_mm, shape, *, layout: str = "hex", subsamples
         An unknown layout, occlusion or crosstalk on, fewer than one subsample, a plane the
         camera cannot image.
     """
-    from scipy.stats import qmc
     if layout not in LAYOUTS:
         raise ValueError(f"layout must be one of {LAYOUTS}. Received: {layout!r}")
     if effects.occlusion or effects.crosstalk:
@@ -174,7 +183,7 @@ def lattice_kernels(camera, depths_mm, shape, *, layout: str = "hex", subsamples
     sizes = [plane_grid(camera, d, 1.0) for d in depths]
     (cy, ay, ty, _), (cx, ax, tx, _) = chain_coefficients(camera, depths, sizes, (camera.n_rows, camera.n_cols),
                                                           effects)
-    u = qmc.Sobol(8, scramble=True, seed=seed).random(int(points))
+    u = rd_points(int(points), 8)
     du_y, du_x = u[:, 0] - 0.5, u[:, 1] - 0.5
     if interpolation is not None:      # the pixel after the sample's position with weight f, the one before with 1 - f
         phases, binned = interpolation
@@ -202,10 +211,10 @@ def lattice_kernels(camera, depths_mm, shape, *, layout: str = "hex", subsamples
             if effects.cos4:
                 ang_x = tx[b, 0] + tx[b, 1] * du_x + tx[b, 2] * da_x
                 w = 1.0 / (1.0 + ang_y[lit] ** 2 + ang_x[lit] ** 2) ** 2
-            for k in range(P):     # texel coordinate less the lenslet's own footprint centre (0.5), fine pitches
-                y = s * (cy[a, k, 0] + cy[a, k, 1] * du_y[lit] + cy[a, k, 2] * da_y[lit] - 0.5) + centre
-                x = s * (cx[b, k, 0] + cx[b, k, 1] * du_x[lit] + cx[b, k, 2] * da_x[lit] - 0.5) + centre
-                reads[a, b, k] = (*nearest_site(y, x, layout), w / len(u))
+            # every plane's texel coordinate less the lenslet's own footprint centre (0.5), fine pitches: (P, rays)
+            y = s * (cy[a, :, :1] + cy[a, :, 1:2] * du_y[lit] + cy[a, :, 2:] * da_y[lit] - 0.5) + centre
+            x = s * (cx[b, :, :1] + cx[b, :, 1:2] * du_x[lit] + cx[b, :, 2:] * da_x[lit] - 0.5) + centre
+            reads[a, b] = (*nearest_site(y, x, layout), w / len(u))
     if not reads:
         raise ValueError("no pixel's rays pass the main lens's aperture")
     j0 = min(int(j.min()) for j, _, _ in reads.values())
@@ -213,8 +222,10 @@ def lattice_kernels(camera, depths_mm, shape, *, layout: str = "hex", subsamples
     n_j = max(int(j.max()) for j, _, _ in reads.values()) - j0 + 1
     n_i = max(int(i.max()) for _, i, _ in reads.values()) - i0 + 1
     h = np.zeros((N, N, P, n_j, n_i))
-    for (a, b, k), (j, i, w) in reads.items():
-        np.add.at(h[a, b, k], (j - j0, i - i0), w)
+    plane = np.arange(P)[:, None] * (n_j * n_i)
+    for (a, b), (j, i, w) in reads.items():
+        flat = (plane + (j - j0) * n_i + (i - i0)).ravel()
+        h[a, b] = np.bincount(flat, np.tile(w, P), minlength=P * n_j * n_i).reshape(P, n_j, n_i)
     m0y, n0x = np.full((N, P), j0, np.int64), np.full((N, P), i0, np.int64)
     if s > 1:
         h, m0y, n0x = _phase_kernels(h, m0y, n0x, s)
@@ -266,7 +277,7 @@ class LatticeOperator(ExactOperator):
     precision, workers, subsamples
         As :class:`~lf_flame.tomo.exact.ExactOperator`.
     points : int
-        Sobol points of the kernels' mean (:data:`KERNEL_POINTS`).
+        Points of the kernels' mean (:data:`KERNEL_POINTS`).
     interpolation : (ndarray, int) or None
         Decoding's interpolation (:func:`lattice_kernels`;
         :attr:`lf_flame.real.lightfield.LightField.interpolation`).
