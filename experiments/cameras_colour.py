@@ -128,6 +128,7 @@ def main(argv=None):
     ap.add_argument("--scenes", type=int, default=6)
     ap.add_argument("--rays", type=int, default=48)
     ap.add_argument("--quick", action="store_true", help="2 scenes at 16 rays")
+    ap.add_argument("--seed0", type=int, default=SEED0, help="first scene's seed (other seeds: validation)")
     a = ap.parse_args(argv)
     if a.quick:
         a.scenes, a.rays = 2, 16
@@ -151,7 +152,7 @@ def main(argv=None):
     cal = load_calibration(cache / "bb.json", model)
     rows = []
     for i in range(a.scenes):
-        seed = SEED0 + i
+        seed = a.seed0 + i
         clean = cache / f"scene{seed}.npz"
         if not clean.exists():
             run("simulate", "--camera", cam, "--scene", "colour-depth", "--seed", seed, "--rays-per-pixel", a.rays,
@@ -203,7 +204,7 @@ def main(argv=None):
           "(10.57 px lenslet images, rotated 0.4°) with an RGGB CFA: white image -> `calibrate`; blackbodies at "
           f"{', '.join(map(str, FIT_K))} K -> `decode --camera` (each view sample from its nearest pixel, channels "
           f"apart) -> `calibrate-temperature`; per scene `simulate --scene colour-depth` ({a.scenes} scenes from seed "
-          f"{SEED0}, {a.rays} rays per pixel) -> `decode --camera` -> `temperature --depth` at the flames' true "
+          f"{a.seed0}, {a.rays} rays per pixel) -> `decode --camera` -> `temperature --depth` at the flames' true "
           "depths; noise-free and at 14 dB. Scored per plane against the truth on the decoded planes (each "
           "channel's emission in the decoded frame, R over G through the same calibration): |T - T_true| over the "
           "pixels that both report (`body_p90`: those where the truth's light is above "
@@ -212,7 +213,7 @@ def main(argv=None):
           df.to_markdown(index=False, floatfmt=".3g"), ""]
     atomic_write_text(out / "cameras_colour.md", "\n".join(md))
     atomic_write_text(out / "cameras_colour.json", json.dumps(dict(
-        scenes=a.scenes, rays=a.rays, seed0=SEED0, fit_k=FIT_K, snr_db=SNR_DB, calibration=dataclasses.asdict(cal)
+        scenes=a.scenes, rays=a.rays, seed0=a.seed0, fit_k=FIT_K, snr_db=SNR_DB, calibration=dataclasses.asdict(cal)
         if dataclasses.is_dataclass(cal) else str(cal), wall_s=wall, provenance=provenance()), indent=1, default=float))
     print(g.to_string())
 
