@@ -7,7 +7,9 @@ rotated 0.4°), as ``experiments/cameras.py`` builds them; the capture one of it
 depth`` scenes.
 """
 import dataclasses
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pylops
@@ -203,3 +205,42 @@ def test_decoded_square_views_are_solved_with_their_interpolation():
     errors = np.array(errors).reshape(2, -1)
     print("without, with the interpolation:", errors.round(3).tolist())
     assert errors[1].mean() < 0.8 * errors[0].mean(), errors
+
+
+def test_a_hexagonal_capture_goes_through_the_command_line_on_its_lattice(tmp_path, capsys):
+    """simulate -> calibrate -> decode (the lattice's views and clipped samples kept beside the square
+    grid's) -> reconstruct at given depths: solved again on the lattice, its clipped samples left out."""
+    import h5py
+
+    from lf_flame import cli
+    from lf_flame.tomo.files import load_reconstruction
+    sheet = (Path(__file__).resolve().parents[1] / "examples" / "own_camera.toml").read_text()
+    cam = tmp_path / "hex.toml"
+    cam.write_text(sheet.replace('layout = "square"', 'layout = "hex"'))
+    run = lambda *a: cli.main([str(x) for x in a])                                   # noqa: E731
+    assert run("simulate", "--camera", cam, "--scene", "white", "--out", tmp_path / "white.npz") == 0
+    assert run("calibrate", tmp_path / "white.npz", "--out", tmp_path / "cal.json") == 0
+    assert run("simulate", "--camera", cam, "--scene", "depth", "--seed", SEED, "--rays-per-pixel", 8,
+               "--out", tmp_path / "scene.npz") == 0
+    z = dict(np.load(tmp_path / "scene.npz"))
+    z["raw"] = np.minimum(2.0 * z["raw"], 1.0).astype(np.float32)                  # the flames' cores clip
+    np.savez(tmp_path / "bright.npz", **z)
+    depths = sorted({round(o["depth_offset_mm"], 2) for o in json.loads(str(z["objects"]))})
+    assert run("decode", tmp_path / "bright.npz", "--calibration", tmp_path / "cal.json",
+               "--out", tmp_path / "views.h5") == 0
+    with h5py.File(tmp_path / "views.h5") as f:
+        lattice, clipped = f["lattice_views"][...], f["lattice_clipped"][...]
+        assert lattice.shape[2:] == tuple(json.loads(f.attrs["calibration"])[k] for k in ("n_rows", "n_cols"))
+        assert 0 < clipped.sum() < 0.15 * clipped.size
+        assert np.array_equal(f["views"][...], decoding.hex_to_square(lattice))
+    left_out = {}
+    for saturation in ("file", "none"):                          # none: every sample fitted, clipped or not
+        capsys.readouterr()
+        assert run("reconstruct", tmp_path / "views.h5", "--camera", cam, "--calibration", tmp_path / "cal.json",
+                   *[x for d in depths for x in ("--depth", d)], *(["--saturation", "none"] if saturation == "none"
+                                                                    else []), "--out", tmp_path / "rec.h5") == 0
+        assert "solved again on the hexagonal lattice" in capsys.readouterr().out
+        rec = load_reconstruction(tmp_path / "rec.h5")
+        assert rec.settings["lattice"] == "hexagonal" and np.isfinite(rec.planes).all() and rec.planes.max() > 0
+        left_out[saturation] = rec.settings["n_saturated"]
+    assert left_out["file"] - left_out["none"] >= 0.9 * clipped.sum(), (left_out, clipped.sum())

@@ -81,7 +81,7 @@ def _fitted_light_field(lf, saturation):
     if lf.white_normalised and saturation is not None:
         raise ValueError("decoded views carry their clipped samples ('lf-flame decode --saturation'): "
                          "--saturation takes only 'none' for them (fit every sample)")
-    return dataclasses.replace(lf, leave_out=None, saturation=saturation)
+    return dataclasses.replace(lf, leave_out=None, lattice_leave_out=None, saturation=saturation)
 
 
 def solve_found(lf, found, **kw):
@@ -291,7 +291,8 @@ def cmd_reconstruct(a):
             arrays = dict(found_masks=np.asarray(voters.masks, bool), found_regions=voters.labels)
     lattice = None
     if lf.lattice_views is not None and rec.solver == "admm":
-        rec, lattice = lattice_solve(lf, op, rec, voters, bool(getattr(a, "support", False)))
+        rec, lattice = lattice_solve(_fitted_light_field(lf, kw["saturation"]), op, rec, voters,
+                                     bool(getattr(a, "support", False)))
     if rec.settings.get("support") == "near planes":
         from ..tomo.found_planes import NEAR_PARALLAX
         print(f"planes within {NEAR_PARALLAX:g} lenslets of parallax of each other are held to the regions their "
