@@ -35,6 +35,10 @@ def view_positions(calibration: GridCalibration, n_views: int) -> np.ndarray:
     return calibration.centres_px()[None, None] + (du @ rot.T)[:, :, None, None]
 
 
+#: The most samples :func:`interpolation_phases` keeps (an even spread): the operator draws 2^14 per view and plane.
+MAX_PHASES = 2 ** 16
+
+
 def interpolation_phases(calibration: GridCalibration, n_views: int, bin_views: int = 1) -> np.ndarray:
     """Where each decoded sample falls between the pixels :func:`decode` interpolates it from.
 
@@ -55,10 +59,12 @@ def interpolation_phases(calibration: GridCalibration, n_views: int, bin_views: 
     -------
     ndarray of shape (2, M), float64
         Per sensor axis (rows, columns), the phases ``f`` in [0, 1) of the samples of every view of
-        every lenslet (``M = (N bin_views)^2 R C``).
+        every lenslet (``M = (N bin_views)^2 R C``), or of an even spread of at most
+        :data:`MAX_PHASES` of them.
     """
-    pos = view_positions(calibration, int(n_views) * int(bin_views)) - 0.5     # pixel (i, j) centred at (i + ½, j + ½)
-    return (pos - np.floor(pos)).reshape(-1, 2).T
+    pos = view_positions(calibration, int(n_views) * int(bin_views)).reshape(-1, 2)
+    pos = pos[::-(-len(pos) // MAX_PHASES)] - 0.5                                # pixel (i, j) centred at (i + ½, j + ½)
+    return (pos - np.floor(pos)).T
 
 
 def _sample(img, pos):
