@@ -244,3 +244,20 @@ def test_a_hexagonal_capture_goes_through_the_command_line_on_its_lattice(tmp_pa
         assert rec.settings["lattice"] == "hexagonal" and np.isfinite(rec.planes).all() and rec.planes.max() > 0
         left_out[saturation] = rec.settings["n_saturated"]
     assert left_out["file"] - left_out["none"] >= 0.9 * clipped.sum(), (left_out, clipped.sum())
+
+
+def test_impossible_lattices_and_views_are_refused(capture):
+    lf = capture[2]
+    with pytest.raises(ValueError, match="too small"):
+        hx.LatticeOperator(lf.camera, [5.0], (1, 8))
+    with pytest.raises(ValueError, match="layout"):
+        hx.LatticeOperator(lf.camera, [5.0], (6, 8), layout="triangle")
+    square = hx.LatticeOperator(lf.camera, [5.0], (6, 8), layout="square")
+    with pytest.raises(ValueError, match="hexagonal"):
+        square.to_square(np.zeros(square.dims), 6, 8)
+    bad = lf.lattice_views.copy()
+    bad[0, 0, 0, 0] = np.nan
+    with pytest.raises(ValueError, match="lattice views"):
+        dataclasses.replace(lf, lattice_views=bad)
+    with pytest.raises(ValueError, match="no hexagonal lattice views"):
+        hx.solve_on_lattice(dataclasses.replace(lf, lattice_views=None), None, None)
