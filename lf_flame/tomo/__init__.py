@@ -4,7 +4,8 @@ Flames are optically thin, so a light field is a linear function of the emission
 the planes. :mod:`.operator` is that camera map as a PyLops operator (the simulator's
 tracer with fixed rays, recorded once, kernels in :mod:`._kernels`); :mod:`.exact` the
 same map without Monte-Carlo noise (per-view convolutions with kernels by deterministic
-quadrature, applied by FFT; kernels in :mod:`._exact_kernels`); :mod:`.resolution` the
+quadrature, applied by FFT; kernels in :mod:`._exact_kernels`); :mod:`.lattice` that map for decoded
+views (decoding's interpolation, a hexagonal lenslet lattice solved on itself); :mod:`.resolution` the
 camera's depth-resolution map from that map's per-frequency normal matrices; :mod:`.solvers`
 recovers the emission with PyLops/PyProximal solvers, and :mod:`.fourier` on the exact
 operator's per-frequency normal matrices (ADMM; kernels in :mod:`._fourier_kernels`);
@@ -27,7 +28,7 @@ import lazy_loader as lazy
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
     submodules=["axis", "axisymmetric", "decoded", "defaults", "depth", "exact", "files", "found_planes", "fourier",
-                "fourier_system", "noise_knobs", "operator", "peel", "refine", "resolution", "revolve", "scoring",
+                "fourier_system", "lattice", "noise_knobs", "operator", "peel", "refine", "resolution", "revolve", "scoring",
                 "solvers", "truth", "volume"],
     submod_attrs={
         "axisymmetric": ["AXI_LAM", "AXI_FILLS", "AXI_INNER", "AxisymmetricVolume", "solve_axisymmetric"],
@@ -41,7 +42,9 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "found_planes": ["SUPPORT_DILATION", "NEAR_PARALLAX", "SUPPORT_KNOBS", "FOUND_PLANES_KNOBS", "plane_support",
                          "near_plane_support", "found_support", "found_planes_knobs", "find_planes"],
         "exact": ["QUADRATURE_NODES", "SHIFT_TOLERANCE", "PRECISIONS", "ExactKernels", "exact_kernels",
-                  "ExactOperator", "emission_operator"],
+                  "chain_coefficients", "ExactOperator", "emission_operator"],
+        "lattice": ["KERNEL_POINTS", "LAYOUTS", "nearest_site", "hexagon_points", "rd_points", "lattice_kernels",
+                    "to_axial", "LatticeOperator", "LatticeSolve", "solve_on_lattice"],
         "fourier": ["solve_admm", "fill_data", "wiener_start", "backprojection_weight", "coarse_operator"],
         "fourier_system": ["FourierSystem", "fourier_system", "admm_system", "normal_matrices"],
         "noise_knobs": ["relative_noise", "noise_norm", "noise_regime", "admm_knobs", "admm_subsamples"],
