@@ -23,10 +23,23 @@ def _sequence_of(a, cam):
 
 def _camera(a):
     from ..optics.camera import PAPER_CAMERA
-    if getattr(a, "data_config", None):
+    path = getattr(a, "camera", None) or getattr(a, "data_config", None)
+    if getattr(a, "camera", None) and getattr(a, "data_config", None):
+        raise ValueError("give the camera once: --camera or --data-config")
+    if path:
         from ._io import camera_config
-        return camera_config(a.data_config)
+        return camera_config(path)
     return PAPER_CAMERA
+
+
+def decoded_views_camera(camera, calibration):
+    """Real frames of ``camera`` decoded with ``calibration``: the decoded views' camera
+    (:func:`lf_flame.real.own_camera.views_camera`) and the pixels binned per view sample
+    (:func:`lf_flame.real.decoding.auto_bin`), as ``lf-flame decode`` decodes by default."""
+    from ..real.decoding import auto_bin, views_shape
+    from ..real.own_camera import views_camera
+    k = auto_bin(calibration)
+    return views_camera(camera, calibration, views_shape(calibration, None, k), k), k
 
 
 def cmd_simulate_sequence(a):
@@ -53,7 +66,7 @@ def cmd_sequence(a):
     else:
         source, attrs = open_source(a.input)
         times = None
-        if "camera" in attrs and not a.data_config:
+        if "camera" in attrs and not (a.data_config or a.camera):
             from ..optics.camera import PlenopticCamera
             cam = PlenopticCamera.from_dict(json.loads(attrs["camera"]))
         if hasattr(source, "path"):
@@ -77,12 +90,16 @@ def cmd_sequence(a):
         slopes = list(a.slope) if a.slope else [cam.slope_for_depth(d) for d in depths]
         from ..real.lightfield import check_imaging_range
         check_imaging_range(cam, depths)
-        cal = None
+        cal, k = None, 1
         if a.calibration:
             from ..real.calibration import GridCalibration
-            cal = GridCalibration.load(a.calibration).to_dict()
+            calibration = GridCalibration.load(a.calibration)
+            cal, cam, k = calibration.to_dict(), *decoded_views_camera(cam, calibration)
+            depths = [float(v) for v in a.depth] if a.depth else [cam.depth_for_slope(s) for s in a.slope]
+            slopes = list(a.slope) if a.slope else [cam.slope_for_depth(d) for d in depths]
+            check_imaging_range(cam, depths)
         job, truth = SequenceJob(source, cam, fps, tuple(depths), tuple(slopes), (None,) * len(depths), a.route,
-                                 cal, a.white, a.dark, chunk=a.chunk, **knobs), None
+                                 cal, a.white, a.dark, chunk=a.chunk, bin_views=k, **knobs), None
     s = run(job, a.out, scheduler=a.scheduler, workers=a.workers, nperseg=a.nperseg, truth=truth,
             progress=not a.quiet)
     import pandas as pd

@@ -100,6 +100,19 @@ def _bin(a: np.ndarray, k: int) -> np.ndarray:
     return a.reshape(n, k, n, k, *a.shape[2:]).sum(axis=(1, 3))
 
 
+def _square_grid(R: int, C: int) -> tuple[int, int]:
+    """The square lattice :func:`hex_to_square` resamples a hexagonal grid of R x C lenslets onto."""
+    return int(math.floor((R - 1) * _H)) + 1, C - 1
+
+
+def views_shape(calibration: GridCalibration, n_views: int | None = None, bin_views: int = 1) -> tuple:
+    """The shape (N, N, R, C) of :func:`decode`'s views (a hexagonal grid's on the square lattice),
+    refused as :func:`decode` refuses ``n_views`` and ``bin_views``."""
+    n = _view_count(calibration, n_views, bin_views)
+    R, C = calibration.n_rows, calibration.n_cols
+    return (n, n) + (_square_grid(R, C) if calibration.layout == "hex" else (R, C))
+
+
 def hex_to_square(views: np.ndarray) -> np.ndarray:
     """Resample views on a hexagonal lenslet lattice onto a square one of the same pitch.
 
@@ -114,8 +127,7 @@ def hex_to_square(views: np.ndarray) -> np.ndarray:
     views : ndarray of shape (N, N, R', C'), float32
     """
     N, _, R, C = views.shape
-    rows = int(math.floor((R - 1) * _H)) + 1
-    cols = C - 1
+    rows, cols = _square_grid(R, C)
     if rows < 1 or cols < 1:
         raise ValueError(f"a hexagonal grid of {R} x {C} lenslets is too small to resample")
     y, x = np.meshgrid(np.arange(rows, dtype=np.float64), 0.5 + np.arange(cols), indexing="ij")

@@ -45,9 +45,16 @@ class SequenceJob:
     route : str
         ``"shift-sum"`` or ``"reconstruct-SOLVER"`` (:data:`lf_flame.tomo.solvers`).
     calibration : dict or None
-        Real frames: ``GridCalibration.to_dict()``; decoded with ``white``/``dark``.
+        Real frames: ``GridCalibration.to_dict()``; decoded with ``white``/``dark`` into the views of
+        ``camera``, which is then the decoded views' camera
+        (:func:`lf_flame.real.own_camera.views_camera`), and solved as ``lf-flame reconstruct`` solves
+        decoded views (:class:`lf_flame.tomo.lattice.LatticeOperator`, with decoding's interpolation;
+        the data are the views times its white views, :func:`lf_flame.tomo.decoded.decoded_problem`); a
+        hexagonal grid's on its own lattice, the planes resampled onto the square grid.
     white, dark : str or None
         Paths of the white image and dark frame (real frames).
+    bin_views : int
+        Real frames: pixels per view sample and axis they are decoded with (:func:`lf_flame.real.decoding.auto_bin`).
     truth_freqs_hz : tuple of float or None
         Simulated: plane ``k``'s flame's flicker frequency (Hz), within 0 to ``fps / 2``.
     chunk : int
@@ -59,9 +66,10 @@ class SequenceJob:
         ``reconstruct-pd-tv`` / ``-admm``: the TV weight (>= 0); None: the solver's default
         (admm: by the first frame's noise, :meth:`reconstruction`).
     saturation : float or None
-        ``reconstruct-*`` routes: the sensor's clipping level in the views' units; pixels at
-        or above it are left out of the fit (their count per frame: ``n_saturated``). None:
-        every pixel is fitted.
+        ``reconstruct-*`` routes: the sensor's clipping level in the views' units (real frames: in
+        the raw frames' units, the samples decoded from pixels at or above it,
+        :func:`lf_flame.real.decoding.clipped_samples`); they are left out of the fit (their count
+        per frame: ``n_saturated``). None: every pixel is fitted.
     operator_rays : int or None
         ``reconstruct-*`` routes: rays per pixel of a traced emission operator (>= 1); None:
         the exact operator where the camera allows it
@@ -70,7 +78,7 @@ class SequenceJob:
     Raises
     ------
     ValueError
-        ``chunk`` below 1 or not whole, a frame rate not positive and finite, a true
+        ``chunk`` or ``bin_views`` below 1 or not whole, a frame rate not positive and finite, a true
         frequency outside 0 to ``fps / 2``, reconstruction settings out of range, a route
         other than shift-sum or reconstruct-SOLVER.
     """
@@ -91,6 +99,7 @@ class SequenceJob:
     tv: float | None = None
     saturation: float | None = 1.0
     operator_rays: int | None = None
+    bin_views: int = 1
     _cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
@@ -113,6 +122,8 @@ class SequenceJob:
             raise ValueError(f"saturation must be a positive finite level or None. Received: {self.saturation!r}")
         if self.operator_rays is not None and (int(self.operator_rays) != self.operator_rays or self.operator_rays < 1):
             raise ValueError(f"operator_rays must be a whole number >= 1. Received: {self.operator_rays!r}")
+        if isinstance(self.bin_views, bool) or int(self.bin_views) != self.bin_views or self.bin_views < 1:
+            raise ValueError(f"bin_views must be a whole number >= 1. Received: {self.bin_views!r}")
 
     @property
     def n_chunks(self) -> int:
@@ -146,9 +157,9 @@ class SequenceJob:
             key = ("admm", self.iters, self.tv, self.saturation)
             if key not in self._cache:
                 from ..tomo.noise_knobs import admm_knobs
-                views = self.views(np.asarray(next(iter(self.source.frames(0, 1))), np.float64))
-                fit = None if self.saturation is None else views < self.saturation
-                self._cache[key] = admm_knobs(views, fit, self.iters, self.tv)
+                data, leave = self.fit_data(*self.frame(np.asarray(next(iter(self.source.frames(0, 1))), np.float64)))
+                fit = None if leave is None else ~leave if np.ndim(leave) else data < leave
+                self._cache[key] = admm_knobs(data, fit, self.iters, self.tv)
             knobs = dict(self._cache[key])
             out.update(iters=knobs.pop("fills"), admm_noise=knobs.pop("noise"), **knobs)
         return out
@@ -159,10 +170,30 @@ class SequenceJob:
                     depths_mm=list(self.depths_mm), slopes=list(self.slopes),
                     columns=[None if c is None else list(c) for c in self.columns], route=self.route,
                     calibration=self.calibration, white=self.white, dark=self.dark, chunk=self.chunk,
-                    reconstruction=self.reconstruction())
+                    bin_views=self.bin_views, reconstruction=self.reconstruction())
+
+    @property
+    def hexagonal(self) -> bool:
+        """Real frames of a hexagonal lenslet grid: solved on its own lattice (:mod:`lf_flame.tomo.lattice`)."""
+        return self.calibration is not None and self.calibration.get("layout") == "hex"
 
     def views(self, raw: np.ndarray) -> np.ndarray:
-        """Sub-aperture views (N, N, R, C) of one raw frame (decoded when real)."""
+        """Sub-aperture views (N, N, R, C) of one raw frame (decoded when real; a hexagonal grid's
+        resampled onto the square grid of ``camera``)."""
+        views = self.frame(raw)[0]
+        return self._square(views)
+
+    def _square(self, views):
+        """A hexagonal grid's lattice views on the square grid (:func:`lf_flame.real.decoding.on_square_grid`)."""
+        if not self.hexagonal:
+            return views
+        from ..real.decoding import on_square_grid
+        return on_square_grid(views, self._cache["cal"])
+
+    def frame(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """One raw frame's views (N, N, R, C; decoded when real, a hexagonal grid's on its own lattice)
+        and, for real frames, the samples decoded from pixels at or above ``saturation`` (None for
+        simulated frames or no level)."""
         from ..refocus.shift_and_sum import raw_to_views
         if not np.all(np.isfinite(raw)):
             raise ValueError("frame holds NaN or inf")
@@ -170,10 +201,10 @@ class SequenceJob:
             if raw.shape != tuple(self.camera.sensor_shape):
                 raise ValueError(f"frame of {raw.shape[0]} x {raw.shape[1]} pixels; the camera's sensor is "
                                  f"{self.camera.sensor_shape[0]} x {self.camera.sensor_shape[1]}")
-            return raw_to_views(raw, self.camera.pixels_per_lenslet)
+            return raw_to_views(raw, self.camera.pixels_per_lenslet), None
         from ..real.calibration import GridCalibration
         from ..real.images import load_image
-        from ..real.decoding import decode
+        from ..real.decoding import clipped_samples, decode, views_shape
         if "cal" not in self._cache:
             self._cache.update(cal=GridCalibration.from_dict(self.calibration),
                                white=None if self.white is None else load_image(self.white),
@@ -182,48 +213,86 @@ class SequenceJob:
         if raw.shape != tuple(c["cal"].sensor_shape):
             raise ValueError(f"frame of {raw.shape[0]} x {raw.shape[1]} pixels; the calibration's sensor is "
                              f"{c['cal'].sensor_shape[0]} x {c['cal'].sensor_shape[1]}")
-        views = decode(raw, c["cal"], c["white"], c["dark"], n_views=self.camera.pixels_per_lenslet)
-        if views.shape[2:] != (self.camera.n_rows, self.camera.n_cols):
-            raise ValueError(f"decoded views of {views.shape[2]} x {views.shape[3]} lenslets; the camera has "
-                             f"{self.camera.n_rows} x {self.camera.n_cols} (give the capture's camera)")
-        return views
+        n, k = self.camera.pixels_per_lenslet, self.bin_views
+        grid = views_shape(c["cal"], n, k)[2:]
+        if grid != (self.camera.n_rows, self.camera.n_cols):
+            raise ValueError(f"decoded views of {grid[0]} x {grid[1]} lenslets; the camera has "
+                             f"{self.camera.n_rows} x {self.camera.n_cols} (give the decoded views' camera)")
+        views = decode(raw, c["cal"], c["white"], c["dark"], n_views=n, bin_views=k, resample=False)
+        clipped = None if self.saturation is None else clipped_samples(raw, c["cal"], self.saturation, n_views=n,
+                                                                       bin_views=k, resample=False)
+        return views, clipped
+
+    def fit_data(self, views: np.ndarray, clipped=None):
+        """A frame's data for the ``reconstruct-*`` routes and what to leave out of the fit (:meth:`frame`'s
+        views and clipped samples): simulated views as they are with the clipping level; decoded views
+        times the operator's white views with the clipped and dark samples
+        (:func:`lf_flame.tomo.decoded.decoded_problem`; a hexagonal lattice's in axial storage, its empty
+        corners left out too, :func:`lf_flame.tomo.lattice.to_axial`)."""
+        if self.calibration is None:
+            return views, self.saturation
+        from ..tomo.decoded import decoded_problem
+        op = self.operator()
+        if not self.hexagonal:
+            return decoded_problem(views, op, clipped)
+        from ..tomo.lattice import to_axial
+        data, leave = decoded_problem(to_axial(views)[0], op, None if clipped is None else to_axial(clipped)[0])
+        return data, leave | ~op.inside
 
     def planes(self, views: np.ndarray) -> np.ndarray:
         """The focal stack (P, R, C) of one frame, by the job's route."""
         return self.planes_and_saturated(views)[0]
 
-    def planes_and_saturated(self, views: np.ndarray, state: dict | None = None) -> tuple[np.ndarray, int | None]:
+    def planes_and_saturated(self, views: np.ndarray, state: dict | None = None,
+                             clipped: np.ndarray | None = None) -> tuple[np.ndarray, int | None]:
         """The focal stack (P, R, C) of one frame by the job's route, and the count of its
         pixels left out of the fit as saturated (``reconstruct-*``; None for shift-and-sum).
 
         ``state`` (admm): the solve carried from the previous frame of the chunk
         (:func:`lf_flame.tomo.fourier.solve_admm`): empty for a chunk's first frame (solved
         from scratch), then at most ``stream_fills`` fills per frame
-        (:data:`~lf_flame.tomo.defaults.ADMM_STREAM_FILLS`)."""
+        (:data:`~lf_flame.tomo.defaults.ADMM_STREAM_FILLS`). ``clipped``: a real frame's samples from
+        clipped pixels (:meth:`frame`)."""
         if self.solver is None:
             from ..refocus.shift_and_sum import aperture_mask, focal_stack
             n = views.shape[0]
-            return focal_stack(views, self.slopes, aperture_mask(n, "circular")), None
+            return focal_stack(self._square(views), self.slopes, aperture_mask(n, "circular")), None
         from ..tomo.solvers import reconstruct
         r = self.reconstruction()
         iters = min(r["iters"], r["stream_fills"]) if state else r["iters"]
-        rec = reconstruct(views, self.operator(), r["solver"], iters, tv=r["tv"], lam=r.get("lam"), l1=r.get("l1"),
-                          start=r.get("start"), tol=r.get("tol"), saturation=r["saturation"],
+        data, leave = self.fit_data(views, clipped)
+        rec = reconstruct(data, self.operator(), r["solver"], iters, tv=r["tv"], lam=r.get("lam"), l1=r.get("l1"),
+                          start=r.get("start"), tol=r.get("tol"), saturation=leave,
                           state=state if r["solver"] == "admm" else None)
-        return rec.planes, int(rec.settings["n_saturated"])
+        planes = self.operator().to_square(rec.planes, self.camera.n_rows, self.camera.n_cols) if self.hexagonal \
+            else rec.planes
+        return planes, int(rec.settings["n_saturated"])
 
     def operator(self):
         """The emission operator of the planes (:func:`lf_flame.tomo.exact.emission_operator`:
-        exact, or traced at ``operator_rays`` rays per pixel), built once per process and kept
-        (with its spectra or ray record) while the camera, depths and rays stay."""
+        exact, or traced at ``operator_rays`` rays per pixel; real frames: the decoded views'
+        :class:`~lf_flame.tomo.lattice.LatticeOperator` with decoding's interpolation), built once per
+        process and kept (with its spectra or ray record) while the camera, depths, rays and
+        calibration stay."""
+        import json
+
         from ..tomo.exact import emission_operator
-        key = (self.camera.to_json(), tuple(float(d) for d in self.depths_mm), self.operator_rays)
+        key = (self.camera.to_json(), tuple(float(d) for d in self.depths_mm), self.operator_rays,
+               json.dumps(self.calibration, sort_keys=True), self.bin_views)
         with _OPERATOR_LOCK:
             if _OPERATOR["key"] != key:
                 _OPERATOR.update(key=None, op=None)   # the old one's memory goes first
-                _OPERATOR.update(key=key, op=emission_operator(self.camera, list(self.depths_mm),
-                                                               rays_per_pixel=self.operator_rays),
-                                 builds=_OPERATOR["builds"] + 1)
+                if self.calibration is not None and self.operator_rays is None:
+                    from ..real.calibration import GridCalibration
+                    from ..real.decoding import interpolation_phases
+                    from ..tomo.lattice import LatticeOperator
+                    cam, k, cal = self.camera, self.bin_views, GridCalibration.from_dict(self.calibration)
+                    phases = interpolation_phases(cal, cam.pixels_per_lenslet, k)
+                    op = LatticeOperator(cam, list(self.depths_mm), (cal.n_rows, cal.n_cols) if self.hexagonal else
+                                         (cam.n_rows, cam.n_cols), layout=cal.layout, interpolation=(phases, k))
+                else:
+                    op = emission_operator(self.camera, list(self.depths_mm), rays_per_pixel=self.operator_rays)
+                _OPERATOR.update(key=key, op=op, builds=_OPERATOR["builds"] + 1)
             return _OPERATOR["op"]
 
 
@@ -300,7 +369,8 @@ def _process_frames(job: SequenceJob, start: int, stop: int) -> dict:
         t1 = time.perf_counter()
         t["read_s"] += t1 - t0
         try:
-            stack, n_sat = job.planes_and_saturated(job.views(raw), state)
+            views, clipped = job.frame(raw)
+            stack, n_sat = job.planes_and_saturated(views, state, clipped)
         except ValueError as e:
             raise ValueError(f"frame {i}: {e}") from e
         t2 = time.perf_counter()
