@@ -309,8 +309,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("profiles", help="flame diagnostics per plane: height, widths, centroid, intensity, "
                        "axial and radial profiles in object-space mm (CSV and figure)")
-    s.add_argument("raw", help=RAW_FORMATS + " (the truth is marked when the flames' objects are known: "
-                   "'simulate --scene flame' .npz, dataset samples)")
+    s.add_argument("raw", help=RAW_FORMATS + ", or views .h5 from 'lf-flame decode' (the truth is marked when the "
+                   "flames' objects are known: 'simulate --scene flame' .npz, dataset samples)")
     s.add_argument("--route", choices=["ground-truth", "shift-sum", "shift-sum-nearest", "fourier",
                                        *LEARNED_ROUTES, *(f"reconstruct-{k}" for k in SOLVERS)],
                    default=PROFILES_ROUTE, help="how the planes are made. reconstruct-SOLVER: each plane's emission "
@@ -324,8 +324,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--slope", type=float, action="append",
                    help="refocusing routes: one per plane (repeatable); default: the dataset's, else the analytic "
                    "slopes of the depths")
-    s.add_argument("--camera", help="camera file (TOML, docs/own_camera.md) of a raw image of a perfect lenslet "
-                   "grid (default: the camera stored in RAW, else the paper's)")
+    s.add_argument("--depth", type=float, action="append",
+                   help="a plane's depth, mm from the focus distance (repeatable; default: the flames' when RAW "
+                        "stores them, else the paper's four)")
+    add_camera_args(s)
     s.add_argument("--out", required=True, help="PREFIX: writes PREFIX.csv (one row per plane), PREFIX.axial.csv "
                                                "and PREFIX.png")
     s.set_defaults(func=cmd_profiles)

@@ -27,6 +27,8 @@ def _profiles_input(a):
     from ..refocus.shift_and_sum import aperture_mask, refocus
     from ..simulate.scenes import PAPER_DEPTHS_MM
     s = str(a.raw)
+    if _decoded(a):
+        return _decoded_profiles_input(a)
     gt, objects, slopes = None, None, None
     if ".h5:" in s:
         from ..learn.dataset import LightFieldDataset
@@ -43,7 +45,7 @@ def _profiles_input(a):
     cam = cam or PAPER_CAMERA
     if objects is not None and not all("height_mm" in o for o in objects):
         raise ValueError(f"{a.raw} does not hold a flame scene (its objects have no flame heights)")
-    depths = [float(o["depth_offset_mm"]) for o in objects] if objects else list(PAPER_DEPTHS_MM)
+    depths = _planes(a, objects, cam, PAPER_DEPTHS_MM)
     if a.slope:
         slopes = a.slope
     elif slopes is None:
@@ -71,6 +73,54 @@ def _profiles_input(a):
     else:
         stack = refocus(raw, slopes, n, aperture_mask(n, "circular"), **route.options)
     return cam, np.asarray(stack), depths, list(slopes), objects
+
+
+def _decoded(a) -> bool:
+    """``profiles`` of decoded views: ``VIEWS.h5``, or a raw capture with ``--calibration``."""
+    s = str(a.raw)
+    return bool(getattr(a, "calibration", None)) or (s.endswith(".h5") and ".h5:" not in s)
+
+
+def _planes(a, objects, cam, default):
+    """``profiles``' depths: ``--depth``, else ``--slope``'s (the camera's), else the flames', else ``default``."""
+    if getattr(a, "depth", None):
+        if a.slope:
+            raise ValueError("give the planes as --depth or as --slope, not both")
+        return [float(d) for d in a.depth]
+    if getattr(a, "slope", None) and default is None:
+        return [cam.depth_for_slope(v) for v in a.slope]
+    return [float(o["depth_offset_mm"]) for o in objects] if objects else list(default)
+
+
+def _decoded_profiles_input(a):
+    """:func:`_profiles_input` of decoded views (``VIEWS.h5``, or a raw capture with ``--calibration``):
+    the planes of the decoded views' camera (:func:`lf_flame.cli._io.light_field`), solved as ``reconstruct``
+    solves them (a hexagonal grid's admm planes once more on its lattice) or refocused."""
+    from ..refocus.shift_and_sum import aperture_mask, refocus_views
+    from ..tomo.truth import bin_planes
+    from ._io import light_field
+    from .volume import lattice_solve, run_reconstruction
+    lf = light_field(a)
+    cam = lf.camera
+    objects = None if str(a.raw).endswith(".h5") else _raw_objects(a.raw)
+    depths = _planes(a, objects, cam, None) if (objects or getattr(a, "depth", None) or a.slope) else None
+    if depths is None:
+        raise ValueError("give the planes of decoded views: --depth MM or --slope S (repeatable)")
+    from ..real.lightfield import check_imaging_range
+    check_imaging_range(cam, depths)
+    slopes = [cam.slope_for_depth(d) for d in depths]
+    route = parse_route(a.route)
+    if route.kind in ("stored", "learned"):
+        raise ValueError(f"--route {a.route} takes the paper camera's raw images or dataset samples, not decoded views")
+    if route.tomographic:
+        op, rec = run_reconstruction(lf, depths, route.solver)
+        if lf.lattice_views is not None and rec.solver == "admm":
+            rec = lattice_solve(lf, op, rec)[0]
+        stack = bin_planes(rec.planes, getattr(op, "subsamples", 1))
+    else:
+        n = cam.pixels_per_lenslet
+        stack = refocus_views(lf.views, slopes, aperture_mask(n, "circular"), **route.options)
+    return cam, np.asarray(stack), depths, slopes, objects
 
 
 def profiles_table(a):
@@ -104,7 +154,7 @@ def profiles_table(a):
     from ..measure.scoring import score_stacks
     kw = measure_settings(a.route)
     cam, stack, depths, slopes, objects = _profiles_input(a)
-    if objects:
+    if objects and not _decoded(a):
         sample = int(str(a.raw).rsplit(":", 1)[1]) if ".h5:" in str(a.raw) else 0
         df = score_stacks(stack[None], cam, [objects], samples=[sample], measure=kw, route=a.route)
         df.insert(0, "plane", range(len(df)))
@@ -125,6 +175,10 @@ def profiles_table(a):
                 rows.append(dict(plane=k, route=a.route, depth_mm=d, failure=str(e)))
             ms.append(m)
         df = pd.DataFrame(rows)
+        if objects and "height_mm" in df:    # decoded views: the flames' heights beside, their columns not assumed
+            df.insert(df.columns.get_loc("height_mm") + 1, "height_mm_true",
+                      [float(o.get("height_mm", np.nan)) for o in objects])
+            df.insert(df.columns.get_loc("height_mm_true") + 1, "height_err_mm", df.height_mm - df.height_mm_true)
     df.insert(3, "slope", slopes)
     return cam, stack, depths, ms, objects, df
 
