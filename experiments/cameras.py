@@ -20,8 +20,8 @@ For each camera, every step is an ``lf-flame`` command run in-process
 :func:`lf_flame.simulate.scenes_depth.camera_depth_scene`) -> ``decode`` (its default binning: the 48 px
 camera's views 3 x 3 pixels each) -> ``reconstruct``
 (depths found over the camera's imaging range, admm on the exact operator of the decoded
-views' camera); on the first scene also ``refocus --depth``, ``slopes``, and ``profiles``
-where the camera's grid is perfect. Noise: the noise-free render, and 14 dB of shot and read
+views' camera); on the first scene also ``refocus --depth``, ``slopes`` and ``profiles`` (each
+flame's height on the decoded views at the flames' depths). Noise: the noise-free render, and 14 dB of shot and read
 noise on it (``experiments/depth.py``'s ``add_noise``). The render's own error (two ray seeds,
 ``||r1 - r2|| / (sqrt 2 ||r1||)``) is measured on the first scene.
 
@@ -174,8 +174,9 @@ def run_camera(name, sheet, cache: Path, seeds, rays: int) -> tuple[list, list, 
                     f"{o['depth_offset_mm']:.3f}", "--out", d / "refocus.npz")
                 run("slopes", views, "--camera", cam_file, "--calibration", d / "calibration.json",
                     "--out", d / "slopes.csv")
-                if cam.grid_pitch_px is None:
-                    run("profiles", raw, "--route", "reconstruct-admm", "--out", d / "profiles")
+                run("profiles", views, "--camera", cam_file, "--calibration", d / "calibration.json",
+                    *[x for o in scene.objects for x in ("--depth", f"{o['depth_offset_mm']:.3f}")],
+                    "--out", d / "profiles")
             lf = read_light_field(views, cam, d / "calibration.json")
             for route, flags in ROUTES.items():
                 rec_file = d / f"rec{seed}_{noise}_{route}.h5"
