@@ -434,3 +434,8 @@ def test_a_recording_of_another_camera_is_decoded_and_reconstructed(tmp_path, la
     for k, fl in enumerate(flames):
         assert abs(heights[k] / fl["height_mm"] - 1) < (0.05 if layout == "square" else 0.09), \
             (heights, [f["height_mm"] for f in flames])
+    capsys.readouterr()
+    assert main(["sequence", str(tmp_path / "frames.h5"), "--camera", str(cam), "--calibration",
+                 str(tmp_path / "cal.json"), "--route", "reconstruct-admm", "--operator-rays", "4", "--depth", "5",
+                 "--quiet", "--out", str(tmp_path / "traced")]) != 0
+    assert "real frames are solved on their decoded views' exact operator" in capsys.readouterr().err

@@ -80,7 +80,7 @@ class SequenceJob:
     ValueError
         ``chunk`` or ``bin_views`` below 1 or not whole, a frame rate not positive and finite, a true
         frequency outside 0 to ``fps / 2``, reconstruction settings out of range, a route
-        other than shift-sum or reconstruct-SOLVER.
+        other than shift-sum or reconstruct-SOLVER, ``operator_rays`` for real frames.
     """
 
     source: object
@@ -124,6 +124,9 @@ class SequenceJob:
             raise ValueError(f"operator_rays must be a whole number >= 1. Received: {self.operator_rays!r}")
         if isinstance(self.bin_views, bool) or int(self.bin_views) != self.bin_views or self.bin_views < 1:
             raise ValueError(f"bin_views must be a whole number >= 1. Received: {self.bin_views!r}")
+        if self.calibration is not None and self.operator_rays is not None:
+            raise ValueError("operator_rays (--operator-rays) traces a simulated camera; real frames are solved on "
+                             "their decoded views' exact operator")
 
     @property
     def n_chunks(self) -> int:
@@ -282,7 +285,7 @@ class SequenceJob:
         with _OPERATOR_LOCK:
             if _OPERATOR["key"] != key:
                 _OPERATOR.update(key=None, op=None)   # the old one's memory goes first
-                if self.calibration is not None and self.operator_rays is None:
+                if self.calibration is not None:
                     from ..real.calibration import GridCalibration
                     from ..real.decoding import interpolation_phases
                     from ..tomo.lattice import LatticeOperator
