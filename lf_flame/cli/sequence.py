@@ -86,18 +86,15 @@ def cmd_sequence(a):
     else:
         if not (a.depth or a.slope):
             raise ValueError("give the planes of a recording: --depth MM (repeatable) or --slope S")
+        cal, k = None, 1
+        if a.calibration:                # real frames: the planes are the decoded views' camera's
+            from ..real.calibration import GridCalibration
+            calibration = GridCalibration.load(a.calibration)
+            cal, cam, k = calibration.to_dict(), *decoded_views_camera(cam, calibration)
         depths = [float(v) for v in a.depth] if a.depth else [cam.depth_for_slope(s) for s in a.slope]
         slopes = list(a.slope) if a.slope else [cam.slope_for_depth(d) for d in depths]
         from ..real.lightfield import check_imaging_range
         check_imaging_range(cam, depths)
-        cal, k = None, 1
-        if a.calibration:
-            from ..real.calibration import GridCalibration
-            calibration = GridCalibration.load(a.calibration)
-            cal, cam, k = calibration.to_dict(), *decoded_views_camera(cam, calibration)
-            depths = [float(v) for v in a.depth] if a.depth else [cam.depth_for_slope(s) for s in a.slope]
-            slopes = list(a.slope) if a.slope else [cam.slope_for_depth(d) for d in depths]
-            check_imaging_range(cam, depths)
         job, truth = SequenceJob(source, cam, fps, tuple(depths), tuple(slopes), (None,) * len(depths), a.route,
                                  cal, a.white, a.dark, chunk=a.chunk, bin_views=k, **knobs), None
     s = run(job, a.out, scheduler=a.scheduler, workers=a.workers, nperseg=a.nperseg, truth=truth,
