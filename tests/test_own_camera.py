@@ -400,3 +400,46 @@ def test_profiles_measure_the_flames_of_decoded_views(tmp_path, capsys):
     capsys.readouterr()
     assert run("profiles", tmp_path / "v.h5", "--camera", EXAMPLE, "--out", tmp_path / "none") != 0
     assert "give the planes of decoded views" in capsys.readouterr().err
+
+
+def test_an_integer_tiff_capture_with_a_dark_frame_is_decoded_on_the_fly_as_decode_does(tmp_path):
+    """12-bit counts in 16-bit TIFFs (a dark level of 100 counts): a command that decodes the raw capture on the
+    fly reads it in the units of the calibration's white and dark images (unscaled counts), as ``decode`` does;
+    the command line's image reader, which scales integers to [0, 1], made every view dark ("views hold no
+    light")."""
+    import tifffile
+
+    from lf_flame.cli._io import _raw_reader
+    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.real.views_file import load_views
+    cam = load_camera_file(EXAMPLE)
+    white = tracer.render(cam, scenes.white_scene(cam), 8)
+    raw = tracer.render(cam, flames(cam), 16, 1)
+    counts = lambda img: np.round(100 + 3995 * img).astype(np.uint16)              # noqa: E731
+    for name, img in (("white", white), ("raw", raw), ("dark", np.zeros_like(raw))):
+        tifffile.imwrite(tmp_path / f"{name}.tif", counts(img))
+    assert cli.main(["calibrate", str(tmp_path / "white.tif"), "--dark", str(tmp_path / "dark.tif"),
+                     "--out", str(tmp_path / "cal.json")]) == 0
+    assert cli.main(["decode", str(tmp_path / "raw.tif"), "--calibration", str(tmp_path / "cal.json"),
+                     "--out", str(tmp_path / "views.h5")]) == 0
+    lf = read_light_field(tmp_path / "raw.tif", EXAMPLE, tmp_path / "cal.json", raw_reader=_raw_reader)
+    views, _ = load_views(tmp_path / "views.h5")
+    assert lf.views.max() > 0.5 and np.allclose(lf.views, views, atol=1e-6)
+    assert cli.main(["reconstruct", str(tmp_path / "raw.tif"), "--camera", str(EXAMPLE), "--calibration",
+                     str(tmp_path / "cal.json"), "--depth", "0", "--out", str(tmp_path / "rec.h5")]) == 0
+
+
+def test_a_microscopes_imaging_range_holds_its_focus():
+    """A 60x objective with a 200 mm tube lens as one lens (f = 3.333 mm, the sample 3.389 mm away: within 1.05
+    focal lengths): the range searched reaches from halfway to the focal length up to |slope| 3, its focus
+    inside (it was one point beyond the focus); a camera focused farther keeps 1.05 focal lengths."""
+    from lf_flame.optics.camera_file import camera_from_datasheet
+    from lf_flame.real.lightfield import NEAR_LIMIT, imaging_range_mm
+    scope = camera_from_datasheet({"main_lens": {"focal_length_mm": 200 / 60, "mla_distance_mm": 200 + 200 / 60},
+                                   "microlens_array": {"pitch_um": 100.0, "focal_length_mm": 2.5},
+                                   "sensor": {"pixel_size_um": 6.5, "rows": 436, "cols": 436}})
+    lo, hi = imaging_range_mm(scope)
+    assert lo == pytest.approx((scope.main_focal_mm - scope.focus_distance_mm) / 2) and lo < 0 < hi
+    cam = load_camera_file(EXAMPLE)
+    near = imaging_range_mm(cam, max_slope=1e6)[0]
+    assert near == pytest.approx(NEAR_LIMIT * cam.main_focal_mm - cam.focus_distance_mm)

@@ -100,10 +100,8 @@ def _saturation_level(text, raw):
         if not (np.isfinite(v) and v > 0):
             raise ValueError(f"--saturation must be a positive finite level. Received: {text!r}")
         return v
-    top = float(np.max(raw))
-    if top <= 1.0:
-        return 1.0
-    for bits in (8, 10, 12, 14, 16):
-        if top <= 2 ** bits - 1:
-            return float(2 ** bits - 1)
-    raise ValueError(f"--saturation auto: the raw image reaches {top:g}, past 16-bit counts; give the level")
+    from ..real.decoding import auto_saturation
+    try:
+        return auto_saturation(raw)
+    except ValueError as e:
+        raise ValueError(f"--saturation auto: {e}") from None

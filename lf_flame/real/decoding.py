@@ -346,6 +346,25 @@ def decode_colour(raw: np.ndarray, calibration: GridCalibration, sensor, white: 
     return np.ascontiguousarray(views.astype(np.float32)), np.ascontiguousarray(channels.astype(np.int8))
 
 
+def auto_saturation(raw: np.ndarray) -> float:
+    """The clipping level of a raw image whose level is not given: 1.0 for images whose values are
+    at most 1 (the simulator's), else the smallest ``2**bits - 1`` (bits 8, 10, 12, 14, 16) at or
+    above its maximum (integer counts read unscaled, :func:`lf_flame.real.images.load_image`).
+
+    Raises
+    ------
+    ValueError
+        An image past 16-bit counts.
+    """
+    top = float(np.max(raw))
+    if top <= 1.0:
+        return 1.0
+    for bits in (8, 10, 12, 14, 16):
+        if top <= 2 ** bits - 1:
+            return float(2 ** bits - 1)
+    raise ValueError(f"the raw image reaches {top:g}, past 16-bit counts: give its clipping level")
+
+
 def clipped_samples(raw: np.ndarray, calibration: GridCalibration, saturation: float, *,
                     n_views: int | None = None, bin_views: int = 1, resample: bool = True) -> np.ndarray:
     """Which decoded samples come from clipped raw pixels: the clipping level in the views' units.

@@ -145,7 +145,9 @@ NEAR_LIMIT = 1.05
 
 def imaging_range_mm(camera: PlenopticCamera, max_slope: float = MAX_SEARCH_SLOPE) -> tuple[float, float]:
     """Depths (mm from the focus distance) a camera can refocus: slopes within ``max_slope``,
-    object distances beyond :data:`NEAR_LIMIT` focal lengths (and finite).
+    object distances beyond :data:`NEAR_LIMIT` focal lengths (and finite), or, for a camera focused
+    nearer than that (a microscope objective's magnification), beyond halfway from the focal length to
+    the focus distance.
 
     Parameters
     ----------
@@ -168,7 +170,7 @@ def imaging_range_mm(camera: PlenopticCamera, max_slope: float = MAX_SEARCH_SLOP
     if not (math.isfinite(max_slope) and max_slope > 0):
         raise ValueError(f"max_slope must be positive and finite. Received: {max_slope!r}")
     z_f = camera.focus_distance_mm
-    near_mm = NEAR_LIMIT * camera.main_focal_mm - z_f
+    near_mm = min(NEAR_LIMIT * camera.main_focal_mm, (camera.main_focal_mm + z_f) / 2) - z_f
     far_mm = 10.0 * z_f
 
     def slope(d):
@@ -364,6 +366,9 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
         cam = PAPER_CAMERA
     if cal is None:
         return from_raw(raw, cam, src, camera_file=cam_file, meta=meta)
+    if p.suffix.lower() not in (".npz", ".npy"):    # an image file: in the units of the calibration's white and dark
+        from .images import load_image
+        raw = load_image(p)
     return _decode_here(raw, src, cam, cal, views, cam_file, bin_views)
 
 
@@ -372,11 +377,14 @@ def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None) -> Light
     ``lf-flame decode`` bins by default (:func:`lf_flame.real.decoding.auto_bin`, one pixel per view
     where ``n_views`` is given)."""
     from .images import calibration_image
-    from .decoding import auto_bin, clipped_samples, decode, on_square_grid
+    from .decoding import auto_bin, auto_saturation, clipped_samples, decode, on_square_grid
     white, dark = calibration_image(cal.white, "white"), calibration_image(cal.dark, "dark")
     k = auto_bin(cal, n_views) if bin_views is None else bin_views
     lattice = decode(raw, cal, white, dark, n_views=n_views, bin_views=k, resample=False)
-    level = 1.0 if float(np.max(raw)) <= 1.0 else None
+    try:
+        level = auto_saturation(raw)
+    except ValueError:                                   # past 16-bit counts: no level known
+        level = None
     hit = None if level is None else clipped_samples(raw, cal, level, n_views=n_views, bin_views=k, resample=False)
     hexagonal = cal.layout == "hex"
     return from_decoded(on_square_grid(lattice, cal), cal, cam, src, None if hit is None else on_square_grid(hit, cal),
