@@ -242,6 +242,8 @@ def test_a_hexagonal_capture_goes_through_the_command_line_on_its_lattice(tmp_pa
         assert "solved again on the hexagonal lattice" in capsys.readouterr().out
         rec = load_reconstruction(tmp_path / "rec.h5")
         assert rec.settings["lattice"] == "hexagonal" and np.isfinite(rec.planes).all() and rec.planes.max() > 0
+        with h5py.File(tmp_path / "rec.h5") as f:
+            assert f.attrs["operator"] == "exact, with decoding's interpolation, on the hexagonal lattice"
         left_out[saturation] = rec.settings["n_saturated"]
     assert left_out["file"] - left_out["none"] >= 0.9 * clipped.sum(), (left_out, clipped.sum())
 

@@ -81,7 +81,7 @@ def test_decoded_views_of_another_camera_are_reconstructed(route):
     assert rec.solver == "admm" and rec.settings["subsamples"] == 2
     with h5py.File(d / "vol.h5") as f:
         frame = json.loads(f.attrs["frame"])
-        assert f.attrs["operator"] == "exact"
+        assert f.attrs["operator"] == "exact, with decoding's interpolation"
     # scored on the lenslets, as every route is (the 2 x 2 grid's finer samples averaged: at focus they are
     # the operator's null space, one tap per view)
     planes = bin_planes(rec.planes, 2)

@@ -267,7 +267,9 @@ def cmd_reconstruct(a):
         extra = dict(depths_from="auto", found_depths=found, support=bool(getattr(a, "support", False)))
         arrays = dict(found_masks=np.asarray(voters.masks, bool), found_regions=voters.labels)
     if lf.decoded:
-        extra.update(own_camera=lf.capture_camera.to_json(), frame=lf.frame.to_dict(), operator="exact",
+        operator = "exact" if lf.interpolation is None else "exact, with decoding's interpolation" + (
+            ", on the hexagonal lattice" if lf.lattice_views is not None else "")
+        extra.update(own_camera=lf.capture_camera.to_json(), frame=lf.frame.to_dict(), operator=operator,
                      n_clipped=0 if lf.leave_out is None else int(lf.leave_out.sum()))
         if lf.camera_file:
             extra["camera_file"] = lf.camera_file
