@@ -45,7 +45,7 @@ def _profiles_input(a):
     cam = cam or PAPER_CAMERA
     if objects is not None and not all("height_mm" in o for o in objects):
         raise ValueError(f"{a.raw} does not hold a flame scene (its objects have no flame heights)")
-    depths = _planes(a, objects, cam, PAPER_DEPTHS_MM)
+    depths = _given_depths(a) or _object_depths(objects) or list(PAPER_DEPTHS_MM)
     if a.slope:
         slopes = a.slope
     elif slopes is None:
@@ -81,15 +81,18 @@ def _decoded(a) -> bool:
     return bool(getattr(a, "calibration", None)) or (s.endswith(".h5") and ".h5:" not in s)
 
 
-def _planes(a, objects, cam, default):
-    """``profiles``' depths: ``--depth``, else ``--slope``'s (the camera's), else the flames', else ``default``."""
-    if getattr(a, "depth", None):
-        if a.slope:
-            raise ValueError("give the planes as --depth or as --slope, not both")
-        return [float(d) for d in a.depth]
-    if getattr(a, "slope", None) and default is None:
-        return [cam.depth_for_slope(v) for v in a.slope]
-    return [float(o["depth_offset_mm"]) for o in objects] if objects else list(default)
+def _given_depths(a):
+    """``--depth``'s planes (refused beside ``--slope``), or None."""
+    if not getattr(a, "depth", None):
+        return None
+    if a.slope:
+        raise ValueError("give the planes as --depth or as --slope, not both")
+    return [float(d) for d in a.depth]
+
+
+def _object_depths(objects):
+    """The flames' depths (mm), or None without flames."""
+    return [float(o["depth_offset_mm"]) for o in objects] if objects else None
 
 
 def _decoded_profiles_input(a):
@@ -103,8 +106,8 @@ def _decoded_profiles_input(a):
     lf = light_field(a)
     cam = lf.camera
     objects = None if str(a.raw).endswith(".h5") else _raw_objects(a.raw)
-    depths = _planes(a, objects, cam, None) if (objects or getattr(a, "depth", None) or a.slope) else None
-    if depths is None:
+    depths = _given_depths(a) or ([cam.depth_for_slope(v) for v in a.slope] if a.slope else _object_depths(objects))
+    if not depths:
         raise ValueError("give the planes of decoded views: --depth MM or --slope S (repeatable)")
     from ..real.lightfield import check_imaging_range
     check_imaging_range(cam, depths)
@@ -114,8 +117,7 @@ def _decoded_profiles_input(a):
         raise ValueError(f"--route {a.route} takes the paper camera's raw images or dataset samples, not decoded views")
     if route.tomographic:
         op, rec = run_reconstruction(lf, depths, route.solver)
-        if lf.lattice_views is not None and rec.solver == "admm":
-            rec = lattice_solve(lf, op, rec)[0]
+        rec = lattice_solve(lf, op, rec)[0]
         stack = bin_planes(rec.planes, getattr(op, "subsamples", 1))
     else:
         n = cam.pixels_per_lenslet

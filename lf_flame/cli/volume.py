@@ -234,8 +234,11 @@ def misfit_warning(lf, op, rec, saturation="file", lattice=None):
 
 
 def lattice_solve(lf, op, rec, found=None, support: bool = False):
-    """A hexagonal camera's planes solved again on its lenslets' own lattice with admm's knobs and support
-    (:func:`lf_flame.tomo.lattice.solve_on_lattice`): ``(rec on the square grid, LatticeSolve)``."""
+    """A hexagonal camera's admm planes solved again on its lenslets' own lattice with admm's knobs and support
+    (:func:`lf_flame.tomo.lattice.solve_on_lattice`): ``(rec on the square grid, LatticeSolve)``; ``(rec, None)``
+    as they are for a light field without lattice views or another solver."""
+    if lf.lattice_views is None or rec.solver != "admm":
+        return rec, None
     from ..tomo.lattice import solve_on_lattice
     mask = None
     if found is not None and rec.settings.get("support", "none") != "none":
@@ -291,10 +294,8 @@ def cmd_reconstruct(a):
             depths = [float(d) for d in voters.planes_mm]
             extra["found_depths"] = found_record(voters)
             arrays = dict(found_masks=np.asarray(voters.masks, bool), found_regions=voters.labels)
-    lattice = None
-    if lf.lattice_views is not None and rec.solver == "admm":
-        rec, lattice = lattice_solve(_fitted_light_field(lf, kw["saturation"]), op, rec, voters,
-                                     bool(getattr(a, "support", False)))
+    rec, lattice = lattice_solve(_fitted_light_field(lf, kw["saturation"]), op, rec, voters,
+                                 bool(getattr(a, "support", False)))
     if rec.settings.get("support") == "near planes":
         from ..tomo.found_planes import NEAR_PARALLAX
         print(f"planes within {NEAR_PARALLAX:g} lenslets of parallax of each other are held to the regions their "

@@ -29,10 +29,15 @@ def view_positions(calibration: GridCalibration, n_views: int) -> np.ndarray:
     """Sensor positions (row, column; px) sampled for view ``(u, v)`` of lenslet ``(r, c)``:
     the lenslet's calibrated centre plus ``(u - (N-1)/2, v - (N-1)/2)`` pixels along the
     grid's rotated axes. Shape (N, N, R, C, 2), R × C the calibration's (hexagonal) grid."""
+    return calibration.centres_px()[None, None] + _view_offsets(calibration, n_views)[:, :, None, None]
+
+
+def _view_offsets(calibration: GridCalibration, n_views: int) -> np.ndarray:
+    """Each view's offset (row, column; px) from its lenslet's centre: (N, N, 2)."""
     off = np.arange(n_views) - (n_views - 1) / 2
     du = np.stack(np.meshgrid(off, off, indexing="ij"), axis=-1)              # (N, N, 2)
     rot = calibration.matrix / calibration.pitch_px
-    return calibration.centres_px()[None, None] + (du @ rot.T)[:, :, None, None]
+    return du @ rot.T
 
 
 #: The most samples :func:`interpolation_phases` keeps (an even spread): the operator draws 2^14 per view and plane.
@@ -62,8 +67,11 @@ def interpolation_phases(calibration: GridCalibration, n_views: int, bin_views: 
         every lenslet (``M = (N bin_views)^2 R C``), or of an even spread of at most
         :data:`MAX_PHASES` of them.
     """
-    pos = view_positions(calibration, int(n_views) * int(bin_views)).reshape(-1, 2)
-    pos = pos[::-(-len(pos) // MAX_PHASES)] - 0.5                                # pixel (i, j) centred at (i + ½, j + ½)
+    centres = calibration.centres_px().reshape(-1, 2)
+    offsets = _view_offsets(calibration, int(n_views) * int(bin_views)).reshape(-1, 2)
+    total = len(offsets) * len(centres)             # view_positions' samples, flattened (view, lenslet)
+    view, lenslet = np.divmod(np.arange(0, total, -(-total // MAX_PHASES)), len(centres))
+    pos = centres[lenslet] + offsets[view] - 0.5                                 # pixel (i, j) centred at (i + ½, j + ½)
     return (pos - np.floor(pos)).T
 
 

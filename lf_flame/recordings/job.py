@@ -277,11 +277,13 @@ class SequenceJob:
         :class:`~lf_flame.tomo.lattice.LatticeOperator` with decoding's interpolation), built once per
         process and kept (with its spectra or ray record) while the camera, depths, rays and
         calibration stay."""
-        import json
-
         from ..tomo.exact import emission_operator
-        key = (self.camera.to_json(), tuple(float(d) for d in self.depths_mm), self.operator_rays,
-               json.dumps(self.calibration, sort_keys=True), self.bin_views)
+        if "operator_key" not in self._cache:       # once per job: the calibration's JSON lists every lenslet
+            import json
+            self._cache["operator_key"] = (self.camera.to_json(), tuple(float(d) for d in self.depths_mm),
+                                           self.operator_rays, json.dumps(self.calibration, sort_keys=True),
+                                           self.bin_views)
+        key = self._cache["operator_key"]
         with _OPERATOR_LOCK:
             if _OPERATOR["key"] != key:
                 _OPERATOR.update(key=None, op=None)   # the old one's memory goes first
@@ -291,8 +293,8 @@ class SequenceJob:
                     from ..tomo.lattice import LatticeOperator
                     cam, k, cal = self.camera, self.bin_views, GridCalibration.from_dict(self.calibration)
                     phases = interpolation_phases(cal, cam.pixels_per_lenslet, k)
-                    op = LatticeOperator(cam, list(self.depths_mm), (cal.n_rows, cal.n_cols) if self.hexagonal else
-                                         (cam.n_rows, cam.n_cols), layout=cal.layout, interpolation=(phases, k))
+                    op = LatticeOperator(cam, list(self.depths_mm), (cal.n_rows, cal.n_cols), layout=cal.layout,
+                                         interpolation=(phases, k))
                 else:
                     op = emission_operator(self.camera, list(self.depths_mm), rays_per_pixel=self.operator_rays)
                 _OPERATOR.update(key=key, op=op, builds=_OPERATOR["builds"] + 1)

@@ -192,8 +192,8 @@ def lattice_kernels(camera, depths_mm, shape, *, layout: str = "hex", subsamples
         f_x = phases[1, np.minimum((u[:, 6] * phases.shape[1]).astype(np.int64), phases.shape[1] - 1)]
         du_y = du_y + np.where(u[:, 5] < f_y, 1.0 - f_y, -f_y) / binned
         du_x = du_x + np.where(u[:, 7] < f_x, 1.0 - f_x, -f_x) / binned
-    u = u - 0.5
-    da_y, da_x = hexagon_points(u[:, 2], u[:, 3]) if layout == "hex" else (u[:, 2], u[:, 3])
+    a_y, a_x = u[:, 2] - 0.5, u[:, 3] - 0.5
+    da_y, da_x = hexagon_points(a_y, a_x) if layout == "hex" else (a_y, a_x)
     r2 = (camera.aperture_diameter_mm / 2) ** 2 if effects.aperture else np.inf
     # fine site 0 of a lenslet: at its centre on the hexagonal lattice; on the square one at the first of its
     # s x s cells, as the square camera's polyphase grid (exact_kernels)
