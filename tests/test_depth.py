@@ -1,12 +1,15 @@
 """Find the planes (lf_flame.tomo.depth), its scenes (lf_flame.simulate.scenes_depth) and score_flames."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from lf_flame.optics.camera import PlenopticCamera
+from lf_flame.optics.camera import PAPER_CAMERA, PlenopticCamera
+from lf_flame.optics.camera_file import load_camera_file
 from lf_flame.refocus.shift_and_sum import raw_to_views
 from lf_flame.simulate import tracer
 from lf_flame.simulate.scenes_depth import behind_scene, random_depth_scene
-from lf_flame.tomo.depth import find_depths, merge_depths
+from lf_flame.tomo.depth import MERGE_MM, depth_scale, depth_tolerance_scale, find_depths, merge_depths
 from lf_flame.tomo.exact import emission_operator
 from lf_flame.tomo.found_planes import find_planes
 from lf_flame.tomo.operator import plane_grid
@@ -168,6 +171,21 @@ def test_merge_depths():
     np.testing.assert_array_equal(of, [0, 0, 1])
     with pytest.raises(ValueError, match="ascending"):
         merge_depths(np.array([1.0, 0.0]), np.array([1.0, 1.0]))
+
+
+@pytest.mark.parametrize("camera_file", ["examples/own_camera.toml", "data_gen/napari_lf/seaurchin.toml",
+                                         "data_gen/napari_lf/GUVExperim1.toml"])
+def test_depth_tolerances_carry_the_paper_cameras_parallax(camera_file):
+    """MERGE_MM on the paper camera and MERGE_MM * depth_scale on another camera move the outermost views
+    apart by the same parallax; the tolerances keep millimetres on deep fields and shrink on microscopes."""
+    other = load_camera_file(Path(__file__).resolve().parents[1] / camera_file)
+    paper = (PAPER_CAMERA.slope_for_depth(MERGE_MM) - PAPER_CAMERA.slope_for_depth(0.0)) * 14
+    assert depth_scale(PAPER_CAMERA, 15) == depth_tolerance_scale(PAPER_CAMERA, 15) == 1.0
+    for n in (other.pixels_per_lenslet, 7):
+        dz = MERGE_MM * depth_scale(other, n)
+        assert (other.slope_for_depth(dz) - other.slope_for_depth(0.0)) * (n - 1) == pytest.approx(paper, rel=0.05)
+        assert depth_tolerance_scale(other, n) == min(1.0, depth_scale(other, n))
+    assert (depth_tolerance_scale(other, other.pixels_per_lenslet) < 0.05) == ("napari" in camera_file)
 
 
 def test_refusals(cam, planted):

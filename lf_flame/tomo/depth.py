@@ -22,7 +22,13 @@ Whole flames are not depth-resolved by the data's normal matrices alone (NOTES.m
    difference and a tenth of the Tenengrad peak's half width at half maximum in depth (the
    resolution of the fit); ``width_mm`` is that full width.
 5. **Planes.** Found depths closer than ``merge_mm`` are one plane (their vote-weighted
-   mean depth). :func:`lf_flame.tomo.found_planes.find_planes` solves for the emission on those
+   mean depth).
+
+The depth tolerances (``min_separation_mm``, ``merge_mm``) were chosen in millimetres on the paper's camera
+(and hold on the camera matrix of ``experiments/cameras.py``, whose deep fields see less parallax per
+millimetre). On a camera whose parallax changes faster with depth they default to the depths of the
+paper camera's parallax across the aperture (:func:`depth_scale` below 1): on a microscope, micrometres,
+so that its depths tens of micrometres apart are not one plane. :func:`lf_flame.tomo.found_planes.find_planes` solves for the emission on those
    planes, and :mod:`lf_flame.tomo.peel` searches the solve's residual for depths the votes missed.
 """
 from __future__ import annotations
@@ -43,8 +49,61 @@ DEPTH_RANGE_MM = (-15.0, 25.0)
 #: Coarse slope step (lenslets per view step) on 15 views: about 0.33 mm of depth at the paper camera's focal
 #: plane; on ``N`` views ``SLOPE_STEP * 14 / (N - 1)``, so that the outermost view moves as far per step.
 SLOPE_STEP = 0.04
-#: Found depths closer than this (mm) are solved as one plane.
+#: Found depths closer than this (mm on the paper's camera: :func:`depth_scale` on another) are solved as one plane:
+#: 1.69 lenslets of parallax across the paper camera's aperture at its focal plane.
 MERGE_MM = 1.0
+#: Depths of one region closer than this (mm on the paper's camera: :func:`depth_scale` on another) are one peak.
+MIN_SEPARATION_MM = 2.5
+
+
+def depth_scale(camera: PlenopticCamera, n_views: int) -> float:
+    """Millimetres on ``camera`` per millimetre on the paper's camera at equal parallax across the aperture.
+
+    A depth difference ``dz`` moves the refocus slope by ``dz / (dz/ds)`` lenslets per view step, and
+    the outermost views apart by ``n_views - 1`` times that: the depth tolerances chosen on the paper
+    camera (15 views) carry to another camera as the depths of the same parallax, ``dz/ds`` taken at
+    each camera's focal plane (one coarse slope step, :data:`SLOPE_STEP` scaled to the views' count).
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+    n_views : int
+        Views per axis of the light field searched (>= 2).
+
+    Returns
+    -------
+    float
+        1.0 on the paper's camera with its 15 views.
+    """
+    from ..optics.camera import PAPER_CAMERA
+
+    def dz_ds(cam, n):
+        step = SLOPE_STEP * 14.0 / max(n - 1, 1)
+        return abs(cam.depth_for_slope(step) - cam.depth_for_slope(0.0)) / step
+    n_paper = PAPER_CAMERA.pixels_per_lenslet
+    return dz_ds(camera, n_views) / dz_ds(PAPER_CAMERA, n_paper) * (n_paper - 1) / max(n_views - 1, 1)
+
+
+def depth_tolerance_scale(camera: PlenopticCamera, n_views: int) -> float:
+    """The factor on :data:`MERGE_MM` and :data:`MIN_SEPARATION_MM` for ``camera``: ``min(1, depth_scale)``.
+
+    The tolerances hold in millimetres on cameras that see less parallax per millimetre than the paper's
+    (validated on ``experiments/cameras.py``' matrix, :func:`depth_scale` 6-40 there); where a camera sees
+    more (a microscope: :func:`depth_scale` about 0.001-0.01), they become the depths of the paper
+    camera's parallax across the aperture (1.69 lenslets for :data:`MERGE_MM`).
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+    n_views : int
+        Views per axis of the light field searched.
+
+    Returns
+    -------
+    float
+        In (0, 1]; 1.0 on the paper's camera.
+    """
+    return min(1.0, depth_scale(camera, n_views))
 
 
 @dataclass
@@ -139,7 +198,7 @@ def _half_width(curve, i):
 def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM, slope_step: float | None = None,
                 threshold: float = 0.12, sigma: float = 1.5, min_pixels: int = 6, peak_fraction: float = 0.1,
                 vote_floor: float = 0.02,
-                min_separation_mm: float = 2.5, merge_mm: float = MERGE_MM) -> FoundDepths:
+                min_separation_mm: float | None = None, merge_mm: float | None = None) -> FoundDepths:
     """The depths that hold emission, per lateral region, several per region where flames stand one behind another.
 
     Parameters
@@ -164,10 +223,12 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
     vote_floor : float
         A lenslet votes if its focus contrast (largest energy over the median) is at least this
         fraction of the region's 99th percentile, in [0, 1).
-    min_separation_mm : float
-        Depths of one region closer than this are one peak (mm), >= 0.
-    merge_mm : float
-        Found depths closer than this share one plane (mm), >= 0.
+    min_separation_mm : float or None
+        Depths of one region closer than this are one peak (mm), >= 0; None:
+        :data:`MIN_SEPARATION_MM` times :func:`depth_tolerance_scale`.
+    merge_mm : float or None
+        Found depths closer than this share one plane (mm), >= 0; None: :data:`MERGE_MM` times
+        :func:`depth_tolerance_scale`.
 
     Returns
     -------
@@ -184,6 +245,10 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
     v = _check_views(views, camera)
     if slope_step is None:
         slope_step = SLOPE_STEP * 14.0 / max(v.shape[0] - 1, 1)
+    if min_separation_mm is None or merge_mm is None:
+        scale = depth_tolerance_scale(camera, v.shape[0])
+        min_separation_mm = MIN_SEPARATION_MM * scale if min_separation_mm is None else min_separation_mm
+        merge_mm = MERGE_MM * scale if merge_mm is None else merge_mm
     lo, hi = (float(d) for d in depth_range_mm)
     if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
         raise ValueError(f"depth_range_mm must be two finite depths, low < high. Received: {depth_range_mm!r}")

@@ -250,14 +250,16 @@ def normalised_adjoint(op: pylops.LinearOperator, views) -> np.ndarray:
 
 
 def check_views(views, op: EmissionOperator) -> np.ndarray:
-    """Views as float64 of the operator's data shape, or a ValueError naming the problem."""
+    """Views as float64 of the operator's data shape (read-only: the caller's own array where it is float64
+    already), or a ValueError naming the problem."""
     v = np.asarray(views)
     if v.shape != tuple(op.dimsd):
         raise ValueError(f"views of shape {v.shape} do not come from this camera: its views are {tuple(op.dimsd)} "
                          "(N, N, n_rows, n_cols)")
     if not np.issubdtype(v.dtype, np.number):
         raise ValueError(f"views must hold numbers. Received: dtype {v.dtype}")
-    v = v.astype(np.float64)
+    v = np.asarray(v, np.float64).view()
+    v.flags.writeable = False
     if not np.all(np.isfinite(v)):
         raise ValueError(f"views contain {int(np.sum(~np.isfinite(v)))} NaN or infinite values")
     return v

@@ -15,7 +15,8 @@ import numpy as np
 
 from ..optics.camera import PlenopticCamera
 from ..refocus.shift_and_sum import _check_finite
-from .depth import MERGE_MM, FoundDepths, _focus_energy, _half_width, _peak_fit, merge_depths
+from .depth import (MERGE_MM, MIN_SEPARATION_MM, FoundDepths, _focus_energy, _half_width, _peak_fit,
+                    depth_tolerance_scale, merge_depths)
 
 #: A depth the solve missed (:func:`missed_depths`): the residual views' Tenengrad energy over a region, refocused,
 #: peaks at least ``RESIDUAL_PROMINENCE`` robust standard deviations (1.4826 times the median absolute deviation
@@ -34,8 +35,8 @@ PEEL_ROUNDS = 2
 
 
 def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prominence: float = RESIDUAL_PROMINENCE,
-                  share: float = RESIDUAL_SHARE, sigma: float = 1.5, min_separation_mm: float = 2.5,
-                  merge_mm: float = MERGE_MM, regions=None):
+                  share: float = RESIDUAL_SHARE, sigma: float = 1.5, min_separation_mm: float | None = None,
+                  merge_mm: float | None = None, regions=None):
     """Depths the votes missed, found in a solve's residual: a flame behind (or before) another in the same
     columns, whose lenslets voted for the other.
 
@@ -61,8 +62,8 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
         deviations of the curve, > 0 (:data:`RESIDUAL_PROMINENCE`).
     share : float
         Peak over the data's, >= 0 (:data:`RESIDUAL_SHARE`).
-    sigma, min_separation_mm, merge_mm : float
-        As :func:`~lf_flame.tomo.depth.find_depths`.
+    sigma, min_separation_mm, merge_mm : float (the last two or None)
+        As :func:`~lf_flame.tomo.depth.find_depths` (None: scaled to the camera as there).
     regions : sequence of int or None
         The regions (``found.region`` labels) to search; None: all.
 
@@ -88,6 +89,10 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
     _check_finite("residual", r)
     if not np.any(r) or not len(found.depths_mm):
         return None
+    if min_separation_mm is None or merge_mm is None:
+        scale = depth_tolerance_scale(camera, n)
+        min_separation_mm = MIN_SEPARATION_MM * scale if min_separation_mm is None else min_separation_mm
+        merge_mm = MERGE_MM * scale if merge_mm is None else merge_mm
     slopes = found.grid_slopes
     ten = _focus_energy(r, slopes, sigma)
     depth_of = np.array([camera.depth_for_slope(float(s)) for s in slopes])

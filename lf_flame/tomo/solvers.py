@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import pylops
@@ -340,16 +341,26 @@ def _checked_inputs(views, op, solver, iters, damp, tv, saturation):
 
 @dataclass
 class _Problem:
-    """What a solver fits: the views ``y`` (flat), the samples that carry their light (``fit``), the
-    fitted operator and data ``W A`` and ``W y`` (``W`` the 0/1 weight of ``fit``), and ``||y||``."""
+    """What a solver fits: the views ``y`` (flat), the samples that carry their light (``fit``), and, built on
+    first use (admm needs neither), the fitted operator and data ``W A`` and ``W y`` (``W`` the 0/1 weight of
+    ``fit``) and ``||y||``."""
 
     op: EmissionOperator
     y: np.ndarray
     fit: np.ndarray
     n_sat: int
-    A: object
-    yw: np.ndarray
-    norm: float
+
+    @cached_property
+    def A(self):
+        return self.op if self.n_sat == 0 else pylops.Diagonal(self.fit.astype(np.float64)) @ self.op
+
+    @cached_property
+    def yw(self) -> np.ndarray:
+        return self.y if self.n_sat == 0 else np.where(self.fit, self.y, 0.0)
+
+    @cached_property
+    def norm(self) -> float:
+        return float(np.linalg.norm(self.y)) or 1.0
 
 
 def fitted_pixels(views, saturation) -> np.ndarray:
@@ -372,12 +383,9 @@ def fitted_pixels(views, saturation) -> np.ndarray:
 
 def _fitted_problem(op: EmissionOperator, y: np.ndarray, saturation) -> _Problem:
     """The saturation mask: samples at or above the level, or True in a mask, left out of the fit
-    (none for None), and the operator and data weighted to match."""
+    (none for None)."""
     fit = fitted_pixels(y, np.ravel(saturation) if np.ndim(saturation) > 0 else saturation)   # carry their light
-    n_sat = int(y.size - fit.sum())
-    # the fitted operator and data: W A and W y, W the 0/1 weight of the unsaturated pixels
-    A, yw = (op, y) if n_sat == 0 else (pylops.Diagonal(fit.astype(np.float64)) @ op, np.where(fit, y, 0.0))
-    return _Problem(op, y, fit, n_sat, A, yw, float(np.linalg.norm(y)) or 1.0)
+    return _Problem(op, y, fit, int(y.size - np.count_nonzero(fit)))
 
 
 class _Steps:
