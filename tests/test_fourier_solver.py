@@ -310,8 +310,8 @@ def test_the_packed_cholesky_solve_matches_a_dense_solve(complex_matrices, dtype
 
 def test_a_recording_continues_the_previous_frames_solve(camera, op, planted):
     """A state carried from frame to frame: the next frame's one fill starts from the last one's planes,
-    duals and prediction of the missing data, and lands far closer to that frame's emission than one fill
-    from scratch, as close as four; a state from another operator is refused."""
+    duals and its last fill's prediction of the missing data, and lands far closer to that frame's emission than
+    one fill from scratch, as close as four; a state from another operator is refused."""
     x, views = planted
     fit = np.ones(op.dimsd, bool)
     knobs = dict(tv=0.0, lam=0.03, start="refocused")
@@ -320,8 +320,11 @@ def test_a_recording_continues_the_previous_frames_solve(camera, op, planted):
     assert {"s", "d", "z", "tv", "lam_max"} <= set(state)
     x2 = 1.04 * x                                                      # the next frame: 4 % brighter (a flicker)
     views2 = op.matvec(x2.ravel()).reshape(op.dimsd)
+    assert not state["z_predicts"]                                     # the last fill's views: no H spent
     cont, res, _ = fourier.solve_admm(views2, op, fit, fills=1, state=state, **knobs)
-    assert len(res) == 1                                               # its one fill had a prediction to score
+    assert res == []                                                   # they hold the last frame's data
+    assert state["z_predicts"]                                         # one fill: the next fill's prediction made
+    assert len(fourier.solve_admm(views2, op, fit, fills=2, state=dict(state), **knobs)[1]) == 2
     one = rel(fourier.solve_admm(views2, op, fit, fills=1, **knobs)[0], x2).max()
     four = rel(fourier.solve_admm(views2, op, fit, fills=4, **knobs)[0], x2).max()
     assert rel(cont, x2).max() < 0.3 * one and rel(cont, x2).max() < 1.2 * four

@@ -171,11 +171,12 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         A recording's solve carried from frame to frame (the EM fills continued across
         frames, as an online EM does: Cappé & Moulines, J. R. Stat. Soc. B 71 (2009)). Empty:
         this solve runs as asked and leaves in it its planes, ADMM duals, the l1 scale and
-        the next fill's prediction of the views (one ``H`` more). Holding them (the previous
-        frame's, same operator and knobs): the solve continues from them (``start`` is not
-        used): its first fill takes the missing data from that prediction (no ``H`` spent on
-        it), its ADMM steps start from the planes and duals, and ``tol`` may stop it after
-        that fill. With ``fills=1`` a frame then costs one ``H`` and one ``H^H``.
+        a prediction of the missing data: its last fill's, where it ran two or more (no ``H``
+        spent: one fill older than the planes), else the next fill's (one ``H`` more).
+        Holding them (the previous frame's, same operator and knobs): the solve continues from
+        them (``start`` is not used): its first fill takes the missing data from that prediction
+        (no ``H`` spent on it), its ADMM steps start from the planes and duals, and ``tol`` may
+        stop it after that fill. Two fills a frame then cost one ``H`` and two ``H^H``.
 
     Returns
     -------
@@ -183,7 +184,9 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     residuals : list of float
         ``||M (w H v - y)|| / ||M y||`` at the point ``v`` each fill after the first predicts
         from (no extra operator application is spent on it): ``len(residuals) + 1`` fills ran
-        (every fill's, ``len(residuals)`` fills, when continuing a ``state``).
+        (every fill's, ``len(residuals)`` fills, when continuing a ``state`` whose prediction
+        was the next fill's; a last fill's views hold the previous frame's data, not a
+        prediction of this one's).
     system_s : float
         Seconds spent building the :class:`~lf_flame.tomo.fourier_system.FourierSystem` (0 when ``op`` had it), and for the
         coarse start the lenslet grid's operator and system where this call built them.
@@ -267,6 +270,7 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     if cont:
         s, d, (gy, gx, ey, ex), z, lam_max = state["s"], state["d"], state["tv"], state["z"], state["lam_max"]
         s_prev = s
+    scored = not cont or state.get("z_predicts", True)               # the first fill's views predict this frame
     if support is None:
         support = np.ones((P, gr, gc), bool)
     kappa = tv / (rho_tv * system.g0) if tv > 0 else 0.0
@@ -275,7 +279,7 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         if j > 1:   # predict from the extrapolated planes (heavy-ball momentum on the fills), data where measured
             z = _forward_views(op, s + momentum * (s - s_prev))
         residual = _fourier_kernels.fill(z, yt, y, w, m)
-        if j > 1 or cont:
+        if j > 1 or (cont and scored):
             if not restarted and math.sqrt(residual) / norm > ADMM_DIVERGENCE * best:
                 # the fills diverge (momentum on inexact ADMM steps): restart from the planes of the best fill so
                 # far, without momentum and with ADMM_RESTART_INNER times the ADMM steps per fill
@@ -304,9 +308,10 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         if tol > 0 and (j > 1 or cont) and (np.linalg.norm(s[:, :gr, :gc] - s_prev[:, :gr, :gc])
                                   <= tol * np.linalg.norm(s[:, :gr, :gc])):
             break
-    if state is not None:   # the next frame's first fill predicts from these planes, as the next fill would
-        state.update(s=s, d=d, tv=(gy, gx, ey, ex), lam_max=lam_max,
-                     z=_forward_views(op, s + momentum * (s - s_prev)).astype(op._real, copy=False))
+    if state is not None:   # the next frame's missing data: the last fill's prediction, or the next fill's
+        fresh = j == 1
+        state.update(s=s, d=d, tv=(gy, gx, ey, ex), lam_max=lam_max, z_predicts=fresh,
+                     z=_forward_views(op, s + momentum * (s - s_prev)).astype(op._real, copy=False) if fresh else z)
     return op.from_phases(s[:, :gr, :gc]).astype(np.float64), residuals, system_s
 
 
