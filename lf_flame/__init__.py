@@ -28,3 +28,29 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 # PyLops imports JAX at its own import where JAX is installed (0.35-0.46 s of every command's start); lf_flame hands
 # it NumPy arrays only. A user's own setting is kept.
 os.environ.setdefault("JAX_PYLOPS", "0")
+
+
+def _keep_freed_memory() -> bool:
+    """glibc's malloc: arrays up to 32 MiB (the largest the setting takes) from the heap, and freed heap memory kept
+    for the next arrays instead of returned to the system (``mallopt``: ``M_MMAP_THRESHOLD`` 32 MiB,
+    ``M_TRIM_THRESHOLD`` 1 GiB). admm allocates the FFTs' outputs afresh at every fill; each first touch of fresh
+    memory costs a page fault, dear in a virtual machine, and the default returns freed memory once 2-64 MiB of it
+    sit at the heap's top (``experiments/floor.py``; docs/decisions.md). Not where the user has tuned malloc
+    (``MALLOC_MMAP_THRESHOLD_``, ``MALLOC_TRIM_THRESHOLD_``, ``GLIBC_TUNABLES``) or off glibc. Returns whether it
+    was set. The cost: the process keeps the heap's peak until it exits (arrays over 32 MiB, the operators'
+    spectra among them, are still given back when freed)."""
+    import ctypes
+    import sys
+    if not sys.platform.startswith("linux") or any(k in os.environ for k in ("MALLOC_MMAP_THRESHOLD_",
+                                                                             "MALLOC_TRIM_THRESHOLD_", "GLIBC_TUNABLES")):
+        return False
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+        m_trim_threshold, m_mmap_threshold = -1, -3                   # malloc.h
+        return bool(libc.mallopt(m_mmap_threshold, 32 << 20)) and bool(libc.mallopt(m_trim_threshold, 1 << 30))
+    except (OSError, AttributeError):                                 # not glibc (musl has no mallopt)
+        return False
+
+
+#: Whether importing lf_flame tuned glibc's malloc (:func:`_keep_freed_memory`).
+MALLOC_TUNED = _keep_freed_memory()
