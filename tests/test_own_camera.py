@@ -95,6 +95,18 @@ def test_decoded_views_of_another_camera_are_reconstructed(route):
         assert max(np.linalg.norm(planes[k] - t[k]) / np.linalg.norm(t[k]) for k in range(3)) > err.max() + 0.01
 
 
+def test_a_volume_of_decoded_views_models_decodings_interpolation(route):
+    """reconstruct --volume on decoded views solves on the operator with decoding's interpolation, as the planes
+    route does, and records it (taken from the operator the stack was solved on)."""
+    cam, scene, raw, d = route
+    out = d / "stack.h5"
+    assert cli.main(["reconstruct", str(d / "views.h5"), "--camera", EXAMPLE, "--calibration", str(d / "cal.json"),
+                     "--volume", "--from", "-12", "--to", "22", "--step", "2", "--out", str(out)]) == 0
+    with h5py.File(out) as f:
+        assert f.attrs["operator"] == "exact, with decoding's interpolation"
+        assert f["planes"].shape[0] == 18 and np.all(f["planes"][...] >= 0)
+
+
 def test_binned_views_are_the_views_of_larger_pixels(route):
     """Views decoded 2 x 2 pixels per sample are the views of the decoded camera with 2-pixel views: one view step
     is two pixels' angle (slopes double), and its exact operator recovers the planes from them, where the same

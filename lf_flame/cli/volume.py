@@ -352,15 +352,18 @@ def volume_reconstruct(a):
         raise ValueError("decoded views carry their clipped samples: --saturation takes only 'none' for them")
     saturation = lf.fit_mask() if level == "file" else level
     rec, extra = solve_volume(views, cam, a.near, a.far, a.step, a.prior, saturation=saturation,
-                              tv=a.tv, l1=a.l1, progress=True, white_normalised=lf.white_normalised)
+                              tv=a.tv, l1=a.l1, progress=True, white_normalised=lf.white_normalised,
+                              interpolation=lf.interpolation)
     res, axi, op = extra["resolution"], extra["axisymmetric"], extra["operator"]
     table = res.to_frame()
     arrays = {} if axi is None else dict(emission_r_y=axi.emission, radii_mm=axi.radii_mm, heights_mm=axi.heights_mm)
     out = Path(a.out)
     edge = edge_warning(rec, op, modelled=axi is not None and axi.beyond_field)
     misfit = misfit_warning(lf, op, rec, level)
+    from ..tomo.lattice import LatticeOperator
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), volume=True,
-                        depth_resolution=table.to_dict("list"), edge_share=edge, misfit=misfit)
+                        depth_resolution=table.to_dict("list"), edge_share=edge, misfit=misfit,
+                        operator="exact, with decoding's interpolation" if isinstance(op, LatticeOperator) else "exact")
     scene = None if lf.decoded else _raw_scene(a.raw, cam)
     truth = None if scene is None else scene_truth(scene, op)
     refocused = focal_stack(views, [cam.slope_for_depth(d) for d in rec.depths_mm],

@@ -52,8 +52,7 @@ def volume_depths(near_mm: float, far_mm: float, step_mm: float) -> np.ndarray:
 
 def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, prior: str = VOLUME_PRIOR, *,
                  saturation=1.0, tv: float | None = None, l1: float | None = None, resolution: bool = True,
-                 white_normalised: bool = False,
-                 progress: bool = False):
+                 white_normalised: bool = False, interpolation=None, progress: bool = False):
     """The emission on a dense stack from one light field, with a prior (module docstring).
 
     Parameters
@@ -74,6 +73,11 @@ def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, p
         Views decoded from a capture (divided by the white image): taken as the operator's
         data times its white views, the aperture image's dark rim left out
         (:func:`lf_flame.tomo.decoded.decoded_problem`).
+    interpolation : (ndarray of shape (2, M), int) or None
+        Decoded views' interpolation phases and pixels per sample
+        (:attr:`lf_flame.real.lightfield.LightField.interpolation`): the stack's operator models decoding's interpolation
+        (:class:`~lf_flame.tomo.lattice.LatticeOperator` on the square grid, as ``lf-flame reconstruct``'s
+        planes). None: the exact operator of a perfect grid.
     tv, l1 : float or None
         The ``"tv"`` and ``"sparse"`` priors' weights; None: :data:`~lf_flame.tomo.defaults.VOLUME_TV`,
         :data:`~lf_flame.tomo.defaults.VOLUME_L1` for the light field's noise level
@@ -94,7 +98,8 @@ def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, p
         ``"axisymmetric"``: the :class:`~lf_flame.tomo.axisymmetric.AxisymmetricVolume`
         (None for the other priors); ``"resolution"``: the
         :class:`~lf_flame.tomo.resolution.DepthResolution` of the stack (None unless asked);
-        ``"operator"``: the stack's :class:`~lf_flame.tomo.exact.ExactOperator`.
+        ``"operator"``: the stack's :class:`~lf_flame.tomo.exact.ExactOperator` (a
+        :class:`~lf_flame.tomo.lattice.LatticeOperator` with ``interpolation``).
 
     Raises
     ------
@@ -110,7 +115,11 @@ def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, p
         raise ValueError(f"a TV weight goes with the 'tv' prior and an l1 weight with 'sparse'; the prior is {prior!r}")
     depths = volume_depths(near_mm, far_mm, step_mm)
     t0 = time.perf_counter()
-    op = ExactOperator(camera, list(depths), precision="float32")
+    if interpolation is None:
+        op = ExactOperator(camera, list(depths), precision="float32")
+    else:
+        from .lattice import LatticeOperator
+        op = LatticeOperator(camera, list(depths), np.shape(views)[2:], layout="square", interpolation=interpolation)
     setup_s = time.perf_counter() - t0
     if white_normalised:                                   # decoded views: the operator's data, dark rims left out
         from .decoded import decoded_problem
