@@ -41,6 +41,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from alternating import alternate  # noqa: E402
+
 CACHE = ROOT / "data" / "fourier_solver"
 KINDS = ("paper", "varied", "overlap")
 #: Rays per pixel of the scored renders (``fourier_solver.py``'s default, its cache's).
@@ -241,17 +243,10 @@ def main(argv=None) -> int:
         return 0
     versions = {"this checkout": None} if a.compare is None else {"before": a.compare.resolve(), "after": None}
     if a.stage in ("all", "routes"):
-        rows = []
-        for pair in range(a.pairs):
-            for name, path in (versions.items() if pair % 2 == 0 else reversed(versions.items())):
-                env = dict(os.environ)
-                if path is not None:
-                    env["PYTHONPATH"] = os.pathsep.join([str(path)] + [p for p in [env.get("PYTHONPATH")] if p])
-                out = subprocess.run([sys.executable, __file__, "--out", str(a.out), "--child", "--repeats",
-                                      str(a.repeats)], env=env, capture_output=True, text=True, check=True).stdout
-                rows += [dict(json.loads(line), version=name, pair=pair) for line in out.splitlines()
-                         if line.startswith("{")]
-                print(f"pair {pair} {name}: {len(rows)} timed calls", flush=True)
+        pypath = lambda path: os.pathsep.join([str(path)] + [p for p in [os.environ.get("PYTHONPATH")] if p])
+        rows = alternate(__file__, ["--out", a.out, "--repeats", a.repeats],
+                         {name: {} if path is None else {"PYTHONPATH": pypath(path)} for name, path in versions.items()},
+                         a.pairs, "version", reverse_odd=True)
         df = pd.DataFrame(rows)
         fl = df[df.route == "floor"].groupby(["version", "threads"]).time_s.median()
         tab = summary(df[df.route != "floor"], fl.to_dict())

@@ -18,13 +18,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from alternating import alternate  # noqa: E402
+
 CACHE = ROOT / "data" / "cameras"
 CAMERAS = ("paper", "48px")
 SEEDS = (56000, 56001, 56002)
@@ -74,16 +75,9 @@ def main(argv=None) -> int:
     if missing:
         raise SystemExit(f"no decoded light fields of {missing} in {CACHE}: run `make cameras` first")
     t0 = time.perf_counter()
-    rows = []
-    for pair in range(a.pairs):
-        for name, extra in SETTINGS.items():
-            env = {k: v for k, v in os.environ.items() if k not in ("OMP_WAIT_POLICY", "GOMP_SPINCOUNT")}
-            env.update(extra)
-            out = subprocess.run([sys.executable, __file__, "--out", str(a.out), "--child", "--repeats",
-                                  str(a.repeats)], env=env, capture_output=True, text=True, check=True).stdout
-            rows += [dict(json.loads(line), setting=name, pair=pair) for line in out.splitlines()
-                     if line.startswith("{")]
-            print(f"pair {pair} {name}: {len(rows)} solves", flush=True)
+    reset = {k: None for k in ("OMP_WAIT_POLICY", "GOMP_SPINCOUNT")}
+    rows = alternate(__file__, ["--out", a.out, "--repeats", a.repeats],
+                     {name: {**reset, **extra} for name, extra in SETTINGS.items()}, a.pairs, "setting")
     df = pd.DataFrame(rows)
     df["us_per_sample_plane"] = 1e6 * df.time_s / df.samples
     warm = df[df.solve > 0]

@@ -1,0 +1,51 @@
+"""Child processes of an experiment under several settings, alternating, so that the machine's drift falls on all.
+
+``python SCRIPT --child ...`` prints one JSON object per line for each timed call; :func:`alternate` runs it once
+per setting per pair, each with its environment changes, and gathers the rows labelled with the setting and the
+pair. Used by ``thread_wait.py`` (OpenMP's wait policy) and ``floor.py`` (another checkout's code).
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+
+def alternate(script, argv, settings: dict, pairs: int, label: str, reverse_odd: bool = False) -> list:
+    """Rows of ``script --child`` run once per setting and pair.
+
+    Parameters
+    ----------
+    script : path of the experiment
+    argv : list of str
+        Its arguments (``--child`` is added).
+    settings : dict
+        Name -> environment changes (a value of None removes the variable).
+    pairs : int
+        Rounds over the settings.
+    label : str
+        The rows' key for the setting's name (the pair's is ``pair``).
+    reverse_odd : bool
+        Odd rounds run the settings in reverse (A B B A ...).
+
+    Returns
+    -------
+    list of dict
+    """
+    rows = []
+    for pair in range(pairs):
+        items = list(settings.items())
+        for name, changes in (reversed(items) if reverse_odd and pair % 2 else items):
+            env = dict(os.environ)
+            for k, v in changes.items():
+                if v is None:
+                    env.pop(k, None)
+                else:
+                    env[k] = v
+            out = subprocess.run([sys.executable, str(script), *map(str, argv), "--child"], env=env,
+                                 capture_output=True, text=True, check=True).stdout
+            rows += [dict(json.loads(line), **{label: name}, pair=pair) for line in out.splitlines()
+                     if line.startswith("{")]
+            print(f"pair {pair} {name}: {len(rows)} rows", flush=True)
+    return rows
