@@ -245,7 +245,8 @@ def main(argv=None) -> int:
     if a.stage in ("all", "routes"):
         pypath = lambda path: os.pathsep.join([str(path)] + [p for p in [os.environ.get("PYTHONPATH")] if p])
         rows = alternate(__file__, ["--out", a.out, "--repeats", a.repeats],
-                         {name: {} if path is None else {"PYTHONPATH": pypath(path)} for name, path in versions.items()},
+                         {name: {} if path is None else {"PYTHONPATH": pypath(path)}
+                          for name, path in versions.items()},
                          a.pairs, "version", reverse_odd=True)
         df = pd.DataFrame(rows)
         fl = df[df.route == "floor"].groupby(["version", "threads"]).time_s.median()

@@ -41,8 +41,8 @@ def _keep_freed_memory() -> bool:
     spectra among them, are still given back when freed)."""
     import ctypes
     import sys
-    if not sys.platform.startswith("linux") or any(k in os.environ for k in ("MALLOC_MMAP_THRESHOLD_",
-                                                                             "MALLOC_TRIM_THRESHOLD_", "GLIBC_TUNABLES")):
+    user_set = ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "GLIBC_TUNABLES")
+    if not sys.platform.startswith("linux") or any(k in os.environ for k in user_set):
         return False
     try:
         libc = ctypes.CDLL("libc.so.6")

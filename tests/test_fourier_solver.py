@@ -382,7 +382,8 @@ def test_the_package_sets_its_runtime_defaults_unless_the_user_says_otherwise():
     code = ("import os, sys, lf_flame, pylops, numpy as np; "
             "rss = lambda: int(open('/proc/self/statm').read().split()[1]) * os.sysconf('SC_PAGE_SIZE'); "
             "a = np.ones(20 << 17); held = rss(); del a; "
-            "print(os.environ['OMP_WAIT_POLICY'], os.environ['JAX_PYLOPS'], 'jax' in sys.modules, lf_flame.MALLOC_TUNED, "
+            "print(os.environ['OMP_WAIT_POLICY'], os.environ['JAX_PYLOPS'], 'jax' in sys.modules, "
+            "lf_flame.MALLOC_TUNED, "
             "held - rss() < 10 << 20)")
     env = {k: v for k, v in os.environ.items() if k not in ("OMP_WAIT_POLICY", "JAX_PYLOPS", "MALLOC_TRIM_THRESHOLD_",
                                                                 "MALLOC_MMAP_THRESHOLD_", "GLIBC_TUNABLES")}

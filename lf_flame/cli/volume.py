@@ -330,6 +330,7 @@ def volume_reconstruct(a):
     scene is known)."""
     from ..refocus.shift_and_sum import aperture_mask, focal_stack
     from ..tomo.files import plot_reconstruction, save_reconstruction
+    from ..tomo.lattice import LatticeOperator
     from ..tomo.truth import scene_truth
     from ..tomo.volume import solve_volume
     other = [f"--{k.replace('_', '-')}" for k in ("depth", "depths", "slope", "solver", "iters", "subsamples",
@@ -360,7 +361,6 @@ def volume_reconstruct(a):
     out = Path(a.out)
     edge = edge_warning(rec, op, modelled=axi is not None and axi.beyond_field)
     misfit = misfit_warning(lf, op, rec, level)
-    from ..tomo.lattice import LatticeOperator
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), volume=True,
                         depth_resolution=table.to_dict("list"), edge_share=edge, misfit=misfit,
                         operator="exact, with decoding's interpolation" if isinstance(op, LatticeOperator) else "exact")

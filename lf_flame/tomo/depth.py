@@ -22,14 +22,14 @@ Whole flames are not depth-resolved by the data's normal matrices alone (NOTES.m
    difference and a tenth of the Tenengrad peak's half width at half maximum in depth (the
    resolution of the fit); ``width_mm`` is that full width.
 5. **Planes.** Found depths closer than ``merge_mm`` are one plane (their vote-weighted
-   mean depth).
+   mean depth). :func:`lf_flame.tomo.found_planes.find_planes` solves for the emission on those
+   planes, and :mod:`lf_flame.tomo.peel` searches the solve's residual for depths the votes missed.
 
 The depth tolerances (``min_separation_mm``, ``merge_mm``) were chosen in millimetres on the paper's camera
 (and hold on the camera matrix of ``experiments/cameras.py``, whose deep fields see less parallax per
 millimetre). On a camera whose parallax changes faster with depth they default to the depths of the
 paper camera's parallax across the aperture (:func:`depth_scale` below 1): on a microscope, micrometres,
-so that its depths tens of micrometres apart are not one plane. :func:`lf_flame.tomo.found_planes.find_planes` solves for the emission on those
-   planes, and :mod:`lf_flame.tomo.peel` searches the solve's residual for depths the votes missed.
+so that its depths tens of micrometres apart are not one plane.
 """
 from __future__ import annotations
 

@@ -92,7 +92,8 @@ def _cos4_mean(ty, tx, var_y, cov, var_x):
     on the paper camera's 3.6 M pixels than with ``s ** -k``, the same to 4e-16)."""
     i = 1.0 / (1.0 + ty * ty + tx * tx)
     i2 = i * i
-    return i2 * (1.0 - 2.0 * i * (var_y + var_x) + 12.0 * i2 * (ty * ty * var_y + 2.0 * ty * tx * cov + tx * tx * var_x))
+    quad = ty * ty * var_y + 2.0 * ty * tx * cov + tx * tx * var_x
+    return i2 * (1.0 - 2.0 * i * (var_y + var_x) + 12.0 * i2 * quad)
 
 
 # ---- the kernels -----------------------------------------------------------------------------

@@ -75,7 +75,8 @@ def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, p
         (:func:`lf_flame.tomo.decoded.decoded_problem`).
     interpolation : (ndarray of shape (2, M), int) or None
         Decoded views' interpolation phases and pixels per sample
-        (:attr:`lf_flame.real.lightfield.LightField.interpolation`): the stack's operator models decoding's interpolation
+        (:attr:`lf_flame.real.lightfield.LightField.interpolation`): the stack's operator models decoding's
+        interpolation
         (:class:`~lf_flame.tomo.lattice.LatticeOperator` on the square grid, as ``lf-flame reconstruct``'s
         planes). None: the exact operator of a perfect grid.
     tv, l1 : float or None
