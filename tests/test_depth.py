@@ -529,7 +529,8 @@ def test_data_misfit_tells_planes_that_hold_the_scene_from_planes_that_do_not(ca
 
 def test_reconstruct_warns_when_its_planes_leave_light_unexplained(cam, planted, tmp_path, capsys):
     """``reconstruct`` on planes where no flame stands warns that light is left unexplained and records the
-    misfit; on the found planes it records it without a warning."""
+    misfit, and adds that more fills may explain more where admm ran every fill of its cap; on the found planes
+    it records the misfit without a warning."""
     import json
 
     import h5py
@@ -539,14 +540,18 @@ def test_reconstruct_warns_when_its_planes_leave_light_unexplained(cam, planted,
     raw = tmp_path / "planted.npz"
     np.savez(raw, raw=views_to_raw(planted[1]), camera=cam.to_json())
     far = max(o["depth_offset_mm"] for o in planted[0].objects) + 6.0
-    for planes, warned in (([], False), (["--depth", f"{far:.2f}"], True)):
+    for planes, warned in (([], False), (["--depth", f"{far:.2f}"], True), (["--depth", f"{far:.2f}", "--iters", "1"],
+                                                                           True)):
         out = tmp_path / "rec.h5"
         assert main(["reconstruct", str(raw), *planes, "--out", str(out)]) == 0
         err = capsys.readouterr().err
         with h5py.File(out) as f:
             misfit = json.loads(f.attrs["misfit"])
+            settings = json.loads(f.attrs["settings"])
         assert ("unexplained beyond its noise" in err) == warned, (planes, misfit, err)
         assert (misfit["misfit"] > 0.1) == warned, misfit
+        assert ("more fills (--iters)" in err) == (warned and settings["fills_run"] >= settings["iters"]), err
+    assert "--iters" in planes and "fills' cap (1)" in err
 
 
 def test_refined_depths_of_flames_one_behind_another(cam, behind):

@@ -217,7 +217,8 @@ def edge_warning(rec, op, modelled: bool = False):
 def misfit_warning(lf, op, rec, saturation="file", lattice=None):
     """The solve's misfit on the light field's data as it was fitted (:func:`lf_flame.tomo.solvers.data_misfit`;
     a :class:`~lf_flame.tomo.lattice.LatticeSolve` on its lattice's), for the file; where it is high
-    (:func:`~lf_flame.tomo.solvers.misfit_is_high`), one warning (stderr) saying what it means."""
+    (:func:`~lf_flame.tomo.solvers.misfit_is_high`), one warning (stderr) saying what it means, and where admm
+    ran every fill of its cap, that more fills may explain more."""
     from ..tomo.decoded import fit_data
     from ..tomo.solvers import data_misfit, misfit_is_high
     if lattice is not None:
@@ -226,10 +227,12 @@ def misfit_warning(lf, op, rec, saturation="file", lattice=None):
         data, fit = fit_data(_fitted_light_field(lf, saturation), op)
         m = data_misfit(data, op, rec.planes, fit)
     if misfit_is_high(m):
+        capped = rec.solver == "admm" and int(rec.settings.get("fills_run", 0)) >= int(rec.settings["iters"])
         print(f"warning: the planes leave {100 * m['misfit']:.0f} % of the light field unexplained beyond its noise "
               f"(relative residual {m['relative_residual']:.3f}, of which noise {m['noise_share']:.3f}): light "
-              "from flames off these planes or beyond the field, or a camera file that is not this camera's",
-              file=sys.stderr)
+              "from flames off these planes or beyond the field, or a camera file that is not this camera's"
+              + (f"; admm stopped at its fills' cap ({int(rec.settings['iters'])}) without settling: more fills "
+                 "(--iters) may explain more" if capped else ""), file=sys.stderr)
     return m
 
 
