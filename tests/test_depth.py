@@ -586,3 +586,25 @@ def test_refined_depths_of_flames_one_behind_another(cam, behind):
     res2 = np.linalg.norm(np.where(fit, (op2 @ rec2.planes.ravel()).reshape(y.shape) - y, 0))
     assert res2 < res0 and after.max() < before.max() and after.max() < 0.1, (true, found.depths_mm, f2.depths_mm)
     assert f2.depths_mm.shape == found.depths_mm.shape and f2.planes_mm.shape == found.planes_mm.shape
+
+
+def test_objects_before_a_bright_background_are_searched_apart(cam, planted):
+    """Two flames 1.2 mm apart in depth, side by side, before a lit wall 20 mm behind focus: the central view is
+    bright everywhere, so the regions come from the light field's detail, and each flame's depth is found in its
+    own region (one region, as brightness alone gives, merges them into one peak)."""
+    import dataclasses
+
+    from lf_flame.simulate.scenes import Layer
+    from lf_flame.tomo import depth
+    layers = tuple(dataclasses.replace(L, depth_offset_mm=d) for L, d in zip(planted[0].layers, (3.0, 4.2)))
+    rows, cols = layers[0].radiance.shape
+    h, w = cam.field_of_view_mm(20.0)
+    yy, xx = np.mgrid[0:rows, 0:cols] / np.array([rows, cols])[:, None, None]
+    wall = Layer(radiance=(0.4 + 0.1 * np.sin(3 * np.pi * yy) * np.cos(2.4 * np.pi * xx)).astype(np.float32),
+                 alpha=None, depth_offset_mm=20.0, centre_mm=(0.0, 0.0), size_mm=(1.5 * h, 1.5 * w))
+    views = _views(cam, dataclasses.replace(planted[0], layers=layers + (wall,)), 7)
+    found = find_depths(views, cam)
+    assert found.labels.max() == 2 and found.depths_mm == pytest.approx([3.0, 4.2], abs=0.1), found.depths_mm
+    with pytest.MonkeyPatch.context() as mp:                         # brightness alone: one region, one peak
+        mp.setattr(depth, "BRIGHT_FIELD_SHARE", 2.0)
+        assert len(find_depths(views, cam).depths_mm) == 1

@@ -6,6 +6,10 @@ Whole flames are not depth-resolved by the data's normal matrices alone (NOTES.m
 1. **Regions.** The central sub-aperture view is a pinhole image, sharp at every depth:
    smoothed (Gaussian, 1 lenslet), thresholded at ``threshold`` of its maximum, dilated and
    labelled (:func:`skimage.measure.label`); each connected region holds one or more flames.
+   Where that covers more than :data:`BRIGHT_FIELD_SHARE` of the field (objects before a bright
+   background, not flames on black), the regions are where the light field holds detail instead:
+   the focus contrast of step 2 (each lenslet's largest focus energy over its median),
+   smoothed and thresholded alike, so that objects apart are searched apart.
 2. **Focus per pixel.** The views refocused band-limited at a coarse slope grid
    (:class:`lf_flame.refocus.shift_and_sum.FourierSlice`, which has no whole-lenslet bias);
    per slope the local Tenengrad energy (squared Sobel gradient, Krotkov 1987) smoothed
@@ -54,6 +58,11 @@ SLOPE_STEP = 0.04
 MERGE_MM = 1.0
 #: Depths of one region closer than this (mm on the paper's camera: :func:`depth_scale` on another) are one peak.
 MIN_SEPARATION_MM = 2.5
+#: Where the central view's bright regions (dilated) cover more than this share of the field, the light field is
+#: taken for objects before a bright background and its regions come from its detail (:func:`find_depths`, step 1).
+#: The project's flame scenes cover at most 0.55 (volume flames 10 mm wide; single flames 0.39-0.42, the others
+#: 0.10-0.21), objects before a lit wall all of it.
+BRIGHT_FIELD_SHARE = 0.75
 
 
 def depth_scale(camera: PlenopticCamera, n_views: int) -> float:
@@ -264,19 +273,21 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
     n = camera.pixels_per_lenslet
     slopes = np.arange(s_lo - slope_step, s_hi + 1.5 * slope_step, slope_step)
 
-    # 1. regions holding emission, from the central (pinhole) view
+    # focus energy per pixel and slope (band-limited refocusing; step 2, whose contrast step 1 may need)
+    ten, lap = _focus_energy(v, slopes, sigma, laplacian=True)
+    best = np.argmax(ten, axis=0)
+    contrast = ten.max(axis=0) - np.median(ten, axis=0)
+
+    # step 1: regions holding emission, from the central (pinhole) view; on a bright background, from the detail
     centre = ndimage.gaussian_filter(v[n // 2, n // 2].astype(np.float64), 1.0)
-    fg = centre > threshold * centre.max()
-    fg = ndimage.binary_dilation(fg, iterations=2)
+    fg = ndimage.binary_dilation(centre > threshold * centre.max(), iterations=2)
+    if fg.mean() > BRIGHT_FIELD_SHARE:
+        detail = ndimage.gaussian_filter(contrast, 1.0)
+        fg = ndimage.binary_dilation(detail > threshold * detail.max(), iterations=2)
     labels = measure.label(fg, connectivity=2)
     sizes = np.bincount(labels.ravel())
     for lab in np.flatnonzero(sizes < min_pixels):
         labels[labels == lab] = 0
-
-    # 2. focus energy per pixel and slope (band-limited refocusing)
-    ten, lap = _focus_energy(v, slopes, sigma, laplacian=True)
-    best = np.argmax(ten, axis=0)
-    contrast = ten.max(axis=0) - np.median(ten, axis=0)
 
     # 3. depths per region
     dz_ds = abs(camera.depth_for_slope(slope_step) - camera.depth_for_slope(0.0)) / slope_step   # mm per slope
