@@ -38,7 +38,8 @@ def _keep_freed_memory() -> bool:
     sit at the heap's top (``experiments/floor.py``; docs/decisions.md). Not where the user has tuned malloc
     (``MALLOC_MMAP_THRESHOLD_``, ``MALLOC_TRIM_THRESHOLD_``, ``GLIBC_TUNABLES``) or off glibc. Returns whether it
     was set. The cost: the process keeps the heap's peak until it exits (arrays over 32 MiB, the operators'
-    spectra among them, are still given back when freed)."""
+    spectra among them, are still given back when freed). Dask's nannies start their workers with
+    ``MALLOC_TRIM_THRESHOLD_`` set (Dask's own advice, to give memory back), which is kept there."""
     import ctypes
     import sys
     user_set = ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "GLIBC_TUNABLES")
