@@ -184,7 +184,8 @@ def to_json(obj) -> str:
 
 
 def provenance() -> dict:
-    """Package versions, machine, threads, git commit and date, for every result."""
+    """Package versions, machine, threads, the runtime settings that move timings (OpenMP's wait policy,
+    :data:`lf_flame.MALLOC_TUNED`), git commit and date, for every result."""
     pkgs = {}
     for name in ("lf_flame", "numpy", "numba", "scipy", "scikit-image", "h5py", "keras", "tensorflow-cpu",
                  "tensorflow", "jax", "pandas", "pylops", "pyproximal"):
@@ -198,9 +199,12 @@ def provenance() -> dict:
     except (OSError, subprocess.SubprocessError):
         commit = None
     import numba
+
+    import lf_flame
     return dict(versions=pkgs, python=platform.python_version(), machine=platform.machine(),
                 processor=platform.processor() or platform.machine(), cpu_count=os.cpu_count(),
-                numba_threads=numba.get_num_threads(), git_commit=commit,
+                numba_threads=numba.get_num_threads(), omp_wait_policy=os.environ.get("OMP_WAIT_POLICY"),
+                malloc_tuned=lf_flame.MALLOC_TUNED, git_commit=commit,
                 date=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"))
 
 

@@ -48,7 +48,8 @@ def test_make_tradeoff_quick():
         assert (out / png).stat().st_size > 10_000
     meta = json.loads((out / "tradeoff.json").read_text())
     assert meta["repeats"] == 3
-    assert {"versions", "cpu_count", "date", "numba_threads"} <= set(meta["provenance"])
+    assert {"versions", "cpu_count", "date", "numba_threads", "omp_wait_policy",
+            "malloc_tuned"} <= set(meta["provenance"])
     assert "Pareto front" in (out / "tradeoff.md").read_text()
 
 
