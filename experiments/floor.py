@@ -95,7 +95,7 @@ def stream_times(job, frames) -> list:
     import numba
     numba.set_num_threads(1)
     op = job.operator()
-    op.workers = 1
+    workers, op.workers = op.workers, 1
     try:
         state, out = {}, []
         for i, views in enumerate(frames):
@@ -106,7 +106,7 @@ def stream_times(job, frames) -> list:
         return out
     finally:
         numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
-        op.workers = os.cpu_count()
+        op.workers = workers
 
 
 def child(repeats: int) -> None:

@@ -51,7 +51,7 @@ def main(argv=None) -> int:
     import h5py
     import numpy as np
 
-    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.optics.camera import PlenopticCamera
     from lf_flame.tomo.depth import MERGE_MM, depth_tolerance_scale
     from lf_flame.config import atomic_write_text, provenance
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -79,6 +79,7 @@ def main(argv=None) -> int:
                 edge = json.loads(f.attrs["edge_share"])
                 planes_mm = [float(v) for v in f["depths_mm"][...]]
                 shape = f["planes"].shape
+                views_cam = PlenopticCamera.from_dict(json.loads(f.attrs["camera"]))   # the decoded views'
             shutil.copy(tmp / f"{name}.png", a.out / f"{name}_found.png")
             # the same with more fills than the default's cap and stopping (chosen on the paper camera's 4 planes)
             rc, text_more = run("reconstruct", d / lf_file, "--camera", cam, "--calibration", tmp / f"{name}.json",
@@ -87,8 +88,8 @@ def main(argv=None) -> int:
                 raise RuntimeError(f"reconstruct --iters {MORE_FILLS} {name}: {text_more.strip()[-300:]}")
             with h5py.File(tmp / f"{name}_more.h5") as f:
                 misfit_more = json.loads(f.attrs["misfit"])["misfit"]
-            lf = read_light_field(d / lf_file, cam, tmp / f"{name}.json")
-            rows.append(dict(capture=name, tolerance_scale=depth_tolerance_scale(lf.camera, lf.views.shape[0]),
+            rows.append(dict(capture=name, tolerance_scale=depth_tolerance_scale(views_cam,
+                                                                                 views_cam.pixels_per_lenslet),
                              plane_samples=" x ".join(map(str, shape[1:])), found_depths_um=", ".join(
                 f"{1e3 * r['depth_mm']:+.1f} +- {1e3 * r['uncertainty_mm']:.1f}" for r in found),
                 planes_um=", ".join(f"{1e3 * v:+.1f}" for v in planes_mm), edge_share_max=float(np.max(edge)),

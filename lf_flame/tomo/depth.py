@@ -115,6 +115,16 @@ def depth_tolerance_scale(camera: PlenopticCamera, n_views: int) -> float:
     return min(1.0, depth_scale(camera, n_views))
 
 
+def depth_tolerances(camera: PlenopticCamera, n_views: int, min_separation_mm=None, merge_mm=None):
+    """``(min_separation_mm, merge_mm)`` as given, or where None :data:`MIN_SEPARATION_MM` and :data:`MERGE_MM`
+    times :func:`depth_tolerance_scale` (mm)."""
+    if min_separation_mm is None or merge_mm is None:
+        scale = depth_tolerance_scale(camera, n_views)
+        min_separation_mm = MIN_SEPARATION_MM * scale if min_separation_mm is None else min_separation_mm
+        merge_mm = MERGE_MM * scale if merge_mm is None else merge_mm
+    return min_separation_mm, merge_mm
+
+
 @dataclass
 class FoundDepths:
     """Depths holding emission in one light field (:func:`find_depths`).
@@ -254,10 +264,7 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
     v = _check_views(views, camera)
     if slope_step is None:
         slope_step = SLOPE_STEP * 14.0 / max(v.shape[0] - 1, 1)
-    if min_separation_mm is None or merge_mm is None:
-        scale = depth_tolerance_scale(camera, v.shape[0])
-        min_separation_mm = MIN_SEPARATION_MM * scale if min_separation_mm is None else min_separation_mm
-        merge_mm = MERGE_MM * scale if merge_mm is None else merge_mm
+    min_separation_mm, merge_mm = depth_tolerances(camera, v.shape[0], min_separation_mm, merge_mm)
     lo, hi = (float(d) for d in depth_range_mm)
     if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
         raise ValueError(f"depth_range_mm must be two finite depths, low < high. Received: {depth_range_mm!r}")

@@ -15,8 +15,7 @@ import numpy as np
 
 from ..optics.camera import PlenopticCamera
 from ..refocus.shift_and_sum import _check_finite
-from .depth import (MERGE_MM, MIN_SEPARATION_MM, FoundDepths, _focus_energy, _half_width, _peak_fit,
-                    depth_tolerance_scale, merge_depths)
+from .depth import FoundDepths, _focus_energy, _half_width, _peak_fit, depth_tolerances, merge_depths
 
 #: A depth the solve missed (:func:`missed_depths`): the residual views' Tenengrad energy over a region, refocused,
 #: peaks at least ``RESIDUAL_PROMINENCE`` robust standard deviations (1.4826 times the median absolute deviation
@@ -89,10 +88,7 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
     _check_finite("residual", r)
     if not np.any(r) or not len(found.depths_mm):
         return None
-    if min_separation_mm is None or merge_mm is None:
-        scale = depth_tolerance_scale(camera, n)
-        min_separation_mm = MIN_SEPARATION_MM * scale if min_separation_mm is None else min_separation_mm
-        merge_mm = MERGE_MM * scale if merge_mm is None else merge_mm
+    min_separation_mm, merge_mm = depth_tolerances(camera, n, min_separation_mm, merge_mm)
     slopes = found.grid_slopes
     ten = _focus_energy(r, slopes, sigma)
     depth_of = np.array([camera.depth_for_slope(float(s)) for s in slopes])
