@@ -162,9 +162,10 @@ train-reconstructor: $(STAMP) ## train the learned reconstructor of each plane's
 resolution: $(STAMP) ## smallest resolvable plane spacing against feature size -> results/depth_resolution.{csv,md,png}
 	$(VENV)/bin/python experiments/depth_resolution.py --out $(TRADEOFF_OUT)
 
-cameras: $(STAMP) ## five cameras end to end from the CLI (white image, calibrate, decode, found depths, emission) and a colour camera's temperature -> results/cameras{,_colour}.{csv,md,json}, cameras.png
+cameras: $(STAMP) ## five cameras end to end from the CLI (white image, calibrate, decode, found depths, emission) and colour cameras' temperature (square and hexagonal grids) -> results/cameras{,_colour,_colour_hex}.{csv,md,json}, cameras.png
 	$(VENV)/bin/python experiments/cameras.py --out $(TRADEOFF_OUT) $(if $(filter quick,$(PRESET)),--quick,)
 	$(VENV)/bin/python experiments/cameras_colour.py --out $(TRADEOFF_OUT) $(if $(filter quick,$(PRESET)),--quick,)
+	$(VENV)/bin/python experiments/cameras_colour.py --out $(TRADEOFF_OUT) --grid hex $(if $(filter quick,$(PRESET)),--quick,)
 
 # admm's solve with OpenMP threads waiting passively (the package's setting) or spinning, on the light fields
 # make cameras decoded (about 3 min on 2 cores)

@@ -2,7 +2,8 @@
 random depths, from its raw captures, against the truth in its decoded frame.
 
 The camera is ``examples/own_camera.toml`` (10.57 px lenslet images, rotated 0.4°, offset) with an
-RGGB colour filter array in its ``[sensor]`` table. Every step is an ``lf-flame`` command run
+RGGB colour filter array in its ``[sensor]`` table; ``--grid hex`` gives it a hexagonal lenslet grid
+(a Lytro-like camera: its channels are decoded and solved on the grid's own lattice). Every step is an ``lf-flame`` command run
 in-process (:func:`lf_flame.cli.main`): ``simulate --scene white`` -> ``calibrate``; blackbodies at
 :data:`FIT_K` (``simulate --scene furnace``) -> ``decode --camera`` (each view sample from its
 nearest pixel, channels apart) -> ``calibrate-temperature``; per scene ``simulate --scene
@@ -17,8 +18,9 @@ through the same calibration's lookup (:func:`lf_flame.temperature.pyrometry.tem
 as ``experiments/temperature.py`` scores the paper camera. Per plane: |T - T_true| median, p90 and
 worst over the pixels that both report. The bar (noise-free): each plane's p90 within 50 K.
 
-Writes ``<out>/cameras_colour.{csv,md,json}``. Usage: ``python experiments/cameras_colour.py --out
-results [--scenes 6] [--rays 48] [--quick]``; renders in ``--cache`` (default ``data/cameras_colour``).
+Writes ``<out>/cameras_colour.{csv,md,json}`` (``--grid hex``: ``cameras_colour_hex.*``). Usage: ``python
+experiments/cameras_colour.py --out results [--grid square|hex] [--scenes 6] [--rays 48] [--quick]``; renders in
+``--cache`` (default ``data/cameras_colour``, ``data/cameras_colour_hex``).
 """
 from __future__ import annotations
 
@@ -64,9 +66,11 @@ def run(*argv) -> str:
     return out.getvalue()
 
 
-def camera_file(cache: Path) -> Path:
+def camera_file(cache: Path, grid: str = "square") -> Path:
+    """The example camera with an RGGB CFA and a ``grid`` (square or hex) lenslet layout, written to ``cache``."""
+    text = (ROOT / "examples" / "own_camera.toml").read_text()
     p = cache / "camera.toml"
-    p.write_text((ROOT / "examples" / "own_camera.toml").read_text() + 'cfa = "RGGB"\n')
+    p.write_text(text.replace('layout = "square"', f'layout = "{grid}"') + 'cfa = "RGGB"\n')
     return p
 
 
@@ -124,7 +128,8 @@ def main(argv=None):
     from lf_flame.temperature.pyrometry import load_calibration
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", default="results")
-    ap.add_argument("--cache", default="data/cameras_colour")
+    ap.add_argument("--cache", help="renders (default data/cameras_colour, data/cameras_colour_hex)")
+    ap.add_argument("--grid", choices=("square", "hex"), default="square", help="the lenslet grid's layout")
     ap.add_argument("--scenes", type=int, default=6)
     ap.add_argument("--rays", type=int, default=48)
     ap.add_argument("--quick", action="store_true", help="2 scenes at 16 rays")
@@ -132,11 +137,12 @@ def main(argv=None):
     a = ap.parse_args(argv)
     if a.quick:
         a.scenes, a.rays = 2, 16
-    out, cache = Path(a.out), Path(a.cache)
+    name = "cameras_colour" + ("_hex" if a.grid == "hex" else "")
+    out, cache = Path(a.out), Path(a.cache or f"data/{name}")
     out.mkdir(parents=True, exist_ok=True)
     cache.mkdir(parents=True, exist_ok=True)
     t_all = time.perf_counter()
-    cam = camera_file(cache)
+    cam = camera_file(cache, a.grid)
     model = load_colour_sensor(cam)
     run("simulate", "--camera", cam, "--scene", "white", "--rays-per-pixel", 16, "--out", cache / "white.npz")
     run("calibrate", cache / "white.npz", "--out", cache / "cal.json")
@@ -185,7 +191,7 @@ def main(argv=None):
             print(f"  seed {seed} {noise}: " + "; ".join(f"{r['depth_mm']:+.1f} mm p90 {r['p90_k']:.0f} K"
                                                         for r in rows[-len(depths):]), flush=True)
     df = pd.DataFrame(rows)
-    atomic_write_text(out / "cameras_colour.csv", df.to_csv(index=False, float_format="%.6g"))
+    atomic_write_text(out / f"{name}.csv", df.to_csv(index=False, float_format="%.6g"))
     g = df.groupby("noise", sort=False).agg(planes=("p90_k", "size"), p90_median=("p90_k", "median"),
                                             p90_worst_plane=("p90_k", "max"), worst=("worst_k", "max"),
                                             body_p90_median=("body_p90_k", "median"),
@@ -199,9 +205,11 @@ def main(argv=None):
                 f"p90 <= {2 * BAR_P90_K:g} K: {'met' if v <= 2 * BAR_P90_K else 'not met'}"
                 for n, v in zip(g.noise, g.p90_worst_plane)]
     wall = time.perf_counter() - t_all
+    hexagonal = " --grid hex" if a.grid == "hex" else ""
     md = ["# A colour camera end to end: each plane's temperature from raw captures", "",
-          f"`python experiments/cameras_colour.py --out {a.out}` ({wall:.0f} s on 2 cores). The example camera "
-          "(10.57 px lenslet images, rotated 0.4°) with an RGGB CFA: white image -> `calibrate`; blackbodies at "
+          f"`python experiments/cameras_colour.py --out {a.out}{hexagonal}` ({wall:.0f} s on 2 cores). The example "
+          f"camera (10.57 px lenslet images, rotated 0.4°{', on a hexagonal grid' if hexagonal else ''}) with an "
+          "RGGB CFA: white image -> `calibrate`; blackbodies at "
           f"{', '.join(map(str, FIT_K))} K -> `decode --camera` (each view sample from its nearest pixel, channels "
           f"apart) -> `calibrate-temperature`; per scene `simulate --scene colour-depth` ({a.scenes} scenes from seed "
           f"{a.seed0}, {a.rays} rays per pixel) -> `decode --camera` -> `temperature --depth` at the flames' true "
@@ -211,9 +219,9 @@ def main(argv=None):
           f"{BODY_FRACTION:g} of its plane's peak; `signed_median`: the estimate less the truth).", "",
           g.to_markdown(index=False, floatfmt=".3g"), "", "Per plane:", "",
           df.to_markdown(index=False, floatfmt=".3g"), ""]
-    atomic_write_text(out / "cameras_colour.md", "\n".join(md))
-    atomic_write_text(out / "cameras_colour.json", json.dumps(dict(
-        scenes=a.scenes, rays=a.rays, seed0=a.seed0, fit_k=FIT_K, snr_db=SNR_DB, calibration=dataclasses.asdict(cal)
+    atomic_write_text(out / f"{name}.md", "\n".join(md))
+    atomic_write_text(out / f"{name}.json", json.dumps(dict(
+        grid=a.grid, scenes=a.scenes, rays=a.rays, seed0=a.seed0, fit_k=FIT_K, snr_db=SNR_DB, calibration=dataclasses.asdict(cal)
         if dataclasses.is_dataclass(cal) else str(cal), wall_s=wall, provenance=provenance()), indent=1, default=float))
     print(g.to_string())
 

@@ -229,11 +229,13 @@ def test_simulate_renders_colour_scenes_of_any_camera_file(tmp_path, capsys):
     assert "--temperature" in capsys.readouterr().err
 
 
-def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, capsys):
-    """The example camera (10.57 px lenslet images, rotated 0.4°) with an RGGB CFA, from the command line:
-    white image (a mosaic too) -> calibrate; blackbodies decoded with their channels apart -> calibrate-temperature; a
-    blackbody at 1800 K decoded -> temperature (emissivity exponent 0): 1800 K within 15 K over the field. Each
-    decoded sample keeps its nearest pixel's channel; decoded views without channels are refused."""
+@pytest.mark.parametrize("layout", ["square", "hex"])
+def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, capsys, layout):
+    """The example camera (10.57 px lenslet images, rotated 0.4°) with an RGGB CFA, on a square and on a hexagonal
+    grid, from the command line: white image (a mosaic too) -> calibrate; blackbodies decoded with their channels
+    apart -> calibrate-temperature; a blackbody at 1800 K decoded -> temperature (emissivity exponent 0): 1800 K
+    within 15 K over the field. Each decoded sample keeps its nearest pixel's channel (a hexagonal grid's: on its
+    lattice, where its channels are solved); decoded views without channels are refused."""
     from pathlib import Path
 
     from lf_flame.real.calibration import GridCalibration
@@ -242,6 +244,7 @@ def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, 
     from lf_flame.optics.colour import cfa_channels
     example = (Path(__file__).resolve().parents[1] / "examples" / "own_camera.toml").read_text()
     cam_file = tmp_path / "colour.toml"
+    example = example.replace('layout = "square"', f'layout = "{layout}"')
     cam_file.write_text(example + 'cfa = "RGGB"\n')
     d = str(tmp_path)
 
@@ -258,6 +261,7 @@ def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, 
     run("calibrate-temperature", f"{d}/bb1600.h5", f"{d}/bb2400.h5", "--temperature", 1600, "--temperature", 2400,
         "--out", f"{d}/bb.json")
     cal = GridCalibration.load(f"{d}/cal.json")
+    assert cal.layout == layout and abs(cal.pitch_px / (150 / 14.4 * (1 + 3 / 200)) - 1) < 5e-4
     chan = load_channels(f"{d}/bb1800.h5")
     q = np.floor(view_positions(cal, chan.shape[0])).astype(int)                 # the pixel each sample lies in
     assert np.array_equal(chan, cfa_channels(cal.sensor_shape, "RGGB", (0, 0))[q[..., 0], q[..., 1]])
@@ -265,6 +269,7 @@ def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, 
         "--alpha", 0, "--out", f"{d}/t.h5")
     with h5py.File(f"{d}/t.h5") as f:
         t = f["temperature_k"][0][f["valid"][0]]
+        assert ("lattice" in json.loads(f.attrs["route_settings"])) == (layout == "hex")
     assert t.size > 0.5 * cal.n_rows * cal.n_cols
     assert abs(np.median(t) - 1800) < 15 and np.percentile(np.abs(t - 1800), 90) < 30
     mono_file = tmp_path / "mono.toml"                                   # the same camera, monochrome

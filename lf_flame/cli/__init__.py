@@ -169,6 +169,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="lenslet grid; auto: told by the angle between the white image's lattice vectors "
                         "(90°: square, 60°: hex)")
     s.add_argument("--camera-id", help="name of the camera, stored and checked by decode")
+    s.add_argument("--camera", help="camera file (TOML): a [sensor] cfa marks the white image as a colour mosaic "
+                                    "(also read from a simulated image's stored sensor)")
     s.add_argument("--out", required=True, help="calibration JSON")
     s.set_defaults(func=cmd_calibrate)
 

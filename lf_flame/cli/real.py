@@ -14,8 +14,12 @@ def cmd_calibrate(a):
     from ..real.images import file_digest, load_image
     white = load_image(a.white)
     dark = load_image(a.dark) if a.dark else None
+    sensor, where = colour_sensor(a.camera, a.white)
+    if sensor is not None:
+        print(f"colour sensor {sensor.name}, {sensor.pattern} ({where}): the white image's four CFA phases "
+              "levelled first")
     t = time.perf_counter()
-    cal = calibrate(white, dark, layout=a.layout, camera_id=a.camera_id or "")
+    cal = calibrate(white, dark, layout=a.layout, camera_id=a.camera_id or "", mosaic=sensor is not None)
     dt = time.perf_counter() - t
     cal = dataclasses.replace(cal, white=file_digest(a.white), dark=file_digest(a.dark) if a.dark else None)
     cal.save(a.out)
@@ -34,7 +38,7 @@ def cmd_decode(a):
     raw = load_image(a.raw)
     white = None if a.no_white else calibration_image(cal.white, "white", a.white)
     dark = calibration_image(cal.dark, "dark", a.dark)
-    sensor, where = _decode_sensor(a)
+    sensor, where = colour_sensor(a.camera, a.raw)
     t = time.perf_counter()
     channels = None
     k = getattr(a, "bin", None)
@@ -50,13 +54,14 @@ def cmd_decode(a):
             raise ValueError("a colour capture is decoded one pixel per sample, its channels apart: --bin 1 (or auto)")
         if a.camera_id is not None and cal.camera_id and a.camera_id != cal.camera_id:
             raise ValueError(f"the calibration is of camera {cal.camera_id!r}, not {a.camera_id!r}")
-        views, channels = decode_colour(raw, cal, sensor, white, dark, n_views=a.views)
+        lattice, channels = decode_colour(raw, cal, sensor, white, dark, n_views=a.views)
+        views = on_square_grid(lattice, cal)   # a hexagonal grid's channels stay on its lattice (blended here)
         print(f"colour sensor {sensor.name}, {sensor.pattern} phase {sensor.phase} ({where}): each sample from its "
-              "nearest pixel, channels apart")
+              "nearest pixel, channels apart" + (" on the hexagonal lattice" if cal.layout == "hex" else ""))
     level = _saturation_level(a.saturation, raw)
     hit = None if level is None else clipped_samples(raw, cal, level, n_views=a.views, bin_views=k, resample=False)
     clipped = None if hit is None else on_square_grid(hit, cal)
-    if cal.layout != "hex" or sensor is not None:
+    if cal.layout != "hex":
         lattice = hit = None
     dt = time.perf_counter() - t
     extra = {"bin_views": k} if level is None else {"saturation": level, "bin_views": k}
@@ -70,19 +75,19 @@ def cmd_decode(a):
           f"{views.shape[3]} lenslets ({note}) in {dt:.2f} s -> {a.out}")
 
 
-def _decode_sensor(a):
-    """``decode``'s colour sensor and where it came from: the ``--camera`` file's ``[sensor] cfa``, else the
-    sensor ``lf-flame simulate`` stored beside the raw image; (None, "") for a monochrome capture."""
+def colour_sensor(camera, raw):
+    """A capture's colour sensor and where it came from: the ``camera`` file's ``[sensor] cfa``, else the
+    sensor ``lf-flame simulate`` stored beside the ``raw`` image; (None, "") for a monochrome capture."""
     from ..optics.camera_file import load_colour_sensor
     from ..optics.colour import library_sensor
     from ._io import _raw_meta
-    sensor = load_colour_sensor(a.camera) if a.camera else None
+    sensor = load_colour_sensor(camera) if camera else None
     if sensor is not None:
-        return sensor, f"{a.camera} [sensor]"
-    rec = _raw_meta(a.raw).get("sensor")
+        return sensor, f"{camera} [sensor]"
+    rec = _raw_meta(raw).get("sensor")
     if rec:
         r = json.loads(rec)
-        return library_sensor(r["name"], r["pattern"], tuple(r["phase"])), f"stored in {a.raw}"
+        return library_sensor(r["name"], r["pattern"], tuple(r["phase"])), f"stored in {raw}"
     return None, ""
 
 

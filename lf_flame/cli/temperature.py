@@ -101,9 +101,11 @@ def cmd_calibrate_temperature(a):
                              "calibration")
         sensor0 = sensor
         if str(path).endswith(".h5"):                                 # a colour capture decoded with its channels
-            from ..real.views_file import load_channels, load_views
+            from ..real.views_file import load_channels, load_lattice, load_views
             from ..temperature.pyrometry import views_blackbody_ratio
-            v, chan = load_views(path)[0], load_channels(path)
+            v, chan = load_lattice(path)[0], load_channels(path)      # a hexagonal grid's channels: on its lattice
+            if v is None:
+                v = load_views(path)[0]
             if chan is None:
                 raise ValueError(f"{path}: decoded views without their colour channels ('lf-flame decode --camera "
                                  "cam.toml' keeps them apart)")
@@ -169,7 +171,8 @@ def cmd_temperature(a):
     from ..measure.figures import save_figure
     from ..temperature.pyrometry import bright_pixels, load_calibration, temperature_planes
     from ..optics.colour import CHANNELS
-    from ..temperature.channels import cfa_blind, channel_emission, channel_sum_views, channel_views, route_operator
+    from ..temperature.channels import (cfa_blind, cfa_noise, channel_emission, channel_sum_views, channel_views,
+                                        route_operator)
     from .volume import found_planes, reconstruct_input
     from ..tomo.decoded import fit_data
     src = str(a.raw)
@@ -193,20 +196,35 @@ def cmd_temperature(a):
                          "where the file's [sensor] names its cfa")
     chan = lf.channels if lf.decoded else channel_views((views.shape[2] * n, views.shape[3] * n), sensor, n)
     ch = tuple(CHANNELS.index(c) for c in cal.channels)
+    hexagonal = lf if lf.lattice_views is not None and lf.channels is not None else None
     extra = {}
     if depths == "auto":
-        depths, found, _ = found_planes(lf, channel_sum_views(views, chan, ch))
+        if hexagonal is None:
+            mono = channel_sum_views(views, chan, ch)
+        else:                                           # the channels' sum on the lattice, then on the square grid
+            from ..real.decoding import hex_to_square
+            mono = hex_to_square(channel_sum_views(lf.lattice_views, chan, ch))
+        depths, found, _ = found_planes(lf, mono)
         extra = dict(depths_from="auto (channel sum)", found_depths=found)
-    chosen = {}
+    chosen, noise = {}, None
     slopes = [cam.slope_for_depth(d) for d in depths]
-    op = route_operator(cam, depths, a.route)
+    op = route_operator(cam, depths, a.route, hexagonal)
     if not lf.decoded:
         data, sat = views, a.saturation
     elif op is None:                                    # refocus-cfa: the decoded views as they are
         data, sat = views, None
+    elif hexagonal is not None:                         # the lattice's views (axial), its channels with them
+        from ..tomo.lattice import lattice_problem, to_axial
+        data, sat = lattice_problem(lf, op)
+        noise = cfa_noise(lf.lattice_views, chan, ch)   # on the lattice's rows, as a square grid's
+        chan = np.where(op.inside, to_axial(chan)[0], -1).astype(np.int8)
     else:                                               # the operator's data: views times its white views
         data, sat = fit_data(lf, op)
-    emission = channel_emission(a.route, data, chan, ch, op=op, slopes=slopes, saturation=sat, info=chosen)
+    emission = channel_emission(a.route, data, chan, ch, op=op, slopes=slopes, saturation=sat, info=chosen,
+                                noise=noise)
+    if hexagonal is not None:                           # the lattice's planes on the decoded square grid
+        emission = tuple(op.to_square(e, cam.n_rows, cam.n_cols) for e in emission)
+        chosen["lattice"] = "hexagonal"
     temp, valid, n_masked = temperature_planes(emission[0], emission[1], cal, sensor, a.alpha, a.min_fraction)
     dim = ~bright_pixels(emission[0] + emission[1], a.min_fraction)
     blind = cfa_blind(slopes, n)

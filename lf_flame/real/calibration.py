@@ -188,7 +188,8 @@ class GridCalibration:
 
 
 def calibrate(white: np.ndarray, dark: np.ndarray | None = None, *, layout: str = "auto",
-              residual_threshold_px: float | None = None, seed: int = 0, camera_id: str = "") -> GridCalibration:
+              residual_threshold_px: float | None = None, seed: int = 0, camera_id: str = "",
+              mosaic: bool = False) -> GridCalibration:
     """Calibrate the lenslet grid from a white image.
 
     Parameters
@@ -206,6 +207,11 @@ def calibrate(white: np.ndarray, dark: np.ndarray | None = None, *, layout: str 
     camera_id : str
         Stored in the calibration; :func:`lf_flame.real.decoding.decode` refuses a raw image of another
         camera id.
+    mosaic : bool
+        The white image is a colour sensor's raw mosaic (a 2 x 2 colour filter array): each of
+        its four pixel phases ``[a::2, b::2]`` is divided by its own mean first, so that the
+        channels' gains do not read as a lattice of two-pixel period (which a hexagonal grid's
+        lattice search takes for the lenslets'). No pixel moves: the centres stay where they are.
 
     Returns
     -------
@@ -225,6 +231,13 @@ def calibrate(white: np.ndarray, dark: np.ndarray | None = None, *, layout: str 
         raise ValueError(f"layout must be 'auto' or one of {GRID_LAYOUTS}. Received: {layout!r}")
     img = _dark_subtracted("white image", white, dark)
     H, W = img.shape
+    if mosaic:
+        img = img.copy()
+        for a in (0, 1):
+            for b in (0, 1):
+                level = float(img[a::2, b::2].mean())
+                if level > 0:
+                    img[a::2, b::2] /= level
     top = np.percentile(img, 99.5)
     if not top > 0 or np.ptp(img) <= 1e-9 * max(1.0, abs(top)):
         raise CalibrationError("not a white image: it is constant (after dark subtraction)")

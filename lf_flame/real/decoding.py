@@ -306,7 +306,10 @@ def decode_colour(raw: np.ndarray, calibration: GridCalibration, sensor, white: 
     ----------
     raw : ndarray of shape ``calibration.sensor_shape``
     calibration : GridCalibration
-        Of a square grid.
+        Square or hexagonal. A hexagonal grid's views stay on its own lattice (rows of lenslets,
+        odd rows half a pitch right, as :func:`decode` with ``resample=False``): resampling them
+        onto a square grid would blend neighbouring lenslets' samples, of other channels. They
+        are solved there (:class:`lf_flame.tomo.lattice.LatticeOperator`).
     sensor : ColourSensor
         Its CFA pattern and phase (of pixel (0, 0) of the raw image).
     white, dark, n_views, min_white, check
@@ -315,21 +318,18 @@ def decode_colour(raw: np.ndarray, calibration: GridCalibration, sensor, white: 
     Returns
     -------
     views : ndarray of shape (N, N, R, C), float32
-        As :func:`decode`'s; 0 where the white image is dark or the pixel off the sensor.
+        As :func:`decode`'s (a hexagonal grid's: on its lattice, the calibration's rows); 0 where the
+        white image is dark or the pixel off the sensor.
     channels : ndarray of shape (N, N, R, C), int8
         Each sample's channel (0 R, 1 G, 2 B; :data:`lf_flame.optics.colour.CHANNELS`).
 
     Raises
     ------
     ValueError
-        As :func:`decode`, and a hexagonal grid (its resampling onto a square one would blend
-        channels again).
+        As :func:`decode`.
     """
     from ..optics.colour import cfa_channels
     calibration.validate()
-    if calibration.layout == "hex":
-        raise ValueError("a hexagonal colour capture cannot be decoded with its channels apart yet: the resampling "
-                         "onto a square grid blends neighbouring lenslets' samples, of other channels")
     img, d, n = _prepared(raw, calibration, dark, n_views, check)
     H, W = calibration.sensor_shape
     q = np.floor(view_positions(calibration, n)).astype(np.int64)    # pixel (i, j) spans [i, i + 1) x [j, j + 1)

@@ -60,9 +60,11 @@ class LightField:
         The real camera (its camera file) of decoded views.
     camera_file : str or None
         The camera file's path, when one was read.
-    channels : ndarray of int8 of the views' shape, or None
+    channels : ndarray of int8 or None
         A colour capture decoded with its channels apart
-        (:func:`lf_flame.real.decoding.decode_colour`): each sample's channel (0 R, 1 G, 2 B).
+        (:func:`lf_flame.real.decoding.decode_colour`): each sample's channel (0 R, 1 G, 2 B), of
+        the views' shape, or of :attr:`lattice_views`' where there are some (a hexagonal grid's
+        channels stay on its lattice; its square ``views`` blend them).
     lattice_views : ndarray of shape (N, N, rows, lenslets per row), float32, or None
         A hexagonal grid's views on its own lattice, before ``views`` resampled them onto the
         square grid (``decode(..., resample=False)``): the data of
@@ -255,8 +257,9 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
     camera : PlenopticCamera
         The real camera (its camera file).
     clipped : ndarray of bool of the views' shape, or None
-    channels : ndarray of int8 of the views' shape, or None
-        A colour capture's channel map (:func:`lf_flame.real.decoding.decode_colour`).
+    channels : ndarray of int8 or None
+        A colour capture's channel map (:func:`lf_flame.real.decoding.decode_colour`), of the
+        views' shape (of ``lattice_views``' where given: a hexagonal grid's channels stay there).
     meta : dict or None
         Records kept with the views (``sensor``: a colour capture's sensor, JSON).
     bin_views : int
@@ -277,8 +280,9 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
         raise ValueError(f"{source}: the views contain NaN or infinite values")
     vcam = views_camera(camera, calibration, v.shape, bin_views)
     frame = decoded_frame(calibration, *v.shape[2:])
-    if channels is not None and np.shape(channels) != v.shape:
-        raise ValueError(f"{source}: a channel map of shape {np.shape(channels)} for views of shape {v.shape}")
+    mapped = v.shape if lattice_views is None else np.shape(lattice_views)
+    if channels is not None and np.shape(channels) != mapped:
+        raise ValueError(f"{source}: a channel map of shape {np.shape(channels)} for views of shape {mapped}")
     return LightField(v, vcam, source, leave_out=clipped, saturation=None, white_normalised=white_normalised,
                       frame=frame, capture_camera=camera, camera_file=camera_file, meta=dict(meta or {}),
                       channels=None if channels is None else np.asarray(channels, np.int8),

@@ -20,8 +20,8 @@ def save_views(path, views: np.ndarray, calibration: GridCalibration, clipped: n
     """Write decoded views to HDF5 (dataset ``views``, (N, N, R, C) float32; the calibration
     as JSON in attribute ``calibration``), atomically: a temporary file, then renamed.
     ``clipped`` (bool, the views' shape; :func:`clipped_samples`) goes in dataset ``clipped``,
-    a colour capture's ``channels`` (int8, the views' shape; :func:`decode_colour`) in dataset
-    ``channels``; a hexagonal grid's views on its own lattice (``decode(..., resample=False)``,
+    a colour capture's ``channels`` (int8, :func:`decode_colour`; the views' shape, a hexagonal
+    grid's: the lattice views', which its channels stay on) in dataset ``channels``; a hexagonal grid's views on its own lattice (``decode(..., resample=False)``,
     (N, N, rows, lenslets per row)) and their clipped samples in ``lattice_views`` and
     ``lattice_clipped``."""
     import os
@@ -39,8 +39,9 @@ def save_views(path, views: np.ndarray, calibration: GridCalibration, clipped: n
                                  f"{np.asarray(clipped).dtype} of shape {np.shape(clipped)}")
             f.create_dataset("clipped", data=np.asarray(clipped), compression="gzip", compression_opts=1)
         if channels is not None:
-            if np.shape(channels) != np.shape(views):
-                raise ValueError(f"channels must have the views' shape {np.shape(views)}. Received: "
+            mapped = np.shape(views) if lattice_views is None else np.shape(lattice_views)
+            if np.shape(channels) != mapped:
+                raise ValueError(f"channels must have the shape {mapped} of the views they map. Received: "
                                  f"{np.shape(channels)}")
             f.create_dataset("channels", data=np.asarray(channels, np.int8), compression="gzip", compression_opts=1)
         if lattice_views is not None:
@@ -81,7 +82,8 @@ def load_views(path) -> tuple[np.ndarray, GridCalibration]:
 
 def load_channels(path) -> np.ndarray | None:
     """The channel map (int8, (N, N, R, C); 0 R, 1 G, 2 B) of :func:`save_views`' file of a colour
-    capture (:func:`decode_colour`), or None for a monochrome one."""
+    capture (:func:`decode_colour`; of its lattice views for a hexagonal grid), or None for a
+    monochrome one."""
     import h5py
     with h5py.File(Path(path), "r") as f:
         return f["channels"][...].astype(np.int8) if "channels" in f else None

@@ -270,16 +270,27 @@ def cfa_noise(views: np.ndarray, chan: np.ndarray, channels) -> float:
     return max(relative_noise(channel_subviews(views, chan, c)) for c in channels)
 
 
-def route_operator(camera, depths_mm, route: str):
+def route_operator(camera, depths_mm, route: str, hexagonal=None):
     """The planes' operator a route of :data:`CFA_ROUTES` solves on: None for ``refocus-cfa``; the
-    :data:`MATCHED_SUBSAMPLES` grid for ``admm-cfa-matched``; the lenslet grid otherwise (float32)."""
+    :data:`MATCHED_SUBSAMPLES` grid for ``admm-cfa-matched``; the lenslet grid otherwise (float32).
+
+    ``hexagonal``: a decoded hexagonal grid's light field (:class:`lf_flame.real.lightfield.LightField`
+    with lattice views), whose channels are solved on its lattice
+    (:func:`lf_flame.tomo.lattice.hexagonal_operator`); ``refocus-cfa`` is refused there (shift-and-sum
+    needs the square grid, where the resampled views blend channels)."""
     from ..tomo.exact import ExactOperator
     if route not in CFA_ROUTES:
         raise ValueError(f"unknown route {route!r}; one of {CFA_ROUTES}")
+    subsamples = MATCHED_SUBSAMPLES if route == "admm-cfa-matched" else 1
+    if hexagonal is not None:
+        if route == "refocus-cfa":
+            raise ValueError("refocus-cfa refocuses a square grid's views; a hexagonal grid's colour channels are "
+                             "solved on its lattice: choose an admm route")
+        from ..tomo.lattice import hexagonal_operator
+        return hexagonal_operator(hexagonal, depths_mm, precision="float32", subsamples=subsamples)
     if route == "refocus-cfa":
         return None
-    return ExactOperator(camera, depths_mm, precision="float32",
-                         subsamples=MATCHED_SUBSAMPLES if route == "admm-cfa-matched" else 1)
+    return ExactOperator(camera, depths_mm, precision="float32", subsamples=subsamples)
 
 
 def refocus_channel(views: np.ndarray, own: np.ndarray, slopes, mask: np.ndarray) -> np.ndarray:
@@ -307,7 +318,7 @@ def refocus_channel(views: np.ndarray, own: np.ndarray, slopes, mask: np.ndarray
 
 def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, *, op=None, slopes=None,
                      saturation: float | None = 1.0, sigma: float | None = None, knobs: dict | None = None,
-                     ratio_filter: dict | None = None, info: dict | None = None):
+                     ratio_filter: dict | None = None, info: dict | None = None, noise: float | None = None):
     """Two channels' emission per plane from a colour light field by one of :data:`CFA_ROUTES`.
 
     Parameters
@@ -338,6 +349,10 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
         ``admm-cfa-matched``'s :func:`~lf_flame.temperature.ratio.filter_ratio` ``radius``, ``eps`` and
         ``contour`` (an empty dict: none); None: :data:`MATCHED_RATIO_FILTER` by the light field's
         noise (the very noisy one from :data:`MATCHED_WIDE_NOISE`).
+    noise : float or None
+        The light field's relative noise where the knobs are chosen by it; None: :func:`cfa_noise` of
+        ``views`` (give it where those are not the array to read it on: a hexagonal lattice's axial
+        views, whose empty corners read as noise).
     info : dict or None
         Filled with what the route chose: ``noise`` (measured where ``knobs`` or ``ratio_filter``
         is None), ``regime``, ``knobs``, ``sigma`` and ``ratio_filter`` (``admm-cfa-matched``),
@@ -372,7 +387,7 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
     if route == "admm-cfa-matched":
         sigma = 0.0 if sigma is None else sigma
         if ratio_filter is None or knobs is None:
-            info["noise"] = cfa_noise(views, chan, channels)
+            info["noise"] = cfa_noise(views, chan, channels) if noise is None else float(noise)
             info["regime"] = matched_regime(info["noise"])
             knobs = MATCHED_KNOBS[info["regime"]] if knobs is None else knobs
             if ratio_filter is None:

@@ -323,7 +323,9 @@ class LatticeOperator(ExactOperator):
 
         Parameters
         ----------
-        planes : ndarray of shape ``dims`` (P, s R, s C')
+        planes : ndarray of shape (P, s R, s C')
+            On the lattice's sites (``dims``: ``s`` its ``subsamples``) or on a grid ``s`` times as
+            fine as the lenslets' for another ``s`` (binned to the lenslets: 1).
         rows, cols : int
             The square grid's lenslets (``s`` samples each per axis).
 
@@ -337,8 +339,13 @@ class LatticeOperator(ExactOperator):
             A square lattice (its planes are on that grid).
         """
         self._hexagonal("to_square")
-        s, off = self.subsamples, (self.lattice_shape[0] - 1) // 2
-        x = np.reshape(planes, self.dims)
+        x = np.asarray(planes)
+        if x.ndim != 3:
+            x = x.reshape(self.dims)
+        s, off = x.shape[1] // self.lattice_shape[0], (self.lattice_shape[0] - 1) // 2
+        if s < 1 or x.shape[1:] != (s * self.inside.shape[0], s * self.inside.shape[1]):
+            raise ValueError(f"planes of shape {x.shape} are not on this lattice's sites (P, s x "
+                             f"{self.inside.shape[0]}, s x {self.inside.shape[1]})")
         y, xx = np.meshgrid((np.arange(s * rows) + 0.5) / s - 0.5, (np.arange(s * cols) + 0.5) / s, indexing="ij")
         j = y * s / _H                               # fine lattice rows, fractional
         i = s * xx - j / 2 + s * off                 # fine axial columns
@@ -426,19 +433,14 @@ def solve_on_lattice(lf, rec, op, support=None) -> LatticeSolve:
     ValueError
         A light field without lattice views, a solve that was not admm's.
     """
-    from .decoded import decoded_problem
     from .solvers import reconstruct
     if lf.lattice_views is None:
         raise ValueError(f"{lf.source}: no hexagonal lattice views to solve on")
     if rec.solver != "admm":
         raise ValueError(f"the lattice solve takes admm's knobs; this solve is {rec.solver!r}")
     s = getattr(op, "subsamples", 1)
-    hop = LatticeOperator(lf.camera, rec.depths_mm, lf.lattice_views.shape[2:], subsamples=s,
-                          interpolation=lf.interpolation)
-    views, _ = to_axial(lf.lattice_views)
-    clipped = None if lf.lattice_leave_out is None else to_axial(lf.lattice_leave_out)[0]
-    data, leave_out = decoded_problem(views, hop, clipped)
-    leave_out = leave_out | ~hop.inside
+    hop = hexagonal_operator(lf, rec.depths_mm, subsamples=s)
+    data, leave_out = lattice_problem(lf, hop)
     st = rec.settings
     knobs = dict(iters=int(st["iters"]), tv=st["tv"], lam=st["lam"], l1=st["l1"], start=st["start"], tol=st["tol"])
     lat = reconstruct(data, hop, "admm", saturation=leave_out,
@@ -447,3 +449,35 @@ def solve_on_lattice(lf, rec, op, support=None) -> LatticeSolve:
     planes = hop.to_square(lat.planes, op.dims[1] // s, op.dims[2] // s)
     square = dataclasses.replace(lat, planes=planes, sample_mm=rec.sample_mm, settings=dict(lat.settings))
     return LatticeSolve(hop, lat, square, data, leave_out)
+
+
+def hexagonal_operator(lf, depths_mm, **kw) -> LatticeOperator:
+    """The :class:`LatticeOperator` of a decoded hexagonal grid's lattice views at ``depths_mm`` (mm),
+    with decoding's interpolation (none for a colour capture's nearest pixels); ``kw`` as there
+    (``subsamples``, ``precision``).
+
+    Raises
+    ------
+    ValueError
+        A light field without lattice views.
+    """
+    if lf.lattice_views is None:
+        raise ValueError(f"{lf.source}: no hexagonal lattice views to solve on")
+    return LatticeOperator(lf.camera, depths_mm, lf.lattice_views.shape[2:], interpolation=lf.interpolation, **kw)
+
+
+def lattice_problem(lf, op: LatticeOperator):
+    """A decoded hexagonal grid's lattice views as ``op``'s data (axial, :func:`to_axial`), and the
+    samples to leave out: clipped, dark (:func:`lf_flame.tomo.decoded.decoded_problem`) or where
+    the axial array holds no lenslet.
+
+    Returns
+    -------
+    data : ndarray of shape ``op.dimsd``, float64
+    leave_out : ndarray of bool of shape ``op.dimsd``
+    """
+    from .decoded import decoded_problem
+    views, _ = to_axial(lf.lattice_views)
+    clipped = None if lf.lattice_leave_out is None else to_axial(lf.lattice_leave_out)[0]
+    data, leave_out = decoded_problem(views, op, clipped)
+    return data, leave_out | ~op.inside
