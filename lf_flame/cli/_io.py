@@ -198,12 +198,18 @@ def _raw_reader(p):
     return raw, cam, _raw_meta(p)
 
 
-def light_field(a, path=None):
+def light_field(a, path=None, colour: bool = False):
     """The light field of a command's input (``a.raw`` or ``path``) with its ``--camera`` and
-    ``--calibration`` (:func:`lf_flame.real.lightfield.read_light_field`)."""
+    ``--calibration`` (:func:`lf_flame.real.lightfield.read_light_field`); a colour capture's
+    decoded views as one monochrome light field
+    (:func:`lf_flame.temperature.channels.monochrome_light_field`) unless ``colour``."""
     from ..real.lightfield import read_light_field
-    return read_light_field(path or a.raw, getattr(a, "camera", None), getattr(a, "calibration", None),
-                            views=getattr(a, "views", None), raw_reader=_raw_reader, formats=RAW_FORMATS)
+    lf = read_light_field(path or a.raw, getattr(a, "camera", None), getattr(a, "calibration", None),
+                          views=getattr(a, "views", None), raw_reader=_raw_reader, formats=RAW_FORMATS)
+    if lf.channels is None or colour:
+        return lf
+    from ..temperature.channels import monochrome_light_field
+    return monochrome_light_field(lf)
 
 
 def _save_image(path, img, metadata=None, bits: int = 8):

@@ -187,7 +187,7 @@ def cmd_temperature(a):
     t0 = time.perf_counter()
     import argparse
     # --calibration is the blackbody calibration here: the light field is a raw image of its own camera
-    lf, depths, _ = reconstruct_input(argparse.Namespace(**{**vars(a), "calibration": None}))
+    lf, depths, _ = reconstruct_input(argparse.Namespace(**{**vars(a), "calibration": None}), colour=True)
     cam, views = lf.camera, lf.views
     n = cam.pixels_per_lenslet
     if lf.decoded and lf.channels is None:

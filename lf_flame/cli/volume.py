@@ -13,10 +13,11 @@ import numpy as np
 from ._io import _raw_objects, _raw_scene, light_field
 
 
-def reconstruct_input(a):
-    """Light field, depths (mm, or "auto") and flame objects (or None) of ``reconstruct``/``temperature``."""
+def reconstruct_input(a, colour: bool = False):
+    """Light field, depths (mm, or "auto") and flame objects (or None) of ``reconstruct``/``temperature``
+    (``colour``: a colour capture's channels kept, :func:`._io.light_field`)."""
     from ..simulate.scenes import PAPER_DEPTHS_MM
-    lf = light_field(a)
+    lf = light_field(a, colour=colour)
     cam = lf.camera
     objects = None if lf.decoded else _raw_objects(a.raw)
     given = [k for k in ("depth", "slope", "depths") if getattr(a, k, None)]
@@ -277,6 +278,9 @@ def cmd_reconstruct(a):
             ", on the hexagonal lattice" if lf.lattice_views is not None else "")
         extra.update(own_camera=lf.capture_camera.to_json(), frame=lf.frame.to_dict(), operator=operator,
                      n_clipped=0 if lf.leave_out is None else int(lf.leave_out.sum()))
+        if "monochrome" in lf.meta:                    # a colour capture's channels levelled
+            extra["monochrome"] = lf.meta["monochrome"]
+            print(f"colour capture: {lf.meta['monochrome']}")
         if lf.camera_file:
             extra["camera_file"] = lf.camera_file
     kw = dict(solver=a.solver, iters=a.iters, damp=a.damp, tv=a.tv, saturation=getattr(a, "saturation", "file"),
