@@ -19,7 +19,7 @@ as ``experiments/temperature.py`` scores the paper camera. Per plane: |T - T_tru
 worst over the pixels that both report. The bar (noise-free): each plane's p90 within 50 K.
 
 Writes ``<out>/cameras_colour.{csv,md,json}`` (``--grid hex``: ``cameras_colour_hex.*``). Usage: ``python
-experiments/cameras_colour.py --out results [--grid square|hex] [--scenes 6] [--rays 48] [--quick]``; renders in
+experiments/cameras_colour.py --out results [--grid square|hex] [--route R] [--scenes 6] [--rays 48] [--quick]``; renders in
 ``--cache`` (default ``data/cameras_colour``, ``data/cameras_colour_hex``).
 """
 from __future__ import annotations
@@ -164,6 +164,7 @@ def main(argv=None):
     ap.add_argument("--out", default="results")
     ap.add_argument("--cache", help="renders (default data/cameras_colour, data/cameras_colour_hex)")
     ap.add_argument("--grid", choices=("square", "hex"), default="square", help="the lenslet grid's layout")
+    ap.add_argument("--route", help="temperature's --route (default: its default)")
     ap.add_argument("--scenes", type=int, default=6)
     ap.add_argument("--rays", type=int, default=48)
     ap.add_argument("--quick", action="store_true", help="2 scenes at 16 rays")
@@ -204,6 +205,7 @@ def main(argv=None):
             run("decode", raw, "--calibration", cache / "cal.json", "--camera", cam, "--out", v)
             t0 = time.perf_counter()
             run("temperature", v, "--camera", cam, "--calibration", cache / "bb.json",
+                *(("--route", a.route) if a.route else ()),
                 *[x for d in depths for x in ("--depth", d)], "--out", v.with_name(v.stem + "_T.h5"))
             wall = time.perf_counter() - t0
             with h5py.File(v.with_name(v.stem + "_T.h5")) as f:
@@ -252,10 +254,10 @@ def main(argv=None):
                                              relative_residual_median=("relative_residual", "median"),
                                              reconstruct_wall_s=("reconstruct_wall_s", "median")).reset_index()
     wall = time.perf_counter() - t_all
-    hexagonal = " --grid hex" if a.grid == "hex" else ""
+    hexagonal = (" --grid hex" if a.grid == "hex" else "") + (f" --route {a.route}" if a.route else "")
     md = ["# A colour camera end to end: each plane's temperature from raw captures", "",
           f"`python experiments/cameras_colour.py --out {a.out}{hexagonal}` ({wall:.0f} s on 2 cores). The example "
-          f"camera (10.57 px lenslet images, rotated 0.4°{', on a hexagonal grid' if hexagonal else ''}) with an "
+          f"camera (10.57 px lenslet images, rotated 0.4°{', on a hexagonal grid' if a.grid == 'hex' else ''}) with an "
           "RGGB CFA: white image -> `calibrate`; blackbodies at "
           f"{', '.join(map(str, FIT_K))} K -> `decode --camera` (each view sample from its nearest pixel, channels "
           f"apart) -> `calibrate-temperature`; per scene `simulate --scene colour-depth` ({a.scenes} scenes from seed "
