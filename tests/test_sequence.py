@@ -2,6 +2,7 @@
 serial one (one local cluster of two 2-thread workers for the module), a real multi-process
 cluster with a worker killed mid-run, resuming, the reconstruction's settings, and the bad
 inputs a user meets."""
+import argparse
 import dataclasses
 import json
 import os
@@ -396,7 +397,7 @@ def test_cli_passes_the_reconstruction_settings(tmp_path, capsys):
                  "--saturation", "0.5", "--operator-rays", "1", "--out", str(tmp_path / "out"), "--quiet"]) == 0
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert s["settings"]["reconstruction"] == dict(solver="pd-tv", iters=1, tv=0.05, saturation=0.5, operator_rays=1)
-    assert s["n_saturated"]["frames"] == 2 and "frames with saturated pixels" in capsys.readouterr().out
+    assert s["n_saturated"]["frames"] == 2 and "frames with samples left out of the fit" in capsys.readouterr().out
     assert main(["sequence", str(rec), "--route", "reconstruct-pd-tv", "--iters", "2", "--tv", "0.05",
                  "--saturation", "0.5", "--operator-rays", "1", "--out", str(tmp_path / "out"), "--quiet"]) == 2
     assert "other settings" in capsys.readouterr().err
@@ -439,3 +440,47 @@ def test_a_recording_of_another_camera_is_decoded_and_reconstructed(tmp_path, la
                  str(tmp_path / "cal.json"), "--route", "reconstruct-admm", "--operator-rays", "4", "--depth", "5",
                  "--quiet", "--out", str(tmp_path / "traced")]) != 0
     assert "real frames are solved on their decoded views' exact operator" in capsys.readouterr().err
+
+
+def test_a_colour_recording_is_levelled_as_reconstruct_levels_a_capture(tmp_path, capsys):
+    """A colour camera's recording (the example camera with an RGGB CFA): each frame is decoded with its channels
+    apart and levelled into one light field exactly as ``reconstruct`` levels the same capture (the same views and
+    the same samples left out: blue), solved on the operator of nearest pixels; ``sequence`` runs it from the
+    command line."""
+    from lf_flame.cli._io import light_field
+    from lf_flame.real.calibration import GridCalibration
+    from lf_flame.recordings.job import SequenceJob
+    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.temperature.channels import monochrome_light_field
+    sheet = (Path(__file__).resolve().parents[1] / "examples" / "own_camera.toml").read_text()
+    cam = tmp_path / "cam.toml"
+    cam.write_text(sheet + 'cfa = "RGGB"\n')
+    d = str(tmp_path)
+
+    def run(*argv):
+        assert main([str(x) for x in argv]) == 0, capsys.readouterr().err
+    run("simulate", "--camera", cam, "--scene", "white", "--rays-per-pixel", 4, "--out", f"{d}/white.npz")
+    run("calibrate", f"{d}/white.npz", "--out", f"{d}/cal.json")
+    run("simulate", "--camera", cam, "--scene", "colour-depth", "--seed", 3, "--rays-per-pixel", 4,
+        "--out", f"{d}/scene.npz")
+    run("decode", f"{d}/scene.npz", "--calibration", f"{d}/cal.json", "--camera", cam, "--out", f"{d}/views.h5")
+    lf = monochrome_light_field(read_light_field(f"{d}/views.h5", str(cam)))
+    assert lf.channels is None and "levelled" in lf.meta["monochrome"]
+    assert np.array_equal(light_field(argparse.Namespace(raw=f"{d}/views.h5", camera=str(cam))).views, lf.views)
+    cal = GridCalibration.load(f"{d}/cal.json")
+    depth = float(json.loads(str(np.load(f"{d}/scene.npz")["objects"]))[0]["depth_offset_mm"])
+    job = SequenceJob(None, lf.camera, 100.0, (depth,), (lf.camera.slope_for_depth(depth),), (None,),
+                      "reconstruct-admm", cal.to_dict(), f"{d}/white.npz",
+                      sensor=dict(name="Nikon 5100 (NPL)", pattern="RGGB", phase=[0, 0]))
+    views, leave = job.frame(np.load(f"{d}/scene.npz")["raw"])
+    assert np.array_equal(views, lf.views) and np.array_equal(leave, lf.leave_out)
+    assert job.operator().interpolation is None                       # nearest pixels: no interpolation
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    for i in range(2):
+        np.save(frames / f"f{i}.npy", np.load(f"{d}/scene.npz")["raw"])
+    capsys.readouterr()
+    run("sequence", frames, "--camera", cam, "--calibration", f"{d}/cal.json", "--fps", 100, "--route",
+        "reconstruct-admm", "--depth", depth, "--quiet", "--out", f"{d}/out")
+    assert "levelled into one light field" in capsys.readouterr().out
+    assert json.loads((tmp_path / "out" / "summary.json").read_text())["n_frames"] == 2

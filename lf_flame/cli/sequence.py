@@ -32,13 +32,14 @@ def _camera(a):
     return PAPER_CAMERA
 
 
-def decoded_views_camera(camera, calibration):
+def decoded_views_camera(camera, calibration, colour: bool = False):
     """Real frames of ``camera`` decoded with ``calibration``: the decoded views' camera
     (:func:`lf_flame.real.own_camera.views_camera`) and the pixels binned per view sample
-    (:func:`lf_flame.real.decoding.auto_bin`), as ``lf-flame decode`` decodes by default."""
+    (:func:`lf_flame.real.decoding.auto_bin`; a ``colour`` camera's: 1), as ``lf-flame decode`` decodes by
+    default."""
     from ..real.decoding import auto_bin, views_shape
     from ..real.own_camera import views_camera
-    k = auto_bin(calibration)
+    k = 1 if colour else auto_bin(calibration)
     return views_camera(camera, calibration, views_shape(calibration, None, k), k), k
 
 
@@ -86,17 +87,23 @@ def cmd_sequence(a):
     else:
         if not (a.depth or a.slope):
             raise ValueError("give the planes of a recording: --depth MM (repeatable) or --slope S")
-        cal, k = None, 1
+        cal, k, sensor = None, 1, None
         if a.calibration:                # real frames: the planes are the decoded views' camera's
+            from ..optics.camera_file import load_colour_sensor
             from ..real.calibration import GridCalibration
             calibration = GridCalibration.load(a.calibration)
-            cal, cam, k = calibration.to_dict(), *decoded_views_camera(cam, calibration)
+            colour = load_colour_sensor(a.camera) if a.camera else None
+            if colour is not None:       # decoded with the channels apart and levelled into one light field
+                sensor = dict(name=colour.name, pattern=colour.pattern, phase=list(colour.phase))
+                print(f"colour sensor {colour.name}, {colour.pattern} phase {colour.phase}: each frame's red and "
+                      "green samples levelled into one light field (blue left out)")
+            cal, cam, k = calibration.to_dict(), *decoded_views_camera(cam, calibration, colour is not None)
         depths = [float(v) for v in a.depth] if a.depth else [cam.depth_for_slope(s) for s in a.slope]
         slopes = list(a.slope) if a.slope else [cam.slope_for_depth(d) for d in depths]
         from ..real.lightfield import check_imaging_range
         check_imaging_range(cam, depths)
         job, truth = SequenceJob(source, cam, fps, tuple(depths), tuple(slopes), (None,) * len(depths), a.route,
-                                 cal, a.white, a.dark, chunk=a.chunk, bin_views=k, **knobs), None
+                                 cal, a.white, a.dark, chunk=a.chunk, bin_views=k, sensor=sensor, **knobs), None
     s = run(job, a.out, scheduler=a.scheduler, workers=a.workers, nperseg=a.nperseg, truth=truth,
             progress=not a.quiet)
     import pandas as pd
@@ -106,7 +113,8 @@ def cmd_sequence(a):
         if n:
             print(f"plane {k}: {n} of {s['n_frames']} frames could not be measured (the plane's mean in its spectrum)")
     if "n_saturated" in s:
-        print(f"{s['n_saturated']['frames']} frames with saturated pixels left out of the fit "
-              f"(at most {s['n_saturated']['max_per_frame']} in a frame)")
+        print(f"{s['n_saturated']['frames']} frames with samples left out of the fit (at most "
+              f"{s['n_saturated']['max_per_frame']} in a frame: clipped; of decoded frames also dark ones and a "
+              "colour camera's blue ones)")
     print(f"{s['n_frames']} frames ({s['chunks_processed']} chunks processed, {s['frames_per_s']:.1f} frames/s) "
           f"-> {a.out}/frames.csv, spectra.csv, peaks.csv, sequence.png, summary.json")

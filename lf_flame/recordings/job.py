@@ -55,6 +55,12 @@ class SequenceJob:
         Paths of the white image and dark frame (real frames).
     bin_views : int
         Real frames: pixels per view sample and axis they are decoded with (:func:`lf_flame.real.decoding.auto_bin`).
+    sensor : dict or None
+        Real frames of a colour camera: its sensor (``name``, ``pattern``, ``phase``;
+        :func:`lf_flame.optics.colour.library_sensor`). Each frame is decoded with its channels apart
+        (:func:`lf_flame.real.decoding.decode_colour`, one pixel per sample) and levelled into one
+        monochrome light field as ``lf-flame reconstruct`` levels a capture
+        (:func:`lf_flame.temperature.channels.levelled_views`: the other channels' samples left out).
     truth_freqs_hz : tuple of float or None
         Simulated: plane ``k``'s flame's flicker frequency (Hz), within 0 to ``fps / 2``.
     chunk : int
@@ -100,6 +106,7 @@ class SequenceJob:
     saturation: float | None = 1.0
     operator_rays: int | None = None
     bin_views: int = 1
+    sensor: dict | None = None
     _cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
@@ -124,6 +131,9 @@ class SequenceJob:
             raise ValueError(f"operator_rays must be a whole number >= 1. Received: {self.operator_rays!r}")
         if isinstance(self.bin_views, bool) or int(self.bin_views) != self.bin_views or self.bin_views < 1:
             raise ValueError(f"bin_views must be a whole number >= 1. Received: {self.bin_views!r}")
+        if self.sensor is not None and (self.calibration is None or self.bin_views != 1):
+            raise ValueError("a colour camera's frames are decoded with a calibration, one pixel per sample "
+                             "(bin_views 1)")
         if self.calibration is not None and self.operator_rays is not None:
             raise ValueError("operator_rays (--operator-rays) traces a simulated camera; real frames are solved on "
                              "their decoded views' exact operator")
@@ -173,7 +183,7 @@ class SequenceJob:
                     depths_mm=list(self.depths_mm), slopes=list(self.slopes),
                     columns=[None if c is None else list(c) for c in self.columns], route=self.route,
                     calibration=self.calibration, white=self.white, dark=self.dark, chunk=self.chunk,
-                    bin_views=self.bin_views, reconstruction=self.reconstruction())
+                    bin_views=self.bin_views, sensor=self.sensor, reconstruction=self.reconstruction())
 
     @property
     def hexagonal(self) -> bool:
@@ -221,10 +231,16 @@ class SequenceJob:
         if grid != (self.camera.n_rows, self.camera.n_cols):
             raise ValueError(f"decoded views of {grid[0]} x {grid[1]} lenslets; the camera has "
                              f"{self.camera.n_rows} x {self.camera.n_cols} (give the decoded views' camera)")
-        views = decode(raw, c["cal"], c["white"], c["dark"], n_views=n, bin_views=k, resample=False)
         clipped = None if self.saturation is None else clipped_samples(raw, c["cal"], self.saturation, n_views=n,
                                                                        bin_views=k, resample=False)
-        return views, clipped
+        if self.sensor is None:
+            return decode(raw, c["cal"], c["white"], c["dark"], n_views=n, bin_views=k, resample=False), clipped
+        from ..optics.colour import library_sensor
+        from ..real.decoding import decode_colour
+        from ..temperature.channels import levelled_views
+        sensor = library_sensor(self.sensor["name"], self.sensor["pattern"], tuple(self.sensor["phase"]))
+        views, other, _ = levelled_views(*decode_colour(raw, c["cal"], sensor, c["white"], c["dark"], n_views=n))
+        return views, other if clipped is None else other | clipped
 
     def fit_data(self, views: np.ndarray, clipped=None):
         """A frame's data for the ``reconstruct-*`` routes and what to leave out of the fit (:meth:`frame`'s
@@ -282,7 +298,7 @@ class SequenceJob:
             import json
             self._cache["operator_key"] = (self.camera.to_json(), tuple(float(d) for d in self.depths_mm),
                                            self.operator_rays, json.dumps(self.calibration, sort_keys=True),
-                                           self.bin_views)
+                                           self.bin_views, self.sensor is None)
         key = self._cache["operator_key"]
         with _OPERATOR_LOCK:
             if _OPERATOR["key"] != key:
@@ -292,9 +308,10 @@ class SequenceJob:
                     from ..real.decoding import interpolation_phases
                     from ..tomo.lattice import LatticeOperator
                     cam, k, cal = self.camera, self.bin_views, GridCalibration.from_dict(self.calibration)
-                    phases = interpolation_phases(cal, cam.pixels_per_lenslet, k)
+                    interpolation = None if self.sensor is not None else (       # colour: nearest pixels
+                        interpolation_phases(cal, cam.pixels_per_lenslet, k), k)
                     op = LatticeOperator(cam, list(self.depths_mm), (cal.n_rows, cal.n_cols), layout=cal.layout,
-                                         interpolation=(phases, k))
+                                         interpolation=interpolation)
                 else:
                     op = emission_operator(self.camera, list(self.depths_mm), rays_per_pixel=self.operator_rays)
                 _OPERATOR.update(key=key, op=op, builds=_OPERATOR["builds"] + 1)

@@ -483,6 +483,43 @@ def colour_truth(channel_radiance, layers, op) -> np.ndarray:
     return truth
 
 
+def levelled_views(views: np.ndarray, chan: np.ndarray, channels=(0, 1)):
+    """A colour light field's samples as one monochrome light field (:func:`monochrome_light_field`).
+
+    Parameters
+    ----------
+    views, chan : ndarray of shape (N, N, R, C)
+        The samples and each one's channel (0 R, 1 G, 2 B; a hexagonal grid's on its lattice rows).
+    channels : sequence of int
+        The channels kept; the last one's mean sets the units.
+
+    Returns
+    -------
+    levelled : ndarray of shape (N, N, R, C), float32
+        Each kept channel's samples times (last channel's mean / its mean); the other samples
+        :func:`channel_sum_views`' interpolation in the same units.
+    other : ndarray of bool of shape (N, N, R, C)
+        The samples of the channels not kept (to leave out of a fit).
+    gains : list of float
+        Each kept channel's factor.
+
+    Raises
+    ------
+    ValueError
+        A kept channel without signal (:func:`channel_sum_views`).
+    """
+    src = np.asarray(views, np.float64)
+    chan = np.asarray(chan)
+    fill = channel_sum_views(src, chan, channels)          # raises for a kept channel without signal
+    means = [float(src[chan == c].mean()) for c in channels]
+    gains = [means[-1] / m for m in means]
+    out = fill * means[-1]
+    for c, g in zip(channels, gains):
+        own = chan == c
+        out[own] = src[own] * g
+    return out.astype(np.float32), ~np.isin(chan, channels), gains
+
+
 def monochrome_light_field(lf, channels=(0, 1)):
     """A colour capture as one monochrome light field, for the routes that solve or refocus emission.
 
@@ -493,8 +530,8 @@ def monochrome_light_field(lf, channels=(0, 1)):
     last channel's (green by default: the views are in its units), so that where the flame's
     colour is uniform the channels agree; the other channels' samples (blue: a flame's faintest)
     are left out of the fit and hold :func:`channel_sum_views`' interpolation (for refocusing
-    and the depth search). Where the colour varies across the flame (temperature), the levelled
-    channels differ by that variation.
+    and the depth search) (:func:`levelled_views`). Where the colour varies across the flame
+    (temperature), the levelled channels differ by that variation.
 
     Parameters
     ----------
@@ -519,17 +556,8 @@ def monochrome_light_field(lf, channels=(0, 1)):
     if lf.channels is None:
         return lf
     lattice = lf.lattice_views is not None
-    src = np.asarray(lf.lattice_views if lattice else lf.views, np.float64)
-    chan = np.asarray(lf.channels)
-    means = [float(src[chan == c].mean()) for c in channels]
-    fill = channel_sum_views(src, chan, channels) * means[-1]
-    out = fill.astype(np.float64)
-    for c, m in zip(channels, means):
-        own = chan == c
-        out[own] = src[own] * (means[-1] / m)
-    out = out.astype(np.float32)
-    other = ~np.isin(chan, channels)
-    note = (f"channels {list(channels)} levelled by their means (x {[round(means[-1] / m, 4) for m in means]}), "
+    out, other, gains = levelled_views(lf.lattice_views if lattice else lf.views, lf.channels, channels)
+    note = (f"channels {list(channels)} levelled by their means (x {[round(g, 4) for g in gains]}), "
             "the others left out of the fit")
     meta = {**lf.meta, "monochrome": note}
     if not lattice:
