@@ -474,6 +474,8 @@ def test_a_colour_recording_is_levelled_as_reconstruct_levels_a_capture(tmp_path
                       sensor=dict(name="Nikon 5100 (NPL)", pattern="RGGB", phase=[0, 0]))
     views, leave = job.frame(np.load(f"{d}/scene.npz")["raw"])
     assert np.array_equal(views, lf.views) and np.array_equal(leave, lf.leave_out)
+    dark, dark_leave = job.frame(np.zeros(cal.sensor_shape))         # a dark frame (the flame out): zeros, no error
+    assert not np.any(dark) and np.array_equal(dark_leave, leave)
     assert job.operator().interpolation is None                       # nearest pixels: no interpolation
     frames = tmp_path / "frames"
     frames.mkdir()

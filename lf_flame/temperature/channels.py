@@ -501,23 +501,22 @@ def levelled_views(views: np.ndarray, chan: np.ndarray, channels=(0, 1)):
     other : ndarray of bool of shape (N, N, R, C)
         The samples of the channels not kept (to leave out of a fit).
     gains : list of float
-        Each kept channel's factor.
-
-    Raises
-    ------
-    ValueError
-        A kept channel without signal (:func:`channel_sum_views`).
+        Each kept channel's factor; all 1 where a kept channel has no signal (its mean not above 0:
+        a dark frame of a recording), whose samples are kept as they are and the others set to 0.
     """
     src = np.asarray(views, np.float64)
     chan = np.asarray(chan)
-    fill = channel_sum_views(src, chan, channels)          # raises for a kept channel without signal
-    means = [float(src[chan == c].mean()) for c in channels]
+    other = ~np.isin(chan, channels)
+    means = [float(src[chan == c].mean()) if np.any(chan == c) else 0.0 for c in channels]
+    if not all(m > 0 for m in means):                       # a dark frame: nothing to level
+        return np.where(other, 0.0, src).astype(np.float32), other, [1.0] * len(channels)
+    fill = channel_sum_views(src, chan, channels)
     gains = [means[-1] / m for m in means]
     out = fill * means[-1]
     for c, g in zip(channels, gains):
         own = chan == c
         out[own] = src[own] * g
-    return out.astype(np.float32), ~np.isin(chan, channels), gains
+    return out.astype(np.float32), other, gains
 
 
 def monochrome_light_field(lf, channels=(0, 1)):
@@ -546,11 +545,6 @@ def monochrome_light_field(lf, channels=(0, 1)):
     LightField
         Without channels; ``leave_out`` (``lattice_leave_out``) holds the other channels' samples
         and those already left out; ``meta["monochrome"]`` says how it was made.
-
-    Raises
-    ------
-    ValueError
-        A kept channel without signal (:func:`channel_sum_views`).
     """
     from ..real.decoding import hex_to_square
     if lf.channels is None:
