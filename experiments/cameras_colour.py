@@ -18,7 +18,8 @@ through the same calibration's lookup (:func:`lf_flame.temperature.pyrometry.tem
 as ``experiments/temperature.py`` scores the paper camera. Per plane: |T - T_true| median, p90 and
 worst over the pixels that both report. The bar (noise-free): each plane's p90 within 50 K.
 
-Writes ``<out>/cameras_colour.{csv,md,json}`` (``--grid hex``: ``cameras_colour_hex.*``). Usage: ``python
+Writes ``<out>/cameras_colour.{csv,md,json,png}`` (``--grid hex``: ``cameras_colour_hex.*``; the figure: the
+first scene's planes, noise-free, above their truth). Usage: ``python
 experiments/cameras_colour.py --out results [--grid square|hex] [--route R] [--scenes 6] [--rays 48] [--quick]``; renders in
 ``--cache`` (default ``data/cameras_colour``, ``data/cameras_colour_hex``).
 """
@@ -212,7 +213,13 @@ def main(argv=None):
                 T, valid = f["temperature_k"][...], f["valid"][...]
             flames.extend(emission_rows(clean, v, cam, noise, seed))
             if noise == "clean":   # the truth in the decoded frame, the same for both renders (one calibration)
-                Tt, vt, body = truth_temperature(clean, read_light_field(v, cam), depths, cal, model)
+                lf = read_light_field(v, cam)
+                Tt, vt, body = truth_temperature(clean, lf, depths, cal, model)
+                if i == 0:         # the first scene's planes beside their truth: the figure of the docs
+                    from lf_flame.cli.temperature import temperature_figure
+                    from lf_flame.measure.figures import save_figure
+                    save_figure(temperature_figure(T, depths, valid, lf.camera,
+                                                   truth_k=np.where(vt, Tt, np.nan)), out / f"{name}.png")
             for k, d in enumerate(depths):
                 sel = valid[k] & vt[k]
                 err = np.abs(T[k] - Tt[k])[sel]
