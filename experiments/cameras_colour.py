@@ -67,9 +67,10 @@ def run(*argv) -> str:
     return out.getvalue()
 
 
-def camera_file(cache: Path, grid: str = "square") -> Path:
-    """The example camera with an RGGB CFA and a ``grid`` (square or hex) lenslet layout, written to ``cache``."""
-    text = (ROOT / "examples" / "own_camera.toml").read_text()
+def camera_file(cache: Path, grid: str = "square", sheet: Path | None = None) -> Path:
+    """The example camera (or the datasheet file ``sheet``) with an RGGB CFA and a ``grid`` (square or hex) lenslet
+    layout, written to ``cache``."""
+    text = Path(sheet or ROOT / "examples" / "own_camera.toml").read_text()
     p = cache / "camera.toml"
     p.write_text(text.replace('layout = "square"', f'layout = "{grid}"') + 'cfa = "RGGB"\n')
     return p
@@ -166,6 +167,7 @@ def main(argv=None):
     ap.add_argument("--cache", help="renders (default data/cameras_colour, data/cameras_colour_hex)")
     ap.add_argument("--grid", choices=("square", "hex"), default="square", help="the lenslet grid's layout")
     ap.add_argument("--route", help="temperature's --route (default: its default)")
+    ap.add_argument("--camera", help="another datasheet camera file (default: examples/own_camera.toml)")
     ap.add_argument("--scenes", type=int, default=6)
     ap.add_argument("--rays", type=int, default=48)
     ap.add_argument("--quick", action="store_true", help="2 scenes at 16 rays")
@@ -178,7 +180,7 @@ def main(argv=None):
     out.mkdir(parents=True, exist_ok=True)
     cache.mkdir(parents=True, exist_ok=True)
     t_all = time.perf_counter()
-    cam = camera_file(cache, a.grid)
+    cam = camera_file(cache, a.grid, a.camera)
     model = load_colour_sensor(cam)
     run("simulate", "--camera", cam, "--scene", "white", "--rays-per-pixel", 16, "--out", cache / "white.npz")
     run("calibrate", cache / "white.npz", "--out", cache / "cal.json")
