@@ -10,7 +10,7 @@ from pathlib import Path
 
 
 def cmd_calibrate(a):
-    from ..real.calibration import calibrate
+    from ..real.calibration import CalibrationError, calibrate
     from ..real.images import file_digest, load_image
     white = load_image(a.white)
     dark = load_image(a.dark) if a.dark else None
@@ -19,7 +19,13 @@ def cmd_calibrate(a):
         print(f"colour sensor {sensor.name}, {sensor.pattern} ({where}): the white image's four CFA phases "
               "levelled first")
     t = time.perf_counter()
-    cal = calibrate(white, dark, layout=a.layout, camera_id=a.camera_id or "", mosaic=sensor is not None)
+    try:
+        cal = calibrate(white, dark, layout=a.layout, camera_id=a.camera_id or "", mosaic=sensor is not None)
+    except CalibrationError as e:
+        if sensor is not None:
+            raise
+        raise CalibrationError(f"{e}; if this is a colour sensor's raw mosaic, give its camera file (--camera, "
+                               "whose [sensor] names the cfa) so that its CFA phases are levelled first") from None
     dt = time.perf_counter() - t
     cal = dataclasses.replace(cal, white=file_digest(a.white), dark=file_digest(a.dark) if a.dark else None)
     cal.save(a.out)
