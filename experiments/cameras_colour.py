@@ -1,15 +1,18 @@
 """A colour (Bayer) camera end to end from the command line: each plane's temperature of flames at
-random depths, from its raw captures, against the truth in its decoded frame.
+random depths, from its raw captures, against the truth in its decoded frame; and each flame's
+emission as ``reconstruct`` gives it.
 
-The camera is ``examples/own_camera.toml`` (10.57 px lenslet images, rotated 0.4°, offset) with an
-RGGB colour filter array in its ``[sensor]`` table; ``--grid hex`` gives it a hexagonal lenslet grid
-(a Lytro-like camera: its channels are decoded and solved on the grid's own lattice). Every step is an ``lf-flame`` command run
-in-process (:func:`lf_flame.cli.main`): ``simulate --scene white`` -> ``calibrate``; blackbodies at
+The camera is ``examples/own_camera.toml`` (10.57 px lenslet images, rotated 0.4°, offset; or another
+datasheet file, ``--camera``) with an RGGB colour filter array in its ``[sensor]`` table; ``--grid
+hex`` gives it a hexagonal lenslet grid (a Lytro-like camera: its channels are decoded and solved on
+the grid's own lattice). Every step is an ``lf-flame`` command run in-process
+(:func:`lf_flame.cli.main`): ``simulate --scene white`` -> ``calibrate``; blackbodies at
 :data:`FIT_K` (``simulate --scene furnace``) -> ``decode --camera`` (each view sample from its
 nearest pixel, channels apart) -> ``calibrate-temperature``; per scene ``simulate --scene
 colour-depth --seed S`` (2-4 flames at random depths, each with its own sheath temperature) ->
-``decode --camera`` -> ``temperature --depth`` at the flames' true (merged within 1 mm) depths (the temperature, not the
-depth finding, is scored here; ``make cameras`` scores the depths). Noise: the noise-free render, and
+``decode --camera`` -> ``temperature --depth`` at the flames' true (merged within 1 mm) depths (the
+temperature, not the depth finding, is scored there) and ``reconstruct`` (depths found; each flame's
+emission scored against its green channel, :func:`emission_rows`). Noise: the noise-free render, and
 14 dB of shot and read noise on it (``experiments/temperature.py``'s ``add_noise``).
 
 The truth: per plane, each channel's emission of its flame on the decoded plane's lenslet grid
@@ -18,10 +21,11 @@ through the same calibration's lookup (:func:`lf_flame.temperature.pyrometry.tem
 as ``experiments/temperature.py`` scores the paper camera. Per plane: |T - T_true| median, p90 and
 worst over the pixels that both report. The bar (noise-free): each plane's p90 within 50 K.
 
-Writes ``<out>/cameras_colour.{csv,md,json,png}`` (``--grid hex``: ``cameras_colour_hex.*``; the figure: the
-first scene's planes, noise-free, above their truth). Usage: ``python
-experiments/cameras_colour.py --out results [--grid square|hex] [--route R] [--scenes 6] [--rays 48] [--quick]``; renders in
-``--cache`` (default ``data/cameras_colour``, ``data/cameras_colour_hex``).
+Writes ``<out>/cameras_colour.{csv,md,json,png}`` and ``cameras_colour_emission.csv`` (``--grid hex``:
+``cameras_colour_hex*``; the figure: the first scene's planes, noise-free, above their truth). Usage:
+``python experiments/cameras_colour.py --out results [--grid square|hex] [--camera FILE] [--route R]
+[--scenes 6] [--rays 48] [--quick]``; renders in ``--cache`` (default ``data/cameras_colour``,
+``data/cameras_colour_hex``).
 """
 from __future__ import annotations
 
@@ -254,7 +258,8 @@ def main(argv=None):
     atomic_write_text(out / f"{name}_emission.csv", fl.to_csv(index=False, float_format="%.6g"))
     missed = lambda v: int(np.isnan(v).sum())
     em = fl.groupby("noise", sort=False).agg(flames=("rel_err", "size"), missed=("depth_mm", missed),
-                                             depth_err_p90_mm=("depth_err_mm", lambda v: np.nanpercentile(np.abs(v), 90)),
+                                             depth_err_p90_mm=("depth_err_mm",
+                                                               lambda v: np.nanpercentile(np.abs(v), 90)),
                                              depth_err_worst_mm=("depth_err_mm", lambda v: np.nanmax(np.abs(v))),
                                              slope_err_p90=("slope_err", lambda v: np.nanpercentile(v, 90)),
                                              rel_err_median=("rel_err", "median"),
@@ -263,10 +268,12 @@ def main(argv=None):
                                              relative_residual_median=("relative_residual", "median"),
                                              reconstruct_wall_s=("reconstruct_wall_s", "median")).reset_index()
     wall = time.perf_counter() - t_all
-    hexagonal = (" --grid hex" if a.grid == "hex" else "") + (f" --route {a.route}" if a.route else "")
+    hexagonal = (" --grid hex" if a.grid == "hex" else "") + (f" --route {a.route}" if a.route else "") + (
+        f" --camera {a.camera}" if a.camera else "")
     md = ["# A colour camera end to end: each plane's temperature from raw captures", "",
-          f"`python experiments/cameras_colour.py --out {a.out}{hexagonal}` ({wall:.0f} s on 2 cores). The example "
-          f"camera (10.57 px lenslet images, rotated 0.4°{', on a hexagonal grid' if a.grid == 'hex' else ''}) with an "
+          f"`python experiments/cameras_colour.py --out {a.out}{hexagonal}` ({wall:.0f} s on 2 cores). "
+          + (f"The camera of {a.camera}" if a.camera else "The example camera (10.57 px lenslet images, rotated 0.4°")
+          + f"{', on a hexagonal grid' if a.grid == 'hex' else ''}{'' if a.camera else ')'} with an "
           "RGGB CFA: white image -> `calibrate`; blackbodies at "
           f"{', '.join(map(str, FIT_K))} K -> `decode --camera` (each view sample from its nearest pixel, channels "
           f"apart) -> `calibrate-temperature`; per scene `simulate --scene colour-depth` ({a.scenes} scenes from seed "

@@ -21,9 +21,9 @@ def save_views(path, views: np.ndarray, calibration: GridCalibration, clipped: n
     as JSON in attribute ``calibration``), atomically: a temporary file, then renamed.
     ``clipped`` (bool, the views' shape; :func:`clipped_samples`) goes in dataset ``clipped``,
     a colour capture's ``channels`` (int8, :func:`decode_colour`; the views' shape, a hexagonal
-    grid's: the lattice views', which its channels stay on) in dataset ``channels``; a hexagonal grid's views on its own lattice (``decode(..., resample=False)``,
-    (N, N, rows, lenslets per row)) and their clipped samples in ``lattice_views`` and
-    ``lattice_clipped``."""
+    grid's: the lattice views', which its channels stay on) in dataset ``channels``; a hexagonal
+    grid's views on its own lattice (``decode(..., resample=False)``, (N, N, rows, lenslets per
+    row)) and their clipped samples in ``lattice_views`` and ``lattice_clipped``."""
     import os
 
     import h5py
