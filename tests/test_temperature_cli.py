@@ -276,7 +276,9 @@ def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, 
         "--alpha", 0, "--out", f"{d}/t.h5")
     with h5py.File(f"{d}/t.h5") as f:
         t = f["temperature_k"][0][f["valid"][0]]
-        assert ("lattice" in json.loads(f.attrs["route_settings"])) == (layout == "hex")
+        settings = json.loads(f.attrs["route_settings"])
+        assert ("lattice" in settings) == (layout == "hex")
+        assert settings["regime"] == "decoded" and settings["knobs"]["lam"] == 0.1     # not the noise's knobs
     assert t.size > 0.5 * cal.n_rows * cal.n_cols
     assert abs(np.median(t) - 1800) < 15 and np.percentile(np.abs(t - 1800), 90) < 30
     # the emission routes level the channels into one light field: the blackbody is then one grey plane (a mosaic

@@ -171,8 +171,8 @@ def cmd_temperature(a):
     from ..measure.figures import save_figure
     from ..temperature.pyrometry import bright_pixels, load_calibration, temperature_planes
     from ..optics.colour import CHANNELS
-    from ..temperature.channels import (cfa_blind, cfa_noise, channel_emission, channel_sum_views, channel_views,
-                                        route_operator)
+    from ..temperature.channels import (DECODED_KNOBS, DECODED_RATIO_FILTER, cfa_blind, channel_emission,
+                                        channel_sum_views, channel_views, route_operator)
     from .volume import found_planes, reconstruct_input
     from ..tomo.decoded import fit_data
     src = str(a.raw)
@@ -206,7 +206,7 @@ def cmd_temperature(a):
             mono = hex_to_square(channel_sum_views(lf.lattice_views, chan, ch))
         depths, found, _ = found_planes(lf, mono)
         extra = dict(depths_from="auto (channel sum)", found_depths=found)
-    chosen, noise = {}, None
+    chosen, knobs, ratio_filter = {}, None, None
     slopes = [cam.slope_for_depth(d) for d in depths]
     op = route_operator(cam, depths, a.route, hexagonal)
     if not lf.decoded:
@@ -216,12 +216,14 @@ def cmd_temperature(a):
     elif hexagonal is not None:                         # the lattice's views (axial), its channels with them
         from ..tomo.lattice import lattice_problem, to_axial
         data, sat = lattice_problem(lf, op)
-        noise = cfa_noise(lf.lattice_views, chan, ch)   # on the lattice's rows, as a square grid's
         chan = np.where(op.inside, to_axial(chan)[0], -1).astype(np.int8)
     else:                                               # the operator's data: views times its white views
         data, sat = fit_data(lf, op)
+    if lf.decoded and a.route == "admm-cfa-matched":    # a decoded capture's knobs, not its noise's
+        knobs, ratio_filter = DECODED_KNOBS, DECODED_RATIO_FILTER
+        chosen["regime"] = "decoded"
     emission = channel_emission(a.route, data, chan, ch, op=op, slopes=slopes, saturation=sat, info=chosen,
-                                noise=noise)
+                                knobs=knobs, ratio_filter=ratio_filter)
     if hexagonal is not None:                           # the lattice's planes on the decoded square grid
         emission = tuple(op.to_square(e, cam.n_rows, cam.n_cols) for e in emission)
         chosen["lattice"] = "hexagonal"

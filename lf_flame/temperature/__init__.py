@@ -22,6 +22,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
                          "axisymmetric_temperature"],
         "channels": ["CFA_ROUTES", "CFA_FILLS", "CFA_LAM", "CFA_TV", "MATCHED_SUBSAMPLES",
                      "MATCHED_SIGMA_NOISY", "MATCHED_KNOBS", "MATCHED_QUIET_NOISE", "MATCHED_RATIO_FILTER",
+                     "DECODED_KNOBS", "DECODED_RATIO_FILTER",
                      "MATCHED_WIDE_NOISE", "channel_views", "admm_channel", "matched_channels", "channel_subviews",
                      "cfa_blind", "matched_regime", "cfa_noise", "route_operator", "refocus_channel",
                      "channel_emission", "channel_sum_views", "colour_truth"],

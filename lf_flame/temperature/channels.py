@@ -94,6 +94,17 @@ MATCHED_QUIET_NOISE = 0.004
 #: noise; the contours' average does not.
 MATCHED_RATIO_FILTER = {"quiet": dict(radius=1, eps=0.001), "noisy": dict(radius=1, eps=0.1, contour=5.0),
                         "very noisy": dict(radius=1, eps=0.1, contour=8.0)}
+#: ``admm-cfa-matched``'s knobs and ratio filter for decoded colour captures (``lf-flame temperature`` of
+#: views decoded with their channels apart, :func:`lf_flame.real.decoding.decode_colour`), in place of the
+#: noise regimes: the views differ from the operator's prediction by more than their noise (each sample the
+#: nearest pixel of a lenslet image's mosaic), and :func:`cfa_noise` misreads a non-integer pitch's mosaic as
+#: noise. Chosen on the example camera's validation scenes (``experiments/cameras_colour.py --seed0 58100
+#: --scenes 6``, 11 planes; a ``/tmp`` probe of lam 0.003-1 and the filter's radius 1-2, eps 0.01-0.1, contour
+#: 0-12): worst-plane p90 median / worst 108.7 / 150 K noise-free and 108.8 / 175 K at 14 dB, against
+#: 126 / 298 K and 125 / 343 K with the very noisy regime's (which every decoded capture read), better on 9
+#: of 11 planes at each noise level.
+DECODED_KNOBS = dict(fills=CFA_FILLS, lam=0.1, tv=CFA_TV, l1=CFA_L1)
+DECODED_RATIO_FILTER = dict(radius=1, eps=0.1)
 #: The relative noise (:func:`cfa_noise`) from which the very noisy knobs and ratio filter are taken:
 #: the geometric mean of the validation scenes' noise at 17 dB (up to 0.0150, the noisy ones best)
 #: and at 14 dB (from 0.0194, the very noisy ones best).
@@ -318,7 +329,7 @@ def refocus_channel(views: np.ndarray, own: np.ndarray, slopes, mask: np.ndarray
 
 def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, *, op=None, slopes=None,
                      saturation: float | None = 1.0, sigma: float | None = None, knobs: dict | None = None,
-                     ratio_filter: dict | None = None, info: dict | None = None, noise: float | None = None):
+                     ratio_filter: dict | None = None, info: dict | None = None):
     """Two channels' emission per plane from a colour light field by one of :data:`CFA_ROUTES`.
 
     Parameters
@@ -349,10 +360,6 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
         ``admm-cfa-matched``'s :func:`~lf_flame.temperature.ratio.filter_ratio` ``radius``, ``eps`` and
         ``contour`` (an empty dict: none); None: :data:`MATCHED_RATIO_FILTER` by the light field's
         noise (the very noisy one from :data:`MATCHED_WIDE_NOISE`).
-    noise : float or None
-        The light field's relative noise where the knobs are chosen by it; None: :func:`cfa_noise` of
-        ``views`` (give it where those are not the array to read it on: a hexagonal lattice's axial
-        views, whose empty corners read as noise).
     info : dict or None
         Filled with what the route chose: ``noise`` (measured where ``knobs`` or ``ratio_filter``
         is None), ``regime``, ``knobs``, ``sigma`` and ``ratio_filter`` (``admm-cfa-matched``),
@@ -387,7 +394,7 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
     if route == "admm-cfa-matched":
         sigma = 0.0 if sigma is None else sigma
         if ratio_filter is None or knobs is None:
-            info["noise"] = cfa_noise(views, chan, channels) if noise is None else float(noise)
+            info["noise"] = cfa_noise(views, chan, channels)
             info["regime"] = matched_regime(info["noise"])
             knobs = MATCHED_KNOBS[info["regime"]] if knobs is None else knobs
             if ratio_filter is None:
