@@ -395,3 +395,23 @@ def test_the_package_sets_its_runtime_defaults_unless_the_user_says_otherwise():
     assert run() == ["PASSIVE", "0", "False", str(tuned), str(tuned)]
     assert run(OMP_WAIT_POLICY="ACTIVE", JAX_PYLOPS="1", MALLOC_TRIM_THRESHOLD_="131072") == ["ACTIVE", "1", "True",
                                                                                              "False", "False"]
+
+
+def test_small_solves_run_on_one_thread(op, planted, monkeypatch):
+    """Below ADMM_ONE_THREAD_SAMPLES view samples a solve runs on one thread (Numba's and the FFTs'), recorded
+    in its settings, the threads restored after; at or above it, as set. The planes agree either way."""
+    import numba
+    size = len(op._lit) * op.canvas_shape[0] * op.canvas_shape[1]
+    threads, workers = numba.get_num_threads(), op.workers
+    planes = []
+    for limit, want in ((size + 1, 1), (size, threads)):
+        monkeypatch.setattr(fourier, "ADMM_ONE_THREAD_SAMPLES", limit)
+        with fourier.solve_threads(op) as used:
+            assert used == want and numba.get_num_threads() == want and op.workers == (1 if want == 1 else workers)
+        assert numba.get_num_threads() == threads and op.workers == workers
+        rec = reconstruct(planted[1], op, "admm", 2)
+        assert rec.settings["threads"] == want and numba.get_num_threads() == threads and op.workers == workers
+        planes.append(rec.planes)
+    np.testing.assert_allclose(planes[0], planes[1], rtol=1e-4, atol=1e-6 * np.abs(planes[1]).max())
+    with fourier.solve_threads(EmissionOperator.__new__(EmissionOperator)) as used:     # not exact: as set
+        assert used == threads

@@ -42,6 +42,14 @@ ADMM_MOMENTUM = 0.6
 #: before it came back, with 20 steps it fell monotonically). On the test suite's 81 converging solves a fill's
 #: residual rose at most 1.9 times the smallest before it, so the threshold leaves such solves as they were.
 ADMM_DIVERGENCE = 3.0
+#: admm solves of fewer samples than this per batch of views (lit views x the FFT canvas) run on one thread,
+#: Numba's and SciPy's FFT's (:func:`lf_flame.tomo.fourier.solve_threads`): there each kernel and FFT call's
+#: work is shorter than waking the other threads. Measured on this project's 2-core machine (a ``/tmp`` probe of
+#: ``make cameras``' decoded light fields, two scenes each noise-free and at 14 dB, median solve, two threads ->
+#: one): 48 px camera (0.17 M samples) 18.2 -> 7.0 ms, example (0.17 M) 17.9 -> 11.1 ms, hexagonal (0.15 M)
+#: 15.8 -> 9.9 ms, rotated (0.68 M) 60.3 -> 62.4 ms, paper (3.9 M) 185 -> 275 ms; the threshold lies between
+#: 0.17 M and 0.68 M (their geometric mean).
+ADMM_ONE_THREAD_SAMPLES = 340_000
 ADMM_RESTART_INNER = 4
 ADMM_TV = 0.3
 #: admm's knobs follow the light field's noise unless told (:func:`lf_flame.tomo.noise_knobs.relative_noise`,

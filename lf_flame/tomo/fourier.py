@@ -59,6 +59,7 @@ serve any camera and radiance scale.
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import math
 
@@ -66,8 +67,8 @@ import numpy as np
 import scipy.fft
 
 from . import _fourier_kernels
-from .defaults import (ADMM_DIVERGENCE, ADMM_FILLS, ADMM_INNER, ADMM_LAM, ADMM_MOMENTUM, ADMM_RESTART_INNER, ADMM_RHO,
-                       ADMM_RHO_TV, ADMM_STARTS, ADMM_TV, COARSE_KNOBS, WIENER_RHO)
+from .defaults import (ADMM_DIVERGENCE, ADMM_FILLS, ADMM_INNER, ADMM_LAM, ADMM_MOMENTUM, ADMM_ONE_THREAD_SAMPLES,
+                       ADMM_RESTART_INNER, ADMM_RHO, ADMM_RHO_TV, ADMM_STARTS, ADMM_TV, COARSE_KNOBS, WIENER_RHO)
 from .fourier_system import admm_system, fourier_system
 
 
@@ -101,6 +102,26 @@ def fill_data(views, fit, op):
                                       np.ascontiguousarray(fit, bool).reshape(N * N, R, C), op._w,
                                       np.asarray(op._lit, np.int64), y, yt, w, m)
     return y, yt, w, m, math.sqrt(sq)
+
+
+@contextlib.contextmanager
+def solve_threads(op):
+    """Run a solve on ``op`` on one thread (Numba's and ``op.workers`` for SciPy's FFTs) where its
+    views are fewer samples than :data:`~lf_flame.tomo.defaults.ADMM_ONE_THREAD_SAMPLES`; as set
+    otherwise (and for an operator that is not exact). Yields the threads used."""
+    import numba
+    canvas = getattr(op, "canvas_shape", None)
+    if canvas is None or len(op._lit) * canvas[0] * canvas[1] >= ADMM_ONE_THREAD_SAMPLES:
+        yield numba.get_num_threads()
+        return
+    threads, workers = numba.get_num_threads(), op.workers
+    numba.set_num_threads(1)
+    op.workers = 1
+    try:
+        yield 1
+    finally:
+        numba.set_num_threads(threads)
+        op.workers = workers
 
 
 def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INNER, lam: float = ADMM_LAM,

@@ -300,9 +300,11 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         raise ValueError(f"a support, l1, start, start planes, tol and state are for the admm only. Received "
                          f"solver={solver!r}")
     if solver == "admm":
-        x, residuals = _solve_admm(p, settings, step, iters if iters_given else None, tv if tv_given else None,
-                                   lam=lam, l1=l1, start=start, tol=tol, support=support, state=state,
-                                   start_planes=start_planes)
+        from .fourier import solve_threads
+        with solve_threads(op) as settings["threads"]:
+            x, residuals = _solve_admm(p, settings, step, iters if iters_given else None, tv if tv_given else None,
+                                       lam=lam, l1=l1, start=start, tol=tol, support=support, state=state,
+                                       start_planes=start_planes)
     elif solver == "adjoint":
         x, residuals = _solve_adjoint(p)
     elif solver == "lsqr":
