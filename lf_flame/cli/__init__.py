@@ -437,9 +437,10 @@ def build_parser() -> argparse.ArgumentParser:
                    default="admm-cfa-matched",
                    help="each channel's emission: the exact operator's admm on its own pixels (the CFA as a "
                         "missing-data mask) on a 2 x 2 grid per lenslet, re-imaged and solved again on the other "
-                        "channel's pixels so that both channels' resolution matches (smoothed by 0.7 lenslet when "
-                        "the light field is noisy); admm on its own pixels alone, unsmoothed or smoothed by 0.7 "
-                        "lenslet; or each channel's pixels refocused (results/temperature.md)")
+                        "channel's pixels so that both channels' resolution matches, its settings and ratio "
+                        "filter by the light field's noise (decoded captures: their own); admm on its own pixels "
+                        "alone, unsmoothed or smoothed by 0.7 lenslet; or each channel's pixels refocused (a "
+                        "square grid's only) (results/temperature.md)")
     s.add_argument("--min-fraction", type=fraction, default=0.1, help="pixels whose two channels' emission is below "
                    "this fraction (0 to 1) of their plane's peak get no temperature (counted as dim)")
     s.add_argument("--alpha", type=float, default=1.39, help="emissivity exponent of the source, eps ~ lambda^-alpha "
