@@ -268,10 +268,10 @@ def main(argv=None):
                                              relative_residual_median=("relative_residual", "median"),
                                              reconstruct_wall_s=("reconstruct_wall_s", "median")).reset_index()
     wall = time.perf_counter() - t_all
-    hexagonal = (" --grid hex" if a.grid == "hex" else "") + (f" --route {a.route}" if a.route else "") + (
+    flags = (" --grid hex" if a.grid == "hex" else "") + (f" --route {a.route}" if a.route else "") + (
         f" --camera {a.camera}" if a.camera else "")
     md = ["# A colour camera end to end: each plane's temperature from raw captures", "",
-          f"`python experiments/cameras_colour.py --out {a.out}{hexagonal}` ({wall:.0f} s on 2 cores). "
+          f"`python experiments/cameras_colour.py --out {a.out}{flags}` ({wall:.0f} s on 2 cores). "
           + (f"The camera of {a.camera}" if a.camera else "The example camera (10.57 px lenslet images, rotated 0.4°")
           + f"{', on a hexagonal grid' if a.grid == 'hex' else ''}{'' if a.camera else ')'} with an "
           "RGGB CFA: white image -> `calibrate`; blackbodies at "

@@ -89,10 +89,10 @@ def cmd_sequence(a):
             raise ValueError("give the planes of a recording: --depth MM (repeatable) or --slope S")
         cal, k, sensor = None, 1, None
         if a.calibration:                # real frames: the planes are the decoded views' camera's
-            from ..optics.camera_file import load_colour_sensor
             from ..real.calibration import GridCalibration
+            from .real import colour_sensor
             calibration = GridCalibration.load(a.calibration)
-            colour = load_colour_sensor(a.camera) if a.camera else None
+            colour = colour_sensor(a.camera, a.input)[0]
             if colour is not None:       # decoded with the channels apart and levelled into one light field
                 sensor = dict(name=colour.name, pattern=colour.pattern, phase=list(colour.phase))
                 print(f"colour sensor {colour.name}, {colour.pattern} phase {colour.phase}: each frame's red and "

@@ -337,7 +337,6 @@ def volume_reconstruct(a):
     scene is known)."""
     from ..refocus.shift_and_sum import aperture_mask, focal_stack
     from ..tomo.files import plot_reconstruction, save_reconstruction
-    from ..tomo.lattice import LatticeOperator
     from ..tomo.truth import scene_truth
     from ..tomo.volume import solve_volume
     other = [f"--{k.replace('_', '-')}" for k in ("depth", "depths", "slope", "solver", "iters", "subsamples",
@@ -370,7 +369,7 @@ def volume_reconstruct(a):
     misfit = misfit_warning(lf, op, rec, level)
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), volume=True,
                         depth_resolution=table.to_dict("list"), edge_share=edge, misfit=misfit,
-                        operator="exact, with decoding's interpolation" if isinstance(op, LatticeOperator) else "exact")
+                        operator="exact" if lf.interpolation is None else "exact, with decoding's interpolation")
     scene = None if lf.decoded else _raw_scene(a.raw, cam)
     truth = None if scene is None else scene_truth(scene, op)
     refocused = focal_stack(views, [cam.slope_for_depth(d) for d in rec.depths_mm],

@@ -219,9 +219,12 @@ class SequenceJob:
         from ..real.images import load_image
         from ..real.decoding import clipped_samples, decode, views_shape
         if "cal" not in self._cache:
+            from ..optics.colour import library_sensor
             self._cache.update(cal=GridCalibration.from_dict(self.calibration),
                                white=None if self.white is None else load_image(self.white),
-                               dark=None if self.dark is None else load_image(self.dark))
+                               dark=None if self.dark is None else load_image(self.dark),
+                               sensor=None if self.sensor is None else library_sensor(
+                                   self.sensor["name"], self.sensor["pattern"], tuple(self.sensor["phase"])))
         c = self._cache
         if raw.shape != tuple(c["cal"].sensor_shape):
             raise ValueError(f"frame of {raw.shape[0]} x {raw.shape[1]} pixels; the calibration's sensor is "
@@ -235,11 +238,9 @@ class SequenceJob:
                                                                        bin_views=k, resample=False)
         if self.sensor is None:
             return decode(raw, c["cal"], c["white"], c["dark"], n_views=n, bin_views=k, resample=False), clipped
-        from ..optics.colour import library_sensor
         from ..real.decoding import decode_colour
         from ..temperature.channels import levelled_views
-        sensor = library_sensor(self.sensor["name"], self.sensor["pattern"], tuple(self.sensor["phase"]))
-        views, other, _ = levelled_views(*decode_colour(raw, c["cal"], sensor, c["white"], c["dark"], n_views=n))
+        views, other, _ = levelled_views(*decode_colour(raw, c["cal"], c["sensor"], c["white"], c["dark"], n_views=n))
         return views, other if clipped is None else other | clipped
 
     def fit_data(self, views: np.ndarray, clipped=None):
