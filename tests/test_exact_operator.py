@@ -127,14 +127,17 @@ def test_the_kernels_have_converged_in_the_quadrature(camera):
     assert np.abs(a - b).sum() < 1e-5 * b.sum()
 
 
-def test_float32_is_float64_to_its_rounding(camera):
+def test_float32_is_float64_to_its_packed_spectra(camera):
+    """float32 keeps the spectra in 16-bit fixed point (a quarter of complex128's memory): A and A^T
+    within 2e-5 of float64's (measured 4e-6), each still the other's transpose to float32 rounding."""
     op64 = ExactOperator(camera, PAPER_DEPTHS)
     op32 = ExactOperator(camera, PAPER_DEPTHS, precision="float32")
-    assert op32._spec.nbytes * 2 == op64._spec.nbytes
+    assert op32._spec.nbytes * 4 < op64._spec.nbytes * 1.01
     x = np.random.default_rng(0).random(op64.shape[1])
     y = np.random.default_rng(1).random(op64.shape[0])
     for f, g in ((op64.matvec(x), op32.matvec(x)), (op64.rmatvec(y), op32.rmatvec(y))):
-        assert np.linalg.norm(f - g) < 1e-6 * np.linalg.norm(f)
+        assert np.linalg.norm(f - g) < 2e-5 * np.linalg.norm(f)
+    assert abs(np.dot(op32.matvec(x), y) - np.dot(x, op32.rmatvec(y))) < 1e-6 * np.dot(op64.matvec(x), y)
 
 
 def test_the_solvers_take_it(camera):
