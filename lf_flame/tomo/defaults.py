@@ -125,7 +125,7 @@ SUBSAMPLES_MAX_PLANES = 16
 VOLUME_PRIORS = ("none", "tv", "sparse", "axisymmetric")
 VOLUME_PRIOR = "none"
 VOLUME_STEP_MM = 0.5
-#: ... at most this many planes (the per-frequency matrices grow as P^2: 81 planes peak at 3.0 GB on the
+#: ... at most this many planes (the per-frequency matrices grow as P^2: 81 planes peak at 2.2 GB on the
 #: paper's camera, ``results/fourier_solver.md``) ...
 VOLUME_MAX_PLANES = 81
 #: ... and the weights of the "tv" and "sparse" priors per noise level (:func:`lf_flame.tomo.noise_knobs.noise_regime`),
