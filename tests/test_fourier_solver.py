@@ -57,6 +57,37 @@ def test_the_numba_sums_are_the_einsums(op):
                                atol=1e-10)
 
 
+def test_the_packed_spectra_are_the_complex_ones_to_16_bits(op):
+    """PackedSpectra (the float32 operator's storage): each view and plane's parts to 1/32767 of its largest,
+    the products as the complex einsums to that, a spectrum of zeros packed as zeros (no division by its
+    scale), and binning the phases the sum of the unpacked ones."""
+    S = op._spec.astype(np.complex64)
+    S[3, 1] = 0                                                      # a plane this view does not see
+    packed = K.PackedSpectra(S.shape)
+    with np.errstate(all="raise"):                                   # no 0 / 0 for the plane of zeros
+        for i in range(len(S)):
+            packed.put(i, S[i])
+    assert packed.nbytes < S.nbytes / 1.9 and len(packed) == len(S)
+    top = np.maximum(np.abs(S.real), np.abs(S.imag)).max(axis=(2, 3))
+    for i in (0, 3, len(S) - 1):
+        err = np.abs(packed.view(i) - S[i]).max(axis=(1, 2))
+        assert np.all(err <= top[i] / 32767 * 0.71 + 1e-12)           # half a step per part, both parts
+    assert not np.any(packed.view(3)[1]) and np.all(np.isfinite(packed.scale))
+    rng = np.random.default_rng(0)
+    xs = (rng.normal(size=S.shape[1:]) + 1j * rng.normal(size=S.shape[1:])).astype(np.complex64)
+    ys = (rng.normal(size=(S.shape[0],) + S.shape[2:]) + 1j * rng.normal(size=(S.shape[0],) + S.shape[2:]))
+    want_f, want_a = np.einsum("vkrf,krf->vrf", S, xs), np.einsum("vkrf,vrf->krf", S.conj(), ys)
+    got_f, got_a = K.spectra_forward(packed, xs), K.spectra_adjoint(packed, ys)
+    assert got_f.dtype == got_a.dtype == np.complex64
+    assert np.linalg.norm(got_f - want_f) < 3e-5 * np.linalg.norm(want_f)
+    assert np.linalg.norm(got_a - want_a) < 3e-5 * np.linalg.norm(want_a)
+    binned = packed.binned(2)
+    want = np.stack([packed.view(i) for i in range(len(S))]).reshape(len(S), -1, 2, *S.shape[2:]).sum(axis=2)
+    assert binned.shape == (len(S), S.shape[1] // 2) + S.shape[2:]
+    np.testing.assert_allclose(np.stack([binned.view(i) for i in range(len(S))]), want, rtol=0,
+                               atol=2e-4 * np.abs(want).max())
+
+
 def test_the_fused_admm_steps_are_the_array_formulas():
     """The Numba kernels of the ADMM steps between fills against their NumPy formulas."""
     rng = np.random.default_rng(2)
