@@ -53,7 +53,7 @@ adjoint is the exact transpose: the same kernels conjugated, padding and croppin
 Precision: ``precision="float64"`` (the default) keeps the kernels' spectra complex128 and
 the FFTs in float64: ``pylops.utils.dottest`` holds to 1e-12 and A^T is A's transpose to
 float64 rounding, which the solvers' step sizes and the tests rely on. ``"float32"``
-halves the FFTs' traffic and keeps the spectra in 16-bit fixed point, a quarter of the
+halves the FFTs' traffic and keeps the spectra in 16-bit fixed point, a quarter of float64's
 memory (:class:`~lf_flame.tomo._fourier_kernels.PackedSpectra`: each view and plane's
 real and imaginary parts scaled to their largest); A and A^T stay each other's transpose
 to float32 rounding, and both are within 1-2e-5 of float64's, far below any data's noise
