@@ -125,9 +125,8 @@ def run_camera(name, sheet, cache: Path, seeds, rays: int) -> tuple[list, list, 
     from lf_flame.real.calibration import GridCalibration
     from lf_flame.real.lightfield import read_light_field
     from lf_flame.simulate import tracer
-    from lf_flame.tomo.files import load_reconstruction
+    from lf_flame.tomo.files import load_found, load_reconstruction
     from lf_flame.tomo.scoring import score_flames
-    import h5py
     d = cache / name
     d.mkdir(parents=True, exist_ok=True)
     cam_file = ROOT / "data_gen" / "paper.toml" if sheet is None else d / "camera.toml"
@@ -185,13 +184,8 @@ def run_camera(name, sheet, cache: Path, seeds, rays: int) -> tuple[list, list, 
                 if rc:
                     continue
                 rec = load_reconstruction(rec_file)
-                with h5py.File(rec_file, "r") as f:
-                    found_rec = json.loads(f.attrs["found_depths"])
-                    masks = f["extra/found_masks"][...]
-                    labels = f["extra/found_regions"][...]
-                found = [(r["depth_mm"], m, labels == r["region"]) for r, m in zip(found_rec, masks)]
-                df = score_flames(rec.planes, rec.depths_mm, scene, lf.camera, found=found, frame=lf.frame,
-                                  time_s=rec.time_s, route=route, noise=noise, seed=seed)
+                df = score_flames(rec.planes, rec.depths_mm, scene, lf.camera, found=load_found(rec_file),
+                                  frame=lf.frame, time_s=rec.time_s, route=route, noise=noise, seed=seed)
                 df.insert(0, "camera", name)
                 df["slope_err"] = [abs(cam.slope_for_depth(e) - cam.slope_for_depth(t)) if np.isfinite(e) else np.nan
                                    for e, t in zip(df.depth_mm, df.depth_mm_true)]

@@ -130,11 +130,9 @@ def emission_rows(scene_npz: Path, views: Path, cam: Path, noise: str, seed: int
     """``reconstruct`` (its default: depths found, admm) of one decoded colour capture, whose channels it levels into
     one monochrome light field; each flame scored by :func:`lf_flame.tomo.scoring.score_flames` against its green
     channel's emission (the levelled views' units) in the decoded frame."""
-    import h5py
-
     from lf_flame.cli._io import camera_config, colour_scene
     from lf_flame.real.lightfield import read_light_field
-    from lf_flame.tomo.files import load_reconstruction
+    from lf_flame.tomo.files import load_found, load_reconstruction
     from lf_flame.tomo.scoring import score_flames
     rec_file = views.with_name(views.stem + "_rec.h5")
     t0 = time.perf_counter()
@@ -146,12 +144,8 @@ def emission_rows(scene_npz: Path, views: Path, cam: Path, noise: str, seed: int
     green = dataclasses.replace(scene, layers=tuple(dataclasses.replace(L, radiance=ch[1])
                                                     for L, ch in zip(scene.layers, chans)))
     rec = load_reconstruction(rec_file)
-    with h5py.File(rec_file, "r") as f:
-        found_rec = json.loads(f.attrs["found_depths"])
-        masks, labels = f["extra/found_masks"][...], f["extra/found_regions"][...]
-    found = [(r["depth_mm"], m, labels == r["region"]) for r, m in zip(found_rec, masks)]
-    df = score_flames(rec.planes, rec.depths_mm, green, lf.camera, found=found, frame=lf.frame, time_s=rec.time_s,
-                      noise=noise, seed=seed)
+    df = score_flames(rec.planes, rec.depths_mm, green, lf.camera, found=load_found(rec_file), frame=lf.frame,
+                      time_s=rec.time_s, noise=noise, seed=seed)
     df["slope_err"] = [abs(capture.slope_for_depth(e) - capture.slope_for_depth(t)) if np.isfinite(e) else np.nan
                        for e, t in zip(df.depth_mm, df.depth_mm_true)]     # lenslets per view step, as make cameras
     df["planes"] = len(rec.depths_mm)

@@ -49,7 +49,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "fourier": ["solve_admm", "fill_data", "wiener_start", "backprojection_weight", "coarse_operator"],
         "fourier_system": ["FourierSystem", "fourier_system", "admm_system", "normal_matrices"],
         "noise_knobs": ["relative_noise", "noise_norm", "noise_regime", "admm_knobs", "admm_subsamples"],
-        "files": ["save_reconstruction", "load_reconstruction", "plot_reconstruction", "reconstruction_figure"],
+        "files": ["save_reconstruction", "load_reconstruction", "load_found", "plot_reconstruction", "reconstruction_figure"],
         "operator": ["ADJOINT_BLOCKS", "RAY_TABLE_MAX_BYTES", "plane_grid", "EmissionOperator",
                      "normalised_adjoint", "check_views"],
         "resolution": ["FEATURE_SIZES_MM", "CONDITIONS", "AXES", "MAX_PLANES", "DepthResolution", "stack_depths",

@@ -408,12 +408,11 @@ class ExactOperator(pylops.LinearOperator):
         spec = np.empty(shape, cdt) if precision == "float64" else _fourier_kernels.PackedSpectra(shape)
         workers = os.cpu_count() if workers is None else int(workers)
 
+        store = spec.__setitem__ if precision == "float64" else spec.put
+
         def view_spectrum(i):                                     # (P, Lr, Ty) @ (P, Ty, Tx) @ (P, Tx, F), BLAS
             u, v = divmod(int(lit[i]), N)
-            if precision == "float64":
-                spec[i] = (er[u] @ hr[u, v]) @ ec[v]
-            else:
-                spec.put(i, (er[u] @ hr[u, v]) @ ec[v])
+            store(i, (er[u] @ hr[u, v]) @ ec[v])
         with ThreadPoolExecutor(max(1, workers)) as pool:
             list(pool.map(view_spectrum, range(len(lit))))
         self._spec, self._lit = spec, lit                             # (V', P, Lr, F): lit views only

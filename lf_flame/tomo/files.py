@@ -69,6 +69,32 @@ def load_reconstruction(path) -> Reconstruction:
                               json.loads(f.attrs["settings"]), f["residuals"][...], float(f.attrs["time_s"]))
 
 
+def load_found(path) -> list:
+    """The depths a reconstruction file's route found, with their footprints and regions
+    (``lf-flame reconstruct --depths auto``): ``found`` for :func:`lf_flame.tomo.scoring.score_flames`.
+
+    Returns
+    -------
+    list of (depth_mm, mask, region)
+        Per found depth (mm from the focus distance): the lenslets that voted for it and the region
+        it was found in, boolean (R, C).
+
+    Raises
+    ------
+    ValueError
+        A file whose depths were given, not found (no ``found_depths``).
+    """
+    import json
+
+    import h5py
+    with h5py.File(path, "r") as f:
+        if "found_depths" not in f.attrs:
+            raise ValueError(f"{path}: its depths were given, not found (no found_depths)")
+        found = json.loads(f.attrs["found_depths"])
+        masks, labels = f["extra/found_masks"][...], f["extra/found_regions"][...]
+    return [(r["depth_mm"], m, labels == r["region"]) for r, m in zip(found, masks)]
+
+
 def _plane_extents(rec: Reconstruction) -> list:
     """Each plane's (left, right, bottom, top) in mm (x right, y up), the grid centred on the
     optical axis (:func:`lf_flame.tomo.operator.plane_grid`)."""
