@@ -140,7 +140,8 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
         op = LatticeOperator(lf.camera, depths, lf.views.shape[2:], layout="square", subsamples=subsamples,
                              interpolation=lf.interpolation)
     else:
-        op = emission_operator(lf.camera, depths, rays_per_pixel=rays_per_pixel, subsamples=subsamples)
+        op = emission_operator(lf.camera, depths, rays_per_pixel=rays_per_pixel, subsamples=subsamples,
+                               sample_offsets=lf.sample_offsets)
     lf = _fitted_light_field(lf, saturation)
     data, fit = fit_data(lf, op)
     if solver == "learned":

@@ -332,7 +332,7 @@ def decode_colour(raw: np.ndarray, calibration: GridCalibration, sensor, white: 
     calibration.validate()
     img, d, n = _prepared(raw, calibration, dark, n_views, check)
     H, W = calibration.sensor_shape
-    q = np.floor(view_positions(calibration, n)).astype(np.int64)    # pixel (i, j) spans [i, i + 1) x [j, j + 1)
+    q = _nearest_pixels(calibration, n)
     on = (q[..., 0] >= 0) & (q[..., 0] < H) & (q[..., 1] >= 0) & (q[..., 1] < W)
     qr, qc = np.clip(q[..., 0], 0, H - 1), np.clip(q[..., 1], 0, W - 1)
     cfa = cfa_channels((H, W), sensor.pattern, sensor.phase)
@@ -352,6 +352,49 @@ def decode_colour(raw: np.ndarray, calibration: GridCalibration, sensor, white: 
         lit = wv > min_white
         views = np.where(lit, views / np.where(lit, wv, 1.0), 0.0)
     return np.ascontiguousarray(views.astype(np.float32)), np.ascontiguousarray(channels.astype(np.int8))
+
+
+def _nearest_pixels(calibration: GridCalibration, n_views: int) -> np.ndarray:
+    """The pixel holding each view sample's position (row, column; (N, N, R, C, 2) int64): pixel
+    ``(i, j)`` spans ``[i, i + 1) x [j, j + 1)``."""
+    return np.floor(view_positions(calibration, n_views)).astype(np.int64)
+
+
+def sample_offsets(calibration: GridCalibration, n_views: int) -> np.ndarray:
+    """Where the pixel :func:`decode_colour` reads for each view sample lies from the sample's place.
+
+    The pixel's centre less the view's position (:func:`view_positions`), turned into the grid's
+    axes and in view steps (one pixel: :func:`decode`'s view step), each within about half a
+    step: what the exact operator models for such samples
+    (:class:`lf_flame.tomo.exact.ExactOperator`'s ``sample_offsets``). On a grid whose pitch is
+    not a whole number of pixels it runs through every value from lenslet to lenslet; its
+    effect on a sample grows with the plane's slope (a point at ``s`` lenslets per view step is
+    seen ``s`` times the offset lenslets away).
+
+    Parameters
+    ----------
+    calibration : GridCalibration
+        A square grid (a hexagonal grid's colour samples stay on its lattice and are not modelled so).
+    n_views : int
+        ``N``, as decoded.
+
+    Returns
+    -------
+    ndarray of shape (N, N, R, C, 2), float32
+        (along the grid's rows, along its columns), view steps.
+
+    Raises
+    ------
+    ValueError
+        A hexagonal grid.
+    """
+    if calibration.layout != "square":
+        raise ValueError("sample offsets are modelled on a square lenslet grid; a hexagonal grid's colour views "
+                         "stay on its lattice")
+    pos = view_positions(calibration, int(n_views))
+    rot = calibration.matrix / calibration.pitch_px                  # grid axes -> sensor (rows of view_positions)
+    off = (_nearest_pixels(calibration, int(n_views)) + 0.5 - pos) @ np.linalg.inv(rot.T)
+    return np.ascontiguousarray(off, np.float32)
 
 
 def auto_saturation(raw: np.ndarray) -> float:

@@ -72,6 +72,11 @@ class LightField:
         solves on. None: a square grid (or views decoded without them).
     lattice_leave_out : ndarray of bool of the lattice views' shape, or None
         Their samples from clipped pixels.
+    sample_offsets : ndarray of shape (N, N, R, C, 2), float32, or None
+        A square colour capture's samples, each its nearest pixel: where that pixel lies from its
+        view's place (view steps; :func:`lf_flame.real.decoding.sample_offsets`), which the exact
+        operator models (:class:`lf_flame.tomo.exact.ExactOperator`'s ``sample_offsets``). None:
+        every sample at its view's place.
     interpolation : (ndarray of shape (2, M), int) or None
         Decoded views (bilinear, not a colour capture's nearest pixels): where their samples fell
         between pixels (:func:`lf_flame.real.decoding.interpolation_phases`) and the pixels per
@@ -93,6 +98,7 @@ class LightField:
     lattice_views: np.ndarray | None = None
     lattice_leave_out: np.ndarray | None = None
     interpolation: tuple | None = None
+    sample_offsets: np.ndarray | None = None
 
     def __post_init__(self):
         v = self.views
@@ -111,6 +117,8 @@ class LightField:
                              f"cols) with the views' N = {v.shape[0]}")
         if self.lattice_leave_out is not None and (lv is None or self.lattice_leave_out.shape != lv.shape):
             raise ValueError(f"{self.source}: lattice_leave_out must have the lattice views' shape")
+        if self.sample_offsets is not None and np.shape(self.sample_offsets) != v.shape + (2,):
+            raise ValueError(f"{self.source}: sample_offsets must be of shape {v.shape + (2,)} (the views' and 2)")
 
     @property
     def decoded(self) -> bool:
@@ -273,7 +281,7 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
         As :func:`lf_flame.real.own_camera.views_camera` (another sensor, layout or pitch);
         NaN or inf in the views.
     """
-    from .decoding import interpolation_phases
+    from .decoding import interpolation_phases, sample_offsets
     from .own_camera import decoded_frame, views_camera
     v = np.asarray(views, np.float32)
     if not np.all(np.isfinite(v)):
@@ -289,7 +297,9 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
                       lattice_views=None if lattice_views is None else np.asarray(lattice_views, np.float32),
                       lattice_leave_out=lattice_clipped,
                       interpolation=None if channels is not None else
-                      (interpolation_phases(calibration, v.shape[0], bin_views), int(bin_views)))
+                      (interpolation_phases(calibration, v.shape[0], bin_views), int(bin_views)),
+                      sample_offsets=sample_offsets(calibration, v.shape[0])
+                      if channels is not None and lattice_views is None else None)
 
 
 def read_light_field(path, camera=None, calibration=None, *, views: int | None = None,

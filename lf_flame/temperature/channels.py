@@ -281,9 +281,11 @@ def cfa_noise(views: np.ndarray, chan: np.ndarray, channels) -> float:
     return max(relative_noise(channel_subviews(views, chan, c)) for c in channels)
 
 
-def route_operator(camera, depths_mm, route: str, hexagonal=None):
+def route_operator(camera, depths_mm, route: str, hexagonal=None, sample_offsets=None):
     """The planes' operator a route of :data:`CFA_ROUTES` solves on: None for ``refocus-cfa``; the
     :data:`MATCHED_SUBSAMPLES` grid for ``admm-cfa-matched``; the lenslet grid otherwise (float32).
+    ``sample_offsets``: a decoded square colour capture's (:attr:`lf_flame.real.lightfield.LightField.sample_offsets`),
+    each sample modelled at its own pixel (:class:`lf_flame.tomo.exact.ExactOperator`).
 
     ``hexagonal``: a decoded hexagonal grid's light field (:class:`lf_flame.real.lightfield.LightField`
     with lattice views), whose channels are solved on its lattice
@@ -301,7 +303,7 @@ def route_operator(camera, depths_mm, route: str, hexagonal=None):
         return hexagonal_operator(hexagonal, depths_mm, precision="float32", subsamples=subsamples)
     if route == "refocus-cfa":
         return None
-    return ExactOperator(camera, depths_mm, precision="float32", subsamples=subsamples)
+    return ExactOperator(camera, depths_mm, precision="float32", subsamples=subsamples, sample_offsets=sample_offsets)
 
 
 def refocus_channel(views: np.ndarray, own: np.ndarray, slopes, mask: np.ndarray) -> np.ndarray:

@@ -40,7 +40,7 @@ def white_views(op: ExactOperator) -> np.ndarray:
     """
     # (N, N): the same on every plane; a plane's s^2 phase kernels share its taps
     per_view = op.kernels.sum(axis=(3, 4)).mean(axis=2) * op.subsamples ** 2
-    return op.weights * per_view[:, :, None, None]
+    return op.to_samples(op.weights * per_view[:, :, None, None])
 
 
 def decoded_problem(views, op: ExactOperator, clipped=None, *, min_white: float = MIN_WHITE):

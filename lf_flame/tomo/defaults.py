@@ -106,6 +106,14 @@ ADMM_KNOBS = {(1, "quiet"): dict(ADMM_QUIET, lam=ADMM_LAM, l1=0.001, start="refo
 #: (``python experiments/fourier_solver.py --stage coarse``: each candidate ahead of the 2 x 2 grid's quiet
 #: knobs, the fastest stopped solve within 10 % of the best score, as the starts are chosen).
 COARSE_KNOBS = {"quiet": dict(ADMM_KNOBS[1, "quiet"], start="zero"), "noisy": ADMM_KNOBS[1, "noisy"]}
+#: admm's fills cap and stopping tolerance on an operator whose samples lie off the views' grid (a colour capture's,
+#: :class:`~lf_flame.tomo.exact.ExactOperator`'s ``sample_offsets``) unless told, at both noise levels: each sample
+#: is one of its view's ``M^2`` sub-views, so the fills have most of every sub-view to fill and converge more slowly
+#: than on whole views. Chosen by a probe (not a committed command) on the colour camera's validation captures
+#: (seeds 58101-58102 of ``experiments/cameras_colour.py``, the flames' true depths, the 2 x 2 grid, noise-free and
+#: 14 dB): tol 0.005 stopped after 16-17 fills within 0.013 of 30 fills' per-plane error (tol 0.02: 12 fills, up to
+#: 0.027 worse); 4 fills (the whole views' cap) left 0.30-0.37 per plane against 0.04-0.28 at 30.
+OFFSET_KNOBS = {"fills": 40, "tol": 0.005}
 #: The planes' grid of the routes that build their operator (``lf-flame reconstruct``,
 #: :func:`lf_flame.tomo.found_planes.find_planes`): a light field carries detail finer than a lenslet in
 #: its views' parallax off focus, and the 2 x 2 grid beat the lenslet grid on the validation

@@ -86,6 +86,9 @@ QUADRATURE_NODES = 6
 #: lenslet's shifted by whole samples: above it the map is not a convolution.
 SHIFT_TOLERANCE = 1e-6
 PRECISIONS = ("float64", "float32")
+#: Sub-views per view and axis of :class:`ExactOperator` for samples off the views' grid (a colour
+#: capture's pixels, up to half a step away): each sample is then modelled within 1/6 of a step.
+OFFSET_BINS = 3
 
 
 def _cos4_mean(ty, tx, var_y, cov, var_x):
@@ -140,13 +143,20 @@ class ExactKernels:
 
 
 def exact_kernels(camera: PlenopticCamera, depths_mm, *, margin: float = 1.0, effects: Effects = FLAME_EFFECTS,
-                  quadrature_nodes: int = QUADRATURE_NODES, subsamples: int = 1) -> ExactKernels:
+                  quadrature_nodes: int = QUADRATURE_NODES, subsamples: int = 1, view_shifts=None) -> ExactKernels:
     """The exact map's kernels by quadrature of the tracer's ray chain (module docstring).
 
     What :class:`ExactOperator` builds its spectra from; parameters as there. Used alone
     where only the kernels are needed (:mod:`lf_flame.tomo.resolution`). With
     ``subsamples = s > 1`` the texel coordinates are those of the ``s``-times finer grid
     and the kernels are regrouped by phase (:func:`_phase_kernels`).
+
+    ``view_shifts``: None, or ``M`` shifts (view steps, toward higher view indices along rows and
+    columns): each view ``u`` is replaced by the ``M`` views of its pixel moved by each shift,
+    view ``u M + k`` of ``N M`` per axis (:class:`ExactOperator`'s sub-views). The chain is affine
+    in the view index, so a shift moves its constant terms by that many times their step from
+    view to view (the read-out image runs against the sensor along one axis: a pixel's own ray
+    coordinate would not say which way).
 
     Returns
     -------
@@ -183,6 +193,19 @@ def exact_kernels(camera: PlenopticCamera, depths_mm, *, margin: float = 1.0, ef
     sizes = [plane_grid(camera, d, margin) for d in depths]      # raises for a plane the camera cannot image
     P = len(depths)
     (cy, ay, ty, dty), (cx, ax, tx, dtx) = chain_coefficients(camera, depths, sizes, (gr, gc), effects)
+    if view_shifts is not None:                                  # sub-views: each pixel moved by each shift
+        sh = np.asarray(view_shifts, np.float64)
+        if N < 2 or sh.ndim != 1 or not np.all(np.isfinite(sh)):
+            raise ValueError(f"view_shifts must be finite shifts (view steps) of a camera with 2 or more views per "
+                             f"axis. Received: {view_shifts!r} for {N} views")
+
+        def shifted(c):                   # (N, ..., 3) -> (N M, ..., 3): the constant term moved along the views
+            step = (c[-1, ..., 0] - c[0, ..., 0]) / (N - 1)     # affine in the view index
+            c = np.repeat(c, len(sh), axis=0)
+            c[..., 0] += np.tile(sh, N).reshape((-1,) + (1,) * (c.ndim - 2)) * step
+            return c
+        cy, ay, ty, cx, ax, tx = (shifted(c) for c in (cy, ay, ty, cx, ax, tx))
+        dty, dtx, N = np.repeat(dty, len(sh)), np.repeat(dtx, len(sh)), N * len(sh)
     cy, cx = cy * sub, cx * sub                                  # texel coordinates on the finer grid
 
     # taps of each view and plane, and the canvas no wrap-around reaches
@@ -328,6 +351,17 @@ class ExactOperator(pylops.LinearOperator):
         applied as ``4 P`` phase planes of the same convolutions: :func:`_phase_kernels`),
         at ``subsamples^2`` times the unknowns. At focus every view sees a sample's whole
         footprint, so there only the phases' sum is measured.
+    sample_offsets : ndarray of shape (N, N, R, C, 2) or None
+        Where each view sample's pixel lies from its view's place (view steps, along the
+        views' rows and columns, within one step): a colour capture decoded pixel by pixel
+        (:func:`lf_flame.real.decoding.sample_offsets`), whose samples sit up to half a pixel
+        from the grid of views. Each view is then modelled by ``offset_bins`` sub-views per
+        axis, its pixel moved by ``(k + 1/2) / M - 1/2`` steps (``k < M``; ``exact_kernels``'s
+        ``view_shifts``), and each sample read from its nearest sub-view: the map stays a
+        convolution per sub-view, at ``M^2`` times the views' cost. None: every sample at its
+        view's place.
+    offset_bins : int
+        ``M``, sub-views per view and axis with ``sample_offsets`` (:data:`OFFSET_BINS`).
 
     Attributes
     ----------
@@ -338,12 +372,17 @@ class ExactOperator(pylops.LinearOperator):
         The planes as the convolutions see them (:meth:`to_phases`).
     dimsd : (N, N, R, C)
         Data shape: the views of :func:`lf_flame.refocus.shift_and_sum.raw_to_views`.
-    kernels : ndarray of shape (N, N, P', Ty, Tx), float64
+    offset_bins : int or None
+        ``M`` with ``sample_offsets``, else None.
+    view_dims : (N', N', R, C)
+        The views the kernels are of: ``dimsd``, or with ``sample_offsets`` the ``N' = N M``
+        sub-views per axis (:meth:`to_samples`, :meth:`from_samples`).
+    kernels : ndarray of shape (N', N', P', Ty, Tx), float64
         The taps ``h`` of the ``P' = phase_dims[0]`` phase planes; tap ``(m, n)`` reads the
         phase plane at offset ``(tap_origin_y[u, k] + m, tap_origin_x[v, k] + n)`` lenslets
         from the pixel's lenslet.
-    tap_origin_y, tap_origin_x : ndarray of shape (N, P'), int64
-    weights : ndarray of shape (N, N, R, C), float64
+    tap_origin_y, tap_origin_x : ndarray of shape (N', P'), int64
+    weights : ndarray of shape (N', N', R, C), float64
         The per-pixel cos^4 drift ``w`` (1 without cos^4).
     canvas_shape : (int, int)
         The FFTs' size.
@@ -360,7 +399,8 @@ class ExactOperator(pylops.LinearOperator):
         A non-perfect lenslet grid, occlusion or crosstalk on, no planes, a plane the
         camera cannot image, a margin that does not give whole samples, an unknown
         precision, fewer than 1 quadrature node or subsample, or a camera whose chain is not
-        shift-invariant across lenslets (message names the deviation).
+        shift-invariant across lenslets (message names the deviation); sample offsets of
+        another shape than the views', not finite or more than a view step; fewer than 1 bin.
 
     Notes
     -----
@@ -378,12 +418,17 @@ class ExactOperator(pylops.LinearOperator):
 
     def __init__(self, camera: PlenopticCamera, depths_mm, *, margin: float = 1.0, effects: Effects = FLAME_EFFECTS,
                  precision: str = "float64", quadrature_nodes: int = QUADRATURE_NODES, workers: int | None = None,
-                 subsamples: int = 1):
+                 subsamples: int = 1, sample_offsets=None, offset_bins: int = OFFSET_BINS):
         t_start = time.perf_counter()
         if precision not in PRECISIONS:
             raise ValueError(f"precision must be one of {PRECISIONS}. Received: {precision!r}")
+        self._gather, shifts, self.offset_bins = None, {}, None
+        if sample_offsets is not None:
+            self.offset_bins = int(offset_bins)
+            self._gather, shifts = _offset_gather(camera, sample_offsets, offset_bins), \
+                dict(view_shifts=(np.arange(int(offset_bins)) + 0.5) / int(offset_bins) - 0.5)
         ek = self._kernels(camera, depths_mm, margin=margin, effects=effects, quadrature_nodes=quadrature_nodes,
-                           subsamples=subsamples)
+                           subsamples=subsamples, **shifts)
         h, weights, m0y, n0x = ek.kernels, ek.weights, ek.tap_origin_y, ek.tap_origin_x
         sub = ek.subsamples
         (N, _, R, C), (P, gr, gc), (n_ty, n_tx) = ek.dimsd, (h.shape[2], ek.dims[1] // sub, ek.dims[2] // sub), h.shape[3:]
@@ -430,12 +475,15 @@ class ExactOperator(pylops.LinearOperator):
         self.canvas_shape = (lr, lc)
         self.workers = workers
         self.subsamples, self.phase_dims = sub, (P, gr, gc)
-        super().__init__(dtype=np.float64, dims=ek.dims, dimsd=(N, N, R, C))
+        self.view_dims = (N, N, R, C)
+        n = camera.pixels_per_lenslet
+        super().__init__(dtype=np.float64, dims=ek.dims, dimsd=(n, n, R, C))
         self.setup_s = time.perf_counter() - t_start
 
     #: What :meth:`binned` copies as it is (a subclass adds its own).
     _SHARED = ("camera", "effects", "precision", "quadrature_nodes", "depths_mm", "sizes_mm", "centres_mm", "margin",
-               "rays_per_pixel", "seed", "weights", "canvas_shape", "workers", "_lit", "_real", "_w")
+               "rays_per_pixel", "seed", "weights", "canvas_shape", "workers", "_lit", "_real", "_w", "view_dims",
+               "_gather", "offset_bins")
 
     @staticmethod
     def _kernels(camera, depths_mm, **kw) -> ExactKernels:
@@ -463,7 +511,7 @@ class ExactOperator(pylops.LinearOperator):
         new = object.__new__(type(self))
         for name in self._SHARED:
             setattr(new, name, getattr(self, name))
-        (Pp, gr, gc), (N, _) = self.phase_dims, self.dimsd[:2]
+        (Pp, gr, gc), (N, _) = self.phase_dims, self.view_dims[:2]
         P = Pp // s2
         new.kernels = self.kernels.reshape((N, N, P, s2) + self.kernels.shape[3:]).sum(axis=3)
         new.tap_origin_y = np.ascontiguousarray(self.tap_origin_y[:, ::s2])   # the same for every phase
@@ -524,19 +572,35 @@ class ExactOperator(pylops.LinearOperator):
             return xp
         return xp.reshape(-1, s, s, gr, gc).transpose(0, 3, 1, 4, 2).reshape(self.dims)
 
+    def to_samples(self, views) -> np.ndarray:
+        """The data's samples ``dimsd`` read from views of ``view_dims`` (each sample from its
+        sub-view with ``sample_offsets``; else the views as they are). Any dtype."""
+        v = np.reshape(views, -1)
+        return np.reshape(v if self._gather is None else v[self._gather], self.dimsd)
+
+    def from_samples(self, samples, fill=0) -> np.ndarray:
+        """The transpose of :meth:`to_samples`: data ``dimsd`` placed in views ``(N'^2, R, C)``, every
+        sub-view sample that no data sample reads set to ``fill``."""
+        a = np.asarray(samples)
+        if self._gather is not None:
+            v = np.full(int(np.prod(self.view_dims)), fill, a.dtype)
+            v[self._gather] = a.ravel()
+            a = v
+        return a.reshape((-1,) + tuple(self.view_dims[2:]))
+
     def _matvec(self, x):
-        N, _, R, C = self.dimsd
+        N, _, R, C = self.view_dims
         s = self.canvas_shape
         xs = scipy.fft.rfft2(self.to_phases(x).astype(self._real, copy=False), s=s, workers=self.workers)
         ys = _fourier_kernels.spectra_forward(self._spec, xs)
         y = np.zeros((N * N, R, C), self._real)
         y[self._lit] = scipy.fft.irfft2(ys, s=s, workers=self.workers)[:, :R, :C]
-        return (y * self._w).astype(np.float64, copy=False).ravel()
+        return self.to_samples(y * self._w).astype(np.float64, copy=False).ravel()
 
     def _rmatvec(self, y):
         P, gr, gc = self.phase_dims
         s = self.canvas_shape
-        yw = np.reshape(y, (-1,) + tuple(self.dimsd[2:]))[self._lit].astype(self._real, copy=False) * self._w[self._lit]
+        yw = self.from_samples(np.reshape(y, self.dimsd))[self._lit].astype(self._real, copy=False) * self._w[self._lit]
         xs = _fourier_kernels.spectra_adjoint(self._spec, scipy.fft.rfft2(yw, s=s, workers=self.workers))
         x = scipy.fft.irfft2(xs, s=s, workers=self.workers)[:, :gr, :gc]
         return self.from_phases(x).astype(np.float64, copy=False).ravel()
@@ -555,8 +619,30 @@ class ExactOperator(pylops.LinearOperator):
         return normalised_adjoint(self, views)
 
 
+def _offset_gather(camera: PlenopticCamera, sample_offsets, bins) -> np.ndarray:
+    """Flat indices into the sub-views ``(N M, N M, R, C)`` of each sample's nearest sub-view
+    (:class:`ExactOperator`'s ``sample_offsets``), of the data's shape ``(N, N, R, C)`` raveled."""
+    if isinstance(bins, bool) or int(bins) != bins or bins < 1:
+        raise ValueError(f"offset_bins must be an integer >= 1. Received: {bins!r}")
+    N, R, C, M = camera.pixels_per_lenslet, camera.n_rows, camera.n_cols, int(bins)
+    off = np.asarray(sample_offsets, np.float64)
+    if off.shape != (N, N, R, C, 2):
+        raise ValueError(f"sample_offsets must be (N, N, R, C, 2) = {(N, N, R, C, 2)} for this camera. "
+                         f"Received: {off.shape}")
+    if not np.all(np.isfinite(off)):
+        raise ValueError("sample_offsets must be finite (NaN or inf found)")
+    if np.abs(off).max() > 1.0:
+        raise ValueError(f"sample_offsets must be within one view step of each view's place (largest "
+                         f"{np.abs(off).max():.3g})")
+    k = np.clip(np.floor((off + 0.5) * M), 0, M - 1).astype(np.int64)
+    u = np.arange(N)[:, None, None, None] * M + k[..., 0]
+    v = np.arange(N)[None, :, None, None] * M + k[..., 1]
+    r, c = np.arange(R)[:, None], np.arange(C)[None, :]
+    return (((u * (N * M) + v) * R + r) * C + c).ravel()
+
+
 def emission_operator(camera: PlenopticCamera, depths_mm, *, rays_per_pixel: int | None = None,
-                      effects: Effects = FLAME_EFFECTS, subsamples: int = 1):
+                      effects: Effects = FLAME_EFFECTS, subsamples: int = 1, sample_offsets=None):
     """The camera's operator for ``depths_mm``: exact when it can be, traced when asked or needed.
 
     Parameters
@@ -573,6 +659,9 @@ def emission_operator(camera: PlenopticCamera, depths_mm, *, rays_per_pixel: int
     subsamples : int
         The exact operator's samples per lenslet and axis (:class:`ExactOperator`); a
         traced operator keeps one per lenslet.
+    sample_offsets : ndarray of shape (N, N, R, C, 2) or None
+        Each sample's place off its view's (:class:`ExactOperator`; a light field's
+        :attr:`~lf_flame.real.lightfield.LightField.sample_offsets`): the exact operator only.
 
     Returns
     -------
@@ -585,6 +674,10 @@ def emission_operator(camera: PlenopticCamera, depths_mm, *, rays_per_pixel: int
     """
     from .operator import EmissionOperator
     if rays_per_pixel is None and camera.perfect_grid and not effects.crosstalk and not effects.occlusion:
-        return ExactOperator(camera, depths_mm, effects=effects, precision="float32", subsamples=subsamples)
+        return ExactOperator(camera, depths_mm, effects=effects, precision="float32", subsamples=subsamples,
+                             sample_offsets=sample_offsets)
+    if sample_offsets is not None:
+        raise ValueError("samples off the views' grid (a colour capture's) are modelled by the exact operator only: "
+                         "it needs a perfect lenslet grid and no crosstalk, and no rays_per_pixel")
     return EmissionOperator(camera, list(depths_mm), rays_per_pixel=4 if rays_per_pixel is None else int(rays_per_pixel),
                             effects=effects)

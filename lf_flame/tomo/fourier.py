@@ -95,11 +95,11 @@ def fill_data(views, fit, op):
     norm : float
         ``||M y||``.
     """
-    N, _, R, C = op.dimsd
+    R, C = op.dimsd[2:]
     V = len(op._lit)
     y, yt, w, m = (np.empty((V, R, C), t) for t in (np.float64, op._real, op._w.dtype, bool))
-    sq = _fourier_kernels.gather_data(np.ascontiguousarray(views, np.float64).reshape(N * N, R, C),
-                                      np.ascontiguousarray(fit, bool).reshape(N * N, R, C), op._w,
+    sq = _fourier_kernels.gather_data(np.ascontiguousarray(op.from_samples(np.asarray(views, np.float64))),
+                                      np.ascontiguousarray(op.from_samples(np.asarray(fit, bool), False)), op._w,
                                       np.asarray(op._lit, np.int64), y, yt, w, m)
     return y, yt, w, m, math.sqrt(sq)
 
