@@ -105,13 +105,12 @@ def test_a_dark_image_cannot_be_checked_and_passes(calibrations):
 def test_each_colour_samples_offset_leads_from_its_view_to_its_pixel(calibrations):
     """:func:`~lf_flame.real.decoding.sample_offsets`: the view's place plus its offset (turned back onto the
     sensor) is the centre of the pixel decode_colour reads, each offset within half a step (a little more on a
-    rotated grid) and spread over the whole step on a non-integer pitch; a hexagonal grid's are refused."""
-    cal = calibrations("square")
-    off = decode.sample_offsets(cal, 9)
-    pos = decode.view_positions(cal, 9)
-    back = pos + off.astype(np.float64) @ (cal.matrix / cal.pitch_px).T
-    assert np.allclose(back, np.floor(pos) + 0.5, atol=1e-5)
-    assert off.shape == pos.shape and np.abs(off).max() <= 0.5 * (1 + np.tan(np.radians(0.5)))
-    assert np.percentile(off, 5) < -0.4 and np.percentile(off, 95) > 0.4
-    with pytest.raises(ValueError, match="square"):
-        decode.sample_offsets(calibrations("hex"), 9)
+    rotated grid) and spread over the whole step on a non-integer pitch, on either lattice."""
+    for layout in ("square", "hex"):
+        cal = calibrations(layout)
+        off = decode.sample_offsets(cal, 9)
+        pos = decode.view_positions(cal, 9)
+        back = pos + off.astype(np.float64) @ (cal.matrix / cal.pitch_px).T
+        assert np.allclose(back, np.floor(pos) + 0.5, atol=1e-5)
+        assert off.shape == pos.shape and np.abs(off).max() <= 0.5 * (1 + np.tan(np.radians(0.5)))
+        assert np.percentile(off, 5) < -0.4 and np.percentile(off, 95) > 0.4

@@ -32,13 +32,16 @@ SEED = 4242
 RAYS = 48
 
 
-def test_square_lattice_kernels_are_the_exact_quadratures():
+@pytest.mark.parametrize("shifts", [None, (-1 / 3, 0.0, 1 / 3)], ids=["views", "sub-views"])
+def test_square_lattice_kernels_are_the_exact_quadratures(shifts):
     """The same low-discrepancy means on a square lattice give the closed-form quadrature's taps: the ray chain,
-    the aperture, cos^4 and the texel offsets are read as the square camera's."""
-    tiny = PlenopticCamera(n_rows=15, n_cols=17, pixels_per_lenslet=9)
+    the aperture, cos^4 and the texel offsets are read as the square camera's; so are the sub-views of samples off
+    their view's place (a colour capture's nearest pixels)."""
+    tiny = PlenopticCamera(n_rows=15, n_cols=17, pixels_per_lenslet=9 if shifts is None else 5)
     depths = [-8.0, 0.0, 6.0]
-    ek = exact_kernels(tiny, depths)
-    lk = hx.lattice_kernels(tiny, depths, (tiny.n_rows, tiny.n_cols), layout="square", points=2 ** 16)
+    ek = exact_kernels(tiny, depths, view_shifts=shifts)
+    lk = hx.lattice_kernels(tiny, depths, (tiny.n_rows, tiny.n_cols), layout="square", points=2 ** 16,
+                            view_shifts=shifts)
     N, P = ek.kernels.shape[0], len(depths)
     diff = total = 0.0
     for u in range(N):

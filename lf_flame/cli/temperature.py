@@ -171,8 +171,8 @@ def cmd_temperature(a):
     from ..measure.figures import save_figure
     from ..temperature.pyrometry import bright_pixels, load_calibration, temperature_planes
     from ..optics.colour import CHANNELS
-    from ..temperature.channels import (DECODED_KNOBS, DECODED_RATIO_FILTER, cfa_blind, channel_emission,
-                                        channel_sum_views, channel_views, route_operator)
+    from ..temperature.channels import (DECODED_KNOBS, DECODED_OFFSET_KNOBS, DECODED_RATIO_FILTER, cfa_blind,
+                                        channel_emission, channel_sum_views, channel_views, route_operator)
     from .volume import found_planes, reconstruct_input
     from ..tomo.decoded import fit_data
     src = str(a.raw)
@@ -208,7 +208,7 @@ def cmd_temperature(a):
         extra = dict(depths_from="auto (channel sum)", found_depths=found)
     chosen, knobs, ratio_filter = {}, None, None
     slopes = [cam.slope_for_depth(d) for d in depths]
-    op = route_operator(cam, depths, a.route, hexagonal)
+    op = route_operator(cam, depths, a.route, hexagonal, lf.sample_offsets if hexagonal is None else None)
     if not lf.decoded:
         data, sat = views, a.saturation
     elif op is None:                                    # refocus-cfa: the decoded views as they are
@@ -220,7 +220,7 @@ def cmd_temperature(a):
     else:                                               # the operator's data: views times its white views
         data, sat = fit_data(lf, op)
     if lf.decoded and a.route == "admm-cfa-matched":    # a decoded capture's knobs, not its noise's
-        knobs, ratio_filter = DECODED_KNOBS, DECODED_RATIO_FILTER
+        knobs, ratio_filter = DECODED_OFFSET_KNOBS if op.offset_bins else DECODED_KNOBS, DECODED_RATIO_FILTER
         chosen["regime"] = "decoded"
     emission = channel_emission(a.route, data, chan, ch, op=op, slopes=slopes, saturation=sat, info=chosen,
                                 knobs=knobs, ratio_filter=ratio_filter)

@@ -141,7 +141,7 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
                              interpolation=lf.interpolation)
     else:
         op = emission_operator(lf.camera, depths, rays_per_pixel=rays_per_pixel, subsamples=subsamples,
-                               sample_offsets=lf.sample_offsets)
+                               sample_offsets=lf.sample_offsets if lf.lattice_views is None else None)
     lf = _fitted_light_field(lf, saturation)
     data, fit = fit_data(lf, op)
     if solver == "learned":

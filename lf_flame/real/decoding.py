@@ -374,7 +374,7 @@ def sample_offsets(calibration: GridCalibration, n_views: int) -> np.ndarray:
     Parameters
     ----------
     calibration : GridCalibration
-        A square grid (a hexagonal grid's colour samples stay on its lattice and are not modelled so).
+        Square or hexagonal (whose samples :func:`decode_colour` keeps on its lattice, as here).
     n_views : int
         ``N``, as decoded.
 
@@ -382,15 +382,7 @@ def sample_offsets(calibration: GridCalibration, n_views: int) -> np.ndarray:
     -------
     ndarray of shape (N, N, R, C, 2), float32
         (along the grid's rows, along its columns), view steps.
-
-    Raises
-    ------
-    ValueError
-        A hexagonal grid.
     """
-    if calibration.layout != "square":
-        raise ValueError("sample offsets are modelled on a square lenslet grid; a hexagonal grid's colour views "
-                         "stay on its lattice")
     pos = view_positions(calibration, int(n_views))
     rot = calibration.matrix / calibration.pitch_px                  # grid axes -> sensor (rows of view_positions)
     off = (_nearest_pixels(calibration, int(n_views)) + 0.5 - pos) @ np.linalg.inv(rot.T)

@@ -73,10 +73,10 @@ class LightField:
     lattice_leave_out : ndarray of bool of the lattice views' shape, or None
         Their samples from clipped pixels.
     sample_offsets : ndarray of shape (N, N, R, C, 2), float32, or None
-        A square colour capture's samples, each its nearest pixel: where that pixel lies from its
-        view's place (view steps; :func:`lf_flame.real.decoding.sample_offsets`), which the exact
-        operator models (:class:`lf_flame.tomo.exact.ExactOperator`'s ``sample_offsets``). None:
-        every sample at its view's place.
+        A colour capture's samples, each its nearest pixel: where that pixel lies from its view's
+        place (view steps; :func:`lf_flame.real.decoding.sample_offsets`), which the exact
+        operator models (:class:`lf_flame.tomo.exact.ExactOperator`'s ``sample_offsets``); of
+        :attr:`lattice_views`' shape where there are some. None: every sample at its view's place.
     interpolation : (ndarray of shape (2, M), int) or None
         Decoded views (bilinear, not a colour capture's nearest pixels): where their samples fell
         between pixels (:func:`lf_flame.real.decoding.interpolation_phases`) and the pixels per
@@ -117,8 +117,10 @@ class LightField:
                              f"cols) with the views' N = {v.shape[0]}")
         if self.lattice_leave_out is not None and (lv is None or self.lattice_leave_out.shape != lv.shape):
             raise ValueError(f"{self.source}: lattice_leave_out must have the lattice views' shape")
-        if self.sample_offsets is not None and np.shape(self.sample_offsets) != v.shape + (2,):
-            raise ValueError(f"{self.source}: sample_offsets must be of shape {v.shape + (2,)} (the views' and 2)")
+        mapped = v.shape if lv is None else lv.shape
+        if self.sample_offsets is not None and np.shape(self.sample_offsets) != mapped + (2,):
+            raise ValueError(f"{self.source}: sample_offsets must be of shape {mapped + (2,)} (the views' they map, "
+                             "and 2)")
 
     @property
     def decoded(self) -> bool:
@@ -298,8 +300,7 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
                       lattice_leave_out=lattice_clipped,
                       interpolation=None if channels is not None else
                       (interpolation_phases(calibration, v.shape[0], bin_views), int(bin_views)),
-                      sample_offsets=sample_offsets(calibration, v.shape[0])
-                      if channels is not None and lattice_views is None else None)
+                      sample_offsets=None if channels is None else sample_offsets(calibration, v.shape[0]))
 
 
 def read_light_field(path, camera=None, calibration=None, *, views: int | None = None,

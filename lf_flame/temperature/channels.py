@@ -105,6 +105,17 @@ MATCHED_RATIO_FILTER = {"quiet": dict(radius=1, eps=0.001), "noisy": dict(radius
 #: of 11 planes at each noise level.
 DECODED_KNOBS = dict(fills=CFA_FILLS, lam=0.1, tv=CFA_TV, l1=CFA_L1)
 DECODED_RATIO_FILTER = dict(radius=1, eps=0.1)
+#: The same for a square grid's captures with each sample modelled at its own pixel (``sample_offsets``, on
+#: :data:`DECODED_OFFSET_BINS` sub-views per view and axis), whose fills have most of each sub-view to fill. Chosen
+#: on the same validation scenes (``/tmp`` probes of ``experiments/cameras_colour.py --seed0 58100``; worst-plane
+#: p90 median / worst, noise-free then 14 dB): 2 sub-views, lam 0.01 and 60 fills 89 / 116 and 110 / 173 K in
+#: 2.9 s a capture, against 109 / 150 and 109 / 175 K in 0.7 s for the whole views with :data:`DECODED_KNOBS`;
+#: 3 sub-views at lam 0.01: 90 / 154 and 113 / 150 K (60 fills), 91 / 124 and 114 / 146 K (100 fills, 9.2 s);
+#: lam 0.003 at 100-200 fills 82-83 / 117-126 K noise-free but 116 / 220 K at 14 dB; lam 0.03 or 0.1 at 25-100
+#: fills 112-143 K medians. A hexagonal grid's lattice keeps its whole views here: with these knobs and its
+#: samples' offsets its validation worst planes rose (268 -> 415 K noise-free, 325 -> 356 K at 14 dB).
+DECODED_OFFSET_KNOBS = dict(fills=60, lam=0.01, tv=CFA_TV, l1=CFA_L1)
+DECODED_OFFSET_BINS = 2
 #: The relative noise (:func:`cfa_noise`) from which the very noisy knobs and ratio filter are taken:
 #: the geometric mean of the validation scenes' noise at 17 dB (up to 0.0150, the noisy ones best)
 #: and at 14 dB (from 0.0194, the very noisy ones best).
@@ -284,8 +295,10 @@ def cfa_noise(views: np.ndarray, chan: np.ndarray, channels) -> float:
 def route_operator(camera, depths_mm, route: str, hexagonal=None, sample_offsets=None):
     """The planes' operator a route of :data:`CFA_ROUTES` solves on: None for ``refocus-cfa``; the
     :data:`MATCHED_SUBSAMPLES` grid for ``admm-cfa-matched``; the lenslet grid otherwise (float32).
-    ``sample_offsets``: a decoded square colour capture's (:attr:`lf_flame.real.lightfield.LightField.sample_offsets`),
-    each sample modelled at its own pixel (:class:`lf_flame.tomo.exact.ExactOperator`).
+    ``sample_offsets``: a decoded square colour capture's
+    (:attr:`lf_flame.real.lightfield.LightField.sample_offsets`), each sample modelled at its own pixel on
+    :data:`DECODED_OFFSET_BINS` sub-views per view and axis (:class:`lf_flame.tomo.exact.ExactOperator`); not
+    with ``hexagonal`` (:data:`DECODED_OFFSET_KNOBS`).
 
     ``hexagonal``: a decoded hexagonal grid's light field (:class:`lf_flame.real.lightfield.LightField`
     with lattice views), whose channels are solved on its lattice
@@ -300,10 +313,15 @@ def route_operator(camera, depths_mm, route: str, hexagonal=None, sample_offsets
             raise ValueError("refocus-cfa refocuses a square grid's views; a hexagonal grid's colour channels are "
                              "solved on its lattice: choose an admm route")
         from ..tomo.lattice import hexagonal_operator
-        return hexagonal_operator(hexagonal, depths_mm, precision="float32", subsamples=subsamples)
+        if sample_offsets is not None:
+            raise ValueError("a hexagonal grid's colour channels are solved on its whole lattice views (the samples' "
+                             "offsets are not modelled there)")
+        return hexagonal_operator(hexagonal, depths_mm, precision="float32", subsamples=subsamples,
+                                  sample_offsets=None)
     if route == "refocus-cfa":
         return None
-    return ExactOperator(camera, depths_mm, precision="float32", subsamples=subsamples, sample_offsets=sample_offsets)
+    return ExactOperator(camera, depths_mm, precision="float32", subsamples=subsamples, sample_offsets=sample_offsets,
+                         offset_bins=DECODED_OFFSET_BINS)
 
 
 def refocus_channel(views: np.ndarray, own: np.ndarray, slopes, mask: np.ndarray) -> np.ndarray:

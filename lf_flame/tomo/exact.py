@@ -153,10 +153,7 @@ def exact_kernels(camera: PlenopticCamera, depths_mm, *, margin: float = 1.0, ef
 
     ``view_shifts``: None, or ``M`` shifts (view steps, toward higher view indices along rows and
     columns): each view ``u`` is replaced by the ``M`` views of its pixel moved by each shift,
-    view ``u M + k`` of ``N M`` per axis (:class:`ExactOperator`'s sub-views). The chain is affine
-    in the view index, so a shift moves its constant terms by that many times their step from
-    view to view (the read-out image runs against the sensor along one axis: a pixel's own ray
-    coordinate would not say which way).
+    view ``u M + k`` of ``N M`` per axis (:func:`sub_view_chain`; :class:`ExactOperator`'s sub-views).
 
     Returns
     -------
@@ -194,18 +191,9 @@ def exact_kernels(camera: PlenopticCamera, depths_mm, *, margin: float = 1.0, ef
     P = len(depths)
     (cy, ay, ty, dty), (cx, ax, tx, dtx) = chain_coefficients(camera, depths, sizes, (gr, gc), effects)
     if view_shifts is not None:                                  # sub-views: each pixel moved by each shift
-        sh = np.asarray(view_shifts, np.float64)
-        if N < 2 or sh.ndim != 1 or not np.all(np.isfinite(sh)):
-            raise ValueError(f"view_shifts must be finite shifts (view steps) of a camera with 2 or more views per "
-                             f"axis. Received: {view_shifts!r} for {N} views")
-
-        def shifted(c):                   # (N, ..., 3) -> (N M, ..., 3): the constant term moved along the views
-            step = (c[-1, ..., 0] - c[0, ..., 0]) / (N - 1)     # affine in the view index
-            c = np.repeat(c, len(sh), axis=0)
-            c[..., 0] += np.tile(sh, N).reshape((-1,) + (1,) * (c.ndim - 2)) * step
-            return c
-        cy, ay, ty, cx, ax, tx = (shifted(c) for c in (cy, ay, ty, cx, ax, tx))
-        dty, dtx, N = np.repeat(dty, len(sh)), np.repeat(dtx, len(sh)), N * len(sh)
+        (cy, ay, ty, dty), (cx, ax, tx, dtx) = (sub_view_chain(a, view_shifts)
+                                                for a in ((cy, ay, ty, dty), (cx, ax, tx, dtx)))
+        N = cy.shape[0]
     cy, cx = cy * sub, cx * sub                                  # texel coordinates on the finer grid
 
     # taps of each view and plane, and the canvas no wrap-around reaches
@@ -279,6 +267,44 @@ def chain_coefficients(camera: PlenopticCamera, depths, sizes, grid, effects: Ef
     ky = np.concatenate([ky_sorted[:2], ky_sorted[2 + inv]])
     kx = np.concatenate([kx_sorted[:2], kx_sorted[2 + inv]])
     return ExactOperator._axis(ky, N, R, "row"), ExactOperator._axis(kx, N, C, "column")
+
+
+def sub_view_chain(axis_chain, view_shifts):
+    """One axis's chain (:func:`chain_coefficients`) of ``N`` views as that of their ``N M`` sub-views.
+
+    Sub-view ``u M + k`` is view ``u``'s pixel moved by ``view_shifts[k]`` view steps toward higher
+    view indices (:func:`exact_kernels`' ``view_shifts``). The chain is affine in the view index, so
+    each coefficient's constant term moves by the shift times its step from view to view (the
+    read-out image runs against the sensor along one axis: a pixel's own ray coordinate would not
+    say which way).
+
+    Parameters
+    ----------
+    axis_chain : (texel (N, P, 3), height (N, 3), angle (N, 3), step (N,))
+    view_shifts : sequence of M float
+
+    Returns
+    -------
+    The same four, of ``N M`` sub-views.
+
+    Raises
+    ------
+    ValueError
+        Shifts that are not finite, or fewer than 2 views.
+    """
+    sh = np.asarray(view_shifts, np.float64)
+    coef, height, angle, step = axis_chain
+    N = coef.shape[0]
+    if N < 2 or sh.ndim != 1 or not np.all(np.isfinite(sh)):
+        raise ValueError(f"view_shifts must be finite shifts (view steps) of a camera with 2 or more views per "
+                         f"axis. Received: {view_shifts!r} for {N} views")
+
+    def shifted(c):
+        per_view = (c[-1, ..., 0] - c[0, ..., 0]) / (N - 1)
+        c = np.repeat(c, len(sh), axis=0)
+        c[..., 0] += np.tile(sh, N).reshape((-1,) + (1,) * (c.ndim - 2)) * per_view
+        return c
+    return shifted(coef), shifted(height), shifted(angle), np.repeat(step, len(sh))
 
 
 def _phase_kernels(h, m0y, n0x, s):
@@ -424,11 +450,14 @@ class ExactOperator(pylops.LinearOperator):
             raise ValueError(f"precision must be one of {PRECISIONS}. Received: {precision!r}")
         self._gather, shifts, self.offset_bins = None, {}, None
         if sample_offsets is not None:
+            if isinstance(offset_bins, bool) or int(offset_bins) != offset_bins or offset_bins < 1:
+                raise ValueError(f"offset_bins must be an integer >= 1. Received: {offset_bins!r}")
             self.offset_bins = int(offset_bins)
-            self._gather, shifts = _offset_gather(camera, sample_offsets, offset_bins), \
-                dict(view_shifts=(np.arange(int(offset_bins)) + 0.5) / int(offset_bins) - 0.5)
+            shifts = dict(view_shifts=(np.arange(self.offset_bins) + 0.5) / self.offset_bins - 0.5)
         ek = self._kernels(camera, depths_mm, margin=margin, effects=effects, quadrature_nodes=quadrature_nodes,
                            subsamples=subsamples, **shifts)
+        if sample_offsets is not None:
+            self._gather = _offset_gather(ek.dimsd, sample_offsets, self.offset_bins)
         h, weights, m0y, n0x = ek.kernels, ek.weights, ek.tap_origin_y, ek.tap_origin_x
         sub = ek.subsamples
         (N, _, R, C), (P, gr, gc), (n_ty, n_tx) = ek.dimsd, (h.shape[2], ek.dims[1] // sub, ek.dims[2] // sub), h.shape[3:]
@@ -619,15 +648,13 @@ class ExactOperator(pylops.LinearOperator):
         return normalised_adjoint(self, views)
 
 
-def _offset_gather(camera: PlenopticCamera, sample_offsets, bins) -> np.ndarray:
-    """Flat indices into the sub-views ``(N M, N M, R, C)`` of each sample's nearest sub-view
-    (:class:`ExactOperator`'s ``sample_offsets``), of the data's shape ``(N, N, R, C)`` raveled."""
-    if isinstance(bins, bool) or int(bins) != bins or bins < 1:
-        raise ValueError(f"offset_bins must be an integer >= 1. Received: {bins!r}")
-    N, R, C, M = camera.pixels_per_lenslet, camera.n_rows, camera.n_cols, int(bins)
+def _offset_gather(view_dims, sample_offsets, M: int) -> np.ndarray:
+    """Flat indices into the sub-views ``view_dims`` = (N M, N M, R, C) of each sample's nearest sub-view
+    (:class:`ExactOperator`'s ``sample_offsets``), for the data (N, N, R, C) raveled."""
+    N, R, C = view_dims[0] // M, view_dims[2], view_dims[3]
     off = np.asarray(sample_offsets, np.float64)
     if off.shape != (N, N, R, C, 2):
-        raise ValueError(f"sample_offsets must be (N, N, R, C, 2) = {(N, N, R, C, 2)} for this camera. "
+        raise ValueError(f"sample_offsets must be (N, N, R, C, 2) = {(N, N, R, C, 2)}, the views' shape and 2. "
                          f"Received: {off.shape}")
     if not np.all(np.isfinite(off)):
         raise ValueError("sample_offsets must be finite (NaN or inf found)")

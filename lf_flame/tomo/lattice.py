@@ -52,7 +52,7 @@ import math
 import numpy as np
 
 from ..simulate.scenes import FLAME_EFFECTS, Effects
-from .exact import ExactKernels, ExactOperator, _phase_kernels, chain_coefficients
+from .exact import OFFSET_BINS, ExactKernels, ExactOperator, _phase_kernels, chain_coefficients, sub_view_chain
 from .operator import plane_grid
 
 #: A hexagonal lattice's row spacing, pitches.
@@ -129,7 +129,8 @@ def rd_points(n: int, dims: int) -> np.ndarray:
 
 
 def lattice_kernels(camera, depths_mm, shape, *, layout: str = "hex", subsamples: int = 1,
-                    points: int = KERNEL_POINTS, effects: Effects = FLAME_EFFECTS, interpolation=None) -> ExactKernels:
+                    points: int = KERNEL_POINTS, effects: Effects = FLAME_EFFECTS, interpolation=None,
+                    view_shifts=None) -> ExactKernels:
     """The exact map's kernels on a lenslet lattice, by quasi-Monte Carlo over each pixel's rays.
 
     Parameters
@@ -156,6 +157,9 @@ def lattice_kernels(camera, depths_mm, shape, *, layout: str = "hex", subsamples
         Each ray's pixel is then the one before or after the sample's position, with the
         interpolation's weights, at a phase drawn from these (their mean over the lenslets; per
         axis). None: each sample is one pixel (simulated views).
+    view_shifts : sequence of float or None
+        Sub-views of each view, its pixel moved by each shift (view steps;
+        :func:`lf_flame.tomo.exact.sub_view_chain`), as :func:`lf_flame.tomo.exact.exact_kernels`'.
 
     Returns
     -------
@@ -181,8 +185,11 @@ def lattice_kernels(camera, depths_mm, shape, *, layout: str = "hex", subsamples
     R, C = (int(v) for v in shape)
     N, P = camera.pixels_per_lenslet, len(depths)
     sizes = [plane_grid(camera, d, 1.0) for d in depths]
-    (cy, ay, ty, _), (cx, ax, tx, _) = chain_coefficients(camera, depths, sizes, (camera.n_rows, camera.n_cols),
-                                                          effects)
+    (cy, ay, ty, _), (cx, ax, tx, _) = chain = chain_coefficients(camera, depths, sizes,
+                                                                  (camera.n_rows, camera.n_cols), effects)
+    if view_shifts is not None:
+        (cy, ay, ty, _), (cx, ax, tx, _) = (sub_view_chain(a, view_shifts) for a in chain)
+        N = cy.shape[0]
     u = rd_points(int(points), 8)
     du_y, du_x = u[:, 0] - 0.5, u[:, 1] - 0.5
     if interpolation is not None:      # the pixel after the sample's position with weight f, the one before with 1 - f
@@ -281,6 +288,12 @@ class LatticeOperator(ExactOperator):
     interpolation : (ndarray, int) or None
         Decoding's interpolation (:func:`lattice_kernels`;
         :attr:`lf_flame.real.lightfield.LightField.interpolation`).
+    sample_offsets : ndarray of shape (N, N, R, C, 2) or None
+        Each lattice sample's pixel from its view's place (a colour capture's nearest pixels,
+        :attr:`lf_flame.real.lightfield.LightField.sample_offsets`), on the lattice's offset rows;
+        modelled by ``offset_bins`` sub-views per view and axis as
+        :class:`~lf_flame.tomo.exact.ExactOperator`'s.
+    offset_bins : int
 
     Attributes
     ----------
@@ -302,7 +315,8 @@ class LatticeOperator(ExactOperator):
     _SHARED = ExactOperator._SHARED + ("lattice_shape", "layout", "inside", "points", "interpolation")
 
     def __init__(self, camera, depths_mm, lattice_shape, *, layout: str = "hex", precision: str = "float32",
-                 workers: int | None = None, subsamples: int = 1, points: int = KERNEL_POINTS, interpolation=None):
+                 workers: int | None = None, subsamples: int = 1, points: int = KERNEL_POINTS, interpolation=None,
+                 sample_offsets=None, offset_bins: int = OFFSET_BINS):
         R, C = (int(v) for v in lattice_shape)
         if R < 2 or C < 2:
             raise ValueError(f"a lenslet lattice of {R} x {C} lenslets is too small")
@@ -310,11 +324,18 @@ class LatticeOperator(ExactOperator):
             raise ValueError(f"layout must be one of {LAYOUTS}. Received: {layout!r}")
         self.lattice_shape, self.layout, self.points, self.interpolation = (R, C), layout, int(points), interpolation
         self.inside = to_axial(np.zeros((R, C)))[1] if layout == "hex" else np.ones((R, C), bool)
-        super().__init__(camera, depths_mm, precision=precision, workers=workers, subsamples=subsamples)
+        if sample_offsets is not None and layout == "hex":     # on the axial array, as the views
+            if np.shape(sample_offsets)[2:4] != (R, C):
+                raise ValueError(f"sample_offsets must be of the lattice views' shape (N, N, {R}, {C}, 2). Received: "
+                                 f"{np.shape(sample_offsets)}")
+            sample_offsets = np.moveaxis(to_axial(np.moveaxis(np.asarray(sample_offsets), -1, 0))[0], 0, -1)
+        super().__init__(camera, depths_mm, precision=precision, workers=workers, subsamples=subsamples,
+                         sample_offsets=sample_offsets, offset_bins=offset_bins)
 
-    def _kernels(self, camera, depths_mm, *, effects, subsamples, **_):
+    def _kernels(self, camera, depths_mm, *, effects, subsamples, view_shifts=None, **_):
         return lattice_kernels(camera, depths_mm, self.inside.shape, layout=self.layout, subsamples=subsamples,
-                               points=self.points, effects=effects, interpolation=self.interpolation)
+                               points=self.points, effects=effects, interpolation=self.interpolation,
+                               view_shifts=view_shifts)
 
     def to_square(self, planes, rows: int, cols: int) -> np.ndarray:
         """A hexagonal lattice's planes resampled onto the decoded square grid (barycentric in the fine
@@ -443,6 +464,8 @@ def solve_on_lattice(lf, rec, op, support=None) -> LatticeSolve:
     data, leave_out = lattice_problem(lf, hop)
     st = rec.settings
     knobs = dict(iters=int(st["iters"]), tv=st["tv"], lam=st["lam"], l1=st["l1"], start=st["start"], tol=st["tol"])
+    if hop.offset_bins is not None:      # samples off the views' grid: admm's fills and tolerance for them
+        knobs.update(iters=None, tol=None)
     lat = reconstruct(data, hop, "admm", saturation=leave_out,
                       support=None if support is None else hop.from_square(support), **knobs)
     lat.settings.update(lattice="hexagonal", noise=st.get("noise", math.nan))
@@ -453,8 +476,9 @@ def solve_on_lattice(lf, rec, op, support=None) -> LatticeSolve:
 
 def hexagonal_operator(lf, depths_mm, **kw) -> LatticeOperator:
     """The :class:`LatticeOperator` of a decoded hexagonal grid's lattice views at ``depths_mm`` (mm),
-    with decoding's interpolation (none for a colour capture's nearest pixels); ``kw`` as there
-    (``subsamples``, ``precision``).
+    with decoding's interpolation (none for a colour capture's nearest pixels) and the light field's
+    sample offsets (a colour capture's); ``kw`` as there (``subsamples``, ``precision``,
+    ``sample_offsets`` in place of the light field's).
 
     Raises
     ------
@@ -463,6 +487,7 @@ def hexagonal_operator(lf, depths_mm, **kw) -> LatticeOperator:
     """
     if lf.lattice_views is None:
         raise ValueError(f"{lf.source}: no hexagonal lattice views to solve on")
+    kw.setdefault("sample_offsets", lf.sample_offsets)
     return LatticeOperator(lf.camera, depths_mm, lf.lattice_views.shape[2:], interpolation=lf.interpolation, **kw)
 
 
