@@ -22,7 +22,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "lattice": ["CalibrationError", "lattice_from_autocorrelation", "spot_centres"],
         "calibration": ["CALIBRATION_FORMAT", "CALIBRATION_VERSION", "GridCalibration", "calibrate"],
         "grid_check": ["check_grid"],
-        "decoding": ["view_positions", "interpolation_phases", "hex_to_square", "views_shape", "on_square_grid", "auto_saturation", "max_views", "decode", "decode_colour", "clipped_samples"],
+        "decoding": ["view_positions", "interpolation_phases", "hex_to_square", "views_shape", "on_square_grid", "auto_saturation", "max_views", "decode", "decode_colour", "sample_offsets", "clipped_samples"],
         "views_file": ["save_views", "load_views", "load_clipped", "load_channels", "load_lattice"],
         "own_camera": ["PITCH_WARN", "PITCH_TOLERANCE", "DecodedFrame", "decoded_frame", "views_camera"],
         "lightfield": ["LightField", "MAX_SEARCH_SLOPE", "imaging_range_mm", "check_imaging_range", "from_raw",
