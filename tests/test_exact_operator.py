@@ -319,8 +319,22 @@ def test_sampled_operator_is_a_linear_operator_with_its_adjoint(camera):
 def test_admm_runs_more_fills_on_samples_off_the_grid(camera):
     """The fills have most of each sub-view to fill: admm's cap and tolerance there are OFFSET_KNOBS' unless told."""
     from lf_flame.tomo.defaults import OFFSET_KNOBS
-    op = ExactOperator(camera, (0.0,), precision="float32", sample_offsets=_offsets(camera, 0.25))
+    op = ExactOperator(camera, (0.0,), precision="float32", sample_offsets=_offsets(camera, 0.25), offset_bins=3)
     y = op @ np.pad(np.ones((1, 10, 8)), ((0, 0), (10, 10), (6, 6))).ravel()
     rec = reconstruct(y.reshape(op.dimsd), op, "admm")
     assert rec.settings["iters"] == OFFSET_KNOBS["fills"] and rec.settings["tol"] == OFFSET_KNOBS["tol"]
     assert reconstruct(y.reshape(op.dimsd), op, "admm", 3).settings["iters"] == 3
+
+
+def test_sub_views_only_where_the_planes_parallax_calls_for_them(camera):
+    """A sample up to half a step off its view sees a plane of slope ``s`` up to ``|s| / 2`` lenslets off: whole
+    views where that is within OFFSET_TOLERANCE on every plane, OFFSET_BINS sub-views (or the cap) elsewhere."""
+    from lf_flame.tomo.exact import OFFSET_BINS, OFFSET_TOLERANCE, offset_bins_for
+    for d in (0.0, 0.5, 1.0, 2.0, 10.0):
+        near = abs(camera.slope_for_depth(d)) / 2 <= OFFSET_TOLERANCE
+        assert offset_bins_for(camera, (0.0, d)) == (1 if near else OFFSET_BINS)
+        assert offset_bins_for(camera, (d,), cap=2) == (1 if near else 2)
+    assert offset_bins_for(camera, (0.0,)) == 1 and offset_bins_for(camera, (-1.0, 10.0)) == OFFSET_BINS
+    assert offset_bins_for(camera, (0.5,)) == 1 and offset_bins_for(camera, (1.0,)) == OFFSET_BINS    # 0.06, 0.12
+    at_focus = ExactOperator(camera, (0.0,), sample_offsets=_offsets(camera, 0.4))
+    assert at_focus.offset_bins is None and at_focus.view_dims == at_focus.dimsd

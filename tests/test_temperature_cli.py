@@ -12,7 +12,7 @@ from lf_flame.refocus.shift_and_sum import raw_to_views
 from lf_flame.simulate.colour import render_colour
 from lf_flame.simulate.scenes import Effects, Layer, Scene
 from lf_flame.simulate.scenes_temperature import furnace_scene
-from lf_flame.temperature.channels import DECODED_KNOBS, DECODED_OFFSET_KNOBS, channel_sum_views, channel_views
+from lf_flame.temperature.channels import DECODED_KNOBS, channel_sum_views, channel_views
 
 CAM = PlenopticCamera(n_rows=21, n_cols=21)
 GAINS = (1.0, 1.3, 0.7)
@@ -278,8 +278,8 @@ def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, 
         t = f["temperature_k"][0][f["valid"][0]]
         settings = json.loads(f.attrs["route_settings"])
         assert ("lattice" in settings) == (layout == "hex")
-        knobs = DECODED_KNOBS if layout == "hex" else DECODED_OFFSET_KNOBS                    # not the noise's knobs
-        assert settings["regime"] == "decoded" and settings["knobs"] == knobs
+        # not the noise's knobs; at focus the samples' offsets do not matter: whole views' knobs on either grid
+        assert settings["regime"] == "decoded" and settings["knobs"] == DECODED_KNOBS
     assert t.size > 0.5 * cal.n_rows * cal.n_cols
     assert abs(np.median(t) - 1800) < 15 and np.percentile(np.abs(t - 1800), 90) < 30
     # the emission routes level the channels into one light field: the blackbody is then one grey plane (a mosaic

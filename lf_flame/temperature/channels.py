@@ -297,14 +297,15 @@ def route_operator(camera, depths_mm, route: str, hexagonal=None, sample_offsets
     :data:`MATCHED_SUBSAMPLES` grid for ``admm-cfa-matched``; the lenslet grid otherwise (float32).
     ``sample_offsets``: a decoded square colour capture's
     (:attr:`lf_flame.real.lightfield.LightField.sample_offsets`), each sample modelled at its own pixel on
-    :data:`DECODED_OFFSET_BINS` sub-views per view and axis (:class:`lf_flame.tomo.exact.ExactOperator`); not
-    with ``hexagonal`` (:data:`DECODED_OFFSET_KNOBS`).
+    at most :data:`DECODED_OFFSET_BINS` sub-views per view and axis, as the planes need
+    (:func:`lf_flame.tomo.exact.offset_bins_for`; :class:`lf_flame.tomo.exact.ExactOperator`); not with ``hexagonal``
+    (:data:`DECODED_OFFSET_KNOBS`).
 
     ``hexagonal``: a decoded hexagonal grid's light field (:class:`lf_flame.real.lightfield.LightField`
     with lattice views), whose channels are solved on its lattice
     (:func:`lf_flame.tomo.lattice.hexagonal_operator`); ``refocus-cfa`` is refused there (shift-and-sum
     needs the square grid, where the resampled views blend channels)."""
-    from ..tomo.exact import ExactOperator
+    from ..tomo.exact import ExactOperator, offset_bins_for
     if route not in CFA_ROUTES:
         raise ValueError(f"unknown route {route!r}; one of {CFA_ROUTES}")
     subsamples = MATCHED_SUBSAMPLES if route == "admm-cfa-matched" else 1
@@ -321,7 +322,7 @@ def route_operator(camera, depths_mm, route: str, hexagonal=None, sample_offsets
     if route == "refocus-cfa":
         return None
     return ExactOperator(camera, depths_mm, precision="float32", subsamples=subsamples, sample_offsets=sample_offsets,
-                         offset_bins=DECODED_OFFSET_BINS)
+                         offset_bins=offset_bins_for(camera, depths_mm, DECODED_OFFSET_BINS))
 
 
 def refocus_channel(views: np.ndarray, own: np.ndarray, slopes, mask: np.ndarray) -> np.ndarray:

@@ -86,9 +86,16 @@ QUADRATURE_NODES = 6
 #: lenslet's shifted by whole samples: above it the map is not a convolution.
 SHIFT_TOLERANCE = 1e-6
 PRECISIONS = ("float64", "float32")
-#: Sub-views per view and axis of :class:`ExactOperator` for samples off the views' grid (a colour
+#: The most sub-views per view and axis of :class:`ExactOperator` for samples off the views' grid (a colour
 #: capture's pixels, up to half a step away): each sample is then modelled within 1/6 of a step.
 OFFSET_BINS = 3
+#: How far (lenslets) a sample's view of a plane may lie from where its pixel sees it before the samples' offsets
+#: are modelled (:func:`offset_bins_for`; a sample half a step off sees a plane of slope ``s`` ``|s| / 2`` lenslets
+#: off). Chosen on the colour camera's validation captures (``experiments/cameras_colour.py --seed0 58100``, a
+#: ``/tmp`` probe): at 0.1 the scene of two flames at -3.4 and -6.3 mm (slopes 0.11 and 0.20) ran on whole views,
+#: its flames 6.4 -> 10.1 % and 4.0 -> 6.9 % (emission p90 8.8 -> 10.0 %); at 0.05 and 0.03 every figure was the
+#: 3 sub-views'.
+OFFSET_TOLERANCE = 0.05
 
 
 def _cos4_mean(ty, tx, var_y, cov, var_x):
@@ -386,8 +393,9 @@ class ExactOperator(pylops.LinearOperator):
         ``view_shifts``), and each sample read from its nearest sub-view: the map stays a
         convolution per sub-view, at ``M^2`` times the views' cost. None: every sample at its
         view's place.
-    offset_bins : int
-        ``M``, sub-views per view and axis with ``sample_offsets`` (:data:`OFFSET_BINS`).
+    offset_bins : int or None
+        ``M``, sub-views per view and axis with ``sample_offsets``; None: as the planes need
+        (:func:`offset_bins_for`, at most :data:`OFFSET_BINS`). 1: whole views (the offsets not modelled).
 
     Attributes
     ----------
@@ -399,7 +407,7 @@ class ExactOperator(pylops.LinearOperator):
     dimsd : (N, N, R, C)
         Data shape: the views of :func:`lf_flame.refocus.shift_and_sum.raw_to_views`.
     offset_bins : int or None
-        ``M`` with ``sample_offsets``, else None.
+        ``M`` where the samples' offsets are modelled (above 1), else None.
     view_dims : (N', N', R, C)
         The views the kernels are of: ``dimsd``, or with ``sample_offsets`` the ``N' = N M``
         sub-views per axis (:meth:`to_samples`, :meth:`from_samples`).
@@ -444,20 +452,22 @@ class ExactOperator(pylops.LinearOperator):
 
     def __init__(self, camera: PlenopticCamera, depths_mm, *, margin: float = 1.0, effects: Effects = FLAME_EFFECTS,
                  precision: str = "float64", quadrature_nodes: int = QUADRATURE_NODES, workers: int | None = None,
-                 subsamples: int = 1, sample_offsets=None, offset_bins: int = OFFSET_BINS):
+                 subsamples: int = 1, sample_offsets=None, offset_bins: int | None = None):
         t_start = time.perf_counter()
         if precision not in PRECISIONS:
             raise ValueError(f"precision must be one of {PRECISIONS}. Received: {precision!r}")
         self._gather, shifts, self.offset_bins = None, {}, None
-        if sample_offsets is not None:
+        if sample_offsets is not None and offset_bins is None:
+            offset_bins = offset_bins_for(camera, depths_mm)
+        if sample_offsets is not None and offset_bins != 1:
             if isinstance(offset_bins, bool) or int(offset_bins) != offset_bins or offset_bins < 1:
                 raise ValueError(f"offset_bins must be an integer >= 1. Received: {offset_bins!r}")
             self.offset_bins = int(offset_bins)
             shifts = dict(view_shifts=(np.arange(self.offset_bins) + 0.5) / self.offset_bins - 0.5)
         ek = self._kernels(camera, depths_mm, margin=margin, effects=effects, quadrature_nodes=quadrature_nodes,
                            subsamples=subsamples, **shifts)
-        if sample_offsets is not None:
-            self._gather = _offset_gather(ek.dimsd, sample_offsets, self.offset_bins)
+        if sample_offsets is not None:                            # checked whether modelled or not
+            self._gather = _offset_gather(ek.dimsd, sample_offsets, self.offset_bins or 1)
         h, weights, m0y, n0x = ek.kernels, ek.weights, ek.tap_origin_y, ek.tap_origin_x
         sub = ek.subsamples
         (N, _, R, C), (P, gr, gc), (n_ty, n_tx) = ek.dimsd, (h.shape[2], ek.dims[1] // sub, ek.dims[2] // sub), h.shape[3:]
@@ -648,9 +658,37 @@ class ExactOperator(pylops.LinearOperator):
         return normalised_adjoint(self, views)
 
 
+def offset_bins_for(camera: PlenopticCamera, depths_mm, cap: int = OFFSET_BINS) -> int:
+    """The sub-views per view and axis that samples off the views' grid need on these planes: 1 or ``cap``.
+
+    A sample whose pixel lies ``d`` view steps off its view's place (``|d|`` up to 1/2) sees a
+    plane of slope ``s`` (lenslets per view step,
+    :meth:`~lf_flame.optics.camera.PlenopticCamera.slope_for_depth`) ``|s| d`` lenslets off. Where
+    that stays within :data:`OFFSET_TOLERANCE` on every plane (``max |s| / 2``: near focus) the
+    whole views do (1), else ``cap``. No count between: with an even count no sub-view lies at the
+    view's place, and 2 sub-views gave larger errors than 3 on 3 of 4 validation captures of the
+    colour camera (flames at their true depths, a ``/tmp`` probe).
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+        The views' camera.
+    depths_mm : sequence of float
+        The planes (mm from the focus distance).
+    cap : int
+
+    Returns
+    -------
+    int
+    """
+    top = max(abs(camera.slope_for_depth(float(d))) for d in np.atleast_1d(depths_mm))
+    return 1 if top / 2 <= OFFSET_TOLERANCE else int(cap)
+
+
 def _offset_gather(view_dims, sample_offsets, M: int) -> np.ndarray:
     """Flat indices into the sub-views ``view_dims`` = (N M, N M, R, C) of each sample's nearest sub-view
-    (:class:`ExactOperator`'s ``sample_offsets``), for the data (N, N, R, C) raveled."""
+    (:class:`ExactOperator`'s ``sample_offsets``), for the data (N, N, R, C) raveled; None for ``M`` 1 (whole
+    views), the offsets checked either way."""
     N, R, C = view_dims[0] // M, view_dims[2], view_dims[3]
     off = np.asarray(sample_offsets, np.float64)
     if off.shape != (N, N, R, C, 2):
@@ -661,6 +699,8 @@ def _offset_gather(view_dims, sample_offsets, M: int) -> np.ndarray:
     if np.abs(off).max() > 1.0:
         raise ValueError(f"sample_offsets must be within one view step of each view's place (largest "
                          f"{np.abs(off).max():.3g})")
+    if M == 1:
+        return None
     k = np.clip(np.floor((off + 0.5) * M), 0, M - 1).astype(np.int64)
     u = np.arange(N)[:, None, None, None] * M + k[..., 0]
     v = np.arange(N)[None, :, None, None] * M + k[..., 1]

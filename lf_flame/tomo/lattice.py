@@ -52,7 +52,7 @@ import math
 import numpy as np
 
 from ..simulate.scenes import FLAME_EFFECTS, Effects
-from .exact import OFFSET_BINS, ExactKernels, ExactOperator, _phase_kernels, chain_coefficients, sub_view_chain
+from .exact import ExactKernels, ExactOperator, _phase_kernels, chain_coefficients, sub_view_chain
 from .operator import plane_grid
 
 #: A hexagonal lattice's row spacing, pitches.
@@ -293,7 +293,8 @@ class LatticeOperator(ExactOperator):
         :attr:`lf_flame.real.lightfield.LightField.sample_offsets`), on the lattice's offset rows;
         modelled by ``offset_bins`` sub-views per view and axis as
         :class:`~lf_flame.tomo.exact.ExactOperator`'s.
-    offset_bins : int
+    offset_bins : int or None
+        As :class:`~lf_flame.tomo.exact.ExactOperator`'s (None: as the planes need).
 
     Attributes
     ----------
@@ -316,7 +317,7 @@ class LatticeOperator(ExactOperator):
 
     def __init__(self, camera, depths_mm, lattice_shape, *, layout: str = "hex", precision: str = "float32",
                  workers: int | None = None, subsamples: int = 1, points: int = KERNEL_POINTS, interpolation=None,
-                 sample_offsets=None, offset_bins: int = OFFSET_BINS):
+                 sample_offsets=None, offset_bins: int | None = None):
         R, C = (int(v) for v in lattice_shape)
         if R < 2 or C < 2:
             raise ValueError(f"a lenslet lattice of {R} x {C} lenslets is too small")
