@@ -154,6 +154,45 @@ def emission_rows(scene_npz: Path, views: Path, cam: Path, noise: str, seed: int
     return df.to_dict("records")
 
 
+def offsets_figure(scene_npz: Path, views: Path, cam: Path, depths, path: Path):
+    """One noise-free capture's green emission per plane solved at the flames' true planes twice, each sample at
+    its own pixel (the route's default) and at its view's place, beside the truth in the decoded frame: the figure
+    of the docs, and each plane's relative error in its titles."""
+    import matplotlib.pyplot as plt
+
+    from lf_flame.cli._io import colour_scene
+    from lf_flame.cli.volume import run_reconstruction
+    from lf_flame.measure.figures import save_figure
+    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.temperature.channels import monochrome_light_field
+    from lf_flame.tomo.decoded import decoded_plane_truth
+    from lf_flame.tomo.truth import bin_planes
+    lf = monochrome_light_field(read_light_field(views, cam))
+    scene, chans, _ = colour_scene(json.loads(str(np.load(scene_npz)["scene"])), lf.capture_camera)
+    truth = np.zeros((len(depths), lf.camera.n_rows, lf.camera.n_cols))
+    for L, ch in zip(scene.layers, chans):
+        k = int(np.argmin([abs(d - L.depth_offset_mm) for d in depths]))
+        truth[k] += decoded_plane_truth(dataclasses.replace(L, radiance=ch[1]), lf.camera, depths[k], truth.shape[1:],
+                                        lf.frame.rotation_deg, lf.frame.centre_lenslets)
+    solved = {}
+    for label, field in (("samples at their pixels", lf),
+                         ("samples at their views' places", dataclasses.replace(lf, sample_offsets=None))):
+        op, rec = run_reconstruction(field, list(depths))
+        solved[label] = bin_planes(rec.planes, op.subsamples)
+    fig, axes = plt.subplots(len(depths), 3, figsize=(7.5, 3.2 * len(depths)), squeeze=False, layout="constrained")
+    for k, d in enumerate(depths):
+        top = float(truth[k].max())
+        for j, (label, planes) in enumerate([("truth", truth)] + list(solved.items())):
+            err = "" if j == 0 else f", {100 * np.linalg.norm(planes[k] - truth[k]) / np.linalg.norm(truth[k]):.1f} % off"
+            im = axes[k, j].imshow(planes[k], cmap="inferno", vmin=0, vmax=top)
+            axes[k, j].set_title(f"{label}\n{d:+.1f} mm{err}", fontsize=8)
+            axes[k, j].set_xticks([])
+            axes[k, j].set_yticks([])
+        fig.colorbar(im, ax=axes[k, :], shrink=0.8, label="green emission (views' units)")
+    save_figure(fig, path)
+    plt.close(fig)
+
+
 def main(argv=None):
     import h5py
 
@@ -212,6 +251,8 @@ def main(argv=None):
             with h5py.File(v.with_name(v.stem + "_T.h5")) as f:
                 T, valid = f["temperature_k"][...], f["valid"][...]
             flames.extend(emission_rows(clean, v, cam, noise, seed))
+            if i == 0 and noise == "clean" and a.grid == "square":   # a hexagonal grid solves on its lattice
+                offsets_figure(clean, v, cam, depths, out / f"{name}_offsets.png")
             if noise == "clean":   # the truth in the decoded frame, the same for both renders (one calibration)
                 lf = read_light_field(v, cam)
                 Tt, vt, body = truth_temperature(clean, lf, depths, cal, model)
@@ -284,7 +325,11 @@ def main(argv=None):
           "their channel's mean and put in green's units, blue left out: "
           "`lf_flame.temperature.channels.monochrome_light_field`), scored per flame by `score_flames` against its "
           "green channel's emission in the decoded frame (a flame whose colour varies is not one grey image: "
-          "its red samples differ from green's by that variation).", "",
+          "its red samples differ from green's by that variation). Each sample is modelled at its own pixel, up to "
+          "half a view step from its view's place, where the planes' parallax calls for it "
+          "(`lf_flame.tomo.exact.offset_bins_for`)"
+          + ("." if a.grid == "hex" else f"; {name}_offsets.png: the first scene's planes solved noise-free at the "
+             "flames' true depths so and with every sample at its view's place, beside the truth."), "",
           em.to_markdown(index=False, floatfmt=".3g"), ""]
     atomic_write_text(out / f"{name}.md", "\n".join(md))
     atomic_write_text(out / f"{name}.json", json.dumps(dict(
