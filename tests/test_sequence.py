@@ -477,6 +477,10 @@ def test_a_colour_recording_is_levelled_as_reconstruct_levels_a_capture(tmp_path
     dark, dark_leave = job.frame(np.zeros(cal.sensor_shape))         # a dark frame (the flame out): zeros, no error
     assert not np.any(dark) and np.array_equal(dark_leave, leave)
     assert job.operator().interpolation is None                       # nearest pixels: no interpolation
+    from lf_flame.tomo.defaults import OFFSET_KNOBS
+    from lf_flame.tomo.exact import offset_bins_for
+    bins = offset_bins_for(lf.camera, (depth,))                       # each sample at its own pixel where it matters
+    assert job.operator().offset_bins == (None if bins == 1 else bins)
     frames = tmp_path / "frames"
     frames.mkdir()
     for i in range(2):
@@ -486,3 +490,6 @@ def test_a_colour_recording_is_levelled_as_reconstruct_levels_a_capture(tmp_path
         "reconstruct-admm", "--depth", depth, "--quiet", "--out", f"{d}/out")
     assert "levelled into one light field" in capsys.readouterr().out
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["n_frames"] == 2
+    r = json.loads((tmp_path / "out" / "job.json").read_text())["reconstruction"]
+    if bins > 1:                                                     # the sub-views' fills, as reconstruct's
+        assert (r["iters"], r["tol"]) == (OFFSET_KNOBS["fills"], OFFSET_KNOBS["tol"])

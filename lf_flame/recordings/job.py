@@ -155,7 +155,8 @@ class SequenceJob:
         for pd-tv, None for the solvers without one); None for shift-and-sum. admm's knobs
         not given are chosen once for the recording by its first frame's noise
         (:func:`lf_flame.tomo.noise_knobs.admm_knobs`; ``admm_noise``), so that every frame is
-        solved alike."""
+        solved alike; on an operator whose samples lie off the views' grid (a colour camera's) the fills
+        cap and tolerance are :data:`~lf_flame.tomo.defaults.OFFSET_KNOBS`."""
         if self.solver is None:
             return None
         from ..tomo import defaults as D
@@ -175,6 +176,8 @@ class SequenceJob:
                 self._cache[key] = admm_knobs(data, fit, self.iters, self.tv)
             knobs = dict(self._cache[key])
             out.update(iters=knobs.pop("fills"), admm_noise=knobs.pop("noise"), **knobs)
+            if self.iters is None and self.calibration is not None and self.operator().offset_bins is not None:
+                out.update(iters=D.OFFSET_KNOBS["fills"], tol=D.OFFSET_KNOBS["tol"])   # sub-views: slower fills
         return out
 
     def identity(self) -> dict:
@@ -291,7 +294,8 @@ class SequenceJob:
     def operator(self):
         """The emission operator of the planes (:func:`lf_flame.tomo.exact.emission_operator`:
         exact, or traced at ``operator_rays`` rays per pixel; real frames: the decoded views'
-        :class:`~lf_flame.tomo.lattice.LatticeOperator` with decoding's interpolation), built once per
+        :class:`~lf_flame.tomo.lattice.LatticeOperator` with decoding's interpolation, a colour camera's with
+        each sample at its own pixel, :func:`lf_flame.real.decoding.sample_offsets`), built once per
         process and kept (with its spectra or ray record) while the camera, depths, rays and
         calibration stay."""
         from ..tomo.exact import emission_operator
@@ -308,11 +312,13 @@ class SequenceJob:
                     from ..real.calibration import GridCalibration
                     from ..real.decoding import interpolation_phases
                     from ..tomo.lattice import LatticeOperator
+                    from ..real.decoding import sample_offsets
                     cam, k, cal = self.camera, self.bin_views, GridCalibration.from_dict(self.calibration)
-                    interpolation = None if self.sensor is not None else (       # colour: nearest pixels
-                        interpolation_phases(cal, cam.pixels_per_lenslet, k), k)
+                    colour = self.sensor is not None                 # nearest pixels, each at its own place
+                    interpolation = None if colour else (interpolation_phases(cal, cam.pixels_per_lenslet, k), k)
                     op = LatticeOperator(cam, list(self.depths_mm), (cal.n_rows, cal.n_cols), layout=cal.layout,
-                                         interpolation=interpolation)
+                                         interpolation=interpolation,
+                                         sample_offsets=sample_offsets(cal, cam.pixels_per_lenslet) if colour else None)
                 else:
                     op = emission_operator(self.camera, list(self.depths_mm), rays_per_pixel=self.operator_rays)
                 _OPERATOR.update(key=key, op=op, builds=_OPERATOR["builds"] + 1)
