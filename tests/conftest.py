@@ -27,3 +27,29 @@ def _uniform_scene(cam, level=0.5):
 def uniform_scene():
     """Factory ``uniform_scene(camera, level)`` of a uniform-plane scene."""
     return _uniform_scene
+
+
+@pytest.fixture
+def colour_capture(tmp_path, capsys):
+    """Factory ``colour_capture(seed, rays, white_rays=8)``: the example camera with an RGGB CFA from the command line
+    (its file ``colour.toml`` in ``tmp_path``), its white image -> ``calibrate`` (``cal.json``), and a colour-depth
+    scene of that seed (``scene.npz``) decoded with its channels apart (``scene.h5``); returns the camera file."""
+    from pathlib import Path
+
+    from lf_flame.cli import main
+    sheet = (Path(__file__).resolve().parents[1] / "examples" / "own_camera.toml").read_text()
+    cam = tmp_path / "colour.toml"
+    cam.write_text(sheet + 'cfa = "RGGB"\n')
+    d = str(tmp_path)
+
+    def run(*argv):
+        assert main([str(x) for x in argv]) == 0, capsys.readouterr().err
+
+    def make(seed, rays, white_rays=8):
+        run("simulate", "--camera", cam, "--scene", "white", "--rays-per-pixel", white_rays, "--out", f"{d}/white.npz")
+        run("calibrate", f"{d}/white.npz", "--out", f"{d}/cal.json")
+        run("simulate", "--camera", cam, "--scene", "colour-depth", "--seed", seed, "--rays-per-pixel", rays,
+            "--out", f"{d}/scene.npz")
+        run("decode", f"{d}/scene.npz", "--calibration", f"{d}/cal.json", "--camera", cam, "--out", f"{d}/scene.h5")
+        return cam
+    return make

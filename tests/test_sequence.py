@@ -442,7 +442,7 @@ def test_a_recording_of_another_camera_is_decoded_and_reconstructed(tmp_path, la
     assert "real frames are solved on their decoded views' exact operator" in capsys.readouterr().err
 
 
-def test_a_colour_recording_is_levelled_as_reconstruct_levels_a_capture(tmp_path, capsys):
+def test_a_colour_recording_is_levelled_as_reconstruct_levels_a_capture(tmp_path, capsys, colour_capture):
     """A colour camera's recording (the example camera with an RGGB CFA): each frame is decoded with its channels
     apart and levelled into one light field exactly as ``reconstruct`` levels the same capture (the same views and
     the same samples left out: blue), solved on the operator of nearest pixels; ``sequence`` runs it from the
@@ -452,21 +452,13 @@ def test_a_colour_recording_is_levelled_as_reconstruct_levels_a_capture(tmp_path
     from lf_flame.recordings.job import SequenceJob
     from lf_flame.real.lightfield import read_light_field
     from lf_flame.temperature.channels import monochrome_light_field
-    sheet = (Path(__file__).resolve().parents[1] / "examples" / "own_camera.toml").read_text()
-    cam = tmp_path / "cam.toml"
-    cam.write_text(sheet + 'cfa = "RGGB"\n')
-    d = str(tmp_path)
+    cam, d = colour_capture(3, 4, white_rays=4), str(tmp_path)
 
     def run(*argv):
         assert main([str(x) for x in argv]) == 0, capsys.readouterr().err
-    run("simulate", "--camera", cam, "--scene", "white", "--rays-per-pixel", 4, "--out", f"{d}/white.npz")
-    run("calibrate", f"{d}/white.npz", "--out", f"{d}/cal.json")
-    run("simulate", "--camera", cam, "--scene", "colour-depth", "--seed", 3, "--rays-per-pixel", 4,
-        "--out", f"{d}/scene.npz")
-    run("decode", f"{d}/scene.npz", "--calibration", f"{d}/cal.json", "--camera", cam, "--out", f"{d}/views.h5")
-    lf = monochrome_light_field(read_light_field(f"{d}/views.h5", str(cam)))
+    lf = monochrome_light_field(read_light_field(f"{d}/scene.h5", str(cam)))
     assert lf.channels is None and "levelled" in lf.meta["monochrome"]
-    assert np.array_equal(light_field(argparse.Namespace(raw=f"{d}/views.h5", camera=str(cam))).views, lf.views)
+    assert np.array_equal(light_field(argparse.Namespace(raw=f"{d}/scene.h5", camera=str(cam))).views, lf.views)
     cal = GridCalibration.load(f"{d}/cal.json")
     depth = float(json.loads(str(np.load(f"{d}/scene.npz")["objects"]))[0]["depth_offset_mm"])
     job = SequenceJob(None, lf.camera, 100.0, (depth,), (lf.camera.slope_for_depth(depth),), (None,),

@@ -299,7 +299,7 @@ def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, 
     assert "without their colour channels" in capsys.readouterr().err
 
 
-def test_a_colour_captures_emission_is_solved_at_each_samples_own_pixel(tmp_path, capsys):
+def test_a_colour_captures_emission_is_solved_at_each_samples_own_pixel(tmp_path, colour_capture):
     """A square colour capture's samples are each its nearest pixel, up to half a view step from the view's place;
     the exact operator with those offsets (``LightField.sample_offsets``, three sub-views per view and axis) fits the
     decoded views and recovers the flames' emission better than the operator that puts every sample at its view's
@@ -307,7 +307,6 @@ def test_a_colour_captures_emission_is_solved_at_each_samples_own_pixel(tmp_path
     solved at their true depths (the levelled light field, admm on the 2 x 2 grid), each plane scored against the
     green channel's emission in the decoded frame."""
     import dataclasses
-    from pathlib import Path
 
     from lf_flame.cli._io import colour_scene
     from lf_flame.real.lightfield import read_light_field
@@ -315,22 +314,10 @@ def test_a_colour_captures_emission_is_solved_at_each_samples_own_pixel(tmp_path
     from lf_flame.tomo.decoded import decoded_plane_truth, fit_data
     from lf_flame.tomo.exact import ExactOperator
     from lf_flame.tomo.solvers import reconstruct
-    cam_file = tmp_path / "colour.toml"
-    cam_file.write_text((Path(__file__).resolve().parents[1] / "examples" / "own_camera.toml").read_text()
-                        + 'cfa = "RGGB"\n')
-    d = str(tmp_path)
-
-    def run(*argv):
-        assert main([str(x) for x in argv]) == 0, capsys.readouterr().err
-
-    run("simulate", "--camera", cam_file, "--scene", "white", "--rays-per-pixel", 8, "--out", f"{d}/white.npz")
-    run("calibrate", f"{d}/white.npz", "--out", f"{d}/cal.json")
-    run("simulate", "--camera", cam_file, "--scene", "colour-depth", "--seed", 7, "--rays-per-pixel", 32,
-        "--out", f"{d}/s.npz")
-    run("decode", f"{d}/s.npz", "--calibration", f"{d}/cal.json", "--camera", cam_file, "--out", f"{d}/s.h5")
-    lf = read_light_field(f"{d}/s.h5", str(cam_file))
+    cam_file = colour_capture(7, 32)
+    lf = read_light_field(tmp_path / "scene.h5", str(cam_file))
     assert lf.sample_offsets is not None and np.abs(lf.sample_offsets).max() > 0.45
-    scene, chans, _ = colour_scene(json.loads(str(np.load(f"{d}/s.npz")["scene"])), lf.capture_camera)
+    scene, chans, _ = colour_scene(json.loads(str(np.load(tmp_path / "scene.npz")["scene"])), lf.capture_camera)
     depths = sorted({round(L.depth_offset_mm, 6) for L in scene.layers})
     assert max(abs(lf.camera.slope_for_depth(z)) for z in depths) > 0.3            # parallax the offsets matter at
     R, C = lf.views.shape[2:]
