@@ -666,8 +666,10 @@ def offset_bins_for(camera: PlenopticCamera, depths_mm, cap: int = OFFSET_BINS) 
     :meth:`~lf_flame.optics.camera.PlenopticCamera.slope_for_depth`) ``|s| d`` lenslets off. Where
     that stays within :data:`OFFSET_TOLERANCE` on every plane (``max |s| / 2``: near focus) the
     whole views do (1), else ``cap``. No count between: with an even count no sub-view lies at the
-    view's place, and 2 sub-views gave larger errors than 3 on 3 of 4 validation captures of the
-    colour camera (flames at their true depths, a ``/tmp`` probe).
+    view's place, and for the emission 2 sub-views gave larger errors than 3 on 3 of 4 validation
+    captures of the colour camera (flames at their true depths, a ``/tmp`` probe). The temperature
+    route's cap of 2 was chosen with its own knobs
+    (:data:`lf_flame.temperature.channels.DECODED_OFFSET_KNOBS`).
 
     Parameters
     ----------
@@ -685,7 +687,7 @@ def offset_bins_for(camera: PlenopticCamera, depths_mm, cap: int = OFFSET_BINS) 
     return 1 if top / 2 <= OFFSET_TOLERANCE else int(cap)
 
 
-def _offset_gather(view_dims, sample_offsets, M: int) -> np.ndarray:
+def _offset_gather(view_dims, sample_offsets, M: int) -> np.ndarray | None:
     """Flat indices into the sub-views ``view_dims`` = (N M, N M, R, C) of each sample's nearest sub-view
     (:class:`ExactOperator`'s ``sample_offsets``), for the data (N, N, R, C) raveled; None for ``M`` 1 (whole
     views), the offsets checked either way."""
