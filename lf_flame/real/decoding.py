@@ -298,7 +298,8 @@ def decode_colour(raw: np.ndarray, calibration: GridCalibration, sensor, white: 
     which each channel is solved from its own samples
     (:func:`lf_flame.temperature.channels.channel_emission`), as on a perfect grid. The price is
     the position: up to half a pixel (half a view step) from where the decoded camera puts the
-    sample. The white image divides each pixel by its own value over its channel's 99th
+    sample, which :func:`sample_offsets` gives and the exact operator models
+    (:attr:`lf_flame.real.lightfield.LightField.sample_offsets`). The white image divides each pixel by its own value over its channel's 99th
     percentile on the sensor, so that vignetting is removed and the channels' ratio, which the
     pyrometer reads, is the raw image's.
 
