@@ -331,7 +331,9 @@ def test_a_colour_captures_emission_is_solved_at_each_samples_own_pixel(tmp_path
     for name, offsets in (("own pixel", lf.sample_offsets), ("view's place", None)):
         op = ExactOperator(lf.camera, depths, precision="float32", subsamples=2, sample_offsets=offsets)
         data, leave = fit_data(mono, op)
-        planes = reconstruct(data, op, "admm", saturation=leave).planes.reshape(len(depths), R, 2, C, 2).mean((2, 4))
+        rec = reconstruct(data, op, "admm", saturation=leave)
+        assert rec.settings.get("sub_views") == (None if offsets is None else 3)
+        planes = rec.planes.reshape(len(depths), R, 2, C, 2).mean((2, 4))
         fitted = ~leave
         res = op.matvec(np.repeat(np.repeat(planes, 2, 1), 2, 2).ravel()).reshape(op.dimsd) - data
         scores[name] = (max(np.linalg.norm(p - t) / np.linalg.norm(t) for p, t in zip(planes, truth)),

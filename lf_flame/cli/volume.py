@@ -325,6 +325,8 @@ def cmd_reconstruct(a):
                         truth_depths(scene, rec.depths_mm))
     res = f"{rec.residuals[-1]:.4f}" if len(rec.residuals) else "-"
     grid = f", {sub} x {sub} samples per lenslet" if sub > 1 else ""
+    m = rec.settings.get("sub_views")
+    grid += f", each sample at its own pixel ({m} x {m} sub-views per view)" if m else ""
     print(f"reconstructed {len(depths)} planes ({rec.solver}, {iterations_note(rec)}{grid}) in "
           f"{rec.time_s:.2f} s;"
           f" relative residual {res} -> {out}, {fig}" + ("" if truth is None else " (with the scene's truth)"))

@@ -280,6 +280,8 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
     Returns
     -------
     Reconstruction
+        Its ``settings["sub_views"]``: the sub-views per view and axis where ``op`` models each
+        sample at its own pixel (:class:`~lf_flame.tomo.exact.ExactOperator`'s ``sample_offsets``).
 
     Raises
     ------
@@ -294,6 +296,8 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
     p = _fitted_problem(op, y, saturation)
     settings = dict(iters=iters, rays_per_pixel=op.rays_per_pixel, seed=op.seed,
                     saturation="mask" if np.ndim(saturation) > 0 else saturation, n_saturated=p.n_sat)
+    if getattr(op, "offset_bins", None):                              # each sample at its own pixel
+        settings["sub_views"] = op.offset_bins
     step = _Steps(iters, f"reconstruct ({solver})", progress, callback)
     if (support is not None or l1 or start is not None or tol is not None or state is not None
             or start_planes is not None) and solver != "admm":
