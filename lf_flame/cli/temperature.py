@@ -209,6 +209,8 @@ def cmd_temperature(a):
     chosen, knobs, ratio_filter = {}, None, None
     slopes = [cam.slope_for_depth(d) for d in depths]
     op = route_operator(cam, depths, a.route, hexagonal, lf.sample_offsets if hexagonal is None else None)
+    if getattr(op, "offset_bins", None):                # each sample at its own pixel: recorded with the route
+        chosen["sub_views"] = op.offset_bins
     if not lf.decoded:
         data, sat = views, a.saturation
     elif op is None:                                    # refocus-cfa: the decoded views as they are
