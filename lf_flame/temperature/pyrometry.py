@@ -202,7 +202,11 @@ def fit_calibration(sensor: ColourSensor, temperatures_k, ratios, channels=("R",
     Raises
     ------
     ValueError
-        Fewer than one image, lengths that differ, non-positive ratios or temperatures.
+        Fewer than one image, lengths that differ, non-positive ratios or temperatures; images at
+        two or more temperatures whose ratio moves with temperature against the model's (whatever
+        the channels' gains, a blackbody's ratio of a longer- over a shorter-wavelength band falls
+        as it heats): the samples of those channels are not the sensor's, a colour filter array
+        read at the wrong phase (red and blue swapped) or the wrong pattern.
     """
     t = np.asarray(temperatures_k, float)
     r = np.asarray(ratios, float)
@@ -210,7 +214,17 @@ def fit_calibration(sensor: ColourSensor, temperatures_k, ratios, channels=("R",
         raise ValueError(f"one ratio per temperature is needed. Received: {t.shape} and {r.shape}")
     if np.any(~np.isfinite(r)) or np.any(r <= 0) or np.any(t <= 0):
         raise ValueError("ratios and temperatures must be finite and > 0")
-    g = float(np.exp(np.mean(np.log(r / model_ratio(sensor, t, channels, alpha=0.0)))))
+    model = model_ratio(sensor, t, channels, alpha=0.0)
+    if np.ptp(t) > 0:                   # the log ratio's slope in T, measured against the model's: the same sign
+        slope, want = (np.polyfit(t, np.log(v), 1)[0] for v in (r, model))
+        if slope * want < 0:
+            raise ValueError(f"the measured {channels[0]}/{channels[1]} ratio {'rises' if slope > 0 else 'falls'} with "
+                             f"the blackbody's temperature where sensor {sensor.name!r}'s "
+                             f"{'falls' if want < 0 else 'rises'}: these images' {channels[0]} and {channels[1]} "
+                             f"samples are not those channels' pixels. Check the colour filter array: pattern "
+                             f"{sensor.pattern}, phase {tuple(int(p) for p in sensor.phase)} (the camera file's cfa "
+                             "and cfa_phase, or --cfa and --cfa-phase)")
+    g = float(np.exp(np.mean(np.log(r / model))))
     cal = TemperatureCalibration(sensor.name, sensor.pattern, tuple(int(p) for p in sensor.phase), tuple(channels),
                                  g, tuple(float(x) for x in t), ())
     res = ratio_to_temperature(r, cal, sensor, alpha=0.0) - t
