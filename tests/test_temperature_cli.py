@@ -66,17 +66,18 @@ def test_calibrate_temperature_finds_the_gain_ratio(files):
                  str(files["dir"] / "x.json")]) == 2
 
 
-def test_a_colour_filter_array_read_at_the_wrong_phase_is_refused(files, capsys):
-    """Read at phase (1, 1) the RGGB mosaic's red samples are blue's: their ratio to green rises with the blackbodies'
-    temperature where a blackbody's red/green falls, whatever the gains; calibrate-temperature refuses it, naming the
-    colour filter array, rather than fitting a gain ratio."""
+@pytest.mark.parametrize("phase", [(1, 1), (0, 1), (1, 0)])
+def test_a_colour_filter_array_read_at_the_wrong_phase_is_refused(files, capsys, phase):
+    """Read at another phase the RGGB mosaic's red samples are blue's or green's, its green samples red's and blue's:
+    their ratio rises with the blackbodies' temperature where a blackbody's red/green falls, whatever the gains;
+    calibrate-temperature refuses it, naming the colour filter array, rather than fitting a gain ratio."""
     args = ["calibrate-temperature", *files["bb"]]
     for t in (1600, 2000, 2400):
         args += ["--temperature", str(t)]
     capsys.readouterr()
-    assert main(args + ["--cfa-phase", "1", "1", "--out", str(files["dir"] / "wrong.json")]) == 2
+    assert main(args + ["--cfa-phase", *map(str, phase), "--out", str(files["dir"] / "wrong.json")]) == 2
     err = capsys.readouterr().err
-    assert "rises with the blackbody's temperature" in err and "phase (1, 1)" in err
+    assert "rises with the blackbody's temperature" in err and f"phase {phase}" in err
     assert not (files["dir"] / "wrong.json").exists()
 
 
