@@ -70,7 +70,8 @@ def test_calibrate_temperature_finds_the_gain_ratio(files):
 def test_a_colour_filter_array_read_at_the_wrong_phase_is_refused(files, capsys, phase):
     """Read at another phase the RGGB mosaic's red samples are blue's or green's, its green samples red's and blue's:
     their ratio rises with the blackbodies' temperature where a blackbody's red/green falls, whatever the gains;
-    calibrate-temperature refuses it, naming the colour filter array, rather than fitting a gain ratio."""
+    calibrate-temperature refuses it, naming the colour filter array and the phase the raw images fit at, rather
+    than fitting a gain ratio."""
     args = ["calibrate-temperature", *files["bb"]]
     for t in (1600, 2000, 2400):
         args += ["--temperature", str(t)]
@@ -78,6 +79,7 @@ def test_a_colour_filter_array_read_at_the_wrong_phase_is_refused(files, capsys,
     assert main(args + ["--cfa-phase", *map(str, phase), "--out", str(files["dir"] / "wrong.json")]) == 2
     err = capsys.readouterr().err
     assert "rises with the blackbody's temperature" in err and f"phase {phase}" in err
+    assert "These images fit at phase (0, 0) (residuals within 0.0 K)" in err     # the one they were made with
     assert not (files["dir"] / "wrong.json").exists()
 
 

@@ -115,10 +115,38 @@ def cmd_calibrate_temperature(a):
         ratios.append(r)
         print(f"{path}: {t:g} K, {channels[0]}/{channels[1]} = {r:.5f} (sensor {sensor.name}, {sensor.pattern} "
               f"phase {sensor.phase}: {where})")
-    cal = fit_calibration(sensor0, temps, ratios, channels)
+    try:
+        cal = fit_calibration(sensor0, temps, ratios, channels)
+    except ValueError as err:           # a colour filter array read at the wrong phase: say which phase fits
+        raise ValueError(f"{err}{_fitting_phases(a.images, temps, sensor0, channels)}") from None
     out = write_calibration(a.out, cal)
     print(f"gain ratio {cal.gain_ratio:.5f}; fit residuals " + ", ".join(f"{x:+.2f}" for x in cal.fit_residuals_k)
           + f" K -> {out}")
+
+
+def _fitting_phases(images, temps, sensor, channels) -> str:
+    """For raw blackbody images refused by :func:`~lf_flame.temperature.pyrometry.fit_calibration`: the other CFA
+    phases of the same pattern under which they fit, with their largest residual (K), as a sentence ('' for
+    decoded views, whose channels were fixed when decoded, or where none fits)."""
+    import dataclasses
+
+    from ..optics.camera import PAPER_CAMERA
+    from ..temperature.pyrometry import blackbody_ratio, fit_calibration
+    if any(str(p).endswith(".h5") for p in images):
+        return ""
+    raws = [_load_raw(p) for p in images]
+    fits = []
+    for phase in ((0, 0), (0, 1), (1, 0), (1, 1)):
+        if phase == tuple(sensor.phase):
+            continue
+        other = dataclasses.replace(sensor, phase=phase)
+        try:
+            cal = fit_calibration(other, temps, [blackbody_ratio(raw, other, (cam or PAPER_CAMERA).pixels_per_lenslet,
+                                                                 channels) for raw, cam in raws], channels)
+        except ValueError:
+            continue
+        fits.append(f"{phase} (residuals within {max(abs(x) for x in cal.fit_residuals_k):.1f} K)")
+    return f". These images fit at phase {' and '.join(fits)}" if fits else ""
 
 
 #: What the temperature figure's grey area is (its legend entry).
