@@ -233,6 +233,8 @@ def misfit_warning(lf, op, rec, saturation="file", lattice=None):
         print(f"warning: the planes leave {100 * m['misfit']:.0f} % of the light field unexplained beyond its noise "
               f"(relative residual {m['relative_residual']:.3f}, of which noise {m['noise_share']:.3f}): light "
               "from flames off these planes or beyond the field, or a camera file that is not this camera's"
+              + ("; a colour capture levelled into one light field keeps its flames' colour variation (their red "
+                 "samples differ from green's), part of this" if "monochrome" in lf.meta else "")
               + (f"; admm stopped at its fills' cap ({int(rec.settings['iters'])}) without settling: more fills "
                  "(--iters) may explain more" if capped else ""), file=sys.stderr)
     return m
