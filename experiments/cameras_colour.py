@@ -105,21 +105,26 @@ def merged_planes(depths) -> list:
     return [float(np.mean(g)) for g in groups]
 
 
-def truth_temperature(scene_npz: Path, lf, depths, cal, model):
-    """Each plane's true temperature (K), where it has one, and its flames' bodies (:data:`BODY_FRACTION`), on the
-    decoded planes' lenslet grid."""
+def channel_truth(scene_npz: Path, lf, depths) -> np.ndarray:
+    """The red and green channels' emission (2, P, rows, cols) of a colour scene's flames, each on the plane nearest
+    its depth, on the decoded planes' lenslet grid."""
     from lf_flame.cli._io import colour_scene
-    from lf_flame.temperature.pyrometry import temperature_planes
     from lf_flame.tomo.decoded import decoded_plane_truth
-    z = np.load(scene_npz)
-    record = json.loads(str(z["scene"]))
-    scene, chans, _ = colour_scene(record, lf.capture_camera)
+    scene, chans, _ = colour_scene(json.loads(str(np.load(scene_npz)["scene"])), lf.capture_camera)
     truth = np.zeros((2, len(depths), lf.camera.n_rows, lf.camera.n_cols))
     for L, ch in zip(scene.layers, chans):
         k = int(np.argmin([abs(d - L.depth_offset_mm) for d in depths]))
         for c in (0, 1):
             truth[c, k] += decoded_plane_truth(dataclasses.replace(L, radiance=ch[c]), lf.camera, depths[k],
                                                truth.shape[2:], lf.frame.rotation_deg, lf.frame.centre_lenslets)
+    return truth
+
+
+def truth_temperature(scene_npz: Path, lf, depths, cal, model):
+    """Each plane's true temperature (K), where it has one, and its flames' bodies (:data:`BODY_FRACTION`), on the
+    decoded planes' lenslet grid."""
+    from lf_flame.temperature.pyrometry import temperature_planes
+    truth = channel_truth(scene_npz, lf, depths)
     Tt, vt, _ = temperature_planes(truth[0], truth[1], cal, model)
     light = truth.sum(axis=0)
     body = light > BODY_FRACTION * light.reshape(len(light), -1).max(axis=1)[:, None, None]
@@ -160,20 +165,13 @@ def offsets_figure(scene_npz: Path, views: Path, cam: Path, depths, path: Path):
     of the docs, and each plane's relative error in its titles."""
     import matplotlib.pyplot as plt
 
-    from lf_flame.cli._io import colour_scene
     from lf_flame.cli.volume import run_reconstruction
     from lf_flame.measure.figures import save_figure
     from lf_flame.real.lightfield import read_light_field
     from lf_flame.temperature.channels import monochrome_light_field
-    from lf_flame.tomo.decoded import decoded_plane_truth
     from lf_flame.tomo.truth import bin_planes
     lf = monochrome_light_field(read_light_field(views, cam))
-    scene, chans, _ = colour_scene(json.loads(str(np.load(scene_npz)["scene"])), lf.capture_camera)
-    truth = np.zeros((len(depths), lf.camera.n_rows, lf.camera.n_cols))
-    for L, ch in zip(scene.layers, chans):
-        k = int(np.argmin([abs(d - L.depth_offset_mm) for d in depths]))
-        truth[k] += decoded_plane_truth(dataclasses.replace(L, radiance=ch[1]), lf.camera, depths[k], truth.shape[1:],
-                                        lf.frame.rotation_deg, lf.frame.centre_lenslets)
+    truth = channel_truth(scene_npz, lf, depths)[1]                      # green
     solved = {}
     for label, field in (("samples at their pixels", lf),
                          ("samples at their views' places", dataclasses.replace(lf, sample_offsets=None))):

@@ -34,7 +34,7 @@ import pandas as pd
 
 from lf_flame.config import atomic_write_text, provenance, to_json
 from lf_flame.optics.camera import PAPER_CAMERA, PlenopticCamera
-from lf_flame.tomo.exact import exact_kernels
+from lf_flame.tomo.quadrature import exact_kernels
 from lf_flame.tomo.resolution import (
     CONDITIONS,
     FEATURE_SIZES_MM,

@@ -23,7 +23,7 @@ from lf_flame.simulate import scenes, tracer
 from lf_flame.simulate.scenes_depth import camera_depth_scene
 from lf_flame.tomo import lattice as hx
 from lf_flame.tomo.decoded import decoded_plane_truth
-from lf_flame.tomo.exact import exact_kernels
+from lf_flame.tomo.quadrature import exact_kernels
 from lf_flame.tomo.truth import bin_planes
 
 from test_decoding import _camera

@@ -8,7 +8,8 @@ import pytest
 
 from lf_flame.cli import main
 from lf_flame.optics.camera import PlenopticCamera
-from lf_flame.tomo.exact import ExactOperator, exact_kernels
+from lf_flame.tomo.exact import ExactOperator
+from lf_flame.tomo.quadrature import exact_kernels
 from lf_flame.tomo.resolution import (
     depth_resolution,
     kernel_response,

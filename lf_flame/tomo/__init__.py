@@ -3,8 +3,8 @@
 Flames are optically thin, so a light field is a linear function of the emission on
 the planes. :mod:`.operator` is that camera map as a PyLops operator (the simulator's
 tracer with fixed rays, recorded once, kernels in :mod:`._kernels`); :mod:`.exact` the
-same map without Monte-Carlo noise (per-view convolutions with kernels by deterministic
-quadrature, applied by FFT; kernels in :mod:`._exact_kernels`); :mod:`.lattice` that map for decoded
+same map without Monte-Carlo noise (per-view convolutions applied by FFT, with kernels by deterministic
+quadrature in :mod:`.quadrature`, its loops in :mod:`._exact_kernels`); :mod:`.lattice` that map for decoded
 views (decoding's interpolation, a hexagonal lenslet lattice solved on itself); :mod:`.resolution` the
 camera's depth-resolution map from that map's per-frequency normal matrices; :mod:`.solvers`
 recovers the emission with PyLops/PyProximal solvers, and :mod:`.fourier` on the exact
@@ -28,8 +28,8 @@ import lazy_loader as lazy
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
     submodules=["axis", "axisymmetric", "decoded", "defaults", "depth", "exact", "files", "found_planes", "fourier",
-                "fourier_system", "lattice", "noise_knobs", "operator", "peel", "refine", "resolution", "revolve", "scoring",
-                "solvers", "truth", "volume"],
+                "fourier_system", "lattice", "noise_knobs", "operator", "peel", "quadrature", "refine", "resolution",
+                "revolve", "scoring", "solvers", "truth", "volume"],
     submod_attrs={
         "axisymmetric": ["AXI_LAM", "AXI_FILLS", "AXI_INNER", "AxisymmetricVolume", "solve_axisymmetric"],
         "revolve": ["RevolveOperator", "NormalMatrices", "fit_emission", "wide_operator"],
@@ -42,9 +42,10 @@ __getattr__, __dir__, __all__ = lazy.attach(
                    "REFINED_SHARE", "slope_jacobian", "refine_planes", "refined_regions", "peel_and_refine"],
         "found_planes": ["SUPPORT_DILATION", "NEAR_PARALLAX", "SUPPORT_KNOBS", "FOUND_PLANES_KNOBS", "plane_support",
                          "near_plane_support", "found_support", "found_planes_knobs", "find_planes"],
-        "exact": ["QUADRATURE_NODES", "SHIFT_TOLERANCE", "PRECISIONS", "OFFSET_BINS", "OFFSET_TOLERANCE",
-                  "offset_bins_for", "ExactKernels", "exact_kernels", "chain_coefficients", "sub_view_chain",
-                  "ExactOperator", "emission_operator"],
+        "quadrature": ["QUADRATURE_NODES", "SHIFT_TOLERANCE", "ExactKernels", "exact_kernels", "chain_coefficients",
+                       "sub_view_chain"],
+        "exact": ["PRECISIONS", "OFFSET_BINS", "OFFSET_TOLERANCE", "offset_bins_for", "ExactOperator",
+                  "emission_operator"],
         "lattice": ["KERNEL_POINTS", "LAYOUTS", "nearest_site", "hexagon_points", "rd_points", "lattice_kernels",
                     "to_axial", "LatticeOperator", "LatticeSolve", "solve_on_lattice"],
         "fourier": ["solve_admm", "fill_data", "wiener_start", "backprojection_weight", "coarse_operator"],

@@ -27,16 +27,16 @@ they are. The decoded views, rows of lenslets each shifted by half a pitch from 
 (the calibration's offset rows), become a parallelogram in that array (:func:`to_axial`); the
 array's other samples are missing data, left out of the fit like clipped ones. The planes fill
 the whole array; ``subsamples`` = s puts s x s sites of the s-times finer lattice in each
-lenslet's (the polyphase grouping of :func:`lf_flame.tomo.exact._phase_kernels`).
+lenslet's (the polyphase grouping of :func:`lf_flame.tomo.quadrature._phase_kernels`).
 
 The kernels: per view and plane, the mean over a pixel's rays (the pixel's area, shifted by the
 interpolation, times the lenslet's cell, square or hexagonal as the renderer draws it:
 :func:`hexagon_points`) of aperture x cos^4 x [the ray reads the plane at site offset (m, n)],
 from the same affine ray chain as the square camera's
-(:func:`lf_flame.tomo.exact.chain_coefficients`). Neither the interpolation's two pixels nor the
+(:func:`lf_flame.tomo.quadrature.chain_coefficients`). Neither the interpolation's two pixels nor the
 hexagon's nearest site are separable by axis, so the mean is taken over the points of a
 low-discrepancy sequence (:func:`rd_points`, the renderer's: the same kernels every run) rather
-than by the closed-form quadrature of :func:`~lf_flame.tomo.exact.exact_kernels`; on a square
+than by the closed-form quadrature of :func:`~lf_flame.tomo.quadrature.exact_kernels`; on a square
 lattice without interpolation the two agree within 3e-3 of the taps' sum (L1) at 2^14 points and
 1e-3 at 2^16 (``tests/test_lattice_operator.py``).
 
@@ -52,7 +52,8 @@ import math
 import numpy as np
 
 from ..simulate.scenes import FLAME_EFFECTS, Effects
-from .exact import ExactKernels, ExactOperator, _phase_kernels, chain_coefficients, sub_view_chain
+from .exact import ExactOperator
+from .quadrature import ExactKernels, _phase_kernels, chain_coefficients, sub_view_chain
 from .operator import plane_grid
 
 #: A hexagonal lattice's row spacing, pitches.
@@ -144,7 +145,7 @@ def lattice_kernels(camera, depths_mm, shape, *, layout: str = "hex", subsamples
         The views' axial array, rows x columns of lenslets (:func:`to_axial`).
     layout : {'hex', 'square'}
         The lenslets' lattice and cells (the square one checks this route against
-        :func:`lf_flame.tomo.exact.exact_kernels`).
+        :func:`lf_flame.tomo.quadrature.exact_kernels`).
     subsamples : int
         Sites of the s-times finer lattice per lenslet and axis.
     points : int
@@ -159,7 +160,7 @@ def lattice_kernels(camera, depths_mm, shape, *, layout: str = "hex", subsamples
         axis). None: each sample is one pixel (simulated views).
     view_shifts : sequence of float or None
         Sub-views of each view, its pixel moved by each shift (view steps;
-        :func:`lf_flame.tomo.exact.sub_view_chain`), as :func:`lf_flame.tomo.exact.exact_kernels`'.
+        :func:`lf_flame.tomo.quadrature.sub_view_chain`), as :func:`lf_flame.tomo.quadrature.exact_kernels`'.
 
     Returns
     -------

@@ -49,7 +49,7 @@ plane: above the grids' Nyquist frequency) is not mapped (NaN).
 
 Simplifications, all optimistic for what the data alone can tell: an unbounded field (no
 border, where fewer views see a plane), the per-pixel cos^4 drift left out (the kernels'
-aperture and cos^4 at the field centre are in, :func:`~lf_flame.tomo.exact.exact_kernels`),
+aperture and cos^4 at the field centre are in, :func:`~lf_flame.tomo.quadrature.exact_kernels`),
 equal white noise on every pixel, no saturation, and no prior: non-negativity, the
 planes' support and smoothness make a solver do better than this map says, which is why
 the paper's four flames 10 mm apart reconstruct although whole flames are not resolved.
@@ -74,7 +74,7 @@ from ..optics.camera import PAPER_CAMERA, PlenopticCamera
 from ..simulate.scenes import FLAME_EFFECTS, Effects
 
 if TYPE_CHECKING:
-    from .exact import ExactKernels
+    from .quadrature import ExactKernels
 
 # The module imports only NumPy and the camera at the top (its constants are the command
 # line's defaults); :func:`depth_resolution` imports the quadrature (Numba, SciPy, PyLops).
@@ -137,7 +137,7 @@ def kernel_response(kern: ExactKernels, freq, planes, axis: str = "rows") -> np.
     view's kernel on a plane, at one lateral frequency per entry.
 
     ``H_vk(f) = sum_{m, n} h[u, v, k, m, n] exp(2 pi i (f_y (oy[u, k] + m) + f_x (ox[v, k] + n)))``
-    with the taps' offsets ``oy``, ``ox`` (:class:`~lf_flame.tomo.exact.ExactKernels`): the
+    with the taps' offsets ``oy``, ``ox`` (:class:`~lf_flame.tomo.quadrature.ExactKernels`): the
     spectrum :class:`~lf_flame.tomo.exact.ExactOperator` applies, at any frequency.
 
     Parameters
@@ -374,7 +374,7 @@ def resolution_from_kernels(kern: ExactKernels, feature_mm=FEATURE_SIZES_MM, con
     ----------
     kern : ExactKernels
         Of at least 2 evenly spaced planes in increasing depth
-        (:func:`~lf_flame.tomo.exact.exact_kernels` of :func:`stack_depths`).
+        (:func:`~lf_flame.tomo.quadrature.exact_kernels` of :func:`stack_depths`).
     feature_mm, conditions, axis
         As :func:`depth_resolution`.
     camera : PlenopticCamera or None
@@ -444,7 +444,7 @@ def depth_resolution(camera: PlenopticCamera | None = None, *, near_mm: float = 
     Parameters
     ----------
     camera : PlenopticCamera or None
-        A perfect lenslet grid (:func:`~lf_flame.tomo.exact.exact_kernels`); None: the
+        A perfect lenslet grid (:func:`~lf_flame.tomo.quadrature.exact_kernels`); None: the
         paper's camera.
     near_mm, far_mm, spacing_mm : float
         The stack (:func:`stack_depths`), mm from the focal plane, > 0 farther.
@@ -457,7 +457,7 @@ def depth_resolution(camera: PlenopticCamera | None = None, *, near_mm: float = 
     effects : Effects
         Aperture and cos^4 of the kernels (occlusion and crosstalk off).
     quadrature_nodes : int or None
-        Of the kernels' quadrature; None: :data:`lf_flame.tomo.exact.QUADRATURE_NODES`.
+        Of the kernels' quadrature; None: :data:`lf_flame.tomo.quadrature.QUADRATURE_NODES`.
 
     Returns
     -------
@@ -476,7 +476,7 @@ def depth_resolution(camera: PlenopticCamera | None = None, *, near_mm: float = 
     in a 40-size sweep); peak process memory 626 MB, 378 MB of it before the map
     (``python experiments/depth_resolution.py``, ``results/depth_resolution.md``).
     """
-    from .exact import QUADRATURE_NODES, exact_kernels
+    from .quadrature import QUADRATURE_NODES, exact_kernels
     camera = PAPER_CAMERA if camera is None else camera
     if axis not in AXES:
         raise ValueError(f"axis must be one of {AXES}. Received: {axis!r}")
