@@ -102,7 +102,60 @@ def show_plane(ax, plane, extent_mm=None, *, title: str = "", vmin=0.0, vmax=Non
     return im
 
 
-def add_colorbar(fig, image, axes, label: str, fontsize: int = 8, shrink: float = 0.8):
+def panel_grid(rows: int, cols: int, aspect: float, *, colorbars: int = 1, title_lines: int = 1,
+               suptitle: str = "", footer: bool = False):
+    """A figure of ``rows`` x ``cols`` image panels and ``colorbars`` colour bars at its right,
+    laid out in inches (no layout engine: a constrained layout costs 0.5-1 s a figure).
+
+    Each panel is :data:`PANEL_WIDTH_IN` wide and ``aspect`` times as tall (clipped to 0.9-5 in),
+    with room above it for a title of ``title_lines`` lines and below and left for its tick
+    labels and axis labels.
+
+    Parameters
+    ----------
+    rows, cols : int
+    aspect : float
+        The planes' height over width (mm over mm, or lenslets over lenslets).
+    colorbars : int
+        Colour bars side by side right of the panels (for :func:`add_colorbar`'s ``cax``).
+    title_lines : int
+    suptitle : str
+        The figure's title, drawn above the panels.
+    footer : bool
+        Room for a legend below.
+
+    Returns
+    -------
+    fig : matplotlib.figure.Figure
+        Its axes: the panels row by row, then the colour bars.
+    axes : ndarray of shape (rows, cols) of Axes
+    caxes : list of ``colorbars`` Axes
+    """
+    from matplotlib.figure import Figure
+    w = PANEL_WIDTH_IN
+    h = float(np.clip(w * aspect, 0.9, 5.0))
+    left, gap_x, above, below, bar = 0.65, 0.5, 0.12 + 0.16 * title_lines, 0.5, 0.95
+    top = 0.35 if suptitle else 0.1
+    bottom = 0.35 if footer else 0.1
+    W = left + cols * w + (cols - 1) * gap_x + 0.2 + colorbars * bar
+    H = top + rows * (above + h + below) + bottom
+    fig = Figure(figsize=(W, H))
+    axes = np.empty((rows, cols), dtype=object)
+    for i in range(rows):
+        y0 = H - top - i * (above + h + below) - above - h
+        for j in range(cols):
+            axes[i, j] = fig.add_axes(((left + j * (w + gap_x)) / W, y0 / H, w / W, h / H))
+    span = rows * (above + h + below) - above - below
+    bar_h = 0.8 * span if rows == 1 else 0.45 * span
+    bar_y = bottom + below + (span - bar_h) / 2
+    x0 = left + cols * w + (cols - 1) * gap_x + 0.2
+    caxes = [fig.add_axes(((x0 + k * bar) / W, bar_y / H, 0.12 / W, bar_h / H)) for k in range(colorbars)]
+    if suptitle:
+        fig.suptitle(suptitle, fontsize=9, y=1 - 0.08 / H, va="top")
+    return fig, axes, caxes
+
+
+def add_colorbar(fig, image, axes, label: str, fontsize: int = 8, shrink: float = 0.8, cax=None):
     """A colour bar for ``image`` beside ``axes``, labelled with its quantity and units.
 
     Parameters
@@ -117,12 +170,15 @@ def add_colorbar(fig, image, axes, label: str, fontsize: int = 8, shrink: float 
     fontsize : int
     shrink : float
         Its length, a fraction of the panels' height (its width follows: a 30th of its length).
+    cax : Axes or None
+        The colour bar's own axes (:func:`panel_grid`); then ``axes`` and ``shrink`` are unused.
 
     Returns
     -------
     matplotlib.colorbar.Colorbar
     """
-    cb = fig.colorbar(image, ax=axes, shrink=shrink, aspect=30)
+    cb = (fig.colorbar(image, cax=cax) if cax is not None else
+          fig.colorbar(image, ax=axes, shrink=shrink, aspect=30))
     cb.set_label(label, fontsize=fontsize)
     cb.ax.tick_params(labelsize=fontsize - 1)
     return cb
@@ -155,7 +211,6 @@ def planes_figure(rows, extents_mm, titles, label: str, *, vmin=0.0, vmax=None, 
         Axes: the R x P panels row by row, then the colour bar's.
     """
     import matplotlib
-    from matplotlib.figure import Figure
     from matplotlib.patches import Patch
     rows = [np.asarray(r, np.float64) for r in rows]
     R, P = len(rows), len(rows[0])
@@ -170,22 +225,18 @@ def planes_figure(rows, extents_mm, titles, label: str, *, vmin=0.0, vmax=None, 
     if extents_mm[0] is not None:
         left, right, bottom, top = extents_mm[0]
         aspect = (top - bottom) / (right - left)
-    panel_h = float(np.clip(0.8 * PANEL_WIDTH_IN * aspect, 1.4, 5.0)) + 0.9   # the image, its title and x label
-    fig = Figure(figsize=(PANEL_WIDTH_IN * P + 1.4, panel_h * R + (0.6 if suptitle or bad_label else 0.2)),
-                 layout="constrained")
-    axes = fig.subplots(R, P, squeeze=False)
-    cmap = matplotlib.colormaps[cmap].with_extremes(bad="0.6") if isinstance(cmap, str) else cmap
     titles = [list(titles)] * R if isinstance(titles[0], str) else [list(t) for t in titles]
+    fig, axes, (cax,) = panel_grid(R, P, aspect, title_lines=1 + max(t.count("\n") for row in titles for t in row),
+                                   suptitle=suptitle, footer=bool(bad_label))
+    cmap = matplotlib.colormaps[cmap].with_extremes(bad="0.6") if isinstance(cmap, str) else cmap
     for i, stack in enumerate(rows):
         for k in range(P):
             im = show_plane(axes[i, k], stack[k], extents_mm[k], title=titles[i][k], vmin=vmin, vmax=vmax,
                             cmap=cmap, ylabel=k == 0)
-    add_colorbar(fig, im, axes, label)
+    add_colorbar(fig, im, axes, label, cax=cax)
     if bad_label:
-        fig.legend(handles=[Patch(facecolor="0.6", edgecolor="0.3", label=bad_label)], loc="outside lower center",
+        fig.legend(handles=[Patch(facecolor="0.6", edgecolor="0.3", label=bad_label)], loc="lower center",
                    fontsize=8, frameon=False)
-    if suptitle:
-        fig.suptitle(suptitle, fontsize=9)
     return fig
 
 

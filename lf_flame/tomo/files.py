@@ -156,7 +156,7 @@ def reconstruction_figure(rec: Reconstruction, refocused=None, truth=None, title
     matplotlib.figure.Figure
     """
     from matplotlib.figure import Figure
-    from ..measure.figures import add_colorbar, show_plane, signed
+    from ..measure.figures import add_colorbar, panel_grid, show_plane, signed
     cols = [("reconstructed", np.asarray(rec.planes))]
     cols += [("refocused", np.asarray(refocused))] if refocused is not None else []
     cols += [("truth", np.asarray(truth))] if truth is not None else []
@@ -169,12 +169,14 @@ def reconstruction_figure(rec: Reconstruction, refocused=None, truth=None, title
 
     def style(name):
         return dict(cmap="inferno", vmin=0, vmax=scales["refocused" if name == "refocused" else "emission"])
-    images = {}
+    images, caxes = {}, {}
     P = len(rec.planes)
+    title = title or f"{rec.solver}, {rec.settings.get('iters', 0)} iterations, {rec.time_s:.2f} s"
     if P <= 6:
         ext = _plane_extents(rec)
-        fig = Figure(figsize=(2.4 * len(cols) + 1.0, 3.7 * P), layout="constrained")
-        ax = fig.subplots(P, len(cols), squeeze=False)
+        aspect = max((e[3] - e[2]) / (e[1] - e[0]) for e in ext)
+        fig, ax, bars = panel_grid(P, len(cols), aspect, colorbars=1 + (refocused is not None), suptitle=title)
+        caxes = dict(zip(["reconstructed", "refocused"], bars))
         true_d = np.full(P, np.nan) if truth_depths_mm is None else np.asarray(truth_depths_mm, np.float64)
         for k in range(P):
             for j, (name, st) in enumerate(cols):
@@ -223,6 +225,7 @@ def reconstruction_figure(rec: Reconstruction, refocused=None, truth=None, title
     for name, label in (("reconstructed", "emission (the scene's radiance units)"),
                         ("refocused", "refocused (the scene's radiance units)")):
         if name in images:
-            add_colorbar(fig, images[name], ax, label, shrink=0.45)
-    fig.suptitle(title or f"{rec.solver}, {rec.settings.get('iters', 0)} iterations, {rec.time_s:.2f} s", fontsize=9)
+            add_colorbar(fig, images[name], ax, label, shrink=0.45, cax=caxes.get(name))
+    if P > 6:
+        fig.suptitle(title, fontsize=9)
     return fig
