@@ -430,7 +430,7 @@ def gather_data(views, fit, w_all, lit, y, yt, w, m):
         sq = 0.0
         for r in range(R):
             for c in range(C):
-                a = views[src, r, c]
+                a = np.float64(views[src, r, c])
                 wi = w_all[src, r, c]
                 ok = fit[src, r, c] and wi > 0
                 y[i, r, c] = a

@@ -78,6 +78,7 @@ def fill_data(views, fit, op):
     Parameters
     ----------
     views : ndarray of shape (N, N, R, C)
+        float32 (read as they are) or any other real type (as float64).
     fit : ndarray of bool, shape (N, N, R, C)
         The pixels to fit.
     op : ExactOperator
@@ -98,7 +99,9 @@ def fill_data(views, fit, op):
     R, C = op.dimsd[2:]
     V = len(op._lit)
     y, yt, w, m = (np.empty((V, R, C), t) for t in (np.float64, op._real, op._w.dtype, bool))
-    sq = _fourier_kernels.gather_data(np.ascontiguousarray(op.from_samples(np.asarray(views, np.float64))),
+    views = np.asarray(views)
+    views = views if views.dtype == np.float32 else np.asarray(views, np.float64)
+    sq = _fourier_kernels.gather_data(np.ascontiguousarray(op.from_samples(views)),
                                       np.ascontiguousarray(op.from_samples(np.asarray(fit, bool), False)), op._w,
                                       np.asarray(op._lit, np.int64), y, yt, w, m)
     return y, yt, w, m, math.sqrt(sq)

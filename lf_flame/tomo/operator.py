@@ -25,7 +25,7 @@ import numpy as np
 import pylops
 
 from ..optics.camera import PlenopticCamera
-from ..refocus.shift_and_sum import raw_to_views, views_to_raw
+from ..refocus.shift_and_sum import _check_finite, raw_to_views, views_to_raw
 from ..simulate import _kernels as _simulate_kernels
 from ..simulate.scenes import FLAME_EFFECTS, Effects, Layer, Scene
 from ..simulate.tracer import (
@@ -249,17 +249,20 @@ def normalised_adjoint(op: pylops.LinearOperator, views) -> np.ndarray:
     return np.where(seen, num / np.where(seen, den, 1.0), 0.0).reshape(op.dims)
 
 
-def check_views(views, op: EmissionOperator) -> np.ndarray:
+def check_views(views, op: EmissionOperator, keep_float32: bool = False) -> np.ndarray:
     """Views as float64 of the operator's data shape (read-only: the caller's own array where it is float64
-    already), or a ValueError naming the problem."""
+    already, or float32 with ``keep_float32``: admm reads them once into its own buffers), or a ValueError
+    naming the problem."""
     v = np.asarray(views)
     if v.shape != tuple(op.dimsd):
         raise ValueError(f"views of shape {v.shape} do not come from this camera: its views are {tuple(op.dimsd)} "
                          "(N, N, n_rows, n_cols)")
     if not np.issubdtype(v.dtype, np.number):
         raise ValueError(f"views must hold numbers. Received: dtype {v.dtype}")
-    v = np.asarray(v, np.float64).view()
+    try:
+        _check_finite("views", v)
+    except ValueError:
+        raise ValueError(f"views contain {int(np.sum(~np.isfinite(v)))} NaN or infinite values") from None
+    v = (v if keep_float32 and v.dtype == np.float32 else np.asarray(v, np.float64)).view()
     v.flags.writeable = False
-    if not np.all(np.isfinite(v)):
-        raise ValueError(f"views contain {int(np.sum(~np.isfinite(v)))} NaN or infinite values")
     return v

@@ -342,7 +342,7 @@ def _checked_inputs(views, op, solver, iters, damp, tv, saturation):
                          f"{np.asarray(saturation).dtype} of shape {np.shape(saturation)}")
     if not mask and saturation is not None and not (math.isfinite(saturation) and saturation > 0):
         raise ValueError(f"saturation must be a positive finite level, a mask or None. Received: {saturation!r}")
-    return solver, iters, tv, check_views(views, op).ravel()
+    return solver, iters, tv, check_views(views, op, keep_float32=solver == "admm").ravel()
 
 
 @dataclass
