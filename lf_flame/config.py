@@ -142,33 +142,6 @@ def load_data_config(path) -> tuple[PlenopticCamera, DatasetConfig]:
             _build(DatasetConfig, d.get("dataset", {}), f"{path} [dataset]"))
 
 
-def load_camera(path) -> PlenopticCamera:
-    """The camera of a TOML file's ``[camera]`` table (the table of ``data_gen/<preset>.toml``).
-
-    Parameters
-    ----------
-    path : str or Path
-        A TOML file with a ``[camera]`` table: fields of
-        :class:`~lf_flame.optics.camera.PlenopticCamera` (mm, pixels, lenslets); a field left
-        out keeps the paper's value.
-
-    Returns
-    -------
-    PlenopticCamera
-
-    Raises
-    ------
-    FileNotFoundError
-        No such file.
-    ValueError
-        Not valid TOML, no ``[camera]`` table, an unknown field, or a camera the optics refuse.
-    """
-    d = load_toml(path)
-    if not isinstance(d.get("camera"), dict):
-        raise ValueError(f"{path}: no [camera] table (the camera's fields, as in data_gen/paper.toml)")
-    return _build(PlenopticCamera, d["camera"], f"{path} [camera]")
-
-
 def load_experiment_config(path) -> tuple[ModelConfig, TrainConfig]:
     """Model and training settings from ``experiments/<preset>.toml``."""
     d = load_toml(path)

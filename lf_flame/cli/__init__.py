@@ -455,8 +455,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("resolution", help="the camera's depth-resolution map: the smallest plane spacing that "
                        "the light field resolves against feature size, at stated condition numbers (from the exact "
                        "operator's per-frequency normal matrices of a dense stack)")
-    s.add_argument("--camera", help="TOML file with a [camera] table, as the data configs have (default: the "
-                   "paper's camera)")
+    s.add_argument("--camera", help="camera file: the datasheet tables of docs/own_camera.md, or a [camera] table "
+                   "(default: the paper's camera)")
     s.add_argument("--near", type=float, default=DEFAULT_NEAR_MM, help="nearest plane of the stack, mm from the "
                    "focal plane (> 0 farther)")
     s.add_argument("--far", type=float, default=DEFAULT_FAR_MM, help="farthest plane, mm")

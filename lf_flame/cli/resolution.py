@@ -9,18 +9,25 @@ from pathlib import Path
 
 def cmd_resolution(a):
     """Print the smallest resolvable plane spacing against feature size for the paper's camera
-    or the ``[camera]`` table of ``--camera``; with ``--out PREFIX`` also write PREFIX.csv,
-    PREFIX.md (table, settings, provenance) and PREFIX.png."""
-    from ..config import atomic_write_text, load_camera, provenance, to_json
+    or the camera file of ``--camera`` (its datasheet tables or a ``[camera]`` table,
+    :func:`lf_flame.optics.camera_file.load_camera_file`); with ``--out PREFIX`` also write
+    PREFIX.csv, PREFIX.md (table, settings, provenance) and PREFIX.png."""
+    from ..config import atomic_write_text, provenance, to_json
     from ..optics.camera import PAPER_CAMERA
+    from ..optics.camera_file import load_camera_file
+    from ..real.own_camera import nominal_views_camera
     from ..tomo.resolution import depth_resolution, plot_depth_resolution, stack_depths
     t0 = time.perf_counter()
     stack_depths(a.near, a.far, a.spacing)          # refuse a bad stack before reading or computing anything
-    camera = load_camera(a.camera) if a.camera else PAPER_CAMERA
-    res = depth_resolution(camera, near_mm=a.near, far_mm=a.far, spacing_mm=a.spacing, feature_mm=a.feature,
+    camera = load_camera_file(a.camera) if a.camera else PAPER_CAMERA
+    views = nominal_views_camera(camera)         # a real grid: the camera of its decoded views
+    res = depth_resolution(views, near_mm=a.near, far_mm=a.far, spacing_mm=a.spacing, feature_mm=a.feature,
                            conditions=a.condition, axis=a.axis)
     wall = time.perf_counter() - t0
     where = f"camera of {a.camera}" if a.camera else "the paper's camera"
+    if views is not camera:
+        where += (f" (its decoded views: {views.pixels_per_lenslet} x {views.pixels_per_lenslet} views of "
+                  f"{views.n_rows} x {views.n_cols} lenslets at the optics' pitch, no calibration)")
     head = (f"Depth resolution of {where}: {res.depths_mm.size} planes every {a.spacing:g} mm from {a.near:+g} to "
             f"{a.far:+g} mm, frequency along the {a.axis}; for each plane spacing, the condition number of the two "
             f"planes' normal block, median (worst) over positions across the stack. Data alone: no border, "
@@ -35,7 +42,7 @@ def cmd_resolution(a):
                         feature_mm=list(a.feature), conditions=list(a.condition), axis=a.axis)
         atomic_write_text(out.with_name(out.name + ".md"),
                           f"# Depth resolution\n\n{head}\n\n{res.markdown()}\n"
-                          f"Command: `lf-flame resolution` {to_json(settings)}\n\nCamera: `{to_json(camera)}`\n\n"
+                          f"Command: `lf-flame resolution` {to_json(settings)}\n\nCamera: `{to_json(views)}`\n\n"
                           f"Wall time {wall:.1f} s (kernels {res.setup_s:.1f} s, map {res.map_s:.1f} s).\n\n"
                           f"Provenance: `{to_json(provenance())}`\n")
         plot_depth_resolution(out.with_name(out.name + ".png"), res)

@@ -179,8 +179,13 @@ def max_views(calibration) -> int:
     int
         One pixel apart along each axis: 10 for a 10.57 px pitch, 15 for a calibrated 14.9997.
     """
+    return views_for_pitch(calibration.pitch_px)
+
+
+def views_for_pitch(pitch_px: float) -> int:
+    """Views per axis a lenslet image ``pitch_px`` pixels wide holds (:func:`max_views`)."""
     from ..optics.camera_file import PITCH_SNAP_PX
-    return int(math.floor(calibration.pitch_px + PITCH_SNAP_PX))
+    return int(math.floor(pitch_px + PITCH_SNAP_PX))
 
 
 def _view_count(calibration: GridCalibration, n_views, bin_views=1) -> int:

@@ -149,3 +149,33 @@ def views_camera(camera: PlenopticCamera, calibration: GridCalibration, views_sh
         raise ValueError(f"bin_views must be an integer >= 1. Received: {bin_views!r}")
     k = int(bin_views)
     return replace(decoded_camera(camera, shape[0] * k, shape[2], shape[3]), pixels_per_lenslet=shape[0])
+
+
+def nominal_views_camera(camera: PlenopticCamera) -> PlenopticCamera:
+    """The perfect-grid camera of the views that decoding would cut from ``camera`` as its file
+    states it (no calibration: the lenslet images at the optics' pitch, every view they hold, each
+    lenslet of the file's grid; a hexagonal grid's square lattice, :func:`lf_flame.real.decoding.hex_to_square`);
+    ``camera`` itself where its grid is perfect already. For what needs the camera before any capture
+    (``lf-flame resolution``); a capture's views take :func:`views_camera` of their calibration.
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+        :func:`lf_flame.optics.camera_file.load_camera_file`'s.
+
+    Returns
+    -------
+    PlenopticCamera
+
+    Raises
+    ------
+    ValueError
+        The errors of :func:`lf_flame.optics.camera_file.decoded_camera`.
+    """
+    from .decoding import _square_grid, views_for_pitch
+    if camera.perfect_grid:
+        return camera
+    n = views_for_pitch(camera.grid_pitch)
+    R, C = ((camera.n_rows, camera.n_cols) if camera.grid_layout == "square" else
+            _square_grid(camera.n_rows, camera.n_cols))
+    return replace(decoded_camera(camera, n, R, C), pixels_per_lenslet=n)
