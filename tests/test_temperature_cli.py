@@ -282,6 +282,10 @@ def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, 
         run("simulate", "--camera", cam_file, "--scene", "furnace", "--temperature", t, "--rays-per-pixel", 4,
             "--out", f"{d}/bb{t}.npz")
         run("decode", f"{d}/bb{t}.npz", "--calibration", f"{d}/cal.json", "--camera", cam_file, "--out", f"{d}/bb{t}.h5")
+    capsys.readouterr()                     # the raw images themselves: refused, naming the decoding they need
+    assert main(["calibrate-temperature", f"{d}/bb1600.npz", f"{d}/bb2400.npz", "--temperature", "1600",
+                 "--temperature", "2400", "--out", f"{d}/raw_bb.json"]) == 2
+    assert "decode it first" in capsys.readouterr().err and not (tmp_path / "raw_bb.json").exists()
     run("calibrate-temperature", f"{d}/bb1600.h5", f"{d}/bb2400.h5", "--temperature", 1600, "--temperature", 2400,
         "--out", f"{d}/bb.json")
     cal = GridCalibration.load(f"{d}/cal.json")

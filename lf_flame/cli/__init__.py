@@ -411,7 +411,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("calibrate-temperature", help="two-colour temperature calibration (the channels' gain "
                        "ratio) from raw images of a blackbody (furnace) at known temperatures -> JSON")
-    s.add_argument("images", nargs="+", help="raw colour images of a blackbody filling the field: " + RAW_FORMATS)
+    s.add_argument("images", nargs="+", help="raw colour images of a blackbody filling the field: " + RAW_FORMATS
+                   + "; a camera whose lenslet grid is not perfect (rotated, hexagonal, a pitch of no whole number of "
+                   "pixels): its images decoded with their channels apart ('lf-flame decode --camera cam.toml')")
     s.add_argument("--temperature", type=float, action="append", help="each image's temperature, K, in the images' "
                    "order (repeatable; one per image)")
     s.add_argument("--channels", default="R,G", help="numerator and denominator channels of the ratio")

@@ -63,7 +63,8 @@ def cmd_simulate(a):
             from ..refocus.shift_and_sum import raw_to_views
             extra["views"] = raw_to_views(raw, cam.pixels_per_lenslet)
         np.savez_compressed(out, raw=raw, **meta, **extra)
-    print(f"rendered {sc.name} {raw.shape} at {a.rays_per_pixel} rays/pixel in {dt:.2f} s -> {out}")
+    name = f"furnace at {a.temperature:g} K" if a.scene == "furnace" else sc.name    # a blackbody filling the field
+    print(f"rendered {name} {raw.shape} at {a.rays_per_pixel} rays/pixel in {dt:.2f} s -> {out}")
 
 
 def views_and_camera(a):

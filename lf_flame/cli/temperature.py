@@ -111,6 +111,11 @@ def cmd_calibrate_temperature(a):
                                  "cam.toml' keeps them apart)")
             r = views_blackbody_ratio(v, chan, channels)
         else:
+            if cam is not None and not cam.perfect_grid:
+                raise ValueError(f"{path} is a raw image of a camera whose lenslet grid is not a perfect one (rotated, "
+                                 "hexagonal, or lenslet images no whole number of pixels apart): decode it first "
+                                 "('lf-flame decode IMAGE --calibration cal.json --camera cam.toml --out VIEWS.h5') "
+                                 "and give the VIEWS.h5")
             r = blackbody_ratio(raw, sensor, (cam or PAPER_CAMERA).pixels_per_lenslet, channels)
         ratios.append(r)
         print(f"{path}: {t:g} K, {channels[0]}/{channels[1]} = {r:.5f} (sensor {sensor.name}, {sensor.pattern} "
