@@ -442,6 +442,32 @@ def test_a_recording_of_another_camera_is_decoded_and_reconstructed(tmp_path, la
     assert "real frames are solved on their decoded views' exact operator" in capsys.readouterr().err
 
 
+def test_a_simulated_recording_of_another_camera_is_decoded_at_its_flames_depths(tmp_path, capsys):
+    """``simulate-sequence --camera`` of the example camera (rotated grid), then ``sequence`` with the white image's
+    calibration and no planes: each frame decoded and solved at the recording's own flames' depths; without the
+    calibration, refused naming it (a raw frame of that grid is no grid of whole lenslet images)."""
+    sheet = (Path(__file__).resolve().parents[1] / "examples" / "own_camera.toml").read_text()
+    cam = tmp_path / "cam.toml"
+    cam.write_text(sheet)
+    for argv in (["simulate", "--camera", str(cam), "--scene", "white", "--rays-per-pixel", "8", "--out",
+                  str(tmp_path / "white.npz")], ["calibrate", str(tmp_path / "white.npz"), "--out", str(tmp_path / "cal.json")],
+                 ["simulate-sequence", "--camera", str(cam), "--simulate", "overlap", "--fps", "100", "--duration", "0.04",
+                  "--quiet", "--out", str(tmp_path / "frames.h5")]):
+        assert main(argv) == 0
+    with h5py.File(tmp_path / "frames.h5") as f:
+        flames = json.loads(f.attrs["sequence"])["flames"]
+    capsys.readouterr()
+    assert main(["sequence", str(tmp_path / "frames.h5"), "--camera", str(cam), "--quiet", "--out",
+                 str(tmp_path / "bare")]) == 2
+    assert "give its white image's --calibration" in capsys.readouterr().err
+    assert main(["sequence", str(tmp_path / "frames.h5"), "--camera", str(cam), "--calibration",
+                 str(tmp_path / "cal.json"), "--route", "reconstruct-admm", "--quiet", "--out", str(tmp_path / "out")]) == 0
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["n_frames"] == 4
+    frames = pd.read_csv(tmp_path / "out" / "frames.csv")
+    assert sorted(frames.depth_mm.unique()) == pytest.approx(sorted(fl["depth_offset_mm"] for fl in flames))
+
+
 def test_a_colour_recording_is_levelled_as_reconstruct_levels_a_capture(tmp_path, capsys, colour_capture):
     """A colour camera's recording (the example camera with an RGGB CFA): each frame is decoded with its channels
     apart and levelled into one light field exactly as ``reconstruct`` levels the same capture (the same views and

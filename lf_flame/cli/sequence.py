@@ -80,13 +80,19 @@ def cmd_sequence(a):
     if a.depth and a.slope:
         raise ValueError("give the planes as --depth or as --slope, not both")
     knobs = dict(iters=a.iters, tv=a.tv, saturation=a.saturation, operator_rays=a.operator_rays)
-    if seq is not None and not a.depth:
+    if not (a.calibration or cam.perfect_grid):
+        raise ValueError("the frames are a camera's whose lenslet grid is not a perfect one (rotated, hexagonal, or "
+                         "lenslet images no whole number of pixels apart): give its white image's --calibration "
+                         "('lf-flame calibrate'), with which each frame is decoded")
+    if seq is not None and not a.depth and not a.calibration:
         if a.slope and len(a.slope) != len(seq.flames):
             raise ValueError(f"give one --slope per flame ({len(seq.flames)}). Received: {a.slope}")
         job, truth = simulated_job(seq, cam, source, route=a.route, chunk=a.chunk, slopes=a.slope, **knobs)
     else:
-        if not (a.depth or a.slope):
+        if not (a.depth or a.slope or seq is not None):
             raise ValueError("give the planes of a recording: --depth MM (repeatable) or --slope S")
+        if not (a.depth or a.slope):     # a simulated recording decoded as a real one: its flames' depths
+            a.depth = [f.depth_offset_mm for f in seq.flames]
         cal, k, sensor = None, 1, None
         if a.calibration:                # real frames: the planes are the decoded views' camera's
             from ..real.calibration import GridCalibration
