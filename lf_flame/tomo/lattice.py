@@ -52,6 +52,7 @@ import math
 import numpy as np
 
 from ..simulate.scenes import FLAME_EFFECTS, Effects
+from . import _lattice_kernels
 from .exact import ExactOperator
 from .quadrature import ExactKernels, _phase_kernels, chain_coefficients, sub_view_chain
 from .operator import plane_grid
@@ -79,21 +80,19 @@ def nearest_site(y, x, layout: str = "hex"):
     -------
     j, i : ndarray of int64
         Axial indices of the nearest site (its Voronoi cell: the hexagon, or the square).
+
+    Raises
+    ------
+    ValueError
+        An unknown layout.
     """
-    y, x = np.asarray(y, np.float64), np.asarray(x, np.float64)
-    if layout == "square":
-        return np.floor(y + 0.5).astype(np.int64), np.floor(x + 0.5).astype(np.int64)
-    j0 = np.floor(y / _H)
-    best_j = best_i = best_d = None
-    for j in (j0, j0 + 1):                      # the two lattice rows about the point
-        i = np.round(x - j / 2)
-        d = (y - j * _H) ** 2 + (x - i - j / 2) ** 2
-        if best_d is None:
-            best_j, best_i, best_d = j, i, d
-        else:
-            closer = d < best_d
-            best_j, best_i, best_d = np.where(closer, j, best_j), np.where(closer, i, best_i), np.where(closer, d, best_d)
-    return best_j.astype(np.int64), best_i.astype(np.int64)
+    if layout not in LAYOUTS:
+        raise ValueError(f"layout must be one of {LAYOUTS}. Received: {layout!r}")
+    y, x = np.broadcast_arrays(np.asarray(y, np.float64), np.asarray(x, np.float64))
+    j, i = np.empty(y.shape, np.int64), np.empty(y.shape, np.int64)
+    _lattice_kernels.nearest_sites(np.ascontiguousarray(y).ravel(), np.ascontiguousarray(x).ravel(), layout == "hex",
+                                   j.reshape(-1), i.reshape(-1))
+    return j, i
 
 
 def hexagon_points(a_row, a_col):
@@ -206,34 +205,18 @@ def lattice_kernels(camera, depths_mm, shape, *, layout: str = "hex", subsamples
     # fine site 0 of a lenslet: at its centre on the hexagonal lattice; on the square one at the first of its
     # s x s cells, as the square camera's polyphase grid (exact_kernels)
     centre = 0.0 if layout == "hex" else (s - 1) / 2
-    reads = {}
-    for a in range(N):
-        hy = ay[a, 0] + ay[a, 1] * du_y + ay[a, 2] * da_y
-        ang_y = ty[a, 0] + ty[a, 1] * du_y + ty[a, 2] * da_y
-        for b in range(N):
-            hx = ax[b, 0] + ax[b, 1] * du_x + ax[b, 2] * da_x
-            lit = hy ** 2 + hx ** 2 <= r2
-            if not lit.any():
-                continue
-            w = np.ones(lit.sum())
-            if effects.cos4:
-                ang_x = tx[b, 0] + tx[b, 1] * du_x + tx[b, 2] * da_x
-                w = 1.0 / (1.0 + ang_y[lit] ** 2 + ang_x[lit] ** 2) ** 2
-            # every plane's texel coordinate less the lenslet's own footprint centre (0.5), fine pitches: (P, rays)
-            y = s * (cy[a, :, :1] + cy[a, :, 1:2] * du_y[lit] + cy[a, :, 2:] * da_y[lit] - 0.5) + centre
-            x = s * (cx[b, :, :1] + cx[b, :, 1:2] * du_x[lit] + cx[b, :, 2:] * da_x[lit] - 0.5) + centre
-            reads[a, b] = (*nearest_site(y, x, layout), w / len(u))
-    if not reads:
+    rays = [np.ascontiguousarray(v, np.float64) for v in (du_y, du_x, da_y, da_x)]
+    chain_y, ay, ty, chain_x, ax, tx = (np.ascontiguousarray(v, np.float64) for v in (cy, ay, ty, cx, ax, tx))
+    hexagonal = layout == "hex"
+    bounds = np.empty((N, 4), np.int64)
+    _lattice_kernels.lattice_bounds(chain_y, ay, chain_x, ax, *rays, r2, float(s), centre, hexagonal, bounds)
+    lit = bounds[:, 0] <= bounds[:, 1]
+    if not lit.any():
         raise ValueError("no pixel's rays pass the main lens's aperture")
-    j0 = min(int(j.min()) for j, _, _ in reads.values())
-    i0 = min(int(i.min()) for _, i, _ in reads.values())
-    n_j = max(int(j.max()) for j, _, _ in reads.values()) - j0 + 1
-    n_i = max(int(i.max()) for _, i, _ in reads.values()) - i0 + 1
-    h = np.zeros((N, N, P, n_j, n_i))
-    plane = np.arange(P)[:, None] * (n_j * n_i)
-    for (a, b), (j, i, w) in reads.items():
-        flat = (plane + (j - j0) * n_i + (i - i0)).ravel()
-        h[a, b] = np.bincount(flat, np.tile(w, P), minlength=P * n_j * n_i).reshape(P, n_j, n_i)
+    j0, i0 = int(bounds[lit, 0].min()), int(bounds[lit, 2].min())
+    h = np.zeros((N, N, P, int(bounds[lit, 1].max()) - j0 + 1, int(bounds[lit, 3].max()) - i0 + 1))
+    _lattice_kernels.lattice_taps(chain_y, ay, ty, chain_x, ax, tx, *rays, r2, bool(effects.cos4), float(s), centre,
+                                  hexagonal, j0, i0, h)
     m0y, n0x = np.full((N, P), j0, np.int64), np.full((N, P), i0, np.int64)
     if s > 1:
         h, m0y, n0x = _phase_kernels(h, m0y, n0x, s)
