@@ -308,6 +308,19 @@ def test_cli_refusals(route, tmp_path, capsys):
     assert "outside what this camera can refocus" in capsys.readouterr().err
     assert cli.main(["reconstruct", str(d / "views.h5"), "--out", str(tmp_path / "v.h5")]) == 2
     assert "--camera" in capsys.readouterr().err
+    with pytest.warns(UserWarning, match="520 x 340 px of the camera's 2700 x 1350 px sensor"):
+        assert cli.main(["reconstruct", str(d / "raw.npy"), "--calibration", str(d / "cal.json"), "--depth", "0",
+                         "--out", str(tmp_path / "v.h5")]) == 2
+    assert "the paper's camera was taken; give the capture's --camera" in capsys.readouterr().err
+
+
+def test_the_commands_show_the_packages_warnings_in_one_line():
+    """A warning of lf_flame's own reads ``warning: ...`` on the command line (no file, line and source);
+    another package's keeps Python's form."""
+    from lf_flame.real import lightfield
+    assert cli._format_warning("images cropped", UserWarning, lightfield.__file__, 291) == "warning: images cropped\n"
+    other = cli._format_warning("deprecated", DeprecationWarning, np.__file__, 7)
+    assert other.startswith(f"{np.__file__}:7: DeprecationWarning: deprecated")
 
 
 def test_camera_file_and_calibration_must_agree(route):

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import argparse
 import sys
+import warnings
+from pathlib import Path
 
 from ..routes import LEARNED_ROUTES
 from ..simulate.scenes import PAPER_DEPTHS_MM
@@ -493,6 +495,8 @@ def build_parser() -> argparse.ArgumentParser:
 #: (options, missing or damaged files, outputs that cannot be written: argparse's refusals exit so too);
 #: stopped by Ctrl-C (128 + SIGINT, as the shells report it).
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERRUPTED = 0, 1, 2, 130
+#: How Python writes a warning (file, line, source): kept for the warnings of other packages.
+_DEFAULT_FORMAT = warnings.formatwarning
 #: The errors of the user's paths (bad input): a file missing or unreadable, a file where a folder must be.
 PATH_ERRORS = (FileNotFoundError, PermissionError, NotADirectoryError, IsADirectoryError, FileExistsError)
 #: Failures while running (reported on one line; any other exception is a bug: its traceback is shown).
@@ -517,6 +521,8 @@ def main(argv=None) -> int:
     half-written output (temporary file, then renamed).
     """
     a = build_parser().parse_args(argv)
+    default_format = warnings.formatwarning
+    warnings.formatwarning = _format_warning
     try:
         check_outputs(a)
         a.func(a)
@@ -534,4 +540,14 @@ def main(argv=None) -> int:
     except RUN_ERRORS as e:
         print(f"error: {_message(e)}", file=sys.stderr)
         return EXIT_FAILED
+    finally:
+        warnings.formatwarning = default_format
     return EXIT_OK
+
+
+def _format_warning(message, category, filename, lineno, line=None) -> str:
+    """A warning of the package's own as one line for the command's user (``warning: ...``); any other as
+    Python writes it (file, line and source)."""
+    if Path(filename).resolve().is_relative_to(Path(__file__).resolve().parents[1]):
+        return f"warning: {message}\n"
+    return _DEFAULT_FORMAT(message, category, filename, lineno, line)

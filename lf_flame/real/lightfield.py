@@ -376,7 +376,8 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
                             *load_lattice(p))
     raw, stored, meta = (raw_reader or _read_raw)(p)
     cam = cam or stored
-    if cam is None:
+    assumed = cam is None
+    if assumed:
         from ..optics.camera import PAPER_CAMERA
         cam = PAPER_CAMERA
     if cal is None:
@@ -384,7 +385,13 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
     if p.suffix.lower() not in (".npz", ".npy"):    # an image file: in the units of the calibration's white and dark
         from .images import load_image
         raw = load_image(p)
-    return _decode_here(raw, src, cam, cal, views, cam_file, bin_views)
+    try:
+        return _decode_here(raw, src, cam, cal, views, cam_file, bin_views)
+    except ValueError as e:
+        if assumed:                      # say which camera was taken, the likeliest cause
+            raise ValueError(f"{e} (no camera file given, and {src} stores none: the paper's camera was taken; "
+                             "give the capture's --camera cam.toml)") from None
+        raise
 
 
 def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None) -> LightField:
