@@ -608,3 +608,20 @@ def test_objects_before_a_bright_background_are_searched_apart(cam, planted):
     with pytest.MonkeyPatch.context() as mp:                         # brightness alone: one region, one peak
         mp.setattr(depth, "BRIGHT_FIELD_SHARE", 2.0)
         assert len(find_depths(views, cam).depths_mm) == 1
+
+
+def test_the_depth_search_takes_a_grid_that_runs_past_infinity():
+    """A camera focused far (10 m) images out to infinity within a slope step of its imaging range's far end (a real
+    camera's 50 mm lens at 250 mm too): the search grid runs past the slope that focuses at infinity, where
+    converting the grid's slopes to depths raised 'focuses at or beyond infinity' in the residual's search. Both
+    searches skip those slopes."""
+    from lf_flame.real.lightfield import imaging_range_mm
+    from lf_flame.tomo.peel import missed_depths
+    far = PlenopticCamera(focus_distance_mm=10000.0, n_rows=60, n_cols=40)
+    scene = random_depth_scene(far, np.random.default_rng(5), n_flames=2)
+    views = _views(far, scene, 5, rays=8)
+    found = find_depths(views, far, depth_range_mm=imaging_range_mm(far))
+    assert found.grid_slopes.max() > far.slope_for_depth(1e15)
+    assert len(found.depths_mm) and np.all(np.isfinite(found.depths_mm))
+    more = missed_depths(views, far, found, prominence=1.0, share=0.0)      # the data as the residual: a peak
+    assert more is not None and np.all(np.isfinite(more.depths_mm))

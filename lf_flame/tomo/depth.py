@@ -166,6 +166,18 @@ class FoundDepths:
     time_s: float = float("nan")
 
 
+def _grid_depths(camera: PlenopticCamera, slopes) -> np.ndarray:
+    """Each slope's depth (mm), NaN for a slope the camera does not focus at (beyond infinity, or
+    nearer than its main lens's focal length): the search grid runs a step past its range's ends."""
+    out = np.full(len(slopes), np.nan)
+    for k, s in enumerate(slopes):
+        try:
+            out[k] = camera.depth_for_slope(float(s))
+        except ValueError:
+            pass
+    return out
+
+
 def _check_views(views, camera):
     if not isinstance(camera, PlenopticCamera):
         raise ValueError(f"camera must be a PlenopticCamera. Received: {type(camera).__name__}")
@@ -296,7 +308,8 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
     for lab in np.flatnonzero(sizes < min_pixels):
         labels[labels == lab] = 0
 
-    # 3. depths per region
+    # 3. depths per region; a peak fitted a step past the range (beyond infinity) at the grid's farthest imaged slope
+    imaged = slopes[np.isfinite(_grid_depths(camera, slopes))][[0, -1]]
     dz_ds = abs(camera.depth_for_slope(slope_step) - camera.depth_for_slope(0.0)) / slope_step   # mm per slope
     sep_bins = max(1, int(round(min_separation_mm / (dz_ds * slope_step))))
     rows = []
@@ -323,9 +336,9 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
             c_ten = ten[:, voters].sum(axis=1)
             c_lap = lap[:, voters].sum(axis=1)
             i = _local_max(c_ten, p, 2)
-            s_ten = np.interp(_peak_fit(c_ten, i), np.arange(len(slopes)), slopes)
+            s_ten = np.clip(np.interp(_peak_fit(c_ten, i), np.arange(len(slopes)), slopes), *imaged)
             j = _local_max(c_lap, p, 2)
-            s_lap = np.interp(_peak_fit(c_lap, j), np.arange(len(slopes)), slopes)
+            s_lap = np.clip(np.interp(_peak_fit(c_lap, j), np.arange(len(slopes)), slopes), *imaged)
             d_ten, d_lap = camera.depth_for_slope(s_ten), camera.depth_for_slope(s_lap)
             width = 2 * _half_width(c_ten, i) * slope_step * dz_ds
             rows.append(dict(depth=d_ten, slope=s_ten, unc=max(0.5 * abs(d_ten - d_lap), 0.1 * 0.5 * width),

@@ -15,7 +15,8 @@ import numpy as np
 
 from ..optics.camera import PlenopticCamera
 from ..refocus.shift_and_sum import _check_finite
-from .depth import FoundDepths, _focus_energy, _half_width, _peak_fit, depth_tolerances, merge_depths
+from .depth import (FoundDepths, _focus_energy, _grid_depths, _half_width, _peak_fit, depth_tolerances,
+                    merge_depths)
 
 #: A depth the solve missed (:func:`missed_depths`): the residual views' Tenengrad energy over a region, refocused,
 #: peaks at least ``RESIDUAL_PROMINENCE`` robust standard deviations (1.4826 times the median absolute deviation
@@ -91,8 +92,9 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
     min_separation_mm, merge_mm = depth_tolerances(camera, n, min_separation_mm, merge_mm)
     slopes = found.grid_slopes
     ten = _focus_energy(r, slopes, sigma)
-    depth_of = np.array([camera.depth_for_slope(float(s)) for s in slopes])
-    dz_ds = abs(depth_of[-1] - depth_of[0]) / max(abs(slopes[-1] - slopes[0]), 1e-12)
+    depth_of = _grid_depths(camera, slopes)      # NaN where the grid runs past what the camera images
+    ok = np.flatnonzero(np.isfinite(depth_of))
+    dz_ds = abs(depth_of[ok[-1]] - depth_of[ok[0]]) / max(abs(slopes[ok[-1]] - slopes[ok[0]]), 1e-12)
     rows = []
     for lab in np.unique(found.region) if regions is None else np.intersect1d(found.region, regions):
         reg = found.labels == lab
@@ -107,7 +109,8 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
         spread = 1.4826 * float(np.median(np.abs(curve - med)))
         if not (curve[i] - med >= prominence * spread and curve[i] > med and curve[i] >= share * data_peak):
             continue
-        s = float(np.interp(_peak_fit(curve, i), np.arange(len(slopes)), slopes))
+        s = float(np.clip(np.interp(_peak_fit(curve, i), np.arange(len(slopes)), slopes),
+                          slopes[ok].min(), slopes[ok].max()))
         width = 2 * _half_width(curve, i) * (slopes[1] - slopes[0]) * dz_ds
         rows.append(dict(depth=camera.depth_for_slope(s), slope=s, unc=0.1 * 0.5 * width, width=width,
                          region=int(lab), mask=reg, curve=curve))

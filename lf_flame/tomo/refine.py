@@ -152,7 +152,13 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
         ds = np.clip(ds, -REFINE_MAX_SLOPE, REFINE_MAX_SLOPE)
         planes = np.asarray(found.planes_mm, np.float64).copy()
         for p, d in zip(todo, ds):
-            planes[p] = np.clip(camera.depth_for_slope(camera.slope_for_depth(planes[p]) + d), lo[p], hi[p])
+            s_new = camera.slope_for_depth(planes[p]) + d             # slope rises with depth: clipped as the depth
+            if s_new >= camera.slope_for_depth(hi[p]):                # (past the far end it may focus beyond infinity)
+                planes[p] = hi[p]
+            elif s_new <= camera.slope_for_depth(lo[p]):
+                planes[p] = lo[p]
+            else:
+                planes[p] = np.clip(camera.depth_for_slope(s_new), lo[p], hi[p])
         moved = [abs(camera.slope_for_depth(planes[p]) - camera.slope_for_depth(found.planes_mm[p])) for p in todo]
         if max(moved) < REFINE_TOL:
             break
