@@ -285,6 +285,14 @@ def test_cli_profiles_writes_csv_and_figure(tmp_path, capsys):
     axial = pd.read_csv(tmp_path / "p.axial.csv")
     assert set(axial.depth_mm) == set(depths) and (axial.height_mm.groupby(axial.plane).max() > 3).all()
     assert (tmp_path / "p.png").stat().st_size > 20_000
+    # a raw image that stores no flames: its planes are the depths found in the views, not the paper's
+    from lf_flame.simulate.scenes_depth import random_depth_scene
+    other = random_depth_scene(CAM, np.random.default_rng(11), n_flames=2)
+    np.savez(tmp_path / "bare.npz", raw=simulate.render(CAM, other, 8, seed=1), camera=CAM.to_json())
+    assert main(["profiles", str(tmp_path / "bare.npz"), "--route", "fourier", "--out", str(tmp_path / "b")]) == 0
+    true = sorted(o["depth_offset_mm"] for o in other.objects)
+    found = pd.read_csv(tmp_path / "b.csv")
+    assert np.allclose(sorted(found.depth_mm), true, atol=0.5), (found.depth_mm, true)
     # the stored planes exist only in a dataset
     assert main(["profiles", str(src), "--route", "ground-truth", "--out", str(tmp_path / "q")]) == 2
     assert "DATASET.h5:INDEX" in capsys.readouterr().err

@@ -406,7 +406,8 @@ def test_support_holds_each_found_plane_to_its_regions(route, tmp_path, capsys):
 def test_profiles_measure_the_flames_of_decoded_views(tmp_path, capsys):
     """``profiles`` of a raw capture of the example camera with its calibration (decoded on the fly), and of
     its decoded views with the planes given: each flame's height on its plane by admm's planes of the decoded
-    views (here within 0.03 mm of 2.5-2.8 mm flames), the same from both inputs."""
+    views (here within 0.03 mm of 2.5-2.8 mm flames), the same from both inputs, and at the depths found in the
+    views where none are given."""
     import pandas as pd
     run = lambda *a: cli.main([str(x) for x in a])                                  # noqa: E731
     assert run("simulate", "--camera", EXAMPLE, "--scene", "white", "--out", tmp_path / "white.npz") == 0
@@ -422,9 +423,11 @@ def test_profiles_measure_the_flames_of_decoded_views(tmp_path, capsys):
                "--out", tmp_path / "views") == 0
     again = pd.read_csv(tmp_path / "views.csv")
     assert np.allclose(again.height_mm, df.height_mm, atol=0.02), (again, df)
-    capsys.readouterr()
-    assert run("profiles", tmp_path / "v.h5", "--camera", EXAMPLE, "--out", tmp_path / "none") != 0
-    assert "give the planes of decoded views" in capsys.readouterr().err
+    capsys.readouterr()                  # no planes given: the depths found in the views, as reconstruct finds them
+    assert run("profiles", tmp_path / "v.h5", "--camera", EXAMPLE, "--out", tmp_path / "found") == 0
+    assert "found 3 depths" in capsys.readouterr().out
+    found = pd.read_csv(tmp_path / "found.csv")
+    assert np.allclose(found.depth_mm, df.depth_mm, atol=0.5) and np.allclose(found.height_mm, df.height_mm, atol=0.1)
 
 
 def test_an_integer_tiff_capture_with_a_dark_frame_is_decoded_on_the_fly_as_decode_does(tmp_path):

@@ -330,7 +330,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "slopes of the depths")
     s.add_argument("--depth", type=float, action="append",
                    help="a plane's depth, mm from the focus distance (repeatable; default: the flames' when RAW "
-                        "stores them, else the paper's four)")
+                        "stores them, a dataset sample's the paper's four, else the depths found in the views, as "
+                        "'reconstruct --depths auto' finds them)")
     add_camera_args(s)
     s.add_argument("--out", required=True, help="PREFIX: writes PREFIX.csv (one row per plane), PREFIX.axial.csv "
                                                "and PREFIX.png")

@@ -45,7 +45,15 @@ def _profiles_input(a):
     cam = cam or PAPER_CAMERA
     if objects is not None and not all("height_mm" in o for o in objects):
         raise ValueError(f"{a.raw} does not hold a flame scene (its objects have no flame heights)")
-    depths = _given_depths(a) or _object_depths(objects) or list(PAPER_DEPTHS_MM)
+    depths = _given_depths(a) or _object_depths(objects)
+    if not depths and not a.slope:
+        if slopes is not None:           # a dataset sample: the paper's planes
+            depths = list(PAPER_DEPTHS_MM)
+        else:
+            from ..real.lightfield import from_raw
+            depths = _found_depths(from_raw(raw, cam, str(a.raw)))
+    elif not depths:
+        depths = [cam.depth_for_slope(v) for v in a.slope]
     if a.slope:
         slopes = a.slope
     elif slopes is None:
@@ -90,6 +98,12 @@ def _given_depths(a):
     return [float(d) for d in a.depth]
 
 
+def _found_depths(lf):
+    """The planes of the depths found in a light field (``reconstruct``'s ``--depths auto``, printed)."""
+    from .volume import found_planes
+    return found_planes(lf)[0]
+
+
 def _object_depths(objects):
     """The flames' depths (mm), or None without flames."""
     return [float(o["depth_offset_mm"]) for o in objects] if objects else None
@@ -106,9 +120,8 @@ def _decoded_profiles_input(a):
     lf = light_field(a)
     cam = lf.camera
     objects = None if str(a.raw).endswith(".h5") else _raw_objects(a.raw)
-    depths = _given_depths(a) or ([cam.depth_for_slope(v) for v in a.slope] if a.slope else _object_depths(objects))
-    if not depths:
-        raise ValueError("give the planes of decoded views: --depth MM or --slope S (repeatable)")
+    depths = (_given_depths(a) or ([cam.depth_for_slope(v) for v in a.slope] if a.slope else _object_depths(objects))
+              or _found_depths(lf))
     from ..real.lightfield import check_imaging_range
     check_imaging_range(cam, depths)
     slopes = [cam.slope_for_depth(d) for d in depths]
