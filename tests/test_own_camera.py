@@ -339,7 +339,9 @@ def test_camera_file_and_calibration_must_agree(route):
 
 def test_simulate_refocus_and_slopes_take_a_camera_file(route, tmp_path, capsys):
     """``simulate --camera`` renders the datasheet camera (not the paper's); an empty camera file is
-    refused; ``refocus --depth`` and ``slopes`` work in the camera's own depths (an even 10 views)."""
+    refused; ``refocus --depth`` and ``slopes`` work in the camera's own depths (an even 10 views), ``slopes`` in
+    the lenslets that vote for each depth the depth search finds where no region is given (each flame's depth
+    within 0.6 mm)."""
     cam, _, _, d = route
     out = tmp_path / "flame.npz"
     assert cli.main(["simulate", "--scene", "flame", "--camera", EXAMPLE, "--rays-per-pixel", "2", "--out",
@@ -361,8 +363,8 @@ def test_simulate_refocus_and_slopes_take_a_camera_file(route, tmp_path, capsys)
     assert cli.main(["slopes", str(d / "views.h5"), *views, "--method", "fourier", "--out-prefix",
                      str(tmp_path / "s")]) == 0
     import pandas as pd
-    row = pd.read_csv(tmp_path / "s.slopes.csv").iloc[0]
-    assert np.isfinite(row["depth_mm"])
+    found = pd.read_csv(tmp_path / "s.slopes.csv")          # no regions given: one per depth found, each flame's
+    assert len(found) == 3 and np.allclose(sorted(found.depth_mm), sorted(DEPTHS), atol=1.0), found
 
 
 def test_images_smaller_than_the_datasheet_sensor_are_its_centred_crop(route):

@@ -221,7 +221,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("raw", nargs="?", help=RAW_FORMATS + " (a simulated .npz: its objects' ROIs are used), "
                    "or VIEWS.h5 from decode")
     s.add_argument("--roi", type=int, nargs=4, action="append", metavar=("ROW0", "ROW1", "COL0", "COL1"),
-                   help="region in lenslets (repeatable; default: the stored objects, else the whole image)")
+                   help="region in lenslets (repeatable; default: the stored objects, else per depth the depth "
+                   "search finds the bounding box of the lenslets that vote for it, else the whole image)")
     s.add_argument("--metric", choices=["tenengrad", "laplacian", "normvar"], default="tenengrad",
                    help="sharpness of a refocused region")
     s.add_argument("--method", choices=["fourier", "shift-sum"], default="fourier", help="refocusing of the search")

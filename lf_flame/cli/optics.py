@@ -161,7 +161,8 @@ def cmd_slopes(a):
     if a.roi:
         objects = [dict(name=f"roi{i}", roi=tuple(r)) for i, r in enumerate(a.roi)]
     else:
-        objects = _raw_objects(a.raw) or [dict(name="image", roi=(0, views.shape[2], 0, views.shape[3]))]
+        objects = (_raw_objects(a.raw) or (_emission_regions(views, cam) if cam is not None else None)
+                   or [dict(name="image", roi=(0, views.shape[2], 0, views.shape[3]))])
     mask = aperture_mask(views.shape[0], a.aperture)
     # the grid's steps move the outermost view as on the paper's 15 views (0.05 and 0.005 lenslets per view)
     scale = 14.0 / max(views.shape[0] - 1, 1)
@@ -189,6 +190,20 @@ def cmd_slopes(a):
     df.to_csv(f"{out}.slopes.csv", index=False)
     plot_slope_curves([o["name"] for o in objects], searches, f"{out}.slopes.png", a.metric)
     print(f"-> {out}.slopes.csv, {out}.slopes.png")
+
+
+def _emission_regions(views, cam):
+    """The flames the depth search finds (:func:`lf_flame.tomo.depth.find_depths` over the camera's imaging range):
+    one object per found depth, the bounding box of the lenslets that voted for it as ``roi`` (lenslets)."""
+    from ..real.lightfield import imaging_range_mm
+    from ..tomo.depth import find_depths
+    found = find_depths(views, cam, depth_range_mm=imaging_range_mm(cam))
+    objects = []
+    for k, m in enumerate(found.masks):
+        rows, cols = np.nonzero(m)
+        objects.append(dict(name=f"found{k}", roi=(int(rows.min()), int(rows.max()) + 1, int(cols.min()),
+                                                   int(cols.max()) + 1)))
+    return objects
 
 
 def _calibrate_slopes(a):
