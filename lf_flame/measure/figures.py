@@ -103,7 +103,7 @@ def show_plane(ax, plane, extent_mm=None, *, title: str = "", vmin=0.0, vmax=Non
 
 
 def panel_grid(rows: int, cols: int, aspect: float, *, colorbars: int = 1, title_lines: int = 1,
-               suptitle: str = "", footer: bool = False):
+               suptitle: str = "", footer: bool = False, widths_in=None):
     """A figure of ``rows`` x ``cols`` image panels and ``colorbars`` colour bars at its right,
     laid out in inches (no layout engine: a constrained layout costs 0.5-1 s a figure).
 
@@ -115,7 +115,10 @@ def panel_grid(rows: int, cols: int, aspect: float, *, colorbars: int = 1, title
     ----------
     rows, cols : int
     aspect : float
-        The planes' height over width (mm over mm, or lenslets over lenslets).
+        The planes' height over width (mm over mm, or lenslets over lenslets); with
+        ``widths_in``, the panels' height over :data:`PANEL_WIDTH_IN`.
+    widths_in : sequence of ``cols`` float or None
+        Each column's panel width (inches); None: :data:`PANEL_WIDTH_IN` each.
     colorbars : int
         Colour bars side by side right of the panels (for :func:`add_colorbar`'s ``cax``).
     title_lines : int
@@ -132,23 +135,24 @@ def panel_grid(rows: int, cols: int, aspect: float, *, colorbars: int = 1, title
     caxes : list of ``colorbars`` Axes
     """
     from matplotlib.figure import Figure
-    w = PANEL_WIDTH_IN
-    h = float(np.clip(w * aspect, 0.9, 5.0))
-    left, gap_x, above, below, bar = 0.65, 0.5, 0.12 + 0.16 * title_lines, 0.5, 0.95
+    widths = [PANEL_WIDTH_IN] * cols if widths_in is None else [float(v) for v in widths_in]
+    h = float(np.clip(PANEL_WIDTH_IN * aspect, 0.9, 5.0))
+    left, gap_x, above, below, bar = 0.65, 0.5 if widths_in is None else 0.7, 0.12 + 0.16 * title_lines, 0.5, 0.95
     top = 0.35 if suptitle else 0.1
     bottom = 0.35 if footer else 0.1
-    W = left + cols * w + (cols - 1) * gap_x + 0.2 + colorbars * bar
+    x = left + np.concatenate([[0.0], np.cumsum(np.asarray(widths) + gap_x)])      # each column's left edge
+    W = x[-1] - gap_x + 0.2 + colorbars * bar
     H = top + rows * (above + h + below) + bottom
     fig = Figure(figsize=(W, H))
     axes = np.empty((rows, cols), dtype=object)
     for i in range(rows):
         y0 = H - top - i * (above + h + below) - above - h
         for j in range(cols):
-            axes[i, j] = fig.add_axes(((left + j * (w + gap_x)) / W, y0 / H, w / W, h / H))
+            axes[i, j] = fig.add_axes((x[j] / W, y0 / H, widths[j] / W, h / H))
     span = rows * (above + h + below) - above - below
     bar_h = 0.8 * span if rows == 1 else 0.45 * span
     bar_y = bottom + below + (span - bar_h) / 2
-    x0 = left + cols * w + (cols - 1) * gap_x + 0.2
+    x0 = x[-1] - gap_x + 0.2
     caxes = [fig.add_axes(((x0 + k * bar) / W, bar_y / H, 0.12 / W, bar_h / H)) for k in range(colorbars)]
     if suptitle:
         fig.suptitle(suptitle, fontsize=9, y=1 - 0.08 / H, va="top")

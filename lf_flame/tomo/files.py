@@ -155,7 +155,6 @@ def reconstruction_figure(rec: Reconstruction, refocused=None, truth=None, title
     -------
     matplotlib.figure.Figure
     """
-    from matplotlib.figure import Figure
     from ..measure.figures import add_colorbar, panel_grid, show_plane, signed
     cols = [("reconstructed", np.asarray(rec.planes))]
     cols += [("refocused", np.asarray(refocused))] if refocused is not None else []
@@ -169,7 +168,7 @@ def reconstruction_figure(rec: Reconstruction, refocused=None, truth=None, title
 
     def style(name):
         return dict(cmap="inferno", vmin=0, vmax=scales["refocused" if name == "refocused" else "emission"])
-    images, caxes = {}, {}
+    images = {}
     P = len(rec.planes)
     title = title or f"{rec.solver}, {rec.settings.get('iters', 0)} iterations, {rec.time_s:.2f} s"
     if P <= 6:
@@ -198,8 +197,10 @@ def reconstruction_figure(rec: Reconstruction, refocused=None, truth=None, title
         hi = np.clip(lo + 1, 0, ncol - 1)
         f = np.clip(cpos - lo, 0.0, 1.0)
         inside = (cpos >= -0.5) & (cpos <= ncol - 0.5)
-        fig = Figure(figsize=(13.5, 3.6 * len(cols)), layout="constrained")
-        ax = fig.subplots(len(cols), 4, squeeze=False)
+        top_view = float(np.clip(rows / ncol, 0.4, 2.0))                  # the max over depth: lenslets
+        fig, ax, bars = panel_grid(len(cols), 4, 1.1, colorbars=1 + (refocused is not None), suptitle=title,
+                                   widths_in=[float(np.clip(2.64 / top_view, 1.3, 4.0)), 3.0, 3.0, 3.0])
+        caxes = dict(zip(["reconstructed", "refocused"], bars))
         for j, (name, st) in enumerate(cols):
             st = st[order]
             images[name] = ax[j, 0].imshow(st.max(axis=0), **style(name))
@@ -225,7 +226,5 @@ def reconstruction_figure(rec: Reconstruction, refocused=None, truth=None, title
     for name, label in (("reconstructed", "emission (the scene's radiance units)"),
                         ("refocused", "refocused (the scene's radiance units)")):
         if name in images:
-            add_colorbar(fig, images[name], ax, label, shrink=0.45, cax=caxes.get(name))
-    if P > 6:
-        fig.suptitle(title, fontsize=9)
+            add_colorbar(fig, images[name], ax, label, cax=caxes[name])
     return fig
