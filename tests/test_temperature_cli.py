@@ -251,7 +251,8 @@ def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, 
     """The example camera (10.57 px lenslet images, rotated 0.4°) with an RGGB CFA, on a square and on a hexagonal
     grid, from the command line: white image (a mosaic too) -> calibrate; blackbodies decoded with their channels
     apart -> calibrate-temperature; a blackbody at 1800 K decoded -> temperature (emissivity exponent 0): 1800 K
-    within 15 K over the field. Each decoded sample keeps its nearest pixel's channel (a hexagonal grid's: on its
+    within 15 K over the field, the same from the raw capture decoded with --grid-calibration. Each decoded sample
+    keeps its nearest pixel's channel (a hexagonal grid's: on its
     lattice, where its channels are solved); decoded views without channels are refused; reconstruct levels the
     channels into one light field."""
     from pathlib import Path
@@ -303,6 +304,11 @@ def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, 
         assert settings["regime"] == "decoded" and settings["knobs"] == DECODED_KNOBS
     assert t.size > 0.5 * cal.n_rows * cal.n_cols
     assert abs(np.median(t) - 1800) < 15 and np.percentile(np.abs(t - 1800), 90) < 30
+    # the raw capture with the grid's calibration: decoded here as decode decodes it, the same temperatures
+    run("temperature", f"{d}/bb1800.npz", "--camera", cam_file, "--calibration", f"{d}/bb.json", "--grid-calibration",
+        f"{d}/cal.json", "--depth", 0, "--alpha", 0, "--out", f"{d}/t_raw.h5")
+    with h5py.File(f"{d}/t.h5") as f, h5py.File(f"{d}/t_raw.h5") as g:
+        assert np.array_equal(f["temperature_k"][:], g["temperature_k"][:], equal_nan=True)
     # the emission routes level the channels into one light field: the blackbody is then one grey plane (a mosaic
     # fitted as it is leaves 0.44 of it unexplained, at this test's 4 rays per pixel 0.13 levelled)
     from lf_flame.tomo.files import load_reconstruction
@@ -361,3 +367,27 @@ def test_a_colour_captures_emission_is_solved_at_each_samples_own_pixel(tmp_path
                         np.linalg.norm(res[fitted]) / np.linalg.norm(data[fitted]))
     assert scores["own pixel"][0] < 0.7 * scores["view's place"][0]
     assert scores["own pixel"][1] < 0.9 * scores["view's place"][1]
+
+
+def test_a_raw_colour_capture_decoded_on_the_fly_keeps_its_channels_apart(tmp_path, colour_capture, capsys):
+    """A raw colour capture given with its calibration (decoded on the fly, as reconstruct, refocus, slopes and
+    profiles read it) is decoded as ``lf-flame decode --camera`` decodes it: each sample its nearest pixel, the
+    channel map and sample offsets with it (it was decoded as a monochrome capture, bilinear sampling blending
+    red, green and blue), from the camera file's CFA or the sensor the image stores; reconstruct says how many
+    samples it left out of the views' and why (the blue ones among them)."""
+    from lf_flame.cli._io import _raw_reader
+    from lf_flame.real.lightfield import read_light_field
+    cam_file = colour_capture(3, 4)
+    decoded = read_light_field(tmp_path / "scene.h5", str(cam_file))
+    for camera in (str(cam_file), None):                   # the file's [sensor], else the image's stored record
+        here = read_light_field(tmp_path / "scene.npz", camera or decoded.capture_camera, tmp_path / "cal.json",
+                                raw_reader=_raw_reader)
+        assert here.channels is not None and np.array_equal(here.channels, decoded.channels)
+        assert np.allclose(here.views, decoded.views, atol=1e-6)
+        assert np.array_equal(here.sample_offsets, decoded.sample_offsets) and "sensor" in here.meta
+    capsys.readouterr()
+    assert main(["reconstruct", str(tmp_path / "scene.npz"), "--camera", str(cam_file), "--calibration",
+                 str(tmp_path / "cal.json"), "--depth", "0", "--out", str(tmp_path / "r.h5")]) == 0
+    note = next(line for line in capsys.readouterr().out.splitlines() if "left out of the fit (clipped" in line)
+    n, total = (int(v) for v in note.split(" samples")[0].split(" of "))
+    assert total == decoded.views.size and 0.25 < n / total < 0.6 and "blue samples" in note

@@ -433,6 +433,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "made for another sensor or CFA")
     s.add_argument("--camera", help="camera file (docs/own_camera.md) of decoded views (VIEWS.h5), or of a raw image "
                    "that stores none")
+    s.add_argument("--grid-calibration", help="the white-image calibration JSON of 'lf-flame calibrate' (--calibration "
+                   "is the blackbody's here): a raw capture is decoded with it, its channels apart, as 'lf-flame "
+                   "decode --camera' decodes it")
     s.add_argument("--depth", type=float, action="append", help="plane depth (mm from the focal plane; repeatable). "
                    "Default: --depths auto")
     s.add_argument("--depths", default=None, help="'auto' (default): the depths holding emission found by depth from "

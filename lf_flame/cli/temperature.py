@@ -219,8 +219,12 @@ def cmd_temperature(a):
           f"{cal.channels[0]}/{cal.channels[1]}, gain ratio {cal.gain_ratio:.5f}")
     t0 = time.perf_counter()
     import argparse
-    # --calibration is the blackbody calibration here: the light field is a raw image of its own camera
-    lf, depths, _ = reconstruct_input(argparse.Namespace(**{**vars(a), "calibration": None}), colour=True)
+    # --calibration is the blackbody calibration here; the lenslet grid's is --grid-calibration
+    try:
+        lf, depths, _ = reconstruct_input(argparse.Namespace(**{**vars(a), "calibration": a.grid_calibration}),
+                                          colour=True)
+    except ValueError as e:              # the light field's refusals name the grid's calibration by its flag here
+        raise ValueError(str(e).replace("--calibration", "--grid-calibration")) from None
     cam, views = lf.camera, lf.views
     n = cam.pixels_per_lenslet
     if lf.decoded and lf.channels is None:

@@ -195,6 +195,19 @@ def saturation_note(rec) -> str:
     return f"{n} saturated pixels (at or above {level:g}) left out of the fit"
 
 
+def decoded_note(lf, rec, lattice=None) -> str:
+    """What the fit of decoded views left out: the count and share of the samples (of the hexagonal lattice's views
+    where ``lattice``, a :class:`~lf_flame.tomo.lattice.LatticeSolve`, solved them) and why."""
+    if lattice is None:
+        n, total = int(rec.settings.get("n_saturated", 0)), lf.views.size
+    else:                                # the axial array's cells that hold no lenslet are no samples
+        inside = np.broadcast_to(lattice.op.inside, lattice.leave_out.shape)
+        n, total = int(np.count_nonzero(lattice.leave_out & inside)), int(np.count_nonzero(inside))
+    why = "clipped, dark (outside the aperture's image)" + (
+        "; a colour camera's blue samples, which the levelled light field leaves out" if "monochrome" in lf.meta else "")
+    return f"{n} of {total} samples ({100 * n / total:.0f} %) left out of the fit ({why})"
+
+
 def edge_warning(rec, op, modelled: bool = False):
     """Each plane's share of its emission within :data:`~lf_flame.tomo.solvers.EDGE_BAND_LENSLETS` of the field's
     edge (:func:`~lf_flame.tomo.solvers.edge_shares`), for the file; where a plane's exceeds
@@ -310,8 +323,7 @@ def cmd_reconstruct(a):
         from ..tomo.found_planes import NEAR_PARALLAX
         print(f"planes within {NEAR_PARALLAX:g} lenslets of parallax of each other are held to the regions their "
               "depths were found in, where they meet (the data barely tell such planes apart)")
-    print(saturation_note(rec) if not lf.decoded else
-          f"{rec.settings['n_saturated']} samples left out of the fit (clipped, or outside the aperture's image)")
+    print(saturation_note(rec) if not lf.decoded else decoded_note(lf, rec, lattice))
     extra["edge_share"] = edge_warning(rec, op)
     extra["misfit"] = misfit_warning(lf, op, rec, kw["saturation"], lattice)
     out = Path(a.out)

@@ -19,6 +19,7 @@ camera and mask together in the same way).
 """
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -386,7 +387,7 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
         from .images import load_image
         raw = load_image(p)
     try:
-        return _decode_here(raw, src, cam, cal, views, cam_file, bin_views)
+        return _decode_here(raw, src, cam, cal, views, cam_file, bin_views, _capture_sensor(camera, meta))
     except ValueError as e:
         if assumed:                      # say which camera was taken, the likeliest cause
             raise ValueError(f"{e} (no camera file given, and {src} stores none: the paper's camera was taken; "
@@ -394,15 +395,40 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
         raise
 
 
-def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None) -> LightField:
-    """A raw capture decoded with its calibration's white (and dark) image; ``bin_views`` None: as
-    ``lf-flame decode`` bins by default (:func:`lf_flame.real.decoding.auto_bin`, one pixel per view
-    where ``n_views`` is given)."""
+def _capture_sensor(camera, meta):
+    """A raw capture's colour sensor: the camera file's ``[sensor] cfa``, else the record ``lf-flame simulate``
+    stored beside the image (``meta["sensor"]``); None for a monochrome one."""
+    from ..optics.camera_file import load_colour_sensor
+    from ..optics.colour import library_sensor
+    if camera is not None and not isinstance(camera, PlenopticCamera):
+        sensor = load_colour_sensor(camera)
+        if sensor is not None:
+            return sensor
+    rec = (meta or {}).get("sensor")
+    if not rec:
+        return None
+    r = json.loads(rec)
+    return library_sensor(r["name"], r["pattern"], tuple(r["phase"]))
+
+
+def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None, sensor=None) -> LightField:
+    """A raw capture decoded with its calibration's white (and dark) image, as ``lf-flame decode`` decodes it:
+    ``bin_views`` None: binned by default (:func:`lf_flame.real.decoding.auto_bin`, one pixel per view where
+    ``n_views`` is given); a colour ``sensor``'s capture one pixel per sample, its channels apart
+    (:func:`lf_flame.real.decoding.decode_colour`)."""
     from .images import calibration_image
-    from .decoding import auto_bin, auto_saturation, clipped_samples, decode, on_square_grid
+    from .decoding import auto_bin, auto_saturation, clipped_samples, decode, decode_colour, on_square_grid
     white, dark = calibration_image(cal.white, "white"), calibration_image(cal.dark, "dark")
-    k = auto_bin(cal, n_views) if bin_views is None else bin_views
-    lattice = decode(raw, cal, white, dark, n_views=n_views, bin_views=k, resample=False)
+    channels, meta = None, {}
+    if sensor is None:
+        k = auto_bin(cal, n_views) if bin_views is None else bin_views
+        lattice = decode(raw, cal, white, dark, n_views=n_views, bin_views=k, resample=False)
+    else:
+        if bin_views not in (None, 1):
+            raise ValueError("a colour capture is decoded one pixel per sample, its channels apart: bin_views 1")
+        k = 1
+        lattice, channels = decode_colour(raw, cal, sensor, white, dark, n_views=n_views)
+        meta["sensor"] = json.dumps(dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase)))
     try:
         level = auto_saturation(raw)
     except ValueError:                                   # past 16-bit counts: no level known
@@ -410,8 +436,8 @@ def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None) -> Light
     hit = None if level is None else clipped_samples(raw, cal, level, n_views=n_views, bin_views=k, resample=False)
     hexagonal = cal.layout == "hex"
     return from_decoded(on_square_grid(lattice, cal), cal, cam, src, None if hit is None else on_square_grid(hit, cal),
-                        white is not None, cam_file, bin_views=k, lattice_views=lattice if hexagonal else None,
-                        lattice_clipped=hit if hexagonal else None)
+                        white is not None, cam_file, channels, meta, bin_views=k,
+                        lattice_views=lattice if hexagonal else None, lattice_clipped=hit if hexagonal else None)
 
 
 def _read_raw(p: Path):
