@@ -202,6 +202,11 @@ def test_camera_file_gives_the_datasheets_camera():
     assert same == cam
 
 
+def test_the_paper_camera_ships_as_a_camera_file():
+    """examples/paper_camera.toml (the datasheet form) is the camera every command takes without --camera."""
+    assert load_camera_file(ROOT / "examples" / "paper_camera.toml") == PAPER_CAMERA
+
+
 @pytest.mark.parametrize("change,match", [
     (dict(main_lens__mla_distance_mm=190.0), "disagree"),
     (dict(main_lens__aperture_mm=12.0), "disagree"),
