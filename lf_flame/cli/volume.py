@@ -203,7 +203,7 @@ def decoded_note(lf, rec, lattice=None) -> str:
     else:                                # the axial array's cells that hold no lenslet are no samples
         inside = np.broadcast_to(lattice.op.inside, lattice.leave_out.shape)
         n, total = int(np.count_nonzero(lattice.leave_out & inside)), int(np.count_nonzero(inside))
-    why = "clipped, dark (outside the aperture's image)" + (
+    why = "clipped, or dark: outside the aperture's image" + (
         "; a colour camera's blue samples, which the levelled light field leaves out" if "monochrome" in lf.meta else "")
     return f"{n} of {total} samples ({100 * n / total:.0f} %) left out of the fit ({why})"
 
