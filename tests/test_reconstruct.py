@@ -210,6 +210,9 @@ def test_bad_input_is_refused(tiny_camera, planted):
         EmissionOperator(tiny_camera, (0.0,), effects=scenes.Effects(occlusion=True))
     with pytest.raises(ValueError, match="solver"):
         reconstruct(views, op, "magic")
+    for solver in ("admm", "fista"):                      # a capture clipped everywhere: no sample to fit
+        with pytest.raises(ValueError, match="every one of the views' .* samples is left out of the fit"):
+            reconstruct(np.ones_like(views), op, solver, saturation=1.0)
 
 
 def test_the_overlap_scene_stands_flames_one_behind_another(small_camera):

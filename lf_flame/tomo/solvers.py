@@ -288,12 +288,15 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
     ValueError
         An unknown solver, negative iterations or weights, views of another camera
         (shape), NaN or inf in the views, a saturation level that is not positive, a
-        saturation mask that is not boolean of the views' shape.
+        saturation mask that is not boolean of the views' shape, every sample left out of the fit.
     """
     iters_given, tv_given = iters is not None, tv is not None
     solver, iters, tv, y = _checked_inputs(views, op, solver, iters, damp, tv, saturation)
     t0 = time.perf_counter()
     p = _fitted_problem(op, y, saturation)
+    if p.n_sat == p.y.size:
+        raise ValueError(f"every one of the views' {p.y.size} samples is left out of the fit (clipped, or in a saturation "
+                         "mask): there is nothing to solve")
     settings = dict(iters=iters, rays_per_pixel=op.rays_per_pixel, seed=op.seed,
                     saturation="mask" if np.ndim(saturation) > 0 else saturation, n_saturated=p.n_sat)
     if getattr(op, "offset_bins", None):                              # each sample at its own pixel
