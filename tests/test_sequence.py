@@ -444,7 +444,8 @@ def test_a_recording_of_another_camera_is_decoded_and_reconstructed(tmp_path, la
 
 def test_a_simulated_recording_of_another_camera_is_decoded_at_its_flames_depths(tmp_path, capsys):
     """``simulate-sequence --camera`` of the example camera (rotated grid), then ``sequence`` with the white image's
-    calibration and no planes: each frame decoded and solved at the recording's own flames' depths; without the
+    calibration and no planes: each frame decoded and solved at the recording's own flames' depths (frames that
+    record none, as files of a folder: at the depths found in the first frame, within 1 mm); without the
     calibration, refused naming it (a raw frame of that grid is no grid of whole lenslet images)."""
     sheet = (Path(__file__).resolve().parents[1] / "examples" / "own_camera.toml").read_text()
     cam = tmp_path / "cam.toml"
@@ -466,6 +467,17 @@ def test_a_simulated_recording_of_another_camera_is_decoded_at_its_flames_depths
     assert summary["n_frames"] == 4
     frames = pd.read_csv(tmp_path / "out" / "frames.csv")
     assert sorted(frames.depth_mm.unique()) == pytest.approx(sorted(fl["depth_offset_mm"] for fl in flames))
+    # the same frames as files of a folder, which record no flames: the depths found in the first frame
+    (tmp_path / "folder").mkdir()
+    with h5py.File(tmp_path / "frames.h5") as f:
+        for i, frame in enumerate(f["frames"][:]):
+            np.save(tmp_path / "folder" / f"f{i:03d}.npy", frame)
+    capsys.readouterr()
+    assert main(["sequence", str(tmp_path / "folder"), "--camera", str(cam), "--calibration", str(tmp_path / "cal.json"),
+                 "--fps", "100", "--route", "reconstruct-admm", "--quiet", "--out", str(tmp_path / "found")]) == 0
+    assert "planes, as reconstruct finds a capture's, in its first frame" in capsys.readouterr().out
+    found = sorted(pd.read_csv(tmp_path / "found" / "frames.csv").depth_mm.unique())
+    assert found == pytest.approx(sorted(fl["depth_offset_mm"] for fl in flames), abs=1.0), found
 
 
 def test_a_colour_recording_is_levelled_as_reconstruct_levels_a_capture(tmp_path, capsys, colour_capture):

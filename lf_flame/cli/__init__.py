@@ -266,7 +266,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--simulate", choices=["paper", "overlap"], help="instead of INPUT: a simulated recording, "
                    "rendered frame by frame in the workers")
     _sequence_scene_args(s, simulate_only=True)
-    s.add_argument("--depth", type=float, action="append", help="plane depth offset, mm (repeatable)")
+    s.add_argument("--depth", type=float, action="append", help="plane depth offset, mm (repeatable); default: a "
+                   "simulated recording's flames' depths, else the depths found in the first frame, as 'reconstruct' "
+                   "finds a capture's")
     s.add_argument("--slope", type=float, action="append", help="plane slope, lenslets per view (repeatable)")
     s.add_argument("--route", choices=["shift-sum", *(f"reconstruct-{k}" for k in SOLVERS)], default="shift-sum",
                    help="planes by shift-and-sum, or each plane's emission (as lf-flame reconstruct; its settings: "

@@ -43,6 +43,27 @@ def decoded_views_camera(camera, calibration, colour: bool = False):
     return views_camera(camera, calibration, views_shape(calibration, None, k), k), k
 
 
+def first_frame_depths(source, camera, calibration=None, sensor=None) -> list:
+    """The planes of a recording without given ones: those ``reconstruct --depths auto`` finds in its first frame
+    (depths found, the residual searched, the depths of flames one behind another refined:
+    :func:`lf_flame.cli.volume.found_planes`, :func:`~lf_flame.cli.volume.solve_found`), the frame decoded with
+    ``calibration`` where given (``camera`` the real one, ``sensor`` a colour camera's)."""
+    from ..real.lightfield import decode_capture, from_raw
+    from .volume import found_planes, solve_found
+    raw = np.asarray(next(iter(source.frames(0, 1))), np.float64)
+    lf = (from_raw(raw, camera, "the first frame") if calibration is None else
+          decode_capture(raw, camera, calibration, sensor, "the first frame"))
+    if lf.channels is not None:
+        from ..temperature.channels import monochrome_light_field
+        lf = monochrome_light_field(lf)
+    print("the recording's planes, as reconstruct finds a capture's, in its first frame:")
+    _, _, found = found_planes(lf)
+    found, _, _ = solve_found(lf, found)
+    print("planes after the residual's search and refinement: " + ", ".join(f"{d:+.2f}" for d in found.planes_mm)
+          + " mm")
+    return [float(d) for d in found.planes_mm]
+
+
 def cmd_simulate_sequence(a):
     from ..recordings.sources import SimulatedSource, write_frames
     cam = _camera(a)
@@ -89,11 +110,9 @@ def cmd_sequence(a):
             raise ValueError(f"give one --slope per flame ({len(seq.flames)}). Received: {a.slope}")
         job, truth = simulated_job(seq, cam, source, route=a.route, chunk=a.chunk, slopes=a.slope, **knobs)
     else:
-        if not (a.depth or a.slope or seq is not None):
-            raise ValueError("give the planes of a recording: --depth MM (repeatable) or --slope S")
-        if not (a.depth or a.slope):     # a simulated recording decoded as a real one: its flames' depths
+        if seq is not None and not (a.depth or a.slope):     # a simulated recording decoded as a real one
             a.depth = [f.depth_offset_mm for f in seq.flames]
-        cal, k, sensor = None, 1, None
+        cal, k, sensor, calibration, colour, real = None, 1, None, None, None, cam
         if a.calibration:                # real frames: the planes are the decoded views' camera's
             from ..real.calibration import GridCalibration
             from .real import colour_sensor
@@ -104,7 +123,10 @@ def cmd_sequence(a):
                 print(f"colour sensor {colour.name}, {colour.pattern} phase {colour.phase}: each frame's red and "
                       "green samples levelled into one light field (blue left out)")
             cal, cam, k = calibration.to_dict(), *decoded_views_camera(cam, calibration, colour is not None)
-        depths = [float(v) for v in a.depth] if a.depth else [cam.depth_for_slope(s) for s in a.slope]
+        if a.depth or a.slope:
+            depths = [float(v) for v in a.depth] if a.depth else [cam.depth_for_slope(s) for s in a.slope]
+        else:                            # the depths found in the first frame, as reconstruct finds a capture's
+            depths = first_frame_depths(source, real, calibration, colour)
         slopes = list(a.slope) if a.slope else [cam.slope_for_depth(d) for d in depths]
         from ..real.lightfield import check_imaging_range
         check_imaging_range(cam, depths)

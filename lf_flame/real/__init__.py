@@ -27,6 +27,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "own_camera": ["PITCH_WARN", "PITCH_TOLERANCE", "DecodedFrame", "decoded_frame", "views_camera",
                        "nominal_views_camera"],
         "lightfield": ["LightField", "MAX_SEARCH_SLOPE", "imaging_range_mm", "check_imaging_range", "from_raw",
+                       "decode_capture",
                        "from_decoded", "read_light_field", "same_grid"],
     },
 )

@@ -395,6 +395,35 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
         raise
 
 
+def decode_capture(raw, camera: PlenopticCamera, calibration, sensor=None, source: str = "raw capture") -> LightField:
+    """The light field of one raw capture (a recording's frame) decoded with its calibration, as
+    :func:`read_light_field` decodes a raw image file: every view the lenslet image holds, binned as
+    ``lf-flame decode`` bins by default, a colour ``sensor``'s capture one pixel per sample, its channels apart.
+
+    Parameters
+    ----------
+    raw : ndarray of shape (rows, cols)
+        In the units of the calibration's white and dark images.
+    camera : PlenopticCamera
+        The real camera (:func:`lf_flame.optics.camera_file.load_camera_file`).
+    calibration : GridCalibration
+    sensor : ColourSensor or None
+        A colour capture's sensor (:func:`lf_flame.optics.camera_file.load_colour_sensor`).
+    source : str
+        Names the capture in messages.
+
+    Returns
+    -------
+    LightField
+
+    Raises
+    ------
+    ValueError
+        As :func:`read_light_field` refuses a raw capture.
+    """
+    return _decode_here(np.asarray(raw, np.float64), source, camera, calibration, None, None, None, sensor)
+
+
 def _capture_sensor(camera, meta):
     """A raw capture's colour sensor: the camera file's ``[sensor] cfa``, else the record ``lf-flame simulate``
     stored beside the image (``meta["sensor"]``); None for a monochrome one."""
