@@ -344,9 +344,9 @@ def test_camera_file_and_calibration_must_agree(route):
 
 def test_simulate_refocus_and_slopes_take_a_camera_file(route, tmp_path, capsys):
     """``simulate --camera`` renders the datasheet camera (not the paper's); an empty camera file is
-    refused; ``refocus --depth`` and ``slopes`` work in the camera's own depths (an even 10 views), ``slopes`` in
-    the lenslets that vote for each depth the depth search finds where no region is given (each flame's depth
-    within 0.6 mm)."""
+    refused; ``refocus --depth`` and ``slopes`` work in the camera's own depths (an even 10 views); without planes
+    ``refocus`` takes the depths the search finds, and ``slopes`` searches the lenslets that vote for each depth
+    found where no region is given (each flame's depth within 0.6 mm)."""
     cam, _, _, d = route
     out = tmp_path / "flame.npz"
     assert cli.main(["simulate", "--scene", "flame", "--camera", EXAMPLE, "--rays-per-pixel", "2", "--out",
@@ -365,6 +365,9 @@ def test_simulate_refocus_and_slopes_take_a_camera_file(route, tmp_path, capsys)
     vcam = views_camera(cam, GridCalibration.load(d / "cal.json"), views_file.load_views(d / "views.h5")[0].shape)
     with np.load(stack) as z:
         assert np.allclose(z["slopes"], [vcam.slope_for_depth(20.0), vcam.slope_for_depth(-10.0)])
+    assert cli.main(["refocus", str(d / "views.h5"), *views, "--out", str(stack)]) == 0     # no planes: those found
+    with np.load(stack) as z:
+        assert np.allclose(sorted(z["depths_mm"]), sorted(DEPTHS), atol=0.6), z["depths_mm"]
     assert cli.main(["slopes", str(d / "views.h5"), *views, "--method", "fourier", "--out-prefix",
                      str(tmp_path / "s")]) == 0
     import pandas as pd

@@ -204,7 +204,8 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("raw", help=RAW_FORMATS + ", or VIEWS.h5 from decode")
     s.add_argument("--slope", type=float, action="append", help="lenslets per view (repeatable)")
     s.add_argument("--depth", type=float, action="append", help="instead of --slope: plane depth, mm from the "
-                   "camera's focus distance (> 0 farther; repeatable)")
+                   "camera's focus distance (> 0 farther; repeatable); neither: the depths found in the views, as "
+                   "'reconstruct' finds them")
     add_camera_args(s)
     s.add_argument("--method", choices=["shift-sum", "fourier"], default="shift-sum",
                    help="shift-and-sum of the views, or the Fourier slice")

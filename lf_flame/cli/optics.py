@@ -80,9 +80,13 @@ def views_and_camera(a):
 
 def cmd_refocus(a):
     from ..refocus.shift_and_sum import aperture_mask, refocus_views
-    if bool(a.slope) == bool(a.depth):
-        raise ValueError("give the planes as --slope (lenslets per view) or as --depth (mm), one of them")
+    if a.slope and a.depth:
+        raise ValueError("give the planes as --slope (lenslets per view) or as --depth (mm), not both")
     views, cam = views_and_camera(a)
+    if not (a.slope or a.depth):         # the depths found in the views, as reconstruct finds them
+        if cam is None:
+            raise ValueError(f"give the planes (--slope), or the camera of {a.raw} (--camera cam.toml) to find them")
+        a.depth = _found_depths(views, cam)
     if a.depth:
         if cam is None:
             raise ValueError(f"--depth needs the camera of {a.raw}: give --camera cam.toml (or use --slope)")
@@ -192,12 +196,27 @@ def cmd_slopes(a):
     print(f"-> {out}.slopes.csv, {out}.slopes.png")
 
 
-def _emission_regions(views, cam):
-    """The flames the depth search finds (:func:`lf_flame.tomo.depth.find_depths` over the camera's imaging range):
-    one object per found depth, the bounding box of the lenslets that voted for it as ``roi`` (lenslets)."""
+def _search(views, cam):
+    """:func:`lf_flame.tomo.depth.find_depths` over the camera's imaging range (``reconstruct``'s search)."""
     from ..real.lightfield import imaging_range_mm
     from ..tomo.depth import find_depths
-    found = find_depths(views, cam, depth_range_mm=imaging_range_mm(cam))
+    return find_depths(views, cam, depth_range_mm=imaging_range_mm(cam))
+
+
+def _found_depths(views, cam) -> list:
+    """The planes of the depths the search finds (printed), or a ValueError where it finds none."""
+    found = _search(views, cam)
+    if not len(found.planes_mm):
+        raise ValueError("the depth search found no emission in the views: give the planes (--depth or --slope)")
+    print(f"found {len(found.depths_mm)} depths in {found.time_s:.2f} s -> planes at "
+          + ", ".join(f"{d:+.2f}" for d in found.planes_mm) + " mm")
+    return [float(d) for d in found.planes_mm]
+
+
+def _emission_regions(views, cam):
+    """The flames the depth search finds (:func:`_search`): one object per found depth, the bounding box of the
+    lenslets that voted for it as ``roi`` (lenslets)."""
+    found = _search(views, cam)
     objects = []
     for k, m in enumerate(found.masks):
         rows, cols = np.nonzero(m)
