@@ -86,7 +86,8 @@ def cmd_refocus(a):
     if not (a.slope or a.depth):         # the depths found in the views, as reconstruct finds them
         if cam is None:
             raise ValueError(f"give the planes (--slope), or the camera of {a.raw} (--camera cam.toml) to find them")
-        a.depth = _found_depths(views, cam)
+        from .volume import search_planes
+        a.depth = search_planes(views, cam)[0]
     if a.depth:
         if cam is None:
             raise ValueError(f"--depth needs the camera of {a.raw}: give --camera cam.toml (or use --slope)")
@@ -196,27 +197,13 @@ def cmd_slopes(a):
     print(f"-> {out}.slopes.csv, {out}.slopes.png")
 
 
-def _search(views, cam):
-    """:func:`lf_flame.tomo.depth.find_depths` over the camera's imaging range (``reconstruct``'s search)."""
+def _emission_regions(views, cam):
+    """The flames the depth search finds (:func:`lf_flame.tomo.depth.find_depths` over the camera's imaging range,
+    ``reconstruct``'s search): one object per found depth, the bounding box of the lenslets that voted for it as
+    ``roi`` (lenslets)."""
     from ..real.lightfield import imaging_range_mm
     from ..tomo.depth import find_depths
-    return find_depths(views, cam, depth_range_mm=imaging_range_mm(cam))
-
-
-def _found_depths(views, cam) -> list:
-    """The planes of the depths the search finds (printed), or a ValueError where it finds none."""
-    found = _search(views, cam)
-    if not len(found.planes_mm):
-        raise ValueError("the depth search found no emission in the views: give the planes (--depth or --slope)")
-    print(f"found {len(found.depths_mm)} depths in {found.time_s:.2f} s -> planes at "
-          + ", ".join(f"{d:+.2f}" for d in found.planes_mm) + " mm")
-    return [float(d) for d in found.planes_mm]
-
-
-def _emission_regions(views, cam):
-    """The flames the depth search finds (:func:`_search`): one object per found depth, the bounding box of the
-    lenslets that voted for it as ``roi`` (lenslets)."""
-    found = _search(views, cam)
+    found = find_depths(views, cam, depth_range_mm=imaging_range_mm(cam))
     objects = []
     for k, m in enumerate(found.masks):
         rows, cols = np.nonzero(m)

@@ -51,7 +51,8 @@ def _profiles_input(a):
             depths = list(PAPER_DEPTHS_MM)
         else:
             from ..real.lightfield import from_raw
-            depths = _found_depths(from_raw(raw, cam, str(a.raw)))
+            from .volume import found_planes
+            depths = found_planes(from_raw(raw, cam, str(a.raw)))[0]
     elif not depths:
         depths = [cam.depth_for_slope(v) for v in a.slope]
     if a.slope:
@@ -98,12 +99,6 @@ def _given_depths(a):
     return [float(d) for d in a.depth]
 
 
-def _found_depths(lf):
-    """The planes of the depths found in a light field (``reconstruct``'s ``--depths auto``, printed)."""
-    from .volume import found_planes
-    return found_planes(lf)[0]
-
-
 def _object_depths(objects):
     """The flames' depths (mm), or None without flames."""
     return [float(o["depth_offset_mm"]) for o in objects] if objects else None
@@ -116,12 +111,12 @@ def _decoded_profiles_input(a):
     from ..refocus.shift_and_sum import aperture_mask, refocus_views
     from ..tomo.truth import bin_planes
     from ._io import light_field
-    from .volume import lattice_solve, run_reconstruction
+    from .volume import found_planes, lattice_solve, run_reconstruction
     lf = light_field(a)
     cam = lf.camera
     objects = None if str(a.raw).endswith(".h5") else _raw_objects(a.raw)
     depths = (_given_depths(a) or ([cam.depth_for_slope(v) for v in a.slope] if a.slope else _object_depths(objects))
-              or _found_depths(lf))
+              or found_planes(lf)[0])
     from ..real.lightfield import check_imaging_range
     check_imaging_range(cam, depths)
     slopes = [cam.slope_for_depth(d) for d in depths]

@@ -56,8 +56,14 @@ def found_planes(lf, views=None):
     peak width, plane and region) and the :class:`~lf_flame.tomo.depth.FoundDepths` itself (its masks:
     the lenslets that voted for each depth). ``views``: other views of ``lf.camera`` to search (a
     channel sum)."""
+    return search_planes(lf.views if views is None else views, lf.camera)
+
+
+def search_planes(views, camera):
+    """:func:`found_planes` of views (N, N, R, C) of ``camera``, searched over its imaging range."""
+    from ..real.lightfield import imaging_range_mm
     from ..tomo.depth import find_depths
-    found = find_depths(lf.views if views is None else views, lf.camera, depth_range_mm=lf.depth_range_mm())
+    found = find_depths(views, camera, depth_range_mm=imaging_range_mm(camera))
     if not len(found.planes_mm):
         raise ValueError("--depths auto found no emission in the views; give the planes (--depth or --depths)")
     record = found_record(found)
