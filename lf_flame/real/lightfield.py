@@ -318,8 +318,9 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
         the paper's camera; decoded views need one.
     calibration : str, Path, GridCalibration or None
         The white-image calibration: a raw capture of a camera whose grid is not perfect is
-        decoded with it (its white image, checked by its SHA-256); decoded views are checked
-        against it.
+        decoded with it (its white image, checked by its SHA-256), a colour capture's (the camera
+        file's ``[sensor] cfa``, else the sensor the image stores) with its channels apart as
+        ``lf-flame decode --camera`` decodes it; decoded views are checked against it.
     views : int or None
         Views per axis when decoding here (default: as many as the lenslet image holds).
     bin_views : int or None
