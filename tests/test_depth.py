@@ -625,3 +625,14 @@ def test_the_depth_search_takes_a_grid_that_runs_past_infinity():
     assert len(found.depths_mm) and np.all(np.isfinite(found.depths_mm))
     more = missed_depths(views, far, found, prominence=1.0, share=0.0)      # the data as the residual: a peak
     assert more is not None and np.all(np.isfinite(more.depths_mm))
+
+
+def test_a_uniform_bright_field_holds_no_depth(cam):
+    """A flat bright field (a white image given as a capture, decoded: every lit view 1): nothing in it is in focus
+    at any depth. The search takes the background's level from each view before refocusing, so the field's border,
+    where refocusing runs out of views, makes no edge; it found several depths on that border."""
+    from lf_flame.refocus.shift_and_sum import aperture_mask
+    n = cam.pixels_per_lenslet
+    views = np.broadcast_to(aperture_mask(n, "circular")[:, :, None, None], (n, n, cam.n_rows, cam.n_cols))
+    found = find_depths(views.astype(np.float32), cam)
+    assert len(found.depths_mm) == 0, found.depths_mm

@@ -292,15 +292,18 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
     n = camera.pixels_per_lenslet
     slopes = np.arange(s_lo - slope_step, s_hi + 1.5 * slope_step, slope_step)
 
+    # step 1: regions holding emission, from the central (pinhole) view; on a bright background, from the detail
+    centre = ndimage.gaussian_filter(v[n // 2, n // 2].astype(np.float64), 1.0)
+    fg = ndimage.binary_dilation(centre > threshold * centre.max(), iterations=2)
+    bright = fg.mean() > BRIGHT_FIELD_SHARE
+    if bright:      # the background's level taken from every view: the field's border, where refocusing runs out of
+        v = v - np.median(v, axis=(2, 3), keepdims=True)         # views, then makes no edge of its own
+
     # focus energy per pixel and slope (band-limited refocusing; step 2, whose contrast step 1 may need)
     ten, lap = _focus_energy(v, slopes, sigma, laplacian=True)
     best = np.argmax(ten, axis=0)
     contrast = ten.max(axis=0) - np.median(ten, axis=0)
-
-    # step 1: regions holding emission, from the central (pinhole) view; on a bright background, from the detail
-    centre = ndimage.gaussian_filter(v[n // 2, n // 2].astype(np.float64), 1.0)
-    fg = ndimage.binary_dilation(centre > threshold * centre.max(), iterations=2)
-    if fg.mean() > BRIGHT_FIELD_SHARE:
+    if bright:
         detail = ndimage.gaussian_filter(contrast, 1.0)
         fg = ndimage.binary_dilation(detail > threshold * detail.max(), iterations=2)
     labels = measure.label(fg, connectivity=2)
