@@ -489,19 +489,27 @@ def _solve_pd_tv(p: _Problem, settings: dict, step: _Steps, iters: int, tv: floa
     return x, residuals
 
 
+#: ``rl``'s floors, relative: the planes' samples that no fitted ray sees (``A^T 1`` below this share of its maximum:
+#: an FFT operator leaves its rounding where nothing is seen) and the prediction a data sample is divided by (this
+#: share of the data's peak: a prediction at an FFT's rounding, a dark sample's noise over it, made ratios of 1e12
+#: that overflowed the float32 operator of decoded views into NaN).
+RL_SEEN = 1e-6
+
+
 def _solve_rl(p: _Problem, step: _Steps, iters: int):
     """``"rl"``: Richardson-Lucy from a flat start at the data's level, the saturated samples'
     ratio left out: ``(x, residuals)``."""
     op, y, fit, residuals = p.op, p.y, p.fit, []
     ones = op.rmatvec(fit.astype(np.float64))
-    seen = ones > 0
+    seen = ones > RL_SEEN * ones.max()                 # an FFT operator's adjoint leaves rounding where nothing is seen
     yp = np.clip(p.yw, 0.0, None)
     n = op.shape[1]
     x = np.full(n, max(float(yp[fit].mean()) if p.n_sat < y.size else 0.0, 1e-12))   # flat start, the data's level
+    floor = RL_SEEN * max(float(yp.max()), 1e-12)     # a prediction near 0 (an FFT's rounding): no ratio of 1e12
     for _ in range(iters):
         ax = op.matvec(x)
         residuals.append(float(np.linalg.norm(np.where(fit, ax - y, 0.0))) / p.norm)
-        ratio = np.where(fit, yp / np.maximum(ax, 1e-12), 0.0)
+        ratio = np.where(fit, yp / np.maximum(ax, floor), 0.0)
         x = np.where(seen, x * op.rmatvec(ratio) / np.where(seen, ones, 1.0), 0.0)
         step(x)
     return x, residuals
