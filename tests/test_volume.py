@@ -27,6 +27,17 @@ def _error(capsys):
     return float(out.split("3-D relative error ")[1].split()[0]), out
 
 
+def test_the_volumes_resolution_note_names_features_finer_than_the_planes_samples():
+    """A feature finer than the planes' samples is not mapped (NaN): the note says so, not 'nan mm apart'."""
+    import pandas as pd
+
+    from lf_flame.cli.volume import resolution_note
+    table = pd.DataFrame({"feature_mm": [0.33, 1.3, 6.6], "spacing_interp_mm_10": [np.nan, 4.51, np.inf]})
+    note = resolution_note(table, 10.0, 30.0)
+    assert note.endswith("0.33 mm features finer than the planes' samples, 1.3 mm features 4.5 mm apart, "
+                         "6.6 mm features > 30 mm apart") and "nan" not in note
+
+
 def test_volume_cli_priors_write_the_stack_and_the_axisymmetric_one_wins(volume_raw, tmp_path, capsys):
     capsys.readouterr()
     errs = {}

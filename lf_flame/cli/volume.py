@@ -201,6 +201,16 @@ def saturation_note(rec) -> str:
     return f"{n} saturated pixels (at or above {level:g}) left out of the fit"
 
 
+def resolution_note(table, condition: float, span_mm: float) -> str:
+    """The stack's depth resolution in one line: per feature size (``table``: :meth:`DepthResolution.to_frame
+    <lf_flame.tomo.resolution.DepthResolution.to_frame>`) the spacing resolved at ``condition``, "> span" where
+    none in the stack is, and where the feature is finer than the planes' samples (not mapped), that."""
+    apart = ["finer than the planes' samples" if np.isnan(s) else f"> {span_mm:g} mm apart" if np.isinf(s) else
+             f"{s:.2g} mm apart" for s in table[f"spacing_interp_mm_{condition:g}"]]
+    return (f"depth resolution of this stack for the data alone (condition <= {condition:g}; the prior adds what the "
+            "data lack): " + ", ".join(f"{f:g} mm features {s}" for f, s in zip(table.feature_mm, apart)))
+
+
 def decoded_note(lf, rec, lattice=None) -> str:
     """What the fit of decoded views left out: the count and share of the samples (of the hexagonal lattice's views
     where ``lattice``, a :class:`~lf_flame.tomo.lattice.LatticeSolve`, solved them) and why."""
@@ -405,8 +415,4 @@ def volume_reconstruct(a):
                                       f"{np.linalg.norm(rec.planes - truth) / np.linalg.norm(truth):.3f}")
     print(f"volume of {len(rec.depths_mm)} planes from {rec.depths_mm[0]:+g} to {rec.depths_mm[-1]:+g} mm, prior "
           f"{a.prior} ({rec.solver}), solved in {rec.time_s:.1f} s{axis}{score} -> {out}, {fig}")
-    c = res.conditions[0]
-    span = float(rec.depths_mm[-1] - rec.depths_mm[0])
-    apart = [f"> {span:g}" if np.isinf(s) else f"{s:.2g}" for s in table[f"spacing_interp_mm_{c:g}"]]
-    print(f"depth resolution of this stack for the data alone (condition <= {c:g}; the prior adds what the data "
-          "lack): " + ", ".join(f"{f:g} mm features {s} mm apart" for f, s in zip(table.feature_mm, apart)))
+    print(resolution_note(table, res.conditions[0], float(rec.depths_mm[-1] - rec.depths_mm[0])))
