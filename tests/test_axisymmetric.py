@@ -84,6 +84,19 @@ def test_axis_search_finds_the_axis(op):
     assert np.allclose([z for z, _ in res.search[:len(scan)]], scan)
 
 
+def test_the_axis_search_stays_within_the_stack(op):
+    """A search that would start outside the stack's depths (the flame with the most votes beyond it) is refused,
+    naming the stack; inside it, the scan is clipped to the stack's ends."""
+    rev = RevolveOperator(op, *AXIS, R_MAX)
+    views, _ = data(op, ring(rev), rev)
+    far = float(np.max(op.depths_mm)) + 5.0
+    with pytest.raises(ValueError, match="outside the stack's"):
+        solve_axisymmetric(views, op, r_max_mm=R_MAX, start_z_mm=far, fills=1, inner=5)
+    edge = float(np.max(op.depths_mm)) - 0.5
+    res = solve_axisymmetric(views, op, r_max_mm=R_MAX, start_z_mm=edge, search_half_width_mm=2.0, fills=1, inner=5)
+    assert max(z for z, _ in res.search) <= np.max(op.depths_mm)
+
+
 def test_axis_x_from_a_rendered_view():
     cam = PlenopticCamera(n_rows=41, n_cols=41)
     op = ExactOperator(cam, [-1.0, 0.0, 1.0], precision="float32")

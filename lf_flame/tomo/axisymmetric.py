@@ -184,7 +184,8 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
         Views not of the operator's shape or not finite; not an exact operator; a fit mask
         not boolean of the views' shape; iterations below 1; a negative or non-finite
         ``lam``; a non-positive search width or tolerance; a radius or axis the
-        :class:`~lf_flame.tomo.revolve.RevolveOperator` refuses.
+        :class:`~lf_flame.tomo.revolve.RevolveOperator` refuses; a search that would start outside
+        the stack's depths (the search stays within them).
     """
     t0 = time.perf_counter()
     v, f = _check(views, op, fit)
@@ -242,7 +243,12 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
             if res < warm.get("residual", np.inf):
                 warm.update(e=e.reshape(rev.dims), residual=res)
             return res
-        lo, hi = start_z_mm - search_half_width_mm, start_z_mm + search_half_width_mm
+        z_lo, z_hi = float(np.min(op.depths_mm)), float(np.max(op.depths_mm))
+        if not z_lo <= start_z_mm <= z_hi:
+            raise ValueError(f"the axis is searched about {start_z_mm:+.2f} mm (the flame found with the most votes), "
+                             f"outside the stack's {z_lo:+g} to {z_hi:+g} mm: widen the stack about it (the command's "
+                             "--from, --to), or give the axis's depth (axis_z_mm)")
+        lo, hi = max(start_z_mm - search_half_width_mm, z_lo), min(start_z_mm + search_half_width_mm, z_hi)
         scan = np.linspace(lo, hi, max(int(round((hi - lo) / SEARCH_SCAN_MM)), 1) + 1)
         k = int(np.argmin([trial(z) for z in scan]))
         best = optimize.minimize_scalar(trial, bounds=(scan[max(k - 1, 0)], scan[min(k + 1, len(scan) - 1)]),
