@@ -103,7 +103,8 @@ def show_plane(ax, plane, extent_mm=None, *, title: str = "", vmin=0.0, vmax=Non
 
 
 def panel_grid(rows: int, cols: int, aspect: float, *, colorbars: int = 1, title_lines: int = 1,
-               suptitle: str = "", footer: bool = False, widths_in=None):
+               suptitle: str = "", footer: bool = False, widths_in=None, top_in: float | None = None,
+               below_in: float = 0.0):
     """A figure of ``rows`` x ``cols`` image panels and ``colorbars`` colour bars at its right,
     laid out in inches (no layout engine: a constrained layout costs 0.5-1 s a figure).
 
@@ -126,6 +127,10 @@ def panel_grid(rows: int, cols: int, aspect: float, *, colorbars: int = 1, title
         The figure's title, drawn above the panels.
     footer : bool
         Room for a legend below.
+    top_in : float or None
+        The margin above the panels (inches; a figure legend's room); None: as ``suptitle`` needs.
+    below_in : float
+        Room (inches) left under the panels for the caller's own axes (``fig.add_axes``).
 
     Returns
     -------
@@ -138,8 +143,8 @@ def panel_grid(rows: int, cols: int, aspect: float, *, colorbars: int = 1, title
     widths = [PANEL_WIDTH_IN] * cols if widths_in is None else [float(v) for v in widths_in]
     h = float(np.clip(PANEL_WIDTH_IN * aspect, 0.9, 5.0))
     left, gap_x, above, below, bar = 0.65, 0.5 if widths_in is None else 0.7, 0.12 + 0.16 * title_lines, 0.5, 0.95
-    top = 0.35 if suptitle else 0.1
-    bottom = 0.35 if footer else 0.1
+    top = (0.35 if suptitle else 0.1) if top_in is None else float(top_in)
+    bottom = (0.35 if footer else 0.1) + float(below_in)
     x = left + np.concatenate([[0.0], np.cumsum(np.asarray(widths) + gap_x)])      # each column's left edge
     W = x[-1] - gap_x + 0.2 + colorbars * bar
     H = top + rows * (above + h + below) + bottom
@@ -153,7 +158,8 @@ def panel_grid(rows: int, cols: int, aspect: float, *, colorbars: int = 1, title
     bar_h = 0.8 * span if rows == 1 else 0.45 * span
     bar_y = bottom + below + (span - bar_h) / 2
     x0 = x[-1] - gap_x + 0.2
-    caxes = [fig.add_axes(((x0 + k * bar) / W, bar_y / H, 0.12 / W, bar_h / H)) for k in range(colorbars)]
+    caxes = [fig.add_axes(((x0 + k * bar) / W, bar_y / H, 0.12 / W, bar_h / H), label="<colorbar>")   # as matplotlib
+             for k in range(colorbars)]                                                     # labels its own
     if suptitle:
         fig.suptitle(suptitle, fontsize=9, y=1 - 0.08 / H, va="top")
     return fig, axes, caxes
@@ -301,18 +307,16 @@ def profiles_figure(cam, stack, depths, ms, objects, route, value_label: str = "
     matplotlib.figure.Figure
         Axes: the P planes, the axial profiles, the radial profiles (P > 1), the colour bar.
     """
-    from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
     from .diagnostics import RADIAL_FRACTIONS, flame_truth, lenslet_to_object_mm
     P = len(stack)
-    fig = Figure(figsize=(2.6 * P + 1.0, 9.6), layout="constrained")
-    grid = fig.add_gridspec(2, P, height_ratios=(2.2, 1.0))
+    left, right, bottom, top = plane_extent_mm(cam, depths[0])
+    fig, axes, (cax,) = panel_grid(1, P, (top - bottom) / (right - left), title_lines=3, top_in=0.4, below_in=3.0)
     vmax = max(float(np.max(stack)), 1e-9)
     untrusted = False
-    panels = []
+    panels = list(axes[0])
     for k, (plane, d, m) in enumerate(zip(stack, depths, ms)):
-        ax = fig.add_subplot(grid[0, k])
-        panels.append(ax)
+        ax = panels[k]
         im = show_plane(ax, plane, plane_extent_mm(cam, d), vmax=vmax, ylabel=k == 0)
         title = f"{signed(d, 0)} mm"
         if m is not None:
@@ -334,16 +338,19 @@ def profiles_figure(cam, stack, depths, ms, objects, route, value_label: str = "
         if m is not None and not m.trusted:
             title += f"\nUNTRUSTED: {', '.join(m.flags)}"
         ax.set_title(title, fontsize=9, color="k" if m is None or m.trusted else "red")
-    add_colorbar(fig, im, panels, value_label)
+    add_colorbar(fig, im, panels, value_label, cax=cax)
     lines = [Line2D([], [], color="0.3", lw=0.9, label="measured flame region (outline)"),
              Line2D([], [], color="0.3", ls="--", lw=0.9, label="measured base and tip")]
     if untrusted:
         lines.append(Line2D([], [], color="0.3", ls=":", lw=0.9, label="measured base and tip, untrusted"))
     if objects:
         lines.append(Line2D([], [], color="c", lw=0.9, label="true base and tip"))
-    fig.legend(handles=lines, loc="outside upper center", ncol=len(lines), fontsize=8, frameon=False)
-    axa = fig.add_subplot(grid[1, : max(1, P // 2)])
-    axr = fig.add_subplot(grid[1, max(1, P // 2):]) if P > 1 else None
+    fig.legend(handles=lines, loc="upper center", ncol=len(lines), fontsize=8, frameon=False)
+    W, H = fig.get_size_inches()                       # the profiles in the room left under the planes
+    x0, x1, y0, h = 0.75, W - 0.3, 0.55, 2.05
+    half = (x1 - x0 - 0.9) / 2 if P > 1 else x1 - x0
+    axa = fig.add_axes((x0 / W, y0 / H, half / W, h / H))
+    axr = fig.add_axes(((x1 - half) / W, y0 / H, half / W, h / H)) if P > 1 else None
     styles = ("-", "--", ":")
     for k, (d, m) in enumerate(zip(depths, ms)):
         if m is None:
