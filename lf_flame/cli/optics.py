@@ -198,12 +198,10 @@ def cmd_slopes(a):
 
 
 def _emission_regions(views, cam):
-    """The flames the depth search finds (:func:`lf_flame.tomo.depth.find_depths` over the camera's imaging range,
-    ``reconstruct``'s search): one object per found depth, the bounding box of the lenslets that voted for it as
-    ``roi`` (lenslets)."""
-    from ..real.lightfield import imaging_range_mm
-    from ..tomo.depth import find_depths
-    found = find_depths(views, cam, depth_range_mm=imaging_range_mm(cam))
+    """The flames the depth search finds (:func:`lf_flame.cli.volume.search_depths`, ``reconstruct``'s search): one
+    object per found depth, the bounding box of the lenslets that voted for it as ``roi`` (lenslets)."""
+    from .volume import search_depths
+    found = search_depths(views, cam)
     objects = []
     for k, m in enumerate(found.masks):
         rows, cols = np.nonzero(m)

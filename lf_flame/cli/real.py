@@ -38,7 +38,7 @@ def cmd_calibrate(a):
 def cmd_decode(a):
     from ..real.calibration import GridCalibration
     from ..real.images import calibration_image, load_image
-    from ..real.decoding import auto_bin, clipped_samples, decode, on_square_grid
+    from ..real.decoding import clipped_samples, decode_capture_views, on_square_grid
     from ..real.views_file import save_views
     cal = GridCalibration.load(a.calibration)
     raw = load_image(a.raw)
@@ -46,22 +46,11 @@ def cmd_decode(a):
     dark = calibration_image(cal.dark, "dark", a.dark)
     sensor, where = colour_sensor(a.camera, a.raw)
     t = time.perf_counter()
-    channels = None
-    k = getattr(a, "bin", None)
-    if k is None:
-        k = 1 if sensor is not None else auto_bin(cal, a.views)
-    lattice = None
-    if sensor is None:        # a hexagonal grid keeps its lattice's views beside the square grid's
-        lattice = decode(raw, cal, white, dark, n_views=a.views, camera_id=a.camera_id, bin_views=k, resample=False)
-        views = on_square_grid(lattice, cal)
-    else:
-        from ..real.decoding import decode_colour
-        if k != 1:
-            raise ValueError("a colour capture is decoded one pixel per sample, its channels apart: --bin 1 (or auto)")
-        if a.camera_id is not None and cal.camera_id and a.camera_id != cal.camera_id:
-            raise ValueError(f"the calibration is of camera {cal.camera_id!r}, not {a.camera_id!r}")
-        lattice, channels = decode_colour(raw, cal, sensor, white, dark, n_views=a.views)
-        views = on_square_grid(lattice, cal)   # a hexagonal grid's channels stay on its lattice (blended here)
+    # a hexagonal grid keeps its lattice's views (and a colour capture's channels there) beside the square grid's
+    lattice, channels, k = decode_capture_views(raw, cal, white, dark, sensor, n_views=a.views,
+                                                bin_views=getattr(a, "bin", None), camera_id=a.camera_id)
+    views = on_square_grid(lattice, cal)
+    if sensor is not None:
         print(f"colour sensor {sensor.name}, {sensor.pattern} phase {sensor.phase} ({where}): each sample from its "
               "nearest pixel, channels apart" + (" on the hexagonal lattice" if cal.layout == "hex" else ""))
     level = _saturation_level(a.saturation, raw)
@@ -82,19 +71,12 @@ def cmd_decode(a):
 
 
 def colour_sensor(camera, raw):
-    """A capture's colour sensor and where it came from: the ``camera`` file's ``[sensor] cfa``, else the
-    sensor ``lf-flame simulate`` stored beside the ``raw`` image; (None, "") for a monochrome capture."""
-    from ..optics.camera_file import load_colour_sensor
-    from ..optics.colour import library_sensor
+    """A capture's colour sensor and where it came from: the ``camera`` file's ``[sensor] cfa``, else the sensor
+    ``lf-flame simulate`` stored beside the ``raw`` image; (None, "") for a monochrome capture
+    (:func:`lf_flame.real.lightfield.capture_sensor`)."""
+    from ..real.lightfield import capture_sensor
     from ._io import _raw_meta
-    sensor = load_colour_sensor(camera) if camera else None
-    if sensor is not None:
-        return sensor, f"{camera} [sensor]"
-    rec = _raw_meta(raw).get("sensor")
-    if rec:
-        r = json.loads(rec)
-        return library_sensor(r["name"], r["pattern"], tuple(r["phase"])), f"stored in {raw}"
-    return None, ""
+    return capture_sensor(camera or None, _raw_meta(raw), str(raw))
 
 
 def _saturation_level(text, raw):

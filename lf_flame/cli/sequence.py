@@ -49,13 +49,11 @@ def first_frame_depths(source, camera, calibration=None, sensor=None) -> list:
     :func:`lf_flame.cli.volume.found_planes`, :func:`~lf_flame.cli.volume.solve_found`), the frame decoded with
     ``calibration`` where given (``camera`` the real one, ``sensor`` a colour camera's)."""
     from ..real.lightfield import decode_capture, from_raw
+    from ..temperature.channels import monochrome_light_field
     from .volume import found_planes, solve_found
     raw = np.asarray(next(iter(source.frames(0, 1))), np.float64)
-    lf = (from_raw(raw, camera, "the first frame") if calibration is None else
-          decode_capture(raw, camera, calibration, sensor, "the first frame"))
-    if lf.channels is not None:
-        from ..temperature.channels import monochrome_light_field
-        lf = monochrome_light_field(lf)
+    lf = monochrome_light_field(from_raw(raw, camera, "the first frame") if calibration is None else  # colour: levelled
+                                decode_capture(raw, camera, calibration, sensor, "the first frame"))
     print("the recording's planes, as reconstruct finds a capture's, in its first frame:")
     _, _, found = found_planes(lf)
     found, _, _ = solve_found(lf, found)

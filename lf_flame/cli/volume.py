@@ -59,11 +59,17 @@ def found_planes(lf, views=None):
     return search_planes(lf.views if views is None else views, lf.camera)
 
 
-def search_planes(views, camera):
-    """:func:`found_planes` of views (N, N, R, C) of ``camera``, searched over its imaging range."""
+def search_depths(views, camera):
+    """The depth search of every command: :func:`lf_flame.tomo.depth.find_depths` of views (N, N, R, C) of
+    ``camera`` over its imaging range."""
     from ..real.lightfield import imaging_range_mm
     from ..tomo.depth import find_depths
-    found = find_depths(views, camera, depth_range_mm=imaging_range_mm(camera))
+    return find_depths(views, camera, depth_range_mm=imaging_range_mm(camera))
+
+
+def search_planes(views, camera):
+    """:func:`found_planes` of views (N, N, R, C) of ``camera``, searched over its imaging range."""
+    found = search_depths(views, camera)
     if not len(found.planes_mm):
         raise ValueError("--depths auto found no emission in the views; give the planes (--depth or --depths)")
     record = found_record(found)

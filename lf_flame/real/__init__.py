@@ -28,6 +28,6 @@ __getattr__, __dir__, __all__ = lazy.attach(
                        "nominal_views_camera"],
         "lightfield": ["LightField", "MAX_SEARCH_SLOPE", "imaging_range_mm", "check_imaging_range", "from_raw",
                        "decode_capture",
-                       "from_decoded", "read_light_field", "same_grid"],
+                       "from_decoded", "read_light_field", "same_grid", "capture_sensor"],
     },
 )

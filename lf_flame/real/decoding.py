@@ -366,6 +366,42 @@ def _nearest_pixels(calibration: GridCalibration, n_views: int) -> np.ndarray:
     return np.floor(view_positions(calibration, n_views)).astype(np.int64)
 
 
+def decode_capture_views(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | None = None,
+                         dark: np.ndarray | None = None, sensor=None, *, n_views: int | None = None,
+                         bin_views: int | None = None, camera_id: str | None = None):
+    """A capture decoded as ``lf-flame decode`` decodes it: :func:`decode` (its bilinear samples, binned by
+    ``bin_views``, None: :func:`auto_bin`), or for a colour ``sensor``'s capture :func:`decode_colour` (each sample
+    its nearest pixel, its channel with it, one pixel per sample); a hexagonal grid's views on its own lattice.
+
+    Returns
+    -------
+    views : ndarray of shape (N, N, R, C), float32
+        On the calibration's grid (``resample=False``: :func:`on_square_grid` puts a hexagonal grid's on the
+        square one).
+    channels : ndarray of int8 of the views' shape, or None
+        A colour capture's channel map.
+    bin_views : int
+        Pixels per view sample and axis.
+
+    Raises
+    ------
+    ValueError
+        As :func:`decode` and :func:`decode_colour`; a colour capture with ``bin_views`` other than 1 or None, or
+        ``camera_id`` other than the calibration's.
+    """
+    if sensor is None:
+        k = auto_bin(calibration, n_views) if bin_views is None else bin_views
+        return decode(raw, calibration, white, dark, n_views=n_views, camera_id=camera_id, bin_views=k,
+                      resample=False), None, k
+    if bin_views not in (None, 1):
+        raise ValueError("a colour capture is decoded one pixel per sample, its channels apart: bin_views 1 (--bin 1 "
+                         "or auto)")
+    if camera_id is not None and calibration.camera_id and camera_id != calibration.camera_id:
+        raise ValueError(f"the calibration is of camera {calibration.camera_id!r}, not {camera_id!r}")
+    views, channels = decode_colour(raw, calibration, sensor, white, dark, n_views=n_views)
+    return views, channels, 1
+
+
 def sample_offsets(calibration: GridCalibration, n_views: int) -> np.ndarray:
     """Where the pixel :func:`decode_colour` reads for each view sample lies from the sample's place.
 

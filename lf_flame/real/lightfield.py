@@ -388,7 +388,7 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
         from .images import load_image
         raw = load_image(p)
     try:
-        return _decode_here(raw, src, cam, cal, views, cam_file, bin_views, _capture_sensor(camera, meta))
+        return _decode_here(raw, src, cam, cal, views, cam_file, bin_views, capture_sensor(camera, meta)[0])
     except ValueError as e:
         if assumed:                      # say which camera was taken, the likeliest cause
             raise ValueError(f"{e} (no camera file given, and {src} stores none: the paper's camera was taken; "
@@ -425,20 +425,34 @@ def decode_capture(raw, camera: PlenopticCamera, calibration, sensor=None, sourc
     return _decode_here(np.asarray(raw, np.float64), source, camera, calibration, None, None, None, sensor)
 
 
-def _capture_sensor(camera, meta):
-    """A raw capture's colour sensor: the camera file's ``[sensor] cfa``, else the record ``lf-flame simulate``
-    stored beside the image (``meta["sensor"]``); None for a monochrome one."""
+def capture_sensor(camera, meta, source: str = "the image") -> tuple:
+    """A raw capture's colour sensor and where it came from: the camera file's ``[sensor] cfa``, else the record
+    ``lf-flame simulate`` stored beside the image (``meta["sensor"]``); ``(None, "")`` for a monochrome one.
+
+    Parameters
+    ----------
+    camera : str, Path, PlenopticCamera or None
+        The camera file (a camera object names no sensor).
+    meta : dict or None
+        What the image stores beside the raw data (JSON strings).
+    source : str
+        The image, named in ``where``.
+
+    Returns
+    -------
+    (ColourSensor or None, str)
+    """
     from ..optics.camera_file import load_colour_sensor
     from ..optics.colour import library_sensor
     if camera is not None and not isinstance(camera, PlenopticCamera):
         sensor = load_colour_sensor(camera)
         if sensor is not None:
-            return sensor
+            return sensor, f"{camera} [sensor]"
     rec = (meta or {}).get("sensor")
     if not rec:
-        return None
+        return None, ""
     r = json.loads(rec)
-    return library_sensor(r["name"], r["pattern"], tuple(r["phase"]))
+    return library_sensor(r["name"], r["pattern"], tuple(r["phase"])), f"stored in {source}"
 
 
 def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None, sensor=None) -> LightField:
@@ -447,18 +461,11 @@ def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None, sensor=N
     ``n_views`` is given); a colour ``sensor``'s capture one pixel per sample, its channels apart
     (:func:`lf_flame.real.decoding.decode_colour`)."""
     from .images import calibration_image
-    from .decoding import auto_bin, auto_saturation, clipped_samples, decode, decode_colour, on_square_grid
+    from .decoding import auto_saturation, clipped_samples, decode_capture_views, on_square_grid
     white, dark = calibration_image(cal.white, "white"), calibration_image(cal.dark, "dark")
-    channels, meta = None, {}
-    if sensor is None:
-        k = auto_bin(cal, n_views) if bin_views is None else bin_views
-        lattice = decode(raw, cal, white, dark, n_views=n_views, bin_views=k, resample=False)
-    else:
-        if bin_views not in (None, 1):
-            raise ValueError("a colour capture is decoded one pixel per sample, its channels apart: bin_views 1")
-        k = 1
-        lattice, channels = decode_colour(raw, cal, sensor, white, dark, n_views=n_views)
-        meta["sensor"] = json.dumps(dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase)))
+    lattice, channels, k = decode_capture_views(raw, cal, white, dark, sensor, n_views=n_views, bin_views=bin_views)
+    meta = {} if sensor is None else {"sensor": json.dumps(dict(name=sensor.name, pattern=sensor.pattern,
+                                                                phase=list(sensor.phase)))}
     try:
         level = auto_saturation(raw)
     except ValueError:                                   # past 16-bit counts: no level known

@@ -220,7 +220,7 @@ class SequenceJob:
             return raw_to_views(raw, self.camera.pixels_per_lenslet), None
         from ..real.calibration import GridCalibration
         from ..real.images import load_image
-        from ..real.decoding import clipped_samples, decode, views_shape
+        from ..real.decoding import clipped_samples, decode_capture_views, views_shape
         if "cal" not in self._cache:
             from ..optics.colour import library_sensor
             self._cache.update(cal=GridCalibration.from_dict(self.calibration),
@@ -239,11 +239,12 @@ class SequenceJob:
                              f"{self.camera.n_rows} x {self.camera.n_cols} (give the decoded views' camera)")
         clipped = None if self.saturation is None else clipped_samples(raw, c["cal"], self.saturation, n_views=n,
                                                                        bin_views=k, resample=False)
-        if self.sensor is None:
-            return decode(raw, c["cal"], c["white"], c["dark"], n_views=n, bin_views=k, resample=False), clipped
-        from ..real.decoding import decode_colour
+        views, channels, _ = decode_capture_views(raw, c["cal"], c["white"], c["dark"], c["sensor"], n_views=n,
+                                                  bin_views=k)
+        if channels is None:
+            return views, clipped
         from ..temperature.channels import levelled_views
-        views, other, _ = levelled_views(*decode_colour(raw, c["cal"], c["sensor"], c["white"], c["dark"], n_views=n))
+        views, other, _ = levelled_views(views, channels)
         return views, other if clipped is None else other | clipped
 
     def fit_data(self, views: np.ndarray, clipped=None):
