@@ -274,6 +274,48 @@ def test_clipped_samples_are_marked_and_left_out(route):
             reconstruct(y, op, "fista", 1, saturation=bad)
 
 
+def test_a_captures_defective_pixels_are_repaired_and_left_out(route, tmp_path, capsys):
+    """Hot and dead pixels of a capture (1 in 200, on a rotated grid of non-integer pitch) are found against their
+    neighbours on the calibrated grid, repaired before decoding and their samples marked as clipped ones are; the
+    depths then found are those of the clean capture."""
+    from scipy import ndimage
+
+    from lf_flame.real.defects import capture_defects, grid_offsets
+    from lf_flame.tomo.depth import find_depths
+    cam, _, raw, d = route
+    cal = GridCalibration.load(d / "cal.json")
+    rng = np.random.default_rng(4)
+    idx = rng.choice(raw.size, raw.size // 200, replace=False)
+    bad = raw.copy()
+    bad.flat[idx[::2]] = np.maximum(bad.flat[idx[::2]], rng.uniform(0.3, 1.0, len(idx[::2])))
+    bad.flat[idx[1::2]] = 0.0
+    flagged, repaired = capture_defects(bad, grid_offsets(cal))
+    peak = np.percentile(raw, 99.9)
+    big = np.abs(bad - raw) > 0.2 * peak
+    dark = big & (ndimage.maximum_filter(raw, 23) < 0.05 * peak)         # off the flames (lenslets 10.6 px apart)
+    assert dark.sum() > 50 and flagged[dark].all() and not (flagged & (bad == raw)).any()
+    assert (flagged & big).sum() > 0.6 * big.sum()       # on the flames, some lie within their neighbours' range
+    assert not capture_defects(raw, grid_offsets(cal))[0].any()
+    np.save(tmp_path / "bad.npy", bad)
+    assert cli.main(["decode", str(tmp_path / "bad.npy"), "--calibration", str(d / "cal.json"), "--out",
+                     str(tmp_path / "bad.h5")]) == 0
+    assert f"{int(flagged.sum())} defective pixels" in capsys.readouterr().out
+    mask = views_file.load_clipped(tmp_path / "bad.h5")
+    pos = decoding.view_positions(cal, 10) - 0.5            # each sample's four pixels: a defect among them marks it
+    i0, j0 = np.floor(pos[..., 0]).astype(int), np.floor(pos[..., 1]).astype(int)
+    want = np.zeros(mask.shape, bool)
+    for di in (0, 1):
+        for dj in (0, 1):
+            want |= flagged[i0 + di, j0 + dj]
+    assert np.array_equal(mask & want, want) and mask.sum() < 2 * want.sum() + 10
+    clean, vcal = views_file.load_views(d / "views.h5")
+    views, _ = views_file.load_views(tmp_path / "bad.h5")
+    vcam = views_camera(cam, vcal, views.shape)
+    np.testing.assert_allclose(find_depths(views, vcam).depths_mm, find_depths(clean, vcam).depths_mm, atol=0.05)
+    as_is = decoding.decode(bad, cal, white=np.load(d / "white.npy"), n_views=10)
+    assert np.median(np.abs(views - clean)[want]) < 0.1 * np.median(np.abs(as_is - clean)[want])   # repaired
+
+
 def test_depths_are_found_on_any_camera_and_a_raw_capture_is_decoded_on_the_fly(route, tmp_path):
     """``reconstruct VIEWS.h5 --camera`` finds the depths itself (10 views per axis: an even count);
     ``reconstruct RAW --camera --calibration`` decodes the capture first: the same planes as the

@@ -75,9 +75,10 @@ def _profiles_input(a):
     elif route.tomographic:
         from ..real.lightfield import from_raw
         from ..tomo.truth import bin_planes
-        from .volume import run_reconstruction, saturation_note
-        op, rec = run_reconstruction(from_raw(raw, cam, str(a.raw)), depths, route.solver)
-        print(saturation_note(rec))
+        from .volume import left_out_notes, run_reconstruction
+        lf = from_raw(raw, cam, str(a.raw))
+        op, rec = run_reconstruction(lf, depths, route.solver)
+        print("\n".join(left_out_notes(lf, rec)))
         stack = bin_planes(rec.planes, op.subsamples)      # admm's finer grid, measured on the lenslets
     else:
         stack = refocus(raw, slopes, n, aperture_mask(n, "circular"), **route.options)

@@ -38,7 +38,7 @@ def cmd_calibrate(a):
 def cmd_decode(a):
     from ..real.calibration import GridCalibration
     from ..real.images import calibration_image, load_image
-    from ..real.decoding import clipped_samples, decode_capture_views, on_square_grid
+    from ..real.decoding import decode_repaired, on_square_grid
     from ..real.views_file import save_views
     cal = GridCalibration.load(a.calibration)
     raw = load_image(a.raw)
@@ -47,27 +47,37 @@ def cmd_decode(a):
     sensor, where = colour_sensor(a.camera, a.raw)
     t = time.perf_counter()
     # a hexagonal grid keeps its lattice's views (and a colour capture's channels there) beside the square grid's
-    lattice, channels, k = decode_capture_views(raw, cal, white, dark, sensor, n_views=a.views,
-                                                bin_views=getattr(a, "bin", None), camera_id=a.camera_id)
+    level = _saturation_level(a.saturation, raw)
+    lattice, channels, k, hit, bad = decode_repaired(raw, cal, white, dark, sensor, level, n_views=a.views,
+                                                       bin_views=getattr(a, "bin", None), camera_id=a.camera_id)
     views = on_square_grid(lattice, cal)
     if sensor is not None:
         print(f"colour sensor {sensor.name}, {sensor.pattern} phase {sensor.phase} ({where}): each sample from its "
               "nearest pixel, channels apart" + (" on the hexagonal lattice" if cal.layout == "hex" else ""))
-    level = _saturation_level(a.saturation, raw)
-    hit = None if level is None else clipped_samples(raw, cal, level, n_views=a.views, bin_views=k, resample=False)
     clipped = None if hit is None else on_square_grid(hit, cal)
     if cal.layout != "hex":
         lattice = hit = None
     dt = time.perf_counter() - t
-    extra = {"bin_views": k} if level is None else {"saturation": level, "bin_views": k}
+    n_bad = int(bad.sum())
+    extra = {"bin_views": k, "defective_pixels": n_bad}
+    if level is not None:
+        extra["saturation"] = level
     if sensor is not None:
         extra["sensor"] = json.dumps(dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase)))
     save_views(a.out, views, cal, clipped, channels, lattice, hit, raw=str(Path(a.raw).resolve()),
                white_normalised=white is not None, **extra)
     note = "no clipping level" if level is None else f"{int(clipped.sum())} samples from pixels at or above {level:g}"
+    if n_bad:
+        note = f"{note}; {defects_note(n_bad)}"
     binned = f", {k} x {k} pixels each" if k > 1 else ""
     print(f"decoded {Path(a.raw).name} into {views.shape[0]} x {views.shape[1]} views{binned} of {views.shape[2]} x "
           f"{views.shape[3]} lenslets ({note}) in {dt:.2f} s -> {a.out}")
+
+
+def defects_note(n: int) -> str:
+    """The capture's defective pixels, as the commands report them."""
+    return (f"{n} defective pixels (hot or dead: standing out of their neighbours in the light field) "
+            "repaired, their samples left out of the fit")
 
 
 def colour_sensor(camera, raw):

@@ -10,6 +10,7 @@ only, said so), else colour-science's Nikon 5100 behind an RGGB CFA of phase (0,
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -248,8 +249,8 @@ def cmd_temperature(a):
     op = route_operator(cam, depths, a.route, hexagonal, lf.sample_offsets if hexagonal is None else None)
     if getattr(op, "offset_bins", None):                # each sample at its own pixel: recorded with the route
         chosen["sub_views"] = op.offset_bins
-    if not lf.decoded:
-        data, sat = views, a.saturation
+    if not lf.decoded:                                  # the level given, and the image's defective pixels
+        data, sat = views, dataclasses.replace(lf, saturation=a.saturation).fit_mask()
     elif op is None:                                    # refocus-cfa: the decoded views as they are
         data, sat = views, None
     elif hexagonal is not None:                         # the lattice's views (axial), its channels with them

@@ -197,14 +197,27 @@ def iterations_note(rec) -> str:
     return f"{ran} fills" + (f" of at most {cap}, converged" if ran < cap else "")
 
 
-def saturation_note(rec) -> str:
-    """What the fit left out: the count of saturated pixels (``reconstruct``'s settings)."""
+def saturation_note(rec, lf=None) -> str:
+    """What the fit left out: the count of saturated pixels (``reconstruct``'s settings; of the light field ``lf``
+    where its defective pixels' samples make the fit's mask, :func:`defects_note` counting those)."""
     level, n = rec.settings.get("saturation"), rec.settings.get("n_saturated", 0)
+    if lf is not None and lf.defects is not None:
+        level = lf.saturation
+        n = 0 if level is None else int(np.count_nonzero(lf.views >= level))
     if level is None:
-        return "saturation: none given, every pixel fitted"
+        return "saturation: none given, every pixel fitted" + ("" if lf is None or lf.defects is None else
+                                                              " but the defective ones")
     if rec.solver == "adjoint":   # no fit: the adjoint carries every pixel back as it is
         return f"{n} saturated pixels (at or above {level:g}), used as they are by the adjoint"
     return f"{n} saturated pixels (at or above {level:g}) left out of the fit"
+
+
+def left_out_notes(lf, rec, lattice=None) -> list:
+    """What the fit of the light field ``lf`` left out, one line each: its saturated pixels (:func:`saturation_note`),
+    or a decoded capture's samples (:func:`decoded_note`), and its defective pixels where it has some."""
+    from .real import defects_note
+    notes = [decoded_note(lf, rec, lattice) if lf.decoded else saturation_note(rec, lf)]
+    return notes + ([defects_note(lf.defective_pixels)] if lf.defective_pixels else [])
 
 
 def resolution_note(table, condition: float, span_mm: float) -> str:
@@ -345,7 +358,7 @@ def cmd_reconstruct(a):
         from ..tomo.found_planes import NEAR_PARALLAX
         print(f"planes within {NEAR_PARALLAX:g} lenslets of parallax of each other are held to the regions their "
               "depths were found in, where they meet (the data barely tell such planes apart)")
-    print(saturation_note(rec) if not lf.decoded else decoded_note(lf, rec, lattice))
+    print("\n".join(left_out_notes(_fitted_light_field(lf, kw["saturation"]), rec, lattice)))
     extra["edge_share"] = edge_warning(rec, op)
     extra["misfit"] = misfit_warning(lf, op, rec, kw["saturation"], lattice)
     out = Path(a.out)

@@ -4,7 +4,8 @@
 lenslet grid (pitch, rotation, offset, layout) from a white
 image (Dansereau et al., CVPR 2013), with the lattice's steps in :mod:`.lattice`; :mod:`.decoding` resamples a capture onto that
 grid into its sub-aperture views, with the samples from clipped pixels, once :mod:`.grid_check` has found
-the calibration's grid in it; :mod:`.views_file` writes and reads those views;
+the calibration's grid in it, and :mod:`.defects` a sensor's hot and dead pixels, repaired before it decodes;
+:mod:`.views_file` writes and reads those views;
 :mod:`.own_camera` gives the perfect-grid camera of those views (a camera file and the
 calibration checked against each other) and the frame of its planes; :mod:`.lightfield`
 reads any light field (a simulated raw image, decoded views, a raw capture decoded on the
@@ -16,13 +17,16 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["images", "lattice", "calibration", "grid_check", "decoding", "views_file", "own_camera", "lightfield"],
+    submodules=["images", "lattice", "calibration", "grid_check", "decoding", "defects", "views_file", "own_camera",
+                "lightfield"],
     submod_attrs={
         "images": ["load_image", "file_digest", "calibration_image"],
         "lattice": ["CalibrationError", "lattice_from_autocorrelation", "spot_centres"],
         "calibration": ["CALIBRATION_FORMAT", "CALIBRATION_VERSION", "GridCalibration", "calibrate"],
         "grid_check": ["check_grid"],
-        "decoding": ["view_positions", "interpolation_phases", "hex_to_square", "views_shape", "on_square_grid", "auto_saturation", "max_views", "views_for_pitch", "decode", "decode_colour", "sample_offsets", "clipped_samples"],
+        "decoding": ["view_positions", "interpolation_phases", "hex_to_square", "views_shape", "on_square_grid", "auto_saturation", "max_views", "views_for_pitch", "decode", "decode_colour", "decode_repaired", "sample_offsets", "clipped_samples"],
+        "defects": ["DEFECT_MARGIN", "DEFECT_SPREAD", "lenslet_offsets", "grid_offsets", "defective_pixels",
+                    "repair_pixels", "capture_defects"],
         "views_file": ["save_views", "load_views", "load_clipped", "load_channels", "load_lattice"],
         "own_camera": ["PITCH_WARN", "PITCH_TOLERANCE", "DecodedFrame", "decoded_frame", "views_camera",
                        "nominal_views_camera"],

@@ -402,6 +402,43 @@ def decode_capture_views(raw: np.ndarray, calibration: GridCalibration, white: n
     return views, channels, 1
 
 
+def decode_repaired(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | None = None,
+                    dark: np.ndarray | None = None, sensor=None, saturation: float | None = None, *,
+                    n_views: int | None = None, bin_views: int | None = None, camera_id: str | None = None,
+                    defects: np.ndarray | None = None):
+    """A capture decoded as :func:`decode_capture_views` decodes it, its defective pixels repaired first
+    (:func:`lf_flame.real.defects.capture_defects`), and the samples to leave out of a fit: those from pixels at or
+    above ``saturation`` (:func:`clipped_samples`) or defective.
+
+    ``defects``: the sensor's defect map (bool, the raw image's shape), found in an earlier frame (a recording's):
+    applied, not searched for again. None: found in this capture.
+
+    Returns
+    -------
+    views, channels, bin_views
+        As :func:`decode_capture_views` (``resample=False``: a hexagonal grid's on its lattice).
+    leave_out : ndarray of bool of the views' shape, or None
+        None where no level is given and no pixel is defective.
+    defects : ndarray of bool of the raw image's shape
+        The capture's defective pixels.
+
+    Raises
+    ------
+    ValueError
+        As :func:`decode_capture_views` and :func:`clipped_samples`.
+    """
+    from .defects import capture_defects, grid_offsets
+    img = _image("raw image", raw, calibration.sensor_shape)
+    flagged, repaired = capture_defects(img, grid_offsets(calibration, sensor is not None), flagged=defects,
+                                        dark=None if dark is None else _image("dark frame", dark, img.shape))
+    n_bad = int(np.count_nonzero(flagged))
+    views, channels, k = decode_capture_views(repaired if n_bad else raw, calibration, white, dark, sensor,
+                                              n_views=n_views, bin_views=bin_views, camera_id=camera_id)
+    leave_out = None if saturation is None and not n_bad else clipped_samples(
+        img, calibration, saturation, n_views=n_views, bin_views=k, resample=False, defects=flagged if n_bad else None)
+    return views, channels, k, leave_out, flagged
+
+
 def sample_offsets(calibration: GridCalibration, n_views: int) -> np.ndarray:
     """Where the pixel :func:`decode_colour` reads for each view sample lies from the sample's place.
 
@@ -450,8 +487,9 @@ def auto_saturation(raw: np.ndarray) -> float:
     raise ValueError(f"the raw image reaches {top:g}, past 16-bit counts: give its clipping level")
 
 
-def clipped_samples(raw: np.ndarray, calibration: GridCalibration, saturation: float, *,
-                    n_views: int | None = None, bin_views: int = 1, resample: bool = True) -> np.ndarray:
+def clipped_samples(raw: np.ndarray, calibration: GridCalibration, saturation: float | None, *,
+                    n_views: int | None = None, bin_views: int = 1, resample: bool = True,
+                    defects: np.ndarray | None = None) -> np.ndarray:
     """Which decoded samples come from clipped raw pixels: the clipping level in the views' units.
 
     A sample of :func:`decode` is a bilinear mix of up to four raw pixels; it holds only a
@@ -466,11 +504,14 @@ def clipped_samples(raw: np.ndarray, calibration: GridCalibration, saturation: f
     raw : ndarray of shape ``calibration.sensor_shape``
         The raw image as read, before dark subtraction (clipping happens in the sensor).
     calibration : GridCalibration
-    saturation : float
+    saturation : float or None
         The sensor's clipping level in the raw image's units (1.0 for the simulator's
-        images; ``2**bits - 1`` for integer counts).
+        images; ``2**bits - 1`` for integer counts); None: no level (only ``defects``).
     n_views, bin_views, resample : int or None, int, bool
         As :func:`decode` (a binned sample is clipped when any of its pixels is).
+    defects : ndarray of bool of the raw image's shape, or None
+        Pixels whose samples are left out as the clipped ones are (defective pixels,
+        :func:`lf_flame.real.defects.capture_defects`).
 
     Returns
     -------
@@ -486,11 +527,19 @@ def clipped_samples(raw: np.ndarray, calibration: GridCalibration, saturation: f
     """
     calibration.validate()
     img = _image("raw image", raw, calibration.sensor_shape)
-    if isinstance(saturation, bool) or not isinstance(saturation, (int, float, np.floating)) or \
-            not (math.isfinite(saturation) and saturation > 0):
+    if saturation is None and defects is None:
+        raise ValueError("give a saturation level, defects, or both")
+    if saturation is not None and (isinstance(saturation, bool) or
+                                   not isinstance(saturation, (int, float, np.floating)) or
+                                   not (math.isfinite(saturation) and saturation > 0)):
         raise ValueError(f"saturation must be a positive finite level (raw units). Received: {saturation!r}")
+    bad = np.zeros(img.shape, bool) if saturation is None else img >= saturation
+    if defects is not None:
+        if np.shape(defects) != img.shape:
+            raise ValueError(f"defects of shape {np.shape(defects)} are not the raw image's {img.shape}")
+        bad |= np.asarray(defects, bool)
     n, k = _view_count(calibration, n_views, bin_views), int(bin_views)
-    hit = _bin(_sample((img >= saturation).astype(np.float64), view_positions(calibration, n * k)), k)
+    hit = _bin(_sample(bad.astype(np.float64), view_positions(calibration, n * k)), k)
     if calibration.layout == "hex" and resample:
         hit = hex_to_square(hit)
     return np.ascontiguousarray(hit > 1e-6)

@@ -47,7 +47,7 @@ class LightField:
     source : str
         Where the views came from (a path, or a description).
     leave_out : ndarray of bool of the views' shape, or None
-        Samples not to fit (decoded from clipped pixels). None: none recorded.
+        Samples not to fit (decoded from clipped or defective pixels). None: none recorded.
     saturation : float or None
         The clipping level in the views' units where no mask says it (simulated raw images:
         1.0); None with a mask, or for decoded views.
@@ -83,6 +83,12 @@ class LightField:
         between pixels (:func:`lf_flame.real.decoding.interpolation_phases`) and the pixels per
         view sample and axis, for the operator that models decoding's interpolation
         (:class:`lf_flame.tomo.lattice.LatticeOperator`).
+    defective_pixels : int
+        The capture's defective pixels (hot, dead: :mod:`lf_flame.real.defects`), repaired in the views and left
+        out of every fit: decoded views' samples from them are in ``leave_out``, a raw image's in ``defects``.
+    defects : ndarray of bool of the views' shape, or None
+        A raw image's samples from defective pixels (the clipping level, or a level a command is given, adds its
+        own: :meth:`fit_mask`). None: none.
     """
 
     views: np.ndarray
@@ -100,6 +106,8 @@ class LightField:
     lattice_leave_out: np.ndarray | None = None
     interpolation: tuple | None = None
     sample_offsets: np.ndarray | None = None
+    defective_pixels: int = 0
+    defects: np.ndarray | None = None
 
     def __post_init__(self):
         v = self.views
@@ -110,8 +118,10 @@ class LightField:
         if v.shape != want:
             raise ValueError(f"{self.source}: views of shape {v.shape} are not the views of its camera {want} "
                              "(N, N, rows, cols)")
-        if self.leave_out is not None and (self.leave_out.shape != v.shape or self.leave_out.dtype != bool):
-            raise ValueError(f"{self.source}: leave_out must be boolean of the views' shape {v.shape}")
+        for name in ("leave_out", "defects"):
+            m = getattr(self, name)
+            if m is not None and (m.shape != v.shape or m.dtype != bool):
+                raise ValueError(f"{self.source}: {name} must be boolean of the views' shape {v.shape}")
         lv = self.lattice_views
         if lv is not None and (lv.ndim != 4 or lv.shape[:2] != v.shape[:2] or not np.all(np.isfinite(lv))):
             raise ValueError(f"{self.source}: lattice views of shape {lv.shape} are not finite views (N, N, rows, "
@@ -129,8 +139,14 @@ class LightField:
         return self.frame is not None
 
     def fit_mask(self):
-        """``reconstruct``'s ``saturation``: the mask of samples to leave out, else the level."""
-        return self.leave_out if self.leave_out is not None else self.saturation
+        """``reconstruct``'s ``saturation``: the mask of samples to leave out, else the level; with
+        :attr:`defects`, those samples too (a mask)."""
+        own = self.leave_out if self.leave_out is not None else self.saturation
+        if self.defects is None:
+            return own
+        if own is None:
+            return self.defects
+        return self.defects | (own if np.ndim(own) else self.views >= own)
 
     def depth_range_mm(self, depth_range_mm=None) -> tuple[float, float]:
         """Depths to search, mm from the focus distance: the camera's imaging range
@@ -226,7 +242,8 @@ def check_imaging_range(camera: PlenopticCamera, depths_mm) -> None:
 
 def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation: float | None = 1.0,
              camera_file: str | None = None, meta: dict | None = None) -> LightField:
-    """The light field of a raw image of a perfect lenslet grid.
+    """The light field of a raw image of a perfect lenslet grid, its defective pixels repaired and left out of the fit
+    (:func:`lf_flame.real.defects.defective_pixels`).
 
     Parameters
     ----------
@@ -241,6 +258,7 @@ def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation
         image of another size than the camera's sensor.
     """
     from ..refocus.shift_and_sum import raw_to_views
+    from .defects import defective_pixels, lenslet_offsets
     raw = np.asarray(raw)
     if not camera.perfect_grid:
         raise ValueError(f"{source}: the camera's lenslet images are {camera.grid_pitch:.3f} px apart"
@@ -251,13 +269,21 @@ def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation
                          f"{camera.sensor_shape[0]} x {camera.sensor_shape[1]} px raw image")
     if not np.all(np.isfinite(raw)):
         raise ValueError(f"{source}: the raw image contains NaN or infinite values")
-    views = raw_to_views(raw, camera.pixels_per_lenslet)
-    return LightField(views, camera, source, saturation=saturation, camera_file=camera_file, meta=dict(meta or {}))
+    n = camera.pixels_per_lenslet
+    flagged, repaired = defective_pixels(raw, lenslet_offsets(n * np.eye(2), step=2 if (meta or {}).get("sensor") else 1))
+    n_bad = int(np.count_nonzero(flagged))
+    if not n_bad:
+        return LightField(raw_to_views(raw, n), camera, source, saturation=saturation, camera_file=camera_file,
+                          meta=dict(meta or {}))
+    return LightField(raw_to_views(repaired.astype(raw.dtype), n), camera, source, saturation=saturation,
+                      camera_file=camera_file, meta=dict(meta or {}), defective_pixels=n_bad,
+                      defects=raw_to_views(flagged, n) > 0.5)
 
 
 def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "decoded views", clipped=None,
                  white_normalised: bool = True, camera_file: str | None = None, channels=None,
-                 meta: dict | None = None, bin_views: int = 1, lattice_views=None, lattice_clipped=None) -> LightField:
+                 meta: dict | None = None, bin_views: int = 1, lattice_views=None, lattice_clipped=None,
+                 defective_pixels: int = 0) -> LightField:
     """The light field of views decoded from a capture of ``camera`` with ``calibration``.
 
     Parameters
@@ -277,6 +303,8 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
         Pixels per view sample and axis they were decoded with.
     lattice_views, lattice_clipped : ndarray or None
         A hexagonal grid's views on its own lattice and their clipped samples (:class:`LightField`).
+    defective_pixels : int
+        The capture's defective pixels, repaired before decoding (:class:`LightField`).
 
     Raises
     ------
@@ -301,7 +329,8 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
                       lattice_leave_out=lattice_clipped,
                       interpolation=None if channels is not None else
                       (interpolation_phases(calibration, v.shape[0], bin_views), int(bin_views)),
-                      sample_offsets=None if channels is None else sample_offsets(calibration, v.shape[0]))
+                      sample_offsets=None if channels is None else sample_offsets(calibration, v.shape[0]),
+                      defective_pixels=int(defective_pixels))
 
 
 def read_light_field(path, camera=None, calibration=None, *, views: int | None = None,
@@ -461,20 +490,21 @@ def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None, sensor=N
     ``n_views`` is given); a colour ``sensor``'s capture one pixel per sample, its channels apart
     (:func:`lf_flame.real.decoding.decode_colour`)."""
     from .images import calibration_image
-    from .decoding import auto_saturation, clipped_samples, decode_capture_views, on_square_grid
+    from .decoding import auto_saturation, decode_repaired, on_square_grid
     white, dark = calibration_image(cal.white, "white"), calibration_image(cal.dark, "dark")
-    lattice, channels, k = decode_capture_views(raw, cal, white, dark, sensor, n_views=n_views, bin_views=bin_views)
-    meta = {} if sensor is None else {"sensor": json.dumps(dict(name=sensor.name, pattern=sensor.pattern,
-                                                                phase=list(sensor.phase)))}
     try:
         level = auto_saturation(raw)
     except ValueError:                                   # past 16-bit counts: no level known
         level = None
-    hit = None if level is None else clipped_samples(raw, cal, level, n_views=n_views, bin_views=k, resample=False)
+    lattice, channels, k, hit, bad = decode_repaired(raw, cal, white, dark, sensor, level, n_views=n_views,
+                                                       bin_views=bin_views)
+    meta = {} if sensor is None else {"sensor": json.dumps(dict(name=sensor.name, pattern=sensor.pattern,
+                                                                phase=list(sensor.phase)))}
     hexagonal = cal.layout == "hex"
     return from_decoded(on_square_grid(lattice, cal), cal, cam, src, None if hit is None else on_square_grid(hit, cal),
                         white is not None, cam_file, channels, meta, bin_views=k,
-                        lattice_views=lattice if hexagonal else None, lattice_clipped=hit if hexagonal else None)
+                        lattice_views=lattice if hexagonal else None, lattice_clipped=hit if hexagonal else None,
+                        defective_pixels=int(bad.sum()))
 
 
 def _read_raw(p: Path):

@@ -208,19 +208,27 @@ class SequenceJob:
 
     def frame(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """One raw frame's views (N, N, R, C; decoded when real, a hexagonal grid's on its own lattice)
-        and, for real frames, the samples decoded from pixels at or above ``saturation`` (None for
-        simulated frames or no level)."""
+        and the samples to leave out of the fit: for real frames those decoded from pixels at or above
+        ``saturation``, for simulated ones none (None: the level does it); with the sensor's defective pixels
+        (:mod:`lf_flame.real.defects`: found in the first frame this job reads, a sensor's defects being the
+        same in every frame, and repaired in each)."""
         from ..refocus.shift_and_sum import raw_to_views
         if not np.all(np.isfinite(raw)):
             raise ValueError("frame holds NaN or inf")
         if self.calibration is None:
+            from ..real.defects import capture_defects, lenslet_offsets
             if raw.shape != tuple(self.camera.sensor_shape):
                 raise ValueError(f"frame of {raw.shape[0]} x {raw.shape[1]} pixels; the camera's sensor is "
                                  f"{self.camera.sensor_shape[0]} x {self.camera.sensor_shape[1]}")
-            return raw_to_views(raw, self.camera.pixels_per_lenslet), None
+            n = self.camera.pixels_per_lenslet
+            off = lenslet_offsets(n * np.eye(2), step=1 if self.sensor is None else 2)
+            bad, fixed = capture_defects(raw, off, flagged=self._defect_map(raw, off))
+            if not bad.any():
+                return raw_to_views(raw, n), None
+            return raw_to_views(fixed.astype(np.float32), n), raw_to_views(bad, n) > 0.5
         from ..real.calibration import GridCalibration
         from ..real.images import load_image
-        from ..real.decoding import clipped_samples, decode_capture_views, views_shape
+        from ..real.decoding import decode_repaired, views_shape
         if "cal" not in self._cache:
             from ..optics.colour import library_sensor
             self._cache.update(cal=GridCalibration.from_dict(self.calibration),
@@ -237,24 +245,39 @@ class SequenceJob:
         if grid != (self.camera.n_rows, self.camera.n_cols):
             raise ValueError(f"decoded views of {grid[0]} x {grid[1]} lenslets; the camera has "
                              f"{self.camera.n_rows} x {self.camera.n_cols} (give the decoded views' camera)")
-        clipped = None if self.saturation is None else clipped_samples(raw, c["cal"], self.saturation, n_views=n,
-                                                                       bin_views=k, resample=False)
-        views, channels, _ = decode_capture_views(raw, c["cal"], c["white"], c["dark"], c["sensor"], n_views=n,
-                                                  bin_views=k)
+        from ..real.defects import grid_offsets
+        defects = self._defect_map(raw, grid_offsets(c["cal"], c["sensor"] is not None), c["dark"])
+        views, channels, _, clipped, _ = decode_repaired(raw, c["cal"], c["white"], c["dark"], c["sensor"],
+                                                         self.saturation, n_views=n, bin_views=k, defects=defects)
         if channels is None:
             return views, clipped
         from ..temperature.channels import levelled_views
         views, other, _ = levelled_views(views, channels)
         return views, other if clipped is None else other | clipped
 
+    def _defect_map(self, raw, offsets, dark=None) -> np.ndarray:
+        """The sensor's defective pixels (:func:`lf_flame.real.defects.capture_defects`), found once per job in the
+        recording's first frame, so that every chunk and worker repairs the same pixels in every frame (in ``raw``
+        for a job without a source)."""
+        if "defects" not in self._cache:
+            from ..real.defects import capture_defects
+            first = raw if self.source is None else np.asarray(next(iter(self.source.frames(0, 1))), np.float64)
+            if first.shape != raw.shape:
+                raise ValueError(f"the recording's first frame is {first.shape[0]} x {first.shape[1]} pixels, this "
+                                 f"one {raw.shape[0]} x {raw.shape[1]}")
+            self._cache["defects"] = capture_defects(first, offsets, dark=dark)[0]
+        return self._cache["defects"]
+
     def fit_data(self, views: np.ndarray, clipped=None):
         """A frame's data for the ``reconstruct-*`` routes and what to leave out of the fit (:meth:`frame`'s
-        views and clipped samples): simulated views as they are with the clipping level; decoded views
-        times the operator's white views with the clipped and dark samples
+        views and clipped samples): simulated views as they are with the clipping level (and their defective
+        pixels' samples); decoded views times the operator's white views with the clipped and dark samples
         (:func:`lf_flame.tomo.decoded.decoded_problem`; a hexagonal lattice's in axial storage, its empty
         corners left out too, :func:`lf_flame.tomo.lattice.to_axial`)."""
         if self.calibration is None:
-            return views, self.saturation
+            if clipped is None or self.saturation is None:
+                return views, self.saturation if clipped is None else clipped
+            return views, clipped | (views >= self.saturation)
         from ..tomo.decoded import decoded_problem
         op = self.operator()
         if not self.hexagonal:
