@@ -219,6 +219,10 @@ def capture_defects(raw, offsets, *, dark=None, flagged=None):
         raise ValueError(f"the dark frame's shape {np.shape(d)} is not the raw image's {img.shape}")
     if flagged is None:
         flagged, fixed = defective_pixels(img - d, offsets)
+    elif np.shape(flagged) != img.shape:
+        raise ValueError(f"the defect map's shape {np.shape(flagged)} is not the raw image's {img.shape}")
+    elif not np.any(flagged):                          # a sensor without defects: nothing to repair
+        return np.asarray(flagged, bool), img
     else:
         fixed = repair_pixels(img - d, flagged, offsets)
     return flagged, np.where(flagged, fixed + d, img)

@@ -222,9 +222,10 @@ class SequenceJob:
                                  f"{self.camera.sensor_shape[0]} x {self.camera.sensor_shape[1]}")
             n = self.camera.pixels_per_lenslet
             off = lenslet_offsets(n * np.eye(2), step=1 if self.sensor is None else 2)
-            bad, fixed = capture_defects(raw, off, flagged=self._defect_map(raw, off))
-            if not bad.any():
+            bad = self._defect_map(raw, off)
+            if not bad.any():                           # nothing to repair: the frame as it is
                 return raw_to_views(raw, n), None
+            fixed = capture_defects(raw, off, flagged=bad)[1]
             return raw_to_views(fixed.astype(np.float32), n), raw_to_views(bad, n) > 0.5
         from ..real.calibration import GridCalibration
         from ..real.images import load_image
