@@ -160,7 +160,7 @@ def main(argv=None) -> int:
           f"(seeds {SEED}-{SEED + a.scenes - 1}, {a.rays} rays per pixel), a share of their pixels defective (half "
           "hot at 0.3-1 of the clipping level, half dead at 0), each solved by the route of `lf-flame reconstruct` "
           "(depths found, admm): **as is**, and **repaired** as every command now reads an image (each pixel "
-          "against the third highest and lowest of its 16 neighbours in the light field, `DEFECT_MARGIN` "
+          "against its 16 neighbours in the light field, `DEFECT_MARGIN` "
           f"{DEFECT_MARGIN}, `DEFECT_SPREAD` {DEFECT_SPREAD}; repaired pixels left out of the fit). A found depth "
           f"more than {SPURIOUS_MM:g} mm from every flame is spurious; emission error per flame (`score_flames`). "
           "`standing_out`: defects that change their pixel by more than 0.2 of the image's 99.9th percentile; "

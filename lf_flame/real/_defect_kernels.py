@@ -5,13 +5,15 @@ from numba import njit, prange
 
 
 @njit(parallel=True, cache=True)
-def outlier_pixels(img, offsets, margin, spread, flagged, repaired):
-    """Flag and repair the pixels that stand out of all but two of their neighbours.
+def outlier_pixels(img, offsets, n_near, margin, spread, flagged, repaired):
+    """Flag and repair the pixels that stand out of their neighbours: of every neighbour in the lenslets around,
+    and of all but one in their own lenslet image (two defects side by side there hide each other otherwise).
 
-    ``img`` (H, W) float64; ``offsets`` (K, 2) int64: the neighbours' (row, column) offsets. A pixel is flagged
-    where it stands above the third highest of its neighbours inside the image (or below the third lowest) by
-    more than ``margin`` (image units) plus ``spread`` times the neighbours' own spread (the third highest less
-    the third lowest: noise and texture). Writes ``flagged`` (H, W) bool and ``repaired`` (H, W) float64: the image with
+    ``img`` (H, W) float32 or float64; ``offsets`` (K, 2) int64: the neighbours' (row, column) offsets, the first
+    ``n_near`` in the pixel's lenslet image, the others under the lenslets around. A pixel is flagged where it
+    stands above the larger of those two references (or below the smaller of the lowest) by more than ``margin``
+    (image units) plus ``spread`` times the neighbours' own spread (their third highest less their third lowest:
+    noise and texture). Writes ``flagged`` (H, W) bool and ``repaired`` (H, W, the image's dtype): the image with
     each flagged pixel replaced by the median of its neighbours. A pixel with fewer than 4 neighbours inside the
     image is left as it is.
     """
@@ -23,8 +25,8 @@ def outlier_pixels(img, offsets, margin, spread, flagged, repaired):
             x = img[r, c]
             repaired[r, c] = x
             flagged[r, c] = False
-            # a defect stands out of all but two neighbours by the margin at least: most pixels are ruled out
-            # after a few neighbours (three within the margin above it and three below)
+            # a defect stands out of all its neighbours but one by the margin at least: most pixels are ruled out
+            # after a few neighbours (two within the margin above it and two below)
             n_up = n_down = 0
             for k in range(K):
                 rr = r + offsets[k, 0]
@@ -33,36 +35,36 @@ def outlier_pixels(img, offsets, margin, spread, flagged, repaired):
                     v = img[rr, cc]
                     n_up += v >= x - margin
                     n_down += v <= x + margin
-                    if n_up >= 3 and n_down >= 3:
+                    if n_up >= 2 and n_down >= 2:
                         break
-            if n_up >= 3 and n_down >= 3:
+            if n_up >= 2 and n_down >= 2:
                 continue
             n = 0
+            a_hi1 = a_hi2 = s_hi = -np.inf
+            a_lo1 = a_lo2 = s_lo = np.inf
             for k in range(K):
                 rr = r + offsets[k, 0]
                 cc = c + offsets[k, 1]
                 if 0 <= rr < H and 0 <= cc < W:
-                    vals[n] = img[rr, cc]
+                    v = img[rr, cc]
+                    vals[n] = v
                     n += 1
+                    if k < n_near:
+                        if v > a_hi1:
+                            a_hi1, a_hi2 = v, a_hi1
+                        elif v > a_hi2:
+                            a_hi2 = v
+                        if v < a_lo1:
+                            a_lo1, a_lo2 = v, a_lo1
+                        elif v < a_lo2:
+                            a_lo2 = v
+                    else:
+                        s_hi = max(s_hi, v)
+                        s_lo = min(s_lo, v)
             if n < 4:
                 continue
-            hi1 = hi2 = hi3 = -np.inf
-            lo1 = lo2 = lo3 = np.inf
-            for k in range(n):
-                v = vals[k]
-                if v > hi1:
-                    hi1, hi2, hi3 = v, hi1, hi2
-                elif v > hi2:
-                    hi2, hi3 = v, hi2
-                elif v > hi3:
-                    hi3 = v
-                if v < lo1:
-                    lo1, lo2, lo3 = v, lo1, lo2
-                elif v < lo2:
-                    lo2, lo3 = v, lo2
-                elif v < lo3:
-                    lo3 = v
-            tol = margin + spread * (hi3 - lo3)
-            if x - hi3 > tol or lo3 - x > tol:
+            srt = np.sort(vals[:n])
+            tol = margin + spread * (srt[n - 3] - srt[2])
+            if x - max(a_hi2, s_hi) > tol or min(a_lo2, s_lo) - x > tol:
                 flagged[r, c] = True
                 repaired[r, c] = np.median(vals[:n])

@@ -2,24 +2,28 @@
 
 A hot pixel is one bright sample in one view. Refocused, it is sharp only where the views' shifts happen to be
 whole pixels, so depth from focus reads it as a flame of its own: on the paper's camera, with 1 pixel in 10,000
-defective (half hot, at 0.3-1 of the clipping level, half dead) ``lf-flame reconstruct``'s route found a spurious
-depth on 2 of 6 random-depth scenes, with 1 in 1,000 1-11 on every scene (``experiments/defects.py``). Sensors ship with such pixels (and grow more), and a dark frame only
-removes those that are hot at the frame's exposure.
+defective (half hot, at 0.3-1 of the clipping level, half dead) ``lf-flame reconstruct``'s route found a
+spurious depth on 2 of 6 random-depth scenes, with 1 in 1,000 1-11 on every scene (``experiments/defects.py``).
+Sensors ship with such pixels (and grow more), and a dark frame only removes those that are hot at the frame's
+exposure.
 
 What tells a defect from light. A plenoptic 1.0 camera images each object point through many pixels: a pixel's
 neighbours in its lenslet image are the neighbouring views of the same lenslet, and the pixel at the same place
 under the neighbouring lenslets is the same view of the neighbouring lenslets. Light that reaches one pixel
 reaches some of those 16 (a flame is wider than a lenslet's footprint, and blurs across the views); a defect
-reaches none. A pixel is flagged when it stands out of its 16 neighbours' third highest (or third lowest) by more
-than ``margin`` times the image's light range plus ``spread`` times their own spread (the third highest less the
-third lowest: noise and texture). The third, so that two defects side by side are both found, and a thin bright
-line (a pixel with lit neighbours along it, in its view and in its lenslet image) is not taken. PlenoptiCam flags pixels against their 3 x 3 median
-on the raw mosaic (its ``CfaHotPixels``); the lenslets' neighbours are what a light field adds. A point of light
-smaller than a lenslet's footprint and far from focus (a spark) is seen so too, and would be flagged: this
-project's emitters are flames.
+reaches none. A pixel is flagged when it stands out of every neighbour under the lenslets around and of all but
+one in its own lenslet image (two defects side by side on the sensor are both found) by more than ``margin``
+times the image's light range plus ``spread`` times the neighbours' own spread (their third highest less their
+third lowest: noise and texture). A thin bright structure keeps a lit neighbour under a lenslet around, and is
+not taken.
+PlenoptiCam flags pixels against their 3 x 3 median on the raw mosaic (its ``CfaHotPixels``); the lenslets'
+neighbours are what a light field adds. A point of light smaller than a lenslet's footprint and far from focus
+(a spark) is seen so too, and would be flagged: this project's emitters are flames.
 
 Repaired pixels take the median of their neighbours (the views refocused and searched for depths); the routes
-that fit the data leave them out, as they leave out clipped pixels (:func:`flagged_samples`).
+that fit the data leave them out, as they leave out clipped pixels (a raw image's
+:attr:`~lf_flame.real.lightfield.LightField.defects`; a decoded capture's clipped samples,
+:func:`lf_flame.real.decoding.decode_repaired`).
 """
 from __future__ import annotations
 
@@ -30,14 +34,14 @@ import numpy as np
 from . import _defect_kernels
 
 #: A defect stands this share of the image's light range (its 99.9th percentile less its median), plus
-#: :data:`DEFECT_SPREAD` times its neighbours' spread, above the third highest of its neighbours (or below the
-#: third lowest). With :data:`DEFECT_SPREAD`, chosen on the renders of ``experiments/fourier_solver.py`` and 16-ray
-#: random-depth scenes (``experiments/defects.py``): no pixel of a noise-free render is taken; at 14 dB 19-241 of
-#: 3.6 million (noise as far above its neighbours as a warm pixel, left out of the fit with them).
+#: :data:`DEFECT_SPREAD` times its neighbours' spread, above its neighbours (module notes). With
+#: :data:`DEFECT_SPREAD`, chosen on the renders of ``experiments/fourier_solver.py``, 16-ray random-depth scenes
+#: and the colour camera's validation captures (``experiments/defects.py``, ``docs/decisions.md``): no pixel of a
+#: monochrome noise-free render taken; at 14 dB 1-73 of 3.6 million (noise as far above its neighbours as a warm
+#: pixel, left out of the fit with them).
 DEFECT_MARGIN = 0.1
 #: The neighbours' spread (third highest less third lowest) a defect stands out of besides the margin: noise
-#: and texture raise it, so that a noisy pixel is not taken for a defect (1: 117-442 pixels of those renders at
-#: 14 dB taken, 2: 5-168).
+#: and texture raise it, so that a noisy pixel is not taken for a defect.
 DEFECT_SPREAD = 1.5
 
 
@@ -146,8 +150,8 @@ def defective_pixels(raw, offsets, *, margin: float = DEFECT_MARGIN, spread: flo
     repaired = np.empty_like(img)
     if level == 0:                                     # no light: nothing stands out of it
         return flagged, img.copy()
-    _defect_kernels.outlier_pixels(img, np.ascontiguousarray(off, np.int64), margin * level, float(spread), flagged,
-                                   repaired)
+    _defect_kernels.outlier_pixels(img, np.ascontiguousarray(off, np.int64), min(8, len(off)), margin * level,
+                                   float(spread), flagged, repaired)
     return flagged, repaired
 
 
@@ -228,7 +232,21 @@ def capture_defects(raw, offsets, *, dark=None, flagged=None):
     return flagged, np.where(flagged, fixed + d, img)
 
 
-def grid_offsets(calibration, colour: bool = False) -> np.ndarray:
-    """:func:`lenslet_offsets` of a calibrated lenslet grid (:class:`~lf_flame.real.calibration.GridCalibration`);
-    ``colour``: a Bayer mosaic's."""
-    return lenslet_offsets(calibration.matrix, calibration.layout, 2 if colour else 1)
+def grid_offsets(grid, colour: bool = False) -> np.ndarray:
+    """:func:`lenslet_offsets` of a capture's lenslet grid.
+
+    Parameters
+    ----------
+    grid : GridCalibration or int
+        A calibrated grid (:class:`~lf_flame.real.calibration.GridCalibration`), or a perfect grid's pixels per
+        lenslet.
+    colour : bool
+        A Bayer mosaic's (each pixel against pixels of its own colour).
+
+    Returns
+    -------
+    ndarray of shape (16, 2), int64
+    """
+    if isinstance(grid, (int, np.integer)):
+        return lenslet_offsets(int(grid) * np.eye(2), "square", 2 if colour else 1)
+    return lenslet_offsets(grid.matrix, grid.layout, 2 if colour else 1)

@@ -258,7 +258,7 @@ def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation
         image of another size than the camera's sensor.
     """
     from ..refocus.shift_and_sum import raw_to_views
-    from .defects import defective_pixels, lenslet_offsets
+    from .defects import defective_pixels, grid_offsets
     raw = np.asarray(raw)
     if not camera.perfect_grid:
         raise ValueError(f"{source}: the camera's lenslet images are {camera.grid_pitch:.3f} px apart"
@@ -270,7 +270,7 @@ def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation
     if not np.all(np.isfinite(raw)):
         raise ValueError(f"{source}: the raw image contains NaN or infinite values")
     n = camera.pixels_per_lenslet
-    flagged, repaired = defective_pixels(raw, lenslet_offsets(n * np.eye(2), step=2 if (meta or {}).get("sensor") else 1))
+    flagged, repaired = defective_pixels(raw, grid_offsets(n, colour=bool((meta or {}).get("sensor"))))
     n_bad = int(np.count_nonzero(flagged))
     if not n_bad:
         return LightField(raw_to_views(raw, n), camera, source, saturation=saturation, camera_file=camera_file,

@@ -216,12 +216,12 @@ class SequenceJob:
         if not np.all(np.isfinite(raw)):
             raise ValueError("frame holds NaN or inf")
         if self.calibration is None:
-            from ..real.defects import capture_defects, lenslet_offsets
+            from ..real.defects import capture_defects, grid_offsets
             if raw.shape != tuple(self.camera.sensor_shape):
                 raise ValueError(f"frame of {raw.shape[0]} x {raw.shape[1]} pixels; the camera's sensor is "
                                  f"{self.camera.sensor_shape[0]} x {self.camera.sensor_shape[1]}")
             n = self.camera.pixels_per_lenslet
-            off = lenslet_offsets(n * np.eye(2), step=1 if self.sensor is None else 2)
+            off = grid_offsets(n, colour=self.sensor is not None)
             bad = self._defect_map(raw, off)
             if not bad.any():                           # nothing to repair: the frame as it is
                 return raw_to_views(raw, n), None
