@@ -284,8 +284,34 @@ def misfit_warning(lf, op, rec, saturation="file", lattice=None):
               + ("; a colour capture levelled into one light field keeps its flames' colour variation (their red "
                  "samples differ from green's), part of this" if "monochrome" in lf.meta else "")
               + (f"; admm stopped at its fills' cap ({int(rec.settings['iters'])}) without settling: more fills "
-                 "(--iters) may explain more" if capped else ""), file=sys.stderr)
+                 "(--iters) may explain more" if capped else "") + black_level_note(lf, op), file=sys.stderr)
     return m
+
+
+#: The share of a light field's peak (its 99.9th percentile) above which the samples no light reaches say that a
+#: black level or stray light was not subtracted (:func:`black_level_note`).
+BLACK_LEVEL_SHARE = 0.01
+
+
+def black_level_note(lf, op) -> str:
+    """Where the samples no light reaches (outside the aperture's image: the operator's white views dark) read more
+    than :data:`BLACK_LEVEL_SHARE` of the light field's peak (their median), the misfit warning's hint: a black
+    level (the sensor's offset) or stray light not subtracted, which no plane of emission explains. "" otherwise,
+    for decoded views (their dark samples are left out) and for operators without kernels."""
+    if lf.decoded or not hasattr(op, "kernels"):
+        return ""
+    from ..tomo.decoded import white_views
+    white = white_views(op)
+    unlit = white <= 1e-6 * white.max()
+    views = np.asarray(lf.views)
+    peak = float(np.percentile(views, 99.9))
+    if np.count_nonzero(unlit) < 100 or not peak > 0:
+        return ""
+    level = float(np.median(views[unlit]))
+    if level <= BLACK_LEVEL_SHARE * peak:
+        return ""
+    return (f"; the samples no light reaches (outside the aperture's image) read {level:.3g}, {100 * level / peak:.1f} "
+            "% of the light field's peak: a black level or stray light not subtracted (subtract the dark frame)")
 
 
 def lattice_solve(lf, op, rec, found=None, support: bool = False):
