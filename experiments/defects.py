@@ -55,7 +55,7 @@ def with_defects(raw, fraction, rng):
 def scene_rows(n_scenes: int, rays: int) -> list:
     from lf_flame.optics.camera import PAPER_CAMERA as cam
     from lf_flame.real.lightfield import from_raw
-    from lf_flame.refocus.shift_and_sum import raw_to_views
+    from lf_flame.refocus.shift_and_sum import raw_to_views, views_to_raw
     from lf_flame.simulate import tracer
     from lf_flame.simulate.scenes_depth import camera_depth_scene
     from lf_flame.tomo.found_planes import find_planes
@@ -72,8 +72,8 @@ def scene_rows(n_scenes: int, rays: int) -> list:
         for fraction in FRACTIONS:
             bad, where = with_defects(raw, fraction, np.random.default_rng([seed, 1]))
             big = where & (np.abs(bad - raw) > 0.2 * peak)
-            lf = from_raw(bad, cam)
-            flagged = _flagged_pixels(bad, cam)
+            lf = from_raw(bad, cam)                   # its defects, as sensor pixels
+            flagged = np.zeros(raw.shape, bool) if lf.defects is None else views_to_raw(lf.defects)
             for way, views, saturation in (("as is", raw_to_views(bad, cam.pixels_per_lenslet), 1.0),
                                            ("repaired", lf.views, lf.fit_mask())):
                 t0 = time.perf_counter()

@@ -431,11 +431,10 @@ def decode_repaired(raw: np.ndarray, calibration: GridCalibration, white: np.nda
     img = _image("raw image", raw, calibration.sensor_shape)
     flagged, repaired = capture_defects(img, grid_offsets(calibration, sensor is not None), flagged=defects,
                                         dark=None if dark is None else _image("dark frame", dark, img.shape))
-    n_bad = int(np.count_nonzero(flagged))
-    views, channels, k = decode_capture_views(repaired if n_bad else raw, calibration, white, dark, sensor,
-                                              n_views=n_views, bin_views=bin_views, camera_id=camera_id)
-    leave_out = None if saturation is None and not n_bad else clipped_samples(
-        img, calibration, saturation, n_views=n_views, bin_views=k, resample=False, defects=flagged if n_bad else None)
+    views, channels, k = decode_capture_views(repaired, calibration, white, dark, sensor, n_views=n_views,
+                                              bin_views=bin_views, camera_id=camera_id)
+    leave_out = None if saturation is None and not flagged.any() else clipped_samples(
+        img, calibration, saturation, n_views=n_views, bin_views=k, resample=False, defects=flagged)
     return views, channels, k, leave_out, flagged
 
 

@@ -81,8 +81,8 @@ def lenslet_offsets(matrix, layout: str = "square", step: int = 1) -> np.ndarray
     step = int(step)
     col = m @ np.array([0.0, 1.0])
     if layout == "square":
-        rows = [m @ np.array([1.0, 0.0])]
-        lattice = [col, rows[0], col + rows[0], col - rows[0]]
+        row = m @ np.array([1.0, 0.0])
+        lattice = [col, row, col + row, col - row]
     else:
         h = math.sqrt(3) / 2
         up, down = m @ np.array([h, 0.5]), m @ np.array([h, -0.5])
@@ -225,9 +225,11 @@ def capture_defects(raw, offsets, *, dark=None, flagged=None):
         flagged, fixed = defective_pixels(img - d, offsets)
     elif np.shape(flagged) != img.shape:
         raise ValueError(f"the defect map's shape {np.shape(flagged)} is not the raw image's {img.shape}")
-    elif not np.any(flagged):                          # a sensor without defects: nothing to repair
-        return np.asarray(flagged, bool), img
     else:
+        flagged, fixed = np.asarray(flagged, bool), None
+    if not flagged.any():                              # nothing to repair: the capture as it is
+        return flagged, img
+    if fixed is None:
         fixed = repair_pixels(img - d, flagged, offsets)
     return flagged, np.where(flagged, fixed + d, img)
 

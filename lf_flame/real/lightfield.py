@@ -272,12 +272,9 @@ def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation
     n = camera.pixels_per_lenslet
     flagged, repaired = defective_pixels(raw, grid_offsets(n, colour=bool((meta or {}).get("sensor"))))
     n_bad = int(np.count_nonzero(flagged))
-    if not n_bad:
-        return LightField(raw_to_views(raw, n), camera, source, saturation=saturation, camera_file=camera_file,
-                          meta=dict(meta or {}))
-    return LightField(raw_to_views(repaired.astype(raw.dtype), n), camera, source, saturation=saturation,
-                      camera_file=camera_file, meta=dict(meta or {}), defective_pixels=n_bad,
-                      defects=raw_to_views(flagged, n) > 0.5)
+    return LightField(raw_to_views(repaired.astype(raw.dtype) if n_bad else raw, n), camera, source,
+                      saturation=saturation, camera_file=camera_file, meta=dict(meta or {}), defective_pixels=n_bad,
+                      defects=raw_to_views(flagged, n) > 0.5 if n_bad else None)
 
 
 def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "decoded views", clipped=None,
