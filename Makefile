@@ -21,7 +21,7 @@ HELDOUT_paper := 20
 HELDOUT_quick := 4
 HELDOUT_SEED := 770077
 
-.PHONY: train-reconstructor cameras defects floor thread-wait temperature temperature-volume temperature-sequence help install docs dataset bench-sim bench-refocus real-data real-found train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi volume-edge volume-search sequence new-user heights test clean-quick
+.PHONY: train-reconstructor cameras defects clipping floor thread-wait temperature temperature-volume temperature-sequence help install docs dataset bench-sim bench-refocus real-data real-found train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi volume-edge volume-search sequence new-user heights test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -107,6 +107,9 @@ real-found: $(STAMP) $(NLF)/.installed ## napari-lf's real captures through dept
 
 defects: $(STAMP) ## a sensor's hot and dead pixels: depths found and planes as they are and repaired -> results/defects.{csv,md,json}
 	$(VENV)/bin/python experiments/defects.py --out results
+
+clipping: $(STAMP) ## a sensor's clipping level in 16-bit files of 12-bit counts: the type's level and the level found -> results/clipping.{csv,md,json}
+	$(VENV)/bin/python experiments/clipping.py --out results
 
 # Wall time and peak memory of each training target, from GNU time where the machine has it.
 TIMEV = $(if $(wildcard /usr/bin/time),/usr/bin/time -v -o $(@D)/time_v.txt,)

@@ -119,3 +119,108 @@ def test_a_black_level_left_in_is_named_by_the_misfit_warning(cam, capture, tmp_
         err = capsys.readouterr().err
         assert ("read 0.03," in err and "black level or stray light not subtracted" in err) == (name == "offset")
         assert name == "clean" or "warning: the planes leave" in err
+
+
+def _counts(raw, gain, shift=0):
+    """``raw`` times ``gain`` as a 12-bit sensor's counts in 16 bits (shifted to the top bits by ``shift`` 4)."""
+    return np.round(np.clip(raw * gain, 0, 1) * 4095).astype(np.uint16) << shift
+
+
+def test_the_clipping_level_is_found_where_the_pixels_pile_up(capture):
+    """A 12-bit sensor's counts in a 16-bit file clip at 4095, or at 65520 shifted to the top bits: the level is
+    found where the pixels pile up, as counts or scaled by the type's range (as the commands read image files);
+    an image that does not clip keeps the type's level, and a few pixels at its top are no pile."""
+    from skimage import util
+
+    from lf_flame.real.decoding import PILE_MIN_PIXELS, auto_saturation, clipping_pile
+    _, raw, _, _ = capture
+    gain = 1.6 / raw.max()
+    for shift in (0, 4):
+        counts = _counts(raw, gain, shift)
+        top = 4095 << shift
+        assert 0.001 < np.mean(counts == top) < 0.05                   # the flames' cores clip
+        assert auto_saturation(counts.astype(float)) == top
+        assert auto_saturation(util.img_as_float64(counts)) == top / 65535
+    dim = _counts(raw, 0.6 / raw.max())
+    assert clipping_pile(dim) is None
+    assert auto_saturation(dim.astype(float)) == 4095 and auto_saturation(util.img_as_float64(dim)) == 1.0
+    few = dim.copy()
+    few.flat[:PILE_MIN_PIXELS - 1] = 4000                               # hot pixels, fewer than a pile
+    assert clipping_pile(few) is None
+    few.flat[:PILE_MIN_PIXELS] = 4000
+    assert clipping_pile(few) == 4000
+    assert clipping_pile(np.full((9, 9), 7.0)) is None and clipping_pile(np.zeros((9, 9))) is None
+
+
+@pytest.mark.parametrize("top", [4095, 3600], ids=["12 bits", "full well below the top"])
+def test_cli_leaves_out_the_pixels_of_a_16_bit_file_clipped_at_12_bits(cam, capture, tmp_path, capsys, top):
+    """``reconstruct`` of a TIFF of 12-bit counts, clipped at 4095 or by a full well of 3600, leaves out the clipped
+    pixels by the level found in it: the fit of the level given; the type's level (1.0, what was taken before)
+    leaves none out and another fit."""
+    import h5py
+    import tifffile
+
+    from lf_flame.cli import main
+    _, raw, _, _ = capture
+    counts = np.round(np.clip(raw * 1.6 / raw.max(), 0, 1) * top).astype(np.uint16)
+    tifffile.imwrite(tmp_path / "c.tif", counts)
+    (tmp_path / "cam.toml").write_text(f"[camera]\nn_rows = {cam.n_rows}\nn_cols = {cam.n_cols}\n")
+    level = float(np.float32(top / 65535))                              # the views' float32 rounding of the level
+    lf = from_raw(counts / 65535.0, cam, saturation=None)
+    n_clipped = int(np.count_nonzero(lf.views >= level))
+    planes = {}
+    for name, extra in (("found", []), ("given", ["--saturation", repr(level)]), ("type", ["--saturation", "1"])):
+        out = tmp_path / f"{name}.h5"
+        assert main(["reconstruct", str(tmp_path / "c.tif"), "--camera", str(tmp_path / "cam.toml"), "--depths",
+                     "paper", "--out", str(out)] + extra) == 0
+        printed = capsys.readouterr().out
+        n = n_clipped if name != "type" else 0
+        assert f"{n} saturated pixels (at or above {level if name != 'type' else 1:g})" in printed
+        with h5py.File(out) as f:
+            planes[name] = f["planes"][...]
+    np.testing.assert_array_equal(planes["found"], planes["given"])
+    off = np.linalg.norm(planes["type"] - planes["given"]) / np.linalg.norm(planes["given"])
+    assert n_clipped > 100 and off > 0.02
+
+
+def test_a_recordings_frames_clipped_at_12_bits_leave_out_their_clipped_pixels(tmp_path):
+    """A folder of 16-bit PNG frames holding 12-bit counts (the second shifted to the top bits): each frame's
+    clipped pixels are left out of the fit by the level found in that frame, and nothing else but its defective
+    pixels' samples."""
+    from skimage import io
+
+    from lf_flame.optics.camera import PAPER_CAMERA
+    from lf_flame.recordings.job import simulated_job
+    from lf_flame.recordings.sources import SimulatedSource, open_source
+    from lf_flame.simulate.scenes_time import flicker_sequence
+    seq = flicker_sequence(PAPER_CAMERA, np.random.default_rng(5), "overlap", fps=100, duration_s=0.02)
+    raw = next(iter(SimulatedSource(seq, PAPER_CAMERA, 2).frames(0, 1)))
+    for shift in (0, 4):
+        io.imsave(tmp_path / f"f{shift}.png", _counts(raw, 1.6 / raw.max(), shift), check_contrast=False)
+    src, _ = open_source(tmp_path)
+    job = simulated_job(seq, PAPER_CAMERA, src, route="reconstruct-admm")[0]
+    for frame, top in zip(src.frames(0, 2), (4095, 65520)):
+        views, defects = job.frame(frame)
+        data, leave = job.fit_data(views, defects)
+        left = data >= leave if np.ndim(leave) == 0 else leave
+        clipped = data == np.float32(top / 65535)
+        assert clipped.sum() > 1000 and np.array_equal(left & clipped, clipped)
+        assert not (left & ~clipped & (True if defects is None else ~defects)).any()
+
+
+def test_an_over_exposed_capture_is_named_by_a_warning(cam, capture, tmp_path, capsys):
+    """``reconstruct`` warns where more than ``CLIPPED_WARN`` of the lit samples are clipped (the capture exposed so
+    that a fifth of them clip) and records the share; the capture as rendered (none clipped) gets no warning."""
+    import h5py
+
+    from lf_flame.cli import main
+    from lf_flame.cli.volume import CLIPPED_WARN
+    _, raw, _, _ = capture
+    for name, img in (("over", np.clip(raw * 1.6 / raw.max(), 0, 1)), ("as rendered", raw)):
+        np.savez(tmp_path / "c.npz", raw=img, camera=cam.to_json())
+        assert main(["reconstruct", str(tmp_path / "c.npz"), "--depths", "paper", "--out", str(tmp_path / "c.h5")]) == 0
+        err = capsys.readouterr().err
+        with h5py.File(tmp_path / "c.h5") as f:
+            share = float(f.attrs["clipped_share"])
+        assert ("of the lit samples are clipped" in err) == (name == "over") == (share > CLIPPED_WARN)
+        assert name != "over" or f"warning: {100 * share:.0f} % of the lit samples" in err

@@ -68,8 +68,15 @@ ADMM_FILLS_HELP = (f"admm: its fills of the missing data, by the data's noise an
 
 
 def _level_or_none(text: str):
-    """A sensor level for ``--saturation``, or None for 'none'."""
-    return None if text.lower() == "none" else float(text)
+    """A sensor level for ``--saturation``, None for 'none', or 'auto' (found in the image)."""
+    t = text.strip().lower()
+    return None if t == "none" else "auto" if t == "auto" else float(text)
+
+
+#: What ``--saturation auto`` does (the help of the commands reading raw images).
+AUTO_LEVEL_HELP = ("auto: found in the image, where its pixels pile up at its largest value (a sensor clips at one "
+                   "level: a 12-bit sensor's counts in a 16-bit file pile at 4095, or at 65520 shifted to the top "
+                   "bits), else 1.0 for an image in [0, 1] (integer files are read scaled by their type's range)")
 
 
 def _bit_depth(text: str) -> int:
@@ -194,9 +201,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "with a colour sensor is decoded so without it")
     s.add_argument("--saturation", default="auto",
                    help="the sensor's clipping level in the raw image's units: the views' samples from pixels at or "
-                        "above it are stored as 'clipped' (reconstruct leaves them out); auto: 1.0 when the raw "
-                        "image's values are at most 1 (the simulator's), else the smallest 2**bits - 1 (bits 8, 10, "
-                        "12, 14, 16) at or above its maximum; 'none': no mask")
+                        "above it are stored as 'clipped' (reconstruct leaves them out); auto: where the image's "
+                        "pixels pile up at its largest value (a sensor clips at one level), else 1.0 when its values "
+                        "are at most 1 (the simulator's), else the smallest 2**bits - 1 (bits 8, 10, 12, 14, 16) at "
+                        "or above its maximum; 'none': no mask")
     s.add_argument("--out", required=True, help="HDF5 of the views (N, N, R, C)")
     s.set_defaults(func=cmd_decode)
 
@@ -279,10 +287,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--tv", type=float, default=None,
                    help=f"reconstruct-pd-tv / -admm: TV weight (default: pd-tv {DEFAULT_TV}; admm by each frame's "
                         f"noise: {ADMM_QUIET['tv']} on quiet data, {ADMM_TV} on noisy)")
-    s.add_argument("--saturation", type=_level_or_none, default=1.0,
+    s.add_argument("--saturation", type=_level_or_none, default="auto",
                    help="reconstruct-*: the sensor's clipping level in the views' units: pixels at or above it are "
-                        "left out of the fit, counted per frame as n_saturated ('none': fit every pixel; default: "
-                        "%(default)s)")
+                        "left out of the fit, counted per frame as n_saturated ('none': fit every pixel; default "
+                        "auto, per frame: " + AUTO_LEVEL_HELP.split(": ", 1)[1] + ")")
     s.add_argument("--operator-rays", type=int, default=None,
                    help="reconstruct-*: rays per pixel of a traced forward operator (default: the exact operator "
                         "where the camera is a perfect lenslet grid, else 4 rays)")
@@ -382,8 +390,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "they meet (their emission would otherwise split between them); docs/own_camera.md")
     s.add_argument("--saturation", type=_level_or_none, default=argparse.SUPPRESS,
                    help="the sensor's clipping level in the views' units: pixels at or above it are left out of the "
-                        "fit ('none': fit every pixel; default 1.0). Decoded views take only 'none' (fit every "
-                        "sample): they carry their clipped samples ('lf-flame decode --saturation')")
+                        "fit ('none': fit every pixel; default " + AUTO_LEVEL_HELP + "). Decoded views take only "
+                        "'none' (fit every sample): they carry their clipped samples ('lf-flame decode "
+                        "--saturation')")
     add_camera_args(s)
     s.add_argument("--rays-per-pixel", type=int, default=None,
                    help="rays per pixel of a traced forward operator (the reference; default: the exact operator "
@@ -457,8 +466,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "this fraction (0 to 1) of their plane's peak get no temperature (counted as dim)")
     s.add_argument("--alpha", type=float, default=1.39, help="emissivity exponent of the source, eps ~ lambda^-alpha "
                    "(soot: 1.39, Hottel & Broughton; 0: a blackbody)")
-    s.add_argument("--saturation", type=_level_or_none, default=1.0, help="the sensor's clipping level: pixels at "
-                   "or above it are left out of the fit ('none': fit every pixel)")
+    s.add_argument("--saturation", type=_level_or_none, default="auto", help="the sensor's clipping level of a raw "
+                   "image: pixels at or above it are left out of the fit ('none': fit every pixel; default "
+                   + AUTO_LEVEL_HELP + ")")
     sensor_args(s, True)
     s.add_argument("--out", required=True, help="T.h5: temperature_k, valid, dim (plane, row, col), emission, "
                    "depths_mm, counts, provenance; the figure goes beside it as .png")

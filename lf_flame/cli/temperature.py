@@ -195,6 +195,15 @@ def temperature_figure(temperature_k, depths_mm, valid, camera=None, truth_k=Non
                          bad_label=NO_TEMPERATURE)
 
 
+def _level_record(saturation, lf) -> str | float:
+    """What ``--saturation`` the file records: the level used (found in a raw image where 'auto'), or what a decoded
+    capture's clipped samples came from."""
+    if lf.decoded:
+        return "decoded: the views' clipped samples"
+    level = lf.saturation if saturation == "auto" else saturation
+    return "none" if level is None else float(level)
+
+
 def cmd_temperature(a):
     """``temperature RAW --calibration bb.json [--depths ...|auto] --out T.h5``."""
     import time
@@ -250,7 +259,8 @@ def cmd_temperature(a):
     if getattr(op, "offset_bins", None):                # each sample at its own pixel: recorded with the route
         chosen["sub_views"] = op.offset_bins
     if not lf.decoded:                                  # the level given, and the image's defective pixels
-        data, sat = views, dataclasses.replace(lf, saturation=a.saturation).fit_mask()
+        given = lf if a.saturation == "auto" else dataclasses.replace(lf, saturation=a.saturation)
+        data, sat = views, given.fit_mask()
     elif op is None:                                    # refocus-cfa: the decoded views as they are
         data, sat = views, None
     elif hexagonal is not None:                         # the lattice's views (axial), its channels with them
@@ -297,7 +307,7 @@ def cmd_temperature(a):
                                             where=where)),
                      route=a.route, route_settings=json.dumps(chosen), alpha=float(a.alpha),
                      min_fraction=float(a.min_fraction),
-                     saturation="none" if a.saturation is None else float(a.saturation), camera=cam.to_json(),
+                     saturation=_level_record(a.saturation, lf), camera=cam.to_json(),
                      time_s=wall, provenance=json.dumps(provenance()),
                      axes="temperature_k, valid, dim: (plane, lenslet row, lenslet col); emission: (channel, plane, "
                           "row, col); sample_mm: (plane, [height, width]) mm per lenslet sample",

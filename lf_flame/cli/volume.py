@@ -88,8 +88,9 @@ def found_record(found):
 
 
 def _fitted_light_field(lf, saturation):
-    """The light field with ``reconstruct``'s ``--saturation`` in place of its own ("file": as it is)."""
-    if saturation == "file":
+    """The light field with ``reconstruct``'s ``--saturation`` in place of its own ("file" or "auto": as it is, its
+    level found in the image or its decoded samples' mask)."""
+    if saturation in ("file", "auto"):
         return lf
     if lf.white_normalised and saturation is not None:
         raise ValueError("decoded views carry their clipped samples ('lf-flame decode --saturation'): "
@@ -210,6 +211,39 @@ def saturation_note(rec, lf=None) -> str:
     if rec.solver == "adjoint":   # no fit: the adjoint carries every pixel back as it is
         return f"{n} saturated pixels (at or above {level:g}), used as they are by the adjoint"
     return f"{n} saturated pixels (at or above {level:g}) left out of the fit"
+
+
+#: A sample is lit above this share of the light field's largest value (:func:`clipped_share`).
+LIT_SHARE = 0.05
+#: Clipped samples more than this share of the lit ones: the light field is over-exposed and ``reconstruct`` warns
+#: (:func:`overexposure_warning`). On six scenes of the paper's camera (``make clipping``, results/clipping.md)
+#: 0.6-2.9 % clipped left the flames' emission within 0.6 points (median per scene) of the same scenes below
+#: clipping, and 6.2 % (one scene) too; 9.7-27 % left it 8.7-30 % off (worst flame 38 %), against 2-6 % (worst
+#: 11 %) below clipping. ``experiments/fourier_solver.py``'s overlap render, 5.2 % clipped, is solved to 2 %.
+CLIPPED_WARN = 0.08
+
+
+def clipped_share(lf) -> float:
+    """The light field's clipped samples (its decoded ``leave_out``, else its views at or above its ``saturation``) as a
+    share of its lit ones (at or above :data:`LIT_SHARE` of its largest value, or clipped); 0 without either."""
+    views = lf.views
+    clipped = lf.leave_out if lf.leave_out is not None else None if lf.saturation is None else views >= lf.saturation
+    if clipped is None:
+        return 0.0
+    lit = np.count_nonzero(clipped | (views >= LIT_SHARE * float(views.max())))
+    return float(np.count_nonzero(clipped) / lit) if lit else 0.0
+
+
+def overexposure_warning(lf) -> float:
+    """Where more than :data:`CLIPPED_WARN` of the light field's lit samples are clipped (:func:`clipped_share`), one
+    warning (stderr): the brightest emission is over-exposed, its planes a lower bound there. Returns the share."""
+    share = clipped_share(lf)
+    if share > CLIPPED_WARN:
+        print(f"warning: {100 * share:.0f} % of the lit samples are clipped: the brightest emission is over-exposed "
+              "and its planes hold only a lower bound there (on the paper camera's scenes 10-27 % clipped left the "
+              "flames' emission 9-30 % off, against 2-6 % below clipping: results/clipping.md); lower the exposure",
+              file=sys.stderr)
+    return share
 
 
 def left_out_notes(lf, rec, lattice=None) -> list:
@@ -378,13 +412,15 @@ def cmd_reconstruct(a):
             depths = [float(d) for d in voters.planes_mm]
             extra["found_depths"] = found_record(voters)
             arrays = dict(found_masks=np.asarray(voters.masks, bool), found_regions=voters.labels)
-    rec, lattice = lattice_solve(_fitted_light_field(lf, kw["saturation"]), op, rec, voters,
+    fitted = _fitted_light_field(lf, kw["saturation"])
+    rec, lattice = lattice_solve(fitted, op, rec, voters,
                                  bool(getattr(a, "support", False)))
     if rec.settings.get("support") == "near planes":
         from ..tomo.found_planes import NEAR_PARALLAX
         print(f"planes within {NEAR_PARALLAX:g} lenslets of parallax of each other are held to the regions their "
               "depths were found in, where they meet (the data barely tell such planes apart)")
-    print("\n".join(left_out_notes(_fitted_light_field(lf, kw["saturation"]), rec, lattice)))
+    print("\n".join(left_out_notes(fitted, rec, lattice)))
+    extra["clipped_share"] = overexposure_warning(fitted)
     extra["edge_share"] = edge_warning(rec, op)
     extra["misfit"] = misfit_warning(lf, op, rec, kw["saturation"], lattice)
     out = Path(a.out)
@@ -433,6 +469,7 @@ def volume_reconstruct(a):
         raise ValueError(f"--from {a.near:g} --to {a.far:g}: this camera refocuses {lo:+.3g} .. {hi:+.3g} mm from its "
                          "focus distance")
     level = getattr(a, "saturation", "file")
+    level = "file" if level == "auto" else level
     if lf.white_normalised and level not in ("file", None):
         raise ValueError("decoded views carry their clipped samples: --saturation takes only 'none' for them")
     saturation = lf.fit_mask() if level == "file" else level

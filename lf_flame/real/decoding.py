@@ -467,16 +467,60 @@ def sample_offsets(calibration: GridCalibration, n_views: int) -> np.ndarray:
     return np.ascontiguousarray(off, np.float32)
 
 
+#: A sensor clips at one level, so a clipped image's pixels pile up at its largest value: at least this many
+#: pixels hold exactly that value ...
+PILE_MIN_PIXELS = 8
+#: ... and this many times as many as hold the next value below it (an image that does not clip has few pixels
+#: at its largest value, about as many as at the next).
+PILE_RATIO = 4
+
+
+def clipping_pile(raw: np.ndarray) -> float | None:
+    """The level where a raw image's pixels pile up at its largest value (a sensor clips there), or None.
+
+    Such a pile marks the clipping level whatever the file's type: a 12-bit sensor's counts
+    stored in 16 bits (clipping at 4095, or at 65520 when the counts are shifted to the top
+    bits), a sensor whose full well is reached below its converter's top, an image scaled
+    to [0, 1] by its type's range.
+
+    Parameters
+    ----------
+    raw : ndarray
+        The raw image (any shape), as read.
+
+    Returns
+    -------
+    float or None
+        The image's largest value where at least :data:`PILE_MIN_PIXELS` pixels hold exactly
+        it and :data:`PILE_RATIO` times as many as hold the next value below; None otherwise
+        (no pile, an image of one value, or none above 0).
+    """
+    a = np.asarray(raw)
+    top = float(a.max())
+    n_top = int(np.count_nonzero(a == top))
+    if n_top < PILE_MIN_PIXELS or top <= 0:
+        return None
+    below = a < top
+    if not below.any():
+        return None
+    return top if n_top >= PILE_RATIO * int(np.count_nonzero(a == np.max(a, where=below, initial=a.min()))) else None
+
+
 def auto_saturation(raw: np.ndarray) -> float:
-    """The clipping level of a raw image whose level is not given: 1.0 for images whose values are
-    at most 1 (the simulator's), else the smallest ``2**bits - 1`` (bits 8, 10, 12, 14, 16) at or
-    above its maximum (integer counts read unscaled, :func:`lf_flame.real.images.load_image`).
+    """The clipping level of a raw image whose level is not given: where its pixels pile up at its
+    largest value (:func:`clipping_pile`), else 1.0 for images whose values are at most 1 (the
+    simulator's; integer files scaled by their type's range), else the smallest ``2**bits - 1``
+    (bits 8, 10, 12, 14, 16) at or above its maximum (integer counts read unscaled,
+    :func:`lf_flame.real.images.load_image`).
 
     Raises
     ------
     ValueError
-        An image past 16-bit counts.
+        An image past 16-bit counts with no pile at its top.
     """
+    pile = clipping_pile(raw)
+    if pile is not None:
+        return pile
     top = float(np.max(raw))
     if top <= 1.0:
         return 1.0
@@ -484,6 +528,25 @@ def auto_saturation(raw: np.ndarray) -> float:
         if top <= 2 ** bits - 1:
             return float(2 ** bits - 1)
     raise ValueError(f"the raw image reaches {top:g}, past 16-bit counts: give its clipping level")
+
+
+def found_level(raw) -> float | None:
+    """A raw image's clipping level found in it (:func:`auto_saturation`); None past 16-bit
+    counts with no pile at its top (no level known).
+
+    Parameters
+    ----------
+    raw : ndarray
+        A raw image or its views (the same pixels' values), any shape.
+
+    Returns
+    -------
+    float or None
+    """
+    try:
+        return auto_saturation(raw)
+    except ValueError:
+        return None
 
 
 def clipped_samples(raw: np.ndarray, calibration: GridCalibration, saturation: float | None, *,

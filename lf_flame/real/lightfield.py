@@ -49,8 +49,9 @@ class LightField:
     leave_out : ndarray of bool of the views' shape, or None
         Samples not to fit (decoded from clipped or defective pixels). None: none recorded.
     saturation : float or None
-        The clipping level in the views' units where no mask says it (simulated raw images:
-        1.0); None with a mask, or for decoded views.
+        The clipping level in the views' units where no mask says it (a raw image's: found in it,
+        :func:`lf_flame.real.decoding.auto_saturation`; 1.0 for the simulator's); None with a
+        mask, or for decoded views.
     white_normalised : bool
         Decoded views divided by the white image: the exact operator's data are the views
         times its own white views (:func:`lf_flame.tomo.decoded.decoded_problem`).
@@ -240,7 +241,7 @@ def check_imaging_range(camera: PlenopticCamera, depths_mm) -> None:
                          f"{MAX_SEARCH_SLOPE:g} lenslets per view)")
 
 
-def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation: float | None = 1.0,
+def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation: float | str | None = "auto",
              camera_file: str | None = None, meta: dict | None = None) -> LightField:
     """The light field of a raw image of a perfect lenslet grid, its defective pixels repaired and left out of the fit
     (:func:`lf_flame.real.defects.defective_pixels`).
@@ -250,6 +251,11 @@ def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation
     raw : ndarray of shape (R N, C N)
     camera : PlenopticCamera
         Perfect grid (whole pixels per lenslet, square, unrotated); its sensor the image's size.
+    saturation : float, "auto" or None
+        The sensor's clipping level in the image's units (pixels at or above it are left out of
+        the fit); "auto": found in the image (:func:`lf_flame.real.decoding.auto_saturation`:
+        where its pixels pile up at its largest value, else 1.0 for an image in [0, 1]); None:
+        none.
 
     Raises
     ------
@@ -269,11 +275,16 @@ def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation
                          f"{camera.sensor_shape[0]} x {camera.sensor_shape[1]} px raw image")
     if not np.all(np.isfinite(raw)):
         raise ValueError(f"{source}: the raw image contains NaN or infinite values")
+    if isinstance(saturation, str) and saturation != "auto":
+        raise ValueError(f"saturation must be a level, 'auto' or None. Received: {saturation!r}")
     n = camera.pixels_per_lenslet
     flagged, repaired = defective_pixels(raw, grid_offsets(n, colour=bool((meta or {}).get("sensor"))))
     n_bad = int(np.count_nonzero(flagged))
-    return LightField(raw_to_views(repaired.astype(raw.dtype) if n_bad else raw, n), camera, source,
-                      saturation=saturation, camera_file=camera_file, meta=dict(meta or {}), defective_pixels=n_bad,
+    views = raw_to_views(repaired.astype(raw.dtype) if n_bad else raw, n)
+    if saturation == "auto":                            # found in the views' own values (float32: their rounding)
+        from .decoding import found_level
+        saturation = found_level(views)
+    return LightField(views, camera, source, saturation=saturation, camera_file=camera_file, meta=dict(meta or {}), defective_pixels=n_bad,
                       defects=raw_to_views(flagged, n) > 0.5 if n_bad else None)
 
 
@@ -487,12 +498,9 @@ def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None, sensor=N
     ``n_views`` is given); a colour ``sensor``'s capture one pixel per sample, its channels apart
     (:func:`lf_flame.real.decoding.decode_colour`)."""
     from .images import calibration_image
-    from .decoding import auto_saturation, decode_repaired, on_square_grid
+    from .decoding import decode_repaired, found_level, on_square_grid
     white, dark = calibration_image(cal.white, "white"), calibration_image(cal.dark, "dark")
-    try:
-        level = auto_saturation(raw)
-    except ValueError:                                   # past 16-bit counts: no level known
-        level = None
+    level = found_level(raw)
     lattice, channels, k, hit, bad = decode_repaired(raw, cal, white, dark, sensor, level, n_views=n_views,
                                                        bin_views=bin_views)
     meta = {} if sensor is None else {"sensor": json.dumps(dict(name=sensor.name, pattern=sensor.pattern,

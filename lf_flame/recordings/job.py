@@ -71,11 +71,13 @@ class SequenceJob:
     tv : float or None
         ``reconstruct-pd-tv`` / ``-admm``: the TV weight (>= 0); None: the solver's default
         (admm: by the first frame's noise, :meth:`reconstruction`).
-    saturation : float or None
+    saturation : float, "auto" or None
         ``reconstruct-*`` routes: the sensor's clipping level in the views' units (real frames: in
         the raw frames' units, the samples decoded from pixels at or above it,
         :func:`lf_flame.real.decoding.clipped_samples`); they are left out of the fit (their count
-        per frame: ``n_saturated``). None: every pixel is fitted.
+        per frame: ``n_saturated``). "auto": found in each frame
+        (:func:`lf_flame.real.decoding.auto_saturation`: where its pixels pile up at its largest
+        value, a frame that does not clip having no pile). None: every pixel is fitted.
     operator_rays : int or None
         ``reconstruct-*`` routes: rays per pixel of a traced emission operator (>= 1); None:
         the exact operator where the camera allows it
@@ -103,7 +105,7 @@ class SequenceJob:
     chunk: int = CHUNK
     iters: int | None = None
     tv: float | None = None
-    saturation: float | None = 1.0
+    saturation: float | str | None = "auto"
     operator_rays: int | None = None
     bin_views: int = 1
     sensor: dict | None = None
@@ -125,8 +127,10 @@ class SequenceJob:
             raise ValueError(f"iters must be a whole number >= 0 or None. Received: {self.iters!r}")
         if self.tv is not None and not (math.isfinite(self.tv) and self.tv >= 0):
             raise ValueError(f"tv must be finite and >= 0. Received: {self.tv!r}")
-        if self.saturation is not None and not (math.isfinite(self.saturation) and self.saturation > 0):
-            raise ValueError(f"saturation must be a positive finite level or None. Received: {self.saturation!r}")
+        if self.saturation not in (None, "auto") and (isinstance(self.saturation, (str, bool)) or
+                                                      not (math.isfinite(self.saturation) and self.saturation > 0)):
+            raise ValueError(f"saturation must be a positive finite level, 'auto' or None. Received: "
+                             f"{self.saturation!r}")
         if self.operator_rays is not None and (int(self.operator_rays) != self.operator_rays or self.operator_rays < 1):
             raise ValueError(f"operator_rays must be a whole number >= 1. Received: {self.operator_rays!r}")
         if isinstance(self.bin_views, bool) or int(self.bin_views) != self.bin_views or self.bin_views < 1:
@@ -163,7 +167,7 @@ class SequenceJob:
         iters = D.DEFAULT_ITERS.get(self.solver) if self.iters is None else int(self.iters)
         tv = (D.DEFAULT_TV if self.solver == "pd-tv" else None) if self.tv is None else float(self.tv)
         out = dict(solver=self.solver, iters=iters, tv=tv,
-                   saturation=None if self.saturation is None else float(self.saturation),
+                   saturation=self.saturation if self.saturation in (None, "auto") else float(self.saturation),
                    operator_rays=None if self.operator_rays is None else int(self.operator_rays))
         if self.solver == "admm":   # each chunk's frames after its first continue the previous frame's solve
             out["stream_fills"] = D.ADMM_STREAM_FILLS
@@ -249,12 +253,19 @@ class SequenceJob:
         from ..real.defects import grid_offsets
         defects = self._defect_map(raw, grid_offsets(c["cal"], c["sensor"] is not None), c["dark"])
         views, channels, _, clipped, _ = decode_repaired(raw, c["cal"], c["white"], c["dark"], c["sensor"],
-                                                         self.saturation, n_views=n, bin_views=k, defects=defects)
+                                                         self._level(raw), n_views=n, bin_views=k, defects=defects)
         if channels is None:
             return views, clipped
         from ..temperature.channels import levelled_views
         views, other, _ = levelled_views(views, channels)
         return views, other if clipped is None else other | clipped
+
+    def _level(self, image) -> float | None:
+        """The clipping level of one frame (its raw image or views): ``saturation``, found in the frame where "auto"."""
+        if self.saturation != "auto":
+            return self.saturation
+        from ..real.decoding import found_level
+        return found_level(image)
 
     def _defect_map(self, raw, offsets, dark=None) -> np.ndarray:
         """The sensor's defective pixels (:func:`lf_flame.real.defects.capture_defects`), found once per job in the
@@ -276,9 +287,10 @@ class SequenceJob:
         (:func:`lf_flame.tomo.decoded.decoded_problem`; a hexagonal lattice's in axial storage, its empty
         corners left out too, :func:`lf_flame.tomo.lattice.to_axial`)."""
         if self.calibration is None:
-            if clipped is None or self.saturation is None:
-                return views, self.saturation if clipped is None else clipped
-            return views, clipped | (views >= self.saturation)
+            level = self._level(views)
+            if clipped is None or level is None:
+                return views, level if clipped is None else clipped
+            return views, clipped | (views >= level)
         from ..tomo.decoded import decoded_problem
         op = self.operator()
         if not self.hexagonal:
