@@ -231,6 +231,20 @@ def test_recordings_on_file_and_in_a_folder_match_the_simulation(small_seq, seri
     src2, _ = open_source(folder)
     run(_job(small_seq, chunk=4, source=src2), tmp_path / "png", progress=False)
     assert (tmp_path / "png" / "frames.csv").read_bytes() == (tmp_path / "h5" / "frames.csv").read_bytes()
+    import tifffile                                   # one multi-page TIFF (ImageJ's stack), as a high-speed camera's
+    tifffile.imwrite(tmp_path / "stack.tif", frames, imagej=True, metadata={"finterval": 1 / small_seq.fps})
+    src4, attrs4 = open_source(tmp_path / "stack.tif")
+    assert frame_rate(None, attrs4) == pytest.approx(small_seq.fps)       # from ImageJ's frame interval
+    assert src4.n_frames == len(frames)
+    np.testing.assert_allclose(src4.raw(3), frames[3] / 65535, rtol=1e-6)
+    run(_job(small_seq, chunk=4, source=src4), tmp_path / "tif", progress=False)
+    assert (tmp_path / "tif" / "frames.csv").read_bytes() == (tmp_path / "h5" / "frames.csv").read_bytes()
+    tifffile.imwrite(tmp_path / "4d.tif", frames[:2, None])
+    with pytest.raises(ValueError, match=r"not a stack of frames \(T, H, W\)"):
+        open_source(tmp_path / "4d.tif")
+    (tmp_path / "cut.tif").write_bytes((tmp_path / "stack.tif").read_bytes()[:100])
+    with pytest.raises(ValueError, match="is not a readable TIFF"):
+        open_source(tmp_path / "cut.tif")
     # quantised to 16 bits: the heights stay within 0.05 mm of the float frames'
     a, b = pd.read_csv(tmp_path / "h5" / "frames.csv"), pd.read_csv(pd.io.common.BytesIO(serial_table))
     assert np.abs(a.height_mm - b.height_mm).max() < 0.05

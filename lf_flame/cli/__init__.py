@@ -271,7 +271,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("sequence", help="a flame recording: each plane's height, widths and intensity over time, "
                        "their spectra and dominant flicker frequency (serially or on Dask)")
     s.add_argument("input", nargs="?", help="HDF5 stack of raw frames (dataset 'frames' (T, H, W); optional "
-                   "'times_s'), or a folder of TIFF/PNG/.npy frames in name order")
+                   "'times_s'), a multi-page TIFF (a high-speed camera's or ImageJ's stack: one frame per page; the "
+                   "frame rate from its ImageJ frame interval, else --fps), or a folder of TIFF/PNG/.npy frames in name order")
     s.add_argument("--simulate", choices=["paper", "overlap"], help="instead of INPUT: a simulated recording, "
                    "rendered frame by frame in the workers")
     _sequence_scene_args(s, simulate_only=True)

@@ -34,7 +34,7 @@ class SequenceJob:
 
     Attributes
     ----------
-    source : SimulatedSource, H5Source or FolderSource
+    source : SimulatedSource, H5Source, TiffStackSource or FolderSource
     camera : PlenopticCamera
         The camera of the frames (lenslet grid, mm per lenslet of the diagnostics).
     fps : float

@@ -1,7 +1,7 @@
 """Frame sources of a recording and its frame rate.
 
-A recording is a series of raw light-field frames: an HDF5 stack, a folder of image
-files, or a simulated :class:`lf_flame.simulate.scenes_time.FlameSequence`. The sources are
+A recording is a series of raw light-field frames: an HDF5 stack, a multi-page TIFF (a
+high-speed camera's or ImageJ's stack), a folder of image files, or a simulated :class:`lf_flame.simulate.scenes_time.FlameSequence`. The sources are
 picklable descriptions, opened where the frames are read (in the worker).
 """
 from __future__ import annotations
@@ -118,6 +118,64 @@ class FolderSource:
         return (self.raw(i) for i in range(int(start), int(stop)))
 
 
+@dataclass(frozen=True)
+class TiffStackSource:
+    """Frames as the pages of one multi-page TIFF file (its first series, (T, H, W): a high-speed camera's or
+    ImageJ's stack; tifffile), any real dtype; integer frames are scaled by their dtype's maximum, float frames
+    kept."""
+
+    path: str
+
+    @cached_property
+    def n_frames(self) -> int:
+        """Frames in the file (read once, then kept: it travels with the source)."""
+        import tifffile
+        with tifffile.TiffFile(self.path) as tf:
+            return _stack_frames(tf, self.path)
+
+    def raw(self, i: int) -> np.ndarray:
+        """Frame ``i`` (H, W) float32, the file opened for it alone."""
+        return next(self.frames(i, i + 1))
+
+    def frames(self, start: int, stop: int):
+        """Frames ``start`` to ``stop`` (exclusive), read in one open of the file, one in memory at a time: an
+        iterator of (H, W) float32 images."""
+        import tifffile
+        with tifffile.TiffFile(self.path) as tf:
+            for i in range(int(start), int(stop)):
+                yield _scaled(tf.asarray(key=i, series=0))
+
+    def identity(self) -> dict:
+        st = os.stat(self.path)
+        return dict(kind="tiff", path=str(Path(self.path).resolve()), size=st.st_size, mtime=st.st_mtime)
+
+
+def _stack_frames(tf, path) -> int:
+    """The frames of an open TIFF's first series: (T, H, W) or one (H, W) page; anything else is refused."""
+    if not tf.series:
+        raise ValueError(f"{path} holds no image")
+    shape = tuple(tf.series[0].shape)
+    if len(shape) == 2 or (len(shape) == 3 and shape[-1] in (3, 4) and len(tf.series[0].pages) == 1):
+        return 1                                              # one frame (gray, or colour averaged to gray)
+    if len(shape) == 3 or (len(shape) == 4 and shape[-1] in (3, 4)):
+        return shape[0]                                       # frames (colour ones averaged to gray)
+    raise ValueError(f"{path}: a TIFF of shape {shape} is not a stack of frames (T, H, W)")
+
+
+#: ImageJ's time units (its ``tunit``) in seconds.
+_TIME_UNITS = {"sec": 1.0, "s": 1.0, "second": 1.0, "seconds": 1.0, "ms": 1e-3, "msec": 1e-3, "us": 1e-6,
+               "\u00b5s": 1e-6, "usec": 1e-6}
+
+
+def _imagej_rate(meta: dict) -> dict:
+    """``{"fps": ...}`` from an ImageJ stack's frame interval (``finterval``, in its ``tunit``, seconds by default);
+    empty where it has none or a time unit not known here."""
+    interval, unit = meta.get("finterval"), str(meta.get("tunit", "sec")).strip().lower()
+    if not interval or unit not in _TIME_UNITS:
+        return {}
+    return {"fps": 1.0 / (float(interval) * _TIME_UNITS[unit])}
+
+
 def _scaled(a: np.ndarray) -> np.ndarray:
     a = np.asarray(a)
     if a.ndim == 3 and a.shape[-1] in (3, 4):
@@ -128,18 +186,20 @@ def _scaled(a: np.ndarray) -> np.ndarray:
 
 
 def open_source(path, camera: PlenopticCamera | None = None):
-    """The frame source of ``path``: an HDF5 stack (its dataset ``frames``, (T, H, W)) or a
-    folder of image files.
+    """The frame source of ``path``: an HDF5 stack (its dataset ``frames``, (T, H, W)), a
+    multi-page TIFF (.tif, .tiff: its pages, :class:`TiffStackSource`) or a folder of image files.
 
     Returns
     -------
     (source, attrs) : the source and the HDF5 file's attributes (``fps``, ``camera``,
-        ``sequence`` when written by :func:`write_frames`; empty for a folder).
+        ``sequence`` when written by :func:`write_frames`); a TIFF's ``fps`` from its ImageJ frame
+        interval where it has one; empty for a folder.
 
     Raises
     ------
     ValueError
-        A missing path, an empty folder, a file without a 3-D ``frames`` dataset.
+        A missing path, an empty folder, a file without a 3-D ``frames`` dataset, a TIFF that is
+        not a stack of 2-D frames or cannot be read.
     """
     p = Path(path)
     if p.is_dir():
@@ -149,6 +209,15 @@ def open_source(path, camera: PlenopticCamera | None = None):
         return FolderSource(files), {}
     if not p.is_file():
         raise ValueError(f"recording not found: {p}")
+    if p.suffix.lower() in (".tif", ".tiff"):
+        import tifffile
+        try:
+            with tifffile.TiffFile(p) as tf:
+                _stack_frames(tf, p)
+                meta = tf.imagej_metadata or {}
+        except (tifffile.TiffFileError, OSError) as e:
+            raise ValueError(f"{p} is not a readable TIFF: {e}") from None
+        return TiffStackSource(str(p)), _imagej_rate(meta)
     import h5py
     from ..config import reading
     with reading(p, "HDF5 file"), h5py.File(p, "r") as f:
