@@ -392,6 +392,13 @@ def test_cli_simulates_and_measures_a_recording(tmp_path, capsys):
     pk = pd.read_csv(tmp_path / "out" / "peaks.csv").query("signal == 'height_mm'").sort_values("plane")
     assert np.all(np.abs(pk.dominant_hz.to_numpy() - freqs) <= pk.bin_hz.to_numpy()), pk
     assert (tmp_path / "out" / "sequence.png").stat().st_size > 10_000
+    import tifffile                                   # the same frames as one ImageJ stack: its frame rate, no truth
+    with h5py.File(rec) as f:
+        tifffile.imwrite(tmp_path / "rec.tif", f["frames"][:], imagej=True, metadata={"finterval": 0.01})
+    assert main(["sequence", str(tmp_path / "rec.tif"), *(a for d in (20, 10, 0, -10) for a in ("--depth", str(d))),
+                 "--out", str(tmp_path / "tif"), "--quiet"]) == 0
+    tif = pd.read_csv(tmp_path / "tif" / "peaks.csv").query("signal == 'height_mm'").sort_values("plane")
+    np.testing.assert_array_equal(tif.dominant_hz.to_numpy(), pk.dominant_hz.to_numpy())
     capsys.readouterr()
     (tmp_path / "empty_dir").mkdir()
     assert main(["sequence", str(tmp_path / "empty_dir"), "--fps", "100", "--depth", "0",

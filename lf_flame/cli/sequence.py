@@ -74,7 +74,7 @@ def cmd_simulate_sequence(a):
 def cmd_sequence(a):
     from ..simulate.scenes_time import FlameSequence
     from ..recordings.job import SequenceJob, simulated_job
-    from ..recordings.sources import SimulatedSource, frame_rate, open_source
+    from ..recordings.sources import H5Source, SimulatedSource, frame_rate, open_source
     from ..recordings.runner import run
     if (a.input is None) == (a.simulate is None):
         raise ValueError("give a recording INPUT or --simulate KIND, not both or neither")
@@ -89,7 +89,7 @@ def cmd_sequence(a):
         if "camera" in attrs and not (a.data_config or a.camera):
             from ..optics.camera import PlenopticCamera
             cam = PlenopticCamera.from_dict(json.loads(attrs["camera"]))
-        if hasattr(source, "path"):
+        if isinstance(source, H5Source):                 # its frame times, where it holds them
             import h5py
             with h5py.File(source.path, "r") as f:
                 times = f["times_s"][:] if "times_s" in f else None
