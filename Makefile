@@ -108,7 +108,7 @@ real-found: $(STAMP) $(NLF)/.installed ## napari-lf's real captures through dept
 defects: $(STAMP) ## a sensor's hot and dead pixels: depths found and planes as they are and repaired -> results/defects.{csv,md,json}
 	$(VENV)/bin/python experiments/defects.py --out results
 
-clipping: $(STAMP) ## a sensor's clipping level in 16-bit files of 12-bit counts: the type's level and the level found -> results/clipping.{csv,md,json}
+clipping: $(STAMP) ## a sensor's clipping level in 16-bit files of 12-bit counts: the type's level and the level found -> results/clipping.{csv,md,json,png}
 	$(VENV)/bin/python experiments/clipping.py --out results
 
 # Wall time and peak memory of each training target, from GNU time where the machine has it.

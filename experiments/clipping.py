@@ -21,7 +21,7 @@ Two stages, one run:
   captures where ``make real-data`` fetched them: the level found, and the pixels at or above it (none: nothing
   is taken for clipped in an image that does not clip).
 
-Writes ``<out>/clipping.{csv,md,json}``. Usage: ``python experiments/clipping.py --out results [--scenes 6]
+Writes ``<out>/clipping.{csv,md,json,png}``. Usage: ``python experiments/clipping.py --out results [--scenes 6]
 [--rays 16]``.
 """
 from __future__ import annotations
@@ -132,6 +132,33 @@ def real_rows() -> list:
     return out
 
 
+def figure(df, path) -> None:
+    """Each scene's emission error (median and worst flame) against its clipped share of the lit pixels, the clipped
+    pixels fitted as light and left out, the scenes below clipping at 0; the warning's threshold dashed."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from lf_flame.cli.volume import CLIPPED_WARN
+    from lf_flame.measure.figures import save_figure
+    fig, axes = plt.subplots(1, 2, figsize=(9.5, 3.6), sharex=True)
+    ways = (("no clipping", "below clipping", "k", "s"), ("type's level", "clipped pixels fitted as light", "C1", "^"),
+            ("found", "clipped pixels left out (the level found)", "C0", "o"))
+    for ax, col, title in ((axes[0], "rel_err_median", "median flame of each scene"),
+                           (axes[1], "rel_err_worst", "worst flame of each scene")):
+        for way, label, colour, marker in ways:
+            g = df[df.way == way]
+            ax.scatter(100 * g.clipped_of_lit, 100 * g[col], c=colour, marker=marker, s=22, label=label)
+        ax.axvline(100 * CLIPPED_WARN, color="0.4", lw=0.8, ls="--", label="reconstruct warns beyond")
+        ax.set_xlabel("clipped pixels (% of the lit ones)")
+        ax.set_ylabel("emission error (%)")
+        ax.set_title(title)
+    axes[0].legend(fontsize=7.5)
+    fig.tight_layout()
+    save_figure(fig, path)
+    plt.close(fig)
+
+
 def main(argv=None) -> int:
     from lf_flame.config import atomic_write_text, provenance
     from lf_flame.real.decoding import PILE_MIN_PIXELS, PILE_RATIO
@@ -147,6 +174,7 @@ def main(argv=None) -> int:
     wall = time.perf_counter() - t0
     a.out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(a.out / "clipping.csv", df.to_csv(index=False))
+    figure(df, a.out / "clipping.png")
     summary = df.groupby(["clipped_share", "way"], sort=False).agg(
         scenes=("seed", "size"), clipped_of_lit_median=("clipped_of_lit", "median"),
         clipped_pixels=("clipped_pixels", "sum"), left_out=("left_out", "sum"), flames=("flames", "sum"),
@@ -172,6 +200,7 @@ def main(argv=None) -> int:
           f"depth more than {SPURIOUS_MM:g} mm from every flame is spurious; emission error per flame "
           "(`score_flames`, the planes divided by the exposure).\n",
           summary.to_markdown(index=False, floatfmt=".3g"), "\n",
+          "![each scene's emission error against its clipped share](clipping.png)\n",
           "## The level found, per way of storing the counts\n",
           "The clipped images above, their counts stored each way (the level in the units the commands read, "
           "scaled by 65535):\n",
