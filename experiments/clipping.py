@@ -40,8 +40,6 @@ ROOT = Path(__file__).resolve().parents[1]
 SEED = 3_810_000
 #: Shares of the pixels that clip in the scored images (the flames' brightest cores, and more of them, over-exposed).
 CLIPPED_SHARES = (0.0005, 0.005)
-#: A pixel is lit above this fraction of the clipping level (``clipped_of_lit``: the clipped share of those).
-LIT = 0.05
 #: Exposure of the scenes that do not clip: their brightest pixel at this fraction of the clipping level.
 UNDER = 0.9
 #: How a sensor's counts are stored (16-bit files): its clipping count and the shift to the file's top bits.
@@ -65,6 +63,7 @@ def counts_file(radiance, gain, top, shift, path) -> float:
 def scene_rows(n_scenes: int, rays: int, tmp: Path) -> tuple:
     from lf_flame.cli._io import _load_raw
     from lf_flame.optics.camera import PAPER_CAMERA as cam
+    from lf_flame.real.decoding import clipped_share
     from lf_flame.real.lightfield import from_raw
     from lf_flame.simulate import tracer
     from lf_flame.simulate.scenes_depth import camera_depth_scene
@@ -96,7 +95,7 @@ def scene_rows(n_scenes: int, rays: int, tmp: Path) -> tuple:
                 clipped = raw >= level
                 rows.append(dict(seed=seed, clipped_share=share, way=way, level=lf.saturation,
                                  clipped_pixels=int(clipped.sum()),
-                                 clipped_of_lit=float(clipped.sum() / np.count_nonzero(raw >= LIT * level)),
+                                 clipped_of_lit=clipped_share(raw, level),
                                  left_out=int(np.count_nonzero(lf.views >= lf.saturation)),
                                  flames=len(true), found_depths=len(d),
                                  spurious_depths=int(sum(np.min(np.abs(true - x)) > SPURIOUS_MM for x in d)),
@@ -161,7 +160,7 @@ def figure(df, path) -> None:
 
 def main(argv=None) -> int:
     from lf_flame.config import atomic_write_text, provenance
-    from lf_flame.real.decoding import PILE_MIN_PIXELS, PILE_RATIO
+    from lf_flame.real.decoding import LIT_SHARE, PILE_MIN_PIXELS, PILE_RATIO
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--scenes", type=int, default=6)
@@ -196,7 +195,7 @@ def main(argv=None) -> int:
           "pixels fitted as light) and with the level **found** where the pixels pile up (at least "
           f"{PILE_MIN_PIXELS} pixels at the image's largest value, {PILE_RATIO} times as many as at the next value "
           "below; the clipped pixels left out of the fit). `clipped_of_lit`: the clipped pixels' share of those lit "
-          f"above {LIT:g} of the level (median over the scenes); `left_out`: pixels left out as clipped; a found "
+          f"above {LIT_SHARE:g} of the level (median over the scenes); `left_out`: pixels left out as clipped; a found "
           f"depth more than {SPURIOUS_MM:g} mm from every flame is spurious; emission error per flame "
           "(`score_flames`, the planes divided by the exposure).\n",
           summary.to_markdown(index=False, floatfmt=".3g"), "\n",
@@ -213,7 +212,7 @@ def main(argv=None) -> int:
           f"Provenance: `{json.dumps(provenance())}`\n"]
     atomic_write_text(a.out / "clipping.md", "\n".join(md))
     atomic_write_text(a.out / "clipping.json", json.dumps(dict(
-        command=cmd, seeds=[SEED, SEED + a.scenes - 1], rays=a.rays, clipped_shares=CLIPPED_SHARES, lit=LIT,
+        command=cmd, seeds=[SEED, SEED + a.scenes - 1], rays=a.rays, clipped_shares=CLIPPED_SHARES, lit=LIT_SHARE,
         under=UNDER, encodings=ENCODINGS, pile_min_pixels=PILE_MIN_PIXELS, pile_ratio=PILE_RATIO,
         summary=summary.to_dict("records"), levels=lv_summary.to_dict("records"), unclipped=free.to_dict("records"),
         wall_s=wall,

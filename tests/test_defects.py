@@ -1,5 +1,7 @@
 """A sensor's defective pixels (lf_flame.real.defects): found against their neighbours in the light field, repaired
 for the depth search and refocusing, and left out of the fit."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 from scipy import ndimage
@@ -209,7 +211,7 @@ def test_a_recordings_frames_clipped_at_12_bits_leave_out_their_clipped_pixels(t
 
 
 def test_an_over_exposed_capture_is_named_by_a_warning(cam, capture, tmp_path, capsys):
-    """``reconstruct`` warns where more than ``CLIPPED_WARN`` of the lit samples are clipped (the capture exposed so
+    """``reconstruct`` warns where more than ``CLIPPED_WARN`` of the lit pixels are clipped (the capture exposed so
     that a fifth of them clip) and records the share; the capture as rendered (none clipped) gets no warning."""
     import h5py
 
@@ -222,5 +224,40 @@ def test_an_over_exposed_capture_is_named_by_a_warning(cam, capture, tmp_path, c
         err = capsys.readouterr().err
         with h5py.File(tmp_path / "c.h5") as f:
             share = float(f.attrs["clipped_share"])
-        assert ("of the lit samples are clipped" in err) == (name == "over") == (share > CLIPPED_WARN)
-        assert name != "over" or f"warning: {100 * share:.0f} % of the lit samples" in err
+        assert ("of the lit pixels are clipped" in err) == (name == "over") == (share > CLIPPED_WARN)
+        assert name != "over" or f"warning: {100 * share:.0f} % of the lit pixels" in err
+
+
+def test_a_decoded_captures_over_exposure_is_measured_on_its_raw_pixels(tmp_path, capsys):
+    """A capture of a camera that needs decoding, as 12-bit counts: ``decode`` stores the clipped share of its raw
+    pixels (a decoded sample mixes several, so the views' clipped samples overstate it), and ``reconstruct`` warns
+    with the same share from the views file and from the raw capture decoded on the fly."""
+    import h5py
+    import tifffile
+
+    from lf_flame.cli import main
+    from lf_flame.real.decoding import clipped_share
+    cam = str(Path(__file__).resolve().parents[1] / "examples" / "own_camera.toml")
+    for scene in ("white", "depth"):
+        assert main(["simulate", "--camera", cam, "--scene", scene, "--seed", "3", "--rays-per-pixel", "4",
+                     "--out", str(tmp_path / f"{scene}.npz")]) == 0
+    white, raw = (np.load(tmp_path / f"{s}.npz")["raw"] for s in ("white", "depth"))
+    tifffile.imwrite(tmp_path / "white.tif", np.round(0.9 * white / white.max() * 4095).astype(np.uint16))
+    counts = _counts(raw, 2.2 / raw.max())
+    tifffile.imwrite(tmp_path / "c.tif", counts)
+    assert main(["calibrate", str(tmp_path / "white.tif"), "--out", str(tmp_path / "cal.json")]) == 0
+    assert main(["decode", str(tmp_path / "c.tif"), "--calibration", str(tmp_path / "cal.json"), "--camera", cam,
+                 "--out", str(tmp_path / "v.h5")]) == 0
+    share = clipped_share(counts.astype(float), 4095)
+    with h5py.File(tmp_path / "v.h5") as f:
+        assert f.attrs["clipped_share"] == pytest.approx(share) and 0.08 < share < 0.5
+        views_share = f["clipped"][...].sum() / np.count_nonzero(f["clipped"][...] | (f["views"][...] >= 0.05))
+    capsys.readouterr()
+    for source in ("v.h5", "c.tif"):
+        out = tmp_path / f"r_{source.split('.')[0]}.h5"
+        assert main(["reconstruct", str(tmp_path / source), "--camera", cam, "--calibration", str(tmp_path / "cal.json"),
+                     "--out", str(out)]) == 0
+        assert f"warning: {100 * share:.0f} % of the lit pixels are clipped" in capsys.readouterr().err
+        with h5py.File(out) as f:
+            assert float(f.attrs["clipped_share"]) == pytest.approx(share)
+    assert views_share > 1.2 * share                          # what the views' own mask would have said

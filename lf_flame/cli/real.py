@@ -38,7 +38,7 @@ def cmd_calibrate(a):
 def cmd_decode(a):
     from ..real.calibration import GridCalibration
     from ..real.images import calibration_image, load_image
-    from ..real.decoding import decode_repaired, on_square_grid
+    from ..real.decoding import clipped_share, decode_repaired, on_square_grid
     from ..real.views_file import save_views
     cal = GridCalibration.load(a.calibration)
     raw = load_image(a.raw)
@@ -61,7 +61,7 @@ def cmd_decode(a):
     n_bad = int(bad.sum())
     extra = {"bin_views": k, "defective_pixels": n_bad}
     if level is not None:
-        extra["saturation"] = level
+        extra.update(saturation=level, clipped_share=clipped_share(raw, level))
     if sensor is not None:
         extra["sensor"] = json.dumps(dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase)))
     save_views(a.out, views, cal, clipped, channels, lattice, hit, raw=str(Path(a.raw).resolve()),

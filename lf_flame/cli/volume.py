@@ -213,33 +213,22 @@ def saturation_note(rec, lf=None) -> str:
     return f"{n} saturated pixels (at or above {level:g}) left out of the fit"
 
 
-#: A sample is lit above this share of the light field's largest value (:func:`clipped_share`).
-LIT_SHARE = 0.05
-#: Clipped samples more than this share of the lit ones: the light field is over-exposed and ``reconstruct`` warns
-#: (:func:`overexposure_warning`). On six scenes of the paper's camera (``make clipping``, results/clipping.md)
-#: 0.6-2.9 % clipped left the flames' emission within 0.6 points (median per scene) of the same scenes below
-#: clipping, and 6.2 % (one scene) too; 9.7-27 % left it 8.7-30 % off (worst flame 38 %), against 2-6 % (worst
-#: 11 %) below clipping. ``experiments/fourier_solver.py``'s overlap render, 5.2 % clipped, is solved to 2 %.
+#: Clipped pixels more than this share of the lit ones (above :data:`lf_flame.real.decoding.LIT_SHARE` of the
+#: clipping level): the light field is over-exposed and ``reconstruct`` warns (:func:`overexposure_warning`). On six
+#: scenes of the paper's camera (``make clipping``, results/clipping.md) 0.6-2.9 % clipped left the flames' emission
+#: within 0.6 points (median per scene) of the same scenes below clipping, and 6.2 % (one scene) too; 9.7-27 % left
+#: it 8.7-30 % off (worst flame 38 %), against 2-6 % (worst 11 %) below clipping. ``experiments/fourier_solver.py``'s
+#: overlap render, 5.2 % clipped, is solved to 2 %.
 CLIPPED_WARN = 0.08
 
 
-def clipped_share(lf) -> float:
-    """The light field's clipped samples (its decoded ``leave_out``, else its views at or above its ``saturation``) as a
-    share of its lit ones (at or above :data:`LIT_SHARE` of its largest value, or clipped); 0 without either."""
-    views = lf.views
-    clipped = lf.leave_out if lf.leave_out is not None else None if lf.saturation is None else views >= lf.saturation
-    if clipped is None:
-        return 0.0
-    lit = np.count_nonzero(clipped | (views >= LIT_SHARE * float(views.max())))
-    return float(np.count_nonzero(clipped) / lit) if lit else 0.0
-
-
 def overexposure_warning(lf) -> float:
-    """Where more than :data:`CLIPPED_WARN` of the light field's lit samples are clipped (:func:`clipped_share`), one
-    warning (stderr): the brightest emission is over-exposed, its planes a lower bound there. Returns the share."""
-    share = clipped_share(lf)
+    """Where more than :data:`CLIPPED_WARN` of the capture's lit pixels are clipped
+    (:meth:`~lf_flame.real.lightfield.LightField.over_exposure`), one warning (stderr): the brightest emission is
+    over-exposed, its planes a lower bound there. Returns the share."""
+    share = lf.over_exposure()
     if share > CLIPPED_WARN:
-        print(f"warning: {100 * share:.0f} % of the lit samples are clipped: the brightest emission is over-exposed "
+        print(f"warning: {100 * share:.0f} % of the lit pixels are clipped: the brightest emission is over-exposed "
               "and its planes hold only a lower bound there (on the paper camera's scenes 10-27 % clipped left the "
               "flames' emission 9-30 % off, against 2-6 % below clipping: results/clipping.md); lower the exposure",
               file=sys.stderr)

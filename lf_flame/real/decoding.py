@@ -530,6 +530,33 @@ def auto_saturation(raw: np.ndarray) -> float:
     raise ValueError(f"the raw image reaches {top:g}, past 16-bit counts: give its clipping level")
 
 
+#: A pixel is lit above this share of the clipping level (:func:`clipped_share`).
+LIT_SHARE = 0.05
+
+
+def clipped_share(raw, level: float | None) -> float:
+    """The clipped pixels' share of the lit ones: pixels at or above ``level`` over those at or above
+    :data:`LIT_SHARE` of it (the over-exposure that ``lf-flame reconstruct`` warns of).
+
+    Parameters
+    ----------
+    raw : ndarray
+        A raw image, or a perfect grid's views (the same pixels), in ``level``'s units.
+    level : float or None
+        The clipping level; None: no level (0).
+
+    Returns
+    -------
+    float
+        In [0, 1]; 0 with no lit pixel.
+    """
+    if level is None:
+        return 0.0
+    a = np.asarray(raw)
+    lit = int(np.count_nonzero(a >= LIT_SHARE * level))
+    return int(np.count_nonzero(a >= level)) / lit if lit else 0.0
+
+
 def found_level(raw) -> float | None:
     """A raw image's clipping level found in it (:func:`auto_saturation`); None past 16-bit
     counts with no pile at its top (no level known).

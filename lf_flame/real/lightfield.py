@@ -90,6 +90,10 @@ class LightField:
     defects : ndarray of bool of the views' shape, or None
         A raw image's samples from defective pixels (the clipping level, or a level a command is given, adds its
         own: :meth:`fit_mask`). None: none.
+    clipped_share : float or None
+        A decoded capture's clipped pixels as a share of its lit ones
+        (:func:`lf_flame.real.decoding.clipped_share`, of the raw image at decoding: a decoded sample mixes
+        several pixels); None: a raw image's, read off its views and ``saturation`` (:meth:`over_exposure`).
     """
 
     views: np.ndarray
@@ -109,6 +113,7 @@ class LightField:
     sample_offsets: np.ndarray | None = None
     defective_pixels: int = 0
     defects: np.ndarray | None = None
+    clipped_share: float | None = None
 
     def __post_init__(self):
         v = self.views
@@ -133,6 +138,15 @@ class LightField:
         if self.sample_offsets is not None and np.shape(self.sample_offsets) != mapped + (2,):
             raise ValueError(f"{self.source}: sample_offsets must be of shape {mapped + (2,)} (the views' they map, "
                              "and 2)")
+
+    def over_exposure(self) -> float:
+        """The clipped pixels' share of the lit ones: :attr:`clipped_share` where decoding measured it, else the
+        views' (a perfect grid's raw pixels) at or above :attr:`saturation`
+        (:func:`lf_flame.real.decoding.clipped_share`); 0 with neither."""
+        from .decoding import clipped_share
+        if self.clipped_share is not None:
+            return float(self.clipped_share)
+        return 0.0 if self.decoded else clipped_share(self.views, self.saturation)
 
     @property
     def decoded(self) -> bool:
@@ -291,7 +305,7 @@ def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation
 def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "decoded views", clipped=None,
                  white_normalised: bool = True, camera_file: str | None = None, channels=None,
                  meta: dict | None = None, bin_views: int = 1, lattice_views=None, lattice_clipped=None,
-                 defective_pixels: int = 0) -> LightField:
+                 defective_pixels: int = 0, clipped_share: float | None = None) -> LightField:
     """The light field of views decoded from a capture of ``camera`` with ``calibration``.
 
     Parameters
@@ -313,6 +327,8 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
         A hexagonal grid's views on its own lattice and their clipped samples (:class:`LightField`).
     defective_pixels : int
         The capture's defective pixels, repaired before decoding (:class:`LightField`).
+    clipped_share : float or None
+        The capture's clipped pixels as a share of its lit ones (:class:`LightField`); None: not measured.
 
     Raises
     ------
@@ -338,7 +354,8 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
                       interpolation=None if channels is not None else
                       (interpolation_phases(calibration, v.shape[0], bin_views), int(bin_views)),
                       sample_offsets=None if channels is None else sample_offsets(calibration, v.shape[0]),
-                      defective_pixels=int(defective_pixels))
+                      defective_pixels=int(defective_pixels),
+                      clipped_share=None if clipped_share is None else float(clipped_share))
 
 
 def read_light_field(path, camera=None, calibration=None, *, views: int | None = None,
@@ -411,8 +428,9 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
             white = bool(f.attrs.get("white_normalised", True))
             meta = {"sensor": str(f.attrs["sensor"])} if "sensor" in f.attrs else {}
             k = int(f.attrs.get("bin_views", 1))
+            share = float(f.attrs["clipped_share"]) if "clipped_share" in f.attrs else None
         return from_decoded(v, vcal, cam, src, load_clipped(p), white, cam_file, load_channels(p), meta, k,
-                            *load_lattice(p))
+                            *load_lattice(p), clipped_share=share)
     raw, stored, meta = (raw_reader or _read_raw)(p)
     cam = cam or stored
     assumed = cam is None
@@ -498,7 +516,7 @@ def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None, sensor=N
     ``n_views`` is given); a colour ``sensor``'s capture one pixel per sample, its channels apart
     (:func:`lf_flame.real.decoding.decode_colour`)."""
     from .images import calibration_image
-    from .decoding import decode_repaired, found_level, on_square_grid
+    from .decoding import clipped_share, decode_repaired, found_level, on_square_grid
     white, dark = calibration_image(cal.white, "white"), calibration_image(cal.dark, "dark")
     level = found_level(raw)
     lattice, channels, k, hit, bad = decode_repaired(raw, cal, white, dark, sensor, level, n_views=n_views,
@@ -509,7 +527,7 @@ def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None, sensor=N
     return from_decoded(on_square_grid(lattice, cal), cal, cam, src, None if hit is None else on_square_grid(hit, cal),
                         white is not None, cam_file, channels, meta, bin_views=k,
                         lattice_views=lattice if hexagonal else None, lattice_clipped=hit if hexagonal else None,
-                        defective_pixels=int(bad.sum()))
+                        defective_pixels=int(bad.sum()), clipped_share=clipped_share(raw, level))
 
 
 def _read_raw(p: Path):
