@@ -60,18 +60,22 @@ def cmd_decode(a):
     dt = time.perf_counter() - t
     n_bad = int(bad.sum())
     extra = {"bin_views": k, "defective_pixels": n_bad}
+    share = clipped_share(raw, level)
     if level is not None:
-        extra.update(saturation=level, clipped_share=clipped_share(raw, level))
+        extra.update(saturation=level, clipped_share=share)
     if sensor is not None:
         extra["sensor"] = json.dumps(dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase)))
     save_views(a.out, views, cal, clipped, channels, lattice, hit, raw=str(Path(a.raw).resolve()),
                white_normalised=white is not None, **extra)
-    note = "no clipping level" if level is None else f"{int(clipped.sum())} samples from pixels at or above {level:g}"
+    note = "no clipping level" if level is None else \
+        f"{int(clipped.sum())} samples from pixels at or above {level:g}, {100 * share:.2g} % of the lit pixels"
     if n_bad:
         note = f"{note}; {defects_note(n_bad)}"
     binned = f", {k} x {k} pixels each" if k > 1 else ""
     print(f"decoded {Path(a.raw).name} into {views.shape[0]} x {views.shape[1]} views{binned} of {views.shape[2]} x "
           f"{views.shape[3]} lenslets ({note}) in {dt:.2f} s -> {a.out}")
+    from .volume import overexposure_warning
+    overexposure_warning(share)
 
 
 def defects_note(n: int) -> str:

@@ -222,13 +222,12 @@ def saturation_note(rec, lf=None) -> str:
 CLIPPED_WARN = 0.08
 
 
-def overexposure_warning(lf) -> float:
-    """Where more than :data:`CLIPPED_WARN` of the capture's lit pixels are clipped
-    (:meth:`~lf_flame.real.lightfield.LightField.over_exposure`), one warning (stderr): the brightest emission is
-    over-exposed, its planes a lower bound there. Returns the share."""
-    share = lf.over_exposure()
+def overexposure_warning(share: float) -> float:
+    """Where more than :data:`CLIPPED_WARN` of a capture's lit pixels are clipped (``share``:
+    :meth:`~lf_flame.real.lightfield.LightField.over_exposure`, :func:`lf_flame.real.decoding.clipped_share`), one
+    warning (stderr): the brightest emission is over-exposed, its planes a lower bound there. Returns ``share``."""
     if share > CLIPPED_WARN:
-        print(f"warning: {100 * share:.0f} % of the lit pixels are clipped: the brightest emission is over-exposed "
+        print(f"warning: {100 * share:.2g} % of the lit pixels are clipped: the brightest emission is over-exposed "
               "and its planes hold only a lower bound there (on the paper camera's scenes 10-27 % clipped left the "
               "flames' emission 9-30 % off, against 2-6 % below clipping: results/clipping.md); lower the exposure",
               file=sys.stderr)
@@ -409,7 +408,7 @@ def cmd_reconstruct(a):
         print(f"planes within {NEAR_PARALLAX:g} lenslets of parallax of each other are held to the regions their "
               "depths were found in, where they meet (the data barely tell such planes apart)")
     print("\n".join(left_out_notes(fitted, rec, lattice)))
-    extra["clipped_share"] = overexposure_warning(fitted)
+    extra["clipped_share"] = overexposure_warning(fitted.over_exposure())
     extra["edge_share"] = edge_warning(rec, op)
     extra["misfit"] = misfit_warning(lf, op, rec, kw["saturation"], lattice)
     out = Path(a.out)
