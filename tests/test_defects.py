@@ -251,7 +251,7 @@ def test_a_decoded_captures_over_exposure_is_measured_on_its_raw_pixels(tmp_path
                  "--out", str(tmp_path / "v.h5")]) == 0
     share = clipped_share(counts.astype(float), 4095)
     printed = capsys.readouterr()
-    assert f"{100 * share:.2g} % of the lit pixels" in printed.out
+    assert f"{100 * share:.2g} % of the lit pixels clipped" in printed.out
     assert f"warning: {100 * share:.2g} % of the lit pixels are clipped" in printed.err
     with h5py.File(tmp_path / "v.h5") as f:
         assert f.attrs["clipped_share"] == pytest.approx(share) and 0.08 < share < 0.5

@@ -67,8 +67,9 @@ def cmd_decode(a):
         extra["sensor"] = json.dumps(dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase)))
     save_views(a.out, views, cal, clipped, channels, lattice, hit, raw=str(Path(a.raw).resolve()),
                white_normalised=white is not None, **extra)
-    note = "no clipping level" if level is None else \
-        f"{int(clipped.sum())} samples from pixels at or above {level:g}, {100 * share:.2g} % of the lit pixels"
+    note = "no clipping level" if level is None else (
+        f"{int(clipped.sum())} samples from pixels at or above {level:g}{' or defective' if n_bad else ''}; "
+        f"{100 * share:.2g} % of the lit pixels clipped")
     if n_bad:
         note = f"{note}; {defects_note(n_bad)}"
     binned = f", {k} x {k} pixels each" if k > 1 else ""
