@@ -4,6 +4,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings, strategies as st
 from scipy import ndimage
 
 from lf_flame.optics.camera import PlenopticCamera
@@ -154,6 +155,19 @@ def test_the_clipping_level_is_found_where_the_pixels_pile_up(capture):
     assert clipping_pile(np.full((9, 9), 7.0)) is None and clipping_pile(np.zeros((9, 9))) is None
 
 
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.integers(0, 6), min_size=1, max_size=60), st.sampled_from([np.uint16, np.float32, np.float64]))
+def test_the_two_largest_values_are_counted_in_one_pass(values, dtype):
+    """The pile's kernel against NumPy: the largest value and its count, the next value below and its count (-inf
+    and 0 where every pixel holds one value)."""
+    from lf_flame.real._decoding_kernels import top_two
+    a = np.asarray(values, dtype)
+    top, n_top, second, n_second = top_two(a)
+    below = a[a < a.max()]
+    assert (top, n_top) == (float(a.max()), int(np.sum(a == a.max())))
+    assert (second, n_second) == ((float(below.max()), int(np.sum(a == below.max()))) if below.size else (-np.inf, 0))
+
+
 @pytest.mark.parametrize("top", [4095, 3600], ids=["12 bits", "full well below the top"])
 def test_cli_leaves_out_the_pixels_of_a_16_bit_file_clipped_at_12_bits(cam, capture, tmp_path, capsys, top):
     """``reconstruct`` of a TIFF of 12-bit counts, clipped at 4095 or by a full well of 3600, leaves out the clipped
@@ -216,7 +230,7 @@ def test_an_over_exposed_capture_is_named_by_a_warning(cam, capture, tmp_path, c
     import h5py
 
     from lf_flame.cli import main
-    from lf_flame.cli.volume import CLIPPED_WARN
+    from lf_flame.cli.real import CLIPPED_WARN
     _, raw, _, _ = capture
     for name, img in (("over", np.clip(raw * 1.6 / raw.max(), 0, 1)), ("as rendered", raw)):
         np.savez(tmp_path / "c.npz", raw=img, camera=cam.to_json())

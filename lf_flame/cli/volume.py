@@ -213,27 +213,6 @@ def saturation_note(rec, lf=None) -> str:
     return f"{n} saturated pixels (at or above {level:g}) left out of the fit"
 
 
-#: Clipped pixels more than this share of the lit ones (above :data:`lf_flame.real.decoding.LIT_SHARE` of the
-#: clipping level): the light field is over-exposed and ``reconstruct`` warns (:func:`overexposure_warning`). On six
-#: scenes of the paper's camera (``make clipping``, results/clipping.md) 0.6-2.9 % clipped left the flames' emission
-#: within 0.6 points (median per scene) of the same scenes below clipping, and 6.2 % (one scene) too; 9.7-27 % left
-#: it 8.7-30 % off (worst flame 38 %), against 2-6 % (worst 11 %) below clipping. ``experiments/fourier_solver.py``'s
-#: overlap render, 5.2 % clipped, is solved to 2 %.
-CLIPPED_WARN = 0.08
-
-
-def overexposure_warning(share: float) -> float:
-    """Where more than :data:`CLIPPED_WARN` of a capture's lit pixels are clipped (``share``:
-    :meth:`~lf_flame.real.lightfield.LightField.over_exposure`, :func:`lf_flame.real.decoding.clipped_share`), one
-    warning (stderr): the brightest emission is over-exposed, its planes a lower bound there. Returns ``share``."""
-    if share > CLIPPED_WARN:
-        print(f"warning: {100 * share:.2g} % of the lit pixels are clipped: the brightest emission is over-exposed "
-              "and its planes hold only a lower bound there (on the paper camera's scenes 10-27 % clipped left the "
-              "flames' emission 9-30 % off, against 2-6 % below clipping: results/clipping.md); lower the exposure",
-              file=sys.stderr)
-    return share
-
-
 def left_out_notes(lf, rec, lattice=None) -> list:
     """What the fit of the light field ``lf`` left out, one line each: its saturated pixels (:func:`saturation_note`),
     or a decoded capture's samples (:func:`decoded_note`), and its defective pixels where it has some."""
@@ -408,6 +387,7 @@ def cmd_reconstruct(a):
         print(f"planes within {NEAR_PARALLAX:g} lenslets of parallax of each other are held to the regions their "
               "depths were found in, where they meet (the data barely tell such planes apart)")
     print("\n".join(left_out_notes(fitted, rec, lattice)))
+    from .real import overexposure_warning
     extra["clipped_share"] = overexposure_warning(fitted.over_exposure())
     extra["edge_share"] = edge_warning(rec, op)
     extra["misfit"] = misfit_warning(lf, op, rec, kw["saturation"], lattice)

@@ -495,15 +495,11 @@ def clipping_pile(raw: np.ndarray) -> float | None:
         it and :data:`PILE_RATIO` times as many as hold the next value below; None otherwise
         (no pile, an image of one value, or none above 0).
     """
-    a = np.asarray(raw)
-    top = float(a.max())
-    n_top = int(np.count_nonzero(a == top))
-    if n_top < PILE_MIN_PIXELS or top <= 0:
+    from ._decoding_kernels import top_two
+    top, n_top, _, n_next = top_two(np.ravel(np.asarray(raw), order="K"))      # one pass (a view where it can)
+    if n_top < PILE_MIN_PIXELS or top <= 0 or n_next == 0:
         return None
-    below = a < top
-    if not below.any():
-        return None
-    return top if n_top >= PILE_RATIO * int(np.count_nonzero(a == np.max(a, where=below, initial=a.min()))) else None
+    return float(top) if n_top >= PILE_RATIO * n_next else None
 
 
 def auto_saturation(raw: np.ndarray) -> float:
