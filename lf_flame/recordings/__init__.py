@@ -18,7 +18,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "job": ["CHUNK", "SequenceJob", "simulated_job", "process_chunk"],
         "plot": ["plot_sequence"],
         "runner": ["run"],
-        "sources": ["FRAME_SUFFIXES", "SimulatedSource", "H5Source", "TiffStackSource", "FolderSource", "open_source",
-                 "write_frames", "frame_rate"],
+        "sources": ["FRAME_SUFFIXES", "SimulatedSource", "H5Source", "TiffStackSource", "FolderSource",
+                    "open_source", "write_frames", "frame_rate"],
     },
 )

@@ -1,8 +1,9 @@
 """Frame sources of a recording and its frame rate.
 
 A recording is a series of raw light-field frames: an HDF5 stack, a multi-page TIFF (a
-high-speed camera's or ImageJ's stack), a folder of image files, or a simulated :class:`lf_flame.simulate.scenes_time.FlameSequence`. The sources are
-picklable descriptions, opened where the frames are read (in the worker).
+high-speed camera's or ImageJ's stack), a folder of image files, or a simulated
+:class:`lf_flame.simulate.scenes_time.FlameSequence`. The sources are picklable descriptions,
+opened where the frames are read (in the worker).
 """
 from __future__ import annotations
 
@@ -135,7 +136,9 @@ class TiffStackSource:
 
     def raw(self, i: int) -> np.ndarray:
         """Frame ``i`` (H, W) float32, the file opened for it alone."""
-        return next(self.frames(i, i + 1))
+        import tifffile
+        with tifffile.TiffFile(self.path) as tf:
+            return _scaled(tf.asarray(key=int(i), series=0))
 
     def frames(self, start: int, stop: int):
         """Frames ``start`` to ``stop`` (exclusive), read in one open of the file, one in memory at a time: an
