@@ -160,7 +160,8 @@ def figure(df, path) -> None:
 
 def main(argv=None) -> int:
     from lf_flame.config import atomic_write_text, provenance
-    from lf_flame.real.decoding import LIT_SHARE, PILE_MIN_PIXELS, PILE_RATIO
+    from lf_flame.real.decoding import LIT_SHARE
+    from lf_flame.real.images import PILE_MIN_PIXELS, PILE_RATIO
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--scenes", type=int, default=6)

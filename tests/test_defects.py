@@ -135,7 +135,8 @@ def test_the_clipping_level_is_found_where_the_pixels_pile_up(capture):
     an image that does not clip keeps the type's level, and a few pixels at its top are no pile."""
     from skimage import util
 
-    from lf_flame.real.decoding import PILE_MIN_PIXELS, auto_saturation, clipping_pile
+    from lf_flame.real.decoding import auto_saturation
+    from lf_flame.real.images import PILE_MIN_PIXELS, clipping_pile
     _, raw, _, _ = capture
     gain = 1.6 / raw.max()
     for shift in (0, 4):
@@ -160,7 +161,7 @@ def test_the_clipping_level_is_found_where_the_pixels_pile_up(capture):
 def test_the_two_largest_values_are_counted_in_one_pass(values, dtype):
     """The pile's kernel against NumPy: the largest value and its count, the next value below and its count (-inf
     and 0 where every pixel holds one value)."""
-    from lf_flame.real._decoding_kernels import top_two
+    from lf_flame.real._image_kernels import top_two
     a = np.asarray(values, dtype)
     top, n_top, second, n_second = top_two(a)
     below = a[a < a.max()]
@@ -279,3 +280,31 @@ def test_a_decoded_captures_over_exposure_is_measured_on_its_raw_pixels(tmp_path
         with h5py.File(out) as f:
             assert float(f.attrs["clipped_share"]) == pytest.approx(share)
     assert views_share > 1.2 * share                          # what the views' own mask would have said
+
+
+def test_a_colour_images_clipped_channel_is_found_in_its_gray_image(cam, capture, tmp_path, capsys):
+    """An RGB file (a colour camera's demosaiced output) whose red channel clips: its gray image (the channels'
+    mean) gives those pixels the clipping level, so that they pile up and are left out as clipped, by every reader
+    (the command line's, the calibration's, a recording's frames); a plain mean has no pile there."""
+    import tifffile
+
+    from lf_flame.cli import main
+    from lf_flame.real.decoding import auto_saturation
+    from lf_flame.real.images import clipping_pile
+    from lf_flame.real.images import load_image
+    from lf_flame.recordings.sources import _scaled
+    _, raw, _, _ = capture
+    rgb = np.stack([_counts(raw, g / raw.max()) for g in (2.0, 0.8, 0.3)], axis=-1)
+    red = rgb[..., 0] == 4095
+    assert red.sum() > 100 and (rgb[..., 1:] < 4095).all()
+    assert clipping_pile(rgb.mean(axis=-1)) is None                              # what the mean alone gives
+    tifffile.imwrite(tmp_path / "rgb.tif", rgb)
+    for gray, top in ((load_image(tmp_path / "rgb.tif"), 4095.0), (_scaled(rgb), np.float32(4095 / 65535))):
+        assert auto_saturation(gray) == top and np.array_equal(gray >= top, red)
+    (tmp_path / "cam.toml").write_text(f"[camera]\nn_rows = {cam.n_rows}\nn_cols = {cam.n_cols}\n")
+    assert main(["reconstruct", str(tmp_path / "rgb.tif"), "--camera", str(tmp_path / "cam.toml"), "--depths",
+                 "paper", "--out", str(tmp_path / "r.h5")]) == 0
+    lf = from_raw(load_image(tmp_path / "rgb.tif") / 65535, cam)
+    n = int(np.count_nonzero(lf.views >= lf.saturation))
+    assert n <= red.sum() <= n + lf.defective_pixels                 # a clipped pixel may be taken for a defect too
+    assert n > 100 and f"{n} saturated pixels" in capsys.readouterr().out

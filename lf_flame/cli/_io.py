@@ -26,16 +26,14 @@ VOLUME_LAYERS = 32
 def _read_image(p: Path) -> np.ndarray:
     """A PNG/TIFF raw image as float64 (rows, cols): integers scaled to [0, 1] by their type's
     range (what ``simulate --out RAW.png`` wrote reads back as the clipped raw image,
-    quantised to 8 bits), colour averaged to gray."""
+    quantised to 8 bits), colour averaged to gray (:func:`lf_flame.real.images.to_gray`)."""
     from skimage import io, util
     try:
         a = io.imread(p)
     except Exception as e:  # the image readers raise many kinds
         raise ValueError(f"{p} is not a readable image: {e}") from None
-    a = util.img_as_float64(a)
-    if a.ndim == 3 and a.shape[-1] in (3, 4):
-        a = a[..., :3].mean(axis=-1)
-    return a
+    from ..real.images import to_gray
+    return to_gray(util.img_as_float64(a))
 
 
 def _load_raw(path):

@@ -467,44 +467,9 @@ def sample_offsets(calibration: GridCalibration, n_views: int) -> np.ndarray:
     return np.ascontiguousarray(off, np.float32)
 
 
-#: A sensor clips at one level, so a clipped image's pixels pile up at its largest value: at least this many
-#: pixels hold exactly that value ...
-PILE_MIN_PIXELS = 8
-#: ... and this many times as many as hold the next value below it (an image that does not clip has few pixels
-#: at its largest value, about as many as at the next).
-PILE_RATIO = 4
-
-
-def clipping_pile(raw: np.ndarray) -> float | None:
-    """The level where a raw image's pixels pile up at its largest value (a sensor clips there), or None.
-
-    Such a pile marks the clipping level whatever the file's type: a 12-bit sensor's counts
-    stored in 16 bits (clipping at 4095, or at 65520 when the counts are shifted to the top
-    bits), a sensor whose full well is reached below its converter's top, an image scaled
-    to [0, 1] by its type's range.
-
-    Parameters
-    ----------
-    raw : ndarray
-        The raw image (any shape), as read.
-
-    Returns
-    -------
-    float or None
-        The image's largest value where at least :data:`PILE_MIN_PIXELS` pixels hold exactly
-        it and :data:`PILE_RATIO` times as many as hold the next value below; None otherwise
-        (no pile, an image of one value, or none above 0).
-    """
-    from ._decoding_kernels import top_two
-    top, n_top, _, n_next = top_two(np.ravel(np.asarray(raw), order="K"))      # one pass (a view where it can)
-    if n_top < PILE_MIN_PIXELS or top <= 0 or n_next == 0:
-        return None
-    return float(top) if n_top >= PILE_RATIO * n_next else None
-
-
 def auto_saturation(raw: np.ndarray) -> float:
     """The clipping level of a raw image whose level is not given: where its pixels pile up at its
-    largest value (:func:`clipping_pile`), else 1.0 for images whose values are at most 1 (the
+    largest value (:func:`lf_flame.real.images.clipping_pile`), else 1.0 for images whose values are at most 1 (the
     simulator's; integer files scaled by their type's range), else the smallest ``2**bits - 1``
     (bits 8, 10, 12, 14, 16) at or above its maximum (integer counts read unscaled,
     :func:`lf_flame.real.images.load_image`).
@@ -514,6 +479,7 @@ def auto_saturation(raw: np.ndarray) -> float:
     ValueError
         An image past 16-bit counts with no pile at its top.
     """
+    from .images import clipping_pile
     pile = clipping_pile(raw)
     if pile is not None:
         return pile

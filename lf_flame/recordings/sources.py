@@ -180,12 +180,12 @@ def _imagej_rate(meta: dict) -> dict:
 
 
 def _scaled(a: np.ndarray) -> np.ndarray:
+    """A frame as float32 (H, W): integers scaled by their type's range, colour averaged to gray
+    (:func:`lf_flame.real.images.to_gray`, its clipped pixels kept clipped)."""
+    from ..real.images import to_gray
     a = np.asarray(a)
-    if a.ndim == 3 and a.shape[-1] in (3, 4):
-        a = a[..., :3].mean(axis=-1)
-    if np.issubdtype(a.dtype, np.integer):
-        return a.astype(np.float32) * np.float32(1.0 / np.iinfo(a.dtype).max)
-    return a.astype(np.float32)
+    scale = 1.0 / np.iinfo(a.dtype).max if np.issubdtype(a.dtype, np.integer) else 1.0
+    return (to_gray(a) * scale).astype(np.float32) if a.ndim == 3 else a.astype(np.float32) * np.float32(scale)
 
 
 def open_source(path, camera: PlenopticCamera | None = None):
