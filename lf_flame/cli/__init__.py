@@ -74,9 +74,9 @@ def _level_or_none(text: str):
 
 
 #: What ``--saturation auto`` does (the help of the commands reading raw images).
-AUTO_LEVEL_HELP = ("auto: found in the image, where its pixels pile up at its largest value (a sensor clips at one "
-                   "level: a 12-bit sensor's counts in a 16-bit file pile at 4095, or at 65520 shifted to the top "
-                   "bits), else 1.0 for an image in [0, 1] (integer files are read scaled by their type's range)")
+AUTO_LEVEL = ("found in the image, where its pixels pile up at its largest value (a sensor clips at one level: a "
+              "12-bit sensor's counts in a 16-bit file pile at 4095, or at 65520 shifted to the top bits), else 1.0 "
+              "for an image in [0, 1] (integer files are read scaled by their type's range)")
 
 
 def _bit_depth(text: str) -> int:
@@ -272,7 +272,8 @@ def build_parser() -> argparse.ArgumentParser:
                        "their spectra and dominant flicker frequency (serially or on Dask)")
     s.add_argument("input", nargs="?", help="HDF5 stack of raw frames (dataset 'frames' (T, H, W); optional "
                    "'times_s'), a multi-page TIFF (a high-speed camera's or ImageJ's stack: one frame per page; the "
-                   "frame rate from its ImageJ frame interval, else --fps), or a folder of TIFF/PNG/.npy frames in name order")
+                   "frame rate from its ImageJ frame interval, else --fps), or a folder of TIFF/PNG/.npy frames in "
+                   "name order")
     s.add_argument("--simulate", choices=["paper", "overlap"], help="instead of INPUT: a simulated recording, "
                    "rendered frame by frame in the workers")
     _sequence_scene_args(s, simulate_only=True)
@@ -291,7 +292,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--saturation", type=_level_or_none, default="auto",
                    help="reconstruct-*: the sensor's clipping level in the views' units: pixels at or above it are "
                         "left out of the fit, counted per frame as n_saturated ('none': fit every pixel; default "
-                        "auto, per frame: " + AUTO_LEVEL_HELP.split(": ", 1)[1] + ")")
+                        "auto, per frame: " + AUTO_LEVEL + ")")
     s.add_argument("--operator-rays", type=int, default=None,
                    help="reconstruct-*: rays per pixel of a traced forward operator (default: the exact operator "
                         "where the camera is a perfect lenslet grid, else 4 rays)")
@@ -391,7 +392,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "they meet (their emission would otherwise split between them); docs/own_camera.md")
     s.add_argument("--saturation", type=_level_or_none, default=argparse.SUPPRESS,
                    help="the sensor's clipping level in the views' units: pixels at or above it are left out of the "
-                        "fit ('none': fit every pixel; default " + AUTO_LEVEL_HELP + "). Decoded views take only "
+                        "fit ('none': fit every pixel; default auto: " + AUTO_LEVEL + "). Decoded views take only "
                         "'none' (fit every sample): they carry their clipped samples ('lf-flame decode "
                         "--saturation')")
     add_camera_args(s)
@@ -469,7 +470,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "(soot: 1.39, Hottel & Broughton; 0: a blackbody)")
     s.add_argument("--saturation", type=_level_or_none, default="auto", help="the sensor's clipping level of a raw "
                    "image: pixels at or above it are left out of the fit ('none': fit every pixel; default "
-                   + AUTO_LEVEL_HELP + ")")
+                   + "auto: " + AUTO_LEVEL + ")")
     sensor_args(s, True)
     s.add_argument("--out", required=True, help="T.h5: temperature_k, valid, dim (plane, row, col), emission, "
                    "depths_mm, counts, provenance; the figure goes beside it as .png")

@@ -102,14 +102,9 @@ def to_gray(a: np.ndarray) -> np.ndarray:
         return a
     rgb = a[..., :3]
     gray = rgb.mean(axis=-1, dtype=np.float64)
-    piles = [(c, clipping_pile(rgb[..., c])) for c in range(3)]
-    levels = [p for _, p in piles if p is not None]
-    if levels:
-        hit = np.zeros(gray.shape, bool)
-        for c, p in piles:
-            if p is not None:
-                hit |= rgb[..., c] >= p
-        gray[hit] = max(levels)
+    piles = {c: p for c in range(3) if (p := clipping_pile(rgb[..., c])) is not None}
+    if piles:
+        gray[np.any([rgb[..., c] >= p for c, p in piles.items()], axis=0)] = max(piles.values())
     return gray
 
 

@@ -298,8 +298,8 @@ def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation
     if saturation == "auto":                            # found in the views' own values (float32: their rounding)
         from .decoding import found_level
         saturation = found_level(views)
-    return LightField(views, camera, source, saturation=saturation, camera_file=camera_file, meta=dict(meta or {}), defective_pixels=n_bad,
-                      defects=raw_to_views(flagged, n) > 0.5 if n_bad else None)
+    return LightField(views, camera, source, saturation=saturation, camera_file=camera_file, meta=dict(meta or {}),
+                      defective_pixels=n_bad, defects=raw_to_views(flagged, n) > 0.5 if n_bad else None)
 
 
 def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "decoded views", clipped=None,

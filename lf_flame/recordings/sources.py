@@ -185,7 +185,7 @@ def _scaled(a: np.ndarray) -> np.ndarray:
     from ..real.images import to_gray
     a = np.asarray(a)
     scale = 1.0 / np.iinfo(a.dtype).max if np.issubdtype(a.dtype, np.integer) else 1.0
-    return (to_gray(a) * scale).astype(np.float32) if a.ndim == 3 else a.astype(np.float32) * np.float32(scale)
+    return np.asarray(to_gray(a), np.float32) * np.float32(scale)
 
 
 def open_source(path, camera: PlenopticCamera | None = None):
