@@ -308,3 +308,22 @@ def test_a_colour_images_clipped_channel_is_found_in_its_gray_image(cam, capture
     n = int(np.count_nonzero(lf.views >= lf.saturation))
     assert n <= red.sum() <= n + lf.defective_pixels                 # a clipped pixel may be taken for a defect too
     assert n > 100 and f"{n} saturated pixels" in capsys.readouterr().out
+
+
+def test_cli_volume_leaves_out_the_defects_whatever_the_level(cam, capture, tmp_path):
+    """``--volume`` with the level given (the file's own, 1.0) solves as it does by default: the defective pixels'
+    samples stay out of the fit, as on the planes route."""
+    import h5py
+
+    from lf_flame.cli import main
+    _, _, bad, _ = capture
+    raw = tmp_path / "bad.npz"
+    np.savez(raw, raw=bad, camera=cam.to_json())
+    planes = {}
+    for name, extra in (("default", []), ("given", ["--saturation", "1"])):
+        out = tmp_path / f"{name}.h5"
+        assert main(["reconstruct", str(raw), "--volume", "--from", "-4", "--to", "4", "--step", "2",
+                     "--out", str(out), *extra]) == 0
+        with h5py.File(out) as f:
+            planes[name] = f["planes"][...]
+    np.testing.assert_array_equal(planes["given"], planes["default"])

@@ -437,11 +437,8 @@ def volume_reconstruct(a):
         raise ValueError(f"--from {a.near:g} --to {a.far:g}: this camera refocuses {lo:+.3g} .. {hi:+.3g} mm from its "
                          "focus distance")
     level = getattr(a, "saturation", "file")
-    level = "file" if level == "auto" else level
-    if lf.white_normalised and level not in ("file", None):
-        raise ValueError("decoded views carry their clipped samples: --saturation takes only 'none' for them")
-    saturation = lf.fit_mask() if level == "file" else level
-    rec, extra = solve_volume(views, cam, a.near, a.far, a.step, a.prior, saturation=saturation,
+    rec, extra = solve_volume(views, cam, a.near, a.far, a.step, a.prior,
+                              saturation=_fitted_light_field(lf, level).fit_mask(),
                               tv=a.tv, l1=a.l1, progress=True, white_normalised=lf.white_normalised,
                               interpolation=lf.interpolation)
     res, axi, op = extra["resolution"], extra["axisymmetric"], extra["operator"]
