@@ -138,7 +138,7 @@ def figure(df, path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from lf_flame.cli.real import CLIPPED_WARN
+    from lf_flame.real.decoding import CLIPPED_WARN
     from lf_flame.measure.figures import save_figure
     fig, axes = plt.subplots(1, 2, figsize=(9.5, 3.6), sharex=True)
     ways = (("no clipping", "below clipping", "k", "s"), ("type's level", "clipped pixels fitted as light", "C1", "^"),

@@ -231,7 +231,7 @@ def test_an_over_exposed_capture_is_named_by_a_warning(cam, capture, tmp_path, c
     import h5py
 
     from lf_flame.cli import main
-    from lf_flame.cli.real import CLIPPED_WARN
+    from lf_flame.real.decoding import CLIPPED_WARN
     _, raw, _, _ = capture
     for name, img in (("over", np.clip(raw * 1.6 / raw.max(), 0, 1)), ("as rendered", raw)):
         np.savez(tmp_path / "c.npz", raw=img, camera=cam.to_json())
@@ -241,6 +241,30 @@ def test_an_over_exposed_capture_is_named_by_a_warning(cam, capture, tmp_path, c
             share = float(f.attrs["clipped_share"])
         assert ("of the lit pixels are clipped" in err) == (name == "over") == (share > CLIPPED_WARN)
         assert name != "over" or f"warning: {100 * share:.2g} % of the lit pixels" in err
+
+
+def test_a_recordings_over_exposed_frames_are_counted_and_named(cam, capture, tmp_path, capsys):
+    """``sequence`` on a reconstruction route measures each frame's clipped share (frames.csv), counts the frames
+    beyond ``CLIPPED_WARN`` (summary.json) and warns of them: a stack of the capture as rendered and over-exposed."""
+    import json
+
+    import pandas as pd
+    import tifffile
+
+    from lf_flame.cli import main
+    from lf_flame.real.decoding import CLIPPED_WARN, clipped_share
+    _, raw, _, _ = capture
+    frames = np.stack([raw, np.clip(raw * 1.6 / raw.max(), 0, 1)]).astype(np.float32)
+    tifffile.imwrite(tmp_path / "rec.tif", frames, imagej=True, metadata={"finterval": 0.01})
+    (tmp_path / "cam.toml").write_text(f"[camera]\nn_rows = {cam.n_rows}\nn_cols = {cam.n_cols}\n")
+    assert main(["sequence", str(tmp_path / "rec.tif"), "--camera", str(tmp_path / "cam.toml"), "--depth", "0",
+                 "--route", "reconstruct-admm", "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    share = pd.read_csv(tmp_path / "out" / "frames.csv").groupby("frame").clipped_share.first().to_numpy()
+    np.testing.assert_allclose(share, [clipped_share(f, 1.0) for f in frames], rtol=1e-5)      # the CSV's digits
+    assert share[0] < CLIPPED_WARN < share[1]
+    over = json.loads((tmp_path / "out" / "summary.json").read_text())["over_exposed"]
+    assert over == dict(frames=1, max_share=pytest.approx(share[1]))
+    assert f"warning: in 1 of 2 frames up to {100 * share[1]:.2g} % of the lit pixels" in capsys.readouterr().err
 
 
 def test_a_decoded_captures_over_exposure_is_measured_on_its_raw_pixels(tmp_path, capsys):

@@ -85,23 +85,17 @@ def defects_note(n: int) -> str:
             "repaired, their samples left out of the fit")
 
 
-#: Clipped pixels more than this share of the lit ones (above :data:`lf_flame.real.decoding.LIT_SHARE` of the
-#: clipping level): the capture is over-exposed, and ``decode`` and ``reconstruct`` warn (:func:`overexposure_warning`).
-#: On six scenes of the paper's camera (``make clipping``, results/clipping.md) 0.6-2.9 % clipped left the flames'
-#: emission within 0.6 points (median per scene) of the same scenes below clipping, and 6.2 % (one scene) too; 9.7-27 %
-#: left it 8.7-30 % off (worst flame 38 %), against 2-6 % (worst 11 %) below clipping.
-#: ``experiments/fourier_solver.py``'s overlap render, 5.2 % clipped, is solved to 2 %.
-CLIPPED_WARN = 0.08
-
-
-def overexposure_warning(share: float) -> float:
-    """Where more than :data:`CLIPPED_WARN` of a capture's lit pixels are clipped (``share``:
+def overexposure_warning(share: float, where: str = "") -> float:
+    """Where more than :data:`~lf_flame.real.decoding.CLIPPED_WARN` of a capture's lit pixels are clipped (``share``:
     :meth:`~lf_flame.real.lightfield.LightField.over_exposure`, :func:`lf_flame.real.decoding.clipped_share`), one
-    warning (stderr): the brightest emission is over-exposed, its planes a lower bound there. Returns ``share``."""
+    warning (stderr): the brightest emission is over-exposed, its planes a lower bound there; ``where`` begins it
+    (a recording's frames). Returns ``share``."""
+    from ..real.decoding import CLIPPED_WARN
     if share > CLIPPED_WARN:
-        print(f"warning: {100 * share:.2g} % of the lit pixels are clipped: the brightest emission is over-exposed "
-              "and its planes hold only a lower bound there (on the paper camera's scenes 10-27 % clipped left the "
-              "flames' emission 9-30 % off, against 2-6 % below clipping: results/clipping.md); lower the exposure",
+        print(f"warning: {where}{100 * share:.2g} % of the lit pixels are clipped: the brightest emission is "
+              "over-exposed and its planes hold only a lower bound there (on the paper camera's scenes 10-27 % "
+              "clipped left the flames' emission 9-30 % off, against 2-6 % below clipping: results/clipping.md); "
+              "lower the exposure",
               file=sys.stderr)
     return share
 

@@ -142,5 +142,8 @@ def cmd_sequence(a):
         print(f"{s['n_saturated']['frames']} frames with samples left out of the fit (at most "
               f"{s['n_saturated']['max_per_frame']} in a frame: clipped; of decoded frames also dark ones and a "
               "colour camera's blue ones)")
+        from .real import overexposure_warning
+        over = s["over_exposed"]
+        overexposure_warning(over["max_share"], f"in {over['frames']} of {s['n_frames']} frames up to ")
     print(f"{s['n_frames']} frames ({s['chunks_processed']} chunks processed, {s['frames_per_s']:.1f} frames/s) "
           f"-> {a.out}/frames.csv, spectra.csv, peaks.csv, sequence.png, summary.json")

@@ -494,6 +494,14 @@ def auto_saturation(raw: np.ndarray) -> float:
 
 #: A pixel is lit above this share of the clipping level (:func:`clipped_share`).
 LIT_SHARE = 0.05
+#: Clipped pixels more than this share of the lit ones (above :data:`LIT_SHARE` of the clipping level): the
+#: capture is over-exposed, and ``decode``, ``reconstruct`` and ``sequence`` warn
+#: (:func:`lf_flame.cli.real.overexposure_warning`).
+#: On six scenes of the paper's camera (``make clipping``, results/clipping.md) 0.6-2.9 % clipped left the flames'
+#: emission within 0.6 points (median per scene) of the same scenes below clipping, and 6.2 % (one scene) too; 9.7-27 %
+#: left it 8.7-30 % off (worst flame 38 %), against 2-6 % (worst 11 %) below clipping.
+#: ``experiments/fourier_solver.py``'s overlap render, 5.2 % clipped, is solved to 2 %.
+CLIPPED_WARN = 0.08
 
 
 def clipped_share(raw, level: float | None) -> float:

@@ -267,6 +267,12 @@ class SequenceJob:
         from ..real.decoding import found_level
         return found_level(image)
 
+    def clipped_share(self, raw: np.ndarray) -> float:
+        """One raw frame's clipped pixels' share of its lit ones, at the frame's level (:meth:`_level`;
+        :func:`lf_flame.real.decoding.clipped_share`)."""
+        from ..real.decoding import clipped_share
+        return clipped_share(raw, self._level(raw))
+
     def _defect_map(self, raw, offsets, dark=None) -> np.ndarray:
         """The sensor's defective pixels (:func:`lf_flame.real.defects.capture_defects`), found once per job in the
         recording's first frame, so that every chunk and worker repairs the same pixels in every frame (in ``raw``
@@ -408,8 +414,8 @@ def process_chunk(c: int, job: SequenceJob) -> dict:
     Returns
     -------
     dict with ``rows`` (one dict per frame and plane: frame, time_s, plane, depth_mm,
-    :meth:`FlameMeasurement.summary` fields, failure; ``n_saturated``, the frame's pixels
-    left out of the fit, on ``reconstruct-*`` routes) and the seconds spent reading (or
+    :meth:`FlameMeasurement.summary` fields, failure; on ``reconstruct-*`` routes ``n_saturated``, the frame's
+    pixels left out of the fit, and ``clipped_share``, its clipped pixels' share of the lit ones) and the seconds spent reading (or
     rendering), refocusing and measuring.
 
     Raises
@@ -440,7 +446,7 @@ def _process_frames(job: SequenceJob, start: int, stop: int) -> dict:
         except ValueError as e:
             raise ValueError(f"frame {i}: {e}") from e
         t2 = time.perf_counter()
-        extra = {} if n_sat is None else dict(n_saturated=n_sat)
+        extra = {} if n_sat is None else dict(n_saturated=n_sat, clipped_share=job.clipped_share(raw))
         for k, (plane, d) in enumerate(zip(stack, job.depths_mm)):
             row = dict(frame=i, time_s=i / job.fps, plane=k, depth_mm=d, **extra)
             try:

@@ -96,7 +96,9 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
         each plane's frames that could not be measured (their values in its spectrum are
         the plane's mean; also ``n_failed`` in peaks.csv); on ``reconstruct-*`` routes
         ``n_saturated``, the frames with saturated pixels left out of the fit and the most
-        in one frame (per frame: frames.csv).
+        in one frame, and ``over_exposed``, the frames whose clipped pixels are more than
+        :data:`~lf_flame.real.decoding.CLIPPED_WARN` of the lit ones and the largest share
+        (per frame: frames.csv).
 
     Raises
     ------
@@ -177,7 +179,11 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
                    busy_s=busy, failed_frames={int(k): int(v) for k, v in failed.items()},
                    provenance=provenance())
     if "n_saturated" in frames:
-        per_frame = frames.groupby("frame").n_saturated.first()
-        summary["n_saturated"] = dict(frames=int((per_frame > 0).sum()), max_per_frame=int(per_frame.max()))
+        from ..real.decoding import CLIPPED_WARN
+        per_frame = frames.groupby("frame")[["n_saturated", "clipped_share"]].first()
+        summary["n_saturated"] = dict(frames=int((per_frame.n_saturated > 0).sum()),
+                                      max_per_frame=int(per_frame.n_saturated.max()))
+        summary["over_exposed"] = dict(frames=int((per_frame.clipped_share > CLIPPED_WARN).sum()),
+                                       max_share=float(per_frame.clipped_share.max()))
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=1, default=float))
     return summary
