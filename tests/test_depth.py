@@ -555,6 +555,32 @@ def test_reconstruct_warns_when_its_planes_leave_light_unexplained(cam, planted,
     assert "--iters" in planes and "fills' cap (1)" in err
 
 
+def test_the_slope_jacobian_is_the_five_point_stencil_on_the_fitted_samples():
+    """``slope_jacobian``'s kernel against NumPy: each view's five-point derivatives along rows and columns (edges
+    padded by their values) weighted by the view's offset, 0 on the samples not fitted."""
+    from lf_flame.tomo.refine import slope_jacobian
+    rng = np.random.default_rng(4)
+    a = rng.normal(size=(3, 3, 7, 6))
+    fit = rng.random(a.shape) < 0.7
+
+    class Op:                                    # the prediction of plane p alone is ``a`` times its value
+        dimsd = a.shape
+
+        def matvec(self, x):
+            return a.ravel() * x.sum()
+
+    def d(axis):
+        b = np.pad(a, [(2, 2) if k == axis else (0, 0) for k in range(4)], mode="edge")
+        n = a.shape[axis]
+        return sum(w * np.take(b, range(2 + k, 2 + k + n), axis=axis) for k, w in ((-2, 1), (-1, -8), (1, 8),
+                                                                                   (2, -1))) / 12.0
+    u = np.arange(3) - 1.0
+    want = np.where(fit, -(u[:, None, None, None] * d(2) + u[None, :, None, None] * d(3)), 0.0)
+    got = slope_jacobian(Op(), np.ones((2, 1, 1)), fit, [1])
+    assert got.shape == (1,) + a.shape
+    np.testing.assert_allclose(got[0], want, rtol=1e-12, atol=1e-12)
+
+
 def test_refined_depths_of_flames_one_behind_another(cam, behind):
     """Two flames in one column band: the votes' depths are pulled by each other's defocused light; Gauss-Newton on
     the planes' slopes against the residual brings both closer to the truth and lowers the residual."""

@@ -277,16 +277,18 @@ def fourier_slice(spectrum, j_r, w_r, j_c, w_c, out):
     S, Kr, W = w_r.shape
     Kc = w_c.shape[1]
     M = spectrum.shape[2]
-    for task in prange(S * Kr):
-        s = task // Kr
-        kr = task % Kr
+    # every slope at one spatial frequency in turn: its (M, M) block stays in cache (slope by slope over the
+    # whole spectrum, each block was fetched again from memory: 3-4x the time, the same sums)
+    for kr in prange(Kr):
         for kc in range(Kc):
             g = spectrum[kr, kc]
-            acc = 0j
-            for a in range(W):
-                ju = (j_r[s, kr] + a) % M
-                row = 0j
-                for b in range(W):
-                    row += w_c[s, kc, b] * g[ju, (j_c[s, kc] + b) % M]
-                acc += w_r[s, kr, a] * row
-            out[s, kr, kc] = acc
+            for s in range(S):
+                jr, jc = j_r[s, kr], j_c[s, kc]
+                acc = 0j
+                for a in range(W):
+                    ju = (jr + a) % M
+                    row = 0j
+                    for b in range(W):
+                        row += w_c[s, kc, b] * g[ju, (jc + b) % M]
+                    acc += w_r[s, kr, a] * row
+                out[s, kr, kc] = acc

@@ -229,13 +229,16 @@ class FourierSlice:
         self.R2, self.C2 = scipy.fft.next_fast_len(R + pad), scipy.fft.next_fast_len(C + pad, real=True)
         off = _view_offsets(n) - self.half
         roll = self._kernel_ft(off)
-        x = np.zeros((M, M, self.R2, self.C2), np.float32)
         idx = np.rint(off).astype(int) % M  # view offset u' at index u' mod M
         weight = (mask / (roll[:, None] * roll[None, :])).astype(np.float32)
-        x[idx[:, None], idx[None, :], :R, :C] = views * weight[:, :, None, None]
+        x = np.zeros((n, n, self.R2, self.C2), np.float32)
+        x[:, :, :R, :C] = views * weight[:, :, None, None]
+        # the views' spatial spectra, placed on the M x M angular grid (the other M^2 - N^2 slots are 0) with the
+        # angular axes last, then their angular DFT along those contiguous axes
         spec = scipy.fft.rfftn(x, axes=(2, 3), workers=-1)
-        spec = scipy.fft.fftn(spec, axes=(0, 1), workers=-1)
-        self.spectrum = np.ascontiguousarray(spec.transpose(2, 3, 0, 1), dtype=np.complex64)
+        grid = np.zeros((self.R2, spec.shape[3], M, M), np.complex64)
+        grid[:, :, idx[:, None], idx[None, :]] = spec.transpose(2, 3, 0, 1)
+        self.spectrum = scipy.fft.fftn(grid, axes=(2, 3), workers=-1, overwrite_x=True)
 
     def _kernel(self, t):
         """Kaiser-Bessel kernel at offsets ``t`` (grid units), zero outside ``|t| <= W/2``."""

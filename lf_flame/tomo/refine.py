@@ -56,18 +56,6 @@ REFINED_PROMINENCE = 12.0
 REFINED_SHARE = 0.002
 
 
-def _derivative(a, axis):
-    """Five-point central derivative along ``axis`` (samples), the edges padded by their values."""
-    pad = [(0, 0)] * a.ndim
-    pad[axis] = (2, 2)
-    b = np.pad(a, pad, mode="edge")
-    n = a.shape[axis]
-
-    def sl(k):                                   # a view of b, shifted by k along the axis
-        return b[(slice(None),) * axis + (slice(2 + k, 2 + k + n),)]
-    return (sl(-2) - 8 * sl(-1) + 8 * sl(1) - sl(2)) / 12.0
-
-
 def slope_jacobian(op, planes, fit, which=None) -> np.ndarray:
     """Each plane's predicted views' derivative in its slope, ``J_p = d(A_p x_p)/ds_p``, on the fitted samples.
 
@@ -86,17 +74,17 @@ def slope_jacobian(op, planes, fit, which=None) -> np.ndarray:
         0 where not fitted. View ``(i, j)`` lies ``(i - (N - 1) / 2, j - (N - 1) / 2)`` view steps from the centre;
         a plane at slope ``s`` moves by ``s`` lenslets per view step along rows and columns.
     """
+    from ._refine_kernels import slope_derivative
     x = np.asarray(planes, np.float64)
     n = op.dimsd[0]
     u = np.arange(n) - (n - 1) / 2            # about the aperture's centre (a view there for odd N)
     which = range(len(x)) if which is None else list(which)
-    out = np.zeros((len(which),) + tuple(op.dimsd))
+    fit = np.broadcast_to(np.asarray(fit, bool), op.dimsd)
+    out = np.empty((len(which),) + tuple(op.dimsd))
     for k, p in enumerate(which):
         one = np.zeros_like(x)
         one[p] = x[p]
-        a = op.matvec(one.ravel()).reshape(op.dimsd)
-        j = -(u[:, None, None, None] * _derivative(a, 2) + u[None, :, None, None] * _derivative(a, 3))
-        out[k] = np.where(fit, j, 0.0)
+        slope_derivative(op.matvec(one.ravel()).reshape(op.dimsd), u, fit, out[k])
     return out
 
 
