@@ -226,3 +226,37 @@ def kernel_quadrature(cy, ay, ty, m0y, cx, ax, tx, n0x, n_taps_y, n_taps_x, radi
                 moments[u, v, 3] = syy / s0 - my * my
                 moments[u, v, 4] = sxy / s0 - my * mx
                 moments[u, v, 5] = sxx / s0 - mx * mx
+
+
+# ---- the per-pixel cos^4 drift ---------------------------------------------------------
+@njit(cache=True)
+def cos4_mean(ty, tx, var_y, cov, var_x):
+    """Mean of ``1 / (1 + ty^2 + tx^2)^2`` over angles of mean (ty, tx) and that covariance
+    (second-order expansion: ``f + (f_yy var_y + 2 f_xy cov + f_xx var_x) / 2`` with ``i = 1 / (1 + ty^2 + tx^2)``,
+    ``f = i^2``, ``f_yy = -4 i^3 + 24 ty^2 i^4``, ``f_xy = 24 ty tx i^4``; the powers formed once)."""
+    i = 1.0 / (1.0 + ty * ty + tx * tx)
+    i2 = i * i
+    quad = ty * ty * var_y + 2.0 * ty * tx * cov + tx * tx * var_x
+    return i2 * (1.0 - 2.0 * i * (var_y + var_x) + 12.0 * i2 * quad)
+
+
+@njit(parallel=True, cache=True)
+def cos4_weights(moments, ry, rx, out):
+    """Each pixel's mean cos^4 over its view's centre's (:func:`cos4_mean`), ``out`` (Nu, Nv, R, C): 0 in a view
+    no ray reaches. ``moments`` (Nu, Nv, 6) as :func:`kernel_quadrature`'s; ``ry`` (Nu, R) and ``rx`` (Nv, C): the
+    angle shift of each row and column of lenslets from the centre's. Threads over views."""
+    Nu, Nv = moments.shape[0], moments.shape[1]
+    R, C = ry.shape[1], rx.shape[1]
+    for uv in prange(Nu * Nv):
+        u, v = uv // Nv, uv % Nv
+        my, mx, vy, cv, vx = moments[u, v, 1], moments[u, v, 2], moments[u, v, 3], moments[u, v, 4], moments[u, v, 5]
+        if not moments[u, v, 0] > 0:
+            out[u, v] = 0.0
+            continue
+        centre = cos4_mean(my, mx, vy, cv, vx)
+        if not centre > 0:
+            centre = 1.0
+        for r in range(R):
+            ty = my + ry[u, r]
+            for c in range(C):
+                out[u, v, r, c] = cos4_mean(ty, mx + rx[v, c], vy, cv, vx) / centre
