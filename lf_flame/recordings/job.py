@@ -415,8 +415,8 @@ def process_chunk(c: int, job: SequenceJob) -> dict:
     -------
     dict with ``rows`` (one dict per frame and plane: frame, time_s, plane, depth_mm,
     :meth:`FlameMeasurement.summary` fields, failure; on ``reconstruct-*`` routes ``n_saturated``, the frame's
-    pixels left out of the fit, and ``clipped_share``, its clipped pixels' share of the lit ones) and the seconds spent reading (or
-    rendering), refocusing and measuring.
+    pixels left out of the fit, and ``clipped_share``, its clipped pixels' share of the lit ones) and the seconds
+    spent reading (or rendering), refocusing and measuring.
 
     Raises
     ------
