@@ -32,6 +32,27 @@ def data(op, e, rev):
     return views * scale, e * scale
 
 
+@pytest.mark.parametrize("precision", ["float64", "float32"])
+def test_the_normal_matrices_multiply_each_frequency(op, precision):
+    """``NormalMatrices.apply``'s kernel against NumPy: ``G(f) xs(f)`` at every frequency of the canvas, to the
+    operator's precision."""
+    import scipy.fft
+
+    from lf_flame.tomo.revolve import NormalMatrices
+    o = op if precision == "float64" else ExactOperator(op.camera, op.depths_mm, precision="float32")
+    nm = NormalMatrices(o)
+    assert not np.iscomplexobj(nm.G)                                # a perfect grid's matrices are real
+    P = o.dims[0]
+    x = np.zeros((P,) + o.canvas_shape, np.float64 if precision == "float64" else np.float32)
+    x[:, :o.dims[1], :o.dims[2]] = np.random.default_rng(1).random(o.dims)
+    xs = scipy.fft.rfft2(x)
+    want = np.einsum("fik,kf->if", nm.G.astype(np.float64), xs.reshape(P, -1).astype(np.complex128))
+    got = nm.apply(xs)
+    assert got.shape == xs.shape and got.dtype == xs.dtype
+    err = np.linalg.norm(got.reshape(P, -1) - want) / np.linalg.norm(want)
+    assert err < (1e-12 if precision == "float64" else 1e-6), err
+
+
 def test_revolve_is_linear_and_its_adjoint_exact(op):
     rev = RevolveOperator(op, *AXIS, R_MAX)
     assert rev.dims == (41, len(rev.radii_mm)) and rev.dimsd == op.dims

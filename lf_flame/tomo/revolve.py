@@ -169,11 +169,13 @@ class NormalMatrices:
         if np.iscomplexobj(self.G):
             flat = np.ascontiguousarray(xs.reshape(P, -1).T).astype(self.G.dtype)
             return np.matmul(self.G, flat[:, :, None])[:, :, 0].T.reshape(xs.shape)
-        # real G (every perfect grid): real and imaginary parts as two columns of one real product
+        # real G (every perfect grid): one threaded pass over the matrices (the spectra gathered per chunk of
+        # frequencies), 1.5x faster than a batched matmul of real and imaginary columns and its transposes
+        from ._revolve_kernels import normal_apply
         cdt = np.complex64 if self.G.dtype == np.float32 else np.complex128
-        flat = np.ascontiguousarray(xs.reshape(P, -1).T, cdt)
-        out = np.matmul(self.G, flat.view(self.G.dtype).reshape(len(flat), P, 2))
-        return np.ascontiguousarray(out.view(cdt).reshape(len(flat), P).T).reshape(xs.shape)
+        out = np.empty(xs.shape, cdt)
+        normal_apply(self.G, np.ascontiguousarray(xs.reshape(P, -1), cdt), out.reshape(P, -1))
+        return out
 
 
 def _difference_operator(rows, n_r):
