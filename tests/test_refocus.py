@@ -131,6 +131,14 @@ def test_fourier_slice_takes_an_even_number_of_views(smooth_views, n):
     assert np.all(rmse < 2e-3), rmse
 
 
+def test_fourier_slice_of_one_view_is_that_view():
+    """One view (an angular grid of M = 2 slots, narrower than the 4-tap kernel, whose taps wrap around it more
+    than once): every slope refocuses to the view itself."""
+    v = np.random.default_rng(0).random((1, 1, 9, 7)).astype(np.float32)
+    for img in FourierSlice(v, 1.0).stack([-1.0, -0.3, 0.0, 0.7]):
+        np.testing.assert_allclose(img, v[0, 0], atol=2e-3)
+
+
 def test_fourier_constant_light_field_stays_constant():
     c = np.full((15, 15, 30, 20), 0.3, np.float32)
     for img in FourierSlice(c, 2.5).stack([0.0, 0.37, -2.5]):

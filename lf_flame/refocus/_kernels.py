@@ -279,16 +279,24 @@ def fourier_slice(spectrum, j_r, w_r, j_c, w_c, out):
     M = spectrum.shape[2]
     # every slope at one spatial frequency in turn: its (M, M) block stays in cache (slope by slope over the
     # whole spectrum, each block was fetched again from memory: 3-4x the time, the same sums)
+    # (the rows' wrapped taps once per spatial row, the columns' by subtraction instead of a modulo: 1.3x)
     for kr in prange(Kr):
+        ju = np.empty((S, W), np.int64)
+        for s in range(S):
+            for a in range(W):
+                ju[s, a] = (j_r[s, kr] + a) % M
         for kc in range(Kc):
             g = spectrum[kr, kc]
             for s in range(S):
-                jr, jc = j_r[s, kr], j_c[s, kc]
+                jc = j_c[s, kc] % M
                 acc = 0j
                 for a in range(W):
-                    ju = (jr + a) % M
+                    g_row = g[ju[s, a]]
                     row = 0j
                     for b in range(W):
-                        row += w_c[s, kc, b] * g[ju, (jc + b) % M]
+                        col = jc + b
+                        while col >= M:                      # (more than once only where M < W)
+                            col -= M
+                        row += w_c[s, kc, b] * g_row[col]
                     acc += w_r[s, kr, a] * row
                 out[s, kr, kc] = acc
