@@ -4,7 +4,7 @@ A sensor clips at one level, and image files do not say which: a 12-bit sensor's
 (clipping at 4095, or at 65520 shifted to the top bits), or a sensor whose full well is reached below its converter's
 top. The commands read such files scaled by their type's range, and took 1.0 (the type's top) for the clipping level,
 so that clipped pixels were fitted as light. Now the level is found where the image's pixels pile up at its largest
-value (:func:`lf_flame.real.decoding.auto_saturation`).
+value (:func:`lf_flame.real.clipping.auto_saturation`).
 
 Two stages, one run:
 
@@ -63,7 +63,7 @@ def counts_file(radiance, gain, top, shift, path) -> float:
 def scene_rows(n_scenes: int, rays: int, tmp: Path) -> tuple:
     from lf_flame.cli._io import _load_raw
     from lf_flame.optics.camera import PAPER_CAMERA as cam
-    from lf_flame.real.decoding import clipped_share
+    from lf_flame.real.clipping import clipped_share
     from lf_flame.real.lightfield import from_raw
     from lf_flame.simulate import tracer
     from lf_flame.simulate.scenes_depth import camera_depth_scene
@@ -120,7 +120,7 @@ def scene_rows(n_scenes: int, rays: int, tmp: Path) -> tuple:
 
 def real_rows() -> list:
     """The level found in napari-lf's captures (light field, radiometry and dark frames), where present."""
-    from lf_flame.real.decoding import auto_saturation
+    from lf_flame.real.clipping import auto_saturation
     from lf_flame.real.images import load_image
     out = []
     for f in sorted(REAL.glob("*/*.tif")):
@@ -138,7 +138,7 @@ def figure(df, path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from lf_flame.real.decoding import CLIPPED_WARN
+    from lf_flame.real.clipping import CLIPPED_WARN
     from lf_flame.measure.figures import save_figure
     fig, axes = plt.subplots(1, 2, figsize=(9.5, 3.6), sharex=True)
     ways = (("no clipping", "below clipping", "k", "s"), ("type's level", "clipped pixels fitted as light", "C1", "^"),
@@ -160,8 +160,7 @@ def figure(df, path) -> None:
 
 def main(argv=None) -> int:
     from lf_flame.config import atomic_write_text, provenance
-    from lf_flame.real.decoding import LIT_SHARE
-    from lf_flame.real.images import PILE_MIN_PIXELS, PILE_RATIO
+    from lf_flame.real.clipping import LIT_SHARE, PILE_MIN_PIXELS, PILE_RATIO
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", type=Path, required=True)
     ap.add_argument("--scenes", type=int, default=6)

@@ -135,8 +135,7 @@ def test_the_clipping_level_is_found_where_the_pixels_pile_up(capture):
     an image that does not clip keeps the type's level, and a few pixels at its top are no pile."""
     from skimage import util
 
-    from lf_flame.real.decoding import auto_saturation
-    from lf_flame.real.images import PILE_MIN_PIXELS, clipping_pile
+    from lf_flame.real.clipping import PILE_MIN_PIXELS, auto_saturation, clipping_pile
     _, raw, _, _ = capture
     gain = 1.6 / raw.max()
     for shift in (0, 4):
@@ -161,7 +160,7 @@ def test_the_clipping_level_is_found_where_the_pixels_pile_up(capture):
 def test_the_two_largest_values_are_counted_in_one_pass(values, dtype):
     """The pile's kernel against NumPy: the largest value and its count, the next value below and its count (-inf
     and 0 where every pixel holds one value)."""
-    from lf_flame.real._image_kernels import top_two
+    from lf_flame.real._clipping_kernels import top_two
     a = np.asarray(values, dtype)
     top, n_top, second, n_second = top_two(a)
     below = a[a < a.max()]
@@ -231,7 +230,7 @@ def test_an_over_exposed_capture_is_named_by_a_warning(cam, capture, tmp_path, c
     import h5py
 
     from lf_flame.cli import main
-    from lf_flame.real.decoding import CLIPPED_WARN
+    from lf_flame.real.clipping import CLIPPED_WARN
     _, raw, _, _ = capture
     for name, img in (("over", np.clip(raw * 1.6 / raw.max(), 0, 1)), ("as rendered", raw)):
         np.savez(tmp_path / "c.npz", raw=img, camera=cam.to_json())
@@ -252,7 +251,7 @@ def test_a_recordings_over_exposed_frames_are_counted_and_named(cam, capture, tm
     import tifffile
 
     from lf_flame.cli import main
-    from lf_flame.real.decoding import CLIPPED_WARN, clipped_share
+    from lf_flame.real.clipping import CLIPPED_WARN, clipped_share
     _, raw, _, _ = capture
     frames = np.stack([raw, np.clip(raw * 1.6 / raw.max(), 0, 1)]).astype(np.float32)
     tifffile.imwrite(tmp_path / "rec.tif", frames, imagej=True, metadata={"finterval": 0.01})
@@ -275,7 +274,7 @@ def test_a_decoded_captures_over_exposure_is_measured_on_its_raw_pixels(tmp_path
     import tifffile
 
     from lf_flame.cli import main
-    from lf_flame.real.decoding import clipped_share
+    from lf_flame.real.clipping import clipped_share
     cam = str(Path(__file__).resolve().parents[1] / "examples" / "own_camera.toml")
     for scene in ("white", "depth"):
         assert main(["simulate", "--camera", cam, "--scene", scene, "--seed", "3", "--rays-per-pixel", "4",
@@ -313,8 +312,7 @@ def test_a_colour_images_clipped_channel_is_found_in_its_gray_image(cam, capture
     import tifffile
 
     from lf_flame.cli import main
-    from lf_flame.real.decoding import auto_saturation
-    from lf_flame.real.images import clipping_pile
+    from lf_flame.real.clipping import auto_saturation, clipping_pile
     from lf_flame.real.images import load_image
     from lf_flame.recordings.sources import _scaled
     _, raw, _, _ = capture

@@ -39,7 +39,8 @@ def cmd_calibrate(a):
 def cmd_decode(a):
     from ..real.calibration import GridCalibration
     from ..real.images import calibration_image, load_image
-    from ..real.decoding import clipped_share, decode_repaired, on_square_grid
+    from ..real.clipping import clipped_share
+    from ..real.decoding import decode_repaired, on_square_grid
     from ..real.views_file import save_views
     cal = GridCalibration.load(a.calibration)
     raw = load_image(a.raw)
@@ -86,11 +87,11 @@ def defects_note(n: int) -> str:
 
 
 def overexposure_warning(share: float, where: str = "") -> float:
-    """Where more than :data:`~lf_flame.real.decoding.CLIPPED_WARN` of a capture's lit pixels are clipped (``share``:
-    :meth:`~lf_flame.real.lightfield.LightField.over_exposure`, :func:`lf_flame.real.decoding.clipped_share`), one
+    """Where more than :data:`~lf_flame.real.clipping.CLIPPED_WARN` of a capture's lit pixels are clipped (``share``:
+    :meth:`~lf_flame.real.lightfield.LightField.over_exposure`, :func:`lf_flame.real.clipping.clipped_share`), one
     warning (stderr): the brightest emission is over-exposed, its planes a lower bound there; ``where`` begins it
     (a recording's frames). Returns ``share``."""
-    from ..real.decoding import CLIPPED_WARN
+    from ..real.clipping import CLIPPED_WARN
     if share > CLIPPED_WARN:
         print(f"warning: {where}{100 * share:.2g} % of the lit pixels are clipped: the brightest emission is "
               "over-exposed and its planes hold only a lower bound there (on the paper camera's scenes 10-27 % "
@@ -123,7 +124,7 @@ def _saturation_level(text, raw):
         if not (np.isfinite(v) and v > 0):
             raise ValueError(f"--saturation must be a positive finite level. Received: {text!r}")
         return v
-    from ..real.decoding import auto_saturation
+    from ..real.clipping import auto_saturation
     try:
         return auto_saturation(raw)
     except ValueError as e:

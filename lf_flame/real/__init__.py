@@ -1,6 +1,7 @@
 """Real cameras: white-image grid calibration and decoding of captures into views.
 
-:mod:`.images` reads and checks white, dark and raw images; :mod:`.calibration` finds the
+:mod:`.images` reads and checks white, dark and raw images, and :mod:`.clipping` finds where a sensor clipped
+in them; :mod:`.calibration` finds the
 lenslet grid (pitch, rotation, offset, layout) from a white
 image (Dansereau et al., CVPR 2013), with the lattice's steps in :mod:`.lattice`; :mod:`.decoding` resamples a capture onto that
 grid into its sub-aperture views, with the samples from clipped pixels, once :mod:`.grid_check` has found
@@ -17,14 +18,16 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["images", "lattice", "calibration", "grid_check", "decoding", "defects", "views_file", "own_camera",
-                "lightfield"],
+    submodules=["images", "clipping", "lattice", "calibration", "grid_check", "decoding", "defects", "views_file",
+                "own_camera", "lightfield"],
     submod_attrs={
-        "images": ["load_image", "to_gray", "clipping_pile", "file_digest", "calibration_image"],
+        "images": ["load_image", "to_gray", "file_digest", "calibration_image"],
+        "clipping": ["PILE_MIN_PIXELS", "PILE_RATIO", "LIT_SHARE", "CLIPPED_WARN", "clipping_pile", "auto_saturation",
+                     "found_level", "clipped_share"],
         "lattice": ["CalibrationError", "lattice_from_autocorrelation", "spot_centres"],
         "calibration": ["CALIBRATION_FORMAT", "CALIBRATION_VERSION", "GridCalibration", "calibrate"],
         "grid_check": ["check_grid"],
-        "decoding": ["view_positions", "interpolation_phases", "hex_to_square", "views_shape", "on_square_grid", "auto_saturation", "found_level", "clipped_share", "max_views", "views_for_pitch", "decode", "decode_colour", "decode_repaired", "sample_offsets", "clipped_samples"],
+        "decoding": ["view_positions", "interpolation_phases", "hex_to_square", "views_shape", "on_square_grid", "max_views", "views_for_pitch", "decode", "decode_colour", "decode_repaired", "sample_offsets", "clipped_samples"],
         "defects": ["DEFECT_MARGIN", "DEFECT_SPREAD", "lenslet_offsets", "grid_offsets", "defective_pixels",
                     "repair_pixels", "capture_defects"],
         "views_file": ["save_views", "load_views", "load_clipped", "load_channels", "load_lattice"],

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .clipping import clipping_pile
+
 
 def load_image(path) -> np.ndarray:
     """Read a white, dark or raw image: .npy, .npz (key ``raw``, else its only array), or any
@@ -43,50 +45,15 @@ def load_image(path) -> np.ndarray:
     return to_gray(a).astype(np.float64)
 
 
-#: A sensor clips at one level, so a clipped image's pixels pile up at its largest value: at least this many
-#: pixels hold exactly that value ...
-PILE_MIN_PIXELS = 8
-#: ... and this many times as many as hold the next value below it (an image that does not clip has few pixels
-#: at its largest value, about as many as at the next).
-PILE_RATIO = 4
-
-
-def clipping_pile(raw: np.ndarray) -> float | None:
-    """The level where a raw image's pixels pile up at its largest value (a sensor clips there), or None.
-
-    Such a pile marks the clipping level whatever the file's type: a 12-bit sensor's counts
-    stored in 16 bits (clipping at 4095, or at 65520 when the counts are shifted to the top
-    bits), a sensor whose full well is reached below its converter's top, an image scaled
-    to [0, 1] by its type's range.
-
-    Parameters
-    ----------
-    raw : ndarray
-        The raw image (any shape), as read.
-
-    Returns
-    -------
-    float or None
-        The image's largest value where at least :data:`PILE_MIN_PIXELS` pixels hold exactly
-        it and :data:`PILE_RATIO` times as many as hold the next value below; None otherwise
-        (no pile, an image of one value, or none above 0).
-    """
-    from ._image_kernels import top_two
-    top, n_top, _, n_next = top_two(np.ravel(np.asarray(raw), order="K"))      # one pass (a view where it can)
-    if n_top < PILE_MIN_PIXELS or top <= 0 or n_next == 0:
-        return None
-    return float(top) if n_top >= PILE_RATIO * n_next else None
-
-
 def to_gray(a: np.ndarray) -> np.ndarray:
     """An image as one gray channel: a colour image (rows, cols, 3 or 4; alpha dropped) averaged over its
     channels, its clipped pixels kept clipped; a gray image as it is.
 
     A colour camera's channels clip apart (a flame's red first), and their mean no longer piles up
     at one value: a pixel whose channel sits at that channel's clipping level
-    (:func:`clipping_pile`) is given the largest of the channels' levels, so
+    (:func:`lf_flame.real.clipping.clipping_pile`) is given the largest of the channels' levels, so
     that the gray image piles up there and the level is found in it
-    (:func:`lf_flame.real.decoding.auto_saturation`).
+    (:func:`lf_flame.real.clipping.auto_saturation`).
 
     Parameters
     ----------

@@ -50,7 +50,7 @@ class LightField:
         Samples not to fit (decoded from clipped or defective pixels). None: none recorded.
     saturation : float or None
         The clipping level in the views' units where no mask says it (a raw image's: found in it,
-        :func:`lf_flame.real.decoding.auto_saturation`; 1.0 for the simulator's); None with a
+        :func:`lf_flame.real.clipping.auto_saturation`; 1.0 for the simulator's); None with a
         mask, or for decoded views.
     white_normalised : bool
         Decoded views divided by the white image: the exact operator's data are the views
@@ -92,7 +92,7 @@ class LightField:
         own: :meth:`fit_mask`). None: none.
     clipped_share : float or None
         A decoded capture's clipped pixels as a share of its lit ones
-        (:func:`lf_flame.real.decoding.clipped_share`, of the raw image at decoding: a decoded sample mixes
+        (:func:`lf_flame.real.clipping.clipped_share`, of the raw image at decoding: a decoded sample mixes
         several pixels); None: a raw image's, read off its views and ``saturation`` (:meth:`over_exposure`).
     """
 
@@ -142,8 +142,8 @@ class LightField:
     def over_exposure(self) -> float:
         """The clipped pixels' share of the lit ones: :attr:`clipped_share` where decoding measured it, else the
         views' (a perfect grid's raw pixels) at or above :attr:`saturation`
-        (:func:`lf_flame.real.decoding.clipped_share`); 0 with neither."""
-        from .decoding import clipped_share
+        (:func:`lf_flame.real.clipping.clipped_share`); 0 with neither."""
+        from .clipping import clipped_share
         if self.clipped_share is not None:
             return float(self.clipped_share)
         return 0.0 if self.decoded else clipped_share(self.views, self.saturation)
@@ -267,7 +267,7 @@ def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation
         Perfect grid (whole pixels per lenslet, square, unrotated); its sensor the image's size.
     saturation : float, "auto" or None
         The sensor's clipping level in the image's units (pixels at or above it are left out of
-        the fit); "auto": found in the image (:func:`lf_flame.real.decoding.auto_saturation`:
+        the fit); "auto": found in the image (:func:`lf_flame.real.clipping.auto_saturation`:
         where its pixels pile up at its largest value, else 1.0 for an image in [0, 1]); None:
         none.
 
@@ -296,7 +296,7 @@ def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation
     n_bad = int(np.count_nonzero(flagged))
     views = raw_to_views(repaired.astype(raw.dtype) if n_bad else raw, n)
     if saturation == "auto":                            # found in the views' own values (float32: their rounding)
-        from .decoding import found_level
+        from .clipping import found_level
         saturation = found_level(views)
     return LightField(views, camera, source, saturation=saturation, camera_file=camera_file, meta=dict(meta or {}),
                       defective_pixels=n_bad, defects=raw_to_views(flagged, n) > 0.5 if n_bad else None)
@@ -516,7 +516,8 @@ def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None, sensor=N
     ``n_views`` is given); a colour ``sensor``'s capture one pixel per sample, its channels apart
     (:func:`lf_flame.real.decoding.decode_colour`)."""
     from .images import calibration_image
-    from .decoding import clipped_share, decode_repaired, found_level, on_square_grid
+    from .clipping import clipped_share, found_level
+    from .decoding import decode_repaired, on_square_grid
     white, dark = calibration_image(cal.white, "white"), calibration_image(cal.dark, "dark")
     level = found_level(raw)
     lattice, channels, k, hit, bad = decode_repaired(raw, cal, white, dark, sensor, level, n_views=n_views,

@@ -76,7 +76,7 @@ class SequenceJob:
         the raw frames' units, the samples decoded from pixels at or above it,
         :func:`lf_flame.real.decoding.clipped_samples`); they are left out of the fit (their count
         per frame: ``n_saturated``). "auto": found in each frame
-        (:func:`lf_flame.real.decoding.auto_saturation`: where its pixels pile up at its largest
+        (:func:`lf_flame.real.clipping.auto_saturation`: where its pixels pile up at its largest
         value, a frame that does not clip having no pile). None: every pixel is fitted.
     operator_rays : int or None
         ``reconstruct-*`` routes: rays per pixel of a traced emission operator (>= 1); None:
@@ -264,13 +264,13 @@ class SequenceJob:
         """The clipping level of one frame (its raw image or views): ``saturation``, found in the frame where "auto"."""
         if self.saturation != "auto":
             return self.saturation
-        from ..real.decoding import found_level
+        from ..real.clipping import found_level
         return found_level(image)
 
     def clipped_share(self, raw: np.ndarray) -> float:
         """One raw frame's clipped pixels' share of its lit ones, at the frame's level (:meth:`_level`;
-        :func:`lf_flame.real.decoding.clipped_share`)."""
-        from ..real.decoding import clipped_share
+        :func:`lf_flame.real.clipping.clipped_share`)."""
+        from ..real.clipping import clipped_share
         return clipped_share(raw, self._level(raw))
 
     def _defect_map(self, raw, offsets, dark=None) -> np.ndarray:

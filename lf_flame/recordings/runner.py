@@ -97,7 +97,7 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
         the plane's mean; also ``n_failed`` in peaks.csv); on ``reconstruct-*`` routes
         ``n_saturated``, the frames with saturated pixels left out of the fit and the most
         in one frame, and ``over_exposed``, the frames whose clipped pixels are more than
-        :data:`~lf_flame.real.decoding.CLIPPED_WARN` of the lit ones and the largest share
+        :data:`~lf_flame.real.clipping.CLIPPED_WARN` of the lit ones and the largest share
         (per frame: frames.csv).
 
     Raises
@@ -179,7 +179,7 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
                    busy_s=busy, failed_frames={int(k): int(v) for k, v in failed.items()},
                    provenance=provenance())
     if "n_saturated" in frames:
-        from ..real.decoding import CLIPPED_WARN
+        from ..real.clipping import CLIPPED_WARN
         per_frame = frames.groupby("frame")[["n_saturated", "clipped_share"]].first()
         summary["n_saturated"] = dict(frames=int((per_frame.n_saturated > 0).sum()),
                                       max_per_frame=int(per_frame.n_saturated.max()))

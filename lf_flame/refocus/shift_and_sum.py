@@ -231,11 +231,9 @@ class FourierSlice:
         roll = self._kernel_ft(off)
         idx = np.rint(off).astype(int) % M  # view offset u' at index u' mod M
         weight = (mask / (roll[:, None] * roll[None, :])).astype(np.float32)
-        x = np.zeros((n, n, self.R2, self.C2), np.float32)
-        x[:, :, :R, :C] = views * weight[:, :, None, None]
-        # the views' spatial spectra, placed on the M x M angular grid (the other M^2 - N^2 slots are 0) with the
-        # angular axes last, then their angular DFT along those contiguous axes
-        spec = scipy.fft.rfftn(x, axes=(2, 3), workers=-1)
+        # the views' spatial spectra (zero-padded to the canvas), placed on the M x M angular grid (the other
+        # M^2 - N^2 slots are 0) with the angular axes last, then their angular DFT along those contiguous axes
+        spec = scipy.fft.rfftn(views * weight[:, :, None, None], s=(self.R2, self.C2), axes=(2, 3), workers=-1)
         grid = np.zeros((self.R2, spec.shape[3], M, M), np.complex64)
         grid[:, :, idx[:, None], idx[None, :]] = spec.transpose(2, 3, 0, 1)
         self.spectrum = scipy.fft.fftn(grid, axes=(2, 3), workers=-1, overwrite_x=True)

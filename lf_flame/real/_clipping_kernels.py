@@ -1,5 +1,5 @@
-"""Numba kernel of :mod:`lf_flame.real.images`: an image's two largest values and how many pixels hold each, in
-one pass (:func:`lf_flame.real.images.clipping_pile`, once per frame of a recording). Arrays only; the caller
+"""Numba kernel of :mod:`lf_flame.real.clipping`: an image's two largest values and how many pixels hold each, in
+one pass (:func:`lf_flame.real.clipping.clipping_pile`, once per frame of a recording). Arrays only; the caller
 gives a flat array."""
 import numpy as np
 from numba import njit
