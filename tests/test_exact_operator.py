@@ -140,6 +140,36 @@ def test_float32_is_float64_to_its_packed_spectra(camera):
     assert abs(np.dot(op32.matvec(x), y) - np.dot(x, op32.rmatvec(y))) < 1e-6 * np.dot(op64.matvec(x), y)
 
 
+@pytest.mark.parametrize("depths, subsamples, precision", [
+    (PAPER_DEPTHS, 1, "float64"), (OTHER_DEPTHS, 1, "float32"), ((35.0,), 1, "float64"), ((15.0, -5.0), 2, "float32")],
+    ids=["paper", "others-float32", "one-far", "finer-float32"])
+def test_the_taps_apply_the_map_the_spectra_give(camera, depths, subsamples, precision, monkeypatch):
+    """H and H^H on the canvas by direct sums over the taps (the kernels' rows padded to fours, tap origins of
+    both signs, planes far from focus whose taps wrap around the canvas) are the spectra's circular correlation:
+    to float64 rounding with complex128 spectra, to their 16-bit fixed point in float32; the adjoint of a window
+    smaller than the canvas is that of the window zero-padded."""
+    import lf_flame.tomo.exact as exact_module
+    op = ExactOperator(camera, depths, subsamples=subsamples, precision=precision)
+    rng = np.random.default_rng(5)
+    x = rng.standard_normal((op.phase_dims[0],) + op.canvas_shape).astype(op._real)
+    z = rng.standard_normal((len(op._lit),) + op.canvas_shape).astype(op._real)
+    R, C = op.view_dims[2:]
+    window = z[:, :R, :C].copy()
+    padded = np.zeros_like(z)
+    padded[:, :R, :C] = window
+    got = {}
+    for route, limit in (("taps", np.inf), ("fft", -1)):
+        monkeypatch.setattr(exact_module, "TAPS_FORWARD_MAX", limit)
+        monkeypatch.setattr(exact_module, "TAPS_ADJOINT_MAX", limit)
+        got[route] = (op.forward_canvas(x), op.adjoint_canvas(z), op.adjoint_canvas(window), op.adjoint_canvas(padded),
+                      np.fft.irfft2(op.adjoint_spectrum(z), s=op.canvas_shape))
+    tol = 1e-12 if precision == "float64" else 3e-5
+    for a, b in zip(got["taps"], got["fft"]):
+        assert np.abs(a - b).max() < tol * np.abs(b).max()
+    assert np.abs(got["taps"][2] - got["taps"][3]).max() < tol * np.abs(got["taps"][3]).max()
+    assert got["taps"][0].dtype == got["taps"][1].dtype == op._real
+
+
 def test_the_solvers_take_it(camera):
     """FISTA on the exact operator recovers a planted emission from its own data (no inverse
     crime intended: this checks only that the solvers accept the operator unchanged)."""

@@ -93,29 +93,29 @@ def test_the_packed_spectra_are_the_complex_ones_to_16_bits(op):
 
 
 def test_the_data_gather_and_the_fill_are_the_array_formulas():
-    """gather_data and fill (branch-free kernels) against NumPy: the lit views, weights, mask and y / w
-    (0 where a weight is 0 or the pixel is left out), and the fill's residual and written views."""
+    """gather_data and fill (branch-free kernels) against NumPy: y / w and w^2 on the lit views where fitted
+    and seen (0 where a weight is 0 or the pixel is left out), and the fill's residual and written views."""
     rng = np.random.default_rng(3)
     views = rng.random((9, 6, 5))
     fit = rng.random(views.shape) < 0.8
     w_all = (0.9 + 0.2 * rng.random(views.shape)).astype(np.float32)
     w_all[:, 0] = 0                                                  # a row no pixel sees
     lit = np.array([1, 4, 7])
-    y, yt, w, m = (np.empty((3, 6, 5), t) for t in (np.float64, np.float32, np.float32, bool))
+    yt, w2 = (np.empty((3, 6, 5), np.float32) for _ in range(2))
     with np.errstate(all="raise"):
-        sq = K.gather_data(views, fit, w_all, lit, y, yt, w, m)
+        sq = K.gather_data(views, fit, w_all, lit, yt, w2)
     want_m = fit[lit] & (w_all[lit] > 0)
-    np.testing.assert_array_equal(y, views[lit])
-    np.testing.assert_array_equal(w, w_all[lit])
-    np.testing.assert_array_equal(m, want_m)
-    np.testing.assert_allclose(yt, np.where(want_m, views[lit] / np.where(want_m, w_all[lit], 1), 0), rtol=1e-6)
+    w = w_all[lit].astype(np.float64)
+    np.testing.assert_allclose(w2, np.where(want_m, w ** 2, 0), rtol=1e-6)
+    np.testing.assert_array_equal(w2 > 0, want_m)
+    np.testing.assert_allclose(yt, np.where(want_m, views[lit] / np.where(want_m, w, 1), 0), rtol=1e-6)
     assert np.isclose(sq, np.sum(np.where(want_m, views[lit], 0) ** 2), rtol=1e-12)
     z = rng.random((3, 8, 7)).astype(np.float32)
     old = z.copy()
-    res = K.fill(z, yt, y, w, m)
-    d = np.where(m, w * old[:, :6, :5] - y, 0)
-    assert np.isclose(res, np.sum(d ** 2), rtol=1e-6)
-    np.testing.assert_array_equal(z[:, :6, :5], np.where(m, yt, old[:, :6, :5]))
+    res = K.fill(z, yt, w2)
+    d = np.where(want_m, w * old[:, :6, :5] - views[lit], 0)
+    assert np.isclose(res, np.sum(d ** 2), rtol=1e-5)
+    np.testing.assert_array_equal(z[:, :6, :5], np.where(want_m, yt, old[:, :6, :5]))
     np.testing.assert_array_equal(z[:, 6:], old[:, 6:])
     np.testing.assert_array_equal(z[:, :, 5:], old[:, :, 5:])
 

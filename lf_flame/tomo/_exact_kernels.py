@@ -1,4 +1,5 @@
-"""Numba kernels of :mod:`lf_flame.tomo.exact`: the exact operator's kernels by quadrature.
+"""Numba kernels of :mod:`lf_flame.tomo.exact`: the exact operator's kernels by quadrature, and the map applied by
+its taps.
 
 Deterministic quadrature of the tracer's ray chain over a pixel (``du``: closed-form area
 and centroid of a rectangle on the main lens inside the aperture disc) and a lenslet
@@ -260,3 +261,104 @@ def cos4_weights(moments, ry, rx, out):
             ty = my + ry[u, r]
             for c in range(C):
                 out[u, v, r, c] = cos4_mean(ty, mx + rx[v, c], vy, cv, vx) / centre
+
+
+# ---- the map applied by its taps (small kernels: no FFT) ----------------------------------
+# Four output rows at a time from the seven input rows that four tap rows reach: each pass over a row's columns
+# loads seven input rows and four accumulators for sixteen products; unsigned column counters, so that Numba
+# emits no negative-index wrap and the column loops vectorise.
+@njit(parallel=True, cache=True, fastmath=True)
+def taps_forward(h, oy, ox, x, out):
+    """``out[v, r, c] = sum_{p, ty, tx} h[v, p, ty, tx] x[p, (r + oy[v, p] + ty) % Lr, (c + ox[v, p] + tx) % Lc]``:
+    the planes ``x`` (P, Lr, Lc) to the views ``out`` (V, Lr, Lc) on the canvas, as the operator's spectra give
+    them by FFT (a circular correlation with each view's taps at their origins). ``h`` (V, P, Ty, Tx) with ``Ty`` a
+    multiple of 4 (zero rows padded), ``oy`` and ``ox`` (V, P) int64. Threads over views and blocks of rows."""
+    V, P, Ty, Tx = h.shape
+    Lr, Lc = x.shape[1], x.shape[2]
+    xe = np.empty((P, Lr, 2 * Lc), x.dtype)                      # each row twice: a shifted row is one slice
+    for p in range(P):
+        for r in range(Lr):
+            for j in range(2 * Lc):
+                xe[p, r, j] = x[p, r, j % Lc]
+    n = np.uint64(Lc)
+    blocks = (Lr + 3) // 4
+    for vb in prange(V * blocks):
+        v = vb // blocks
+        r = (vb - v * blocks) * 4
+        acc = np.zeros((4, Lc), x.dtype)
+        q0, q1, q2, q3 = acc[0], acc[1], acc[2], acc[3]
+        for p in range(P):
+            for t in range(0, Ty, 4):
+                b = r + oy[v, p] + t
+                x0, x1, x2, x3 = xe[p, b % Lr], xe[p, (b + 1) % Lr], xe[p, (b + 2) % Lr], xe[p, (b + 3) % Lr]
+                x4, x5, x6 = xe[p, (b + 4) % Lr], xe[p, (b + 5) % Lr], xe[p, (b + 6) % Lr]
+                for tx in range(Tx):
+                    a0, a1, a2, a3 = h[v, p, t, tx], h[v, p, t + 1, tx], h[v, p, t + 2, tx], h[v, p, t + 3, tx]
+                    if a0 == 0 and a1 == 0 and a2 == 0 and a3 == 0:
+                        continue
+                    c0 = (ox[v, p] + tx) % Lc
+                    s0, s1, s2, s3, s4, s5, s6 = x0[c0:], x1[c0:], x2[c0:], x3[c0:], x4[c0:], x5[c0:], x6[c0:]
+                    for c in range(n):
+                        e0, e1, e2, e3, e4, e5, e6 = s0[c], s1[c], s2[c], s3[c], s4[c], s5[c], s6[c]
+                        q0[c] += a0 * e0 + a1 * e1 + a2 * e2 + a3 * e3
+                        q1[c] += a0 * e1 + a1 * e2 + a2 * e3 + a3 * e4
+                        q2[c] += a0 * e2 + a1 * e3 + a2 * e4 + a3 * e5
+                        q3[c] += a0 * e3 + a1 * e4 + a2 * e5 + a3 * e6
+        for k in range(min(4, Lr - r)):
+            for c in range(n):
+                out[v, r + k, c] = acc[k, c]
+
+
+@njit(parallel=True, cache=True, fastmath=True)
+def taps_adjoint(h, oy, ox, z, out, n_threads):
+    """The transpose of :func:`taps_forward`: the views ``z`` (V, Rz, Cz) to the planes ``out`` (P, Lr, Lc),
+    ``out[p, r, c] = sum_{v, ty, tx} h[v, p, ty, tx] z[v, (r - oy[v, p] - ty) % Lr, (c - ox[v, p] - tx) % Lc]``,
+    ``z`` read as 0 beyond its ``Rz <= Lr`` rows and ``Cz <= Lc`` columns (a window of the canvas).
+    Each of ``n_threads`` threads sums its share of the views into planes of its own (each view read once, the
+    planes in cache), each row twice as long so that a shifted row is one slice; the halves and the threads' planes
+    are added at the end."""
+    V, P, Ty, Tx = h.shape
+    Lr, Lc = out.shape[1], out.shape[2]
+    Rz = z.shape[1]
+    n = np.uint64(z.shape[2])
+    zero = np.zeros(z.shape[2], z.dtype)
+    part = np.zeros((n_threads, P, (Lr + 3) // 4 * 4, 2 * Lc), z.dtype)
+    for t_id in prange(n_threads):
+        acc = part[t_id]
+        for v in range(t_id * V // n_threads, (t_id + 1) * V // n_threads):
+            for p in range(P):
+                for r in range(0, Lr, 4):
+                    q0, q1, q2, q3 = acc[p, r], acc[p, r + 1], acc[p, r + 2], acc[p, r + 3]
+                    for t in range(0, Ty, 4):
+                        # output row r + j, tap row t + k reads input row b + j - k: rows b - 3 .. b + 3
+                        b = r - oy[v, p] - t
+                        k0, k1, k2, k3 = (b - 3) % Lr, (b - 2) % Lr, (b - 1) % Lr, b % Lr
+                        k4, k5, k6 = (b + 1) % Lr, (b + 2) % Lr, (b + 3) % Lr
+                        z0 = z[v, k0] if k0 < Rz else zero
+                        z1 = z[v, k1] if k1 < Rz else zero
+                        z2 = z[v, k2] if k2 < Rz else zero
+                        z3 = z[v, k3] if k3 < Rz else zero
+                        z4 = z[v, k4] if k4 < Rz else zero
+                        z5 = z[v, k5] if k5 < Rz else zero
+                        z6 = z[v, k6] if k6 < Rz else zero
+                        for tx in range(Tx):
+                            a0, a1, a2, a3 = h[v, p, t, tx], h[v, p, t + 1, tx], h[v, p, t + 2, tx], h[v, p, t + 3, tx]
+                            if a0 == 0 and a1 == 0 and a2 == 0 and a3 == 0:
+                                continue
+                            o = (ox[v, p] + tx) % Lc
+                            d0, d1, d2, d3 = q0[o:], q1[o:], q2[o:], q3[o:]
+                            for c in range(n):
+                                e0, e1, e2, e3, e4, e5, e6 = z0[c], z1[c], z2[c], z3[c], z4[c], z5[c], z6[c]
+                                d0[c] += a0 * e3 + a1 * e2 + a2 * e1 + a3 * e0
+                                d1[c] += a0 * e4 + a1 * e3 + a2 * e2 + a3 * e1
+                                d2[c] += a0 * e5 + a1 * e4 + a2 * e3 + a3 * e2
+                                d3[c] += a0 * e6 + a1 * e5 + a2 * e4 + a3 * e3
+    for pr in prange(P * Lr):
+        p = pr // Lr
+        r = pr - p * Lr
+        o = out[p, r]
+        for c in range(np.uint64(Lc)):
+            s = part[0, p, r, c] + part[0, p, r, c + Lc]
+            for t_id in range(1, n_threads):
+                s += part[t_id, p, r, c] + part[t_id, p, r, c + Lc]
+            o[c] = s

@@ -209,7 +209,7 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
         normal = model.__dict__.get("_axisymmetric_normal") or NormalMatrices(model)
         model.__dict__["_axisymmetric_normal"] = normal
     lit = model._lit
-    y, yt, w, m, _ = fill_data(v, f, model)
+    yt, w2, norm = fill_data(v, f, model)
 
     lit_cols = np.flatnonzero(lit_profile(v))
     cut = len(lit_cols) and (lit_cols[0] == 0 or lit_cols[-1] == v.shape[3] - 1)
@@ -237,7 +237,7 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
 
         def trial(z0):
             rev = revolve_at(z0)
-            e, res = fit_emission(model, normal, yt, y, w, m, lit, rev, lam, search_fills, search_inner,
+            e, res = fit_emission(model, normal, yt, w2, norm, lit, rev, lam, search_fills, search_inner,
                                    resized_emission(warm.get("e"), rev.dims) if beyond_field else None)
             search.append((float(z0), float(res)))
             if res < warm.get("residual", np.inf):
@@ -255,7 +255,7 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
                                         method="bounded", options=dict(xatol=search_tol_mm))
         axis_z_mm = float(best.x)
     rev = revolve_at(float(axis_z_mm))
-    e, res = fit_emission(model, normal, yt, y, w, m, lit, rev, lam, fills, inner,
+    e, res = fit_emission(model, normal, yt, w2, norm, lit, rev, lam, fills, inner,
                            resized_emission(warm.get("e"), rev.dims) if beyond_field else None)
     (_, gr, gc), (_, wr, wc) = op.dims, model.dims
     volume = (rev.matrix @ e).reshape(model.dims)[:, (wr - gr) // 2:(wr + gr) // 2, (wc - gc) // 2:(wc + gc) // 2]

@@ -1,4 +1,4 @@
-"""The camera's exact linear map, emission on planes -> views, as convolutions applied by FFT.
+"""The camera's exact linear map, emission on planes -> views, as convolutions applied by FFT or by their taps.
 
 :class:`~lf_flame.tomo.operator.EmissionOperator` is the renderer with a few fixed random
 rays per pixel: a Monte-Carlo estimate of the camera. :class:`ExactOperator` is the map
@@ -18,6 +18,9 @@ the largest kernel offset (no wrap-around reaches the views), SciPy's real 2-D F
 batched over planes and views, the per-frequency sum over planes (``A``) or views
 (``A^T``, the conjugate kernels), and the inverse FFT cropped to the lenslet grid. The
 adjoint is the exact transpose: the same kernels conjugated, padding and cropping swapped.
+Where each view holds few taps (:data:`TAPS_FORWARD_MAX`, :data:`TAPS_ADJOINT_MAX`: planes near focus on the lenslet
+grid) the same circular correlation on the canvas is summed over the taps directly (Numba,
+``_exact_kernels.taps_forward`` and ``taps_adjoint``), which costs less than the views' FFTs there.
 
 Precision: ``precision="float64"`` (the default) keeps the kernels' spectra complex128 and
 the FFTs in float64: ``pylops.utils.dottest`` holds to 1e-12 and A^T is A's transpose to
@@ -41,7 +44,7 @@ import scipy.fft
 
 from ..optics.camera import PlenopticCamera
 from ..simulate.scenes import FLAME_EFFECTS, Effects
-from . import _fourier_kernels
+from . import _exact_kernels, _fourier_kernels
 from .operator import normalised_adjoint
 from .quadrature import QUADRATURE_NODES, ExactKernels, exact_kernels
 
@@ -56,6 +59,16 @@ OFFSET_BINS = 3
 #: its flames 6.4 -> 10.1 % and 4.0 -> 6.9 % (emission p90 8.8 -> 10.0 %); at 0.05 and 0.03 every figure was the
 #: 3 sub-views'.
 OFFSET_TOLERANCE = 0.05
+#: :class:`ExactOperator` applies ``H`` (:meth:`ExactOperator.forward_canvas`) and ``H^H``
+#: (:meth:`ExactOperator.adjoint_canvas`) on the canvas by direct sums over its taps instead of by FFT where its lit
+#: views hold at most this many taps each (:attr:`ExactOperator.taps_per_view`). The taps' time grows with their count,
+#: the FFTs' with the views and planes; measured on this project's 2-core machine (a ``/tmp`` probe of the paper
+#: camera's operators on the lenslet and the 2 x 2 grid, 2 to 8 planes, one and two threads), the taps' time over the
+#: FFT's: ``H`` 0.21-0.26 at 17.6 taps a view, 0.48-0.54 at 44.6 (the paper's four planes on the lenslet grid),
+#: 0.65-0.79 at 57.4, 0.91-0.98 at 106-111, 1.1-1.6 at 147-180; ``H^H`` 0.48-0.52, 0.74-0.76, 0.98-1.02, 1.3-1.4 and
+#: 1.6-2.3 at the same operators (its sums read and write planes that stay in the cache less well).
+TAPS_FORWARD_MAX = 80
+TAPS_ADJOINT_MAX = 48
 
 
 # ---- the operator ----------------------------------------------------------------------------
@@ -314,22 +327,94 @@ class ExactOperator(pylops.LinearOperator):
             a = v
         return a.reshape((-1,) + tuple(self.view_dims[2:]))
 
+    @property
+    def taps_per_view(self) -> float:
+        """Taps per lit view that :meth:`forward_canvas` and :meth:`adjoint_canvas` sum where they apply the map by
+        its taps (their rows in groups of four, a group counted whole where any of its taps is not zero, over the
+        phase planes), the measure of :data:`TAPS_FORWARD_MAX` and :data:`TAPS_ADJOINT_MAX`."""
+        return self._taps()[3]
+
+    def _taps(self):
+        """The lit views' taps ``(V', P s^2, Ty', Tx)`` in the operator's precision, their rows zero-padded to a
+        multiple of four, their origins ``(V', P s^2)`` along rows and columns (int64) and :attr:`taps_per_view`;
+        built once."""
+        kept = self.__dict__.get("_taps_kept")
+        if kept is None:
+            u, v = np.divmod(np.asarray(self._lit, np.int64), self.kernels.shape[0])
+            h = self.kernels[u, v]
+            ty = h.shape[2]
+            padded = np.zeros(h.shape[:2] + (-(-ty // 4) * 4, h.shape[3]), self._real)
+            padded[:, :, :ty] = h
+            V, P, Ty, Tx = padded.shape
+            per_view = float((padded.reshape(V, P, Ty // 4, 4, Tx) != 0).any(axis=3).sum()) * 4 / max(V, 1)
+            kept = self.__dict__["_taps_kept"] = (padded, np.ascontiguousarray(self.tap_origin_y[u], np.int64),
+                                                  np.ascontiguousarray(self.tap_origin_x[v], np.int64), per_view)
+        return kept
+
+    def forward_canvas(self, planes) -> np.ndarray:
+        """``H`` on the canvas, without the crop and the cos^4 weights: phase planes to the lit views.
+
+        The circular correlation of each plane with each view's taps on the canvas, summed over the planes: by
+        direct sums over the taps where they are at most :data:`TAPS_FORWARD_MAX` a view
+        (``_exact_kernels.taps_forward``, threads of Numba), else by the planes' FFT, the per-frequency products
+        with the spectra and the views' inverse FFT (``workers`` threads). Both give the same views to the
+        spectra's precision (float32: their 16-bit fixed point, 1-2e-5 of the largest).
+
+        Parameters
+        ----------
+        planes : ndarray of shape (P s^2, Lr, Lc)
+            Real, on the canvas (``canvas_shape``); read in the operator's precision.
+
+        Returns
+        -------
+        ndarray of shape (V', Lr, Lc), in the operator's precision
+            The lit views (``_lit``) on the canvas.
+        """
+        x = np.ascontiguousarray(planes, self._real)
+        if self.taps_per_view <= TAPS_FORWARD_MAX:
+            h, oy, ox, _ = self._taps()
+            out = np.empty((len(self._lit),) + x.shape[1:], self._real)
+            _exact_kernels.taps_forward(h, oy, ox, x, out)
+            return out
+        return scipy.fft.irfft2(_fourier_kernels.spectra_forward(self._spec, scipy.fft.rfft2(x, workers=self.workers)),
+                                s=self.canvas_shape, workers=self.workers)
+
+    def adjoint_canvas(self, views) -> np.ndarray:
+        """``H^H`` on the canvas, the transpose of :meth:`forward_canvas`: the lit views ``(V', Lr, Lc)``, or their
+        window ``(V', R, C)`` (the rest of the canvas 0), read in the operator's precision, to the phase planes
+        ``(P s^2, Lr, Lc)``, in the operator's precision. By the taps where they are at most :data:`TAPS_ADJOINT_MAX`
+        a view, else by the views' FFT, the products with the conjugate spectra and the planes' inverse FFT."""
+        import numba
+        z = np.ascontiguousarray(views, self._real)
+        if self.taps_per_view <= TAPS_ADJOINT_MAX:
+            h, oy, ox, _ = self._taps()
+            out = np.empty((h.shape[1],) + tuple(self.canvas_shape), self._real)
+            _exact_kernels.taps_adjoint(h, oy, ox, z, out, numba.get_num_threads())
+            return out
+        return scipy.fft.irfft2(self.adjoint_spectrum(z), s=self.canvas_shape, workers=self.workers)
+
+    def adjoint_spectrum(self, views) -> np.ndarray:
+        """The spectrum ``(P s^2, Lr, Lc // 2 + 1)`` of :meth:`adjoint_canvas` (what the per-frequency solves take):
+        the products of the views' FFT with the conjugate spectra, or the FFT of the sums over the taps."""
+        if self.taps_per_view <= TAPS_ADJOINT_MAX:
+            return scipy.fft.rfft2(self.adjoint_canvas(views), workers=self.workers)
+        z = np.ascontiguousarray(views, self._real)
+        return _fourier_kernels.spectra_adjoint(self._spec, scipy.fft.rfft2(z, s=self.canvas_shape, workers=self.workers))
+
     def _matvec(self, x):
         N, _, R, C = self.view_dims
-        s = self.canvas_shape
-        xs = scipy.fft.rfft2(self.to_phases(x).astype(self._real, copy=False), s=s, workers=self.workers)
-        ys = _fourier_kernels.spectra_forward(self._spec, xs)
+        planes = np.zeros((self.phase_dims[0],) + tuple(self.canvas_shape), self._real)
+        planes[:, :self.phase_dims[1], :self.phase_dims[2]] = self.to_phases(x)
         y = np.zeros((N * N, R, C), self._real)
-        y[self._lit] = scipy.fft.irfft2(ys, s=s, workers=self.workers)[:, :R, :C]
+        y[self._lit] = self.forward_canvas(planes)[:, :R, :C]
         return self.to_samples(y * self._w).astype(np.float64, copy=False).ravel()
 
     def _rmatvec(self, y):
         P, gr, gc = self.phase_dims
-        s = self.canvas_shape
         yw = self.from_samples(np.reshape(y, self.dimsd))[self._lit].astype(self._real, copy=False) * self._w[self._lit]
-        xs = _fourier_kernels.spectra_adjoint(self._spec, scipy.fft.rfft2(yw, s=s, workers=self.workers))
-        x = scipy.fft.irfft2(xs, s=s, workers=self.workers)[:, :gr, :gc]
-        return self.from_phases(x).astype(np.float64, copy=False).ravel()
+        z = np.zeros((len(self._lit),) + tuple(self.canvas_shape), self._real)
+        z[:, :yw.shape[1], :yw.shape[2]] = yw
+        return self.from_phases(self.adjoint_canvas(z)[:, :gr, :gc]).astype(np.float64, copy=False).ravel()
 
     def normalised_adjoint(self, views) -> np.ndarray:
         """``A^T y / A^T 1``: each sample's weighted mean over the pixels that see it, a refocused stack.

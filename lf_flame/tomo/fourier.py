@@ -85,26 +85,24 @@ def fill_data(views, fit, op):
 
     Returns
     -------
-    y : ndarray of shape (V', R, C), float64
-        The views with light (``op._lit``).
     yt : ndarray of shape (V', R, C), in the operator's precision
-        ``y / w`` (the cos^4 drift divided out) where fitted, 0 elsewhere.
-    w : ndarray of shape (V', R, C)
-        The per-pixel weights.
-    m : ndarray of bool of shape (V', R, C)
-        Fitted and seen (``w > 0``).
+        The views with light (``op._lit``) divided by their weights (the cos^4 drift) where fitted and seen
+        (weight above 0), 0 elsewhere.
+    w2 : ndarray of shape (V', R, C), in the operator's precision
+        The weights squared there, 0 elsewhere: the fit's weights (``(w z - y)^2 = w^2 (z - y / w)^2``) and
+        its mask (``w2 > 0``).
     norm : float
-        ``||M y||``.
+        The norm of the fitted and seen samples of the views.
     """
     R, C = op.dimsd[2:]
     V = len(op._lit)
-    y, yt, w, m = (np.empty((V, R, C), t) for t in (np.float64, op._real, op._w.dtype, bool))
+    yt, w2 = (np.empty((V, R, C), op._real) for _ in range(2))
     views = np.asarray(views)
     views = views if views.dtype == np.float32 else np.asarray(views, np.float64)
     sq = _fourier_kernels.gather_data(np.ascontiguousarray(op.from_samples(views)),
                                       np.ascontiguousarray(op.from_samples(np.asarray(fit, bool), False)), op._w,
-                                      np.asarray(op._lit, np.int64), y, yt, w, m)
-    return y, yt, w, m, math.sqrt(sq)
+                                      np.asarray(op._lit, np.int64), yt, w2)
+    return yt, w2, math.sqrt(sq)
 
 
 @contextlib.contextmanager
@@ -266,27 +264,26 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         system_s += coarse_s + cs
     if support is not None:
         support = op.to_phases(support)
-    y, yt, w, m, norm = fill_data(views, fit, op)
+    yt, w2, norm = fill_data(views, fit, op)
     norm = norm or 1.0
-    S = system.spec
-    z = np.zeros((len(system.lit),) + canvas, op._real)
+    z = None if cont else np.zeros((len(system.lit),) + canvas, op._real)
     s = np.zeros((P,) + canvas, op._real)
     lam_max = None
     if start == "refocused" or (start == "coarse" and l1 > 0):   # H^H (M y~): the start's numerator, l1's scale
-        _fourier_kernels.fill(z, yt, y, w, m)
-        num = _backproject(op, z)
+        _fourier_kernels.fill(z, yt, w2)
+        num = op.adjoint_canvas(z)[:, :gr, :gc]
         lam_max = float(num.max())
     if start == "refocused":   # the normalised back-projection, scaled to the data: the first fill predicts from it
-        den = backprojection_weight(op, m)
+        den = backprojection_weight(op, w2 > 0)
         s[:, :gr, :gc] = np.where(den > 0, np.maximum(num, 0) / np.where(den > 0, den, 1), 0)
     elif start == "coarse":
         s[:, :gr, :gc] = np.repeat(xc, sub ** 2, axis=0)           # phase k s^2 + a s + b of plane k
     if start != "zero":
         if support is not None:
             s[:, :gr, :gc] *= support
-        z = _forward_views(op, s)
+        z = op.forward_canvas(s)
     if start == "refocused":
-        a = _least_squares_scale(z, yt, m)
+        a = _least_squares_scale(z, yt, w2 > 0)
         s *= a
         z *= a
     s_prev, d, r = s, np.zeros_like(s), np.empty_like(s)
@@ -301,19 +298,19 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     residuals, best, s_best, restarted = [], math.inf, s, False
     for j in range(1, int(fills) + 1):
         if j > 1:   # predict from the extrapolated planes (heavy-ball momentum on the fills), data where measured
-            z = _forward_views(op, s + momentum * (s - s_prev))
-        residual = _fourier_kernels.fill(z, yt, y, w, m)
+            z = op.forward_canvas(s + momentum * (s - s_prev))
+        residual = _fourier_kernels.fill(z, yt, w2)
         if j > 1 or (cont and scored):
             if not restarted and math.sqrt(residual) / norm > ADMM_DIVERGENCE * best:
                 # the fills diverge (momentum on inexact ADMM steps): restart from the planes of the best fill so
                 # far, without momentum and with ADMM_RESTART_INNER times the ADMM steps per fill
                 restarted, momentum, inner, s = True, 0.0, ADMM_RESTART_INNER * int(inner), s_best
-                z = _forward_views(op, s)
-                residual = _fourier_kernels.fill(z, yt, y, w, m)
+                z = op.forward_canvas(s)
+                residual = _fourier_kernels.fill(z, yt, w2)
             residuals.append(math.sqrt(residual) / norm)
             if residuals[-1] < best:
                 best, s_best = residuals[-1], s
-        b = _fourier_kernels.spectra_adjoint(S, scipy.fft.rfft2(z, workers=op.workers))   # H^H z, (P, Lr, F)
+        b = op.adjoint_spectrum(z)                                   # H^H z, (P, Lr, F)
         if j == 1:   # the l1 step from H^H y (without a start the first fill's z is the data)
             if l1 > 0 and lam_max is None:
                 lam_max = float(scipy.fft.irfft2(b, s=canvas, workers=op.workers)[:, :gr, :gc].max())
@@ -335,7 +332,7 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
     if state is not None:   # the next frame's missing data: the last fill's prediction, or the next fill's
         fresh = j == 1
         state.update(s=s, d=d, tv=(gy, gx, ey, ex), lam_max=lam_max, z_predicts=fresh,
-                     z=_forward_views(op, s + momentum * (s - s_prev)).astype(op._real, copy=False) if fresh else z)
+                     z=op.forward_canvas(s + momentum * (s - s_prev)).astype(op._real, copy=False) if fresh else z)
     return op.from_phases(s[:, :gr, :gc]).astype(np.float64), residuals, system_s
 
 
@@ -372,7 +369,7 @@ def backprojection_weight(op, m) -> np.ndarray:
     ----------
     op : ExactOperator
     m : ndarray of bool of shape (V', R, C)
-        The fitted pixels of the lit views (:func:`fill_data`).
+        The fitted pixels of the lit views (:func:`fill_data`'s ``w2 > 0``).
 
     Returns
     -------
@@ -381,9 +378,8 @@ def backprojection_weight(op, m) -> np.ndarray:
     key = hashlib.blake2b(np.packbits(m).tobytes(), digest_size=16).digest() + bytes(str(m.shape), "ascii")
     kept = op.__dict__.get("_backprojection_weight")
     if kept is None or kept[0] != key:
-        ones = np.zeros((len(op._lit),) + tuple(op.canvas_shape), op._real)
-        ones[:, :m.shape[1], :m.shape[2]] = m
-        den = _backproject(op, ones)
+        _, gr, gc = op.phase_dims
+        den = op.adjoint_canvas(m)[:, :gr, :gc]
         kept = op.__dict__["_backprojection_weight"] = (key, np.where(den > 1e-6 * den.max(), den, 0).astype(op._real))
     return kept[1]
 
@@ -420,30 +416,16 @@ def wiener_start(views, op, fit=None, *, lam: float = ADMM_LAM, rho: float = WIE
         op, _ = coarse_operator(op)
     if fit is None:
         fit = np.ones(np.shape(views), bool)
-    _, yt, _, m, _ = fill_data(views, fit, op)
+    yt, w2, _ = fill_data(views, fit, op)
     _, gr, gc = op.phase_dims
     canvas = np.zeros((len(op._lit),) + tuple(op.canvas_shape), op._real)
     canvas[:, :yt.shape[1], :yt.shape[2]] = yt
-    rhs = _fourier_kernels.spectra_adjoint(op._spec, scipy.fft.rfft2(canvas, workers=op.workers))
+    rhs = op.adjoint_spectrum(canvas)
     wiener = scipy.fft.irfft2(fourier_system(op, lam, rho).solve(rhs), s=op.canvas_shape, workers=op.workers)
     back = scipy.fft.irfft2(rhs, s=op.canvas_shape, workers=op.workers)[:, :gr, :gc]
-    den = backprojection_weight(op, m)
+    den = backprojection_weight(op, w2 > 0)
     refocused = np.divide(back, den, out=np.zeros_like(back), where=den > 0)
     return np.ascontiguousarray(wiener[:, :gr, :gc]), refocused
-
-
-def _forward_views(op, planes) -> np.ndarray:
-    """``H planes`` on the canvas: phase planes (P s^2, Lr, Lc) to the lit views (V', Lr, Lc)."""
-    return scipy.fft.irfft2(_fourier_kernels.spectra_forward(op._spec, scipy.fft.rfft2(planes, workers=op.workers)),
-                            s=op.canvas_shape, workers=op.workers)
-
-
-def _backproject(op, views) -> np.ndarray:
-    """``H^H views`` on the lenslet grid: the lit views on the canvas (V', Lr, Lc) to the phase planes
-    (P s^2, rows, cols)."""
-    _, gr, gc = op.phase_dims
-    return scipy.fft.irfft2(_fourier_kernels.spectra_adjoint(op._spec, scipy.fft.rfft2(views, workers=op.workers)),
-                            s=op.canvas_shape, workers=op.workers)[:, :gr, :gc]
 
 
 def _least_squares_scale(z, yt, m) -> float:

@@ -196,7 +196,7 @@ def resized_emission(e, dims):
     return out.ravel()
 
 
-def fit_emission(op, normal, yt, y, w, m, lit, revolve, lam, fills, inner, e0=None):
+def fit_emission(op, normal, yt, w2, norm, lit, revolve, lam, fills, inner, e0=None):
     """An axisymmetric emission ``e`` for one axis: projected FISTA between fills of the missing data.
 
     Minimises ``1/2 ||M (w H R e - y)||^2 + lam_abs/2 ||D e||^2`` over ``e >= 0`` (module docstring), the
@@ -208,7 +208,7 @@ def fit_emission(op, normal, yt, y, w, m, lit, revolve, lam, fills, inner, e0=No
         The planes ``revolve`` maps onto.
     normal : NormalMatrices
         ``op``'s per-frequency normal matrices.
-    yt, y, w, m, lit
+    yt, w2, norm, lit
         The data as :func:`lf_flame.tomo.fourier.fill_data` returns them, and ``op``'s lit views.
     revolve : RevolveOperator
     lam : float
@@ -229,7 +229,7 @@ def fit_emission(op, normal, yt, y, w, m, lit, revolve, lam, fills, inner, e0=No
     S = op._spec
     real = np.float32 if S.dtype == np.complex64 else np.float64
     D = _difference_operator(*revolve.dims)
-    norm = float(np.linalg.norm(np.where(m, y, 0.0))) or 1.0
+    norm = norm or 1.0
 
     def planes(e):
         x = np.zeros((P,) + canvas, real)
@@ -258,7 +258,7 @@ def fit_emission(op, normal, yt, y, w, m, lit, revolve, lam, fills, inner, e0=No
         if j > 0 or e0 is not None:                                  # predict the missing data from e
             hv = _fourier_kernels.spectra_forward(S, scipy.fft.rfft2(planes(e), workers=op.workers))
             z = scipy.fft.irfft2(hv, s=canvas, workers=op.workers)
-        res2 = _fourier_kernels.fill(z, yt, y, w, m)
+        res2 = _fourier_kernels.fill(z, yt, w2)
         if j > 0 or e0 is not None:
             residual = math.sqrt(res2) / norm
         if j == int(fills):
