@@ -170,6 +170,7 @@ def profile(repeats: int) -> list:
     import fourier_solver as F
     import reconstruct as R
     from lf_flame.optics.camera import PAPER_CAMERA as cam
+    from lf_flame.tomo import _exact_kernels as EK
     from lf_flame.tomo import _fourier_kernels as K
     from lf_flame.tomo.exact import ExactOperator
     from lf_flame.tomo.fourier_system import FourierSystem
@@ -182,6 +183,7 @@ def profile(repeats: int) -> list:
     fft = lambda args: "FFTs of the views (batched)" if np.shape(args[0])[0] in n_views else "FFTs of the planes"
     patched = [clock.wrap(scipy.fft, "rfft2", fft), clock.wrap(scipy.fft, "irfft2", fft)]
     patched += [clock.wrap(K, n, "spectra products (H, H^H)") for n in ("spectra_forward", "spectra_adjoint")]
+    patched += [clock.wrap(EK, n, "sums over the taps (H, H^H)") for n in ("taps_forward", "taps_adjoint")]
     patched += [clock.wrap(K, n, "data gather and fills") for n in ("gather_data", "fill")]
     patched += [clock.wrap(K, n, "ADMM steps (target, projection, TV)") for n in ("admm_target", "admm_project",
                                                                                   "tv_shrink")]

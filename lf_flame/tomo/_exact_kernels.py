@@ -311,17 +311,14 @@ def taps_forward(h, oy, ox, x, out):
 
 @njit(parallel=True, cache=True, fastmath=True)
 def taps_adjoint(h, oy, ox, z, out, n_threads):
-    """The transpose of :func:`taps_forward`: the views ``z`` (V, Rz, Cz) to the planes ``out`` (P, Lr, Lc),
-    ``out[p, r, c] = sum_{v, ty, tx} h[v, p, ty, tx] z[v, (r - oy[v, p] - ty) % Lr, (c - ox[v, p] - tx) % Lc]``,
-    ``z`` read as 0 beyond its ``Rz <= Lr`` rows and ``Cz <= Lc`` columns (a window of the canvas).
+    """The transpose of :func:`taps_forward`: the views ``z`` (V, Lr, Lc) to the planes ``out`` (P, Lr, Lc) on the
+    canvas, ``out[p, r, c] = sum_{v, ty, tx} h[v, p, ty, tx] z[v, (r - oy[v, p] - ty) % Lr, (c - ox[v, p] - tx) % Lc]``.
     Each of ``n_threads`` threads sums its share of the views into planes of its own (each view read once, the
     planes in cache), each row twice as long so that a shifted row is one slice; the halves and the threads' planes
     are added at the end."""
     V, P, Ty, Tx = h.shape
     Lr, Lc = out.shape[1], out.shape[2]
-    Rz = z.shape[1]
-    n = np.uint64(z.shape[2])
-    zero = np.zeros(z.shape[2], z.dtype)
+    n = np.uint64(Lc)
     part = np.zeros((n_threads, P, (Lr + 3) // 4 * 4, 2 * Lc), z.dtype)
     for t_id in prange(n_threads):
         acc = part[t_id]
@@ -332,15 +329,8 @@ def taps_adjoint(h, oy, ox, z, out, n_threads):
                     for t in range(0, Ty, 4):
                         # output row r + j, tap row t + k reads input row b + j - k: rows b - 3 .. b + 3
                         b = r - oy[v, p] - t
-                        k0, k1, k2, k3 = (b - 3) % Lr, (b - 2) % Lr, (b - 1) % Lr, b % Lr
-                        k4, k5, k6 = (b + 1) % Lr, (b + 2) % Lr, (b + 3) % Lr
-                        z0 = z[v, k0] if k0 < Rz else zero
-                        z1 = z[v, k1] if k1 < Rz else zero
-                        z2 = z[v, k2] if k2 < Rz else zero
-                        z3 = z[v, k3] if k3 < Rz else zero
-                        z4 = z[v, k4] if k4 < Rz else zero
-                        z5 = z[v, k5] if k5 < Rz else zero
-                        z6 = z[v, k6] if k6 < Rz else zero
+                        z0, z1, z2, z3 = z[v, (b - 3) % Lr], z[v, (b - 2) % Lr], z[v, (b - 1) % Lr], z[v, b % Lr]
+                        z4, z5, z6 = z[v, (b + 1) % Lr], z[v, (b + 2) % Lr], z[v, (b + 3) % Lr]
                         for tx in range(Tx):
                             a0, a1, a2, a3 = h[v, p, t, tx], h[v, p, t + 1, tx], h[v, p, t + 2, tx], h[v, p, t + 3, tx]
                             if a0 == 0 and a1 == 0 and a2 == 0 and a3 == 0:
@@ -357,7 +347,7 @@ def taps_adjoint(h, oy, ox, z, out, n_threads):
         p = pr // Lr
         r = pr - p * Lr
         o = out[p, r]
-        for c in range(np.uint64(Lc)):
+        for c in range(n):
             s = part[0, p, r, c] + part[0, p, r, c + Lc]
             for t_id in range(1, n_threads):
                 s += part[t_id, p, r, c] + part[t_id, p, r, c + Lc]

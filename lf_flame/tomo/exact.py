@@ -64,11 +64,12 @@ OFFSET_TOLERANCE = 0.05
 #: views hold at most this many taps each (:attr:`ExactOperator.taps_per_view`). The taps' time grows with their count,
 #: the FFTs' with the views and planes; measured on this project's 2-core machine (a ``/tmp`` probe of the paper
 #: camera's operators on the lenslet and the 2 x 2 grid, 2 to 8 planes, one and two threads), the taps' time over the
-#: FFT's: ``H`` 0.21-0.26 at 17.6 taps a view, 0.48-0.54 at 44.6 (the paper's four planes on the lenslet grid),
-#: 0.65-0.79 at 57.4, 0.91-0.98 at 106-111, 1.1-1.6 at 147-180; ``H^H`` 0.48-0.52, 0.74-0.76, 0.98-1.02, 1.3-1.4 and
-#: 1.6-2.3 at the same operators (its sums read and write planes that stay in the cache less well).
+#: FFT route's: ``H`` 0.22-0.26 at 17.6 taps a view, 0.50-0.54 at 44.6 (the paper's four planes on the lenslet grid),
+#: 0.62-0.64 at 57.4 (the paper's depths of the recordings), 0.82-0.95 at 106-111, 1.2-2.0 at 147-180; ``H^H`` 0.29-0.31,
+#: 0.61-0.65, 0.77-0.81, 1.1-1.4 and 1.5-2.6 at the same operators (the FFT route's adjoint spares the views' inverse
+#: FFT: a forward FFT of the views is the cheaper of the two).
 TAPS_FORWARD_MAX = 80
-TAPS_ADJOINT_MAX = 48
+TAPS_ADJOINT_MAX = 64
 
 
 # ---- the operator ----------------------------------------------------------------------------
@@ -380,14 +381,17 @@ class ExactOperator(pylops.LinearOperator):
                                 s=self.canvas_shape, workers=self.workers)
 
     def adjoint_canvas(self, views) -> np.ndarray:
-        """``H^H`` on the canvas, the transpose of :meth:`forward_canvas`: the lit views ``(V', Lr, Lc)``, or their
-        window ``(V', R, C)`` (the rest of the canvas 0), read in the operator's precision, to the phase planes
+        """``H^H`` on the canvas, the transpose of :meth:`forward_canvas`: the lit views ``(V', Lr, Lc)``, or a window
+        ``(V', R', C')`` of them from the canvas's first row and column (the rest 0), read in the operator's
+        precision, to the phase planes
         ``(P s^2, Lr, Lc)``, in the operator's precision. By the taps where they are at most :data:`TAPS_ADJOINT_MAX`
         a view, else by the views' FFT, the products with the conjugate spectra and the planes' inverse FFT."""
         import numba
         z = np.ascontiguousarray(views, self._real)
         if self.taps_per_view <= TAPS_ADJOINT_MAX:
             h, oy, ox, _ = self._taps()
+            if z.shape[1:] != tuple(self.canvas_shape):
+                z = np.pad(z, ((0, 0), (0, self.canvas_shape[0] - z.shape[1]), (0, self.canvas_shape[1] - z.shape[2])))
             out = np.empty((h.shape[1],) + tuple(self.canvas_shape), self._real)
             _exact_kernels.taps_adjoint(h, oy, ox, z, out, numba.get_num_threads())
             return out
