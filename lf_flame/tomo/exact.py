@@ -70,6 +70,12 @@ OFFSET_TOLERANCE = 0.05
 #: FFT: a forward FFT of the views is the cheaper of the two).
 TAPS_FORWARD_MAX = 80
 TAPS_ADJOINT_MAX = 64
+#: ... and where the canvas is at least this many columns wide (the length of the taps' vectorised loops): on
+#: narrower canvases the loops' ends and the taps' bookkeeping outweigh the products, and the FFTs of small views run
+#: in cache. The paper's four planes on cameras of fewer lenslets (the same probe, one thread), the taps' time over
+#: the FFT route's: canvas 36 x 27 ``H`` 1.46 and ``H^H`` 1.92, 60 x 45 1.62 and 2.05, 108 x 60 0.63 and 0.97,
+#: 192 x 108 0.47 and 0.69 (decoded cameras of 10-48 px lenslet images ran their admm 1.2-2.1x slower by the taps).
+TAPS_MIN_COLUMNS = 64
 
 
 # ---- the operator ----------------------------------------------------------------------------
@@ -328,6 +334,11 @@ class ExactOperator(pylops.LinearOperator):
             a = v
         return a.reshape((-1,) + tuple(self.view_dims[2:]))
 
+    def _by_taps(self, limit) -> bool:
+        """Whether to sum over the taps rather than go through the FFT: at most ``limit`` taps a view on a canvas
+        at least :data:`TAPS_MIN_COLUMNS` wide."""
+        return self.canvas_shape[1] >= TAPS_MIN_COLUMNS and self.taps_per_view <= limit
+
     @property
     def taps_per_view(self) -> float:
         """Taps per lit view that :meth:`forward_canvas` and :meth:`adjoint_canvas` sum where they apply the map by
@@ -356,10 +367,10 @@ class ExactOperator(pylops.LinearOperator):
         """``H`` on the canvas, without the crop and the cos^4 weights: phase planes to the lit views.
 
         The circular correlation of each plane with each view's taps on the canvas, summed over the planes: by
-        direct sums over the taps where they are at most :data:`TAPS_FORWARD_MAX` a view
-        (``_exact_kernels.taps_forward``, threads of Numba), else by the planes' FFT, the per-frequency products
-        with the spectra and the views' inverse FFT (``workers`` threads). Both give the same views to the
-        spectra's precision (float32: their 16-bit fixed point, 1-2e-5 of the largest).
+        direct sums over the taps where they are at most :data:`TAPS_FORWARD_MAX` a view on a canvas at least
+        :data:`TAPS_MIN_COLUMNS` wide (``_exact_kernels.taps_forward``, threads of Numba), else by the planes' FFT,
+        the per-frequency products with the spectra and the views' inverse FFT (``workers`` threads). Both give the
+        same views to the spectra's precision (float32: their 16-bit fixed point, 1-2e-5 of the largest).
 
         Parameters
         ----------
@@ -372,7 +383,7 @@ class ExactOperator(pylops.LinearOperator):
             The lit views (``_lit``) on the canvas.
         """
         x = np.ascontiguousarray(planes, self._real)
-        if self.taps_per_view <= TAPS_FORWARD_MAX:
+        if self._by_taps(TAPS_FORWARD_MAX):
             h, oy, ox, _ = self._taps()
             out = np.empty((len(self._lit),) + x.shape[1:], self._real)
             _exact_kernels.taps_forward(h, oy, ox, x, out)
@@ -383,12 +394,12 @@ class ExactOperator(pylops.LinearOperator):
     def adjoint_canvas(self, views) -> np.ndarray:
         """``H^H`` on the canvas, the transpose of :meth:`forward_canvas`: the lit views ``(V', Lr, Lc)``, or a window
         ``(V', R', C')`` of them from the canvas's first row and column (the rest 0), read in the operator's
-        precision, to the phase planes
-        ``(P s^2, Lr, Lc)``, in the operator's precision. By the taps where they are at most :data:`TAPS_ADJOINT_MAX`
-        a view, else by the views' FFT, the products with the conjugate spectra and the planes' inverse FFT."""
+        precision, to the phase planes ``(P s^2, Lr, Lc)``, in the operator's precision. By the taps where they are
+        at most :data:`TAPS_ADJOINT_MAX` a view on a canvas at least :data:`TAPS_MIN_COLUMNS` wide, else by the
+        views' FFT, the products with the conjugate spectra and the planes' inverse FFT."""
         import numba
         z = np.ascontiguousarray(views, self._real)
-        if self.taps_per_view <= TAPS_ADJOINT_MAX:
+        if self._by_taps(TAPS_ADJOINT_MAX):
             h, oy, ox, _ = self._taps()
             if z.shape[1:] != tuple(self.canvas_shape):
                 z = np.pad(z, ((0, 0), (0, self.canvas_shape[0] - z.shape[1]), (0, self.canvas_shape[1] - z.shape[2])))
@@ -400,7 +411,7 @@ class ExactOperator(pylops.LinearOperator):
     def adjoint_spectrum(self, views) -> np.ndarray:
         """The spectrum ``(P s^2, Lr, Lc // 2 + 1)`` of :meth:`adjoint_canvas` (what the per-frequency solves take):
         the products of the views' FFT with the conjugate spectra, or the FFT of the sums over the taps."""
-        if self.taps_per_view <= TAPS_ADJOINT_MAX:
+        if self._by_taps(TAPS_ADJOINT_MAX):
             return scipy.fft.rfft2(self.adjoint_canvas(views), workers=self.workers)
         z = np.ascontiguousarray(views, self._real)
         return _fourier_kernels.spectra_adjoint(self._spec, scipy.fft.rfft2(z, s=self.canvas_shape, workers=self.workers))
