@@ -409,8 +409,9 @@ class ExactOperator(pylops.LinearOperator):
         return scipy.fft.irfft2(self.adjoint_spectrum(z), s=self.canvas_shape, workers=self.workers)
 
     def adjoint_spectrum(self, views) -> np.ndarray:
-        """The spectrum ``(P s^2, Lr, Lc // 2 + 1)`` of :meth:`adjoint_canvas` (what the per-frequency solves take):
-        the products of the views' FFT with the conjugate spectra, or the FFT of the sums over the taps."""
+        """The spectrum ``(P s^2, Lr, Lc // 2 + 1)`` of :meth:`adjoint_canvas` of the same views (what the
+        per-frequency solves take): the products of the views' FFT with the conjugate spectra, or the FFT of the sums
+        over the taps."""
         if self._by_taps(TAPS_ADJOINT_MAX):
             return scipy.fft.rfft2(self.adjoint_canvas(views), workers=self.workers)
         z = np.ascontiguousarray(views, self._real)
@@ -427,9 +428,7 @@ class ExactOperator(pylops.LinearOperator):
     def _rmatvec(self, y):
         P, gr, gc = self.phase_dims
         yw = self.from_samples(np.reshape(y, self.dimsd))[self._lit].astype(self._real, copy=False) * self._w[self._lit]
-        z = np.zeros((len(self._lit),) + tuple(self.canvas_shape), self._real)
-        z[:, :yw.shape[1], :yw.shape[2]] = yw
-        return self.from_phases(self.adjoint_canvas(z)[:, :gr, :gc]).astype(np.float64, copy=False).ravel()
+        return self.from_phases(self.adjoint_canvas(yw)[:, :gr, :gc]).astype(np.float64, copy=False).ravel()
 
     def normalised_adjoint(self, views) -> np.ndarray:
         """``A^T y / A^T 1``: each sample's weighted mean over the pixels that see it, a refocused stack.

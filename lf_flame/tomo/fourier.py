@@ -418,9 +418,7 @@ def wiener_start(views, op, fit=None, *, lam: float = ADMM_LAM, rho: float = WIE
         fit = np.ones(np.shape(views), bool)
     yt, w2, _ = fill_data(views, fit, op)
     _, gr, gc = op.phase_dims
-    canvas = np.zeros((len(op._lit),) + tuple(op.canvas_shape), op._real)
-    canvas[:, :yt.shape[1], :yt.shape[2]] = yt
-    rhs = op.adjoint_spectrum(canvas)
+    rhs = op.adjoint_spectrum(yt)                                    # the window, zero-padded to the canvas
     wiener = scipy.fft.irfft2(fourier_system(op, lam, rho).solve(rhs), s=op.canvas_shape, workers=op.workers)
     back = scipy.fft.irfft2(rhs, s=op.canvas_shape, workers=op.workers)[:, :gr, :gc]
     den = backprojection_weight(op, w2 > 0)
