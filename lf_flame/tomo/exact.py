@@ -38,6 +38,7 @@ import os
 import time
 from concurrent.futures import ThreadPoolExecutor
 
+import numba
 import numpy as np
 import pylops
 import scipy.fft
@@ -397,24 +398,32 @@ class ExactOperator(pylops.LinearOperator):
         precision, to the phase planes ``(P s^2, Lr, Lc)``, in the operator's precision. By the taps where they are
         at most :data:`TAPS_ADJOINT_MAX` a view on a canvas at least :data:`TAPS_MIN_COLUMNS` wide, else by the
         views' FFT, the products with the conjugate spectra and the planes' inverse FFT."""
-        import numba
         z = np.ascontiguousarray(views, self._real)
         if self._by_taps(TAPS_ADJOINT_MAX):
-            h, oy, ox, _ = self._taps()
-            if z.shape[1:] != tuple(self.canvas_shape):
-                z = np.pad(z, ((0, 0), (0, self.canvas_shape[0] - z.shape[1]), (0, self.canvas_shape[1] - z.shape[2])))
-            out = np.empty((h.shape[1],) + tuple(self.canvas_shape), self._real)
-            _exact_kernels.taps_adjoint(h, oy, ox, z, out, numba.get_num_threads())
-            return out
-        return scipy.fft.irfft2(self.adjoint_spectrum(z), s=self.canvas_shape, workers=self.workers)
+            return self._adjoint_by_taps(z)
+        return scipy.fft.irfft2(self._adjoint_by_spectra(z), s=self.canvas_shape, workers=self.workers)
 
     def adjoint_spectrum(self, views) -> np.ndarray:
         """The spectrum ``(P s^2, Lr, Lc // 2 + 1)`` of :meth:`adjoint_canvas` of the same views (what the
         per-frequency solves take): the products of the views' FFT with the conjugate spectra, or the FFT of the sums
         over the taps."""
-        if self._by_taps(TAPS_ADJOINT_MAX):
-            return scipy.fft.rfft2(self.adjoint_canvas(views), workers=self.workers)
         z = np.ascontiguousarray(views, self._real)
+        if self._by_taps(TAPS_ADJOINT_MAX):
+            return scipy.fft.rfft2(self._adjoint_by_taps(z), workers=self.workers)
+        return self._adjoint_by_spectra(z)
+
+    def _adjoint_by_taps(self, z) -> np.ndarray:
+        """``H^H`` of the views ``z`` (the canvas or a window of it, the operator's precision) summed over the taps."""
+        h, oy, ox, _ = self._taps()
+        if z.shape[1:] != tuple(self.canvas_shape):
+            z = np.pad(z, ((0, 0), (0, self.canvas_shape[0] - z.shape[1]), (0, self.canvas_shape[1] - z.shape[2])))
+        out = np.empty((h.shape[1],) + tuple(self.canvas_shape), self._real)
+        _exact_kernels.taps_adjoint(h, oy, ox, z, out, numba.get_num_threads())
+        return out
+
+    def _adjoint_by_spectra(self, z) -> np.ndarray:
+        """The spectrum of ``H^H`` of the views ``z`` (the canvas or a window of it, zero-padded): their FFT times the
+        conjugate spectra, summed over the views."""
         return _fourier_kernels.spectra_adjoint(self._spec, scipy.fft.rfft2(z, s=self.canvas_shape, workers=self.workers))
 
     def _matvec(self, x):
