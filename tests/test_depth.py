@@ -663,3 +663,21 @@ def test_a_uniform_bright_field_holds_no_depth(cam):
     views = np.broadcast_to(aperture_mask(n, "circular")[:, :, None, None], (n, n, cam.n_rows, cam.n_cols))
     found = find_depths(views.astype(np.float32), cam)
     assert len(found.depths_mm) == 0, found.depths_mm
+
+
+def test_the_peak_finder_is_scipys():
+    """find_peaks gives scipy.signal.find_peaks' peaks (plateaus, ties, ends, distance, height)."""
+    from scipy.signal import find_peaks as scipy_find_peaks
+
+    from lf_flame.tomo.depth import find_peaks
+    rng = np.random.default_rng(0)
+    plateaus = 0
+    for trial in range(400):
+        n = int(rng.integers(3, 60))
+        # few levels: ties between peaks and flat tops are common; smooth curves as the votes' histograms
+        x = rng.integers(0, 4, n).astype(float) if trial % 2 else np.round(rng.random(n) * 8) / 8
+        distance, height = float(rng.choice([1, 1.5, 2, 3, 7])), float(rng.choice([0.0, 0.5, 1.0, 2.0]))
+        plateaus += int(np.any((x[1:-2] == x[2:-1]) & (x[1:-2] > 0)))
+        want = scipy_find_peaks(x, distance=distance, height=height)[0]
+        np.testing.assert_array_equal(find_peaks(x, distance, height), want, err_msg=f"{x}, {distance}, {height}")
+    assert plateaus > 100

@@ -66,7 +66,7 @@ class ShareSolver:
     """The share and sum steps on one colour light field (module docstring)."""
 
     def __init__(self, views, chan, op):
-        self.op, self.y = op, views.ravel()
+        self.op, self.y = pylops.aslinearoperator(op), views.ravel()      # composed with PyLops's operators
         ok = views < 1
         self.m = [((chan == c) & ok).ravel() for c in (0, 1)]
         self.M = [pylops.Diagonal(m.astype(float)) for m in self.m]

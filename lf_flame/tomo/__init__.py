@@ -1,13 +1,13 @@
 """Tomography: each plane's emission, not its blurred focal stack.
 
 Flames are optically thin, so a light field is a linear function of the emission on
-the planes. :mod:`.operator` is that camera map as a PyLops operator (the simulator's
+the planes. :mod:`.operator` is that camera map as a linear operator (the simulator's
 tracer with fixed rays, recorded once, kernels in :mod:`._kernels`); :mod:`.exact` the
 same map without Monte-Carlo noise (per-view convolutions applied by FFT, with kernels by deterministic
 quadrature in :mod:`.quadrature`, its loops in :mod:`._exact_kernels`); :mod:`.lattice` that map for decoded
 views (decoding's interpolation, a hexagonal lenslet lattice solved on itself); :mod:`.resolution` the
 camera's depth-resolution map from that map's per-frequency normal matrices; :mod:`.solvers`
-recovers the emission with PyLops/PyProximal solvers, and :mod:`.fourier` on the exact
+recovers the emission (the PyLops/PyProximal solvers in :mod:`.proximal`), and :mod:`.fourier` on the exact
 operator's per-frequency normal matrices (ADMM; kernels in :mod:`._fourier_kernels`);
 :mod:`.depth` finds the depths that hold emission (depth from focus per region),
 :mod:`.found_planes` solves on them, :mod:`.peel` searches that solve's residual for depths the votes missed and
@@ -28,7 +28,7 @@ import lazy_loader as lazy
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
     submodules=["axis", "axisymmetric", "decoded", "defaults", "depth", "exact", "files", "found_planes", "fourier",
-                "fourier_system", "lattice", "noise_knobs", "operator", "peel", "quadrature", "refine", "resolution",
+                "fourier_system", "lattice", "noise_knobs", "operator", "peel", "proximal", "quadrature", "refine", "resolution",
                 "revolve", "scoring", "solvers", "truth", "volume"],
     submod_attrs={
         "axisymmetric": ["AXI_LAM", "AXI_FILLS", "AXI_INNER", "AxisymmetricVolume", "solve_axisymmetric"],
@@ -52,13 +52,14 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "fourier_system": ["FourierSystem", "fourier_system", "admm_system", "normal_matrices"],
         "noise_knobs": ["relative_noise", "noise_norm", "noise_regime", "admm_knobs", "admm_subsamples"],
         "files": ["save_reconstruction", "load_reconstruction", "load_found", "plot_reconstruction", "reconstruction_figure"],
-        "operator": ["ADJOINT_BLOCKS", "RAY_TABLE_MAX_BYTES", "plane_grid", "EmissionOperator",
+        "operator": ["ADJOINT_BLOCKS", "RAY_TABLE_MAX_BYTES", "plane_grid", "PlanesOperator", "EmissionOperator",
                      "normalised_adjoint", "check_views"],
+        "proximal": ["PD_RESIDUAL_EVERY", "solve_lsqr", "solve_fista", "solve_pd_tv"],
         "resolution": ["FEATURE_SIZES_MM", "CONDITIONS", "AXES", "MAX_PLANES", "DepthResolution", "stack_depths",
                        "kernel_response", "normal_matrix", "pair_conditions", "resolution_from_kernels",
                        "depth_resolution", "plot_depth_resolution"],
         "scoring": ["score_planes", "score_flames"],
-        "solvers": ["SOLVERS", "DEFAULT_ITERS", "DEFAULT_TV", "PD_RESIDUAL_EVERY", "DEFAULT_SOLVER", "EXACT_SOLVER",
+        "solvers": ["SOLVERS", "DEFAULT_ITERS", "DEFAULT_TV", "DEFAULT_SOLVER", "EXACT_SOLVER",
                  "Reconstruction", "lipschitz_bound", "reconstruct", "EDGE_BAND_LENSLETS", "EDGE_SHARE_WARN",
                  "edge_shares", "MISFIT_WARN", "MISFIT_NOISE", "fitted_residual", "data_misfit", "misfit_is_high"],
         "truth": ["resample_layer", "scene_truth", "depth_shares", "truth_depths", "bin_planes"],

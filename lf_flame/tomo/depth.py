@@ -17,7 +17,7 @@ Whole flames are not depth-resolved by the data's normal matrices alone (NOTES.m
    energy, if that energy's contrast over the curve's median is at least ``vote_floor`` of the
    region's (so a dim flame in front of a bright one has as many votes as lenslets it is sharp in).
 3. **Depths per region.** Peaks of the region's vote histogram (several where flames stand
-   one behind another, :func:`scipy.signal.find_peaks`); per peak the energy summed over the
+   one behind another, :func:`find_peaks`, SciPy's); per peak the energy summed over the
    pixels that voted for it, and the slope of its maximum refined by a parabola through the
    log energy at the three grid slopes about it (a Gaussian peak: exact for one). Slope ->
    depth by :meth:`~lf_flame.optics.camera.PlenopticCamera.depth_for_slope`.
@@ -42,7 +42,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import ndimage, signal
+from scipy import ndimage
 from skimage import measure
 
 from ..optics.camera import PlenopticCamera
@@ -207,6 +207,53 @@ def _peak_fit(curve, i):
     return float(i + np.clip(0.5 * (y[0] - y[2]) / den, -0.5, 0.5))
 
 
+def find_peaks(x, distance: float, height: float) -> np.ndarray:
+    """The peaks of a curve at least ``height`` high, the highest kept first where two lie within ``distance``.
+
+    ``scipy.signal.find_peaks(x, distance=distance, height=height)[0]``, by SciPy's own steps
+    (``scipy/signal/_peak_finding_utils.pyx``): every strict local maximum, a plateau at its
+    middle (the left one of two), none at the ends; those at least ``height`` high; then,
+    from the highest down (``np.argsort``'s order), each kept peak removes every other
+    within ``ceil(distance)`` samples. Written here because importing ``scipy.signal``
+    (SciPy 1.17 parses its functions' docstrings on import, and it imports ``scipy.stats``)
+    cost every depth search 0.4-0.7 s on this project's machine, more than the search;
+    ``tests/test_depth.py`` pins it to SciPy's on random curves with ties and plateaus.
+
+    Parameters
+    ----------
+    x : ndarray of shape (n,)
+    distance : float
+        The least distance (samples, >= 1) between two peaks.
+    height : float
+        The least height of a peak.
+
+    Returns
+    -------
+    ndarray of int of shape (k,)
+        The peaks' indices, ascending.
+    """
+    x = np.asarray(x, np.float64)
+    found, i, n = [], 1, len(x)
+    while i < n - 1:
+        if x[i - 1] < x[i]:
+            ahead = i + 1
+            while ahead < n - 1 and x[ahead] == x[i]:
+                ahead += 1
+            if x[ahead] < x[i]:
+                found.append((i + ahead - 1) // 2)
+                i = ahead
+        i += 1
+    peaks = np.asarray(found, np.intp)
+    peaks = peaks[x[peaks] >= height]
+    keep, reach = np.ones(len(peaks), bool), math.ceil(distance)
+    for j in np.argsort(x[peaks])[::-1]:
+        if keep[j]:
+            gone = np.abs(peaks - peaks[j]) < reach
+            gone[j] = False
+            keep &= ~gone
+    return peaks[keep]
+
+
 def _local_max(curve, i, reach):
     """Index of the curve's largest value within ``reach`` steps of ``i``."""
     a, b = max(0, i - reach), min(len(curve), i + reach + 1)
@@ -325,8 +372,7 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
         sure = reg & (contrast >= vote_floor * np.percentile(contrast[reg], 99))
         hist = np.bincount(best[sure], minlength=len(slopes)).astype(np.float64)
         hist = ndimage.gaussian_filter1d(hist, 1.0, mode="constant")
-        peaks, _ = signal.find_peaks(np.concatenate([[0.0], hist, [0.0]]), distance=sep_bins,
-                                     height=peak_fraction * hist.max())
+        peaks = find_peaks(np.concatenate([[0.0], hist, [0.0]]), sep_bins, peak_fraction * hist.max())
         peaks = peaks - 1
         total = hist.sum()
         if not len(peaks):

@@ -40,13 +40,12 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numba
 import numpy as np
-import pylops
 import scipy.fft
 
 from ..optics.camera import PlenopticCamera
 from ..simulate.scenes import FLAME_EFFECTS, Effects
 from . import _exact_kernels, _fourier_kernels
-from .operator import normalised_adjoint
+from .operator import PlanesOperator, normalised_adjoint
 from .quadrature import QUADRATURE_NODES, ExactKernels, exact_kernels
 
 PRECISIONS = ("float64", "float32")
@@ -80,7 +79,7 @@ TAPS_MIN_COLUMNS = 64
 
 
 # ---- the operator ----------------------------------------------------------------------------
-class ExactOperator(pylops.LinearOperator):
+class ExactOperator(PlanesOperator):
     """The light field as a linear map of the emission on ``P`` planes, exact (no ray sampling).
 
     The map :class:`~lf_flame.tomo.operator.EmissionOperator` estimates with random rays,
@@ -246,7 +245,7 @@ class ExactOperator(pylops.LinearOperator):
         self.subsamples, self.phase_dims = sub, (P, gr, gc)
         self.view_dims = (N, N, R, C)
         n = camera.pixels_per_lenslet
-        super().__init__(dtype=np.float64, dims=ek.dims, dimsd=(n, n, R, C))
+        super().__init__(ek.dims, (n, n, R, C))
         self.setup_s = time.perf_counter() - t_start
 
     #: What :meth:`binned` copies as it is (a subclass adds its own).
@@ -289,7 +288,7 @@ class ExactOperator(pylops.LinearOperator):
         new._spec = self._spec.binned(s2) if isinstance(self._spec, _fourier_kernels.PackedSpectra) else \
             self._spec.reshape((len(self._lit), P, s2) + self._spec.shape[2:]).sum(axis=2)
         new.subsamples, new.phase_dims = 1, (P, gr, gc)
-        pylops.LinearOperator.__init__(new, dtype=np.float64, dims=(P, gr, gc), dimsd=self.dimsd)
+        PlanesOperator.__init__(new, (P, gr, gc), self.dimsd)
         new.setup_s = time.perf_counter() - t0
         return new
 

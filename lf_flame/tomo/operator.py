@@ -5,7 +5,7 @@ With its ray samples fixed, the simulator's backward tracer
 :func:`lf_flame.simulate._kernels.render_backward`) *is* the linear map ``A`` from the
 emission on ``P`` planes to the views. :class:`EmissionOperator` wraps it and its exact
 transpose (the same kernel scattering each pixel's value back to the texels its rays read)
-as a :class:`pylops.LinearOperator`. It records its rays once (the same kernel writing each
+as a :class:`PlanesOperator` (a SciPy ``LinearOperator`` with PyLops's ``dims`` and ``dimsd``). It records its rays once (the same kernel writing each
 ray's weight and texels) and applies that record as a sparse matrix
 (:mod:`lf_flame.tomo._kernels`): about twice as fast as tracing anew.
 
@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pylops
+import scipy.sparse.linalg
 
 from ..optics.camera import PlenopticCamera
 from ..refocus.shift_and_sum import _check_finite, raw_to_views, views_to_raw
@@ -68,7 +68,29 @@ def plane_grid(camera: PlenopticCamera, depth_offset_mm: float, margin: float = 
     return h * margin, w * margin
 
 
-class EmissionOperator(pylops.LinearOperator):
+class PlanesOperator(scipy.sparse.linalg.LinearOperator):
+    """A linear map from the emission on ``P`` planes to a light field's views, float64 at the interface.
+
+    A :class:`scipy.sparse.linalg.LinearOperator` (``A @ x``, ``A.matvec``, ``A.rmatvec``,
+    ``A.H``) that carries, as PyLops's operators do, the shapes of its model and its data:
+    ``pylops.aslinearoperator(A)`` keeps them for PyLops's and PyProximal's solvers
+    (:mod:`lf_flame.tomo.proximal`). SciPy's base rather than PyLops's keeps PyLops's import
+    (SciPy's signal and stats modules, about a second) off every command that does not use it.
+
+    Parameters
+    ----------
+    dims : (P, rows, cols)
+        Model shape (axis order: plane, then rows down, columns right).
+    dimsd : tuple of int
+        Data shape, the views (N, N, R, C).
+    """
+
+    def __init__(self, dims, dimsd):
+        self.dims, self.dimsd = tuple(int(d) for d in dims), tuple(int(d) for d in dimsd)
+        super().__init__(np.float64, (math.prod(self.dimsd), math.prod(self.dims)))
+
+
+class EmissionOperator(PlanesOperator):
     """The light field as a linear map of the emission on ``P`` planes.
 
     ``A x`` renders sub-aperture views of ``x`` with the simulator's backward tracer
@@ -163,7 +185,7 @@ class EmissionOperator(pylops.LinearOperator):
         self.centres_mm = tuple(tuple(float(v) for v in c) for c in centres)
         self.rays_per_pixel, self.seed = int(rays_per_pixel), int(seed)
         n = camera.pixels_per_lenslet
-        super().__init__(dtype=np.float64, dims=(len(depths), gr, gc), dimsd=(n, n, camera.n_rows, camera.n_cols))
+        super().__init__((len(depths), gr, gc), (n, n, camera.n_rows, camera.n_cols))
         H, W = camera.sensor_shape
         self.ray_table_bytes = H * W * self.rays_per_pixel * 4 * (len(depths) + 1)
         self._use_table = bool(ray_table) and self.ray_table_bytes <= RAY_TABLE_MAX_BYTES
@@ -239,7 +261,7 @@ class EmissionOperator(pylops.LinearOperator):
         return normalised_adjoint(self, views)
 
 
-def normalised_adjoint(op: pylops.LinearOperator, views) -> np.ndarray:
+def normalised_adjoint(op: PlanesOperator, views) -> np.ndarray:
     """``A^T y / A^T 1`` of any emission operator ``op``: each sample's weighted mean over
     the pixels that see it, a refocused stack (P, rows, cols), float64; 0 where no pixel
     sees a sample (``A^T 1`` at most 1e-12 of its largest value: an FFT's rounding)."""

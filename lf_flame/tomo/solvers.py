@@ -1,10 +1,11 @@
-"""Solvers of the emission on planes from one light field (PyLops / PyProximal).
+"""Solvers of the emission on planes from one light field.
 
 :func:`reconstruct` runs one of :data:`SOLVERS` on an :class:`~lf_flame.tomo.operator.EmissionOperator`:
 damped LSQR (Sun, Hossain, Xu et al., Opt. Commun. 390 (2017)), FISTA with non-negativity,
 primal-dual (Chambolle-Pock) with TV and non-negativity (Viganò et al., Opt. Express
 (2018), plenoptomos), Richardson-Lucy (Broxton et al., Opt. Express 21 (2013); napari-LF),
-or the normalised adjoint (plain refocusing). Saturated pixels are left out of the fit.
+or the normalised adjoint (plain refocusing). Saturated pixels are left out of the fit. The solvers on
+PyLops and PyProximal live in :mod:`lf_flame.tomo.proximal`, imported when one of them is asked for.
 """
 from __future__ import annotations
 
@@ -14,11 +15,6 @@ from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
-import pylops
-import pyproximal
-from pylops.optimization.basic import lsqr
-from pyproximal.optimization.primal import ProximalGradient
-from pyproximal.optimization.primaldual import PrimalDual
 from tqdm.auto import tqdm
 
 from .defaults import (ADMM_TV, DEFAULT_ITERS, DEFAULT_SOLVER, DEFAULT_TV, EXACT_SOLVER,  # noqa: F401
@@ -28,9 +24,6 @@ from .operator import EmissionOperator, check_views
 # ---- solvers ---------------------------------------------------------------------------
 # SOLVERS, DEFAULT_ITERS, DEFAULT_TV and DEFAULT_SOLVER live in .defaults (no PyLops there:
 # the command line's parser reads them) and are re-exported here.
-#: "pd-tv" records its residual at the first, every this many and the last iteration (NaN
-#: between): each record costs one more ``A``, a third of an iteration.
-PD_RESIDUAL_EVERY = 5
 
 
 @dataclass
@@ -176,19 +169,6 @@ def misfit_is_high(misfit: dict) -> bool:
     return misfit["misfit"] > max(MISFIT_WARN, MISFIT_NOISE * misfit["noise_share"])
 
 
-class _TrackedL2(pyproximal.L2):
-    """``1/2 ||A x - b||^2`` that records the relative residual at every gradient it gives."""
-
-    def __init__(self, Op, b):
-        super().__init__(Op=Op, b=b)
-        self.history, self._norm = [], float(np.linalg.norm(b)) or 1.0
-
-    def grad(self, x):
-        r = self.Op.matvec(x) - self.b
-        self.history.append(float(np.linalg.norm(r)) / self._norm)
-        return self.Op.rmatvec(r)
-
-
 def lipschitz_bound(op: EmissionOperator) -> float:
     """Upper bound of ``||A||^2`` (the gradient's Lipschitz constant of ``1/2 ||A x - y||^2``).
 
@@ -315,11 +295,14 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
     elif solver == "adjoint":
         x, residuals = _solve_adjoint(p)
     elif solver == "lsqr":
-        x, residuals = _solve_lsqr(p, settings, step, iters, damp)
+        from .proximal import solve_lsqr
+        x, residuals = solve_lsqr(p, settings, step, iters, damp)
     elif solver == "fista":
-        x, residuals = _solve_fista(p, settings, step, iters)
+        from .proximal import solve_fista
+        x, residuals = solve_fista(p, settings, step, iters, lipschitz_bound(op))
     elif solver == "pd-tv":
-        x, residuals = _solve_pd_tv(p, settings, step, iters, tv)
+        from .proximal import solve_pd_tv
+        x, residuals = solve_pd_tv(p, settings, step, iters, tv, lipschitz_bound(op))
     else:  # rl
         x, residuals = _solve_rl(p, step, iters)
     step.bar.close()
@@ -351,17 +334,12 @@ def _checked_inputs(views, op, solver, iters, damp, tv, saturation):
 @dataclass
 class _Problem:
     """What a solver fits: the views ``y`` (flat), the samples that carry their light (``fit``), and, built on
-    first use (admm needs neither), the fitted operator and data ``W A`` and ``W y`` (``W`` the 0/1 weight of
-    ``fit``) and ``||y||``."""
+    first use (admm needs neither), the fitted data ``W y`` (``W`` the 0/1 weight of ``fit``) and ``||y||``."""
 
     op: EmissionOperator
     y: np.ndarray
     fit: np.ndarray
     n_sat: int
-
-    @cached_property
-    def A(self):
-        return self.op if self.n_sat == 0 else pylops.Diagonal(self.fit.astype(np.float64)) @ self.op
 
     @cached_property
     def yw(self) -> np.ndarray:
@@ -448,45 +426,6 @@ def _solve_adjoint(p: _Problem):
     """``"adjoint"``: ``A^T y / A^T 1``, no iterations: ``(x, residuals)``."""
     x = p.op.normalised_adjoint(p.y.reshape(p.op.dimsd)).ravel()
     return x, [float(np.linalg.norm(p.op.matvec(x) - p.y)) / p.norm]
-
-
-def _solve_lsqr(p: _Problem, settings: dict, step: _Steps, iters: int, damp: float):
-    """``"lsqr"``: damped LSQR (PyLops): ``(x, residuals)``, LSQR's own ``||A x - y||`` estimates."""
-    settings["damp"] = damp
-    out = lsqr(p.A, p.yw, np.zeros(p.op.shape[1]), damp=damp, niter=iters, calc_var=False, callback=step)
-    return np.ravel(out[0]), np.asarray(out[-1])[1:] / p.norm   # LSQR's own ||A x - y|| estimate per iteration
-
-
-def _solve_fista(p: _Problem, settings: dict, step: _Steps, iters: int):
-    """``"fista"``: accelerated proximal gradient with ``x >= 0``, step ``1 / L``: ``(x, residuals)``."""
-    settings["step"] = tau = 1.0 / lipschitz_bound(p.op)
-    f = _TrackedL2(p.A, p.yw)
-    x = ProximalGradient(f, pyproximal.Box(lower=0.0), np.zeros(p.op.shape[1]), tau=tau, niter=iters,
-                         acceleration="fista", callback=step)
-    return x, f.history
-
-
-def _solve_pd_tv(p: _Problem, settings: dict, step: _Steps, iters: int, tv: float):
-    """``"pd-tv"``: primal-dual with TV per plane and ``x >= 0``: ``(x, residuals)``, the residual
-    recorded every :data:`PD_RESIDUAL_EVERY` iterations (NaN between)."""
-    op, n, residuals = p.op, p.op.shape[1], []
-    # the gradient block scaled by c to the norm of A (||c grad||^2 <= 8 c^2 = ||A||^2 bound):
-    # with one step for both blocks, an unscaled TV term would move ~sqrt(||A||^2 / 8) times slower
-    La = lipschitz_bound(op)
-    c = math.sqrt(La / 8.0)
-    grad = pylops.VStack([c * pylops.FirstDerivative(op.dims, axis=a, edge=True, kind="forward") for a in (1, 2)])
-    K = pylops.VStack([p.A, grad])
-    tau = mu = 0.99 / math.sqrt(2.0 * La)
-    g = pyproximal.VStack([pyproximal.L2(b=p.yw), pyproximal.L21(ndim=2, sigma=tv / c)], nn=[op.shape[0], 2 * n])
-    settings.update(tv=tv, step=tau)
-
-    def track(xk):  # the primal-dual iteration exposes no residual: one more A, so only now and then
-        k = step.count + 1
-        residuals.append(float(np.linalg.norm(p.A.matvec(xk) - p.yw)) / p.norm
-                         if k == 1 or k % PD_RESIDUAL_EVERY == 0 or k == iters else math.nan)
-        step(xk)
-    x = PrimalDual(pyproximal.Box(lower=0.0), g, K, np.zeros(n), tau=tau, mu=mu, niter=iters, callback=track)
-    return x, residuals
 
 
 #: ``rl``'s floors, relative: the planes' samples that no fitted ray sees (``A^T 1`` below this share of its maximum:
