@@ -111,6 +111,23 @@ def test_simulates_png_reads_back_with_its_camera_and_reconstructs(small_flame, 
     assert (small_flame / "png.png").stat().st_size > 10_000
 
 
+def test_the_default_reconstruction_imports_neither_pylops_nor_scipy_signal(small_flame):
+    """Found depths and admm on the exact operator, ``--no-figure``, in a fresh interpreter: no PyLops,
+    PyProximal, scipy.signal, scipy.stats or matplotlib (each command's start paid about a second for
+    PyLops and scipy.signal), and no figure written."""
+    import subprocess
+    import sys
+    out = small_flame / "nofig.h5"
+    code = ("import sys; from lf_flame.cli import main; "
+            f"assert main(['reconstruct', {str(small_flame / 'flame.npz')!r}, '--no-figure', '--out', {str(out)!r}]) "
+            "== 0; print(sorted(m for m in ('pylops', 'pyproximal', 'scipy.signal', 'scipy.stats', 'matplotlib') "
+            "if m in sys.modules))")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert run.stdout.strip().splitlines()[-1] == "[]", run.stdout
+    assert "reconstructed" in run.stdout
+    assert out.exists() and not out.with_suffix(".png").exists()
+
+
 def test_admm_help_output_and_run_agree_on_its_fills(monkeypatch):
     """admm's iterations are its fills, a cap by the noise and grid that stops sooner once they
     converge: the help names the cap a run takes, and reconstruct's output (``iterations_note``)

@@ -416,6 +416,10 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--l1", type=float, default=None, help="--volume --prior sparse: the l1 weight in [0, 1)")
     s.add_argument("--out", required=True, help="volume.h5 (planes, depths, mm per sample, settings, residuals); "
                                                "the figure goes beside it as .png")
+    s.add_argument("--figure", action=argparse.BooleanOptionalAction, default=True,
+                   help="the figure beside --out (.png: each plane beside its refocused plane and, for a simulated "
+                        "scene, the truth); --no-figure skips it, and with it matplotlib's import (about a second "
+                        "of a small camera's command)")
     s.set_defaults(func=cmd_reconstruct)
 
     def sensor_args(s, calibration_default):

@@ -393,22 +393,28 @@ def cmd_reconstruct(a):
     extra["misfit"] = misfit_warning(lf, op, rec, kw["saturation"], lattice)
     out = Path(a.out)
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), **extra)
-    n = cam.pixels_per_lenslet
-    refocused = focal_stack(views, [cam.slope_for_depth(d) for d in depths], aperture_mask(n, "circular"))
-    sub = getattr(op, "subsamples", 1)
-    refocused = np.repeat(np.repeat(refocused, sub, axis=1), sub, axis=2)      # on the planes' grid
-    scene = None if lf.decoded else _raw_scene(a.raw, cam)
-    truth = None if scene is None else scene_truth(scene, op)
-    fig = out.with_suffix(".png")
-    plot_reconstruction(fig, rec, refocused, truth, truth_depths_mm=None if scene is None else
-                        truth_depths(scene, rec.depths_mm))
+    sub, truth, fig = getattr(op, "subsamples", 1), None, _figure_path(a)
+    if fig is not None:
+        refocused = focal_stack(views, [cam.slope_for_depth(d) for d in depths],
+                                aperture_mask(cam.pixels_per_lenslet, "circular"))
+        refocused = np.repeat(np.repeat(refocused, sub, axis=1), sub, axis=2)      # on the planes' grid
+        scene = None if lf.decoded else _raw_scene(a.raw, cam)
+        truth = None if scene is None else scene_truth(scene, op)
+        plot_reconstruction(fig, rec, refocused, truth, truth_depths_mm=None if scene is None else
+                            truth_depths(scene, rec.depths_mm))
     res = f"{rec.residuals[-1]:.4f}" if len(rec.residuals) else "-"
     grid = f", {sub} x {sub} samples per lenslet" if sub > 1 else ""
     m = rec.settings.get("sub_views")
     grid += f", each sample at its own pixel ({m} x {m} sub-views per view)" if m else ""
     print(f"reconstructed {len(depths)} planes ({rec.solver}, {iterations_note(rec)}{grid}) in "
           f"{rec.time_s:.2f} s;"
-          f" relative residual {res} -> {out}, {fig}" + ("" if truth is None else " (with the scene's truth)"))
+          f" relative residual {res} -> {out}" + ("" if fig is None else f", {fig}")
+          + ("" if truth is None else " (with the scene's truth)"))
+
+
+def _figure_path(a):
+    """The figure beside ``--out`` (.png), or None with ``--no-figure``."""
+    return Path(a.out).with_suffix(".png") if getattr(a, "figure", True) else None
 
 
 def volume_reconstruct(a):
@@ -452,14 +458,16 @@ def volume_reconstruct(a):
                         operator="exact" if lf.interpolation is None else "exact, with decoding's interpolation")
     scene = None if lf.decoded else _raw_scene(a.raw, cam)
     truth = None if scene is None else scene_truth(scene, op)
-    refocused = focal_stack(views, [cam.slope_for_depth(d) for d in rec.depths_mm],
-                            aperture_mask(cam.pixels_per_lenslet, "circular"))
-    fig = out.with_suffix(".png")
-    plot_reconstruction(fig, rec, refocused, truth, title=f"volume, prior {a.prior}: {len(rec.depths_mm)} planes "
-                        f"every {a.step:g} mm, {rec.time_s:.1f} s")
+    fig = _figure_path(a)
+    if fig is not None:
+        refocused = focal_stack(views, [cam.slope_for_depth(d) for d in rec.depths_mm],
+                                aperture_mask(cam.pixels_per_lenslet, "circular"))
+        plot_reconstruction(fig, rec, refocused, truth, title=f"volume, prior {a.prior}: {len(rec.depths_mm)} "
+                            f"planes every {a.step:g} mm, {rec.time_s:.1f} s")
     axis = "" if axi is None else f"; axis at x {axi.axis_x_mm:+.2f} mm, depth {axi.axis_z_mm:+.2f} mm"
     score = "" if truth is None else (f"; against the scene's truth: 3-D relative error "
                                       f"{np.linalg.norm(rec.planes - truth) / np.linalg.norm(truth):.3f}")
     print(f"volume of {len(rec.depths_mm)} planes from {rec.depths_mm[0]:+g} to {rec.depths_mm[-1]:+g} mm, prior "
-          f"{a.prior} ({rec.solver}), solved in {rec.time_s:.1f} s{axis}{score} -> {out}, {fig}")
+          f"{a.prior} ({rec.solver}), solved in {rec.time_s:.1f} s{axis}{score} -> {out}"
+          + ("" if fig is None else f", {fig}"))
     print(resolution_note(table, res.conditions[0], float(rec.depths_mm[-1] - rec.depths_mm[0])))
