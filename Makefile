@@ -21,7 +21,7 @@ HELDOUT_paper := 20
 HELDOUT_quick := 4
 HELDOUT_SEED := 770077
 
-.PHONY: train-reconstructor cameras defects clipping floor thread-wait temperature temperature-volume temperature-sequence help install docs dataset bench-sim bench-refocus real-data real-found train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi volume-edge volume-search sequence new-user heights test clean-quick
+.PHONY: train-reconstructor cameras defects clipping floor one-command thread-wait temperature temperature-volume temperature-sequence help install docs dataset bench-sim bench-refocus real-data real-found train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi volume-edge volume-search sequence new-user heights test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -177,6 +177,9 @@ cameras: $(STAMP) ## five cameras end to end from the CLI (white image, calibrat
 # make cameras decoded (about 3 min on 2 cores)
 floor: $(STAMP) ## each emission route's time as a multiple of this machine's floor (the views read once, one batched FFT pair), and where admm's time goes -> results/floor.{csv,md,json}
 	$(VENV)/bin/python experiments/floor.py --out $(TRADEOFF_OUT)
+
+one-command: $(STAMP) ## a 99 x 98-lenslet capture from its raw file to found depths and planes in one command (lf-flame reconstruct), timed as a whole process, and where its time goes -> results/one_command.{csv,md,json}
+	$(VENV)/bin/python experiments/one_command.py --out $(TRADEOFF_OUT)
 
 thread-wait: $(STAMP) ## (after make cameras) admm's solve time, OpenMP threads waiting passively against spinning -> results/thread_wait.{csv,md,json}
 	$(VENV)/bin/python experiments/thread_wait.py --out $(TRADEOFF_OUT)
