@@ -175,7 +175,8 @@ def main(argv=None) -> int:
                            if r["kind"] == "phases"]).set_index("version").T
     compared = None if a.compare is None else subprocess.run(
         ["git", "-C", str(a.compare), "log", "-1", "--format=%h %s"], capture_output=True, text=True).stdout.strip()
-    meta = dict(command="lf-flame " + " ".join(cmd) + " --out OUT", sensor=SENSOR, seed=SEED, pairs=a.pairs,
+    meta = dict(command="lf-flame " + " ".join(Path(c).name if str(a.work) in c else c for c in cmd) + " --out OUT",
+                sensor=SENSOR, seed=SEED, pairs=a.pairs,
                 compare=None if a.compare is None else str(a.compare), compare_commit=compared or None,
                 wall_s=time.perf_counter() - t_all, table=tab.to_dict("records"), phases=phases.to_dict(),
                 provenance=provenance())
@@ -202,9 +203,11 @@ def write_md(out: Path, meta: dict, tab, phases) -> None:
              f"{meta['pairs']} runs per version and variant, Python's bytecode cache on, after a warm-up run." + before,
              "", tab.to_markdown(index=False, floatfmt=".3g"), "",
              "## Where one run's time goes (seconds, in-process, the figure drawn)", "",
-             "Wrappers on the command line's steps; the interpreter's own start (about 0.05 s) is not in it; "
-             "`solves_s` holds `first_solve_s` and `residual_search_and_refine_s`; numba's cache loads fall inside "
-             "the steps.", "", phases.to_markdown(floatfmt=".3f"), "",
+             "One run per version; wrappers on the command line's steps. The interpreter's own start (about 0.05 s) "
+             "is not in it; `solves_s` holds `first_solve_s` and `residual_search_and_refine_s`; numba's cache loads "
+             "(the first of them about 0.3 s: numba's own start) fall inside the steps, and so do the imports a step "
+             "makes when it first needs a module (a module no longer imported at the start is imported by the step "
+             "that uses it).", "", phases.to_markdown(floatfmt=".3f"), "",
              f"Provenance: {json.dumps(meta['provenance'], default=str)[:1500]}", ""]
     atomic_write_text(out / "one_command.md", "\n".join(lines))
 

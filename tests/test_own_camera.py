@@ -536,3 +536,36 @@ def test_a_microscopes_imaging_range_holds_its_focus():
     cam = load_camera_file(EXAMPLE)
     near = imaging_range_mm(cam, max_slope=1e6)[0]
     assert near == pytest.approx(NEAR_LIMIT * cam.main_focal_mm - cam.focus_distance_mm)
+
+
+def test_a_black_level_left_in_is_read_where_no_light_reaches_and_warned_of(tmp_path, capsys):
+    """A capture and its white image with a sensor offset of 100 counts (of 12 bits): calibrated without the dark
+    frame, `decode` and a command decoding on the fly warn of it and record it; with the dark frame subtracted,
+    the capture's unlit pixels read about 0 and nothing is said."""
+    import h5py
+    import tifffile
+
+    from lf_flame.real.black_level import BLACK_LEVEL_SHARE, unlit_level
+    cam = load_camera_file(EXAMPLE)
+    white = tracer.render(cam, scenes.white_scene(cam), 8)
+    raw = tracer.render(cam, flames(cam), 16, 1)
+    counts = lambda img: np.round(100 + 3995 * img).astype(np.uint16)              # noqa: E731
+    for name, img in (("white", white), ("raw", raw), ("dark", np.zeros_like(raw))):
+        tifffile.imwrite(tmp_path / f"{name}.tif", counts(img))
+    expected = 100 / (100 + 3995 * np.percentile(raw, 99.9))                       # the offset over the bright pixels
+    assert unlit_level(counts(raw), counts(white)) == pytest.approx(expected, rel=0.02) and expected > BLACK_LEVEL_SHARE
+    assert abs(unlit_level(counts(raw), counts(white), counts(np.zeros_like(raw)))) < 1e-3
+    assert unlit_level(raw, None) is None and unlit_level(raw, np.full_like(white, 0.8)) is None
+    for dark in (False, True):
+        cal = tmp_path / f"cal_{dark}.json"
+        assert cli.main(["calibrate", str(tmp_path / "white.tif"), *(["--dark", str(tmp_path / "dark.tif")] * dark),
+                         "--out", str(cal)]) == 0
+        capsys.readouterr()
+        views = tmp_path / f"views_{dark}.h5"
+        assert cli.main(["decode", str(tmp_path / "raw.tif"), "--calibration", str(cal), "--out", str(views)]) == 0
+        assert ("black level" in capsys.readouterr().err) is not dark
+        with h5py.File(views) as f:
+            assert (float(f.attrs["unlit_level"]) > BLACK_LEVEL_SHARE) is not dark
+        assert cli.main(["refocus", str(tmp_path / "raw.tif"), "--camera", str(EXAMPLE), "--calibration", str(cal),
+                         "--depth", "0", "--out", str(tmp_path / f"plane_{dark}.npz")]) == 0
+        assert ("black level" in capsys.readouterr().err) is not dark

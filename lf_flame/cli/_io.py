@@ -4,6 +4,7 @@ objects stored beside a simulated raw image. Serves every command group.
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -204,10 +205,24 @@ def light_field(a, path=None, colour: bool = False):
     from ..real.lightfield import read_light_field
     lf = read_light_field(path or a.raw, getattr(a, "camera", None), getattr(a, "calibration", None),
                           views=getattr(a, "views", None), raw_reader=_raw_reader, formats=RAW_FORMATS)
+    black_level_warning(lf.unlit_level)
     if lf.channels is None or colour:
         return lf
     from ..temperature.channels import monochrome_light_field
     return monochrome_light_field(lf)
+
+
+def black_level_warning(unlit: float | None) -> None:
+    """Where a decoded capture's unlit pixels read more than :data:`~lf_flame.real.black_level.BLACK_LEVEL_SHARE`
+    of its bright ones (``unlit``: :func:`lf_flame.real.black_level.unlit_level`), one warning (stderr): a black
+    level or stray light left in, and how to subtract it."""
+    from ..real.black_level import BLACK_LEVEL_SHARE
+    if unlit is not None and unlit > BLACK_LEVEL_SHARE:
+        print(f"warning: the capture's pixels that no light reaches (where the white image is dark, between the "
+              f"lenslet images) read {100 * unlit:.2g} % of its bright pixels: a black level (the sensor's offset) "
+              "or stray light left in, which no plane of emission explains and which bends the dim samples' "
+              "division by the white image; calibrate with the dark frame (lf-flame calibrate --dark) or decode "
+              "with it (--dark)", file=sys.stderr)
 
 
 def _save_image(path, img, metadata=None, bits: int = 8):

@@ -39,7 +39,9 @@ def cmd_calibrate(a):
 def cmd_decode(a):
     from ..real.calibration import GridCalibration
     from ..real.images import calibration_image, load_image
+    from ..real.black_level import unlit_level
     from ..real.clipping import clipped_share
+    from ._io import black_level_warning
     from ..real.decoding import decode_repaired, on_square_grid
     from ..real.views_file import save_views
     cal = GridCalibration.load(a.calibration)
@@ -62,6 +64,9 @@ def cmd_decode(a):
     dt = time.perf_counter() - t
     n_bad = int(bad.sum())
     extra = {"bin_views": k, "defective_pixels": n_bad}
+    unlit = unlit_level(raw, white, dark)
+    if unlit is not None:
+        extra["unlit_level"] = unlit
     share = clipped_share(raw, level)
     if level is not None:
         extra.update(saturation=level, clipped_share=share)
@@ -78,6 +83,7 @@ def cmd_decode(a):
     print(f"decoded {Path(a.raw).name} into {views.shape[0]} x {views.shape[1]} views{binned} of {views.shape[2]} x "
           f"{views.shape[3]} lenslets ({note}) in {dt:.2f} s -> {a.out}")
     overexposure_warning(share)
+    black_level_warning(unlit)
 
 
 def defects_note(n: int) -> str:

@@ -289,18 +289,14 @@ def misfit_warning(lf, op, rec, saturation="file", lattice=None):
     return m
 
 
-#: The share of a light field's peak (its 99.9th percentile) above which the samples no light reaches say that a
-#: black level or stray light was not subtracted (:func:`black_level_note`).
-BLACK_LEVEL_SHARE = 0.01
-
-
 def black_level_note(lf, op) -> str:
     """Where the samples no light reaches (outside the aperture's image: the operator's white views dark) read more
-    than :data:`BLACK_LEVEL_SHARE` of the light field's peak (their median), the misfit warning's hint: a black
+    than :data:`~lf_flame.real.black_level.BLACK_LEVEL_SHARE` of the light field's peak (their median), the misfit warning's hint: a black
     level (the sensor's offset) or stray light not subtracted, which no plane of emission explains. "" otherwise,
     for decoded views (their dark samples are left out) and for operators without kernels."""
     if lf.decoded or not hasattr(op, "kernels"):
         return ""
+    from ..real.black_level import BLACK_LEVEL_SHARE
     from ..tomo.decoded import white_views
     white = white_views(op)
     unlit = white <= 1e-6 * white.max()

@@ -1,7 +1,7 @@
 """Real cameras: white-image grid calibration and decoding of captures into views.
 
-:mod:`.images` reads and checks white, dark and raw images, and :mod:`.clipping` finds where a sensor clipped
-in them; :mod:`.calibration` finds the
+:mod:`.images` reads and checks white, dark and raw images, :mod:`.clipping` finds where a sensor clipped
+in them and :mod:`.black_level` what a capture reads where no light reaches it (a black level left in); :mod:`.calibration` finds the
 lenslet grid (pitch, rotation, offset, layout) from a white
 image (Dansereau et al., CVPR 2013), with the lattice's steps in :mod:`.lattice`; :mod:`.decoding` resamples a capture onto that
 grid into its sub-aperture views, with the samples from clipped pixels, once :mod:`.grid_check` has found
@@ -18,12 +18,13 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["images", "clipping", "lattice", "calibration", "grid_check", "decoding", "defects", "views_file",
+    submodules=["images", "clipping", "black_level", "lattice", "calibration", "grid_check", "decoding", "defects", "views_file",
                 "own_camera", "lightfield"],
     submod_attrs={
         "images": ["load_image", "to_gray", "file_digest", "calibration_image"],
         "clipping": ["PILE_MIN_PIXELS", "PILE_RATIO", "LIT_SHARE", "CLIPPED_WARN", "clipping_pile", "auto_saturation",
                      "found_level", "clipped_share"],
+        "black_level": ["UNLIT_SHARE", "MIN_UNLIT_PIXELS", "MIN_WHITE_CONTRAST", "BLACK_LEVEL_SHARE", "unlit_level"],
         "lattice": ["CalibrationError", "lattice_from_autocorrelation", "spot_centres"],
         "calibration": ["CALIBRATION_FORMAT", "CALIBRATION_VERSION", "GridCalibration", "calibrate"],
         "grid_check": ["check_grid"],

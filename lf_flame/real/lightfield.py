@@ -94,6 +94,10 @@ class LightField:
         A decoded capture's clipped pixels as a share of its lit ones
         (:func:`lf_flame.real.clipping.clipped_share`, of the raw image at decoding: a decoded sample mixes
         several pixels); None: a raw image's, read off its views and ``saturation`` (:meth:`over_exposure`).
+    unlit_level : float or None
+        A decoded capture's pixels where its white image is dark, their median over its bright pixels
+        (:func:`lf_flame.real.black_level.unlit_level`, at decoding): about 0 unless a black level or stray light
+        was left in. None: not read (no white image, views read from a file).
     """
 
     views: np.ndarray
@@ -114,6 +118,7 @@ class LightField:
     defective_pixels: int = 0
     defects: np.ndarray | None = None
     clipped_share: float | None = None
+    unlit_level: float | None = None
 
     def __post_init__(self):
         v = self.views
@@ -305,7 +310,8 @@ def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation
 def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "decoded views", clipped=None,
                  white_normalised: bool = True, camera_file: str | None = None, channels=None,
                  meta: dict | None = None, bin_views: int = 1, lattice_views=None, lattice_clipped=None,
-                 defective_pixels: int = 0, clipped_share: float | None = None) -> LightField:
+                 defective_pixels: int = 0, clipped_share: float | None = None,
+                 unlit_level: float | None = None) -> LightField:
     """The light field of views decoded from a capture of ``camera`` with ``calibration``.
 
     Parameters
@@ -329,6 +335,8 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
         The capture's defective pixels, repaired before decoding (:class:`LightField`).
     clipped_share : float or None
         The capture's clipped pixels as a share of its lit ones (:class:`LightField`); None: not measured.
+    unlit_level : float or None
+        What the capture's unlit pixels read (:class:`LightField`); None: not read.
 
     Raises
     ------
@@ -355,7 +363,8 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
                       (interpolation_phases(calibration, v.shape[0], bin_views), int(bin_views)),
                       sample_offsets=None if channels is None else sample_offsets(calibration, v.shape[0]),
                       defective_pixels=int(defective_pixels),
-                      clipped_share=None if clipped_share is None else float(clipped_share))
+                      clipped_share=None if clipped_share is None else float(clipped_share),
+                      unlit_level=None if unlit_level is None else float(unlit_level))
 
 
 def read_light_field(path, camera=None, calibration=None, *, views: int | None = None,
@@ -429,8 +438,9 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
             meta = {"sensor": str(f.attrs["sensor"])} if "sensor" in f.attrs else {}
             k = int(f.attrs.get("bin_views", 1))
             share = float(f.attrs["clipped_share"]) if "clipped_share" in f.attrs else None
+            unlit = float(f.attrs["unlit_level"]) if "unlit_level" in f.attrs else None
         return from_decoded(v, vcal, cam, src, load_clipped(p), white, cam_file, load_channels(p), meta, k,
-                            *load_lattice(p), clipped_share=share)
+                            *load_lattice(p), clipped_share=share, unlit_level=unlit)
     raw, stored, meta = (raw_reader or _read_raw)(p)
     cam = cam or stored
     assumed = cam is None
@@ -516,6 +526,7 @@ def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None, sensor=N
     ``n_views`` is given); a colour ``sensor``'s capture one pixel per sample, its channels apart
     (:func:`lf_flame.real.decoding.decode_colour`)."""
     from .images import calibration_image
+    from .black_level import unlit_level
     from .clipping import clipped_share, found_level
     from .decoding import decode_repaired, on_square_grid
     white, dark = calibration_image(cal.white, "white"), calibration_image(cal.dark, "dark")
@@ -528,7 +539,8 @@ def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None, sensor=N
     return from_decoded(on_square_grid(lattice, cal), cal, cam, src, None if hit is None else on_square_grid(hit, cal),
                         white is not None, cam_file, channels, meta, bin_views=k,
                         lattice_views=lattice if hexagonal else None, lattice_clipped=hit if hexagonal else None,
-                        defective_pixels=int(bad.sum()), clipped_share=clipped_share(raw, level))
+                        defective_pixels=int(bad.sum()), clipped_share=clipped_share(raw, level),
+                        unlit_level=unlit_level(raw, white, dark))
 
 
 def _read_raw(p: Path):
