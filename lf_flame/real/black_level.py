@@ -22,6 +22,8 @@ UNLIT_SHARE = 0.05
 #: percentile (lit everywhere: no gaps between lenslet images): no level is read.
 MIN_UNLIT_PIXELS = 100
 MIN_WHITE_CONTRAST = 0.5
+#: Pixels read per axis: every this many (:func:`unlit_level`).
+SUBSAMPLE = 3
 #: The unlit pixels' median above this share of a capture's bright pixels (its 99.9th percentile): a black level
 #: or stray light not subtracted.
 BLACK_LEVEL_SHARE = 0.01
@@ -37,6 +39,8 @@ def unlit_level(raw, white, dark=None) -> float | None:
     dark : ndarray of shape (H, W) or None
         The dark frame decoding subtracts from both.
 
+    Every :data:`SUBSAMPLE`-th pixel per axis is read.
+
     Returns
     -------
     float or None
@@ -47,11 +51,14 @@ def unlit_level(raw, white, dark=None) -> float | None:
     """
     if white is None:
         return None
-    r, w = np.asarray(raw, np.float64), np.asarray(white, np.float64)
+    r, w = np.asarray(raw), np.asarray(white)
     if w.ndim != 2 or r.shape != w.shape:
         return None
+    # every third pixel per axis (a ninth of the time, 4 ms on a megapixel; 3 is prime to a colour mosaic's period)
+    r, w = r[::SUBSAMPLE, ::SUBSAMPLE].astype(np.float64), w[::SUBSAMPLE, ::SUBSAMPLE].astype(np.float64)
     if dark is not None:
-        r, w = r - dark, w - dark
+        d = np.asarray(dark)[::SUBSAMPLE, ::SUBSAMPLE]
+        r, w = r - d, w - d
     floor, top = np.percentile(w, [1, 99])
     if not top - floor >= MIN_WHITE_CONTRAST * top > 0:
         return None
