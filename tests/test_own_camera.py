@@ -495,22 +495,29 @@ def test_profiles_measure_the_flames_of_decoded_views(tmp_path, capsys):
     assert np.allclose(found.depth_mm, df.depth_mm, atol=0.5) and np.allclose(found.height_mm, df.height_mm, atol=0.1)
 
 
-def test_an_integer_tiff_capture_with_a_dark_frame_is_decoded_on_the_fly_as_decode_does(tmp_path):
-    """12-bit counts in 16-bit TIFFs (a dark level of 100 counts): a command that decodes the raw capture on the
-    fly reads it in the units of the calibration's white and dark images (unscaled counts), as ``decode`` does;
-    the command line's image reader, which scales integers to [0, 1], made every view dark ("views hold no
-    light")."""
+def _offset_captures(folder):
+    """The example camera's white image and flames as 12-bit counts over a sensor offset of 100 counts in 16-bit
+    TIFFs (``white.tif``, ``raw.tif``; ``dark.tif`` the offset alone): ``(white, raw, counts)``, the images in
+    [0, 1] and the map to counts."""
     import tifffile
-
-    from lf_flame.cli._io import _raw_reader
-    from lf_flame.real.lightfield import read_light_field
-    from lf_flame.real.views_file import load_views
     cam = load_camera_file(EXAMPLE)
     white = tracer.render(cam, scenes.white_scene(cam), 8)
     raw = tracer.render(cam, flames(cam), 16, 1)
     counts = lambda img: np.round(100 + 3995 * img).astype(np.uint16)              # noqa: E731
     for name, img in (("white", white), ("raw", raw), ("dark", np.zeros_like(raw))):
-        tifffile.imwrite(tmp_path / f"{name}.tif", counts(img))
+        tifffile.imwrite(folder / f"{name}.tif", counts(img))
+    return white, raw, counts
+
+
+def test_an_integer_tiff_capture_with_a_dark_frame_is_decoded_on_the_fly_as_decode_does(tmp_path):
+    """12-bit counts in 16-bit TIFFs (a dark level of 100 counts): a command that decodes the raw capture on the
+    fly reads it in the units of the calibration's white and dark images (unscaled counts), as ``decode`` does;
+    the command line's image reader, which scales integers to [0, 1], made every view dark ("views hold no
+    light")."""
+    from lf_flame.cli._io import _raw_reader
+    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.real.views_file import load_views
+    _offset_captures(tmp_path)
     assert cli.main(["calibrate", str(tmp_path / "white.tif"), "--dark", str(tmp_path / "dark.tif"),
                      "--out", str(tmp_path / "cal.json")]) == 0
     assert cli.main(["decode", str(tmp_path / "raw.tif"), "--calibration", str(tmp_path / "cal.json"),
@@ -543,15 +550,9 @@ def test_a_black_level_left_in_is_read_where_no_light_reaches_and_warned_of(tmp_
     frame, `decode` and a command decoding on the fly warn of it and record it; with the dark frame subtracted,
     the capture's unlit pixels read about 0 and nothing is said."""
     import h5py
-    import tifffile
 
     from lf_flame.real.black_level import BLACK_LEVEL_SHARE, unlit_level
-    cam = load_camera_file(EXAMPLE)
-    white = tracer.render(cam, scenes.white_scene(cam), 8)
-    raw = tracer.render(cam, flames(cam), 16, 1)
-    counts = lambda img: np.round(100 + 3995 * img).astype(np.uint16)              # noqa: E731
-    for name, img in (("white", white), ("raw", raw), ("dark", np.zeros_like(raw))):
-        tifffile.imwrite(tmp_path / f"{name}.tif", counts(img))
+    white, raw, counts = _offset_captures(tmp_path)
     expected = 100 / (100 + 3995 * np.percentile(raw, 99.9))                       # the offset over the bright pixels
     assert unlit_level(counts(raw), counts(white)) == pytest.approx(expected, rel=0.02) and expected > BLACK_LEVEL_SHARE
     assert abs(unlit_level(counts(raw), counts(white), counts(np.zeros_like(raw)))) < 1e-3

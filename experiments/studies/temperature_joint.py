@@ -61,7 +61,8 @@ def joint(views, chan, op, g, step, damp, iters=ITERS, ca=0):
     mask = ((chan == ca) & (views < 1)).astype(float)
     s, gs = float(views[mask > 0].max()), float(g.max())
     y = (views * mask / s).ravel()
-    M = pylops.Diagonal(mask.ravel()) @ pylops.aslinearoperator(op) @ pylops.Diagonal(np.clip(g / gs, 0, None).ravel()) @ pylops.MatrixMult(B)
+    M = (pylops.Diagonal(mask.ravel()) @ pylops.aslinearoperator(op)
+         @ pylops.Diagonal(np.clip(g / gs, 0, None).ravel()) @ pylops.MatrixMult(B))
     pred1 = M @ np.ones(B.shape[1])
     rho0 = float(y.sum() / pred1.sum())
     x = lsqr(M, y - rho0 * pred1, x0=np.zeros(B.shape[1]), damp=damp, niter=iters)[0]

@@ -41,9 +41,9 @@ def cmd_decode(a):
     from ..real.images import calibration_image, load_image
     from ..real.black_level import unlit_level
     from ..real.clipping import clipped_share
-    from ._io import black_level_warning
     from ..real.decoding import decode_repaired, on_square_grid
     from ..real.views_file import save_views
+    from ._io import black_level_warning
     cal = GridCalibration.load(a.calibration)
     raw = load_image(a.raw)
     white = None if a.no_white else calibration_image(cal.white, "white", a.white)

@@ -291,9 +291,10 @@ def misfit_warning(lf, op, rec, saturation="file", lattice=None):
 
 def black_level_note(lf, op) -> str:
     """Where the samples no light reaches (outside the aperture's image: the operator's white views dark) read more
-    than :data:`~lf_flame.real.black_level.BLACK_LEVEL_SHARE` of the light field's peak (their median), the misfit warning's hint: a black
-    level (the sensor's offset) or stray light not subtracted, which no plane of emission explains. "" otherwise,
-    for decoded views (their dark samples are left out) and for operators without kernels."""
+    than :data:`~lf_flame.real.black_level.BLACK_LEVEL_SHARE` of the light field's peak (their median), the misfit
+    warning's hint: a black level (the sensor's offset) or stray light not subtracted, which no plane of emission
+    explains. "" otherwise, for decoded views (their dark samples are left out, and decoding reads the capture's own
+    unlit pixels: :func:`lf_flame.cli._io.black_level_warning`) and for operators without kernels."""
     if lf.decoded or not hasattr(op, "kernels"):
         return ""
     from ..real.black_level import BLACK_LEVEL_SHARE

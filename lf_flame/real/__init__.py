@@ -1,8 +1,8 @@
 """Real cameras: white-image grid calibration and decoding of captures into views.
 
 :mod:`.images` reads and checks white, dark and raw images, :mod:`.clipping` finds where a sensor clipped
-in them and :mod:`.black_level` what a capture reads where no light reaches it (a black level left in); :mod:`.calibration` finds the
-lenslet grid (pitch, rotation, offset, layout) from a white
+in them and :mod:`.black_level` what a capture reads where no light reaches it (a black level left in);
+:mod:`.calibration` finds the lenslet grid (pitch, rotation, offset, layout) from a white
 image (Dansereau et al., CVPR 2013), with the lattice's steps in :mod:`.lattice`; :mod:`.decoding` resamples a capture onto that
 grid into its sub-aperture views, with the samples from clipped pixels, once :mod:`.grid_check` has found
 the calibration's grid in it, and :mod:`.defects` a sensor's hot and dead pixels, repaired before it decodes;
@@ -18,8 +18,8 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["images", "clipping", "black_level", "lattice", "calibration", "grid_check", "decoding", "defects", "views_file",
-                "own_camera", "lightfield"],
+    submodules=["images", "clipping", "black_level", "lattice", "calibration", "grid_check", "decoding", "defects",
+                "views_file", "own_camera", "lightfield"],
     submod_attrs={
         "images": ["load_image", "to_gray", "file_digest", "calibration_image"],
         "clipping": ["PILE_MIN_PIXELS", "PILE_RATIO", "LIT_SHARE", "CLIPPED_WARN", "clipping_pile", "auto_saturation",

@@ -5,7 +5,7 @@ frame taken with the lens capped holds it. Left in, it is light that no plane of
 which divides by the white image (which carries its own), bends the dim samples' values. Where the white image is
 dark (between the lenslet images, beyond the main lens's image) a capture without it reads about zero:
 :func:`unlit_level` reads it there, and the commands warn above :data:`BLACK_LEVEL_SHARE`
-(:func:`lf_flame.cli.real.black_level_warning`).
+(:func:`lf_flame.cli._io.black_level_warning`).
 
 On napari-LF's three microscopy captures (``make real-data``; their dark frames' median 107, 101 and 3 counts) the
 unlit pixels read 3.7, 2.0 and 1.8 % of the capture's bright pixels without the dark frame, and -2.3, 0.9 and
@@ -32,14 +32,14 @@ BLACK_LEVEL_SHARE = 0.01
 def unlit_level(raw, white, dark=None) -> float | None:
     """The median of a capture's unlit pixels (where its white image is dark) over its bright pixels' level.
 
+    Every :data:`SUBSAMPLE`-th pixel per axis is read.
+
     Parameters
     ----------
     raw, white : ndarray of shape (H, W)
         The capture and its white image, as read (:func:`lf_flame.real.images.load_image`).
     dark : ndarray of shape (H, W) or None
         The dark frame decoding subtracts from both.
-
-    Every :data:`SUBSAMPLE`-th pixel per axis is read.
 
     Returns
     -------

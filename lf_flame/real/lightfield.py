@@ -97,7 +97,8 @@ class LightField:
     unlit_level : float or None
         A decoded capture's pixels where its white image is dark, their median over its bright pixels
         (:func:`lf_flame.real.black_level.unlit_level`, at decoding): about 0 unless a black level or stray light
-        was left in. None: not read (no white image, views read from a file).
+        was left in (``lf-flame decode`` records it in the views file). None: not read (no white image, a raw
+        image, views decoded before it was recorded).
     """
 
     views: np.ndarray

@@ -5,8 +5,8 @@ With its ray samples fixed, the simulator's backward tracer
 :func:`lf_flame.simulate._kernels.render_backward`) *is* the linear map ``A`` from the
 emission on ``P`` planes to the views. :class:`EmissionOperator` wraps it and its exact
 transpose (the same kernel scattering each pixel's value back to the texels its rays read)
-as a :class:`PlanesOperator` (a SciPy ``LinearOperator`` with PyLops's ``dims`` and ``dimsd``). It records its rays once (the same kernel writing each
-ray's weight and texels) and applies that record as a sparse matrix
+as a :class:`PlanesOperator` (a SciPy ``LinearOperator`` with PyLops's ``dims`` and ``dimsd``). It
+records its rays once (the same kernel writing each ray's weight and texels) and applies that record as a sparse matrix
 (:mod:`lf_flame.tomo._kernels`): about twice as fast as tracing anew.
 
 The grid of each plane (:func:`plane_grid`): one sample per lenslet footprint at the
