@@ -502,9 +502,21 @@ def test_a_simulated_recording_of_another_camera_is_decoded_at_its_flames_depths
     capsys.readouterr()
     assert main(["sequence", str(tmp_path / "folder"), "--camera", str(cam), "--calibration", str(tmp_path / "cal.json"),
                  "--fps", "100", "--route", "reconstruct-admm", "--quiet", "--out", str(tmp_path / "found")]) == 0
-    assert "planes, as reconstruct finds a capture's, in its first frame" in capsys.readouterr().out
+    printed = capsys.readouterr()
+    assert "planes, as reconstruct finds a capture's, in its first frame" in printed.out
+    assert "black level" not in printed.err
     found = sorted(pd.read_csv(tmp_path / "found" / "frames.csv").depth_mm.unique())
     assert found == pytest.approx(sorted(fl["depth_offset_mm"] for fl in flames), abs=1.0), found
+    # the frames with an offset of 3 % of their peak left in (no dark frame), decoded with the white image: the
+    # first frame's unlit pixels say so
+    (tmp_path / "offset").mkdir()
+    for i, p in enumerate(sorted((tmp_path / "folder").glob("*.npy"))):
+        frame = np.load(p)
+        np.save(tmp_path / "offset" / p.name, frame + 0.03 * frame.max())
+    assert main(["sequence", str(tmp_path / "offset"), "--camera", str(cam), "--calibration", str(tmp_path / "cal.json"),
+                 "--white", str(tmp_path / "white.npz"), "--fps", "100", "--route", "shift-sum", "--depth",
+                 str(found[0]), "--quiet", "--out", str(tmp_path / "offset_out")]) == 0
+    assert "black level" in capsys.readouterr().err
 
 
 def test_a_colour_recording_is_levelled_as_reconstruct_levels_a_capture(tmp_path, capsys, colour_capture):

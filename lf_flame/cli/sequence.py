@@ -130,6 +130,9 @@ def cmd_sequence(a):
         check_imaging_range(cam, depths)
         job, truth = SequenceJob(source, cam, fps, tuple(depths), tuple(slopes), (None,) * len(depths), a.route,
                                  cal, a.white, a.dark, chunk=a.chunk, bin_views=k, sensor=sensor, **knobs), None
+    if truth is None:                    # real frames: a black level left in, read in the first frame
+        from ._io import black_level_warning
+        black_level_warning(job.unlit_level(source.raw(0)))
     s = run(job, a.out, scheduler=a.scheduler, workers=a.workers, nperseg=a.nperseg, truth=truth,
             progress=not a.quiet)
     import pandas as pd

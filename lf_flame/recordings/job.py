@@ -231,17 +231,8 @@ class SequenceJob:
                 return raw_to_views(raw, n), None
             fixed = capture_defects(raw, off, flagged=bad)[1]
             return raw_to_views(fixed.astype(np.float32), n), raw_to_views(bad, n) > 0.5
-        from ..real.calibration import GridCalibration
-        from ..real.images import load_image
         from ..real.decoding import decode_repaired, views_shape
-        if "cal" not in self._cache:
-            from ..optics.colour import library_sensor
-            self._cache.update(cal=GridCalibration.from_dict(self.calibration),
-                               white=None if self.white is None else load_image(self.white),
-                               dark=None if self.dark is None else load_image(self.dark),
-                               sensor=None if self.sensor is None else library_sensor(
-                                   self.sensor["name"], self.sensor["pattern"], tuple(self.sensor["phase"])))
-        c = self._cache
+        c = self._decoding()
         if raw.shape != tuple(c["cal"].sensor_shape):
             raise ValueError(f"frame of {raw.shape[0]} x {raw.shape[1]} pixels; the calibration's sensor is "
                              f"{c['cal'].sensor_shape[0]} x {c['cal'].sensor_shape[1]}")
@@ -259,6 +250,30 @@ class SequenceJob:
         from ..temperature.channels import levelled_views
         views, other, _ = levelled_views(views, channels)
         return views, other if clipped is None else other | clipped
+
+    def _decoding(self) -> dict:
+        """What decodes each real frame, read once: the grid calibration (``cal``), the ``white`` and ``dark``
+        images (or None) and the colour ``sensor`` (or None)."""
+        if "cal" not in self._cache:
+            from ..optics.colour import library_sensor
+            from ..real.calibration import GridCalibration
+            from ..real.images import load_image
+            self._cache.update(cal=GridCalibration.from_dict(self.calibration),
+                               white=None if self.white is None else load_image(self.white),
+                               dark=None if self.dark is None else load_image(self.dark),
+                               sensor=None if self.sensor is None else library_sensor(
+                                   self.sensor["name"], self.sensor["pattern"], tuple(self.sensor["phase"])))
+        return self._cache
+
+    def unlit_level(self, raw: np.ndarray) -> float | None:
+        """What a real frame reads where its white image is dark (:func:`lf_flame.real.black_level.unlit_level`,
+        the dark frame subtracted): about 0 unless a black level or stray light is left in; None for a simulated
+        recording's frames or without a white image."""
+        if self.calibration is None:
+            return None
+        from ..real.black_level import unlit_level
+        c = self._decoding()
+        return unlit_level(raw, c["white"], c["dark"])
 
     def _level(self, image) -> float | None:
         """The clipping level of one frame (its raw image or views): ``saturation``, found in the frame where "auto"."""
