@@ -2,7 +2,8 @@
 
 ``python SCRIPT --child ...`` prints one JSON object per line for each timed call; :func:`alternate` runs it once
 per setting per pair, each with its environment changes, and gathers the rows labelled with the setting and the
-pair. Used by ``thread_wait.py`` (OpenMP's wait policy) and ``floor.py`` (another checkout's code).
+pair. Used by ``thread_wait.py`` (OpenMP's wait policy), ``floor.py`` and ``one_command.py`` (another checkout's
+code). :class:`Clock` times the calls a child makes, by category, through wrappers on them.
 """
 from __future__ import annotations
 
@@ -10,6 +11,30 @@ import json
 import os
 import subprocess
 import sys
+import time
+from collections import defaultdict
+
+
+class Clock:
+    """Seconds spent in the wrapped calls, by category (``s``)."""
+
+    def __init__(self):
+        self.s = defaultdict(float)
+
+    def wrap(self, owner, name, category):
+        """Replace ``owner.name`` (a module's function or a class's method) by a timed call that adds its seconds to
+        ``category`` (a string, or a function of the call's arguments giving one); returns ``(owner, name, f)``,
+        the original, to put back."""
+        f = getattr(owner, name)
+
+        def timed_call(*args, **kwargs):
+            t0 = time.perf_counter()
+            try:
+                return f(*args, **kwargs)
+            finally:
+                self.s[category(args) if callable(category) else category] += time.perf_counter() - t0
+        setattr(owner, name, timed_call)
+        return owner, name, f
 
 
 def alternate(script, argv, settings: dict, pairs: int, label: str, reverse_odd: bool = False) -> list:

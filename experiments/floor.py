@@ -34,14 +34,13 @@ import os
 import subprocess
 import sys
 import time
-from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from alternating import alternate  # noqa: E402
+from alternating import Clock, alternate  # noqa: E402
 
 CACHE = ROOT / "data" / "fourier_solver"
 KINDS = ("paper", "varied", "overlap")
@@ -143,25 +142,6 @@ def child(repeats: int) -> None:
     emit("recording frame", "paper recording", "noise-free", stream_times(job, frames), threads=1)
 
 
-class _Clock:
-    """Seconds spent in the wrapped calls, by category."""
-
-    def __init__(self):
-        self.s = defaultdict(float)
-
-    def wrap(self, owner, name, category):
-        f = getattr(owner, name)
-
-        def timed_call(*args, **kwargs):
-            t0 = time.perf_counter()
-            try:
-                return f(*args, **kwargs)
-            finally:
-                self.s[category(args) if callable(category) else category] += time.perf_counter() - t0
-        setattr(owner, name, timed_call)
-        return owner, name, f
-
-
 def profile(repeats: int) -> list:
     """Rows (case, stage, seconds per solve, share) of admm's 2 x 2 grid solve of the paper's render and of a
     recording frame, from wrappers on the solver's FFT calls and kernels."""
@@ -179,7 +159,7 @@ def profile(repeats: int) -> list:
     fine = ExactOperator(cam, R.planes_of("paper", scene), precision=F.PRECISION, subsamples=2)
     job, frames = recording()
     n_views = {len(fine._lit), len(job.operator()._lit)}
-    clock = _Clock()
+    clock = Clock()
     fft = lambda args: "FFTs of the views (batched)" if np.shape(args[0])[0] in n_views else "FFTs of the planes"
     patched = [clock.wrap(scipy.fft, "rfft2", fft), clock.wrap(scipy.fft, "irfft2", fft)]
     patched += [clock.wrap(K, n, "spectra products (H, H^H)") for n in ("spectra_forward", "spectra_adjoint")]

@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from alternating import alternate  # noqa: E402
+from alternating import Clock, alternate  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SENSOR = (1080, 1080)
@@ -92,36 +92,19 @@ def phase_times(argv: list) -> dict:
     import lf_flame.tomo.files as files
     import numba.core.dispatcher as dispatcher
     t_import = time.perf_counter() - t0
-    spent = dict(numba_cache_s=0.0)
-    compile_for_args = dispatcher.Dispatcher._compile_for_args
-
-    def loading(self, *a, **k):
-        t = time.perf_counter()
-        try:
-            return compile_for_args(self, *a, **k)
-        finally:
-            spent["numba_cache_s"] += time.perf_counter() - t
-    dispatcher.Dispatcher._compile_for_args = loading
-
-    def wrap(module, name, step):
-        f = getattr(module, name)
-
-        def timed(*a, **k):
-            t = time.perf_counter()
-            try:
-                return f(*a, **k)
-            finally:
-                spent[step] = spent.get(step, 0.0) + time.perf_counter() - t
-        setattr(module, name, timed)
+    clock = Clock()
+    clock.wrap(dispatcher.Dispatcher, "_compile_for_args", "numba_cache_s")        # numba's cache loads
     for module, name, step in ((vol, "reconstruct_input", "read_and_decode_s"), (vol, "found_planes", "depths_s"),
                                (vol, "run_reconstruction", "first_solve_s"), (vol, "solve_found", "solves_s"),
                                (files, "save_reconstruction", "hdf5_s"), (files, "plot_reconstruction", "figure_s")):
-        wrap(module, name, step)
+        clock.wrap(module, name, step)
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         rc = cli.main(argv)
     total = time.perf_counter() - t0
     if rc not in (0, None):
         raise SystemExit(f"lf-flame {' '.join(argv)} exited {rc}")
+    spent = dict(clock.s)
+    spent.setdefault("numba_cache_s", 0.0)
     spent["residual_search_and_refine_s"] = spent.get("solves_s", 0.0) - spent.get("first_solve_s", 0.0)
     steps = ("read_and_decode_s", "depths_s", "solves_s", "hdf5_s", "figure_s")
     return dict(imports_s=t_import, **spent, total_in_process_s=total,
@@ -150,8 +133,7 @@ def main(argv=None) -> int:
     t_all = time.perf_counter()
     a.out.mkdir(parents=True, exist_ok=True)
     cmd = set_up(a.work)
-    base = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
-    pypath = lambda path: os.pathsep.join([str(path)] + [p for p in [base.get("PYTHONPATH")] if p])
+    pypath = lambda path: os.pathsep.join([str(path)] + [p for p in [os.environ.get("PYTHONPATH")] if p])
     versions = {"this checkout": {}} if a.compare is None else {
         "before": {"PYTHONPATH": pypath(a.compare.resolve())}, "after": {}}
     settings = {name: dict(env, PYTHONDONTWRITEBYTECODE=None) for name, env in versions.items()}

@@ -45,7 +45,7 @@ def test_each_route_is_a_multiple_of_its_threads_floor(floor):
 def test_the_clock_times_wrapped_calls_by_category_and_gives_them_back(floor):
     owner = types.SimpleNamespace(f=lambda x: x + 1)
     original = owner.f
-    clock = floor._Clock()
+    clock = floor.Clock()
     saved = clock.wrap(owner, "f", lambda args: "small" if args[0] < 10 else "large")
     assert owner.f(1) == 2 and owner.f(20) == 21 and owner.f(3) == 4
     assert set(clock.s) == {"small", "large"} and all(v >= 0 for v in clock.s.values())
