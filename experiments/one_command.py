@@ -73,7 +73,10 @@ def child(work: Path, args: list, phases: bool) -> None:
         print(json.dumps(dict(kind="phases", **phase_times(args + ["--out", str(work / "phases.h5")]))), flush=True)
         return
     for variant, extra in VARIANTS.items():
-        wall, rc = run_once(args + extra, work / f"rec_{os.getpid()}.h5")
+        out = work / f"rec_{os.getpid()}.h5"
+        wall, rc = run_once(args + extra, out)
+        out.unlink(missing_ok=True)
+        out.with_suffix(".png").unlink(missing_ok=True)
         if rc == 2 and extra:          # a checkout without the option
             continue
         if rc != 0:

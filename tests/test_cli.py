@@ -128,6 +128,31 @@ def test_the_default_reconstruction_imports_neither_pylops_nor_scipy_signal(smal
     assert out.exists() and not out.with_suffix(".png").exists()
 
 
+def test_the_program_exits_with_mains_status_and_its_objects_frozen_out_of_the_collector(monkeypatch):
+    """``lf-flame`` (the entry point that setup.cfg names) and ``python -m lf_flame.cli`` run :func:`run`: it exits
+    with the status :func:`main` returns, after :func:`gc.freeze` (the shutdown then skips the collector's passes);
+    a bad input's status too."""
+    import configparser
+    import gc
+
+    import lf_flame.cli as cli
+    cfg = configparser.ConfigParser()
+    cfg.read(ROOT / "setup.cfg")
+    assert "lf-flame = lf_flame.cli:run" in cfg["options.entry_points"]["console_scripts"]
+    assert "run()" in (ROOT / "lf_flame" / "cli" / "__main__.py").read_text()
+    monkeypatch.setattr(cli, "main", lambda argv=None: 2)
+    try:
+        assert gc.get_freeze_count() == 0
+        with pytest.raises(SystemExit) as e:
+            cli.run()
+        assert e.value.code == 2 and gc.get_freeze_count() > 0
+    finally:
+        gc.unfreeze()
+    r = subprocess.run([sys.executable, "-m", "lf_flame.cli", "reconstruct", "no-such-file.npz", "--out",
+                        "x.h5"], capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == cli.EXIT_BAD_INPUT and "no-such-file.npz" in r.stderr
+
+
 def test_admm_help_output_and_run_agree_on_its_fills(monkeypatch):
     """admm's iterations are its fills, a cap by the noise and grid that stops sooner once they
     converge: the help names the cap a run takes, and reconstruct's output (``iterations_note``)

@@ -1,6 +1,4 @@
 """``python -m lf_flame.cli``: the same as ``lf-flame``."""
-import sys
+from . import run
 
-from . import main
-
-sys.exit(main())
+run()
