@@ -114,3 +114,23 @@ def test_each_colour_samples_offset_leads_from_its_view_to_its_pixel(calibration
         assert np.allclose(back, np.floor(pos) + 0.5, atol=1e-5)
         assert off.shape == pos.shape and np.abs(off).max() <= 0.5 * (1 + np.tan(np.radians(0.5)))
         assert np.percentile(off, 5) < -0.4 and np.percentile(off, 95) > 0.4
+
+
+def test_the_decoders_bilinear_samples_are_scipys_map_coordinates():
+    """:func:`~lf_flame.real.decoding._sample` (its Numba kernel, one pass for a stack of images) gives
+    ``scipy.ndimage.map_coordinates(order=1, mode="constant")`` at pixel centres shifted by ½: bilinear inside,
+    0 beyond either axis's first or last pixel centre, on every image of a stack and on a single image alike;
+    the positions keep their leading shape."""
+    from scipy import ndimage
+    rng = np.random.default_rng(7)
+    images = rng.random((3, 23, 17))
+    pos = rng.uniform(-1.0, 25.0, (5, 40, 2))
+    pos[0, :8] = [[0.5, 0.5], [22.5, 16.5], [22.5, 3.0], [4.0, 16.5],             # the first and last centres
+                  [0.5 - 1e-9, 3.0], [4.0, 16.5 + 1e-9], [22.6, 0.7], [0.4, 0.4]]   # just beyond them
+    want = np.array([ndimage.map_coordinates(im, np.moveaxis(pos, -1, 0) - 0.5, order=1, mode="constant", cval=0.0)
+                     for im in images])
+    got = decode._sample(images, pos)
+    assert got.shape == (3, 5, 40) and np.allclose(got, want, rtol=0, atol=1e-14)
+    assert np.array_equal(got[:, 0, 4:8] == 0, np.ones((3, 4), bool)) and np.all(got[:, 0, :4] > 0)
+    assert 0.2 < np.mean(want == 0) < 0.6                                   # both kinds of position drawn
+    assert np.allclose(decode._sample(images[1], pos), want[1], rtol=0, atol=1e-14)

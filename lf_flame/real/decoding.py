@@ -17,8 +17,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import ndimage
 
+from ._decoding_kernels import bilinear
 from .calibration import GridCalibration
 from .grid_check import check_grid
 from .images import _image
@@ -76,9 +76,15 @@ def interpolation_phases(calibration: GridCalibration, n_views: int, bin_views: 
 
 
 def _sample(img, pos):
-    """Bilinear samples of ``img`` at pixel-coordinate positions ``pos`` (..., 2); 0 off the image."""
-    coords = np.moveaxis(pos, -1, 0).reshape(2, -1) - 0.5      # pixel (i, j) is centred at (i + ½, j + ½)
-    return ndimage.map_coordinates(img, coords, order=1, mode="constant", cval=0.0).reshape(pos.shape[:-1])
+    """Bilinear samples of ``img`` (H, W), or of each of a stack (K, H, W), at pixel-coordinate positions ``pos``
+    (..., 2); 0 off the image (:func:`~lf_flame.real._decoding_kernels.bilinear`): shape ``pos.shape[:-1]``, or
+    (K,) + that, float64."""
+    images = np.ascontiguousarray(img, np.float64)
+    stack = images.reshape((-1,) + images.shape[-2:])
+    coords = pos.reshape(-1, 2) - 0.5                           # pixel (i, j) is centred at (i + ½, j + ½)
+    out = np.empty((len(stack), len(coords)))
+    bilinear(stack, np.ascontiguousarray(coords[:, 0]), np.ascontiguousarray(coords[:, 1]), out)
+    return out.reshape(images.shape[:-2] + pos.shape[:-1])
 
 
 #: Views per axis that :func:`auto_bin` bins a many-view camera down to (at least): the paper camera's 15.
@@ -275,12 +281,13 @@ def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | No
     img, d, n = _prepared(raw, calibration, dark, n_views, check, bin_views)
     k = int(bin_views)
     pos = view_positions(calibration, n * k)
-    views = _bin(_sample(img, pos), k)
-    if white is not None:
+    if white is None:
+        views = _bin(_sample(img, pos), k)
+    else:
         w = _image("white image", white, calibration.sensor_shape)
         if d is not None:
             w = w - d
-        wv = _bin(_sample(w, pos), k)
+        views, wv = (_bin(sv, k) for sv in _sample(np.stack([img, w]), pos))
         floor = min_white * np.percentile(wv, 99)
         if not floor > 0:
             raise ValueError("the white image is dark where the lenslet images are: not this calibration's white image")
