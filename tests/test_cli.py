@@ -113,14 +113,16 @@ def test_simulates_png_reads_back_with_its_camera_and_reconstructs(small_flame, 
 
 def test_the_default_reconstruction_imports_neither_pylops_nor_scipy_signal(small_flame):
     """Found depths and admm on the exact operator, ``--no-figure``, in a fresh interpreter: no PyLops,
-    PyProximal, scipy.signal, scipy.stats or matplotlib (each command's start paid about a second for
-    PyLops and scipy.signal), and no figure written."""
+    PyProximal, scipy.signal, scipy.stats, matplotlib or scikit-image's morphology (each command's start paid about
+    a second for PyLops and scipy.signal, and 0.15-0.5 s for the morphology that skimage.measure.label loads at its
+    first call), and no figure written."""
     import subprocess
     import sys
     out = small_flame / "nofig.h5"
     code = ("import sys; from lf_flame.cli import main; "
             f"assert main(['reconstruct', {str(small_flame / 'flame.npz')!r}, '--no-figure', '--out', {str(out)!r}]) "
-            "== 0; print(sorted(m for m in ('pylops', 'pyproximal', 'scipy.signal', 'scipy.stats', 'matplotlib') "
+            "== 0; print(sorted(m for m in ('pylops', 'pyproximal', 'scipy.signal', 'scipy.stats', 'matplotlib', "
+            "'skimage.morphology') "
             "if m in sys.modules))")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert run.stdout.strip().splitlines()[-1] == "[]", run.stdout

@@ -5,7 +5,7 @@ Whole flames are not depth-resolved by the data's normal matrices alone (NOTES.m
 
 1. **Regions.** The central sub-aperture view is a pinhole image, sharp at every depth:
    smoothed (Gaussian, 1 lenslet), thresholded at ``threshold`` of its maximum, dilated and
-   labelled (:func:`skimage.measure.label`); each connected region holds one or more flames.
+   labelled (:func:`scipy.ndimage.label`, 8-connected); each connected region holds one or more flames.
    Where that covers more than :data:`BRIGHT_FIELD_SHARE` of the field (objects before a bright
    background, not flames on black), the regions are where the light field holds detail instead:
    the focus contrast of step 2 (each lenslet's largest focus energy over its median),
@@ -43,7 +43,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import ndimage
-from skimage import measure
 
 from ..optics.camera import PlenopticCamera
 from ..refocus.shift_and_sum import FourierSlice, _check_finite, aperture_mask
@@ -353,7 +352,7 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
     if bright:
         detail = ndimage.gaussian_filter(contrast, 1.0)
         fg = ndimage.binary_dilation(detail > threshold * detail.max(), iterations=2)
-    labels = measure.label(fg, connectivity=2)
+    labels = ndimage.label(fg, np.ones((3, 3), bool), output=np.intp)[0]     # 8-connected, in raster order
     sizes = np.bincount(labels.ravel())
     for lab in np.flatnonzero(sizes < min_pixels):
         labels[labels == lab] = 0
