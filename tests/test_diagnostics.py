@@ -289,7 +289,9 @@ def test_cli_profiles_writes_csv_and_figure(tmp_path, capsys):
     from lf_flame.simulate.scenes_depth import random_depth_scene
     other = random_depth_scene(CAM, np.random.default_rng(11), n_flames=2)
     np.savez(tmp_path / "bare.npz", raw=simulate.render(CAM, other, 8, seed=1), camera=CAM.to_json())
-    assert main(["profiles", str(tmp_path / "bare.npz"), "--route", "fourier", "--out", str(tmp_path / "b")]) == 0
+    assert main(["profiles", str(tmp_path / "bare.npz"), "--route", "fourier", "--no-figure", "--out",
+                 str(tmp_path / "b")]) == 0
+    assert not (tmp_path / "b.png").exists() and (tmp_path / "b.axial.csv").exists()    # --no-figure: the CSVs only
     true = sorted(o["depth_offset_mm"] for o in other.objects)
     found = pd.read_csv(tmp_path / "b.csv")
     assert np.allclose(sorted(found.depth_mm), true, atol=0.5), (found.depth_mm, true)

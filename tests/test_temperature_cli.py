@@ -112,7 +112,8 @@ def test_temperature_round_trip(files, capsys):
 def test_temperature_auto_depth_and_refocus_route(files):
     out = files["dir"] / "Tauto.h5"
     assert main(["temperature", files["flame"], "--calibration", files["cal"], "--route", "refocus-cfa",
-                 "--out", str(out)]) == 0
+                 "--no-figure", "--out", str(out)]) == 0
+    assert not out.with_suffix(".png").exists()                   # --no-figure: the HDF5 only
     with h5py.File(out, "r") as f:
         depths, t = f["depths_mm"][:], f["temperature_k"][:]
         found = json.loads(f.attrs["found_depths"])

@@ -54,6 +54,13 @@ class _Parser(argparse.ArgumentParser):
         super().__init__(*args, formatter_class=formatter_class, **kwargs)
 
 
+def add_figure_arg(s, what: str) -> None:
+    """``--figure/--no-figure`` (``a.figure``, default True) of a command that draws ``what`` beside its output."""
+    s.add_argument("--figure", action=argparse.BooleanOptionalAction, default=True,
+                   help=f"the figure beside --out (.png: {what}); --no-figure skips it, and with it matplotlib's "
+                        "import (about a second of a small camera's command)")
+
+
 def _admm_fills(subsamples: int) -> str:
     """admm's cap on its fills on a grid of ``subsamples``, by the noise (:data:`~lf_flame.tomo.defaults.ADMM_KNOBS`)."""
     quiet, noisy = (ADMM_KNOBS[subsamples, k]["fills"] for k in ("quiet", "noisy"))
@@ -350,6 +357,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_camera_args(s)
     s.add_argument("--out", required=True, help="PREFIX: writes PREFIX.csv (one row per plane), PREFIX.axial.csv "
                                                "and PREFIX.png")
+    add_figure_arg(s, "each plane with its height, widths and profiles marked")
     s.set_defaults(func=cmd_profiles)
 
     s = sub.add_parser("reconstruct", help="each plane's emission from one light field (3-D reconstruction with "
@@ -417,10 +425,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--l1", type=float, default=None, help="--volume --prior sparse: the l1 weight in [0, 1)")
     s.add_argument("--out", required=True, help="volume.h5 (planes, depths, mm per sample, settings, residuals); "
                                                "the figure goes beside it as .png")
-    s.add_argument("--figure", action=argparse.BooleanOptionalAction, default=True,
-                   help="the figure beside --out (.png: each plane beside its refocused plane and, for a simulated "
-                        "scene, the truth); --no-figure skips it, and with it matplotlib's import (about a second "
-                        "of a small camera's command)")
+    add_figure_arg(s, "each plane beside its refocused plane and, for a simulated scene, the truth")
     s.set_defaults(func=cmd_reconstruct)
 
     def sensor_args(s, calibration_default):
@@ -479,6 +484,7 @@ def build_parser() -> argparse.ArgumentParser:
     sensor_args(s, True)
     s.add_argument("--out", required=True, help="T.h5: temperature_k, valid, dim (plane, row, col), emission, "
                    "depths_mm, counts, provenance; the figure goes beside it as .png")
+    add_figure_arg(s, "each plane's temperature map in mm, one colour bar in K")
     s.set_defaults(func=cmd_temperature)
 
     s = sub.add_parser("resolution", help="the camera's depth-resolution map: the smallest plane spacing that "

@@ -206,7 +206,6 @@ def value_label(route) -> str:
 def cmd_profiles(a):
     import pandas as pd
     from ..config import atomic_write_text
-    from ..measure.figures import plot_profiles
     cam, stack, depths, ms, objects, df = profiles_table(a)
     out = Path(a.out)
     atomic_write_text(f"{out}.csv", df.to_csv(index=False, float_format="%.5g"))
@@ -214,8 +213,10 @@ def cmd_profiles(a):
                           for k, (m, d) in enumerate(zip(ms, depths)) if m is not None
                           for h, v in zip(m.axial_height_mm, m.axial_intensity)])
     atomic_write_text(f"{out}.axial.csv", axial.to_csv(index=False, float_format="%.5g"))
-    plot_profiles(f"{out}.png", cam, stack, depths, ms, objects, a.route, value_label(a.route))
+    if a.figure:
+        from ..measure.figures import plot_profiles
+        plot_profiles(f"{out}.png", cam, stack, depths, ms, objects, a.route, value_label(a.route))
     cols = [c for c in ("depth_mm", "height_mm", "height_mm_true", "height_err_mm", "max_width_mm",
                         "centroid_x_mm", "integrated_intensity", "flags", "failure") if c in df]
     print(df[cols].to_string(index=False, float_format=lambda v: f"{v:.3f}"))
-    print(f"-> {out}.csv, {out}.axial.csv, {out}.png")
+    print(f"-> {out}.csv, {out}.axial.csv" + (f", {out}.png" if a.figure else ""))

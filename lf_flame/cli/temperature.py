@@ -315,8 +315,9 @@ def cmd_temperature(a):
         for k, v in attrs.items():
             f.attrs[k] = v
     tmp.replace(out)
-    fig = out.with_suffix(".png")
-    save_figure(temperature_figure(temp, depths, valid, cam), fig)
+    fig = out.with_suffix(".png") if a.figure else None
+    if fig is not None:
+        save_figure(temperature_figure(temp, depths, valid, cam), fig)
     for k, d in enumerate(depths):
         v = temp[k][valid[k]]
         stats = (f"median {np.median(v):.0f} K, p10-p90 {np.percentile(v, 10):.0f}-{np.percentile(v, 90):.0f} K"
@@ -325,4 +326,5 @@ def cmd_temperature(a):
               f"bright px masked (ratio out of the table), {int(n_dim[k])} px below {a.min_fraction:g} of the peak"
               + (f"; WARNING: slope {slopes[k]:+.3f} near an odd integer, half its lenslets have no red "
                  "sample in any view (cfa_blind): its temperature is interpolation there" if blind[k] else ""))
-    print(f"temperature of {len(depths)} planes ({a.route} {chosen}) in {wall:.1f} s -> {out}, {fig}")
+    print(f"temperature of {len(depths)} planes ({a.route} {chosen}) in {wall:.1f} s -> {out}"
+          + (f", {fig}" if fig else ""))
