@@ -469,11 +469,16 @@ def test_a_recording_of_another_camera_is_decoded_and_reconstructed(tmp_path, la
     assert "real frames are solved on their decoded views' exact operator" in capsys.readouterr().err
 
 
-def test_a_simulated_recording_of_another_camera_is_decoded_at_its_flames_depths(tmp_path, capsys):
+def test_a_simulated_recording_of_another_camera_is_decoded_at_its_flames_depths(tmp_path, capsys, monkeypatch):
     """``simulate-sequence --camera`` of the example camera (rotated grid), then ``sequence`` with the white image's
-    calibration and no planes: each frame decoded and solved at the recording's own flames' depths (frames that
-    record none, as files of a folder: at the depths found in the first frame, within 1 mm); without the
-    calibration, refused naming it (a raw frame of that grid is no grid of whole lenslet images)."""
+    calibration and no planes: each frame decoded and solved at the recording's own flames' depths, the grid
+    checked in the first frame only (frames that record none, as files of a folder: at the depths found in the
+    first frame, within 1 mm); without the calibration, refused naming it (a raw frame of that grid is no grid of
+    whole lenslet images)."""
+    import lf_flame.real.decoding as decoding
+    checked = []
+    check_grid = decoding.check_grid
+    monkeypatch.setattr(decoding, "check_grid", lambda *a, **k: checked.append(1) or check_grid(*a, **k))
     sheet = (Path(__file__).resolve().parents[1] / "examples" / "own_camera.toml").read_text()
     cam = tmp_path / "cam.toml"
     cam.write_text(sheet)
@@ -491,7 +496,7 @@ def test_a_simulated_recording_of_another_camera_is_decoded_at_its_flames_depths
     assert main(["sequence", str(tmp_path / "frames.h5"), "--camera", str(cam), "--calibration",
                  str(tmp_path / "cal.json"), "--route", "reconstruct-admm", "--quiet", "--out", str(tmp_path / "out")]) == 0
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
-    assert summary["n_frames"] == 4
+    assert summary["n_frames"] == 4 and len(checked) == 1
     frames = pd.read_csv(tmp_path / "out" / "frames.csv")
     assert sorted(frames.depth_mm.unique()) == pytest.approx(sorted(fl["depth_offset_mm"] for fl in flames))
     # the same frames as files of a folder, which record no flames: the depths found in the first frame

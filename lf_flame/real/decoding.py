@@ -375,10 +375,11 @@ def _nearest_pixels(calibration: GridCalibration, n_views: int) -> np.ndarray:
 
 def decode_capture_views(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | None = None,
                          dark: np.ndarray | None = None, sensor=None, *, n_views: int | None = None,
-                         bin_views: int | None = None, camera_id: str | None = None):
+                         bin_views: int | None = None, camera_id: str | None = None, check: bool = True):
     """A capture decoded as ``lf-flame decode`` decodes it: :func:`decode` (its bilinear samples, binned by
     ``bin_views``, None: :func:`auto_bin`), or for a colour ``sensor``'s capture :func:`decode_colour` (each sample
     its nearest pixel, its channel with it, one pixel per sample); a hexagonal grid's views on its own lattice.
+    ``check``: as :func:`decode` (False for a recording's later frames, its first checked).
 
     Returns
     -------
@@ -399,26 +400,27 @@ def decode_capture_views(raw: np.ndarray, calibration: GridCalibration, white: n
     if sensor is None:
         k = auto_bin(calibration, n_views) if bin_views is None else bin_views
         return decode(raw, calibration, white, dark, n_views=n_views, camera_id=camera_id, bin_views=k,
-                      resample=False), None, k
+                      resample=False, check=check), None, k
     if bin_views not in (None, 1):
         raise ValueError("a colour capture is decoded one pixel per sample, its channels apart: bin_views 1 (--bin 1 "
                          "or auto)")
     if camera_id is not None and calibration.camera_id and camera_id != calibration.camera_id:
         raise ValueError(f"the calibration is of camera {calibration.camera_id!r}, not {camera_id!r}")
-    views, channels = decode_colour(raw, calibration, sensor, white, dark, n_views=n_views)
+    views, channels = decode_colour(raw, calibration, sensor, white, dark, n_views=n_views, check=check)
     return views, channels, 1
 
 
 def decode_repaired(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | None = None,
                     dark: np.ndarray | None = None, sensor=None, saturation: float | None = None, *,
                     n_views: int | None = None, bin_views: int | None = None, camera_id: str | None = None,
-                    defects: np.ndarray | None = None):
+                    defects: np.ndarray | None = None, check: bool = True):
     """A capture decoded as :func:`decode_capture_views` decodes it, its defective pixels repaired first
     (:func:`lf_flame.real.defects.capture_defects`), and the samples to leave out of a fit: those from pixels at or
     above ``saturation`` (:func:`clipped_samples`) or defective.
 
     ``defects``: the sensor's defect map (bool, the raw image's shape), found in an earlier frame (a recording's):
-    applied, not searched for again. None: found in this capture.
+    applied, not searched for again. None: found in this capture. ``check``: check that the capture shows the
+    calibration's grid (:func:`decode`; False for a recording's frames after its first).
 
     Returns
     -------
@@ -439,7 +441,7 @@ def decode_repaired(raw: np.ndarray, calibration: GridCalibration, white: np.nda
     flagged, repaired = capture_defects(img, grid_offsets(calibration, sensor is not None), flagged=defects,
                                         dark=None if dark is None else _image("dark frame", dark, img.shape))
     views, channels, k = decode_capture_views(repaired, calibration, white, dark, sensor, n_views=n_views,
-                                              bin_views=bin_views, camera_id=camera_id)
+                                              bin_views=bin_views, camera_id=camera_id, check=check)
     leave_out = None if saturation is None and not flagged.any() else clipped_samples(
         img, calibration, saturation, n_views=n_views, bin_views=k, resample=False, defects=flagged)
     return views, channels, k, leave_out, flagged
