@@ -134,3 +134,18 @@ def test_the_decoders_bilinear_samples_are_scipys_map_coordinates():
     assert np.array_equal(got[:, 0, 4:8] == 0, np.ones((3, 4), bool)) and np.all(got[:, 0, :4] > 0)
     assert 0.2 < np.mean(want == 0) < 0.6                                   # both kinds of position drawn
     assert np.allclose(decode._sample(images[1], pos), want[1], rtol=0, atol=1e-14)
+
+
+def test_view_positions_are_shared_for_one_grid_and_read_only(calibrations):
+    """:func:`~lf_flame.real.decoding.view_positions` hands the same read-only array to every call for one grid and
+    view count (a recording's frames), and new positions for another grid or count."""
+    import dataclasses
+    cal = calibrations("square")
+    a, b = decode.view_positions(cal, 5), decode.view_positions(cal, 5)
+    assert a is b and not a.flags.writeable
+    with pytest.raises(ValueError):
+        a[0, 0, 0, 0, 0] = 1.0
+    moved = dataclasses.replace(cal, origin_px=(cal.origin_px[0] + 0.25, cal.origin_px[1]))
+    c = decode.view_positions(moved, 5)
+    assert c is not a and np.allclose(c[..., 0] - a[..., 0], 0.25) and np.array_equal(c[..., 1], a[..., 1])
+    assert decode.view_positions(cal, 3).shape[:2] == (3, 3)
