@@ -6,20 +6,23 @@ white``) -> ``calibrate``; one depth scene (``simulate --scene depth``, seed 3).
 RAW --camera CAM --calibration CAL --out OUT`` (decoded on the fly, depths found, admm on the exact operator, the
 figure), and the same with ``--no-figure``, each a whole process (the interpreter's start, imports, numba's cache,
 the work), in child processes alternating with another checkout's (``--compare DIR``, ``PYTHONPATH=DIR``) so that
-the machine's drift falls on both. Python's bytecode cache is on (``PYTHONDONTWRITEBYTECODE`` unset: an installed
+the machine's drift falls on both; and a recording of the same camera (30 frames, two flames) through ``lf-flame
+sequence`` with the calibration and its white image (each frame decoded), by shift-and-sum and by admm, its
+frames/s as the command reports them. Python's bytecode cache is on (``PYTHONDONTWRITEBYTECODE`` unset: an installed
 package has its bytecode), after one warm-up run per version and variant. Then one run per version in-process,
 its steps timed by wrappers: the imports before the command, reading and decoding the capture, the depth search,
 the solves (the first, then the residual's search and refinement), the HDF5, the figure, numba's cache loads
 (inside the steps) and the rest.
 
 Writes ``<out>/one_command.{csv,md,json}``. Usage: ``python experiments/one_command.py --out results
-[--compare DIR] [--pairs 5]`` (2-3 min on 2 cores).
+[--compare DIR] [--pairs 5]`` (4-6 min on 2 cores).
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 import time
@@ -32,6 +35,10 @@ ROOT = Path(__file__).resolve().parents[1]
 SENSOR = (1080, 1080)
 SEED = 3
 VARIANTS = {"figure": [], "no figure": ["--no-figure"]}
+#: A recording of the same camera (``simulate-sequence --simulate overlap``: two flames at +10 and -10 mm, 30 frames
+#: at 100 frames/s), each frame decoded with the calibration and its white image, at the flames' depths: the route.
+RECORDING = dict(fps=100, duration=0.3)
+RECORDING_ROUTES = {"recording, shift-sum": "shift-sum", "recording, admm": "reconstruct-admm"}
 
 
 def camera_file(work: Path) -> Path:
@@ -52,7 +59,9 @@ def set_up(work: Path) -> list:
     cli = [sys.executable, "-m", "lf_flame.cli"]
     for args in (["simulate", "--scene", "white", "--camera", cam, "--out", work / "white.npz"],
                  ["calibrate", work / "white.npz", "--camera", cam, "--out", work / "calibration.json"],
-                 ["simulate", "--scene", "depth", "--seed", SEED, "--camera", cam, "--out", work / "capture.npz"]):
+                 ["simulate", "--scene", "depth", "--seed", SEED, "--camera", cam, "--out", work / "capture.npz"],
+                 ["simulate-sequence", "--simulate", "overlap", "--fps", RECORDING["fps"], "--duration",
+                  RECORDING["duration"], "--camera", cam, "--quiet", "--out", work / "frames.h5"]):
         subprocess.run(cli + [str(v) for v in args], check=True, capture_output=True, cwd=work)
     return ["reconstruct", str(work / "capture.npz"), "--camera", str(cam), "--calibration",
             str(work / "calibration.json")]
@@ -82,6 +91,16 @@ def child(work: Path, args: list, phases: bool) -> None:
         if rc != 0:
             raise SystemExit(f"lf-flame {' '.join(args + extra)} exited {rc}")
         print(json.dumps(dict(kind="process", variant=variant, wall_s=wall)), flush=True)
+    for variant, route in RECORDING_ROUTES.items():
+        out = work / f"seq_{os.getpid()}"
+        argv = ["sequence", str(work / "frames.h5"), "--camera", str(work / "camera.toml"), "--calibration",
+                str(work / "calibration.json"), "--white", str(work / "white.npz"), "--route", route, "--quiet"]
+        wall, rc = run_once(argv, out)
+        if rc != 0:
+            raise SystemExit(f"lf-flame {' '.join(argv)} exited {rc}")
+        fps = json.loads((out / "summary.json").read_text())["frames_per_s"]
+        shutil.rmtree(out)
+        print(json.dumps(dict(kind="process", variant=variant, wall_s=wall, frames_per_s=fps)), flush=True)
 
 
 def phase_times(argv: list) -> dict:
@@ -148,6 +167,9 @@ def main(argv=None) -> int:
     tab = (df.groupby(["variant", "version"]).wall_s.agg(n="size", median_s="median",
                                                            p90_s=lambda s: s.quantile(0.9), worst_s="max")
            .reset_index())
+    fps = df.groupby(["variant", "version"]).frames_per_s.agg(["median", "min"])
+    tab["frames_per_s_median"] = [fps["median"].get((v, ver), np.nan) for v, ver in zip(tab.variant, tab.version)]
+    tab["frames_per_s_min"] = [fps["min"].get((v, ver), np.nan) for v, ver in zip(tab.variant, tab.version)]
     if a.compare is not None:
         per = df.pivot_table(index=["variant", "pair"], columns="version", values="wall_s")
         ratio = (per["before"] / per["after"]).dropna().groupby("variant")
@@ -162,6 +184,8 @@ def main(argv=None) -> int:
         ["git", "-C", str(a.compare), "log", "-1", "--format=%h %s"], capture_output=True, text=True).stdout.strip()
     meta = dict(command="lf-flame " + " ".join(Path(c).name if str(a.work) in c else c for c in cmd) + " --out OUT",
                 sensor=SENSOR, seed=SEED, pairs=a.pairs,
+                recording=(f"a recording of the same camera (simulate-sequence --simulate overlap: two flames, "
+                           f"{int(RECORDING['fps'] * RECORDING['duration'])} frames at {RECORDING['fps']} frames/s)"),
                 compare=None if a.compare is None else str(a.compare), compare_commit=compared or None,
                 wall_s=time.perf_counter() - t_all, table=tab.to_dict("records"), phases=phases.to_dict(),
                 provenance=provenance())
@@ -185,7 +209,10 @@ def write_md(out: Path, meta: dict, tab, phases) -> None:
              f"`examples/own_camera.toml` on a {meta['sensor'][0]} x {meta['sensor'][1]} sensor (99 x 98 lenslets), "
              f"its white image calibrated, one depth scene (seed {meta['seed']}); timed, as a whole process: "
              f"`{meta['command']}` (decoded on the fly, depths found, admm), with and without `--no-figure`, "
-             f"{meta['pairs']} runs per version and variant, Python's bytecode cache on, after a warm-up run." + before,
+             f"{meta['pairs']} runs per version and variant, Python's bytecode cache on, after a warm-up run. "
+             f"The recording variants: `lf-flame sequence frames.h5 --camera camera.toml --calibration "
+             f"calibration.json --white white.npz --route ROUTE` on {meta['recording']}, each frame decoded; "
+             "`frames_per_s` is the command's own figure (the frames over its chunks' time)." + before,
              "", tab.to_markdown(index=False, floatfmt=".3g"), "",
              "## Where one run's time goes (seconds, in-process, the figure drawn)", "",
              "One run per version; wrappers on the command line's steps. The interpreter's own start (about 0.05 s) "
