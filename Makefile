@@ -178,7 +178,7 @@ cameras: $(STAMP) ## five cameras end to end from the CLI (white image, calibrat
 floor: $(STAMP) ## each emission route's time as a multiple of this machine's floor (the views read once, one batched FFT pair), and where admm's time goes -> results/floor.{csv,md,json}
 	$(VENV)/bin/python experiments/floor.py --out $(TRADEOFF_OUT)
 
-one-command: $(STAMP) ## a 99 x 98-lenslet capture from its raw file to found depths and planes in one command (lf-flame reconstruct), timed as a whole process, and where its time goes -> results/one_command.{csv,md,json}
+one-command: $(STAMP) ## a 99 x 98-lenslet capture from its raw file to found depths and planes in one command (lf-flame reconstruct), timed as a whole process, where its time goes, and a recording of it decoded frame by frame -> results/one_command.{csv,md,json}
 	$(VENV)/bin/python experiments/one_command.py --out $(TRADEOFF_OUT)
 
 thread-wait: $(STAMP) ## (after make cameras) admm's solve time, OpenMP threads waiting passively against spinning -> results/thread_wait.{csv,md,json}
