@@ -149,3 +149,36 @@ def test_view_positions_are_shared_for_one_grid_and_read_only(calibrations):
     c = decode.view_positions(moved, 5)
     assert c is not a and np.allclose(c[..., 0] - a[..., 0], 0.25) and np.array_equal(c[..., 1], a[..., 1])
     assert decode.view_positions(cal, 3).shape[:2] == (3, 3)
+
+
+@pytest.mark.parametrize("layout", ["hex", "square"])
+def test_a_white_images_samples_decode_as_the_white_image_does(grids, calibrations, layout):
+    """The views are the capture's samples over the white image's (both dark-subtracted, sampled bilinearly at
+    the views' positions as SciPy samples them, binned), 0 where the white's are at or below 5 % of their 99th
+    percentile; ``decode(white_views=white_samples(...))`` (a recording's white image sampled once) gives them bit
+    for bit as ``decode(white=...)`` does, with a dark frame and binned; both at once, or samples of another
+    binning, are refused."""
+    from scipy import ndimage
+    _, white, raw = grids(layout)
+    cal = calibrations(layout)
+    dark = np.full(raw.shape, 0.01)
+    for k in (1, 2):
+        want = decode.decode(raw + dark, cal, white + dark, dark, bin_views=k, resample=False)
+        n = want.shape[0]
+        pos = np.moveaxis(decode.view_positions(cal, n * k), -1, 0) - 0.5
+
+        def sampled(img):
+            s = ndimage.map_coordinates(np.asarray(img, np.float64), pos.reshape(2, -1), order=1,
+                                        mode="constant").reshape(pos.shape[1:])
+            return s.reshape(n, k, n, k, *s.shape[2:]).sum(axis=(1, 3))
+        rv, wv0 = sampled(raw), sampled(white)
+        lit = wv0 > 0.05 * np.percentile(wv0, 99)
+        assert np.allclose(want, np.where(lit, rv / np.where(lit, wv0, 1.0), 0.0), rtol=1e-6, atol=1e-7)
+        wv = decode.white_samples(cal, white + dark, dark, bin_views=k)
+        assert np.array_equal(wv > 0, lit) and np.allclose(wv[lit], wv0[lit], rtol=1e-12, atol=0)
+        assert np.array_equal(decode.decode(raw + dark, cal, None, dark, bin_views=k, resample=False,
+                                            white_views=wv), want)
+    with pytest.raises(ValueError, match="not both"):
+        decode.decode(raw, cal, white, white_views=wv)
+    with pytest.raises(ValueError, match="white_views of shape"):
+        decode.decode(raw, cal, white_views=wv)                 # binned by 2, the views not

@@ -472,13 +472,14 @@ def test_a_recording_of_another_camera_is_decoded_and_reconstructed(tmp_path, la
 def test_a_simulated_recording_of_another_camera_is_decoded_at_its_flames_depths(tmp_path, capsys, monkeypatch):
     """``simulate-sequence --camera`` of the example camera (rotated grid), then ``sequence`` with the white image's
     calibration and no planes: each frame decoded and solved at the recording's own flames' depths, the grid
-    checked in the first frame only (frames that record none, as files of a folder: at the depths found in the
+    checked in the first frame only and the white image sampled once (frames that record none, as files of a folder: at the depths found in the
     first frame, within 1 mm); without the calibration, refused naming it (a raw frame of that grid is no grid of
     whole lenslet images)."""
     import lf_flame.real.decoding as decoding
-    checked = []
-    check_grid = decoding.check_grid
+    checked, whites = [], []
+    check_grid, white_samples = decoding.check_grid, decoding.white_samples
     monkeypatch.setattr(decoding, "check_grid", lambda *a, **k: checked.append(1) or check_grid(*a, **k))
+    monkeypatch.setattr(decoding, "white_samples", lambda *a, **k: whites.append(1) or white_samples(*a, **k))
     sheet = (Path(__file__).resolve().parents[1] / "examples" / "own_camera.toml").read_text()
     cam = tmp_path / "cam.toml"
     cam.write_text(sheet)
@@ -518,10 +519,12 @@ def test_a_simulated_recording_of_another_camera_is_decoded_at_its_flames_depths
     for i, p in enumerate(sorted((tmp_path / "folder").glob("*.npy"))):
         frame = np.load(p)
         np.save(tmp_path / "offset" / p.name, frame + 0.03 * frame.max())
+    whites.clear()
     assert main(["sequence", str(tmp_path / "offset"), "--camera", str(cam), "--calibration", str(tmp_path / "cal.json"),
                  "--white", str(tmp_path / "white.npz"), "--fps", "100", "--route", "shift-sum", "--depth",
                  str(found[0]), "--quiet", "--out", str(tmp_path / "offset_out")]) == 0
     assert "black level" in capsys.readouterr().err
+    assert len(whites) == 1                                 # its white image sampled once for the four frames
 
 
 def test_a_colour_recording_is_levelled_as_reconstruct_levels_a_capture(tmp_path, capsys, colour_capture):

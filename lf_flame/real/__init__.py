@@ -28,7 +28,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "lattice": ["CalibrationError", "lattice_from_autocorrelation", "spot_centres"],
         "calibration": ["CALIBRATION_FORMAT", "CALIBRATION_VERSION", "GridCalibration", "calibrate"],
         "grid_check": ["check_grid"],
-        "decoding": ["view_positions", "interpolation_phases", "hex_to_square", "views_shape", "on_square_grid", "max_views", "views_for_pitch", "decode", "decode_colour", "decode_repaired", "sample_offsets", "clipped_samples"],
+        "decoding": ["view_positions", "interpolation_phases", "hex_to_square", "views_shape", "on_square_grid", "max_views", "views_for_pitch", "decode", "decode_colour", "decode_repaired", "sample_offsets", "clipped_samples", "white_samples"],
         "defects": ["DEFECT_MARGIN", "DEFECT_SPREAD", "lenslet_offsets", "grid_offsets", "defective_pixels",
                     "repair_pixels", "capture_defects"],
         "views_file": ["save_views", "load_views", "load_clipped", "load_channels", "load_lattice"],

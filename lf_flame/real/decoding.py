@@ -239,7 +239,8 @@ def _prepared(raw, calibration: GridCalibration, dark, n_views, check: bool, bin
 
 def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | None = None,
            dark: np.ndarray | None = None, *, n_views: int | None = None, min_white: float = 0.05,
-           camera_id: str | None = None, check: bool = True, bin_views: int = 1, resample: bool = True) -> np.ndarray:
+           camera_id: str | None = None, check: bool = True, bin_views: int = 1, resample: bool = True,
+           white_views: np.ndarray | None = None) -> np.ndarray:
     """Decode a raw plenoptic image into sub-aperture views with its grid calibration.
 
     Dark subtraction, then every lenslet image is resampled (bilinearly) at
@@ -273,6 +274,10 @@ def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | No
         False: a hexagonal grid's views stay on its own lattice (the calibration's R x C
         lenslets, odd rows half a pitch right), the data of
         :class:`lf_flame.tomo.lattice.LatticeOperator`.
+    white_views : ndarray of shape (N, N, R, C) or None
+        The white image as it divides the views (:func:`white_samples`, at the same ``n_views``,
+        ``bin_views`` and ``min_white``), in place of ``white``: computed once, it decodes every
+        frame of a recording.
 
     Returns
     -------
@@ -288,30 +293,61 @@ def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | No
     ValueError
         A raw, white or dark image of another shape than the calibration's sensor, NaN or
         inf, ``n_views`` or ``bin_views`` out of range, another camera id, or a raw image whose
-        visible lenslet grid is not the calibration's.
+        visible lenslet grid is not the calibration's; ``white`` and ``white_views`` both given,
+        or ``white_views`` of another shape than the views.
     """
     calibration.validate()
     if camera_id is not None and calibration.camera_id and camera_id != calibration.camera_id:
         raise ValueError(f"the calibration is of camera {calibration.camera_id!r}, not {camera_id!r}")
+    if white is not None and white_views is not None:
+        raise ValueError("give the white image or its samples (white_views), not both")
     img, d, n = _prepared(raw, calibration, dark, n_views, check, bin_views)
     k = int(bin_views)
-    pos = view_positions(calibration, n * k)
-    if white is None:
-        views = _bin(_sample(img, pos), k)
-    else:
-        w = _image("white image", white, calibration.sensor_shape)
-        if d is not None:
-            w = w - d
-        views, wv = (_bin(sv, k) for sv in _sample(np.stack([img, w]), pos))
-        floor = min_white * np.percentile(wv, 99)
-        if not floor > 0:
-            raise ValueError("the white image is dark where the lenslet images are: not this calibration's white image")
-        lit = wv > floor
-        views = np.where(lit, views / np.where(lit, wv, 1.0), 0.0)
+    views = _bin(_sample(img, view_positions(calibration, n * k)), k)
+    if white is not None:
+        white_views = white_samples(calibration, white, d, n_views=n, bin_views=k, min_white=min_white)
+    if white_views is not None:
+        if np.shape(white_views) != views.shape:
+            raise ValueError(f"white_views of shape {np.shape(white_views)} are not the views' {views.shape}")
+        lit = white_views > 0
+        views = np.where(lit, views / np.where(lit, white_views, 1.0), 0.0)
     views = views.astype(np.float32)
     if calibration.layout == "hex" and resample:
         views = hex_to_square(views)
     return np.ascontiguousarray(views)
+
+
+def white_samples(calibration: GridCalibration, white: np.ndarray, dark: np.ndarray | None = None, *,
+                  n_views: int | None = None, bin_views: int = 1, min_white: float = 0.05) -> np.ndarray:
+    """The white image as :func:`decode` divides a capture's views by it: the dark frame subtracted, sampled
+    bilinearly at :func:`view_positions` and binned as the capture, and 0 where it is below ``min_white`` of
+    its 99th percentile (outside the lenslet images, between lenslets), where the views are set to 0.
+
+    Parameters
+    ----------
+    calibration, white, dark, n_views, bin_views, min_white
+        As :func:`decode`.
+
+    Returns
+    -------
+    ndarray of shape (N, N, R, C), float64
+        On the calibration's grid (a hexagonal grid's lattice).
+
+    Raises
+    ------
+    ValueError
+        A white image or dark frame of another shape than the calibration's sensor, NaN or inf, ``n_views`` or
+        ``bin_views`` out of range, or a white image dark where the lenslet images are.
+    """
+    w = _image("white image", white, calibration.sensor_shape)
+    if dark is not None:
+        w = w - _image("dark frame", dark, calibration.sensor_shape)
+    n, k = _view_count(calibration, n_views, bin_views), int(bin_views)
+    wv = _bin(_sample(w, view_positions(calibration, n * k)), k)
+    floor = min_white * np.percentile(wv, 99)
+    if not floor > 0:
+        raise ValueError("the white image is dark where the lenslet images are: not this calibration's white image")
+    return np.where(wv > floor, wv, 0.0)
 
 
 def decode_colour(raw: np.ndarray, calibration: GridCalibration, sensor, white: np.ndarray | None = None,
@@ -390,11 +426,13 @@ def _nearest_pixels(calibration: GridCalibration, n_views: int) -> np.ndarray:
 
 def decode_capture_views(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | None = None,
                          dark: np.ndarray | None = None, sensor=None, *, n_views: int | None = None,
-                         bin_views: int | None = None, camera_id: str | None = None, check: bool = True):
+                         bin_views: int | None = None, camera_id: str | None = None, check: bool = True,
+                         white_views: np.ndarray | None = None):
     """A capture decoded as ``lf-flame decode`` decodes it: :func:`decode` (its bilinear samples, binned by
     ``bin_views``, None: :func:`auto_bin`), or for a colour ``sensor``'s capture :func:`decode_colour` (each sample
     its nearest pixel, its channel with it, one pixel per sample); a hexagonal grid's views on its own lattice.
-    ``check``: as :func:`decode` (False for a recording's later frames, its first checked).
+    ``check``, ``white_views``: as :func:`decode` (a recording's later frames unchecked, its first checked; its
+    white image's samples computed once), ``white_views`` of a monochrome capture only.
 
     Returns
     -------
@@ -415,7 +453,9 @@ def decode_capture_views(raw: np.ndarray, calibration: GridCalibration, white: n
     if sensor is None:
         k = auto_bin(calibration, n_views) if bin_views is None else bin_views
         return decode(raw, calibration, white, dark, n_views=n_views, camera_id=camera_id, bin_views=k,
-                      resample=False, check=check), None, k
+                      resample=False, check=check, white_views=white_views), None, k
+    if white_views is not None:
+        raise ValueError("white_views is a monochrome capture's: a colour capture is decoded with its white image")
     if bin_views not in (None, 1):
         raise ValueError("a colour capture is decoded one pixel per sample, its channels apart: bin_views 1 (--bin 1 "
                          "or auto)")
@@ -428,14 +468,15 @@ def decode_capture_views(raw: np.ndarray, calibration: GridCalibration, white: n
 def decode_repaired(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | None = None,
                     dark: np.ndarray | None = None, sensor=None, saturation: float | None = None, *,
                     n_views: int | None = None, bin_views: int | None = None, camera_id: str | None = None,
-                    defects: np.ndarray | None = None, check: bool = True):
+                    defects: np.ndarray | None = None, check: bool = True, white_views: np.ndarray | None = None):
     """A capture decoded as :func:`decode_capture_views` decodes it, its defective pixels repaired first
     (:func:`lf_flame.real.defects.capture_defects`), and the samples to leave out of a fit: those from pixels at or
     above ``saturation`` (:func:`clipped_samples`) or defective.
 
     ``defects``: the sensor's defect map (bool, the raw image's shape), found in an earlier frame (a recording's):
     applied, not searched for again. None: found in this capture. ``check``: check that the capture shows the
-    calibration's grid (:func:`decode`; False for a recording's frames after its first).
+    calibration's grid (:func:`decode`; False for a recording's frames after its first). ``white_views``: the white
+    image's samples (:func:`white_samples`, a recording's, computed once) in place of ``white``.
 
     Returns
     -------
@@ -456,7 +497,8 @@ def decode_repaired(raw: np.ndarray, calibration: GridCalibration, white: np.nda
     flagged, repaired = capture_defects(img, grid_offsets(calibration, sensor is not None), flagged=defects,
                                         dark=None if dark is None else _image("dark frame", dark, img.shape))
     views, channels, k = decode_capture_views(repaired, calibration, white, dark, sensor, n_views=n_views,
-                                              bin_views=bin_views, camera_id=camera_id, check=check)
+                                              bin_views=bin_views, camera_id=camera_id, check=check,
+                                              white_views=white_views)
     leave_out = None if saturation is None and not flagged.any() else clipped_samples(
         img, calibration, saturation, n_views=n_views, bin_views=k, resample=False, defects=flagged)
     return views, channels, k, leave_out, flagged
