@@ -182,3 +182,22 @@ def test_a_white_images_samples_decode_as_the_white_image_does(grids, calibratio
         decode.decode(raw, cal, white, white_views=wv)
     with pytest.raises(ValueError, match="white_views of shape"):
         decode.decode(raw, cal, white_views=wv)                 # binned by 2, the views not
+
+
+@pytest.mark.parametrize("layout", ["hex", "square"])
+def test_clipped_samples_of_a_capture_without_a_clipped_pixel_are_none_in_the_views_shape(grids, calibrations,
+                                                                                         layout):
+    """A capture with no pixel at the level and no defect marks no sample, in the shape of the views it decodes to
+    (on the square grid or the hexagonal lattice, binned or not); one clipped pixel marks the samples it feeds."""
+    _, white, raw = grids(layout)
+    cal = calibrations(layout)
+    level = 2.0 * float(raw.max())
+    for k, resample in ((1, True), (1, False), (2, False)):
+        views = decode.decode(raw, cal, white, bin_views=k, resample=resample)
+        none = decode.clipped_samples(raw, cal, level, bin_views=k, resample=resample)
+        assert none.shape == views.shape and none.dtype == bool and not none.any()
+    spot = np.unravel_index(np.argmax(raw), raw.shape)
+    one = raw.copy()
+    one[spot] = level
+    hit = decode.clipped_samples(one, cal, level, resample=False)
+    assert 1 <= hit.sum() <= 12               # the samples within a pixel of it: 2 x 2 views of the lenslets it reaches

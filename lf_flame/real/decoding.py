@@ -585,6 +585,9 @@ def clipped_samples(raw: np.ndarray, calibration: GridCalibration, saturation: f
             raise ValueError(f"defects of shape {np.shape(defects)} are not the raw image's {img.shape}")
         bad |= np.asarray(defects, bool)
     n, k = _view_count(calibration, n_views, bin_views), int(bin_views)
+    if not bad.any():                      # no sample is (most frames of a well exposed recording): none sampled
+        return np.zeros(views_shape(calibration, n, k) if resample else (n, n, calibration.n_rows,
+                                                                          calibration.n_cols), bool)
     hit = _bin(_sample(bad.astype(np.float64), view_positions(calibration, n * k)), k)
     if calibration.layout == "hex" and resample:
         hit = hex_to_square(hit)
