@@ -15,7 +15,7 @@ the solves (the first, then the residual's search and refinement), the HDF5, the
 (inside the steps) and the rest.
 
 Writes ``<out>/one_command.{csv,md,json}``. Usage: ``python experiments/one_command.py --out results
-[--compare DIR] [--pairs 5]`` (4-6 min on 2 cores).
+[--compare DIR] [--pairs 5]`` (about 6 min on 2 cores with 5 pairs, 9 with 8).
 """
 from __future__ import annotations
 
