@@ -5,14 +5,14 @@ from numba import njit, prange
 
 
 @njit(parallel=True, cache=True)
-def bilinear(images, rows, cols, out):
-    """Write ``out[k, m]``: image ``k`` of ``images`` (K, H, W) sampled bilinearly at (``rows[m]``, ``cols[m]``), in
-    array-index coordinates (pixel (i, j) at (i, j)), 0 where a coordinate lies outside [0, H - 1] or [0, W - 1]:
-    ``scipy.ndimage.map_coordinates(image, (rows, cols), order=1, mode="constant", cval=0)`` for each image, with
-    the weights computed once per position for all K images."""
+def bilinear(images, positions, out):
+    """Write ``out[k, m]``: image ``k`` of ``images`` (K, H, W) sampled bilinearly at ``positions[m]`` (M, 2: row,
+    column; px, pixel (i, j) centred at (i + ½, j + ½)), 0 where the position lies beyond the first or last pixel
+    centre of either axis: ``scipy.ndimage.map_coordinates(image, positions.T - 0.5, order=1, mode="constant",
+    cval=0)`` for each image, with the weights computed once per position for all K images."""
     K, H, W = images.shape
-    for m in prange(rows.size):
-        r, c = rows[m], cols[m]
+    for m in prange(positions.shape[0]):
+        r, c = positions[m, 0] - 0.5, positions[m, 1] - 0.5
         if not (0.0 <= r <= H - 1 and 0.0 <= c <= W - 1):
             for k in range(K):
                 out[k, m] = 0.0

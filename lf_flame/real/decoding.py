@@ -96,9 +96,9 @@ def _sample(img, pos):
     (K,) + that, float64."""
     images = np.ascontiguousarray(img, np.float64)
     stack = images.reshape((-1,) + images.shape[-2:])
-    coords = pos.reshape(-1, 2) - 0.5                           # pixel (i, j) is centred at (i + ½, j + ½)
-    out = np.empty((len(stack), len(coords)))
-    bilinear(stack, np.ascontiguousarray(coords[:, 0]), np.ascontiguousarray(coords[:, 1]), out)
+    positions = np.ascontiguousarray(np.reshape(pos, (-1, 2)), np.float64)    # a view of view_positions' array
+    out = np.empty((len(stack), len(positions)))
+    bilinear(stack, positions, out)
     return out.reshape(images.shape[:-2] + pos.shape[:-1])
 
 
