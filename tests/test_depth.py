@@ -67,6 +67,33 @@ def test_find_planes_emission_scored(cam, behind):
     assert df.share_near.min() > 0.9
 
 
+def test_the_routes_residuals_are_kept_for_the_last_two_solves_only(cam, planted):
+    """The found planes' route asks for a solve's residual in one step and again in the next: ``Residuals`` gives
+    the same array for the same operator and solve, a new one for another solve of the same operator, and keeps
+    the last two. Kept by the operator alone, a second solve would read the first's residual."""
+    import dataclasses
+
+    from lf_flame.tomo.solvers import Residuals, fitted_pixels, fitted_residual
+    _, views = planted
+    found, op, rec = find_planes(views, cam, peel_rounds=0, refine_steps=0)
+    y = np.asarray(views, np.float64)
+    fit = fitted_pixels(y, 1.0)
+    residuals = Residuals(y, fit)
+    recs = [rec] + [dataclasses.replace(rec, planes=rec.planes * f) for f in (0.5, 0.25)]
+    first = residuals(op, recs[0])
+    np.testing.assert_array_equal(first, fitted_residual(op, rec.planes, y, fit))
+    assert residuals(op, recs[0]) is first
+    second = residuals(op, recs[1])
+    assert second is not first and np.abs(second - first).max() > 0
+    np.testing.assert_array_equal(second, fitted_residual(op, recs[1].planes, y, fit))
+    assert residuals(op, recs[0]) is first                           # two kept
+    residuals(op, recs[2])
+    assert residuals(op, recs[1]) is second
+    again = residuals(op, recs[0])
+    assert again is not first                                        # the first of three was let go
+    np.testing.assert_array_equal(again, first)
+
+
 def test_the_found_planes_take_their_own_knobs_on_noisy_data(cam, planted):
     from lf_flame.tomo.defaults import ADMM_KNOBS
     from lf_flame.tomo.found_planes import FOUND_PLANES_KNOBS
@@ -163,6 +190,25 @@ def test_l1_gathers_a_dense_stack_towards_the_flames_depths(cam, planted):
         reconstruct(views, op, "admm", l1=1.0)
     with pytest.raises(ValueError, match="l1"):
         reconstruct(views, op, "fista", l1=0.02)
+
+
+@pytest.mark.parametrize("shape", [(3, 60, 31), (2, 7, 9), (2, 3, 2), (1, 1, 5)])
+@pytest.mark.parametrize("sigma", [1.5, 0.7])
+def test_the_focus_measures_are_scipys_sobel_laplace_and_gaussian_to_the_bit(shape, sigma):
+    """The depth search's Tenengrad energy and squared Laplacian, each smoothed, from the Numba kernel: equal to the
+    last bit to SciPy's ``ndimage`` filters they replaced (the depth search's results unchanged), on images smaller
+    than the Gaussian's reach too (reflected more than once: 1-3 lenslets across). A sum in another order, an
+    edge mirrored without the edge sample or a tap off by one breaks it."""
+    from scipy import ndimage
+
+    from lf_flame.tomo._depth_kernels import focus_measures
+    from lf_flame.tomo.depth import gaussian_taps
+    stack = np.random.default_rng(sum(shape)).random(shape) * 1e3
+    ten, lap = np.empty_like(stack), np.empty_like(stack)
+    focus_measures(stack, gaussian_taps(sigma), True, ten, lap)
+    np.testing.assert_array_equal(ten, [ndimage.gaussian_filter(ndimage.sobel(im, 0) ** 2 + ndimage.sobel(im, 1) ** 2,
+                                                                sigma) for im in stack])
+    np.testing.assert_array_equal(lap, [ndimage.gaussian_filter(ndimage.laplace(im) ** 2, sigma) for im in stack])
 
 
 def test_merge_depths():

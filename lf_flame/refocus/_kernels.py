@@ -286,17 +286,38 @@ def fourier_slice(spectrum, j_r, w_r, j_c, w_c, out):
             for a in range(W):
                 ju[s, a] = (j_r[s, kr] + a) % M
         for kc in range(Kc):
-            g = spectrum[kr, kc]
             for s in range(S):
                 jc = j_c[s, kc] % M
-                acc = 0j
+                re = im = 0.0
                 for a in range(W):
-                    g_row = g[ju[s, a]]
-                    row = 0j
+                    u = ju[s, a]
+                    row_re = row_im = 0.0
                     for b in range(W):
                         col = jc + b
                         while col >= M:                      # (more than once only where M < W)
                             col -= M
-                        row += w_c[s, kc, b] * g_row[col]
-                    acc += w_r[s, kr, a] * row
-                out[s, kr, kc] = acc
+                        z = spectrum[kr, kc, u, col]
+                        wb = w_c[s, kc, b]
+                        row_re += wb * z.real
+                        row_im += wb * z.imag
+                    re += w_r[s, kr, a] * row_re
+                    im += w_r[s, kr, a] * row_im
+                out[s, kr, kc] = complex(re, im)
+
+
+@njit(parallel=True, cache=True)
+def angular_grid(spec, iu, iv, out):
+    """Place the lit views' spatial spectra on the angular grid of :func:`fourier_slice`.
+
+    ``spec`` (V, Kr, Kc) complex64: view ``k``'s spectrum, to slot ``(iu[k], iv[k])`` (int64) of
+    ``out`` (Kr, Kc, M, M) complex64, every other slot 0 (the grid's zero padding and the unlit views).
+    """
+    V, Kr, Kc = spec.shape
+    M = out.shape[2]
+    for kr in prange(Kr):
+        for kc in range(Kc):
+            for a in range(M):
+                for b in range(M):
+                    out[kr, kc, a, b] = 0
+            for k in range(V):
+                out[kr, kc, iu[k], iv[k]] = spec[k, kr, kc]

@@ -9,6 +9,7 @@ is :meth:`lf_flame.optics.camera.PlenopticCamera.slope_for_depth` and ``depth_fo
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numba
@@ -179,6 +180,22 @@ def _band_limited_box(shifts: np.ndarray, length: int, padded: int) -> np.ndarra
     return np.fft.irfft(np.fft.rfft(box)[None, None, :] * phase, n=padded, axis=-1)[..., :length]
 
 
+@functools.lru_cache(maxsize=2)
+def _slice_count(n: int, shape: tuple, canvas: tuple, slopes: bytes, mask: bytes):
+    """:meth:`FourierSlice.stack`'s count of the views reaching each pixel, (S, R, C) float64 (at least 0.5), and
+    where it reaches 0.5 (bool): the same for every light field of one shape, mask and slopes (the depth search
+    and its residual's searches refocus at the same slopes), so the last two are kept, read-only."""
+    slopes = np.frombuffer(slopes, np.float64)
+    mask = np.frombuffer(mask, bool).reshape(n, n)
+    shifts = slopes[:, None] * _view_offsets(n)[None, :]
+    count = np.einsum("sur,uv,svc->src", _band_limited_box(shifts, shape[0], canvas[0]), mask.astype(np.float64),
+                      _band_limited_box(shifts, shape[1], canvas[1]), optimize=True)
+    reached = count >= 0.5
+    count = np.maximum(count, 0.5)
+    count.flags.writeable = reached.flags.writeable = False
+    return count, reached
+
+
 class FourierSlice:
     """Fourier-slice refocusing (Ng 2005, "Fourier slice photography"): the 2-D spectrum
     of the image refocused at slope ``s`` is the slice of the light field's 4-D
@@ -279,10 +296,8 @@ class FourierSlice:
         if self.half:   # views placed at offsets u - c - 1/2 give the image at r - s/2: shift it back, band-limited
             spec *= np.exp(2j * np.pi * self.half * slopes[:, None, None] * (fr[None, :, None] + fc[None, None, :]))
         img = scipy.fft.irfft2(spec, s=(self.R2, self.C2), workers=-1)[:, :R, :C]
-        shifts = slopes[:, None] * _view_offsets(self.n)[None, :]
-        count = np.einsum("sur,uv,svc->src", _band_limited_box(shifts, R, self.R2), self.mask.astype(np.float64),
-                          _band_limited_box(shifts, C, self.C2), optimize=True)
-        return np.where(count >= 0.5, img / np.maximum(count, 0.5), 0.0).astype(np.float32)
+        count, reached = _slice_count(self.n, self.shape, (self.R2, self.C2), slopes.tobytes(), self.mask.tobytes())
+        return np.divide(img, count, out=np.zeros(img.shape), where=reached).astype(np.float32)
 
 
 def refocus(raw: np.ndarray, slopes, pixels_per_lenslet: int, mask=None, *, method: str = "shift-sum",

@@ -172,6 +172,7 @@ def kernel_quadrature(cy, ay, ty, m0y, cx, ax, tx, n0x, n_taps_y, n_taps_x, radi
     n_g = xg.shape[0]
     cap_y = n_g * (3 + 2 * (n_taps_y + 2)) * n_taps_y
     cap_x = n_g * (3 + 2 * (n_taps_x + 2)) * n_taps_x
+    r2 = radius * radius
     for uv in prange(Nu * Nv):
         u = uv // Nv
         v = uv % Nv
@@ -189,6 +190,7 @@ def kernel_quadrature(cy, ay, ty, m0y, cx, ax, tx, n0x, n_taps_y, n_taps_x, radi
         a_x = np.empty(cap_x)
         s_x = np.empty(cap_x)
         v_x = np.empty(cap_x)
+        e_x = np.empty(cap_x)
         for k in range(P):
             ny = _axis_points(cy[u, k, 0], cy[u, k, 1], cy[u, k, 2], ay[u, 0], ay[u, 1], ay[u, 2],
                               ty[u, 0], ty[u, 1], ty[u, 2], m0y[u, k], n_taps_y, xg, wg, tp_y, w_y, l_y, u_y, a_y,
@@ -197,26 +199,35 @@ def kernel_quadrature(cy, ay, ty, m0y, cx, ax, tx, n0x, n_taps_y, n_taps_x, radi
                               tx[v, 0], tx[v, 1], tx[v, 2], n0x[v, k], n_taps_x, xg, wg, tp_x, w_x, l_x, u_x, a_x,
                               s_x, v_x)
             s0 = sy = sx = syy = sxy = sxx = 0.0
+            for q in range(nx):
+                e_x[q] = max(l_x[q] * l_x[q], u_x[q] * u_x[q])
+            hk = h[u, v, k]
             for p in range(ny):
+                e_y = max(l_y[p] * l_y[p], u_y[p] * u_y[p])
+                wyp, ayp, syp, vyp = w_y[p], a_y[p], s_y[p], v_y[p]
+                row = hk[tp_y[p]]
                 for q in range(nx):
-                    frac, dy, dx = _clip_to_disc(l_y[p], u_y[p], l_x[q], u_x[q], radius)
-                    mu = w_y[p] * w_x[q] * frac
+                    if radius <= 0.0 or e_y + e_x[q] <= r2:     # inside the disc: _clip_to_disc's first answer
+                        frac, dy, dx = 1.0, 0.0, 0.0
+                    else:
+                        frac, dy, dx = _clip_to_disc(l_y[p], u_y[p], l_x[q], u_x[q], radius)
+                    mu = wyp * w_x[q] * frac
                     if mu == 0.0:
                         continue
-                    t_y = a_y[p] + s_y[p] * dy
+                    t_y = ayp + syp * dy
                     t_x = a_x[q] + s_x[q] * dx
                     f = 1.0
                     if use_cos4:
                         t2 = 1.0 + t_y * t_y + t_x * t_x
                         f = 1.0 / (t2 * t2) + 0.5 * (
-                            (-4.0 / t2 ** 3 + 24.0 * t_y * t_y / t2 ** 4) * v_y[p]
+                            (-4.0 / t2 ** 3 + 24.0 * t_y * t_y / t2 ** 4) * vyp
                             + (-4.0 / t2 ** 3 + 24.0 * t_x * t_x / t2 ** 4) * v_x[q])
-                    h[u, v, k, tp_y[p], tp_x[q]] += mu * f
+                    row[tp_x[q]] += mu * f
                     if k == 0:
                         s0 += mu
                         sy += mu * t_y
                         sx += mu * t_x
-                        syy += mu * (t_y * t_y + v_y[p])
+                        syy += mu * (t_y * t_y + vyp)
                         sxy += mu * t_y * t_x
                         sxx += mu * (t_x * t_x + v_x[q])
             if k == 0 and s0 > 0.0:

@@ -407,13 +407,22 @@ def _focus_energy(views, slopes, sigma, laplacian=False):
     """The views refocused band-limited at ``slopes`` (:class:`FourierSlice`, circular aperture); per slope and
     lenslet the Tenengrad energy (squared Sobel gradient), and with ``laplacian`` the squared Laplacian, each
     smoothed over ``sigma`` lenslets: (S, R, C) float64 arrays."""
+    from ._depth_kernels import focus_measures
     mask = aperture_mask(views.shape[0], "circular")
     stack = FourierSlice(views, float(np.max(np.abs(slopes))) + 1e-9, mask).stack(slopes).astype(np.float64)
-    ten = np.array([ndimage.gaussian_filter(ndimage.sobel(im, 0) ** 2 + ndimage.sobel(im, 1) ** 2, sigma)
-                    for im in stack])
-    if not laplacian:
-        return ten
-    return ten, np.array([ndimage.gaussian_filter(ndimage.laplace(im) ** 2, sigma) for im in stack])
+    ten = np.empty_like(stack)
+    lap = np.empty_like(stack) if laplacian else np.empty((0, 0, 0))
+    focus_measures(stack, gaussian_taps(sigma), bool(laplacian), ten, lap)
+    return (ten, lap) if laplacian else ten
+
+
+def gaussian_taps(sigma: float, truncate: float = 4.0) -> np.ndarray:
+    """The taps of ``scipy.ndimage.gaussian_filter(x, sigma, truncate=truncate)`` along one axis, as it builds them
+    (``2 r + 1`` of them, ``r = int(truncate sigma + 1/2)``, summing to 1; float64)."""
+    r = int(truncate * float(sigma) + 0.5)
+    x = np.arange(-r, r + 1)
+    phi = np.exp(-0.5 / (sigma * sigma) * x ** 2)
+    return (phi / phi.sum())[::-1].copy()
 
 
 def merge_depths(depths_mm, weights, merge_mm: float = MERGE_MM):

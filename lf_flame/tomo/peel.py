@@ -129,7 +129,8 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
                        curves=[curves[k] for k in order], grid_slopes=slopes, time_s=found.time_s)
 
 
-def peel_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamera, solve, rounds: int = PEEL_ROUNDS):
+def peel_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamera, solve, rounds: int = PEEL_ROUNDS,
+                residual=None):
     """Search a solve's residual for depths the votes missed and solve again with them, up to ``rounds`` times
     (:func:`missed_depths`): :func:`~lf_flame.tomo.found_planes.find_planes`' and ``lf-flame reconstruct``'s route.
 
@@ -148,17 +149,22 @@ def peel_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamera,
         ``solve(found) -> (op, rec)``: the planes of ``found`` solved as ``rec`` was.
     rounds : int
         >= 0.
+    residual : callable or None
+        ``residual(op, rec)``: the data minus ``rec``'s prediction where fitted
+        (:class:`~lf_flame.tomo.solvers.Residuals`, which keeps the last ones for the route's next
+        step); None: :func:`~lf_flame.tomo.solvers.fitted_residual` of ``data`` and ``fit``.
 
     Returns
     -------
     found, op, rec
         With the missed depths, or the ones given.
     """
-    from .solvers import fitted_residual
+    from .solvers import Residuals
     if int(rounds) != rounds or rounds < 0:
         raise ValueError(f"rounds must be an integer >= 0. Received: {rounds!r}")
+    residual = Residuals(data, fit) if residual is None else residual
     for _ in range(int(rounds)):
-        more = missed_depths(fitted_residual(op, rec.planes, data, fit), camera, found)
+        more = missed_depths(residual(op, rec), camera, found)
         if more is None:
             break
         found = more

@@ -89,7 +89,7 @@ def slope_jacobian(op, planes, fit, which=None) -> np.ndarray:
 
 
 def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamera, solve,
-                  steps: int = REFINE_STEPS):
+                  steps: int = REFINE_STEPS, residual=None):
     """Refine the planes that hold flames one behind another (depths found in a region that holds
     several) by Gauss-Newton on their slopes against the solve's residual (the module's notes), each
     within :data:`REFINE_REACH` times its found uncertainty of where it was found. A plane that merged
@@ -97,7 +97,7 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
 
     Parameters
     ----------
-    found, op, rec, data, fit, camera, solve
+    found, op, rec, data, fit, camera, solve, residual
         As :func:`~lf_flame.tomo.peel.peel_planes`.
     steps : int
         Gauss-Newton steps, >= 0 (:data:`REFINE_STEPS`).
@@ -120,15 +120,15 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
     todo = sorted({int(p) for p, r in zip(found.plane_of, found.region) if per_region[r] > 1 and per_plane[p] == 1})
     if not todo or rec.solver == "learned":
         return found, op, rec
-    from .solvers import fitted_residual
-    y = np.asarray(data, np.float64)
+    from .solvers import Residuals
     fit = np.asarray(fit, bool)
+    fitted = Residuals(data, fit) if residual is None else residual
     k_of = {int(p): k for k, p in enumerate(found.plane_of)}          # each refined plane holds one depth
     lo = {p: found.depths_mm[k_of[p]] - REFINE_REACH * found.uncertainty_mm[k_of[p]] for p in todo}
     hi = {p: found.depths_mm[k_of[p]] + REFINE_REACH * found.uncertainty_mm[k_of[p]] for p in todo}
 
     def residual(op, rec):                                            # prediction minus data
-        return -fitted_residual(op, rec.planes, y, fit)
+        return -fitted(op, rec)
 
     r = residual(op, rec)
     cost = float(np.vdot(r, r))
@@ -197,15 +197,16 @@ def peel_and_refine(found: FoundDepths, op, rec, data, fit, camera: PlenopticCam
     ValueError
         ``rounds`` or ``steps`` not an integer >= 0.
     """
-    found, op, rec = peel_planes(found, op, rec, data, fit, camera, solve, rounds)
-    found, op, rec = refine_planes(found, op, rec, data, fit, camera, solve, steps)
+    from .solvers import Residuals
+    residual = Residuals(data, fit)
+    found, op, rec = peel_planes(found, op, rec, data, fit, camera, solve, rounds, residual)
+    found, op, rec = refine_planes(found, op, rec, data, fit, camera, solve, steps, residual)
     several = refined_regions(found)
     if not (rounds and steps and len(several)) or rec.solver == "learned":
         return found, op, rec
-    from .solvers import fitted_residual
-    more = missed_depths(fitted_residual(op, rec.planes, data, fit), camera, found, prominence=REFINED_PROMINENCE,
-                         share=REFINED_SHARE, regions=several)
+    more = missed_depths(residual(op, rec), camera, found, prominence=REFINED_PROMINENCE, share=REFINED_SHARE,
+                         regions=several)
     if more is None:
         return found, op, rec
     op, rec = solve(more)
-    return refine_planes(more, op, rec, data, fit, camera, solve, steps)
+    return refine_planes(more, op, rec, data, fit, camera, solve, steps, residual)

@@ -119,6 +119,32 @@ def fitted_residual(op, planes, data, fit) -> np.ndarray:
     return np.where(fit, y - (op @ np.ravel(planes)).reshape(y.shape), 0.0)
 
 
+class Residuals:
+    """:func:`fitted_residual` of one light field for the solves asked about, the last two kept: the found planes'
+    route (:func:`lf_flame.tomo.refine.peel_and_refine`) asks for a solve's residual in one step (its search of
+    the residual, a refinement's cost) and again in the next.
+
+    Parameters
+    ----------
+    data : ndarray of shape (N, N, R, C)
+    fit : ndarray of bool of the data's shape
+
+    Call ``residuals(op, rec)`` with an operator and its :class:`Reconstruction`: an ndarray of shape
+    (N, N, R, C), float64, to read only (the same array for the same two objects).
+    """
+
+    def __init__(self, data, fit):
+        self.data, self.fit, self._kept = data, fit, []
+
+    def __call__(self, op, rec) -> np.ndarray:
+        for o, r, res in self._kept:
+            if o is op and r is rec:
+                return res
+        res = fitted_residual(op, rec.planes, self.data, self.fit)
+        self._kept = self._kept[-1:] + [(op, rec, res)]
+        return res
+
+
 def data_misfit(views, op: EmissionOperator, planes, saturation=1.0) -> dict:
     """How much of a light field its planes leave unexplained beyond the noise.
 
