@@ -185,6 +185,30 @@ def test_a_white_images_samples_decode_as_the_white_image_does(grids, calibratio
 
 
 @pytest.mark.parametrize("layout", ["hex", "square"])
+def test_a_colour_white_images_samples_decode_as_the_white_image_does(grids, calibrations, layout):
+    """A colour capture's views over its white image (each sample its nearest pixel, over its channel's 99th
+    percentile on the sensor, 0 at or below 5 %): ``decode_colour(white_views=white_samples(..., sensor=...))``,
+    a recording's white image sampled once, gives them bit for bit as ``decode_colour(white=...)``, with a dark
+    frame; both at once, or binned samples of a colour sensor, are refused."""
+    from lf_flame.optics.colour import library_sensor
+    _, white, raw = grids(layout)
+    cal = calibrations(layout)
+    sensor = library_sensor(pattern="RGGB", phase=(1, 0))
+    dark = np.full(raw.shape, 0.01)
+    want, channels = decode.decode_colour(raw + dark, cal, sensor, white + dark, dark)
+    wv = decode.white_samples(cal, white + dark, dark, sensor=sensor)
+    got, got_channels = decode.decode_colour(raw + dark, cal, sensor, None, dark, white_views=wv)
+    assert np.array_equal(got, want) and np.array_equal(got_channels, channels) and np.any(want)
+    assert np.all(want[wv == 0] == 0) and 0 < np.mean(wv == 0) < 1                   # 0 where the white is dark
+    mono = decode.white_samples(cal, white + dark, dark)             # bilinear, one level for all pixels
+    assert mono.shape == wv.shape and not np.allclose(mono, wv)
+    with pytest.raises(ValueError, match="not both"):
+        decode.decode_colour(raw, cal, sensor, white, white_views=wv)
+    with pytest.raises(ValueError, match="bin_views 1"):
+        decode.white_samples(cal, white, sensor=sensor, bin_views=2)
+
+
+@pytest.mark.parametrize("layout", ["hex", "square"])
 def test_clipped_samples_of_a_capture_without_a_clipped_pixel_are_none_in_the_views_shape(grids, calibrations,
                                                                                          layout):
     """A capture with no pixel at the level and no defect marks no sample, in the shape of the views it decodes to

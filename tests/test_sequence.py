@@ -527,11 +527,14 @@ def test_a_simulated_recording_of_another_camera_is_decoded_at_its_flames_depths
     assert len(whites) == 1                                 # its white image sampled once for the four frames
 
 
-def test_a_colour_recording_is_levelled_as_reconstruct_levels_a_capture(tmp_path, capsys, colour_capture):
+def test_a_colour_recording_is_levelled_as_reconstruct_levels_a_capture(tmp_path, capsys, colour_capture, monkeypatch):
     """A colour camera's recording (the example camera with an RGGB CFA): each frame is decoded with its channels
     apart and levelled into one light field exactly as ``reconstruct`` levels the same capture (the same views and
-    the same samples left out: blue), solved on the operator of nearest pixels; ``sequence`` runs it from the
-    command line."""
+    the same samples left out: blue), its white image sampled once for every frame, solved on the operator of
+    nearest pixels; ``sequence`` runs it from the command line."""
+    import lf_flame.real.decoding as decoding
+    whites, white_samples = [], decoding.white_samples
+    monkeypatch.setattr(decoding, "white_samples", lambda *a, **k: whites.append(1) or white_samples(*a, **k))
     from lf_flame.cli._io import light_field
     from lf_flame.real.calibration import GridCalibration
     from lf_flame.recordings.job import SequenceJob
@@ -553,6 +556,7 @@ def test_a_colour_recording_is_levelled_as_reconstruct_levels_a_capture(tmp_path
     assert np.array_equal(views, lf.views) and np.array_equal(leave, lf.leave_out)
     dark, dark_leave = job.frame(np.zeros(cal.sensor_shape))         # a dark frame (the flame out): zeros, no error
     assert not np.any(dark) and np.array_equal(dark_leave, leave)
+    assert len(whites) == 1
     assert job.operator().interpolation is None                       # nearest pixels: no interpolation
     from lf_flame.tomo.defaults import OFFSET_KNOBS
     from lf_flame.tomo.exact import offset_bins_for

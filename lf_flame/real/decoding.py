@@ -318,15 +318,19 @@ def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | No
 
 
 def white_samples(calibration: GridCalibration, white: np.ndarray, dark: np.ndarray | None = None, *,
-                  n_views: int | None = None, bin_views: int = 1, min_white: float = 0.05) -> np.ndarray:
+                  n_views: int | None = None, bin_views: int = 1, min_white: float = 0.05, sensor=None) -> np.ndarray:
     """The white image as :func:`decode` divides a capture's views by it: the dark frame subtracted, sampled
     bilinearly at :func:`view_positions` and binned as the capture, and 0 where it is below ``min_white`` of
-    its 99th percentile (outside the lenslet images, between lenslets), where the views are set to 0.
+    its 99th percentile (outside the lenslet images, between lenslets), where the views are set to 0. With a
+    colour ``sensor``, as :func:`decode_colour` divides by it: each sample its nearest pixel, over that pixel's
+    channel's 99th percentile on the sensor, and 0 where that is ``min_white`` or less.
 
     Parameters
     ----------
     calibration, white, dark, n_views, bin_views, min_white
         As :func:`decode`.
+    sensor : ColourSensor or None
+        A colour capture's (:func:`decode_colour`; ``bin_views`` 1).
 
     Returns
     -------
@@ -337,11 +341,16 @@ def white_samples(calibration: GridCalibration, white: np.ndarray, dark: np.ndar
     ------
     ValueError
         A white image or dark frame of another shape than the calibration's sensor, NaN or inf, ``n_views`` or
-        ``bin_views`` out of range, or a white image dark where the lenslet images are.
+        ``bin_views`` out of range, or a white image dark where the lenslet images are (or in a colour channel).
     """
     w = _image("white image", white, calibration.sensor_shape)
     if dark is not None:
         w = w - _image("dark frame", dark, calibration.sensor_shape)
+    if sensor is not None:
+        if bin_views != 1:
+            raise ValueError("a colour capture is decoded one pixel per sample, its channels apart: bin_views 1")
+        wv = _colour_white(w, _colour_pixels(calibration, sensor, _view_count(calibration, n_views, 1)))
+        return np.where(wv > min_white, wv, 0.0)
     n, k = _view_count(calibration, n_views, bin_views), int(bin_views)
     wv = _bin(_sample(w, view_positions(calibration, n * k)), k)
     floor = min_white * np.percentile(wv, 99)
@@ -352,7 +361,7 @@ def white_samples(calibration: GridCalibration, white: np.ndarray, dark: np.ndar
 
 def decode_colour(raw: np.ndarray, calibration: GridCalibration, sensor, white: np.ndarray | None = None,
                   dark: np.ndarray | None = None, *, n_views: int | None = None, min_white: float = 0.05,
-                  check: bool = True) -> tuple[np.ndarray, np.ndarray]:
+                  check: bool = True, white_views: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Decode a colour (Bayer) raw image into sub-aperture views that keep its channels apart.
 
     :func:`decode`'s bilinear resampling blends four pixels, which under a colour filter array
@@ -378,6 +387,10 @@ def decode_colour(raw: np.ndarray, calibration: GridCalibration, sensor, white: 
         Its CFA pattern and phase (of pixel (0, 0) of the raw image).
     white, dark, n_views, min_white, check
         As :func:`decode`.
+    white_views : ndarray of shape (N, N, R, C) or None
+        The white image as it divides the views (:func:`white_samples` with this ``sensor``, at the same
+        ``n_views`` and ``min_white``), in place of ``white``: computed once, it decodes every frame of a
+        recording.
 
     Returns
     -------
@@ -392,30 +405,49 @@ def decode_colour(raw: np.ndarray, calibration: GridCalibration, sensor, white: 
     ValueError
         As :func:`decode`.
     """
-    from ..optics.colour import cfa_channels
     calibration.validate()
+    if white is not None and white_views is not None:
+        raise ValueError("give the white image or its samples (white_views), not both")
     img, d, n = _prepared(raw, calibration, dark, n_views, check)
-    H, W = calibration.sensor_shape
-    q = _nearest_pixels(calibration, n)
-    on = (q[..., 0] >= 0) & (q[..., 0] < H) & (q[..., 1] >= 0) & (q[..., 1] < W)
-    qr, qc = np.clip(q[..., 0], 0, H - 1), np.clip(q[..., 1], 0, W - 1)
-    cfa = cfa_channels((H, W), sensor.pattern, sensor.phase)
+    pixels = _colour_pixels(calibration, sensor, n)
+    qr, qc, on, cfa = pixels
     channels = cfa[qr, qc]
     views = np.where(on, img[qr, qc], 0.0)
     if white is not None:
         w = _image("white image", white, calibration.sensor_shape)
-        if d is not None:
-            w = w - d
-        level = np.ones(3)
-        for c in range(3):
-            v = w[cfa == c]
-            level[c] = np.percentile(v, 99) if v.size else 1.0
-        if not np.all(level > 0):
-            raise ValueError("the white image is dark in a colour channel: not this camera's white image")
-        wv = np.where(on, w[qr, qc] / level[channels], 0.0)
-        lit = wv > min_white
-        views = np.where(lit, views / np.where(lit, wv, 1.0), 0.0)
+        wv = _colour_white(w if d is None else w - d, pixels)
+        white_views = np.where(wv > min_white, wv, 0.0)
+    if white_views is not None:
+        if np.shape(white_views) != views.shape:
+            raise ValueError(f"white_views of shape {np.shape(white_views)} are not the views' {views.shape}")
+        lit = white_views > 0
+        views = np.where(lit, views / np.where(lit, white_views, 1.0), 0.0)
     return np.ascontiguousarray(views.astype(np.float32)), np.ascontiguousarray(channels.astype(np.int8))
+
+
+def _colour_pixels(calibration: GridCalibration, sensor, n_views: int):
+    """The pixel each view sample reads (row, column; (N, N, R, C) int64, clipped to the sensor), whether it lies on
+    the sensor, and the sensor's channel map (:func:`lf_flame.optics.colour.cfa_channels`)."""
+    from ..optics.colour import cfa_channels
+    H, W = calibration.sensor_shape
+    q = _nearest_pixels(calibration, n_views)
+    on = (q[..., 0] >= 0) & (q[..., 0] < H) & (q[..., 1] >= 0) & (q[..., 1] < W)
+    return (np.clip(q[..., 0], 0, H - 1), np.clip(q[..., 1], 0, W - 1), on,
+            cfa_channels((H, W), sensor.pattern, sensor.phase))
+
+
+def _colour_white(w: np.ndarray, pixels) -> np.ndarray:
+    """A dark-subtracted white image ``w`` at each view sample's pixel over its channel's 99th percentile on the
+    sensor (0 off the sensor; ``pixels``: :func:`_colour_pixels`): :func:`decode_colour`'s divisor before
+    ``min_white``."""
+    qr, qc, on, cfa = pixels
+    level = np.ones(3)
+    for c in range(3):
+        v = w[cfa == c]
+        level[c] = np.percentile(v, 99) if v.size else 1.0
+    if not np.all(level > 0):
+        raise ValueError("the white image is dark in a colour channel: not this camera's white image")
+    return np.where(on, w[qr, qc] / level[cfa[qr, qc]], 0.0)
 
 
 def _nearest_pixels(calibration: GridCalibration, n_views: int) -> np.ndarray:
@@ -432,7 +464,7 @@ def decode_capture_views(raw: np.ndarray, calibration: GridCalibration, white: n
     ``bin_views``, None: :func:`auto_bin`), or for a colour ``sensor``'s capture :func:`decode_colour` (each sample
     its nearest pixel, its channel with it, one pixel per sample); a hexagonal grid's views on its own lattice.
     ``check``, ``white_views``: as :func:`decode` (a recording's later frames unchecked, its first checked; its
-    white image's samples computed once), ``white_views`` of a monochrome capture only.
+    white image's samples computed once: :func:`white_samples`, with the ``sensor`` of a colour capture).
 
     Returns
     -------
@@ -454,14 +486,13 @@ def decode_capture_views(raw: np.ndarray, calibration: GridCalibration, white: n
         k = auto_bin(calibration, n_views) if bin_views is None else bin_views
         return decode(raw, calibration, white, dark, n_views=n_views, camera_id=camera_id, bin_views=k,
                       resample=False, check=check, white_views=white_views), None, k
-    if white_views is not None:
-        raise ValueError("white_views is a monochrome capture's: a colour capture is decoded with its white image")
     if bin_views not in (None, 1):
         raise ValueError("a colour capture is decoded one pixel per sample, its channels apart: bin_views 1 (--bin 1 "
                          "or auto)")
     if camera_id is not None and calibration.camera_id and camera_id != calibration.camera_id:
         raise ValueError(f"the calibration is of camera {calibration.camera_id!r}, not {camera_id!r}")
-    views, channels = decode_colour(raw, calibration, sensor, white, dark, n_views=n_views, check=check)
+    views, channels = decode_colour(raw, calibration, sensor, white, dark, n_views=n_views, check=check,
+                                    white_views=white_views)
     return views, channels, 1
 
 

@@ -244,13 +244,14 @@ class SequenceJob:
         from ..real.defects import grid_offsets
         defects = self._defect_map(raw, grid_offsets(c["cal"], c["sensor"] is not None), c["dark"])
         # the grid is checked in the first frame this job decodes (33 ms of a 1080 x 1080 frame): one camera's
-        # recording shows the same grid in every frame, as it holds the same defects; a monochrome recording's white
-        # image is sampled once, for every frame
+        # recording shows the same grid in every frame, as it holds the same defects; the white image is sampled
+        # once, for every frame
         white, white_views = c["white"], None
-        if white is not None and c["sensor"] is None:
+        if white is not None:
             if "white_views" not in self._cache:
                 from ..real.decoding import white_samples
-                self._cache["white_views"] = white_samples(c["cal"], white, c["dark"], n_views=n, bin_views=k)
+                self._cache["white_views"] = white_samples(c["cal"], white, c["dark"], n_views=n, bin_views=k,
+                                                           sensor=c["sensor"])
             white, white_views = None, self._cache["white_views"]
         views, channels, _, clipped, _ = decode_repaired(raw, c["cal"], white, c["dark"], c["sensor"],
                                                          self._level(raw), n_views=n, bin_views=k, defects=defects,
