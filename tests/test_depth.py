@@ -193,7 +193,7 @@ def test_l1_gathers_a_dense_stack_towards_the_flames_depths(cam, planted):
 
 
 @pytest.mark.parametrize("shape", [(3, 60, 31), (2, 7, 9), (2, 3, 2), (1, 1, 5)])
-@pytest.mark.parametrize("sigma", [1.5, 0.7])
+@pytest.mark.parametrize("sigma", [1.5, 0.7, 0.1])
 def test_the_focus_measures_are_scipys_sobel_laplace_and_gaussian_to_the_bit(shape, sigma):
     """The depth search's Tenengrad energy and squared Laplacian, each smoothed, from the Numba kernel: equal to the
     last bit to SciPy's ``ndimage`` filters they replaced (the depth search's results unchanged), on images smaller
@@ -202,10 +202,10 @@ def test_the_focus_measures_are_scipys_sobel_laplace_and_gaussian_to_the_bit(sha
     from scipy import ndimage
 
     from lf_flame.tomo._depth_kernels import focus_measures
-    from lf_flame.tomo.depth import gaussian_taps
+    from lf_flame.tomo.depth import _gaussian_taps
     stack = np.random.default_rng(sum(shape)).random(shape) * 1e3
     ten, lap = np.empty_like(stack), np.empty_like(stack)
-    focus_measures(stack, gaussian_taps(sigma), True, ten, lap)
+    focus_measures(stack, _gaussian_taps(sigma), True, ten, lap)
     np.testing.assert_array_equal(ten, [ndimage.gaussian_filter(ndimage.sobel(im, 0) ** 2 + ndimage.sobel(im, 1) ** 2,
                                                                 sigma) for im in stack])
     np.testing.assert_array_equal(lap, [ndimage.gaussian_filter(ndimage.laplace(im) ** 2, sigma) for im in stack])

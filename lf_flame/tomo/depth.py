@@ -412,14 +412,17 @@ def _focus_energy(views, slopes, sigma, laplacian=False):
     stack = FourierSlice(views, float(np.max(np.abs(slopes))) + 1e-9, mask).stack(slopes).astype(np.float64)
     ten = np.empty_like(stack)
     lap = np.empty_like(stack) if laplacian else np.empty((0, 0, 0))
-    focus_measures(stack, gaussian_taps(sigma), bool(laplacian), ten, lap)
+    focus_measures(stack, _gaussian_taps(sigma), bool(laplacian), ten, lap)
     return (ten, lap) if laplacian else ten
 
 
-def gaussian_taps(sigma: float, truncate: float = 4.0) -> np.ndarray:
-    """The taps of ``scipy.ndimage.gaussian_filter(x, sigma, truncate=truncate)`` along one axis, as it builds them
-    (``2 r + 1`` of them, ``r = int(truncate sigma + 1/2)``, summing to 1; float64)."""
+def _gaussian_taps(sigma: float, truncate: float = 4.0) -> np.ndarray:
+    """The taps of ``scipy.ndimage.gaussian_filter(x, sigma, truncate=truncate)`` along one axis (``sigma`` > 0,
+    lenslets), as it builds them: ``2 r + 1`` of them, ``r = int(truncate sigma + 1/2)``, summing to 1 (float64;
+    one tap of 1 where ``r`` is 0, as SciPy's for such a ``sigma``)."""
     r = int(truncate * float(sigma) + 0.5)
+    if r == 0:
+        return np.ones(1)
     x = np.arange(-r, r + 1)
     phi = np.exp(-0.5 / (sigma * sigma) * x ** 2)
     return (phi / phi.sum())[::-1].copy()
