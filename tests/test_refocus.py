@@ -147,11 +147,14 @@ def test_fourier_constant_light_field_stays_constant():
         assert np.allclose(img[covered], 0.3, atol=1e-3)
 
 
-def test_fourier_slices_of_one_shape_and_slopes_share_their_view_counts_but_not_their_masks(smooth_views):
-    """The count of views reaching each pixel is kept for the last slopes, shape and mask (the depth search and its
-    residual's searches refocus alike): stacks with a circular, a square and again a circular mask at the same
-    slopes, of a light field whose views outside the circle are lit, each refocus as shift-and-sum does with that
-    mask. A count kept without its mask (the square's count read from the circle's: 177 views for 225) breaks it."""
+def test_fourier_slices_of_one_shape_and_slopes_share_their_view_counts_but_not_their_masks(smooth_views,
+                                                                                           monkeypatch):
+    """The count of views reaching each pixel is kept for the last two slopes, shapes and masks (the depth search
+    and its residual's searches refocus alike): stacks with a circular, a square and again a circular mask at the
+    same slopes, of a light field whose views outside the circle are lit, each refocus as shift-and-sum does with
+    that mask. A count kept without its mask (the square's count read from the circle's: 177 views for 225) breaks
+    it. A count larger than the keeping limit is not kept, and its stack is the same."""
+    from lf_flame.refocus import shift_and_sum as S
     slopes = [-1.0, 0.2, 1.3]
     v = smooth_views + np.float32(5.0) * (1 - aperture_mask(15, "circular"))[:, :, None, None]   # lit outside
     for shape in ("circular", "square", "circular"):
@@ -159,6 +162,12 @@ def test_fourier_slices_of_one_shape_and_slopes_share_their_view_counts_but_not_
         a, b = focal_stack(v, slopes, mask), FourierSlice(v, 2.0, mask).stack(slopes)
         rmse = np.sqrt(np.mean((a - b)[:, 10:-10, 10:-10] ** 2, axis=(1, 2)))     # apart from the border's views
         assert np.all(rmse < 5e-3), (shape, rmse)
+    FourierSlice(v, 2.0, mask).stack([0.5])                                       # a third: the oldest let go
+    assert len(S._SLICE_COUNTS) == 2
+    monkeypatch.setattr(S, "_SLICE_COUNTS", {})
+    monkeypatch.setattr(S, "SLICE_COUNT_KEEP_BYTES", 0)
+    np.testing.assert_array_equal(FourierSlice(v, 2.0, mask).stack(slopes), b)
+    assert not S._SLICE_COUNTS
 
 
 def test_fourier_rejects_bad_input(smooth_views):

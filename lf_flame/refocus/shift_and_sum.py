@@ -9,7 +9,6 @@ is :meth:`lf_flame.optics.camera.PlenopticCamera.slope_for_depth` and ``depth_fo
 """
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 
 import numba
@@ -180,19 +179,29 @@ def _band_limited_box(shifts: np.ndarray, length: int, padded: int) -> np.ndarra
     return np.fft.irfft(np.fft.rfft(box)[None, None, :] * phase, n=padded, axis=-1)[..., :length]
 
 
-@functools.lru_cache(maxsize=2)
-def _slice_count(n: int, shape: tuple, canvas: tuple, slopes: bytes, mask: bytes):
+#: The largest view count (bytes) :func:`_slice_count` keeps: a stack of the paper camera's 121 slopes holds 18 MB.
+SLICE_COUNT_KEEP_BYTES = 64 << 20
+_SLICE_COUNTS: dict = {}
+
+
+def _slice_count(n: int, shape: tuple, canvas: tuple, slopes: np.ndarray, mask: np.ndarray):
     """:meth:`FourierSlice.stack`'s count of the views reaching each pixel, (S, R, C) float64 (at least 0.5), and
     where it reaches 0.5 (bool): the same for every light field of one shape, mask and slopes (the depth search
-    and its residual's searches refocus at the same slopes), so the last two are kept, read-only."""
-    slopes = np.frombuffer(slopes, np.float64)
-    mask = np.frombuffer(mask, bool).reshape(n, n)
+    and its residual's searches refocus at the same slopes), so the last two up to
+    :data:`SLICE_COUNT_KEEP_BYTES` are kept, read-only."""
+    key = (n, shape, canvas, slopes.tobytes(), mask.tobytes())
+    if key in _SLICE_COUNTS:
+        return _SLICE_COUNTS[key]
     shifts = slopes[:, None] * _view_offsets(n)[None, :]
     count = np.einsum("sur,uv,svc->src", _band_limited_box(shifts, shape[0], canvas[0]), mask.astype(np.float64),
                       _band_limited_box(shifts, shape[1], canvas[1]), optimize=True)
     reached = count >= 0.5
     count = np.maximum(count, 0.5)
-    count.flags.writeable = reached.flags.writeable = False
+    if count.nbytes + reached.nbytes <= SLICE_COUNT_KEEP_BYTES:
+        count.flags.writeable = reached.flags.writeable = False
+        while len(_SLICE_COUNTS) >= 2:
+            del _SLICE_COUNTS[next(iter(_SLICE_COUNTS))]
+        _SLICE_COUNTS[key] = count, reached
     return count, reached
 
 
@@ -296,7 +305,7 @@ class FourierSlice:
         if self.half:   # views placed at offsets u - c - 1/2 give the image at r - s/2: shift it back, band-limited
             spec *= np.exp(2j * np.pi * self.half * slopes[:, None, None] * (fr[None, :, None] + fc[None, None, :]))
         img = scipy.fft.irfft2(spec, s=(self.R2, self.C2), workers=-1)[:, :R, :C]
-        count, reached = _slice_count(self.n, self.shape, (self.R2, self.C2), slopes.tobytes(), self.mask.tobytes())
+        count, reached = _slice_count(self.n, self.shape, (self.R2, self.C2), slopes, self.mask)
         return np.divide(img, count, out=np.zeros(img.shape), where=reached).astype(np.float32)
 
 
