@@ -12,7 +12,7 @@ import pytest
 from lf_flame import cli
 from lf_flame.optics.camera import PAPER_CAMERA
 from lf_flame.optics.camera_file import camera_from_datasheet, load_camera_file
-from lf_flame.real.decoding import max_views
+from lf_flame.real.view_grid import max_views
 from lf_flame.simulate.scenes_depth import DEPTH_RANGE_MM, HEIGHT_RANGE_MM, camera_depth_ranges, camera_depth_scene
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "own_camera.toml"

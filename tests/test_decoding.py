@@ -16,6 +16,7 @@ import pytest
 from lf_flame.optics.camera_file import camera_from_datasheet
 from lf_flame.real import calibration as calibrate
 from lf_flame.real import decoding as decode
+from lf_flame.real import view_grid
 from lf_flame.real.grid_check import check_grid
 from lf_flame.simulate import scenes, tracer
 from lf_flame.simulate.scenes_depth import camera_depth_scene
@@ -103,13 +104,13 @@ def test_a_dark_image_cannot_be_checked_and_passes(calibrations):
 
 
 def test_each_colour_samples_offset_leads_from_its_view_to_its_pixel(calibrations):
-    """:func:`~lf_flame.real.decoding.sample_offsets`: the view's place plus its offset (turned back onto the
+    """:func:`~lf_flame.real.view_grid.sample_offsets`: the view's place plus its offset (turned back onto the
     sensor) is the centre of the pixel decode_colour reads, each offset within half a step (a little more on a
     rotated grid) and spread over the whole step on a non-integer pitch, on either lattice."""
     for layout in ("square", "hex"):
         cal = calibrations(layout)
-        off = decode.sample_offsets(cal, 9)
-        pos = decode.view_positions(cal, 9)
+        off = view_grid.sample_offsets(cal, 9)
+        pos = view_grid.view_positions(cal, 9)
         back = pos + off.astype(np.float64) @ (cal.matrix / cal.pitch_px).T
         assert np.allclose(back, np.floor(pos) + 0.5, atol=1e-5)
         assert off.shape == pos.shape and np.abs(off).max() <= 0.5 * (1 + np.tan(np.radians(0.5)))
@@ -137,18 +138,18 @@ def test_the_decoders_bilinear_samples_are_scipys_map_coordinates():
 
 
 def test_view_positions_are_shared_for_one_grid_and_read_only(calibrations):
-    """:func:`~lf_flame.real.decoding.view_positions` hands the same read-only array to every call for one grid and
+    """:func:`~lf_flame.real.view_grid.view_positions` hands the same read-only array to every call for one grid and
     view count (a recording's frames), and new positions for another grid or count."""
     import dataclasses
     cal = calibrations("square")
-    a, b = decode.view_positions(cal, 5), decode.view_positions(cal, 5)
+    a, b = view_grid.view_positions(cal, 5), view_grid.view_positions(cal, 5)
     assert a is b and not a.flags.writeable
     with pytest.raises(ValueError):
         a[0, 0, 0, 0, 0] = 1.0
     moved = dataclasses.replace(cal, origin_px=(cal.origin_px[0] + 0.25, cal.origin_px[1]))
-    c = decode.view_positions(moved, 5)
+    c = view_grid.view_positions(moved, 5)
     assert c is not a and np.allclose(c[..., 0] - a[..., 0], 0.25) and np.array_equal(c[..., 1], a[..., 1])
-    assert decode.view_positions(cal, 3).shape[:2] == (3, 3)
+    assert view_grid.view_positions(cal, 3).shape[:2] == (3, 3)
 
 
 @pytest.mark.parametrize("layout", ["hex", "square"])
@@ -165,7 +166,7 @@ def test_a_white_images_samples_decode_as_the_white_image_does(grids, calibratio
     for k in (1, 2):
         want = decode.decode(raw + dark, cal, white + dark, dark, bin_views=k, resample=False)
         n = want.shape[0]
-        pos = np.moveaxis(decode.view_positions(cal, n * k), -1, 0) - 0.5
+        pos = np.moveaxis(view_grid.view_positions(cal, n * k), -1, 0) - 0.5
 
         def sampled(img):
             s = ndimage.map_coordinates(np.asarray(img, np.float64), pos.reshape(2, -1), order=1,

@@ -17,7 +17,7 @@ import pytest
 
 from lf_flame.optics.camera import PlenopticCamera
 from lf_flame.real import calibration as calibrate
-from lf_flame.real import decoding
+from lf_flame.real import decoding, view_grid
 from lf_flame.real.lightfield import from_decoded
 from lf_flame.simulate import scenes, tracer
 from lf_flame.simulate.scenes_depth import camera_depth_scene
@@ -97,7 +97,7 @@ def capture():
     raw = tracer.render(cam, scene, RAYS, SEED)
     cal = calibrate.calibrate(white)
     lattice = decoding.decode(raw, cal, white, resample=False)
-    lf = from_decoded(decoding.on_square_grid(lattice, cal), cal, cam, lattice_views=lattice)
+    lf = from_decoded(view_grid.on_square_grid(lattice, cal), cal, cam, lattice_views=lattice)
     return cam, scene, lf, cal
 
 
@@ -106,7 +106,7 @@ def test_decoding_keeps_the_lattice_and_resamples_it_as_before(capture):
     assert lf.lattice_views.shape[2:] == (cal.n_rows, cal.n_cols)
     R, C = lf.lattice_views.shape[2:]
     assert lf.views.shape[2:] == (int(math.floor((R - 1) * math.sqrt(3) / 2)) + 1, C - 1)
-    assert np.array_equal(lf.views, decoding.hex_to_square(lf.lattice_views))
+    assert np.array_equal(lf.views, view_grid.hex_to_square(lf.lattice_views))
 
 
 @pytest.fixture(scope="module")
@@ -173,9 +173,9 @@ def test_interpolation_phases_are_nil_where_lenslet_centres_sit_on_pixels(captur
     are the same with phases 0 as without; the hexagonal camera's phases spread over [0, 1)."""
     cal = capture[3]
     on_pixels = dataclasses.replace(cal, layout="square", pitch_px=10.0, rotation_deg=0.0, origin_px=(5.5, 5.5))
-    assert np.abs(decoding.interpolation_phases(on_pixels, 9)).max() < 1e-9
-    assert np.abs(decoding.interpolation_phases(on_pixels, 10) - 0.5).max() < 1e-9
-    phases = decoding.interpolation_phases(cal, 10)
+    assert np.abs(view_grid.interpolation_phases(on_pixels, 9)).max() < 1e-9
+    assert np.abs(view_grid.interpolation_phases(on_pixels, 10) - 0.5).max() < 1e-9
+    phases = view_grid.interpolation_phases(cal, 10)
     assert np.histogram(phases[0], bins=4, range=(0, 1))[0].min() > 0.15 * phases.shape[1]
     lf = capture[2]
     plain = hx.lattice_kernels(lf.camera, [5.0], (6, 8), points=2 ** 10)
@@ -235,7 +235,7 @@ def test_a_hexagonal_capture_goes_through_the_command_line_on_its_lattice(tmp_pa
         lattice, clipped = f["lattice_views"][...], f["lattice_clipped"][...]
         assert lattice.shape[2:] == tuple(json.loads(f.attrs["calibration"])[k] for k in ("n_rows", "n_cols"))
         assert 0 < clipped.sum() < 0.15 * clipped.size
-        assert np.array_equal(f["views"][...], decoding.hex_to_square(lattice))
+        assert np.array_equal(f["views"][...], view_grid.hex_to_square(lattice))
     left_out = {}
     for saturation in ("file", "none"):                          # none: every sample fitted, clipped or not
         capsys.readouterr()

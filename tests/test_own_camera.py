@@ -13,7 +13,7 @@ import pytest
 from lf_flame import cli
 from lf_flame.optics.camera import PAPER_CAMERA
 from lf_flame.optics.camera_file import camera_from_datasheet, decoded_camera, load_camera_file
-from lf_flame.real import decoding, views_file
+from lf_flame.real import decoding, view_grid, views_file
 from lf_flame.real.calibration import GridCalibration
 from lf_flame.real.own_camera import decoded_frame, views_camera
 from lf_flame.simulate import scenes, tracer
@@ -119,8 +119,8 @@ def test_binned_views_are_the_views_of_larger_pixels(route):
     fine = decoding.decode(raw, cal, white)
     v = decoding.decode(raw, cal, white, bin_views=2)
     assert v.shape == (fine.shape[0] // 2, fine.shape[0] // 2) + fine.shape[2:]
-    assert decoding.auto_bin(cal) == 1 and decoding.auto_bin(dataclasses.replace(cal, pitch_px=48.2)) == 3
-    assert decoding.auto_bin(dataclasses.replace(cal, pitch_px=48.2), n_views=47) == 1
+    assert view_grid.auto_bin(cal) == 1 and view_grid.auto_bin(dataclasses.replace(cal, pitch_px=48.2)) == 3
+    assert view_grid.auto_bin(dataclasses.replace(cal, pitch_px=48.2), n_views=47) == 1
     vcam = views_camera(cam, cal, fine.shape)
     errs = {}
     for k in (2, 1):
@@ -251,7 +251,7 @@ def test_clipped_samples_are_marked_and_left_out(route):
     assert cli.main(["decode", str(d / "bright.npy"), "--calibration", str(d / "cal.json"), "--out",
                      str(d / "bright.h5")]) == 0
     mask = views_file.load_clipped(d / "bright.h5")
-    pos = decoding.view_positions(cal, 10) - 0.5            # bilinear: the four pixels about each sample
+    pos = view_grid.view_positions(cal, 10) - 0.5            # bilinear: the four pixels about each sample
     i0, j0 = np.floor(pos[..., 0]).astype(int), np.floor(pos[..., 1]).astype(int)
     fi, fj = pos[..., 0] - i0, pos[..., 1] - j0
     want = np.zeros(mask.shape, bool)
@@ -301,7 +301,7 @@ def test_a_captures_defective_pixels_are_repaired_and_left_out(route, tmp_path, 
                      str(tmp_path / "bad.h5")]) == 0
     assert f"{int(flagged.sum())} defective pixels" in capsys.readouterr().out
     mask = views_file.load_clipped(tmp_path / "bad.h5")
-    pos = decoding.view_positions(cal, 10) - 0.5            # each sample's four pixels: a defect among them marks it
+    pos = view_grid.view_positions(cal, 10) - 0.5            # each sample's four pixels: a defect among them marks it
     i0, j0 = np.floor(pos[..., 0]).astype(int), np.floor(pos[..., 1]).astype(int)
     want = np.zeros(mask.shape, bool)
     for di in (0, 1):

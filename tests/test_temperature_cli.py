@@ -259,7 +259,7 @@ def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, 
     from pathlib import Path
 
     from lf_flame.real.calibration import GridCalibration
-    from lf_flame.real.decoding import view_positions
+    from lf_flame.real.view_grid import view_positions
     from lf_flame.real.views_file import load_channels
     from lf_flame.optics.colour import cfa_channels
     example = (Path(__file__).resolve().parents[1] / "examples" / "own_camera.toml").read_text()

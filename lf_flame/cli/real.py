@@ -41,7 +41,8 @@ def cmd_decode(a):
     from ..real.images import calibration_image, load_image
     from ..real.black_level import unlit_level
     from ..real.clipping import clipped_share
-    from ..real.decoding import decode_repaired, on_square_grid
+    from ..real.decoding import decode_repaired
+    from ..real.view_grid import on_square_grid
     from ..real.views_file import save_views
     from ._io import black_level_warning
     cal = GridCalibration.load(a.calibration)

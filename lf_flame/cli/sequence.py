@@ -35,9 +35,9 @@ def _camera(a):
 def decoded_views_camera(camera, calibration, colour: bool = False):
     """Real frames of ``camera`` decoded with ``calibration``: the decoded views' camera
     (:func:`lf_flame.real.own_camera.views_camera`) and the pixels binned per view sample
-    (:func:`lf_flame.real.decoding.auto_bin`; a ``colour`` camera's: 1), as ``lf-flame decode`` decodes by
+    (:func:`lf_flame.real.view_grid.auto_bin`; a ``colour`` camera's: 1), as ``lf-flame decode`` decodes by
     default."""
-    from ..real.decoding import auto_bin, views_shape
+    from ..real.view_grid import auto_bin, views_shape
     from ..real.own_camera import views_camera
     k = 1 if colour else auto_bin(calibration)
     return views_camera(camera, calibration, views_shape(calibration, None, k), k), k

@@ -249,7 +249,7 @@ def cmd_temperature(a):
         if hexagonal is None:
             mono = channel_sum_views(views, chan, ch)
         else:                                           # the channels' sum on the lattice, then on the square grid
-            from ..real.decoding import hex_to_square
+            from ..real.view_grid import hex_to_square
             mono = hex_to_square(channel_sum_views(lf.lattice_views, chan, ch))
         depths, found, _ = found_planes(lf, mono)
         extra = dict(depths_from="auto (channel sum)", found_depths=found)

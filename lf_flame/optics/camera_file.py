@@ -371,7 +371,7 @@ def decoded_camera(camera: PlenopticCamera, n_views: int, n_rows: int, n_cols: i
       camera's cos⁴ and vignetting and :func:`lf_flame.tomo.decoded.decoded_problem` puts
       the model's back.
     - *Hexagonal grids* are resampled onto a square lattice of the same pitch
-      (:func:`lf_flame.real.decoding.hex_to_square`, barycentric): a spatial blur the
+      (:func:`lf_flame.real.view_grid.hex_to_square`, barycentric): a spatial blur the
       equivalent camera does not have.
     - *Near the lenslet image's rim* a decoded sample mixes in pixels lit through the
       neighbouring lenslet; white-image division keeps them out only where the white is dark.

@@ -18,8 +18,8 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["images", "clipping", "black_level", "lattice", "calibration", "grid_check", "decoding", "defects",
-                "views_file", "own_camera", "lightfield"],
+    submodules=["images", "clipping", "black_level", "lattice", "calibration", "grid_check", "view_grid", "decoding",
+                "defects", "views_file", "own_camera", "lightfield"],
     submod_attrs={
         "images": ["load_image", "to_gray", "file_digest", "calibration_image"],
         "clipping": ["PILE_MIN_PIXELS", "PILE_RATIO", "LIT_SHARE", "CLIPPED_WARN", "clipping_pile", "auto_saturation",
@@ -28,7 +28,10 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "lattice": ["CalibrationError", "lattice_from_autocorrelation", "spot_centres"],
         "calibration": ["CALIBRATION_FORMAT", "CALIBRATION_VERSION", "GridCalibration", "calibrate"],
         "grid_check": ["check_grid"],
-        "decoding": ["view_positions", "interpolation_phases", "hex_to_square", "views_shape", "on_square_grid", "max_views", "views_for_pitch", "decode", "decode_colour", "decode_repaired", "sample_offsets", "clipped_samples", "white_samples"],
+        "view_grid": ["view_positions", "interpolation_phases", "auto_bin", "hex_to_square", "views_shape",
+                      "on_square_grid", "max_views", "views_for_pitch", "sample_offsets"],
+        "decoding": ["decode", "decode_colour", "decode_capture_views", "decode_repaired", "clipped_samples",
+                     "white_samples"],
         "defects": ["DEFECT_MARGIN", "DEFECT_SPREAD", "lenslet_offsets", "grid_offsets", "defective_pixels",
                     "repair_pixels", "capture_defects"],
         "views_file": ["save_views", "load_views", "load_clipped", "load_channels", "load_lattice"],

@@ -6,7 +6,8 @@ lattice) into sub-aperture views (N, N, R, C), after dark subtraction and white-
 (vignetting) normalisation, with the axis order and units of :mod:`lf_flame.refocus.shift_and_sum`
 (view step: one pixel; slopes: lenslets per view step); :func:`decode_colour` does so for a
 colour (Bayer) capture, its channels apart. Each first checks that the raw image shows the
-calibration's grid (:func:`lf_flame.real.grid_check.check_grid`); :mod:`lf_flame.real.views_file`
+calibration's grid (:func:`lf_flame.real.grid_check.check_grid`). Where the samples lie (positions,
+view counts, binning, the hexagonal lattice) is :mod:`lf_flame.real.view_grid`; :mod:`lf_flame.real.views_file`
 is the file of decoded views that ``lf-flame decode`` writes.
 
 Pixel coordinates and the grid rotation are those of :mod:`lf_flame.real.calibration`.
@@ -22,72 +23,7 @@ from ._decoding_kernels import bilinear
 from .calibration import GridCalibration
 from .grid_check import check_grid
 from .images import _image
-from .lattice import _H
-
-
-def view_positions(calibration: GridCalibration, n_views: int) -> np.ndarray:
-    """Sensor positions (row, column; px) sampled for view ``(u, v)`` of lenslet ``(r, c)``:
-    the lenslet's calibrated centre plus ``(u - (N-1)/2, v - (N-1)/2)`` pixels along the
-    grid's rotated axes. Shape (N, N, R, C, 2), R × C the calibration's (hexagonal) grid.
-
-    Read-only, and the same array for the same grid and ``N`` as the call before (a recording's frames are all
-    decoded at one grid's positions: 5-10 ms a frame of a 99 x 98-lenslet camera, twice)."""
-    key = (calibration.layout, calibration.pitch_px, calibration.rotation_deg, tuple(calibration.origin_px),
-           calibration.n_rows, calibration.n_cols, int(n_views))
-    pos = _LAST_POSITIONS.get(key)
-    if pos is None:
-        pos = calibration.centres_px()[None, None] + _view_offsets(calibration, n_views)[:, :, None, None]
-        pos.setflags(write=False)
-        _LAST_POSITIONS.clear()
-        _LAST_POSITIONS[key] = pos
-    return pos
-
-
-#: :func:`view_positions`' last grid and its positions.
-_LAST_POSITIONS: dict = {}
-
-
-def _view_offsets(calibration: GridCalibration, n_views: int) -> np.ndarray:
-    """Each view's offset (row, column; px) from its lenslet's centre: (N, N, 2)."""
-    off = np.arange(n_views) - (n_views - 1) / 2
-    du = np.stack(np.meshgrid(off, off, indexing="ij"), axis=-1)              # (N, N, 2)
-    rot = calibration.matrix / calibration.pitch_px
-    return du @ rot.T
-
-
-#: The most samples :func:`interpolation_phases` keeps (an even spread): the operator draws 2^14 per view and plane.
-MAX_PHASES = 2 ** 16
-
-
-def interpolation_phases(calibration: GridCalibration, n_views: int, bin_views: int = 1) -> np.ndarray:
-    """Where each decoded sample falls between the pixels :func:`decode` interpolates it from.
-
-    Bilinear sampling at a position ``f`` of the way from one pixel's centre to the next reads
-    the first with weight ``1 - f`` and the second with ``f``: on average over the lenslets,
-    whose centres fall anywhere between pixels on a grid of non-integer pitch, a blur of the
-    lenslet images (a triangle of half-width one pixel for phases spread evenly), and none on
-    a grid whose centres sit on pixel centres. The exact operator of decoded views models it
-    from these phases (:func:`lf_flame.tomo.lattice.lattice_kernels`).
-
-    Parameters
-    ----------
-    calibration : GridCalibration
-    n_views, bin_views : int
-        As :func:`decode`.
-
-    Returns
-    -------
-    ndarray of shape (2, M), float64
-        Per sensor axis (rows, columns), the phases ``f`` in [0, 1) of the samples of every view of
-        every lenslet (``M = (N bin_views)^2 R C``), or of an even spread of at most
-        :data:`MAX_PHASES` of them.
-    """
-    centres = calibration.centres_px().reshape(-1, 2)
-    offsets = _view_offsets(calibration, int(n_views) * int(bin_views)).reshape(-1, 2)
-    total = len(offsets) * len(centres)             # view_positions' samples, flattened (view, lenslet)
-    view, lenslet = np.divmod(np.arange(0, total, -(-total // MAX_PHASES)), len(centres))
-    pos = centres[lenslet] + offsets[view] - 0.5                                 # pixel (i, j) centred at (i + ½, j + ½)
-    return (pos - np.floor(pos)).T
+from .view_grid import _bin, _nearest_pixels, _view_count, auto_bin, hex_to_square, view_positions, views_shape
 
 
 def _sample(img, pos):
@@ -102,131 +38,9 @@ def _sample(img, pos):
     return out.reshape(images.shape[:-2] + pos.shape[:-1])
 
 
-#: Views per axis that :func:`auto_bin` bins a many-view camera down to (at least): the paper camera's 15.
-BIN_TARGET_VIEWS = 15
-
-
-def auto_bin(calibration: GridCalibration, n_views: int | None = None) -> int:
-    """Pixels per axis summed into one view sample by default (``decode --bin auto``):
-    ``max(1, max_views // BIN_TARGET_VIEWS)``, so a lenslet image of 48 pixels gives 16 views of
-    3 x 3 pixels, and one of up to 29 pixels keeps a view per pixel; 1 where the views' count
-    ``n_views`` is given.
-
-    Binning keeps every pixel's light and the aperture's full parallax; it coarsens the angular
-    sampling. On the 48 px camera of ``experiments/cameras.py`` (validation scenes 57000-57005,
-    a ``/tmp`` probe) 3 x 3 binning left the found depths (p90 0.0032 against 0.0033 lenslets per
-    view step) and the emission (p90 7.3 % against 7.4 % noise-free) as they were, and cut admm's
-    time per lenslet-plane 3-5x: the exact operator's work grows with the views' count.
-    """
-    return 1 if n_views is not None else max(1, max_views(calibration) // BIN_TARGET_VIEWS)
-
-
-def _bin(a: np.ndarray, k: int) -> np.ndarray:
-    """Sums of ``k x k`` blocks of views: (N k, N k, R, C) -> (N, N, R, C)."""
-    if k == 1:
-        return a
-    n = a.shape[0] // k
-    return a.reshape(n, k, n, k, *a.shape[2:]).sum(axis=(1, 3))
-
-
-def _square_grid(R: int, C: int) -> tuple[int, int]:
-    """The square lattice :func:`hex_to_square` resamples a hexagonal grid of R x C lenslets onto."""
-    return int(math.floor((R - 1) * _H)) + 1, C - 1
-
-
-def views_shape(calibration: GridCalibration, n_views: int | None = None, bin_views: int = 1) -> tuple:
-    """The shape (N, N, R, C) of :func:`decode`'s views (a hexagonal grid's on the square lattice),
-    refused as :func:`decode` refuses ``n_views`` and ``bin_views``."""
-    n = _view_count(calibration, n_views, bin_views)
-    R, C = calibration.n_rows, calibration.n_cols
-    return (n, n) + (_square_grid(R, C) if calibration.layout == "hex" else (R, C))
-
-
-def hex_to_square(views: np.ndarray) -> np.ndarray:
-    """Resample views on a hexagonal lenslet lattice onto a square one of the same pitch.
-
-    ``views`` (N, N, R, C) on the calibration's hexagonal grid (row 0 unshifted, odd rows
-    half a pitch right, rows ``sqrt(3)/2`` pitches apart). The square lattice has rows one
-    pitch apart, ``floor((R - 1) sqrt(3)/2) + 1`` of them, and ``C - 1`` columns from
-    half a pitch right of lenslet (0, 0), where every row has lenslets on both sides.
-    Each value is the barycentric (linear) interpolation in the lattice triangle about it.
-
-    Returns
-    -------
-    views : ndarray of shape (N, N, R', C'), float32
-    """
-    N, _, R, C = views.shape
-    rows, cols = _square_grid(R, C)
-    if rows < 1 or cols < 1:
-        raise ValueError(f"a hexagonal grid of {R} x {C} lenslets is too small to resample")
-    y, x = np.meshgrid(np.arange(rows, dtype=np.float64), 0.5 + np.arange(cols), indexing="ij")
-    j = y / _H                        # lattice row, fractional
-    i = x - j / 2                     # skew column: site (i, j) sits at x = i + j/2
-    i0, j0 = np.floor(i), np.floor(j)
-    fi, fj = i - i0, j - j0
-    lower = fi + fj < 1
-    verts = [(np.where(lower, i0, i0 + 1), np.where(lower, j0, j0 + 1), np.where(lower, 1 - fi - fj, fi + fj - 1)),
-             (i0 + 1, j0, np.where(lower, fi, 1 - fj)),
-             (i0, j0 + 1, np.where(lower, fj, 1 - fi))]
-    out = np.zeros((N, N, rows, cols), np.float32)
-    for vi, vj, w in verts:
-        r = np.clip(vj, 0, R - 1).astype(int)
-        c = np.clip(vi + np.floor(vj / 2), 0, C - 1).astype(int)
-        out += (w[None, None] * views[:, :, r, c]).astype(np.float32)
-    return out
-
-
-def on_square_grid(a: np.ndarray, calibration: GridCalibration) -> np.ndarray:
-    """:func:`decode`'s (or :func:`clipped_samples`') output with ``resample=False`` as it is with
-    resampling: a hexagonal grid's views (a boolean mask: any of its three samples) on the square
-    grid (:func:`hex_to_square`), a square grid's as they are."""
-    if calibration.layout != "hex":
-        return a
-    if a.dtype == bool:
-        return np.ascontiguousarray(hex_to_square(a.astype(np.float32)) > 1e-6)
-    return np.ascontiguousarray(hex_to_square(a))
-
-
-def max_views(calibration) -> int:
-    """Views per axis a lenslet image holds: ``floor(pitch_px + PITCH_SNAP_PX)``
-    (:data:`lf_flame.optics.camera_file.PITCH_SNAP_PX`).
-
-    Parameters
-    ----------
-    calibration : GridCalibration
-
-    Returns
-    -------
-    int
-        One pixel apart along each axis: 10 for a 10.57 px pitch, 15 for a calibrated 14.9997.
-    """
-    return views_for_pitch(calibration.pitch_px)
-
-
-def views_for_pitch(pitch_px: float) -> int:
-    """Views per axis a lenslet image ``pitch_px`` pixels wide holds (:func:`max_views`)."""
-    from ..optics.camera_file import PITCH_SNAP_PX
-    return int(math.floor(pitch_px + PITCH_SNAP_PX))
-
-
-def _view_count(calibration: GridCalibration, n_views, bin_views=1) -> int:
-    """Views per axis (default: as many ``bin_views``-pixel views as the lenslet image holds), refused as
-    :func:`decode` says."""
-    n_max = max_views(calibration)
-    if isinstance(bin_views, bool) or int(bin_views) != bin_views or not 1 <= bin_views <= n_max:
-        raise ValueError(f"bin_views must be an integer in [1, {n_max}] (pixels per view sample and axis). "
-                         f"Received: bin_views={bin_views!r}")
-    k = int(bin_views)
-    n = n_max // k if n_views is None else n_views
-    if int(n) != n or not 1 <= n * k <= n_max:
-        raise ValueError(f"n_views must be an integer in [1, {n_max // k}] (the pitch is {calibration.pitch_px:.2f} px"
-                         + (f", {k} pixels per view" if k > 1 else "") + f"). Received: n_views={n_views!r}")
-    return int(n)
-
-
 def _prepared(raw, calibration: GridCalibration, dark, n_views, check: bool, bin_views: int = 1):
     """The decoders' raw image, dark subtracted and checked against the calibration's grid
-    (:func:`check_grid`), the dark frame (or None) and the views per axis (:func:`_view_count`),
+    (:func:`check_grid`), the dark frame (or None) and the views per axis (:func:`~lf_flame.real.view_grid._view_count`),
     each refused as :func:`decode` says."""
     img = _image("raw image", raw, calibration.sensor_shape)
     d = None if dark is None else _image("dark frame", dark, calibration.sensor_shape)
@@ -244,12 +58,12 @@ def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | No
     """Decode a raw plenoptic image into sub-aperture views with its grid calibration.
 
     Dark subtraction, then every lenslet image is resampled (bilinearly) at
-    :func:`view_positions` about its calibrated centre, and divided by the white image
+    :func:`~lf_flame.real.view_grid.view_positions` about its calibrated centre, and divided by the white image
     resampled the same way (vignetting and cos⁴ normalisation; Dansereau et al. 2013).
     With ``bin_views`` = k each view sample sums k x k such samples, of the raw and of the white
     image alike, before the division (the views of a camera with k-times larger pixels,
     :func:`lf_flame.real.own_camera.views_camera`).
-    A hexagonal grid is then resampled onto a square one (:func:`hex_to_square`) unless
+    A hexagonal grid is then resampled onto a square one (:func:`~lf_flame.real.view_grid.hex_to_square`) unless
     ``resample`` is False.
 
     Parameters
@@ -260,9 +74,9 @@ def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | No
         White image and dark frame (the dark frame is subtracted from both).
     n_views : int or None
         ``N``, views per axis, ``bin_views`` pixels apart; default and most
-        ``max_views // bin_views`` (:func:`max_views`).
+        ``max_views // bin_views`` (:func:`~lf_flame.real.view_grid.max_views`).
     bin_views : int
-        Pixels per view sample and axis, >= 1 (:func:`auto_bin` chooses one for many-view cameras).
+        Pixels per view sample and axis, >= 1 (:func:`~lf_flame.real.view_grid.auto_bin` chooses one for many-view cameras).
     min_white : float
         Samples where the white image is below this fraction of its 99th percentile
         (outside the lenslet image, between lenslets) are set to 0.
@@ -320,7 +134,7 @@ def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | No
 def white_samples(calibration: GridCalibration, white: np.ndarray, dark: np.ndarray | None = None, *,
                   n_views: int | None = None, bin_views: int = 1, min_white: float = 0.05, sensor=None) -> np.ndarray:
     """The white image as :func:`decode` divides a capture's views by it: the dark frame subtracted, sampled
-    bilinearly at :func:`view_positions` and binned as the capture, and 0 where it is below ``min_white`` of
+    bilinearly at :func:`~lf_flame.real.view_grid.view_positions` and binned as the capture, and 0 where it is below ``min_white`` of
     its 99th percentile (outside the lenslet images, between lenslets), where the views are set to 0. With a
     colour ``sensor``, as :func:`decode_colour` divides by it: each sample its nearest pixel, over that pixel's
     channel's 99th percentile on the sensor, and 0 where that is ``min_white`` or less.
@@ -366,11 +180,11 @@ def decode_colour(raw: np.ndarray, calibration: GridCalibration, sensor, white: 
 
     :func:`decode`'s bilinear resampling blends four pixels, which under a colour filter array
     are of two or three channels. Here each view sample is the one pixel nearest its position
-    (:func:`view_positions`) and carries that pixel's channel: the channel map of the views, on
+    (:func:`~lf_flame.real.view_grid.view_positions`) and carries that pixel's channel: the channel map of the views, on
     which each channel is solved from its own samples
     (:func:`lf_flame.temperature.channels.channel_emission`), as on a perfect grid. The price is
     the position: up to half a pixel (half a view step) from where the decoded camera puts the
-    sample, which :func:`sample_offsets` gives and the exact operator models
+    sample, which :func:`~lf_flame.real.view_grid.sample_offsets` gives and the exact operator models
     (:attr:`lf_flame.real.lightfield.LightField.sample_offsets`). The white image divides each pixel by its own value over its channel's 99th
     percentile on the sensor, so that vignetting is removed and the channels' ratio, which the
     pyrometer reads, is the raw image's.
@@ -450,18 +264,12 @@ def _colour_white(w: np.ndarray, pixels) -> np.ndarray:
     return np.where(on, w[qr, qc] / level[cfa[qr, qc]], 0.0)
 
 
-def _nearest_pixels(calibration: GridCalibration, n_views: int) -> np.ndarray:
-    """The pixel holding each view sample's position (row, column; (N, N, R, C, 2) int64): pixel
-    ``(i, j)`` spans ``[i, i + 1) x [j, j + 1)``."""
-    return np.floor(view_positions(calibration, n_views)).astype(np.int64)
-
-
 def decode_capture_views(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | None = None,
                          dark: np.ndarray | None = None, sensor=None, *, n_views: int | None = None,
                          bin_views: int | None = None, camera_id: str | None = None, check: bool = True,
                          white_views: np.ndarray | None = None):
     """A capture decoded as ``lf-flame decode`` decodes it: :func:`decode` (its bilinear samples, binned by
-    ``bin_views``, None: :func:`auto_bin`), or for a colour ``sensor``'s capture :func:`decode_colour` (each sample
+    ``bin_views``, None: :func:`~lf_flame.real.view_grid.auto_bin`), or for a colour ``sensor``'s capture :func:`decode_colour` (each sample
     its nearest pixel, its channel with it, one pixel per sample); a hexagonal grid's views on its own lattice.
     ``check``, ``white_views``: as :func:`decode` (a recording's later frames unchecked, its first checked; its
     white image's samples computed once: :func:`white_samples`, with the ``sensor`` of a colour capture).
@@ -469,7 +277,7 @@ def decode_capture_views(raw: np.ndarray, calibration: GridCalibration, white: n
     Returns
     -------
     views : ndarray of shape (N, N, R, C), float32
-        On the calibration's grid (``resample=False``: :func:`on_square_grid` puts a hexagonal grid's on the
+        On the calibration's grid (``resample=False``: :func:`~lf_flame.real.view_grid.on_square_grid` puts a hexagonal grid's on the
         square one).
     channels : ndarray of int8 of the views' shape, or None
         A colour capture's channel map.
@@ -535,35 +343,6 @@ def decode_repaired(raw: np.ndarray, calibration: GridCalibration, white: np.nda
     return views, channels, k, leave_out, flagged
 
 
-def sample_offsets(calibration: GridCalibration, n_views: int) -> np.ndarray:
-    """Where the pixel :func:`decode_colour` reads for each view sample lies from the sample's place.
-
-    The pixel's centre less the view's position (:func:`view_positions`), turned into the grid's
-    axes and in view steps (one pixel: :func:`decode`'s view step), each within about half a
-    step: what the exact operator models for such samples
-    (:class:`lf_flame.tomo.exact.ExactOperator`'s ``sample_offsets``). On a grid whose pitch is
-    not a whole number of pixels it runs through every value from lenslet to lenslet; its
-    effect on a sample grows with the plane's slope (a point at ``s`` lenslets per view step is
-    seen ``s`` times the offset lenslets away).
-
-    Parameters
-    ----------
-    calibration : GridCalibration
-        Square or hexagonal (whose samples :func:`decode_colour` keeps on its lattice, as here).
-    n_views : int
-        ``N``, as decoded.
-
-    Returns
-    -------
-    ndarray of shape (N, N, R, C, 2), float32
-        (along the grid's rows, along its columns), view steps.
-    """
-    pos = view_positions(calibration, int(n_views))
-    rot = calibration.matrix / calibration.pitch_px                  # grid axes -> sensor (rows of view_positions)
-    off = (_nearest_pixels(calibration, int(n_views)) + 0.5 - pos) @ np.linalg.inv(rot.T)
-    return np.ascontiguousarray(off, np.float32)
-
-
 def clipped_samples(raw: np.ndarray, calibration: GridCalibration, saturation: float | None, *,
                     n_views: int | None = None, bin_views: int = 1, resample: bool = True,
                     defects: np.ndarray | None = None) -> np.ndarray:
@@ -594,7 +373,7 @@ def clipped_samples(raw: np.ndarray, calibration: GridCalibration, saturation: f
     -------
     clipped : ndarray of bool, the shape of :func:`decode`'s views (N, N, R, C)
         Hexagonal grids resampled: a square-lattice sample is clipped when any of the three
-        samples it is interpolated from is (:func:`hex_to_square`).
+        samples it is interpolated from is (:func:`~lf_flame.real.view_grid.hex_to_square`).
 
     Raises
     ------

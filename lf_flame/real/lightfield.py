@@ -76,12 +76,12 @@ class LightField:
         Their samples from clipped pixels.
     sample_offsets : ndarray of shape (N, N, R, C, 2), float32, or None
         A colour capture's samples, each its nearest pixel: where that pixel lies from its view's
-        place (view steps; :func:`lf_flame.real.decoding.sample_offsets`), which the exact
+        place (view steps; :func:`lf_flame.real.view_grid.sample_offsets`), which the exact
         operator models (:class:`lf_flame.tomo.exact.ExactOperator`'s ``sample_offsets``); of
         :attr:`lattice_views`' shape where there are some. None: every sample at its view's place.
     interpolation : (ndarray of shape (2, M), int) or None
         Decoded views (bilinear, not a colour capture's nearest pixels): where their samples fell
-        between pixels (:func:`lf_flame.real.decoding.interpolation_phases`) and the pixels per
+        between pixels (:func:`lf_flame.real.view_grid.interpolation_phases`) and the pixels per
         view sample and axis, for the operator that models decoding's interpolation
         (:class:`lf_flame.tomo.lattice.LatticeOperator`).
     defective_pixels : int
@@ -345,7 +345,7 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
         As :func:`lf_flame.real.own_camera.views_camera` (another sensor, layout or pitch);
         NaN or inf in the views.
     """
-    from .decoding import interpolation_phases, sample_offsets
+    from .view_grid import interpolation_phases, sample_offsets
     from .own_camera import decoded_frame, views_camera
     v = np.asarray(views, np.float32)
     if not np.all(np.isfinite(v)):
@@ -389,7 +389,7 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
         Views per axis when decoding here (default: as many as the lenslet image holds).
     bin_views : int or None
         Pixels per view sample and axis when decoding here; None: ``lf-flame decode``'s default
-        (:func:`lf_flame.real.decoding.auto_bin`; 1 where ``views`` is given).
+        (:func:`lf_flame.real.view_grid.auto_bin`; 1 where ``views`` is given).
     raw_reader : callable or None
         ``raw_reader(path) -> (raw, stored camera or None, meta dict)``; None: the
         command line's reader (:func:`lf_flame.cli._io` formats) is not imported here, so
@@ -523,13 +523,14 @@ def capture_sensor(camera, meta, source: str = "the image") -> tuple:
 
 def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None, sensor=None) -> LightField:
     """A raw capture decoded with its calibration's white (and dark) image, as ``lf-flame decode`` decodes it:
-    ``bin_views`` None: binned by default (:func:`lf_flame.real.decoding.auto_bin`, one pixel per view where
+    ``bin_views`` None: binned by default (:func:`lf_flame.real.view_grid.auto_bin`, one pixel per view where
     ``n_views`` is given); a colour ``sensor``'s capture one pixel per sample, its channels apart
     (:func:`lf_flame.real.decoding.decode_colour`)."""
     from .images import calibration_image
     from .black_level import unlit_level
     from .clipping import clipped_share, found_level
-    from .decoding import decode_repaired, on_square_grid
+    from .decoding import decode_repaired
+    from .view_grid import on_square_grid
     white, dark = calibration_image(cal.white, "white"), calibration_image(cal.dark, "dark")
     level = found_level(raw)
     lattice, channels, k, hit, bad = decode_repaired(raw, cal, white, dark, sensor, level, n_views=n_views,

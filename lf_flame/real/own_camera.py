@@ -60,7 +60,7 @@ def decoded_frame(calibration: GridCalibration, n_rows: int, n_cols: int) -> Dec
     calibration : GridCalibration
     n_rows, n_cols : int
         The decoded views' lenslet grid (``views.shape[2:]``): the calibration's, or for a
-        hexagonal grid the square lattice of :func:`lf_flame.real.decoding.hex_to_square`.
+        hexagonal grid the square lattice of :func:`lf_flame.real.view_grid.hex_to_square`.
 
     Returns
     -------
@@ -154,7 +154,7 @@ def views_camera(camera: PlenopticCamera, calibration: GridCalibration, views_sh
 def nominal_views_camera(camera: PlenopticCamera) -> PlenopticCamera:
     """The perfect-grid camera of the views that decoding would cut from ``camera`` as its file
     states it (no calibration: the lenslet images at the optics' pitch, every view they hold, each
-    lenslet of the file's grid; a hexagonal grid's square lattice, :func:`lf_flame.real.decoding.hex_to_square`);
+    lenslet of the file's grid; a hexagonal grid's square lattice, :func:`lf_flame.real.view_grid.hex_to_square`);
     ``camera`` itself where its grid is perfect already. For what needs the camera before any capture
     (``lf-flame resolution``); a capture's views take :func:`views_camera` of their calibration.
 
@@ -172,7 +172,7 @@ def nominal_views_camera(camera: PlenopticCamera) -> PlenopticCamera:
     ValueError
         The errors of :func:`lf_flame.optics.camera_file.decoded_camera`.
     """
-    from .decoding import _square_grid, views_for_pitch
+    from .view_grid import _square_grid, views_for_pitch
     if camera.perfect_grid:
         return camera
     n = views_for_pitch(camera.grid_pitch)

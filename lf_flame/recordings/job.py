@@ -54,7 +54,7 @@ class SequenceJob:
     white, dark : str or None
         Paths of the white image and dark frame (real frames).
     bin_views : int
-        Real frames: pixels per view sample and axis they are decoded with (:func:`lf_flame.real.decoding.auto_bin`).
+        Real frames: pixels per view sample and axis they are decoded with (:func:`lf_flame.real.view_grid.auto_bin`).
     sensor : dict or None
         Real frames of a colour camera: its sensor (``name``, ``pattern``, ``phase``;
         :func:`lf_flame.optics.colour.library_sensor`). Each frame is decoded with its channels apart
@@ -204,10 +204,10 @@ class SequenceJob:
         return self._square(views)
 
     def _square(self, views):
-        """A hexagonal grid's lattice views on the square grid (:func:`lf_flame.real.decoding.on_square_grid`)."""
+        """A hexagonal grid's lattice views on the square grid (:func:`lf_flame.real.view_grid.on_square_grid`)."""
         if not self.hexagonal:
             return views
-        from ..real.decoding import on_square_grid
+        from ..real.view_grid import on_square_grid
         return on_square_grid(views, self._cache["cal"])
 
     def frame(self, raw: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
@@ -231,7 +231,8 @@ class SequenceJob:
                 return raw_to_views(raw, n), None
             fixed = capture_defects(raw, off, flagged=bad)[1]
             return raw_to_views(fixed.astype(np.float32), n), raw_to_views(bad, n) > 0.5
-        from ..real.decoding import decode_repaired, views_shape
+        from ..real.decoding import decode_repaired
+        from ..real.view_grid import views_shape
         c = self._decoding()
         if raw.shape != tuple(c["cal"].sensor_shape):
             raise ValueError(f"frame of {raw.shape[0]} x {raw.shape[1]} pixels; the calibration's sensor is "
@@ -366,7 +367,7 @@ class SequenceJob:
         """The emission operator of the planes (:func:`lf_flame.tomo.exact.emission_operator`:
         exact, or traced at ``operator_rays`` rays per pixel; real frames: the decoded views'
         :class:`~lf_flame.tomo.lattice.LatticeOperator` with decoding's interpolation, a colour camera's with
-        each sample at its own pixel, :func:`lf_flame.real.decoding.sample_offsets`), built once per
+        each sample at its own pixel, :func:`lf_flame.real.view_grid.sample_offsets`), built once per
         process and kept (with its spectra or ray record) while the camera, depths, rays and
         calibration stay."""
         from ..tomo.exact import emission_operator
@@ -381,9 +382,9 @@ class SequenceJob:
                 _OPERATOR.update(key=None, op=None)   # the old one's memory goes first
                 if self.calibration is not None:
                     from ..real.calibration import GridCalibration
-                    from ..real.decoding import interpolation_phases
+                    from ..real.view_grid import interpolation_phases
                     from ..tomo.lattice import LatticeOperator
-                    from ..real.decoding import sample_offsets
+                    from ..real.view_grid import sample_offsets
                     cam, k, cal = self.camera, self.bin_views, GridCalibration.from_dict(self.calibration)
                     colour = self.sensor is not None                 # nearest pixels, each at its own place
                     interpolation = None if colour else (interpolation_phases(cal, cam.pixels_per_lenslet, k), k)

@@ -574,7 +574,7 @@ def monochrome_light_field(lf, channels=(0, 1)):
         Without channels; ``leave_out`` (``lattice_leave_out``) holds the other channels' samples
         and those already left out; ``meta["monochrome"]`` says how it was made.
     """
-    from ..real.decoding import hex_to_square
+    from ..real.view_grid import hex_to_square
     if lf.channels is None:
         return lf
     lattice = lf.lattice_views is not None

@@ -116,7 +116,7 @@ class ExactOperator(PlanesOperator):
     sample_offsets : ndarray of shape (N, N, R, C, 2) or None
         Where each view sample's pixel lies from its view's place (view steps, along the
         views' rows and columns, within one step): a colour capture decoded pixel by pixel
-        (:func:`lf_flame.real.decoding.sample_offsets`), whose samples sit up to half a pixel
+        (:func:`lf_flame.real.view_grid.sample_offsets`), whose samples sit up to half a pixel
         from the grid of views. Each view is then modelled by ``offset_bins`` sub-views per
         axis, its pixel moved by ``(k + 1/2) / M - 1/2`` steps (``k < M``;
         :func:`~lf_flame.tomo.quadrature.exact_kernels`' ``view_shifts``), and each sample read from its nearest sub-view: the map stays a

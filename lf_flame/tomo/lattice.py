@@ -5,14 +5,14 @@ Decoding (:func:`lf_flame.real.decoding.decode`) reads each view sample by bilin
 at a position that falls between pixels wherever the lenslet grid's pitch is not a whole number
 of pixels: a sample a fraction ``f`` of the way to the next pixel mixes the two with weights
 ``1 - f`` and ``f``. Over the lenslets that is a blur of their images (a triangle one pixel wide
-each side where the phases ``f`` spread evenly: :func:`lf_flame.real.decoding.interpolation_phases`),
+each side where the phases ``f`` spread evenly: :func:`lf_flame.real.view_grid.interpolation_phases`),
 which the square camera's operator, built for pixels read whole, leaves out; on a grid whose
 lenslet centres sit on pixel centres it is nil. Here each ray's pixel is the one before or after
 the sample's position with the interpolation's weights, at a phase drawn from the decoded views'
 own (their mean over the lenslets, per axis; what varies from lenslet to lenslet is left out).
 
 A hexagonal microlens array's views sample the object on the lattice of its lenslets, and decoding
-resamples them onto a square grid (:func:`lf_flame.real.decoding.hex_to_square`) so that
+resamples them onto a square grid (:func:`lf_flame.real.view_grid.hex_to_square`) so that
 refocusing and the depth search run unchanged; but that interpolation blurs the views by an
 amount that depends on each sample's place in its lattice triangle, which no convolution on the
 square grid models. So a hexagonal camera's planes are solved on its lattice itself: the map to
@@ -324,7 +324,7 @@ class LatticeOperator(ExactOperator):
 
     def to_square(self, planes, rows: int, cols: int) -> np.ndarray:
         """A hexagonal lattice's planes resampled onto the decoded square grid (barycentric in the fine
-        lattice's triangles; :func:`lf_flame.real.decoding.hex_to_square`'s geometry: square row
+        lattice's triangles; :func:`lf_flame.real.view_grid.hex_to_square`'s geometry: square row
         ``r`` at ``r`` pitches below lenslet (0, 0), column ``c`` at ``c + 1/2`` right of it).
 
         Parameters

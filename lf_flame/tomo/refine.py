@@ -122,20 +122,17 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
         return found, op, rec
     from .solvers import Residuals
     fit = np.asarray(fit, bool)
-    fitted = Residuals(data, fit) if residual is None else residual
+    residual = Residuals(data, fit) if residual is None else residual
     k_of = {int(p): k for k, p in enumerate(found.plane_of)}          # each refined plane holds one depth
     lo = {p: found.depths_mm[k_of[p]] - REFINE_REACH * found.uncertainty_mm[k_of[p]] for p in todo}
     hi = {p: found.depths_mm[k_of[p]] + REFINE_REACH * found.uncertainty_mm[k_of[p]] for p in todo}
 
-    def residual(op, rec):                                            # prediction minus data
-        return -fitted(op, rec)
-
-    r = residual(op, rec)
+    r = residual(op, rec)                                             # data minus prediction
     cost = float(np.vdot(r, r))
     for _ in range(int(steps)):
         J = slope_jacobian(op, rec.planes, fit, todo).reshape(len(todo), -1)
         G = J @ J.T
-        g = J @ r.ravel()
+        g = -(J @ r.ravel())                                          # J^T (prediction minus data)
         ds = -np.linalg.lstsq(G, g, rcond=None)[0]
         ds = np.clip(ds, -REFINE_MAX_SLOPE, REFINE_MAX_SLOPE)
         planes = np.asarray(found.planes_mm, np.float64).copy()
