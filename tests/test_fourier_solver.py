@@ -68,6 +68,13 @@ def test_the_packed_spectra_are_the_complex_ones_to_16_bits(op):
         for i in range(len(S)):
             packed.put(i, S[i])
     assert packed.nbytes < S.nbytes / 1.9 and len(packed) == len(S)
+    s = S.reshape(len(S), S.shape[1], -1)                            # the kernel packs as NumPy's float32 formula
+    scale = np.maximum(np.abs(s.real).max(axis=2), np.abs(s.imag).max(axis=2))
+    scale = np.where(scale > 0, scale / 32767.0, 1.0).astype(np.float32)
+    with np.errstate(all="ignore"):
+        assert np.array_equal(packed.scale, scale)
+        assert np.array_equal(packed.re, np.rint(s.real / scale[..., None]).astype(np.int16))
+        assert np.array_equal(packed.im, np.rint(s.imag / scale[..., None]).astype(np.int16))
     top = np.maximum(np.abs(S.real), np.abs(S.imag)).max(axis=(2, 3))
     for i in (0, 3, len(S) - 1):
         err = np.abs(packed.view(i) - S[i]).max(axis=(1, 2))

@@ -255,13 +255,16 @@ class FourierSlice:
         self.R2, self.C2 = scipy.fft.next_fast_len(R + pad), scipy.fft.next_fast_len(C + pad, real=True)
         off = _view_offsets(n) - self.half
         roll = self._kernel_ft(off)
-        idx = np.rint(off).astype(int) % M  # view offset u' at index u' mod M
+        idx = np.rint(off).astype(np.int64) % M  # view offset u' at index u' mod M
         weight = (mask / (roll[:, None] * roll[None, :])).astype(np.float32)
-        # the views' spatial spectra (zero-padded to the canvas), placed on the M x M angular grid (the other
-        # M^2 - N^2 slots are 0) with the angular axes last, then their angular DFT along those contiguous axes
-        spec = scipy.fft.rfftn(views * weight[:, :, None, None], s=(self.R2, self.C2), axes=(2, 3), workers=-1)
-        grid = np.zeros((self.R2, spec.shape[3], M, M), np.complex64)
-        grid[:, :, idx[:, None], idx[None, :]] = spec.transpose(2, 3, 0, 1)
+        # the lit views' spatial spectra (zero-padded to the canvas), placed on the M x M angular grid (the other
+        # slots, the unlit views' among them, are 0) with the angular axes last, then their angular DFT along
+        # those contiguous axes
+        lu, lv = np.nonzero(mask)
+        spec = scipy.fft.rfftn(views[lu, lv] * weight[lu, lv, None, None], s=(self.R2, self.C2), axes=(1, 2),
+                               workers=-1)
+        grid = np.empty((self.R2, spec.shape[2], M, M), np.complex64)
+        _refocus_kernels.angular_grid(spec, idx[lu], idx[lv], grid)
         self.spectrum = scipy.fft.fftn(grid, axes=(2, 3), workers=-1, overwrite_x=True)
 
     def _kernel(self, t):

@@ -317,12 +317,8 @@ class PackedSpectra:
 
     def put(self, i: int, spec) -> None:
         """Pack view ``i``'s spectra (P, Lr, F), complex."""
-        s = np.asarray(spec).reshape(self.shape[1], -1)
-        top = np.maximum(np.abs(s.real).max(axis=1), np.abs(s.imag).max(axis=1))
-        scale = np.where(top > 0, top / 32767.0, 1.0)
-        self.re[i] = np.rint(s.real / scale[:, None])
-        self.im[i] = np.rint(s.imag / scale[:, None])
-        self.scale[i] = scale
+        pack(np.ascontiguousarray(spec, np.complex64).reshape(self.shape[1], -1), self.re[i], self.im[i],
+             self.scale[i])
 
     def view(self, i: int) -> np.ndarray:
         """View ``i``'s spectra (P, Lr, F), complex64."""
@@ -336,6 +332,26 @@ class PackedSpectra:
         out = PackedSpectra((V, P // s2, lr, f))
         bin_packed(self.re, self.im, self.scale, int(s2), out.re, out.im, out.scale)
         return out
+
+
+@nb.njit(nogil=True, cache=True, fastmath=False)
+def pack(spec, out_re, out_im, out_scale):
+    """:meth:`PackedSpectra.put`: each plane of ``spec`` (P, M) complex64 as int16 parts ``out_re``, ``out_im``
+    (P, M) times ``out_scale`` (P,) float32, its largest part to 32767 (a float32 quotient, rounded half to even,
+    as NumPy's ``rint`` of float32 parts over a float32 scale). One pass over memory, without the GIL (the
+    operator's spectra are packed on the workers' threads)."""
+    P, M = spec.shape
+    for k in range(P):
+        top = np.float32(0.0)
+        for m in range(M):
+            z = spec[k, m]
+            top = max(top, abs(z.real), abs(z.imag))
+        sc = top / np.float32(32767.0) if top > 0 else np.float32(1.0)
+        out_scale[k] = sc
+        for m in range(M):
+            z = spec[k, m]
+            out_re[k, m] = np.int16(np.rint(z.real / sc))
+            out_im[k, m] = np.int16(np.rint(z.imag / sc))
 
 
 @nb.njit(parallel=True, cache=True, fastmath=False)
