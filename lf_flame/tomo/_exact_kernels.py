@@ -37,58 +37,95 @@ def _arc(x, r):
     return 0.5 * (x * math.sqrt(max(r * r - x * x, 0.0)) + r * r * math.asin(min(x / r, 1.0)))
 
 
+#: Entries of :func:`_edge_terms`: the parts of a corner's area and moments that depend on one edge alone.
+N_EDGE_TERMS = 9
+
+
 @njit(inline="always", cache=True)
-def _corner_pos(x, y, r):
-    """Area and first moments (X, Y) of the disc within ``X >= x, Y >= y``, ``x, y >= 0``."""
+def _edge_terms(e, r, t):
+    """Into ``t`` (:data:`N_EDGE_TERMS`,): the terms of :func:`_corner` that depend on the edge ``e`` alone (mm,
+    either axis), each by the expression :func:`_corner` would evaluate it with (so a corner from them is the
+    same to the bit): ``a = |e|``, ``_arc(a)``, ``(r^2 - a^2)^(3/2)``, ``r^2 - a^2``, ``s = sqrt(r^2 - a^2)``,
+    ``_arc(s)`` (0 for the last three where ``a >= r``: no corner reads them there), the half discs above
+    ``e`` and ``-e`` and the half moment above ``e`` (the same as above ``-e``)."""
+    a = abs(e)
+    d = r * r - a * a
+    t[0] = a
+    t[1] = _arc(a, r)
+    t[2] = d ** 1.5 if d > 0.0 else 0.0
+    t[3] = d
+    sx = math.sqrt(d) if d > 0.0 else 0.0
+    t[4] = sx
+    t[5] = _arc(sx, r)
+    t[6] = _half_disc(e, r)
+    t[7] = _half_disc(-e, r)
+    t[8] = _half_moment(e, r)
+
+
+@njit(inline="always", cache=True)
+def _corner_pos(tx, ty, r):
+    """Area and first moments (X, Y) of the disc within ``X >= x, Y >= y``, ``x, y >= 0`` the edges of
+    :func:`_edge_terms` ``tx`` and ``ty``."""
+    x, y = tx[0], ty[0]
     if x * x + y * y >= r * r:
         return 0.0, 0.0, 0.0
-    sx = math.sqrt(r * r - y * y)
-    area = _arc(sx, r) - _arc(x, r) - y * (sx - x)
-    mx = ((r * r - x * x) ** 1.5 - y ** 3) / 3.0 - 0.5 * y * (sx * sx - x * x)
-    my = 0.5 * ((r * r - y * y) * (sx - x) - (sx ** 3 - x ** 3) / 3.0)
+    sx = ty[4]
+    area = ty[5] - tx[1] - y * (sx - x)
+    mx = (tx[2] - y ** 3) / 3.0 - 0.5 * y * (sx * sx - x * x)
+    my = 0.5 * (ty[3] * (sx - x) - (sx ** 3 - x ** 3) / 3.0)
     return area, mx, my
 
 
 @njit(inline="always", cache=True)
-def _corner(x, y, r):
-    """Area and first moments (X, Y) of the disc within ``X >= x, Y >= y`` (any signs), by
-    the disc's mirror symmetries."""
+def _corner(x, y, tx, ty, r):
+    """Area and first moments (X, Y) of the disc within ``X >= x, Y >= y`` (any signs; ``tx``, ``ty`` their
+    :func:`_edge_terms`), by the disc's mirror symmetries."""
+    a, mx, my = _corner_pos(tx, ty, r)
     if x >= 0.0 and y >= 0.0:
-        return _corner_pos(x, y, r)
+        return a, mx, my
     if x < 0.0 and y >= 0.0:
-        a, mx, my = _corner_pos(-x, y, r)
-        return _half_disc(y, r) - a, mx, _half_moment(y, r) - my
+        return ty[6] - a, mx, ty[8] - my
     if x >= 0.0:
-        a, mx, my = _corner_pos(x, -y, r)
-        return _half_disc(x, r) - a, _half_moment(x, r) - mx, my
-    a, mx, my = _corner_pos(-x, -y, r)
-    return (math.pi * r * r - _half_disc(-x, r) - _half_disc(-y, r) + a, _half_moment(-x, r) - mx,
-            _half_moment(-y, r) - my)
+        return tx[6] - a, tx[8] - mx, my
+    return math.pi * r * r - tx[7] - ty[7] + a, tx[8] - mx, ty[8] - my
 
 
-@njit(cache=True)
-def _clip_to_disc(y0, y1, x0, x1, r):
-    """The part of the rectangle ``[y0, y1] x [x0, x1]`` (mm, ``y`` along Y) inside the disc
-    of radius ``r`` (``r <= 0``: no disc): its fraction of the rectangle's area and the
-    offset of its centroid from the rectangle's centre (dy, dx)."""
-    if r <= 0.0:
-        return 1.0, 0.0, 0.0
-    if max(y0 * y0, y1 * y1) + max(x0 * x0, x1 * x1) <= r * r:
-        return 1.0, 0.0, 0.0
+@njit(inline="always", cache=True)
+def _clip_by_terms(y0, y1, x0, x1, ty0, ty1, tx0, tx1, r):
+    """:func:`_clip_to_disc` of the rectangle whose edges' :func:`_edge_terms` are ``ty0, ty1, tx0, tx1``, past
+    its first two answers (a rectangle inside the disc, or no disc)."""
     ny = 0.0 if y0 <= 0.0 <= y1 else min(y0 * y0, y1 * y1)
     nx = 0.0 if x0 <= 0.0 <= x1 else min(x0 * x0, x1 * x1)
     if ny + nx >= r * r:
         return 0.0, 0.0, 0.0
-    a00, x00, y00 = _corner(x0, y0, r)
-    a10, x10, y10 = _corner(x1, y0, r)
-    a01, x01, y01 = _corner(x0, y1, r)
-    a11, x11, y11 = _corner(x1, y1, r)
+    a00, x00, y00 = _corner(x0, y0, tx0, ty0, r)
+    a10, x10, y10 = _corner(x1, y0, tx1, ty0, r)
+    a01, x01, y01 = _corner(x0, y1, tx0, ty1, r)
+    a11, x11, y11 = _corner(x1, y1, tx1, ty1, r)
     area = a00 - a10 - a01 + a11
     if area <= 0.0:
         return 0.0, 0.0, 0.0
     mx = (x00 - x10 - x01 + x11) / area - 0.5 * (x0 + x1)
     my = (y00 - y10 - y01 + y11) / area - 0.5 * (y0 + y1)
     return min(area / ((y1 - y0) * (x1 - x0)), 1.0), my, mx
+
+
+@njit(cache=True)
+def _clip_to_disc(y0, y1, x0, x1, r):
+    """The part of the rectangle ``[y0, y1] x [x0, x1]`` (mm, ``y`` along Y) inside the disc
+    of radius ``r`` (``r <= 0``: no disc): its fraction of the rectangle's area and the
+    offset of its centroid from the rectangle's centre (dy, dx). The corners' areas and moments in closed form
+    (:func:`_corner`); :func:`kernel_quadrature` keeps each edge's terms for the pairs that share it."""
+    if r <= 0.0:
+        return 1.0, 0.0, 0.0
+    if max(y0 * y0, y1 * y1) + max(x0 * x0, x1 * x1) <= r * r:
+        return 1.0, 0.0, 0.0
+    t = np.empty((4, N_EDGE_TERMS))
+    _edge_terms(y0, r, t[0])
+    _edge_terms(y1, r, t[1])
+    _edge_terms(x0, r, t[2])
+    _edge_terms(x1, r, t[3])
+    return _clip_by_terms(y0, y1, x0, x1, t[0], t[1], t[2], t[3], r)
 
 
 @njit(cache=True)
@@ -191,6 +228,10 @@ def kernel_quadrature(cy, ay, ty, m0y, cx, ax, tx, n0x, n_taps_y, n_taps_x, radi
         s_x = np.empty(cap_x)
         v_x = np.empty(cap_x)
         e_x = np.empty(cap_x)
+        t_y0 = np.empty((cap_y, N_EDGE_TERMS))   # each point's edges' terms, where a rectangle crosses the rim
+        t_y1 = np.empty((cap_y, N_EDGE_TERMS))
+        t_x0 = np.empty((cap_x, N_EDGE_TERMS))
+        t_x1 = np.empty((cap_x, N_EDGE_TERMS))
         for k in range(P):
             ny = _axis_points(cy[u, k, 0], cy[u, k, 1], cy[u, k, 2], ay[u, 0], ay[u, 1], ay[u, 2],
                               ty[u, 0], ty[u, 1], ty[u, 2], m0y[u, k], n_taps_y, xg, wg, tp_y, w_y, l_y, u_y, a_y,
@@ -202,15 +243,27 @@ def kernel_quadrature(cy, ay, ty, m0y, cx, ax, tx, n0x, n_taps_y, n_taps_x, radi
             for q in range(nx):
                 e_x[q] = max(l_x[q] * l_x[q], u_x[q] * u_x[q])
             hk = h[u, v, k]
+            x_terms = False
             for p in range(ny):
                 e_y = max(l_y[p] * l_y[p], u_y[p] * u_y[p])
                 wyp, ayp, syp, vyp = w_y[p], a_y[p], s_y[p], v_y[p]
                 row = hk[tp_y[p]]
+                y_terms = False
                 for q in range(nx):
                     if radius <= 0.0 or e_y + e_x[q] <= r2:     # inside the disc: _clip_to_disc's first answer
                         frac, dy, dx = 1.0, 0.0, 0.0
-                    else:
-                        frac, dy, dx = _clip_to_disc(l_y[p], u_y[p], l_x[q], u_x[q], radius)
+                    else:                                       # _clip_to_disc, each edge's terms once
+                        if not x_terms:
+                            for j in range(nx):
+                                _edge_terms(l_x[j], radius, t_x0[j])
+                                _edge_terms(u_x[j], radius, t_x1[j])
+                            x_terms = True
+                        if not y_terms:
+                            _edge_terms(l_y[p], radius, t_y0[p])
+                            _edge_terms(u_y[p], radius, t_y1[p])
+                            y_terms = True
+                        frac, dy, dx = _clip_by_terms(l_y[p], u_y[p], l_x[q], u_x[q], t_y0[p], t_y1[p], t_x0[q],
+                                                      t_x1[q], radius)
                     mu = wyp * w_x[q] * frac
                     if mu == 0.0:
                         continue
