@@ -99,6 +99,41 @@ def test_the_packed_spectra_are_the_complex_ones_to_16_bits(op):
     assert all(np.array_equal(getattr(binned, k), getattr(ref, k)) for k in ("re", "im", "scale"))
 
 
+_SUMS_SCRIPT = """
+import sys
+import numpy as np
+from lf_flame.tomo import _fourier_kernels as K
+rng = np.random.default_rng(0)
+V, P, M = 40, 8, 3000
+re, im = (rng.integers(-32767, 32767, (V, P, M)).astype(np.int16) for _ in range(2))
+scale = rng.random((V, P)).astype(np.float32)
+ys = (rng.normal(size=(V, M)) + 1j * rng.normal(size=(V, M))).astype(np.complex64)
+adj = np.empty((P, M), np.complex64)
+K.adjoint_packed(re, im, scale, ys, adj, 2)
+xs = rng.normal(size=(2, P, M)).astype(np.float32)
+fwd = np.empty((V, M), np.complex64)
+K.forward_packed(re, im, scale, xs[0], xs[1], fwd)
+np.savez(sys.argv[1], adj=adj, fwd=fwd)
+"""
+
+
+def test_the_sums_are_the_same_compiled_here_or_loaded_from_numbas_cache(tmp_path):
+    """The spectra's sums give the same numbers to the bit in a process that compiles them and in one that loads
+    them from Numba's cache (a fresh cache directory, the same script run twice): with reassociating fast-math a
+    parallel kernel's two builds sum in different orders (0.69 apart in adjoint_packed's sums)."""
+    import os
+    import subprocess
+    import sys
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"))
+    outs = [tmp_path / f"sums_{i}.npz" for i in range(2)]
+    for out in outs:                                                  # the first compiles and caches, the second loads
+        subprocess.run([sys.executable, "-c", _SUMS_SCRIPT, str(out)], env=env, check=True, timeout=300)
+    assert any((tmp_path / "numba").rglob("*.nbc"))
+    first, second = np.load(outs[0]), np.load(outs[1])
+    for k in ("adj", "fwd"):
+        assert np.array_equal(first[k], second[k]), k
+
+
 def test_the_data_gather_and_the_fill_are_the_array_formulas():
     """gather_data and fill (branch-free kernels) against NumPy: y / w and w^2 on the lit views where fitted
     and seen (0 where a weight is 0 or the pixel is left out), and the fill's residual and written views."""

@@ -331,7 +331,7 @@ def cos4_weights(moments, ry, rx, out):
 # Four output rows at a time from the seven input rows that four tap rows reach: each pass over a row's columns
 # loads seven input rows and four accumulators for sixteen products; unsigned column counters, so that Numba
 # emits no negative-index wrap and the column loops vectorise.
-@njit(parallel=True, cache=True, fastmath=True)
+@njit(parallel=True, cache=True, fastmath={'contract'})
 def taps_forward(h, oy, ox, x, out):
     """``out[v, r, c] = sum_{p, ty, tx} h[v, p, ty, tx] x[p, (r + oy[v, p] + ty) % Lr, (c + ox[v, p] + tx) % Lc]``:
     the planes ``x`` (P, Lr, Lc) to the views ``out`` (V, Lr, Lc) on the canvas, as the operator's spectra give
@@ -373,7 +373,7 @@ def taps_forward(h, oy, ox, x, out):
                 out[v, r + k, c] = acc[k, c]
 
 
-@njit(parallel=True, cache=True, fastmath=True)
+@njit(parallel=True, cache=True, fastmath={'contract'})
 def taps_adjoint(h, oy, ox, z, out, n_threads):
     """The transpose of :func:`taps_forward`: the views ``z`` (V, Lr, Lc) to the planes ``out`` (P, Lr, Lc) on the
     canvas, ``out[p, r, c] = sum_{v, ty, tx} h[v, p, ty, tx] z[v, (r - oy[v, p] - ty) % Lr, (c - ox[v, p] - tx) % Lc]``.

@@ -49,7 +49,7 @@ def adjoint(S, ys, out, n_threads):
             out[k, m] = acc
 
 
-@nb.njit(parallel=True, cache=True, fastmath=True)
+@nb.njit(parallel=True, cache=True, fastmath={'contract'})
 def forward_packed(re, im, scale, xr, xi, out):
     """:func:`forward` on :class:`PackedSpectra`: ``re``, ``im`` (V, P, M) int16 times ``scale`` (V, P);
     xr, xi (P, M) float32 (the planes' spectra, real and imaginary parts apart); out (V, M) complex64.
@@ -72,7 +72,7 @@ def forward_packed(re, im, scale, xr, xi, out):
             out[v, m] = complex(acc_r[m], acc_i[m])
 
 
-@nb.njit(parallel=True, cache=True, fastmath=True)
+@nb.njit(parallel=True, cache=True, fastmath={'contract'})
 def adjoint_packed(re, im, scale, ys, out, n_threads):
     """:func:`adjoint` on :class:`PackedSpectra` (as :func:`forward_packed`): ys (V, M) complex64, out (P, M)
     complex64; threads over slices of the views into partial planes, as :func:`adjoint`."""
@@ -104,7 +104,7 @@ def adjoint_packed(re, im, scale, ys, out, n_threads):
             out[k, m] = complex(ar, ai)
 
 
-@nb.njit(parallel=True, cache=True, fastmath=True)
+@nb.njit(parallel=True, cache=True, fastmath={'contract'})
 def fill(z, yt, w2):
     """Put the data ``yt`` into the canvas views ``z`` (V, Lr, Lc) where the weights ``w2`` (V, R, C) are above 0
     (the fitted samples), and return ``sum of w2 (z - yt)^2`` there (``sum of (w z - y)^2`` with ``w2 = w^2`` and
@@ -463,7 +463,7 @@ def tv_shrink(x, kappa, gy, gx, ey, ex):
                 ex[k, r, c] = vx - keep * vx
 
 
-@nb.njit(parallel=True, cache=True, fastmath=True)
+@nb.njit(parallel=True, cache=True, fastmath={'contract'})
 def gather_data(views, fit, w_all, lit, yt, w2):
     """The lit views' data in one pass: for each ``i``, view ``lit[i]`` of ``views`` (N N, R, C) divided by its
     weights ``w_all`` into ``yt``, and the weights squared into ``w2``, where the sample is fitted (``fit``) and

@@ -10,7 +10,7 @@ from numba import njit, prange
 CHUNK = 64
 
 
-@njit(parallel=True, cache=True, fastmath=True)
+@njit(parallel=True, cache=True, fastmath={'contract'})
 def normal_apply(G, xs, out):
     """``out[:, f] = G[f] xs[:, f]`` for every frequency ``f``: ``G`` (F, P, P) real, ``xs`` and ``out`` (P, F)
     complex (the planes' spectra, flattened over the canvas's frequencies). Each chunk of :data:`CHUNK`
