@@ -92,8 +92,11 @@ def _corner(x, y, tx, ty, r):
 
 @njit(inline="always", cache=True)
 def _clip_by_terms(y0, y1, x0, x1, ty0, ty1, tx0, tx1, r):
-    """:func:`_clip_to_disc` of the rectangle whose edges' :func:`_edge_terms` are ``ty0, ty1, tx0, tx1``, past
-    its first two answers (a rectangle inside the disc, or no disc)."""
+    """The part of the rectangle ``[y0, y1] x [x0, x1]`` (mm, ``y`` along Y) inside the aperture disc of radius
+    ``r``: its fraction of the rectangle's area and the offset of its centroid from the rectangle's centre
+    (dy, dx), from its corners' areas and moments in closed form (:func:`_corner`), its edges' terms given
+    (:func:`_edge_terms`: ``ty0, ty1, tx0, tx1``, kept by :func:`kernel_quadrature` for the pairs that share
+    them). A rectangle wholly inside the disc (or no disc) is the caller's: fraction 1, no offset."""
     ny = 0.0 if y0 <= 0.0 <= y1 else min(y0 * y0, y1 * y1)
     nx = 0.0 if x0 <= 0.0 <= x1 else min(x0 * x0, x1 * x1)
     if ny + nx >= r * r:
@@ -108,24 +111,6 @@ def _clip_by_terms(y0, y1, x0, x1, ty0, ty1, tx0, tx1, r):
     mx = (x00 - x10 - x01 + x11) / area - 0.5 * (x0 + x1)
     my = (y00 - y10 - y01 + y11) / area - 0.5 * (y0 + y1)
     return min(area / ((y1 - y0) * (x1 - x0)), 1.0), my, mx
-
-
-@njit(cache=True)
-def _clip_to_disc(y0, y1, x0, x1, r):
-    """The part of the rectangle ``[y0, y1] x [x0, x1]`` (mm, ``y`` along Y) inside the disc
-    of radius ``r`` (``r <= 0``: no disc): its fraction of the rectangle's area and the
-    offset of its centroid from the rectangle's centre (dy, dx). The corners' areas and moments in closed form
-    (:func:`_corner`); :func:`kernel_quadrature` keeps each edge's terms for the pairs that share it."""
-    if r <= 0.0:
-        return 1.0, 0.0, 0.0
-    if max(y0 * y0, y1 * y1) + max(x0 * x0, x1 * x1) <= r * r:
-        return 1.0, 0.0, 0.0
-    t = np.empty((4, N_EDGE_TERMS))
-    _edge_terms(y0, r, t[0])
-    _edge_terms(y1, r, t[1])
-    _edge_terms(x0, r, t[2])
-    _edge_terms(x1, r, t[3])
-    return _clip_by_terms(y0, y1, x0, x1, t[0], t[1], t[2], t[3], r)
 
 
 @njit(cache=True)
@@ -250,9 +235,9 @@ def kernel_quadrature(cy, ay, ty, m0y, cx, ax, tx, n0x, n_taps_y, n_taps_x, radi
                 row = hk[tp_y[p]]
                 y_terms = False
                 for q in range(nx):
-                    if radius <= 0.0 or e_y + e_x[q] <= r2:     # inside the disc: _clip_to_disc's first answer
+                    if radius <= 0.0 or e_y + e_x[q] <= r2:     # inside the disc (or no disc): all of it
                         frac, dy, dx = 1.0, 0.0, 0.0
-                    else:                                       # _clip_to_disc, each edge's terms once
+                    else:                                       # clipped, each edge's terms once
                         if not x_terms:
                             for j in range(nx):
                                 _edge_terms(l_x[j], radius, t_x0[j])

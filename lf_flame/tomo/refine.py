@@ -131,9 +131,7 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
     cost = float(np.vdot(r, r))
     for _ in range(int(steps)):
         J = slope_jacobian(op, rec.planes, fit, todo).reshape(len(todo), -1)
-        G = J @ J.T
-        g = -(J @ r.ravel())                                          # J^T (prediction minus data)
-        ds = -np.linalg.lstsq(G, g, rcond=None)[0]
+        ds = np.linalg.lstsq(J @ J.T, J @ r.ravel(), rcond=None)[0]   # (J^T J) ds = J^T (data minus prediction)
         ds = np.clip(ds, -REFINE_MAX_SLOPE, REFINE_MAX_SLOPE)
         planes = np.asarray(found.planes_mm, np.float64).copy()
         for p, d in zip(todo, ds):
