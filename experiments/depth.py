@@ -1,4 +1,4 @@
-"""Find the planes (issue 36, step 1): flames at random depths, found and reconstructed, beside the baselines.
+"""Find the planes: flames at random depths, found and reconstructed, beside the baselines.
 
 Scenes (:mod:`lf_flame.simulate.scenes_depth`, seeds ``SEED0 + i``, never used elsewhere):
 ``--scenes`` scenes of 2-4 flames at continuous random depths in -15..+25 mm, 2-25 mm
@@ -92,8 +92,9 @@ SCORE_VERSION = "side-by-side"
 #: (``RESIDUAL_PROMINENCE``), not by its ratio to the median. "...-refine": the depths of flames one behind another
 #: refined by Gauss-Newton on the residual (``refine_planes``); "-unmerged": planes that merged several depths left;
 #: "-search-own-planes": their regions searched once more after the refinement where each depth has a plane of its
-#: own (``peel_and_refine``).
-ROUTE_VERSION = "near-peel-prominence-refine-unmerged-search-own-planes"
+#: own (``peel_and_refine``). "-contrast": or a local maximum of the residual's focus curve that stands high over its
+#: floor (``RESIDUAL_CONTRAST``).
+ROUTE_VERSION = "near-peel-prominence-refine-unmerged-search-own-planes-contrast"
 
 
 def add_noise(raw, snr_db, seed):
@@ -227,7 +228,7 @@ def tune(cam, n_scenes, rays, out: Path):
     chosen = cand.loc[cand.p90.idxmin(), "route"]
     out.mkdir(parents=True, exist_ok=True)
     df.to_csv(out / "depth_tune.csv", index=False)
-    L = ["# The found planes' admm knobs at 14 dB, on validation scenes (issue 36)", "",
+    L = ["# The found planes' admm knobs at 14 dB, on validation scenes", "",
          f"`python experiments/depth.py --tune --out {out}` ({(time.perf_counter() - t_all) / 60:.1f} min); "
          f"{n_scenes} random-depth scenes (seeds {SEED_VAL}-{SEED_VAL + n_scenes - 1}, never scored), renders at "
          f"{rays} rays per pixel, 14 dB shot + read noise. Each candidate through `find_planes(views, camera, "
@@ -276,7 +277,7 @@ def write_report(out: Path, df, tb, own, settings, wall, prov, stem="depth"):
     auto = df[df.route == "auto"]
     per = auto.groupby(["seed", "noise"]).first()
     cov = auto.dropna(subset=["depth_err_mm", "uncertainty_mm"])
-    lines = ["# Find the planes: flames at random depths (issue 36, step 1)", "",
+    lines = ["# Find the planes: flames at random depths", "",
              f"Auto route's solve: variant `{settings['variant']}` {settings['auto_knobs']} "
              "(`lf_flame.tomo.found_planes.find_planes`).", "",
              f"`python experiments/depth.py {settings['argv']}`; {settings['n_scenes']} random-depth scenes "
