@@ -287,7 +287,7 @@ def write_report(out: Path, df, tb, own, settings, wall, prov, stem="depth"):
              f"Wall time {wall / 60:.1f} min (shared 2-core machine).", "",
              "## Bars (random-depth scenes; behind columns: the two-flame scenes)", "",
              tb.to_markdown(index=False, floatfmt=".3g"), "",
-             "Issue bars: depth error p90 <= 0.3 mm, worst <= 1 mm; emission error <= 10 % on 90 % of flames; "
+             "Bars: depth error p90 <= 0.3 mm, worst <= 1 mm; emission error <= 10 % on 90 % of flames; "
              ">= 90 % of each flame's emission within +-1 mm; heights on the found planes (measure_flame, emission "
              "settings, in the flame's columns and found region, outside the footprints of other depths merged onto its plane): <= 1 % of flames off by > 1 mm (missed or unmeasured counted off); "
              "two flames 5 mm apart both found, each <= 15 %; "

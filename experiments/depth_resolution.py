@@ -1,4 +1,4 @@
-"""The paper's camera's depth-resolution map (issue 35, step 4; :mod:`lf_flame.tomo.resolution`).
+"""The paper's camera's depth-resolution map (:mod:`lf_flame.tomo.resolution`).
 
 Writes ``<out>/depth_resolution.csv`` (long form), ``<out>/depth_resolution.md`` and
 ``<out>/depth_resolution.png``:
@@ -126,7 +126,7 @@ def main(argv=None):
         energy[s_mm] = (float(e[0]), float(e[-1]), float(depths[np.argmax(e)]))
     wall = time.perf_counter() - t_start
 
-    md.append("# The paper's camera's depth-resolution map (issue 35, step 4)\n")
+    md.append("# The paper's camera's depth-resolution map\n")
     md.append("Per lateral frequency, the normal matrix G(f) = sum over the 225 views of conj(H_v) H_v^T of the "
               "exact operator's kernels (`lf_flame.tomo.resolution`); for two planes, the condition number of "
               "their 2 x 2 block at the feature's frequency (the pair's mean sample); for each spacing, the median "

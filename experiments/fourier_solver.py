@@ -1,4 +1,4 @@
-"""The 'admm' solver on the exact operator beside pd-tv on the Monte-Carlo operator (issue 35, steps 2, 3, 5).
+"""The 'admm' solver on the exact operator beside pd-tv on the Monte-Carlo operator.
 
 Stages (``--stage``, default all), each writing ``<out>/fourier_solver_<stage>.csv`` and a
 section of ``<out>/fourier_solver.md`` (``fourier_solver.json``: settings, own errors,

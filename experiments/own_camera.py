@@ -1,4 +1,4 @@
-"""A camera of another geometry, from its camera file to its planes (issue 35, step 6).
+"""A camera of another geometry, from its camera file to its planes.
 
 The camera of ``examples/own_camera.toml`` (150 µm lenslets of 3 mm focal length behind a
 100 mm f/10 lens focused at 200 mm, 14.4 µm pixels: lenslet images 10.57 px apart, rotated
@@ -166,7 +166,7 @@ def main(argv=None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     atomic_write_text(args.out / "own_camera.csv", table.to_csv(index=False, float_format="%.4f"))
     prov = provenance()
-    md = ["# A camera of another geometry: decoded views on the exact operator (issue 35, step 6)", "",
+    md = ["# A camera of another geometry: decoded views on the exact operator", "",
           f"`python experiments/own_camera.py --out {args.out}`, {time.perf_counter() - t_all:.0f} s; camera "
           f"`examples/own_camera.toml` and grid variants; FISTA {ITERS} iterations; relative L2 error per plane "
           "against the truth in the decoded frame.", "",

@@ -1,4 +1,4 @@
-"""Two-colour pyrometry with a colour (Bayer) light-field camera (issue 37, steps 1-5).
+"""Two-colour pyrometry with a colour (Bayer) light-field camera.
 
 Writes ``<out>/temperature.csv`` (one row per route, noise level and plane, and one per
 blackbody check), ``<out>/temperature.md`` (the bars and the table), ``<out>/temperature.json``
@@ -321,7 +321,7 @@ def write_behind(out, df, info, cal_note, args, wall, prov):
     g = df.groupby(["route", "noise", "region"]).agg(p90_worst_plane=("p90_k", "max"), worst=("worst_k", "max"),
                                                      median_median=("median_k", "median"),
                                                      masked=("n_masked", "sum"), truth=("n_truth", "sum")).reset_index()
-    lines = ["# Two-colour pyrometry: two flames one behind another (issue 37)", "",
+    lines = ["# Two-colour pyrometry: two flames one behind another", "",
              f"Command: `python experiments/temperature.py --stage behind --out {args.out}"
              f"{' --quick' if args.quick else ''}` (also `make temperature`); wall time {wall:.0f} s; commit "
              f"{prov.get('git_commit')}. {cal_note}", "",
@@ -365,7 +365,7 @@ def write_report(out, df, info, cal, wien, args, wall, prov):
     df.to_csv(out / "temperature.csv", index=False)
     bb = df[df.kind == "blackbody"]
     fl = df[df.kind == "flame"]
-    lines = ["# Two-colour pyrometry with a colour light-field camera (issue 37)", "",
+    lines = ["# Two-colour pyrometry with a colour light-field camera", "",
              f"Command: `python experiments/temperature.py --out {args.out}"
              f"{' --stage ' + args.stage if args.stage != 'all' else ''}{' --quick' if args.quick else ''}` "
              f"(`make temperature`); wall time {wall:.0f} s; commit {prov.get('git_commit', prov.get('commit'))}.",
@@ -409,7 +409,7 @@ def write_report(out, df, info, cal, wien, args, wall, prov):
               and (nz not in r.index or r.loc[nz, "p90_worst_plane"] <= 60))
         lines.append(f"- `{route}`: {'; '.join(msg)} -> **{'met' if ok else 'NOT met'}** (worst plane of all scenes)")
     lines += ["", "Two flames one behind another: `temperature_behind.md` (`--stage behind`). Not measured here: per "
-              "voxel (issue 37's Goal).", ""]
+              "voxel (see `temperature_volume.md`).", ""]
     atomic_write_text(out / "temperature.md", "\n".join(lines))
     atomic_write_text(out / "temperature.json", json.dumps(dict(
         provenance=prov, wall_time_s=wall, rays_per_pixel=args.rays, scenes=info, gains=GAINS, fit_k=FIT_K,

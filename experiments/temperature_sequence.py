@@ -1,4 +1,4 @@
-"""Temperature of a recording's planes over time: the paper's four flames flickering, in colour (issue 37's Goal).
+"""Temperature of a recording's planes over time: the paper's four flames flickering, in colour.
 
 Writes ``<out>/temperature_sequence.{csv,md,json,png}``.
 
@@ -188,7 +188,7 @@ def write(a, seq, df, res, meta, wall):
     prov = provenance()
     snr = df.groupby("noise").snr_db.agg(["min", "max"]).round(2)
     lines = [
-        "# Temperature of a recording's planes over time (issue 37's Goal)", "",
+        "# Temperature of a recording's planes over time", "",
         f"Command: `{cmd}`; wall time {wall:.0f} s; commit {prov.get('git_commit')}.",
         f"Recording: `flicker_sequence` 'paper' (seed {SEED}), {seq.n_frames} frames at {seq.fps:g} frames/s "
         f"({seq.n_frames / seq.fps:g} s); flicker {[f.freq_hz for f in seq.flames]} Hz; sheath "

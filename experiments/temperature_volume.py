@@ -1,4 +1,4 @@
-"""Two-colour temperature per voxel of axisymmetric volumetric flames from one colour light field (issue 37's Goal).
+"""Two-colour temperature per voxel of axisymmetric volumetric flames from one colour light field.
 
 Writes ``<out>/temperature_volume.{csv,md,json,png}``.
 
@@ -248,7 +248,7 @@ def write(a, df, info, fig, meta, wall, partial=False):
         median_of_medians=("median_k", "median"), p90_worst_volume=("p90_k", "max"), worst=("worst_k", "max"),
         share_masked_max=("share_masked", "max")).reset_index()
     bb = meta["blackbody_checks"]
-    lines = ["# Two-colour temperature per voxel of axisymmetric flames (issue 37's Goal)", "",
+    lines = ["# Two-colour temperature per voxel of axisymmetric flames", "",
              f"`{cmd}` ({wall / 60:.1f} min wall on this 2-core machine); commit {provenance().get('git_commit')}."
              + (f" PARTIAL: {len(info)} of {a.volumes} volumes done." if partial else ""),
              f"Camera: the paper's, RGGB phase (0, 0), Nikon 5100 (NPL), gains {TE.GAINS}; calibration fitted on "

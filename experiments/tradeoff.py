@@ -260,7 +260,7 @@ def reconstruction_rows(folder: Path) -> list[dict]:
 
 
 def depth_volume_rows(folder: Path) -> list[dict]:
-    """The routes to flames at unknown depths and to volumes (issue 36), from their own runs in ``folder``
+    """The routes to flames at unknown depths and to volumes, from their own runs in ``folder``
     (``depth.csv`` of ``make depth``, ``volume.csv`` / ``volume_nonaxi.csv`` of ``make volume``; [] for each
     missing): per route and noise, time per light field (median, p90) against the error (per flame's emission:
     median, p90; per volume: the 3-D error, median and worst over scenes, and the depth centroid's error)."""

@@ -1,4 +1,4 @@
-"""Axisymmetric volumetric flames on a dense stack (issue 36, step 2): the axisymmetric prior beside the baselines.
+"""Axisymmetric volumetric flames on a dense stack: the axisymmetric prior beside the baselines.
 
 Scenes: axisymmetric flames (``volume_flame_scene``: the sheath on the optical axis; and
 :func:`lf_flame.simulate.scenes_volume.axisymmetric_flame_scene`: sheaths and filled cores
@@ -21,7 +21,7 @@ depth against the truth's, relative L2); per line of sight (a grid sample whose 
 over depth, holds >= 5 % of the largest) the depth centroid's error, mean / p90 / worst (mm).
 
 ``--set nonaxi``: non-axisymmetric volumes (:func:`~lf_flame.simulate.scenes_volume.nonaxisymmetric_flame_scene`,
-a sheath leaning in depth with a brighter lobe) for issue 36's bar (centroid mean <= 0.3 mm, <= 10 % of the
+a sheath leaning in depth with a brighter lobe) for the bar (centroid mean <= 0.3 mm, <= 10 % of the
 emission outside the true depth range): validation volumes choose the TV and l1 weights of admm, test volumes
 (other seeds) score admm without prior, admm + TV, admm + l1, the (mis-specified) axisymmetric prior and
 shift-and-sum; writes results/volume_nonaxi.{csv,md,json,png}.
@@ -207,7 +207,7 @@ def report_axi_lam(a, df, worst, chosen, op_s, wall):
     stem = "volume_axi_lam_quick" if a.quick else "volume_axi_lam"
     df.to_csv(a.out / f"{stem}.csv", index=False)
     cmd = "python experiments/volume.py --set axi-lam --out " + str(a.out) + (" --quick" if a.quick else "")
-    L = ["# The axisymmetric prior's smoothness weight, chosen on validation volumes (issue 36, step 2)", "",
+    L = ["# The axisymmetric prior's smoothness weight, chosen on validation volumes", "",
          f"`{cmd}` ({wall / 60:.1f} min wall on this 2-core machine). Validation volumes (seeds "
          f"{', '.join(str(s) for s in sorted(set(df.seed)))}; the scored ones in `volume.md` are others), {N_LAYERS} "
          f"layers, traced at {a.rays} rays per pixel, noise-free and at 14 dB; dense stack of {a.planes} planes every "
@@ -229,7 +229,7 @@ def report_axi_lam(a, df, worst, chosen, op_s, wall):
     print("\n".join(L))
 
 
-#: --set nonaxi (issue 36's non-axisymmetric volume bar): leaning sheaths with a lobe. Validation volumes choose
+#: --set nonaxi (the non-axisymmetric volume bar): leaning sheaths with a lobe. Validation volumes choose
 #: the priors' weights; test volumes (other seeds, other tilts / lobes / depths / x) are scored with them.
 NONAXI_VAL = (
     ("val tilt+8 lobe+0.25 D9 x+0.3 z+0.5", 611,
@@ -345,7 +345,7 @@ def run_nonaxi(a):
     return df, vtab, chosen, renders, figs, op_s, depths
 
 
-#: --set edge: axisymmetric flames cut by the field's edge (issue 57, item 6), their whole width drawn (``field_margin``).
+#: --set edge: axisymmetric flames cut by the field's edge, their whole width drawn (``field_margin``).
 #: Validation volumes (the mirror-centre weight MIRROR_ONE_SIDED and the warm-started search were chosen on them) and
 #: test volumes from other seeds, depths, sides, diameters and cores; the share of each flame's light outside the
 #: field is measured (:func:`outside_share`), not set.
@@ -364,7 +364,7 @@ EDGE_TEST = (
     ("core D8 x-3.8 z-1.0", 715, dict(centre_depth_mm=-1.0, centre_x_mm=-3.8, diameter_mm=8.0, core=1.0)),
     ("sheath+core D9 x+4.6 z-0.5", 717, dict(centre_depth_mm=-0.5, centre_x_mm=4.6, diameter_mm=9.0, core=0.3)),
 )
-#: The bar (issue 57): axis within 0.2 mm and 3-D error <= 15 % for flames with up to 10 % of their light outside
+#: The bar: axis within 0.2 mm and 3-D error <= 15 % for flames with up to 10 % of their light outside
 BAR_EDGE_SHARE, BAR_AXIS_MM, BAR_EDGE_3D = 0.10, 0.2, 0.15
 
 
@@ -575,7 +575,7 @@ def report_nonaxi(a, df, vtab, chosen, renders, figs, op_s, depths, wall):
         rel=("rel_3d", "median"), proj=("projection", "median"), time=("time_s", "median")).reset_index()
     cmd = "python experiments/volume.py --set nonaxi --out " + str(a.out) + (" --quick" if a.quick else "")
     own = [r["own_error"] for r in renders]
-    L = ["# Non-axisymmetric volumes (issue 36, step 2 bar)", "",
+    L = ["# Non-axisymmetric volumes", "",
          f"`{cmd}` ({wall / 60:.1f} min wall on this 2-core machine, shared with another job). "
          f"Scenes: `nonaxisymmetric_flame_scene` (a sheath leaning in depth with a brighter Gaussian lobe inside), "
          f"{N_LAYERS} layers, traced at {a.rays} rays per pixel; {len([r for r in renders if r['split'] == 'validation'])} "
@@ -619,7 +619,7 @@ def report_nonaxi(a, df, vtab, chosen, renders, figs, op_s, depths, wall):
                  f"{r.los_mean * 100:.1f} / {r.los_p90 * 100:.1f} % | {r.rel:.3f} | {r.proj:.3f} | {r.time:.1f} | "
                  f"{r.time / base_t[r.noise]:.2f} |")
     L += ["", "## Against the bar", "",
-          f"Bar (issue 36): centroid mean <= {BAR_CENTROID_MM} mm and <= {BAR_OUTSIDE * 100:.0f} % of the emission "
+          f"Bar: centroid mean <= {BAR_CENTROID_MM} mm and <= {BAR_OUTSIDE * 100:.0f} % of the emission "
           "outside the true depth range, noise-free and at 14 dB, the 14 dB figures <= 2x the noise-free ones. "
           "Checked on the worst test scene.", "",
           "| route | centroid mean worst scene: noise-free / 14 dB (mm) | outside share worst scene: noise-free / 14 dB | "
@@ -728,7 +728,7 @@ def main(argv=None):
     ax = df[df.route == "axisymmetric"]
     own = [r["own_error"] for r in renders]
     cmd = "python experiments/volume.py --out " + str(a.out) + (" --quick" if a.quick else "")
-    lines = ["# Axisymmetric volumes (issue 36, step 2)", "",
+    lines = ["# Axisymmetric volumes", "",
              f"`{cmd}` ({wall / 60:.1f} min wall on this 2-core machine). {len(renders)} scenes, "
              f"{N_LAYERS} layers each, traced at {a.rays} rays per pixel: own error "
              f"{min(own) * 100:.2f}–{max(own) * 100:.2f} % (two seeds); 14 dB measured "

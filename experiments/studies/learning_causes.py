@@ -5,7 +5,7 @@ The start is the 'closed-form' recipe's (``lf-flame train`` with no epochs, in
 ``--start-dir``); then, for each variant, the start is loaded and trained for ``--epochs``
 epochs at the paper's settings, and validation MSE, SSIM and PSNR are logged per epoch:
 
-- ``dense+refocused, dropout``: what ``make tables`` trained before (issue 24);
+- ``dense+refocused, dropout``: what ``make tables`` trained before;
 - ``dense, dropout``: the output 3×3 convolution kept as the identity;
 - ``dense+refocused, no dropout`` and ``dense, no dropout``: dropout off (rate 0).
 

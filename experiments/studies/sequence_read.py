@@ -1,4 +1,4 @@
-"""Reading an HDF5 recording: one open of the file per frame (before issue 34) against one
+"""Reading an HDF5 recording: one open of the file per frame (the earlier reading) against one
 open per chunk (:meth:`lf_flame.recordings.sources.H5Source.frames`), on the same frames,
 interleaved, repeated; and what the opens alone cost (open and close, nothing read).
 Writes ``results/sequence_read.csv`` (one row per pass).

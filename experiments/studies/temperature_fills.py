@@ -1,4 +1,4 @@
-"""Issue 37: what the matched route's accuracy costs in time, its admm knobs on validation scenes.
+"""What the matched route's accuracy costs in time, its admm knobs on validation scenes.
 
 ``admm-cfa-matched`` (:func:`lf_flame.temperature.channels.matched_channels`, the 2 x 2 grid per lenslet,
 binned to the lenslets) on the paper's four flames drawn with the validation seeds of
@@ -77,7 +77,7 @@ def main(argv=None):
     held = (int(pick.fills), float(pick.lam)) == (MATCHED_KNOBS["quiet"]["fills"], MATCHED_KNOBS["quiet"]["lam"])
     prov = provenance()
     atomic_write_text(args.out / "temperature_fills.md", "\n".join([
-        "# The matched route's accuracy against its time: admm fills and weight (issue 37), validation scenes", "",
+        "# The matched route's accuracy against its time: admm fills and weight, validation scenes", "",
         f"Command: `python experiments/studies/temperature_fills.py --out {args.out} --rays {args.rays}`; wall time "
         f"{time.perf_counter() - t0:.0f} s; commit {prov.get('git_commit')}; seeds {SEEDS} (validation, not the scored "
         f"ones); own error of the renders {[round(v, 4) for v in own.values()]}; `admm-cfa-matched` on the 2 x 2 "

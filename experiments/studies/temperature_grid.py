@@ -1,4 +1,4 @@
-"""Issue 37, a diagnosis: what limits two-colour pyrometry on the paper's planes, the planes' grid or the CFA?
+"""A diagnosis: what limits two-colour pyrometry on the paper's planes, the planes' grid or the CFA?
 
 On validation scenes only (the paper's four flames drawn with :data:`SEEDS`, distinct from the
 scored 937000-937001), at ``--rays`` rays per pixel, noise-free and at 14 dB, each channel's
@@ -124,7 +124,7 @@ def main(argv=None):
     planes = df.groupby("plane")[["slope", "red_even_share"]].first().reset_index()
     prov = provenance()
     atomic_write_text(args.out / "temperature_grid.md", "\n".join([
-        "# Two-colour pyrometry: the planes' grid or the CFA? (issue 37), validation scenes", "",
+        "# Two-colour pyrometry on validation scenes: the planes' grid or the CFA?", "",
         f"Command: `python experiments/studies/temperature_grid.py --out {args.out} --rays {args.rays}`; wall time "
         f"{time.perf_counter() - t0:.0f} s; commit {prov.get('git_commit')}; seeds {SEEDS} (validation, not the scored "
         f"ones); own error of the renders {[round(v, 4) for v in own.values()]}; admm as `admm-cfa` "

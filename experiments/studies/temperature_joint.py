@@ -1,4 +1,4 @@
-"""Issue 37, an attempt: a joint solve of two colour channels through the CFA, on validation scenes only.
+"""An attempt: a joint solve of two colour channels through the CFA, on validation scenes only.
 
 The green channel's emission ``g`` per plane is reconstructed first (admm on its own pixels,
 as ``admm-cfa``); the red channel is then modelled as ``g`` times a smooth ratio field
@@ -110,7 +110,7 @@ def main(argv=None):
     best = g[(g.route != "admm-cfa-smooth") & (g.noise == "clean")].p90_worst_plane.min()
     prov = provenance()
     atomic_write_text(args.out / "temperature_joint.md", "\n".join([
-        "# Two-colour pyrometry through the CFA: a joint solve (issue 37), validation scenes", "",
+        "# Two-colour pyrometry through the CFA: a joint solve, validation scenes", "",
         f"Command: `python experiments/studies/temperature_joint.py --out {args.out} --rays {args.rays}`; wall time "
         f"{time.perf_counter() - t0:.0f} s; commit {prov.get('git_commit')}; seeds {SEEDS} (validation, not the scored "
         f"ones); LSQR {ITERS} iterations.", "",

@@ -1,4 +1,4 @@
-"""Issue 37: the matched route's admm knobs and ratio filter together at 14-26 dB, on four validation scenes.
+"""The matched route's admm knobs and ratio filter together at 14-26 dB, on four validation scenes.
 
 ``admm-cfa-matched`` (:func:`lf_flame.temperature.channels.matched_channels`, 25 fills, binned to the lenslets)
 on the paper's four flames drawn with the validation seeds :data:`SEEDS` (the two of
@@ -47,7 +47,7 @@ from lf_flame.tomo.truth import bin_planes  # noqa: E402
 SEEDS = (937500, 937501, 937502, 937503)
 #: ``--check``'s validation scenes (not the scored 937000-937001 nor the behind 937200-937203) and noise seeds' offsets
 CHECK_SEEDS, CHECK_REALISATIONS, CHECK_DB = tuple(range(937500, 937512)), (0, 1000), 14.0
-#: the bar of issue 37 at 14 dB, K
+#: the bar at 14 dB, K
 BAR_K = 60.0
 SNRS_DB = (14.0, 17.0, 20.0, 26.0)
 KNOBS = tuple(dict(fills=CFA_FILLS, lam=lam, tv=0.0, l1=0.0) for lam in (0.01, 0.03, 0.1))
@@ -112,7 +112,7 @@ def main(argv=None):
                             holds=route == mean.idxmin()))
     prov = provenance()
     atomic_write_text(args.out / "temperature_noisy.md", "\n".join([
-        "# The matched route's admm knobs and ratio filter at 14-26 dB (issue 37), validation scenes", "",
+        "# The matched route's admm knobs and ratio filter at 14-26 dB, validation scenes", "",
         f"Command: `python experiments/studies/temperature_noisy.py --out {args.out} --rays {args.rays}`; wall time "
         f"{time.perf_counter() - t0:.0f} s; commit {prov.get('git_commit')}; seeds {SEEDS} (validation, not the "
         f"scored ones); `admm-cfa-matched` ({CFA_FILLS} fills) binned to the lenslets; shot + 2 e- read noise on "
@@ -163,7 +163,7 @@ def check(args):
     plane.columns = [f"plane {p} {stat}" for stat, p in plane.columns]
     prov = provenance()
     atomic_write_text(args.out / "temperature_noisy_check.md", "\n".join([
-        "# The matched route at 14 dB on twelve validation scenes (issue 37)", "",
+        "# The matched route at 14 dB on twelve validation scenes", "",
         f"Command: `python experiments/studies/temperature_noisy.py --out {args.out} --rays {args.rays} --check`; wall time "
         f"{time.perf_counter() - t0:.0f} s; commit {prov.get('git_commit')}; seeds {CHECK_SEEDS[0]}-{CHECK_SEEDS[-1]} "
         f"(validation; {SEEDS} are those the 14 dB knobs and filter were chosen on), noise seeds seed + "

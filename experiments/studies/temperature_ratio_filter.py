@@ -1,4 +1,4 @@
-"""Issue 37: the matched route's filter of the channels' ratio by noise level, on validation scenes.
+"""The matched route's filter of the channels' ratio by noise level, on validation scenes.
 
 ``admm-cfa-matched`` (:func:`lf_flame.temperature.channels.matched_channels`, binned to the lenslets) on the
 paper's four flames drawn with the validation seeds of ``temperature_grid.py`` (not the scored
@@ -130,7 +130,7 @@ def main(argv=None):
     held = all(a == b for a, b in zip(picks.route, picks.route_low_noise))
     prov = provenance()
     atomic_write_text(args.out / "temperature_ratio_filter.md", "\n".join([
-        "# The matched route's filter of the channels' ratio by noise level (issue 37), validation scenes", "",
+        "# The matched route's filter of the channels' ratio by noise level, validation scenes", "",
         f"Command: `python experiments/studies/temperature_ratio_filter.py --out {args.out} --rays {args.rays}`; wall time "
         f"{time.perf_counter() - t0:.0f} s; commit {prov.get('git_commit')}; seeds {SEEDS} (validation, not the "
         f"scored ones); `admm-cfa-matched` binned to the lenslets, noise-free with the quiet knobs "

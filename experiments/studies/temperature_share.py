@@ -1,4 +1,4 @@
-"""Issue 37, an attempt at 14 dB: the red channel's share of the sum solved from the data, alternating with the sum.
+"""An attempt at 14 dB: the red channel's share of the sum solved from the data, alternating with the sum.
 
 The shipped route (``admm-cfa-matched``) reconstructs the two channels apart and filters their
 ratio afterwards. Here the two channels are ``R = s f`` and ``G = s (1 - f)`` on each plane:
@@ -154,7 +154,7 @@ def main(argv=None):
     plane.columns = [f"plane {p}" for p in plane.columns]
     prov = provenance()
     atomic_write_text(args.out / "temperature_share.md", "\n".join([
-        "# The red channel's share solved from the data, alternating with the sum (issue 37), validation scenes", "",
+        "# The red channel's share solved from the data, alternating with the sum, validation scenes", "",
         f"Command: `python experiments/studies/temperature_share.py --out {args.out} --rays {args.rays} --seeds "
         f"{' '.join(map(str, args.seeds))}`; wall time {time.perf_counter() - t0:.0f} s; commit "
         f"{prov.get('git_commit')}; validation seeds (not the scored ones); {SNR:g} dB noise seeds seed + "

@@ -1,4 +1,4 @@
-"""Issue 37: from what noise level does the default route meet the 14 dB bar's 60 K? An SNR sweep.
+"""From what noise level does the default route meet the 14 dB bar's 60 K? An SNR sweep.
 
 The paper's four flames of ``temperature.py``'s flames stage (the same scenes and seeds: the nominal
 scene and one drawn, 400 rays per pixel), the mosaic's shot and read noise set to each SNR of
@@ -107,7 +107,7 @@ def main(argv=None):
             choice = ["The knob sets do not split by the noise on these levels: no threshold chosen.", ""]
     prov = provenance()
     atomic_write_text(args.out / f"{name}.md", "\n".join([
-        "# Two-colour pyrometry against the noise: an SNR sweep of the default route (issue 37)", "",
+        "# Two-colour pyrometry against the noise: an SNR sweep of the default route", "",
         f"Command: `python experiments/studies/temperature_snr.py --out {args.out} --rays {args.rays}"
         f"{' --validation' if args.validation else f' --scenes {args.scenes}'}`; wall time "
         f"{time.perf_counter() - t0:.0f} s; commit {prov.get('git_commit')}; seeds {seeds} "
