@@ -9,7 +9,7 @@ Run on the device machine (its image has JAX; keras, optree, namex, pylops and p
 ``KERAS_BACKEND=jax NUMBA_NUM_THREADS=1 PYTHONPATH=. python3 experiments/studies/learned_device.py SCENES WIDTHS EPOCHS``,
 e.g. ``500 16 25`` (results/learned_h100_two_families.md: 500 scenes, 4 min 17 s in all on an H100).
 """
-import json, os, sys, time
+import os, sys, time
 from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 N, CHUNK, PROCS = int(sys.argv[1]), 10, 15
