@@ -92,9 +92,8 @@ SCORE_VERSION = "side-by-side"
 #: (``RESIDUAL_PROMINENCE``), not by its ratio to the median. "...-refine": the depths of flames one behind another
 #: refined by Gauss-Newton on the residual (``refine_planes``); "-unmerged": planes that merged several depths left;
 #: "-search-own-planes": their regions searched once more after the refinement where each depth has a plane of its
-#: own (``peel_and_refine``). "-contrast": or a local maximum of the residual's focus curve that stands high over its
-#: floor (``RESIDUAL_CONTRAST``).
-ROUTE_VERSION = "near-peel-prominence-refine-unmerged-search-own-planes-contrast"
+#: own (``peel_and_refine``).
+ROUTE_VERSION = "near-peel-prominence-refine-unmerged-search-own-planes"
 
 
 def add_noise(raw, snr_db, seed):

@@ -478,60 +478,24 @@ def test_a_flame_behind_others_is_found_in_the_residual(cam):
     assert np.min(np.abs(more.depths_mm - sorted(true)[0])) < 0.5, (true, more.depths_mm)
 
 
-def test_two_missed_flames_widen_the_residuals_curve_but_stand_on_its_floor(cam):
-    """A residual that holds two missed flames of a column (the votes found only the brightest): their focus peaks
-    widen the curve's median absolute deviation, so neither stands RESIDUAL_PROMINENCE deviations high; each is a
-    local maximum many times the curve's floor, and the search finds one of them where it is. A misfit about the
-    found flame, falling away from its depth, is no such maximum."""
-    import dataclasses
-
-    from lf_flame.simulate.scenes_depth import column_scene
-    from lf_flame.tomo.peel import missed_depths
-    scene = column_scene(cam, np.random.default_rng(2), n_flames=3)
-    k = int(np.argmax([o["radiance"] * o["height_mm"] for o in scene.objects]))
-    part = lambda keep: dataclasses.replace(scene, objects=tuple(o for j, o in enumerate(scene.objects) if keep(j)),
-                                            layers=tuple(q for j, q in enumerate(scene.layers) if keep(j)))
-    bright = _views(cam, part(lambda j: j == k), 2, rays=16)
-    found = find_depths(bright, cam)
-    assert len(found.depths_mm) == 1
-    # a misfit about the found flame (its own light, faint) falls away from its depth: no local maximum there
-    assert missed_depths(0.1 * bright, cam, found) is None
-    others = [o["depth_offset_mm"] for j, o in enumerate(scene.objects) if j != k]
-    residual = _views(cam, part(lambda j: j != k), 3, rays=16)           # what a solve on the one depth leaves
-    assert missed_depths(residual, cam, found, contrast=1e9) is None     # the prominence alone: none stands out
-    more = missed_depths(residual, cam, found)
-    assert more is not None and len(more.depths_mm) == 2
-    new = np.setdiff1d(more.depths_mm, found.depths_mm)
-    assert np.min(np.abs(np.subtract.outer(new, others))) < 0.2, (others, more.depths_mm)
-
-
-def test_a_faint_flame_behind_refined_ones_is_found_in_their_residual(cam):
-    """A faint flame behind a brighter one near focus: the first search of the residual by the peak's prominence
-    alone misses it (the misfit of the others' unrefined depths is as strong), the search after the refinement finds
-    it, and every flame comes back within 10 %. The default route finds it in its first search already: its peak is a
-    local maximum high over the residual curve's floor (RESIDUAL_CONTRAST)."""
-    import functools
-
-    import lf_flame.tomo.peel as peel
+def test_a_faint_flame_behind_refined_ones_is_found_in_their_residual(cam, monkeypatch):
+    """A faint flame behind a brighter one near focus: the first search of the residual misses it (the misfit of
+    the others' unrefined depths is as strong), the search after the refinement finds it, and every flame comes back
+    within 10 %."""
     import lf_flame.tomo.refine as refine
     from lf_flame.simulate.scenes_depth import column_scene
     scene = column_scene(cam, np.random.default_rng(378))
     views = _views(cam, scene, 378)
-
-    def solved():
+    scores = {}
+    for share in (1.0, refine.REFINED_SHARE):          # 1.0: no search after the refinement
+        monkeypatch.setattr(refine, "REFINED_SHARE", share)
         found, _, rec = find_planes(views, cam)
-        return score_flames(rec.planes, found.planes_mm, scene, cam, found=list(zip(found.depths_mm, found.masks)))
-
-    scores = {"default": solved()}
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(peel, "missed_depths", functools.partial(peel.missed_depths, contrast=1e9))  # the prominence alone
-        scores["after"] = solved()
-        mp.setattr(refine, "missed_depths", lambda *a, **k: None)       # no search after the refinement
-        scores["before"] = solved()
-    assert scores["before"].depth_mm.isna().sum() == 1, scores["before"]
-    for key in ("after", "default"):
-        assert scores[key].depth_mm.notna().all() and scores[key].depth_err_mm.abs().max() < 0.1, scores[key]
-        assert scores[key].rel_err.max() < 0.1, scores[key]
+        scores[share] = score_flames(rec.planes, found.planes_mm, scene, cam,
+                                     found=list(zip(found.depths_mm, found.masks)))
+    before, after = scores[1.0], scores[refine.REFINED_SHARE]
+    assert before.depth_mm.isna().sum() == 1, before
+    assert after.depth_mm.notna().all() and after.depth_err_mm.abs().max() < 0.1, after
+    assert after.rel_err.max() < 0.1, after
 
 
 def test_the_search_after_the_refinement_skips_regions_of_merged_planes(cam, behind):

@@ -29,28 +29,13 @@ from .depth import (FoundDepths, _focus_energy, _grid_depths, _half_width, _peak
 #: they hold 0.01 of it or more, and those that stand higher (up to 74) hold at most 0.0056.
 RESIDUAL_PROMINENCE = 7.5
 RESIDUAL_SHARE = 0.01
-#: Or the peak stands on its own (:func:`missed_depths`): a local maximum of the residual's focus curve (both
-#: neighbours lower, neither near a found depth) at least ``RESIDUAL_CONTRAST`` times the curve's lowest value away
-#: from the found depths, holding at least ``RESIDUAL_CONTRAST_SHARE`` of the data's peak energy. Where the residual
-#: holds two missed flames, or a faint one, over much of the curve, its median absolute deviation widens with them and
-#: no peak stands ``RESIDUAL_PROMINENCE`` deviations high; the curve's floor away from them stays the noise's. Chosen
-#: on 80 validation column scenes (seeds 3950000-3950039 and 3960000-3960039, 150 rays per pixel, noise-free and
-#: 14 dB; a ``/tmp`` probe of each region's highest peak in every search): the peaks at missed flames are all local
-#: maxima, 7.8-924 times the floor with 0.0046-0.18 of the data's energy; the 3 flames the prominence missed (2 scenes)
-#: peak 7.8-165 times it with 0.0046-0.076. Misfits that are local maxima holding 0.003 of it or more stand at most
-#: 9.8 times their floor (all at 14 dB), and those standing higher (up to 123) hold at most 0.0021. The threshold
-#: between (14) finds 2 of the 3 (a faint flame at 14 dB, 7.8 times its floor, stays missed) and no misfit.
-RESIDUAL_CONTRAST = 14.0
-RESIDUAL_CONTRAST_SHARE = 0.003
 #: Rounds of :func:`missed_depths` in :func:`~lf_flame.tomo.found_planes.find_planes` (each a search of the residual
 #: and a solve).
 PEEL_ROUNDS = 2
 
 
 def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prominence: float = RESIDUAL_PROMINENCE,
-                  share: float = RESIDUAL_SHARE, contrast: float = RESIDUAL_CONTRAST,
-                  contrast_share: float = RESIDUAL_CONTRAST_SHARE, sigma: float = 1.5,
-                  min_separation_mm: float | None = None,
+                  share: float = RESIDUAL_SHARE, sigma: float = 1.5, min_separation_mm: float | None = None,
                   merge_mm: float | None = None, regions=None):
     """Depths the votes missed, found in a solve's residual: a flame behind (or before) another in the same
     columns, whose lenslets voted for the other.
@@ -62,11 +47,8 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
     flame's missing light to a peak at its depth: where the peak stands ``prominence`` robust
     standard deviations (1.4826 times the median absolute deviation over the slopes) above the
     curve's median and holds ``share`` of the data's peak energy at the region's
-    found depths (``found.curves``; the solve's misfit about a found flame is fainter), or where it is a local
-    maximum of the curve ``contrast`` times the curve's lowest value (away from the found depths) and holds
-    ``contrast_share`` of that energy (two missed flames, or a faint one, widen the curve's spread, not its floor),
-    its depth (refined as :func:`~lf_flame.tomo.depth.find_depths` refines) joins the region's, its footprint the
-    region.
+    found depths (``found.curves``; the solve's misfit about a found flame is fainter), its depth
+    (refined as :func:`~lf_flame.tomo.depth.find_depths` refines) joins the region's, its footprint the region.
 
     Parameters
     ----------
@@ -80,9 +62,6 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
         deviations of the curve, > 0 (:data:`RESIDUAL_PROMINENCE`).
     share : float
         Peak over the data's, >= 0 (:data:`RESIDUAL_SHARE`).
-    contrast, contrast_share : float
-        A local maximum's height over the curve's floor, > 0 (:data:`RESIDUAL_CONTRAST`), and its energy over the
-        data's peak, >= 0 (:data:`RESIDUAL_CONTRAST_SHARE`).
     sigma, min_separation_mm, merge_mm : float (the last two or None)
         As :func:`~lf_flame.tomo.depth.find_depths` (None: scaled to the camera as there).
     regions : sequence of int or None
@@ -96,15 +75,12 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
     Raises
     ------
     ValueError
-        A residual of another shape than the camera's views, or not finite; ``prominence`` or ``contrast`` <= 0,
-        ``share`` or ``contrast_share`` < 0.
+        A residual of another shape than the camera's views, or not finite; ``prominence`` <= 0, ``share`` < 0.
     """
-    for name, v in (("prominence", prominence), ("contrast", contrast)):
-        if not (math.isfinite(float(v)) and v > 0):
-            raise ValueError(f"{name} must be finite and > 0. Received: {v!r}")
-    for name, v in (("share", share), ("contrast_share", contrast_share)):
-        if not (math.isfinite(float(v)) and v >= 0):
-            raise ValueError(f"{name} must be a finite ratio >= 0. Received: {v!r}")
+    if not (math.isfinite(float(prominence)) and prominence > 0):
+        raise ValueError(f"prominence must be finite and > 0. Received: {prominence!r}")
+    if not (math.isfinite(float(share)) and share >= 0):
+        raise ValueError(f"share must be a finite ratio >= 0. Received: {share!r}")
     n = camera.pixels_per_lenslet
     r = np.ascontiguousarray(residual, np.float32)
     if r.shape != (n, n, camera.n_rows, camera.n_cols):
@@ -131,10 +107,7 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
         data_peak = max(float(found.curves[k].max()) for k in np.flatnonzero(found.region == lab))
         med = float(np.median(curve))
         spread = 1.4826 * float(np.median(np.abs(curve - med)))
-        prominent = curve[i] - med >= prominence * spread and curve[i] > med and curve[i] >= share * data_peak
-        local = 0 < i < len(curve) - 1 and free[i - 1] and free[i + 1] and curve[i] >= max(curve[i - 1], curve[i + 1])
-        standing = local and curve[i] >= contrast * curve[free].min() and curve[i] >= contrast_share * data_peak
-        if not (prominent or standing):
+        if not (curve[i] - med >= prominence * spread and curve[i] > med and curve[i] >= share * data_peak):
             continue
         s = float(np.clip(np.interp(_peak_fit(curve, i), np.arange(len(slopes)), slopes),
                           slopes[ok].min(), slopes[ok].max()))
