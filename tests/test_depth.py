@@ -661,6 +661,30 @@ def test_refined_depths_of_flames_one_behind_another(cam, behind):
     assert f2.depths_mm.shape == found.depths_mm.shape and f2.planes_mm.shape == found.planes_mm.shape
 
 
+def test_the_refinement_stays_within_the_depths_the_camera_images(cam, behind):
+    """A found depth's reach (REFINE_REACH times its uncertainty) that runs past the depths the camera images
+    (here nearer than the main lens's focal length, as a far camera's wide uncertainties near its range's end do):
+    the refinement stops it at the nearest depth the search ran over instead of converting an impossible depth to a
+    slope (which raised 'at or inside the main-lens focal length')."""
+    import dataclasses
+
+    from lf_flame.tomo.depth import _grid_depths
+    from lf_flame.tomo.refine import refine_planes
+    from lf_flame.tomo.solvers import fitted_pixels, reconstruct
+    _, views = behind
+    found, op, rec = find_planes(views, cam, refine_steps=0)
+    wide = dataclasses.replace(found, uncertainty_mm=np.full(len(found.depths_mm), 1e4))
+    assert np.all(cam.focus_distance_mm + wide.depths_mm - 3e4 < cam.main_focal_mm)
+    y = np.asarray(views, np.float64)
+
+    def solve(f):
+        o = emission_operator(cam, [float(d) for d in f.planes_mm], subsamples=op.subsamples)
+        return o, reconstruct(y, o, "admm")
+    f2, _, _ = refine_planes(wide, op, rec, y, fitted_pixels(y, 1.0), cam, solve, steps=2)
+    searched = _grid_depths(cam, found.grid_slopes)
+    assert np.all(np.isfinite(f2.planes_mm)) and np.all(f2.planes_mm >= np.nanmin(searched)), f2.planes_mm
+
+
 def test_objects_before_a_bright_background_are_searched_apart(cam, planted):
     """Two flames 1.2 mm apart in depth, side by side, before a lit wall 20 mm behind focus: the central view is
     bright everywhere, so the regions come from the light field's detail, and each flame's depth is found in its
