@@ -1,4 +1,4 @@
-"""The command line as a new user meets it (issue 34, section 5): every option's default
+"""The command line as a new user meets it: every option's default
 in --help, a light import, what reconstruct leaves out, and files passed between commands."""
 import argparse
 import json

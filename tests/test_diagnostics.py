@@ -395,7 +395,7 @@ def test_flame_tail_experiment_writes_csv_and_md(tmp_path):
 
 def test_a_route_is_parsed_once_into_one_value():
     """Every caller (command line, recordings, diagnostics, experiments) gets the same Route
-    from a name: the adjoint is plain refocusing under both its names (issue 34, 2.1)."""
+    from a name: the adjoint is plain refocusing under both its names."""
     from lf_flame.measure.diagnostics import EMISSION_MEASURE
     from lf_flame.routes import Route, measure_settings, parse_route, route_names
     adj = parse_route("reconstruct-adjoint")

@@ -1,5 +1,5 @@
 """A user's own camera: camera file, white-image calibration, decoding with the clipped samples,
-and the exact operator on the decoded views (issue 35, step 6)."""
+and the exact operator on the decoded views."""
 import dataclasses
 import importlib.util
 import json

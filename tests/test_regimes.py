@@ -1,4 +1,4 @@
-"""Scene regimes (issue 20): ``paper`` varies only what the paper states, ``varied`` is the
+"""Scene regimes: ``paper`` varies only what the paper states, ``varied`` is the
 scenes as they were before regimes existed, bit for bit."""
 import numpy as np
 import pytest

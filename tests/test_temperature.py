@@ -1,4 +1,4 @@
-"""Colour sensor, colour renders and two-colour pyrometry (issue 37), on a small camera."""
+"""Colour sensor, colour renders and two-colour pyrometry, on a small camera."""
 import json
 
 import numpy as np

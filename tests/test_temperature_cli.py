@@ -1,4 +1,4 @@
-"""``lf-flame calibrate-temperature`` and ``lf-flame temperature`` (issue 37) on a small colour camera."""
+"""``lf-flame calibrate-temperature`` and ``lf-flame temperature`` on a small colour camera."""
 import json
 
 import h5py

@@ -1,4 +1,4 @@
-"""Two-colour temperature per voxel of an axisymmetric colour flame (issue 37's Goal), on a small camera."""
+"""Two-colour temperature per voxel of an axisymmetric colour flame, on a small camera."""
 import dataclasses
 
 import numpy as np

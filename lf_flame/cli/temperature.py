@@ -1,4 +1,4 @@
-"""The temperature commands (issue 37): ``calibrate-temperature`` (a blackbody calibration of
+"""The temperature commands: ``calibrate-temperature`` (a blackbody calibration of
 two colour channels from furnace images) and ``temperature`` (each plane's temperature map from
 one colour light field, :mod:`lf_flame.temperature.channels` and :mod:`lf_flame.temperature.pyrometry`),
 written to HDF5 with a figure.

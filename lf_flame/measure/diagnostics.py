@@ -1,6 +1,6 @@
 """Flame diagnostics per depth plane: where the flame is, its size in mm and its profiles.
 
-The one place for diagnostics (issue 17). A refocused plane ``(R, C)`` is in lenslets;
+The one place for diagnostics. A refocused plane ``(R, C)`` is in lenslets;
 :func:`lenslet_size_mm` turns lenslets into object-space millimetres at the plane's depth
 (the main lens's magnification ``d / z`` changes with the depth, see
 :meth:`~lf_flame.optics.camera.PlenopticCamera.object_to_lenslet`). :func:`measure_flame`

@@ -1,4 +1,4 @@
-"""A colour sensor: Bayer CFA, channel sensitivities, Planck and soot spectra (issue 37).
+"""A colour sensor: Bayer CFA, channel sensitivities, Planck and soot spectra.
 
 The camera's optics are achromatic ray transfer matrices, so the light of one colour channel
 follows the same rays as any other; this module holds what is colour: the colour filter

@@ -2,7 +2,7 @@
 
 :mod:`.scenes` builds layered scenes (the paper's shapes and flames at four depths, overlaps,
 points); :mod:`.scenes_depth` flames at random depths and one behind
-another (issue 36); :mod:`.scenes_volume` axisymmetric volumetric flames (the sheath on the optical
+another; :mod:`.scenes_volume` axisymmetric volumetric flames (the sheath on the optical
 axis; sheath, filled core about any vertical axis) and non-axisymmetric ones (leaning, with a lobe); :mod:`.scenes_time` flickering flames over time; :mod:`.scenes_temperature` flames with a
 temperature field seen in colour (still or flickering), rendered by :mod:`.colour` (a Bayer mosaic of per-channel renders); :mod:`.scenes_volume_temperature` an
 axisymmetric volumetric flame with a temperature field T(r, y) in colour; :mod:`.tracer` renders

@@ -1,4 +1,4 @@
-"""Colour raw images: a plenoptic camera with a colour filter array (issue 37).
+"""Colour raw images: a plenoptic camera with a colour filter array.
 
 The camera's optics are achromatic ray transfer matrices, so the light of one colour channel
 follows the same rays as any other: a colour raw image is the monochrome render of each

@@ -24,7 +24,7 @@ SHAPE_AT_DEPTH = ("rectangle", "triangle", "circle", "square")
 FLAME_HEIGHT_MEAN_MM = (29.48, 24.48, 19.47, 14.47)
 FLAME_HEIGHT_SD_MM = (1.48, 1.457, 1.433, 1.41)
 
-#: How much a scene varies from sample to sample (issue 20; ``docs/scenes.md``):
+#: How much a scene varies from sample to sample (``docs/scenes.md``):
 #: ``"paper"`` varies only what the paper states (the flames' heights; the shapes get the
 #: same small relative spread), ``"varied"`` also position, size, rotation, radiance and
 #: flicker (the generalisation test).

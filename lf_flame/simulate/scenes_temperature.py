@@ -1,4 +1,4 @@
-"""The paper's four flames with a temperature field and soot: colour scenes for pyrometry (issue 37).
+"""The paper's four flames with a temperature field and soot: colour scenes for pyrometry.
 
 Each flame of :func:`lf_flame.simulate.scenes.flame_scene` (same heights, positions and
 luminous profile) gets a temperature per texel and a soot column, and its emission in each
@@ -21,7 +21,7 @@ from .scenes_time import FlameSequence
 
 #: Sheath (hottest) temperature of each of the paper's four flames, K, in the order of
 #: :data:`~lf_flame.simulate.scenes.PAPER_DEPTHS_MM`: each flame its own field, within the
-#: 1,500-2,100 K of laminar hydrocarbon diffusion flames' soot (issue 37).
+#: 1,500-2,100 K of laminar hydrocarbon diffusion flames' soot.
 FLAME_PEAK_K = (2100.0, 1950.0, 2050.0, 1850.0)
 #: The temperature the field falls towards in the cool core and the tip, K.
 FLAME_BASE_K = 1500.0
@@ -44,7 +44,7 @@ def flame_temperature(eta, xi, peak_k: float, base_k: float = FLAME_BASE_K):
     A model of the shape that measurements of laminar ethylene diffusion flames report (soot
     hottest in the annular reaction zone low in the flame, cooling along the height as soot
     radiates: Santoro, Semerjian & Dobbins, Combust. Flame 51 (1983) 203-218), with the
-    1,500-2,100 K range of issue 37; it is not a fit to data. At ``peak`` 2,100 K it spans
+    1,500-2,100 K of laminar hydrocarbon diffusion flames' soot; it is not a fit to data. At ``peak`` 2,100 K it spans
     about 1,680-2,100 K over the flame.
 
     Returns
@@ -224,7 +224,7 @@ def _in_colour(mono: Scene, name, temps, soots, sensor, alpha, peak, peaks_k, ba
 
 #: Amplitude (K) of each flame's sheath temperature oscillation in a recording
 #: (:func:`colour_flicker_frame`): at the flame's flicker frequency, in antiphase with its height. A
-#: model for the recordings of issue 37's Goal (a stretched flame loses more heat), not a fit to data.
+#: model for colour recordings (a stretched flame loses more heat), not a fit to data.
 FLICKER_K = 40.0
 
 

@@ -1,4 +1,4 @@
-"""Scenes that change in time: flickering flames filmed at a frame rate (issue 26).
+"""Scenes that change in time: flickering flames filmed at a frame rate.
 
 Each frame is a :class:`lf_flame.simulate.scenes.Scene` built by the flame layers of
 :mod:`lf_flame.simulate.scenes`; this module adds the time: flicker frequencies, amplitudes and
@@ -157,7 +157,7 @@ def _distinct_frequencies(rng: np.random.Generator, n: int, lo: float, hi: float
 def flicker_sequence(camera: PlenopticCamera, rng: np.random.Generator, kind: str = "paper", *, fps: float = 500.0,
                      duration_s: float = 1.0, freqs_hz=None, noise: tuple | None = None,
                      template_scale: float | None = None) -> FlameSequence:
-    """A recording of flickering flames (issue 26): each flame its own frequency.
+    """A recording of flickering flames: each flame its own frequency.
 
     - ``"paper"``: the paper's four flames (:func:`flame_scene`'s nominal heights and
       positions) at :data:`PAPER_DEPTHS_MM`.

@@ -1,4 +1,4 @@
-"""Volumetric flames (issue 36, step 2): axisymmetric (a luminous sheath, a filled core, or a mix, about any
+"""Volumetric flames: axisymmetric (a luminous sheath, a filled core, or a mix, about any
 vertical axis) and non-axisymmetric (a leaning sheath with a brighter lobe inside).
 
 :func:`volume_flame_scene` draws the sheath on the optical axis;

@@ -1,4 +1,4 @@
-"""A colour axisymmetric volumetric flame with a temperature field (issue 37's Goal: temperature per voxel).
+"""A colour axisymmetric volumetric flame with a temperature field, for temperature per voxel.
 
 :func:`lf_flame.simulate.scenes_volume.axisymmetric_flame_scene` gives the soot (its emission
 density ``e(r, y)``, a luminous sheath, a filled core or a blend, about any vertical axis,

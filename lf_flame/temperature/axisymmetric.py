@@ -1,4 +1,4 @@
-"""Temperature per voxel of an axisymmetric flame from one colour (Bayer) light field (issue 37's Goal).
+"""Temperature per voxel of an axisymmetric flame from one colour (Bayer) light field.
 
 An axisymmetric flame's emission ``e(r, y)`` has ``rows x n_r`` unknowns
 (:class:`lf_flame.tomo.revolve.RevolveOperator`), far fewer than one colour channel's own

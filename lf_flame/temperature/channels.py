@@ -1,4 +1,4 @@
-"""Each colour channel's emission on planes from one colour (Bayer) light field (issue 37, step 3).
+"""Each colour channel's emission on planes from one colour (Bayer) light field.
 
 A colour plenoptic camera records one channel per pixel (the colour filter array). Split
 into sub-aperture views, each view sample keeps the channel of the pixel it came from

@@ -1,4 +1,4 @@
-"""Two-colour pyrometry: a blackbody calibration and the ratio of two channels to temperature (issue 37).
+"""Two-colour pyrometry: a blackbody calibration and the ratio of two channels to temperature.
 
 A channel's recorded signal is ``g_c ∫ S_c(λ) ε(λ) B(λ, T) dλ``
 (:func:`lf_flame.optics.colour.band_integrals`). The ratio of two channels,

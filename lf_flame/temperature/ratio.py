@@ -1,4 +1,4 @@
-"""Filters of two colour channels' ratio per plane, before it becomes temperature (issue 37, step 4).
+"""Filters of two colour channels' ratio per plane, before it becomes temperature.
 
 Two channels' emission reconstructed per plane (:mod:`lf_flame.temperature.channels`) carry noise and
 sampling artefacts that do not cancel in their ratio, and two-colour pyrometry turns a 1 % error

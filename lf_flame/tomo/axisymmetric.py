@@ -1,4 +1,4 @@
-"""Axisymmetric volumes: a laminar flame's emission ``e(r, y)`` about a vertical axis (issue 36, step 2).
+"""Axisymmetric volumes: a laminar flame's emission ``e(r, y)`` about a vertical axis.
 
 A dense stack of planes does not resolve a whole flame in depth from the data alone
 (README, "The camera's depth resolution"). A laminar flame is axisymmetric: its emission

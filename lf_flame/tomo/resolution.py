@@ -79,7 +79,7 @@ if TYPE_CHECKING:
 # The module imports only NumPy and the camera at the top (its constants are the command
 # line's defaults); :func:`depth_resolution` imports the quadrature (Numba, SciPy, PyLops).
 
-#: The dense stack of issue 35: every 0.5 mm from -15 to +25 mm (81 planes).
+#: The dense stack: every 0.5 mm from -15 to +25 mm (81 planes).
 DEFAULT_NEAR_MM, DEFAULT_FAR_MM, DEFAULT_SPACING_MM = -15.0, 25.0, 0.5
 #: Feature sizes (half a period, mm) of the table: from about 2.5 samples of the paper's
 #: camera (0.13 mm) up to a whole flame's width.

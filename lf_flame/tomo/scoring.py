@@ -70,7 +70,7 @@ def _flame_truth(layer, camera, depth_mm, shape, frame=None):
 
 def score_flames(planes, depths_mm, scene, camera: PlenopticCamera, *, found=None, emission: bool = True,
                  near_mm: float = 1.0, time_s=float("nan"), frame=None, **labels):
-    """The one scoring function of every route to flames at unknown depths, per flame (issue 36).
+    """The one scoring function of every route to flames at unknown depths, per flame.
 
     Each flame of ``scene`` (layer ``k`` is flame ``k``, :mod:`lf_flame.simulate.scenes_depth`) is
     scored in its region ``M`` (its true emission above 2 % of its peak on its own plane,

@@ -1,4 +1,4 @@
-"""Volumes: a dense stack of planes from one light field, with a prior that fits flames (issue 36, step 2).
+"""Volumes: a dense stack of planes from one light field, with a prior that fits flames.
 
 A dense stack is not depth-resolved for whole flames by the data alone
 (:mod:`lf_flame.tomo.resolution`: on the paper's camera two planes 20 mm apart are not told
