@@ -301,9 +301,9 @@ def main(argv=None) -> int:
     md = ["# Cameras, end to end from the command line", "",
           f"`{cmd}` ({time.perf_counter() - t0:.0f} s on {provenance()['cpu_count']} cores). Per camera: its white "
           "image -> `calibrate` -> per scene `simulate --scene depth` -> `decode` -> `reconstruct` (depths found, "
-          f"admm); {a.scenes} scenes of 1-4 flames at random depths, {a.rays} rays per pixel (white images {WHITE_RAYS}), "
-          "noise-free and "
-          f"{SNR_DB:g} dB. Bars: depth error p90 <= {BARS['depth_p90']} and worst <= {BARS['depth_worst']} lenslets "
+          f"admm); {a.scenes} scenes of 1-4 flames at random depths, {a.rays} rays per pixel (white images "
+          f"{WHITE_RAYS}), noise-free and {SNR_DB:g} dB. Bars: depth error p90 <= {BARS['depth_p90']} and worst <= "
+          f"{BARS['depth_worst']} lenslets "
           f"per view step, emission error <= {100 * BARS['emission_p90']:.0f} % on 90 % of flames; at 14 dB twice "
           "these. Time: admm's solve per lenslet-plane; `admm_time_vs_paper` against the paper camera's, same run.",
           "", tab.to_markdown(index=False, floatfmt=".4g"), "",

@@ -65,8 +65,9 @@ BODY_FRACTION = 0.3
 #: structure at the lenslets' scale asks for.
 BLUR_LENSLETS = 0.5
 #: Rays per pixel of the scored renders, whose own error (:func:`render_own_error`) is then under 1 % (0.74 % on the
-#: scored scenes' first; on validation seed 58101 48 rays give 7.9 %, 400 give 1.6 %), and of the white image that decoding divides every sample by (16 rays:
-#: 3.7 % ray noise per pixel where it is above half its peak, 14 % above 5 %; a real flat field is averaged over frames).
+#: scored scenes' first; on validation seed 58101 48 rays give 7.9 %, 400 give 1.6 %), and of the white image that
+#: decoding divides every sample by (16 rays: 3.7 % ray noise per pixel where it is above half its peak, 14 % above
+#: 5 %; a real flat field is averaged over frames).
 RAYS, WHITE_RAYS = 1024, 256
 
 
@@ -150,7 +151,7 @@ def truth_temperature(scene_npz: Path, lf, depths, cal, model):
     from lf_flame.temperature.ratio import smooth_planes
     truth = channel_truth(scene_npz, lf, depths)
     Tt, vt, _ = temperature_planes(truth[0], truth[1], cal, model)
-    Tb, vb, _ = temperature_planes(*(smooth_planes(t, BLUR_LENSLETS) for t in truth[:2]), cal, model)
+    Tb, vb, _ = temperature_planes(*(smooth_planes(t, BLUR_LENSLETS) for t in truth), cal, model)
     light = truth.sum(axis=0)
     body = light > BODY_FRACTION * light.reshape(len(light), -1).max(axis=1)[:, None, None]
     return Tt, vt, body, np.where(vb, Tb, np.nan)
@@ -367,8 +368,9 @@ def main(argv=None):
           em.to_markdown(index=False, floatfmt=".3g"), ""]
     atomic_write_text(out / f"{name}.md", "\n".join(md))
     atomic_write_text(out / f"{name}.json", json.dumps(dict(
-        grid=a.grid, scenes=a.scenes, rays=a.rays, white_rays=a.white_rays, own_error=own_error, seed0=a.seed0, fit_k=FIT_K, snr_db=SNR_DB, calibration=dataclasses.asdict(cal)
-        if dataclasses.is_dataclass(cal) else str(cal), wall_s=wall, provenance=provenance()), indent=1, default=float))
+        grid=a.grid, scenes=a.scenes, rays=a.rays, white_rays=a.white_rays, own_error=own_error, seed0=a.seed0,
+        fit_k=FIT_K, snr_db=SNR_DB, calibration=dataclasses.asdict(cal) if dataclasses.is_dataclass(cal) else str(cal),
+        wall_s=wall, provenance=provenance()), indent=1, default=float))
     print(g.to_string())
 
 
