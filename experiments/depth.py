@@ -92,8 +92,9 @@ SCORE_VERSION = "side-by-side"
 #: (``RESIDUAL_PROMINENCE``), not by its ratio to the median. "...-refine": the depths of flames one behind another
 #: refined by Gauss-Newton on the residual (``refine_planes``); "-unmerged": planes that merged several depths left;
 #: "-search-own-planes": their regions searched once more after the refinement where each depth has a plane of its
-#: own (``peel_and_refine``).
-ROUTE_VERSION = "near-peel-prominence-refine-unmerged-search-own-planes"
+#: own (``peel_and_refine``); "-quiet-excess": in a quiet light field that search asks a lower prominence of a peak
+#: whose height above the residual's floor holds ``REFINED_SHARE`` (``REFINED_QUIET_PROMINENCE``).
+ROUTE_VERSION = "near-peel-prominence-refine-unmerged-search-own-planes-quiet-excess"
 
 
 def add_noise(raw, snr_db, seed):

@@ -478,6 +478,35 @@ def test_a_flame_behind_others_is_found_in_the_residual(cam):
     assert np.min(np.abs(more.depths_mm - sorted(true)[0])) < 0.5, (true, more.depths_mm)
 
 
+def test_a_quiet_light_fields_faint_flame_is_found_at_a_lower_prominence(cam, monkeypatch):
+    """In a quiet light field the search after the refinement finds a flame several times fainter than the one it
+    stands behind whose residual peak stands under :data:`REFINED_PROMINENCE` (asked of noisy light fields): the peak's
+    height above the residual's floor holds :data:`REFINED_SHARE` of the data's energy, which no misfit does."""
+    import lf_flame.tomo.refine as refine
+    from lf_flame.simulate.scenes_depth import column_scene
+    from lf_flame.tomo.noise_knobs import noise_regime, relative_noise
+    scene = column_scene(cam, np.random.default_rng(86))
+    views = _views(cam, scene, 86)
+    assert noise_regime(relative_noise(views)) == "quiet"
+    scores = {}
+    for prominence in (refine.REFINED_PROMINENCE, refine.REFINED_QUIET_PROMINENCE):
+        with monkeypatch.context() as mp:
+            mp.setattr(refine, "REFINED_QUIET_PROMINENCE", prominence)
+            found, _, rec = find_planes(views, cam)
+        scores[prominence] = score_flames(rec.planes, found.planes_mm, scene, cam,
+                                          found=list(zip(found.depths_mm, found.masks)))
+    strict, quiet = scores[refine.REFINED_PROMINENCE], scores[refine.REFINED_QUIET_PROMINENCE]
+    assert strict.depth_mm.isna().sum() == 1, strict
+    assert quiet.depth_mm.notna().all() and quiet.depth_err_mm.abs().max() < 0.1, quiet
+    assert quiet.rel_err.max() < 0.1, quiet
+    # the peak's height above the residual's floor: asked more of than the data hold, nothing is found
+    from lf_flame.tomo.peel import missed_depths
+    found = find_depths(views, cam)
+    assert missed_depths(views, cam, found, prominence=1.0, share=0.0) is not None
+    assert missed_depths(views, cam, found, prominence=1.0, share=0.0, excess=1e6) is None
+    with pytest.raises(ValueError, match="excess"):
+        missed_depths(views, cam, found, excess=-1.0)
+
 def test_a_faint_flame_behind_refined_ones_is_found_in_their_residual(cam, monkeypatch):
     """A faint flame behind a brighter one near focus: the first search of the residual misses it (the misfit of
     the others' unrefined depths is as strong), the search after the refinement finds it, and every flame comes back

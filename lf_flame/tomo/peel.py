@@ -35,8 +35,8 @@ PEEL_ROUNDS = 2
 
 
 def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prominence: float = RESIDUAL_PROMINENCE,
-                  share: float = RESIDUAL_SHARE, sigma: float = 1.5, min_separation_mm: float | None = None,
-                  merge_mm: float | None = None, regions=None):
+                  share: float = RESIDUAL_SHARE, excess: float = 0.0, sigma: float = 1.5,
+                  min_separation_mm: float | None = None, merge_mm: float | None = None, regions=None):
     """Depths the votes missed, found in a solve's residual: a flame behind (or before) another in the same
     columns, whose lenslets voted for the other.
 
@@ -47,7 +47,8 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
     flame's missing light to a peak at its depth: where the peak stands ``prominence`` robust
     standard deviations (1.4826 times the median absolute deviation over the slopes) above the
     curve's median and holds ``share`` of the data's peak energy at the region's
-    found depths (``found.curves``; the solve's misfit about a found flame is fainter), its depth
+    found depths (``found.curves``; the solve's misfit about a found flame is fainter), and its
+    height above that median ``excess`` of it (the noise's floor left out), its depth
     (refined as :func:`~lf_flame.tomo.depth.find_depths` refines) joins the region's, its footprint the region.
 
     Parameters
@@ -62,6 +63,8 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
         deviations of the curve, > 0 (:data:`RESIDUAL_PROMINENCE`).
     share : float
         Peak over the data's, >= 0 (:data:`RESIDUAL_SHARE`).
+    excess : float
+        The peak's height above the curve's median over the data's peak, >= 0 (0: not asked).
     sigma, min_separation_mm, merge_mm : float (the last two or None)
         As :func:`~lf_flame.tomo.depth.find_depths` (None: scaled to the camera as there).
     regions : sequence of int or None
@@ -79,8 +82,9 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
     """
     if not (math.isfinite(float(prominence)) and prominence > 0):
         raise ValueError(f"prominence must be finite and > 0. Received: {prominence!r}")
-    if not (math.isfinite(float(share)) and share >= 0):
-        raise ValueError(f"share must be a finite ratio >= 0. Received: {share!r}")
+    for name, value in (("share", share), ("excess", excess)):
+        if not (math.isfinite(float(value)) and value >= 0):
+            raise ValueError(f"{name} must be a finite ratio >= 0. Received: {value!r}")
     n = camera.pixels_per_lenslet
     r = np.ascontiguousarray(residual, np.float32)
     if r.shape != (n, n, camera.n_rows, camera.n_cols):
@@ -107,7 +111,8 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
         data_peak = max(float(found.curves[k].max()) for k in np.flatnonzero(found.region == lab))
         med = float(np.median(curve))
         spread = 1.4826 * float(np.median(np.abs(curve - med)))
-        if not (curve[i] - med >= prominence * spread and curve[i] > med and curve[i] >= share * data_peak):
+        if not (curve[i] - med >= prominence * spread and curve[i] > med and curve[i] >= share * data_peak
+                and curve[i] - med >= excess * data_peak):
             continue
         s = float(np.clip(np.interp(_peak_fit(curve, i), np.arange(len(slopes)), slopes),
                           slopes[ok].min(), slopes[ok].max()))
