@@ -43,7 +43,6 @@ import argparse
 import contextlib
 import io
 import json
-import math
 import sys
 import time
 import tomllib
@@ -127,6 +126,7 @@ def run_camera(name, sheet, cache: Path, seeds, rays: int) -> tuple[list, list, 
     """Every step of one camera; (flame rows, command rows, facts)."""
     from lf_flame.cli._io import _raw_scene, camera_config
     from lf_flame.real.calibration import GridCalibration
+    from lf_flame.measure.metrics import own_error
     from lf_flame.real.lightfield import read_light_field
     from lf_flame.simulate import tracer
     from lf_flame.tomo.files import load_found, load_reconstruction
@@ -158,9 +158,7 @@ def run_camera(name, sheet, cache: Path, seeds, rays: int) -> tuple[list, list, 
                 "--out", raw)
         scene = _raw_scene(raw, cam)
         if i == 0:      # the render's own error: the same scene with other rays
-            r1 = np.load(raw)["raw"].astype(np.float64)
-            r2 = tracer.render(cam, scene, rays, seed + 1).astype(np.float64)
-            facts["own_error"] = float(np.linalg.norm(r1 - r2) / (math.sqrt(2) * np.linalg.norm(r1)))
+            facts["own_error"] = own_error(np.load(raw)["raw"], tracer.render(cam, scene, rays, seed + 1))
         for noise in ("clean", "14dB"):
             src = raw
             if noise == "14dB":

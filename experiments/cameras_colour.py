@@ -46,6 +46,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from lf_flame.cli import main as lf_flame  # noqa: E402
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
+from lf_flame.measure.metrics import own_error  # noqa: E402
 
 #: Blackbody temperatures (K) of the calibration.
 FIT_K = (1600, 2000, 2400)
@@ -98,9 +99,7 @@ def render_own_error(path: Path, cam: Path, rays: int, seed: int) -> float:
     from lf_flame.simulate.colour import render_colour
     z, capture = np.load(path), camera_config(str(cam))
     scene, chans, sensor = colour_scene(json.loads(str(z["scene"])), capture)
-    r1 = z["raw"].astype(np.float64)
-    r2 = render_colour(capture, scene, chans, sensor, rays, seed + 1).astype(np.float64)
-    return float(np.linalg.norm(r1 - r2) / (np.sqrt(2) * np.linalg.norm(r1)))
+    return own_error(z["raw"], render_colour(capture, scene, chans, sensor, rays, seed + 1))
 
 
 def noisy_copy(path: Path, seed: int) -> Path:
@@ -264,7 +263,7 @@ def main(argv=None):
             run("simulate", "--camera", cam, "--scene", "colour-depth", "--seed", seed, "--rays-per-pixel", a.rays,
                 "--out", clean)
         if i == 0:
-            own_error = render_own_error(clean, cam, a.rays, seed)
+            own = render_own_error(clean, cam, a.rays, seed)
         objects = json.loads(str(np.load(clean)["objects"]))
         depths = merged_planes([float(o["depth_offset_mm"]) for o in objects])
         for noise, raw in (("clean", clean), (f"{SNR_DB:g}dB", noisy_copy(clean, seed))):
@@ -343,7 +342,7 @@ def main(argv=None):
           "RGGB CFA: white image -> `calibrate`; blackbodies at "
           f"{', '.join(map(str, FIT_K))} K -> `decode --camera` (each view sample from its nearest pixel, channels "
           f"apart) -> `calibrate-temperature`; per scene `simulate --scene colour-depth` ({a.scenes} scenes from seed "
-          f"{a.seed0}, {a.rays} rays per pixel, own error {100 * own_error:.2f} %; the white image at {a.white_rays}) "
+          f"{a.seed0}, {a.rays} rays per pixel, own error {100 * own:.2f} %; the white image at {a.white_rays}) "
           "-> `decode --camera` -> `temperature --depth` at the flames' true "
           "depths; noise-free and at 14 dB. Scored per plane against the truth on the decoded planes (each "
           "channel's emission in the decoded frame, R over G through the same calibration): |T - T_true| over the "
@@ -368,7 +367,7 @@ def main(argv=None):
           em.to_markdown(index=False, floatfmt=".3g"), ""]
     atomic_write_text(out / f"{name}.md", "\n".join(md))
     atomic_write_text(out / f"{name}.json", json.dumps(dict(
-        grid=a.grid, scenes=a.scenes, rays=a.rays, white_rays=a.white_rays, own_error=own_error, seed0=a.seed0,
+        grid=a.grid, scenes=a.scenes, rays=a.rays, white_rays=a.white_rays, own_error=own, seed0=a.seed0,
         fit_k=FIT_K, snr_db=SNR_DB, calibration=dataclasses.asdict(cal) if dataclasses.is_dataclass(cal) else str(cal),
         wall_s=wall, provenance=provenance()), indent=1, default=float))
     print(g.to_string())

@@ -49,6 +49,7 @@ import numpy as np
 import pandas as pd
 
 from lf_flame.config import atomic_write_text, provenance
+from lf_flame.measure.metrics import own_error
 from lf_flame.optics.camera import PAPER_CAMERA
 from lf_flame.refocus.shift_and_sum import aperture_mask, find_sharpest_slope, focal_stack, raw_to_views
 from lf_flame.simulate import tracer
@@ -184,7 +185,7 @@ def run(cam, n_scenes, n_behind, rays, cache: Path, variant="default", n_columns
         raw = tracer.render(cam, scene, rays, seed)
         if i < OWN_ERROR_SCENES:
             other = tracer.render(cam, scene, rays, seed + 7)
-            own[f"{kind}_{seed}"] = float(np.linalg.norm(raw - other) / (np.sqrt(2) * np.linalg.norm(raw)))
+            own[f"{kind}_{seed}"] = own_error(raw, other)
         noisy, snr = add_noise(raw, SNR_DB, seed)
         out = []
         for noise, r in (("clean", raw), ("14dB", noisy)):

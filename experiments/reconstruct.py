@@ -46,6 +46,7 @@ from bench_refocus import _times  # noqa: E402
 from lf_flame.simulate import scenes  # noqa: E402
 from lf_flame.simulate.scenes_volume import volume_flame_scene  # noqa: E402
 from lf_flame.simulate import tracer as simulate
+from lf_flame.measure.metrics import own_error  # noqa: E402
 from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.measure.diagnostics import EMISSION_MEASURE  # noqa: E402
@@ -128,7 +129,7 @@ def cached_render(cam, scene, rays, seed, path: Path, snr_db):
         RAYS_DATA = rays
         raw = simulate.render(cam, scene, rays, seed)
         other = simulate.render(cam, scene, rays, seed + 7)
-        own = float(np.linalg.norm(raw - other) / (np.sqrt(2) * np.linalg.norm(raw)))
+        own = own_error(raw, other)
         loud, snr, _ = noisy(cam, scene, raw, snr_db, seed)
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".partial.npz")

@@ -61,6 +61,7 @@ import numpy as np
 import pandas as pd
 
 from lf_flame.config import atomic_write_text, provenance
+from lf_flame.measure.metrics import own_error
 from lf_flame.temperature import pyrometry as P
 from lf_flame.optics.camera import PAPER_CAMERA
 from lf_flame.optics.colour import library_sensor, mosaic
@@ -218,7 +219,7 @@ def render_scene(cam, cs, sensor, rays, seed):
         chans.append(tracer.render(cam, sc, rays, seed, sensor=False))
         other.append(tracer.render(cam, sc, rays, seed + 7, sensor=False))
     chans, other = np.stack(chans), np.stack(other)
-    own = float(np.linalg.norm(chans - other) / (np.sqrt(2) * np.linalg.norm(chans)))
+    own = own_error(chans, other)
     clean = tracer.apply_sensor(mosaic(chans, sensor), cs.scene.effects, seed)   # clipping only
     noisy, fw = add_noise(clean, cs.scene.effects, seed)
     snr = snr_per_channel(clean, noisy, sensor.channel_map(clean.shape))

@@ -43,6 +43,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import temperature as E  # noqa: E402  (camera, sensor, calibration, noise and scoring of make temperature)
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
+from lf_flame.measure.metrics import own_error  # noqa: E402
 from lf_flame.temperature import pyrometry as P  # noqa: E402
 from lf_flame.recordings.flicker import peaks, spectra  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
@@ -67,7 +68,7 @@ def frame_rows(cam, sensor, model, cal, seq, i, exposure, ops, chan, rays, snrs)
     extra = {}
     if i == 0:
         other = render_colour(cam, cs.scene, cs.channel_radiance, sensor, rays, seq.seed + 10_000)
-        extra["own_error"] = float(np.linalg.norm(clean - other) / (np.sqrt(2) * np.linalg.norm(clean)))
+        extra["own_error"] = own_error(clean, other)
     Tt, vt = E.true_temperature(cs, ops["truth"], cal, model)
     rows = []
     for j, snr in enumerate(snrs):

@@ -44,6 +44,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import temperature as TE  # noqa: E402  (calibration, 14 dB noise of make temperature)
 
 from lf_flame.config import atomic_write_text, provenance  # noqa: E402
+from lf_flame.measure.metrics import own_error  # noqa: E402
 from lf_flame.temperature import pyrometry as P  # noqa: E402
 from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.optics.colour import library_sensor, mosaic  # noqa: E402
@@ -85,7 +86,7 @@ def render(cam, cs, sensor, rays, seed, path: Path):
     if not path.exists():
         chans = np.stack([tracer.render(cam, channel_scene(cs, c), rays, seed, sensor=False) for c in range(3)])
         other = tracer.render(cam, channel_scene(cs, 1), rays, seed + 7, sensor=False)
-        own = float(np.linalg.norm(chans[1] - other) / (np.sqrt(2) * np.linalg.norm(chans[1])))
+        own = own_error(chans[1], other)
         clean = tracer.apply_sensor(mosaic(chans, sensor), cs.scene.effects, seed)
         noisy, fw = TE.add_noise(clean, cs.scene.effects, seed)
         path.parent.mkdir(parents=True, exist_ok=True)

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from lf_flame.measure.metrics import psnr_per_plane, ssim_per_plane
+from lf_flame.measure.metrics import own_error, psnr_per_plane, ssim_per_plane
 
 
 def test_identical_images():
@@ -28,3 +28,20 @@ def test_shape_mismatch_and_nan():
         ssim_per_plane(np.zeros((1, 8, 8)), np.zeros((1, 8, 9)))
     with pytest.raises(ValueError, match="NaN"):
         psnr_per_plane(np.zeros((1, 8, 8)), np.full((1, 8, 8), np.nan))
+
+
+def test_own_error_is_one_renders_error_from_two():
+    """Two renders of one image with independent errors of the same size: the estimate is one render's own error
+    against the image (which it never sees), not the two renders' difference."""
+    rng = np.random.default_rng(0)
+    image = rng.random((60, 40)) + 0.5
+    first, second = (image + 0.02 * rng.standard_normal(image.shape) for _ in range(2))
+    true = np.linalg.norm(first - image) / np.linalg.norm(first)
+    assert own_error(first, second) == pytest.approx(true, rel=0.05)
+    assert own_error(first, first) == 0.0
+    with pytest.raises(ValueError, match="shape"):
+        own_error(first, second[:-1])
+    with pytest.raises(ValueError, match="NaN"):
+        own_error(first, np.full_like(second, np.nan))
+    with pytest.raises(ValueError, match="no light"):
+        own_error(np.zeros_like(first), second)

@@ -21,7 +21,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
                  "flame_truth"],
         "figures": ["signed", "plane_extent_mm", "show_plane", "add_colorbar", "planes_figure", "save_figure",
                     "plot_profiles", "profiles_figure"],
-        "metrics": ["ssim_per_plane", "psnr_per_plane", "mean_ssim"],
+        "metrics": ["ssim_per_plane", "psnr_per_plane", "mean_ssim", "own_error"],
         "scoring": ["measure_stack", "score_stacks", "error_table"],
     },
 )

@@ -1,4 +1,4 @@
-"""Image-quality metrics per depth plane (paper Sec. III-D), from scikit-image.
+"""Image-quality metrics per depth plane (paper Sec. III-D), from scikit-image, and a render's own error.
 
 Images are in [0, 1], so ``data_range = 1`` (the paper's MAX_I of Eq. 7).
 """
@@ -56,3 +56,36 @@ def mean_ssim(ref, pred) -> float:
     ref, pred : ndarray of shape (n, rows, cols), values in [0, 1]
     """
     return float(np.mean(ssim_per_plane(ref, pred)))
+
+
+def own_error(first, second) -> float:
+    """A Monte-Carlo render's own error, from two renders of one scene with independent rays.
+
+    Each render is the exact image plus an independent error of the same size, so their difference
+    holds both: ``||first - second|| / (sqrt(2) ||first||)`` estimates one render's error relative to
+    its image (the ray noise that the project's tables state beside every scored render).
+
+    Parameters
+    ----------
+    first, second : ndarray of the same shape
+        The two renders (any axes: raw images, views, channels).
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    ValueError
+        Shapes that differ, values not finite, or a first render without light.
+    """
+    a = np.asarray(first, np.float64)
+    b = np.asarray(second, np.float64)
+    if a.shape != b.shape:
+        raise ValueError(f"the renders differ in shape: {a.shape} and {b.shape}")
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        raise ValueError("renders contain NaN or inf")
+    norm = np.linalg.norm(a)
+    if norm == 0:
+        raise ValueError("the first render holds no light")
+    return float(np.linalg.norm(a - b) / (np.sqrt(2) * norm))
