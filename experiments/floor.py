@@ -163,7 +163,8 @@ def profile(repeats: int) -> list:
     fft = lambda args: "FFTs of the views (batched)" if np.shape(args[0])[0] in n_views else "FFTs of the planes"
     patched = [clock.wrap(scipy.fft, "rfft2", fft), clock.wrap(scipy.fft, "irfft2", fft)]
     patched += [clock.wrap(K, n, "spectra products (H, H^H)") for n in ("spectra_forward", "spectra_adjoint")]
-    patched += [clock.wrap(EK, n, "sums over the taps (H, H^H)") for n in ("taps_forward", "taps_adjoint")]
+    patched += [clock.wrap(EK, n, "sums over the taps (H, H^H)")
+                for n in ("taps_forward", "taps_adjoint", "taps_adjoint_columns", "column_sums")]
     patched += [clock.wrap(K, n, "data gather and fills") for n in ("gather_data", "fill")]
     patched += [clock.wrap(K, n, "ADMM steps (target, projection, TV)") for n in ("admm_target", "admm_project",
                                                                                   "tv_shrink")]

@@ -145,7 +145,8 @@ def test_float32_is_float64_to_its_packed_spectra(camera):
     ids=["paper", "others-float32", "one-far", "finer-float32"])
 def test_the_taps_apply_the_map_the_spectra_give(camera, depths, subsamples, precision, monkeypatch):
     """H and H^H on the canvas by direct sums over the taps (the kernels' rows padded to fours, tap origins of
-    both signs, planes far from focus whose taps wrap around the canvas) are the spectra's circular correlation:
+    both signs, planes far from focus whose taps wrap around the canvas; in float32 the views whose kernels
+    separate filtered by rows and columns, the clipped ones whole) are the spectra's circular correlation:
     to float64 rounding with complex128 spectra, to their 16-bit fixed point in float32; the adjoint of a window
     smaller than the canvas is that of the window zero-padded."""
     import lf_flame.tomo.exact as exact_module
@@ -165,6 +166,9 @@ def test_the_taps_apply_the_map_the_spectra_give(camera, depths, subsamples, pre
         got[route] = (op.forward_canvas(x), op.adjoint_canvas(z), op.adjoint_canvas(window), op.adjoint_canvas(padded),
                       np.fft.irfft2(op.adjoint_spectrum(z), s=op.canvas_shape))
     tol = 1e-12 if precision == "float64" else 3e-5
+    plan = op._taps()
+    if precision == "float32":                                   # both kinds of view: whole kernels, separated
+        assert len(plan.rows) and len(plan.rows_s)
     for a, b in zip(got["taps"], got["fft"]):
         assert np.abs(a - b).max() < tol * np.abs(b).max()
     assert np.abs(got["taps"][2] - got["taps"][3]).max() < tol * np.abs(got["taps"][3]).max()

@@ -317,18 +317,21 @@ def cos4_weights(moments, ry, rx, out):
 # loads seven input rows and four accumulators for sixteen products; unsigned column counters, so that Numba
 # emits no negative-index wrap and the column loops vectorise.
 @njit(parallel=True, cache=True, fastmath={'contract'})
-def taps_forward(h, oy, ox, x, out):
-    """``out[v, r, c] = sum_{p, ty, tx} h[v, p, ty, tx] x[p, (r + oy[v, p] + ty) % Lr, (c + ox[v, p] + tx) % Lc]``:
-    the planes ``x`` (P, Lr, Lc) to the views ``out`` (V, Lr, Lc) on the canvas, as the operator's spectra give
-    them by FFT (a circular correlation with each view's taps at their origins). ``h`` (V, P, Ty, Tx) with ``Ty`` a
-    multiple of 4 (zero rows padded), ``oy`` and ``ox`` (V, P) int64. Threads over views and blocks of rows."""
+def taps_forward(h, oy, ox, x, first, out, dest):
+    """``out[dest[v], r, c] = sum_{p, ty, tx} h[v, p, ty, tx] x[first[v] + p, (r + oy[v, p] + ty) % Lr,
+    (c + ox[v, p] + tx) % Lc]``: planes of ``x`` (S, Lr, Lc) to the views ``out`` (V', Lr, Lc) on the canvas, as the
+    operator's spectra give them by FFT (a circular correlation with each view's taps at their origins). ``h``
+    (V, P, Ty, Tx) with ``Ty`` a multiple of 4 (zero rows padded); ``oy``, ``ox`` (V, P), ``first`` and ``dest`` (V,)
+    int64. Threads over views and blocks of rows."""
     V, P, Ty, Tx = h.shape
-    Lr, Lc = x.shape[1], x.shape[2]
-    xe = np.empty((P, Lr, 2 * Lc), x.dtype)                      # each row twice: a shifted row is one slice
-    for p in range(P):
-        for r in range(Lr):
-            for j in range(2 * Lc):
-                xe[p, r, j] = x[p, r, j % Lc]
+    S, Lr, Lc = x.shape
+    src = x
+    if Tx > 1 or np.any(ox != 0):
+        src = np.empty((S, Lr, 2 * Lc), x.dtype)                 # each row twice: a shifted row is one slice
+        for p in range(S):
+            for r in range(Lr):
+                for j in range(2 * Lc):
+                    src[p, r, j] = x[p, r, j % Lc]
     n = np.uint64(Lc)
     blocks = (Lr + 3) // 4
     for vb in prange(V * blocks):
@@ -337,10 +340,11 @@ def taps_forward(h, oy, ox, x, out):
         acc = np.zeros((4, Lc), x.dtype)
         q0, q1, q2, q3 = acc[0], acc[1], acc[2], acc[3]
         for p in range(P):
+            xp = src[first[v] + p]
             for t in range(0, Ty, 4):
                 b = r + oy[v, p] + t
-                x0, x1, x2, x3 = xe[p, b % Lr], xe[p, (b + 1) % Lr], xe[p, (b + 2) % Lr], xe[p, (b + 3) % Lr]
-                x4, x5, x6 = xe[p, (b + 4) % Lr], xe[p, (b + 5) % Lr], xe[p, (b + 6) % Lr]
+                x0, x1, x2, x3 = xp[b % Lr], xp[(b + 1) % Lr], xp[(b + 2) % Lr], xp[(b + 3) % Lr]
+                x4, x5, x6 = xp[(b + 4) % Lr], xp[(b + 5) % Lr], xp[(b + 6) % Lr]
                 for tx in range(Tx):
                     a0, a1, a2, a3 = h[v, p, t, tx], h[v, p, t + 1, tx], h[v, p, t + 2, tx], h[v, p, t + 3, tx]
                     if a0 == 0 and a1 == 0 and a2 == 0 and a3 == 0:
@@ -353,18 +357,43 @@ def taps_forward(h, oy, ox, x, out):
                         q1[c] += a0 * e1 + a1 * e2 + a2 * e3 + a3 * e4
                         q2[c] += a0 * e2 + a1 * e3 + a2 * e4 + a3 * e5
                         q3[c] += a0 * e3 + a1 * e4 + a2 * e5 + a3 * e6
+        o = out[dest[v]]
         for k in range(min(4, Lr - r)):
             for c in range(n):
-                out[v, r + k, c] = acc[k, c]
+                o[r + k, c] = acc[k, c]
+
+
+@njit(inline="always", cache=True)
+def _adjoint_rows(hv, oyv, oxv, zv, q0, q1, q2, q3, r, Lr, Lc, n):
+    """Add one view's ``H^H`` of plane rows ``r .. r + 3`` into ``q0 .. q3`` (rows of length ``2 Lc`` where a tap
+    shifts columns): ``hv`` (Ty, Tx) its taps, ``oyv`` and ``oxv`` their origins, ``zv`` (Lr, Lc) the view."""
+    Ty, Tx = hv.shape
+    for t in range(0, Ty, 4):
+        # output row r + j, tap row t + k reads input row b + j - k: rows b - 3 .. b + 3
+        b = r - oyv - t
+        z0, z1, z2, z3 = zv[(b - 3) % Lr], zv[(b - 2) % Lr], zv[(b - 1) % Lr], zv[b % Lr]
+        z4, z5, z6 = zv[(b + 1) % Lr], zv[(b + 2) % Lr], zv[(b + 3) % Lr]
+        for tx in range(Tx):
+            a0, a1, a2, a3 = hv[t, tx], hv[t + 1, tx], hv[t + 2, tx], hv[t + 3, tx]
+            if a0 == 0 and a1 == 0 and a2 == 0 and a3 == 0:
+                continue
+            o = (oxv + tx) % Lc
+            d0, d1, d2, d3 = q0[o:], q1[o:], q2[o:], q3[o:]
+            for c in range(n):
+                e0, e1, e2, e3, e4, e5, e6 = z0[c], z1[c], z2[c], z3[c], z4[c], z5[c], z6[c]
+                d0[c] += a0 * e3 + a1 * e2 + a2 * e1 + a3 * e0
+                d1[c] += a0 * e4 + a1 * e3 + a2 * e2 + a3 * e1
+                d2[c] += a0 * e5 + a1 * e4 + a2 * e3 + a3 * e2
+                d3[c] += a0 * e6 + a1 * e5 + a2 * e4 + a3 * e3
 
 
 @njit(parallel=True, cache=True, fastmath={'contract'})
-def taps_adjoint(h, oy, ox, z, out, n_threads):
-    """The transpose of :func:`taps_forward`: the views ``z`` (V, Lr, Lc) to the planes ``out`` (P, Lr, Lc) on the
-    canvas, ``out[p, r, c] = sum_{v, ty, tx} h[v, p, ty, tx] z[v, (r - oy[v, p] - ty) % Lr, (c - ox[v, p] - tx) % Lc]``.
-    Each of ``n_threads`` threads sums its share of the views into planes of its own (each view read once, the
-    planes in cache), each row twice as long so that a shifted row is one slice; the halves and the threads' planes
-    are added at the end."""
+def taps_adjoint(h, oy, ox, z, rows, out, n_threads):
+    """The transpose of :func:`taps_forward` from the planes ``x`` to the views ``z[rows]`` (``first`` 0): the views
+    ``z`` (V', Lr, Lc) to the planes ``out`` (P, Lr, Lc) on the canvas, ``out[p, r, c] = sum_{v, ty, tx}
+    h[v, p, ty, tx] z[rows[v], (r - oy[v, p] - ty) % Lr, (c - ox[v, p] - tx) % Lc]``. Each of ``n_threads`` threads
+    sums its share of the views into planes of its own (each view read once, the planes in cache), each row twice as
+    long so that a shifted row is one slice; the halves and the threads' planes are added at the end."""
     V, P, Ty, Tx = h.shape
     Lr, Lc = out.shape[1], out.shape[2]
     n = np.uint64(Lc)
@@ -374,24 +403,8 @@ def taps_adjoint(h, oy, ox, z, out, n_threads):
         for v in range(t_id * V // n_threads, (t_id + 1) * V // n_threads):
             for p in range(P):
                 for r in range(0, Lr, 4):
-                    q0, q1, q2, q3 = acc[p, r], acc[p, r + 1], acc[p, r + 2], acc[p, r + 3]
-                    for t in range(0, Ty, 4):
-                        # output row r + j, tap row t + k reads input row b + j - k: rows b - 3 .. b + 3
-                        b = r - oy[v, p] - t
-                        z0, z1, z2, z3 = z[v, (b - 3) % Lr], z[v, (b - 2) % Lr], z[v, (b - 1) % Lr], z[v, b % Lr]
-                        z4, z5, z6 = z[v, (b + 1) % Lr], z[v, (b + 2) % Lr], z[v, (b + 3) % Lr]
-                        for tx in range(Tx):
-                            a0, a1, a2, a3 = h[v, p, t, tx], h[v, p, t + 1, tx], h[v, p, t + 2, tx], h[v, p, t + 3, tx]
-                            if a0 == 0 and a1 == 0 and a2 == 0 and a3 == 0:
-                                continue
-                            o = (ox[v, p] + tx) % Lc
-                            d0, d1, d2, d3 = q0[o:], q1[o:], q2[o:], q3[o:]
-                            for c in range(n):
-                                e0, e1, e2, e3, e4, e5, e6 = z0[c], z1[c], z2[c], z3[c], z4[c], z5[c], z6[c]
-                                d0[c] += a0 * e3 + a1 * e2 + a2 * e1 + a3 * e0
-                                d1[c] += a0 * e4 + a1 * e3 + a2 * e2 + a3 * e1
-                                d2[c] += a0 * e5 + a1 * e4 + a2 * e3 + a3 * e2
-                                d3[c] += a0 * e6 + a1 * e5 + a2 * e4 + a3 * e3
+                    _adjoint_rows(h[v, p], oy[v, p], ox[v, p], z[rows[v]], acc[p, r], acc[p, r + 1], acc[p, r + 2],
+                                  acc[p, r + 3], r, Lr, Lc, n)
     for pr in prange(P * Lr):
         p = pr // Lr
         r = pr - p * Lr
@@ -401,3 +414,57 @@ def taps_adjoint(h, oy, ox, z, out, n_threads):
             for t_id in range(1, n_threads):
                 s += part[t_id, p, r, c] + part[t_id, p, r, c + Lc]
             o[c] = s
+
+
+# ---- separable taps: a column filter shared by a column of views, then each view's row filter ----------
+@njit(parallel=True, cache=True, fastmath={'contract'})
+def taps_adjoint_columns(a, oy, z, rows, start, out):
+    """The row filters' transpose, summed per column of views: ``out[c P + p, r, :] = sum_{v in column c, ty}
+    a[v, p, ty] z[rows[v], (r - oy[v, p] - ty) % Lr, :]`` with the views of column ``c`` at ``start[c] .. start[c +
+    1] - 1`` of ``a`` (V, P, Ty) (``Ty`` a multiple of 4), ``oy`` (V, P) and ``rows`` (V,). ``out`` (C P, Lr', Lc)
+    with ``Lr'`` the rows rounded up to a multiple of 4 (the last rows spare). Threads over columns, planes and
+    blocks of rows (each writes its own rows)."""
+    V, P, Ty = a.shape
+    Lr, Lc = z.shape[1], z.shape[2]
+    n = np.uint64(Lc)
+    C = start.shape[0] - 1
+    blocks = (Lr + 3) // 4
+    for cpb in prange(C * P * blocks):
+        cp = cpb // blocks
+        r = (cpb - cp * blocks) * 4
+        c, p = cp // P, cp % P
+        q0, q1, q2, q3 = out[cp, r], out[cp, r + 1], out[cp, r + 2], out[cp, r + 3]
+        for j in range(n):
+            q0[j], q1[j], q2[j], q3[j] = 0, 0, 0, 0
+        for v in range(start[c], start[c + 1]):
+            _adjoint_rows(a[v, p].reshape((Ty, 1)), oy[v, p], 0, z[rows[v]], q0, q1, q2, q3, r, Lr, Lc, n)
+
+
+@njit(parallel=True, cache=True, fastmath={'contract'})
+def column_sums(w, idx, shift, src, out, accumulate):
+    """``out[m, r, j] (+)= sum_k w[m, k] src[idx[m, k], r, (j + shift[m, k]) % Lc]`` for ``r < Lr`` (``out``'s
+    rows), a row's list ending at its first zero weight: ``w`` (M, K), ``idx`` and ``shift`` (M, K) int64, ``src``
+    (S, Lr', Lc) with ``Lr' >= Lr``; ``out`` (M, Lr, Lc) overwritten, or added to with ``accumulate``. Threads over
+    rows of ``out``."""
+    M, K = w.shape
+    Lr, Lc = out.shape[1], out.shape[2]
+    for mr in prange(M * Lr):
+        m = mr // Lr
+        r = mr - m * Lr
+        o = out[m, r]
+        if not accumulate:
+            for j in range(Lc):
+                o[j] = 0
+        for k in range(K):
+            wk = w[m, k]
+            if wk == 0:
+                break
+            s = src[idx[m, k], r]
+            c = shift[m, k] % Lc
+            e = np.uint64(Lc - c)
+            s1 = s[c:]
+            for j in range(e):
+                o[j] += wk * s1[j]
+            o2 = o[e:]
+            for j in range(np.uint64(c)):
+                o2[j] += wk * s[j]

@@ -19,8 +19,9 @@ batched over planes and views, the per-frequency sum over planes (``A``) or view
 (``A^T``, the conjugate kernels), and the inverse FFT cropped to the lenslet grid. The
 adjoint is the exact transpose: the same kernels conjugated, padding and cropping swapped.
 Where each view holds few taps (:data:`TAPS_FORWARD_MAX`, :data:`TAPS_ADJOINT_MAX`: planes near focus on the lenslet
-grid) the same circular correlation on the canvas is summed over the taps directly (Numba,
-``_exact_kernels.taps_forward`` and ``taps_adjoint``), which costs less than the views' FFTs there.
+grid) the same circular correlation on the canvas is summed over the taps directly (:mod:`lf_flame.tomo.taps`:
+Numba, each view's kernel whole where the aperture clips it, else as a row filter after its column's filter), which
+costs less than the views' FFTs there.
 
 Precision: ``precision="float64"`` (the default) keeps the kernels' spectra complex128 and
 the FFTs in float64: ``pylops.utils.dottest`` holds to 1e-12 and A^T is A's transpose to
@@ -38,15 +39,15 @@ import os
 import time
 from concurrent.futures import ThreadPoolExecutor
 
-import numba
 import numpy as np
 import scipy.fft
 
 from ..optics.camera import PlenopticCamera
 from ..simulate.scenes import FLAME_EFFECTS, Effects
-from . import _exact_kernels, _fourier_kernels
+from . import _fourier_kernels
 from .operator import PlanesOperator, normalised_adjoint
 from .quadrature import QUADRATURE_NODES, ExactKernels, exact_kernels
+from .taps import SEPARABLE_TOLERANCE, TapPlan, separable_taps
 
 PRECISIONS = ("float64", "float32")
 #: The most sub-views per view and axis of :class:`ExactOperator` for samples off the views' grid (a colour
@@ -61,14 +62,15 @@ OFFSET_BINS = 3
 OFFSET_TOLERANCE = 0.05
 #: :class:`ExactOperator` applies ``H`` (:meth:`ExactOperator.forward_canvas`) and ``H^H``
 #: (:meth:`ExactOperator.adjoint_canvas`) on the canvas by direct sums over its taps instead of by FFT where its lit
-#: views hold at most this many taps each (:attr:`ExactOperator.taps_per_view`). The taps' time grows with their count,
-#: the FFTs' with the views and planes; measured on this project's 2-core machine (a ``/tmp`` probe of the paper
-#: camera's operators on the lenslet and the 2 x 2 grid, 2 to 8 planes, one and two threads), the taps' time over the
-#: FFT route's: ``H`` 0.22-0.26 at 17.6 taps a view, 0.50-0.54 at 44.6 (the paper's four planes on the lenslet grid),
-#: 0.62-0.64 at 57.4 (the paper's depths of the recordings), 0.82-0.95 at 106-111, 1.2-2.0 at 147-180; ``H^H`` 0.29-0.31,
-#: 0.61-0.65, 0.77-0.81, 1.1-1.4 and 1.5-2.6 at the same operators (the FFT route's adjoint spares the views' inverse
-#: FFT: a forward FFT of the views is the cheaper of the two).
-TAPS_FORWARD_MAX = 80
+#: views hold at most this many taps each (:attr:`ExactOperator.taps_per_view`, views whose kernels separate counted by
+#: their row filters: :mod:`lf_flame.tomo.taps`). The taps' time grows with their count, the FFTs' with the views and
+#: planes; measured on this project's 2-core machine (a ``/tmp`` probe of the paper camera's float32 operators, one and
+#: two threads), the taps' time over the FFT route's: ``H`` 0.23-0.24 at 11.6 taps a view (2 planes, lenslet grid),
+#: 0.46-0.51 at 30.0 (the paper's four planes), 0.58-0.61 at 41.5 (2 planes, 2 x 2 grid), 0.61-0.67 at 52.0 (8 planes),
+#: 0.88-0.89 at 82.6 (planes at +-2 and +-6 mm, 2 x 2 grid), 1.07-1.17 at 104 (the paper's four planes, 2 x 2 grid);
+#: ``H^H`` 0.26, 0.37-0.71, 0.71-0.90, 0.83, 0.98-1.11 and 1.28-1.36 at the same operators (the FFT route's adjoint
+#: spares the views' inverse FFT: a forward FFT of the views is the cheaper of the two).
+TAPS_FORWARD_MAX = 90
 TAPS_ADJOINT_MAX = 64
 #: ... and where the canvas is at least this many columns wide (the length of the taps' vectorised loops): on
 #: narrower canvases the loops' ends and the taps' bookkeeping outweigh the products, and the FFTs of small views run
@@ -342,25 +344,20 @@ class ExactOperator(PlanesOperator):
     @property
     def taps_per_view(self) -> float:
         """Taps per lit view that :meth:`forward_canvas` and :meth:`adjoint_canvas` sum where they apply the map by
-        its taps (their rows in groups of four, a group counted whole where any of its taps is not zero, over the
-        phase planes), the measure of :data:`TAPS_FORWARD_MAX` and :data:`TAPS_ADJOINT_MAX`."""
-        return self._taps()[3]
+        its taps, the measure of :data:`TAPS_FORWARD_MAX` and :data:`TAPS_ADJOINT_MAX`: a view of taps that do not
+        separate counts its taps (their rows in groups of four, a group counted whole where any of its taps is not
+        zero, over the phase planes), a view whose taps separate counts its row filter's (the same groups), and each
+        column's shared filter counts its taps once for the column (:func:`separable_taps`)."""
+        return self._taps().per_view
 
-    def _taps(self):
-        """The lit views' taps ``(V', P s^2, Ty', Tx)`` in the operator's precision, their rows zero-padded to a
-        multiple of four, their origins ``(V', P s^2)`` along rows and columns (int64) and :attr:`taps_per_view`;
-        built once."""
+    def _taps(self) -> TapPlan:
+        """The lit views' taps as :func:`separable_taps` splits them, in the operator's precision; built once."""
         kept = self.__dict__.get("_taps_kept")
         if kept is None:
             u, v = np.divmod(np.asarray(self._lit, np.int64), self.kernels.shape[0])
-            h = self.kernels[u, v]
-            ty = h.shape[2]
-            padded = np.zeros(h.shape[:2] + (-(-ty // 4) * 4, h.shape[3]), self._real)
-            padded[:, :, :ty] = h
-            V, P, Ty, Tx = padded.shape
-            per_view = float((padded.reshape(V, P, Ty // 4, 4, Tx) != 0).any(axis=3).sum()) * 4 / max(V, 1)
-            kept = self.__dict__["_taps_kept"] = (padded, np.ascontiguousarray(self.tap_origin_y[u], np.int64),
-                                                  np.ascontiguousarray(self.tap_origin_x[v], np.int64), per_view)
+            kept = self.__dict__["_taps_kept"] = separable_taps(
+                self.kernels[u, v], self.tap_origin_y[u], self.tap_origin_x[v], v, self._real,
+                SEPARABLE_TOLERANCE[np.dtype(self._real).name])
         return kept
 
     def forward_canvas(self, planes) -> np.ndarray:
@@ -368,9 +365,9 @@ class ExactOperator(PlanesOperator):
 
         The circular correlation of each plane with each view's taps on the canvas, summed over the planes: by
         direct sums over the taps where they are at most :data:`TAPS_FORWARD_MAX` a view on a canvas at least
-        :data:`TAPS_MIN_COLUMNS` wide (``_exact_kernels.taps_forward``, threads of Numba), else by the planes' FFT,
-        the per-frequency products with the spectra and the views' inverse FFT (``workers`` threads). Both give the
-        same views to the spectra's precision (float32: their 16-bit fixed point, 1-2e-5 of the largest).
+        :data:`TAPS_MIN_COLUMNS` wide (:meth:`lf_flame.tomo.taps.TapPlan.forward`, threads of Numba), else by the
+        planes' FFT, the per-frequency products with the spectra and the views' inverse FFT (``workers`` threads). Both
+        give the same views to the spectra's precision (float32: their 16-bit fixed point, 1-2e-5 of the largest).
 
         Parameters
         ----------
@@ -384,10 +381,7 @@ class ExactOperator(PlanesOperator):
         """
         x = np.ascontiguousarray(planes, self._real)
         if self._by_taps(TAPS_FORWARD_MAX):
-            h, oy, ox, _ = self._taps()
-            out = np.empty((len(self._lit),) + x.shape[1:], self._real)
-            _exact_kernels.taps_forward(h, oy, ox, x, out)
-            return out
+            return self._taps().forward(x)
         return scipy.fft.irfft2(_fourier_kernels.spectra_forward(self._spec, scipy.fft.rfft2(x, workers=self.workers)),
                                 s=self.canvas_shape, workers=self.workers)
 
@@ -413,12 +407,9 @@ class ExactOperator(PlanesOperator):
 
     def _adjoint_by_taps(self, z) -> np.ndarray:
         """``H^H`` of the views ``z`` (the canvas or a window of it, the operator's precision) summed over the taps."""
-        h, oy, ox, _ = self._taps()
         if z.shape[1:] != tuple(self.canvas_shape):
             z = np.pad(z, ((0, 0), (0, self.canvas_shape[0] - z.shape[1]), (0, self.canvas_shape[1] - z.shape[2])))
-        out = np.empty((h.shape[1],) + tuple(self.canvas_shape), self._real)
-        _exact_kernels.taps_adjoint(h, oy, ox, z, out, numba.get_num_threads())
-        return out
+        return self._taps().adjoint(z)
 
     def _adjoint_by_spectra(self, z) -> np.ndarray:
         """The spectrum of ``H^H`` of the views ``z`` (the canvas or a window of it, zero-padded): their FFT times the
