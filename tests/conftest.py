@@ -2,6 +2,19 @@ import os
 
 os.environ.setdefault("TF_CPP_MIN_LOG_LEVEL", "2")
 
+
+def _own_cache():
+    """The suite's own lf_flame cache (library data read once; lf_flame.optics.colour.cache_dir), removed at exit."""
+    import atexit
+    import shutil
+    import tempfile
+    path = tempfile.mkdtemp(prefix="lf_flame_test_cache_")
+    atexit.register(shutil.rmtree, path, True)
+    return path
+
+
+os.environ["LF_FLAME_CACHE"] = _own_cache()
+
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 

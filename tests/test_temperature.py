@@ -7,7 +7,8 @@ from scipy.special import gamma, gammainc
 
 from lf_flame.temperature import pyrometry as P
 from lf_flame.optics.camera import PlenopticCamera
-from lf_flame.optics.colour import LAMBDA0_NM, ColourSensor, band_integrals, cfa_channels, library_sensor
+from lf_flame.optics.colour import (DEFAULT_SENSITIVITIES, LAMBDA0_NM, ColourSensor, band_integrals, cfa_channels,
+                                    library_sensor, planck_radiance)
 from lf_flame.refocus.shift_and_sum import raw_to_views
 from lf_flame.simulate import tracer
 from lf_flame.simulate.colour import render_colour
@@ -46,6 +47,46 @@ def _closed_form(l1_nm, l2_nm, t, alpha, terms=6):
     a, b = c2 / (l2_nm * 1e-9 * t), c2 / (l1_nm * 1e-9 * t)
     series = sum(n ** -s * gamma(s) * (gammainc(s, n * b) - gammainc(s, n * a)) for n in range(1, terms + 1))
     return c1 / np.pi * (LAMBDA0_NM * 1e-9) ** alpha * (t / c2) ** s * series
+
+
+def test_library_sensitivities_are_read_once_and_kept_in_the_cache(tmp_path, monkeypatch):
+    """library_sensor reads colour-science's curves once per name and version and keeps them in the cache: a process
+    that cannot import colour-science then gets the same sensor; a cache file that cannot be read is read again and
+    replaced; an unknown name is refused."""
+    import os
+    import subprocess
+    import sys
+
+    import colour
+    monkeypatch.setenv("LF_FLAME_CACHE", str(tmp_path))
+    want = colour.MSDS_CAMERA_SENSITIVITIES[DEFAULT_SENSITIVITIES]
+    s = library_sensor()
+    np.testing.assert_array_equal(s.wavelengths_nm, want.wavelengths)
+    np.testing.assert_array_equal(s.sensitivities, np.clip(want.values, 0, None))
+    (cached,) = tmp_path.iterdir()
+    code = ("import sys; sys.modules['colour'] = None; import numpy as np; from lf_flame.optics.colour import "
+            "library_sensor; np.save(sys.argv[1], library_sensor().sensitivities)")
+    subprocess.run([sys.executable, "-c", code, str(tmp_path / "got.npy")], check=True,
+                   env={**os.environ, "LF_FLAME_CACHE": str(tmp_path)})
+    np.testing.assert_array_equal(np.load(tmp_path / "got.npy"), s.sensitivities)
+    cached.write_bytes(b"not a zip file")
+    np.testing.assert_array_equal(library_sensor().sensitivities, s.sensitivities)
+    with np.load(cached) as f:
+        assert str(f["name"]) == DEFAULT_SENSITIVITIES
+    with pytest.raises(ValueError, match="no camera sensitivities named"):
+        library_sensor("no such camera")
+
+
+def test_planck_radiance_is_colour_sciences_planck_law():
+    """Planck's law as written here (no colour-science import) is colour-science's ``planck_law`` to rounding, every
+    temperature of an array at every wavelength."""
+    from colour.colorimetry import planck_law
+    wl = np.arange(380.0, 781.0, 5.0)
+    t = np.array([[300.0, 1500.0], [2000.0, 3000.0]])
+    got = planck_radiance(wl, t)
+    want = np.asarray(planck_law(wl * 1e-9, t.ravel())).T.reshape(t.shape + wl.shape)
+    np.testing.assert_allclose(got, want, rtol=1e-12)
+    assert planck_radiance(wl, 2000.0).shape == wl.shape
 
 
 @pytest.mark.parametrize("alpha", [0.0, 1.39])

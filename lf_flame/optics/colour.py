@@ -19,13 +19,17 @@ since. A texel's signal in channel ``c`` is
     s_c = g_c · soot · ∫ S_c(λ) (λ / λ0)^-alpha B(λ, T) dλ,
 
 with ``S_c`` the channel's spectral sensitivity (colour-science's measured camera
-sensitivities), ``B`` Planck's law (colour-science's :func:`colour.colorimetry.planck_law`),
+sensitivities, kept in a cache file once read: :func:`library_sensor`), ``B`` Planck's law with the CIE's
+constants (:func:`planck_radiance`, colour-science's ``planck_law``),
 ``g_c`` the camera's channel gain (unknown to the pyrometer: a calibration finds its
 ratio) and ``λ0 = 550 nm``. A blackbody has ``alpha = 0`` and unit emissivity.
 """
 from __future__ import annotations
 
+import os
+import zipfile
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -127,20 +131,72 @@ def library_sensor(name: str = DEFAULT_SENSITIVITIES, pattern: str = "RGGB", pha
     """A :class:`ColourSensor` with measured camera sensitivities from colour-science.
 
     ``name`` is a key of ``colour.MSDS_CAMERA_SENSITIVITIES`` (e.g. ``"Nikon 5100 (NPL)"``,
-    ``"Sigma SDMerill (NPL)"``; 380-780 nm every 5 nm). Raises ValueError for another name.
+    ``"Sigma SDMerill (NPL)"``; 380-780 nm every 5 nm), its curves clipped at 0. Read once per
+    colour-science version and kept in :func:`cache_dir` (:func:`library_curves`): a later process reads
+    the small file instead of importing colour-science (over a second). Raises ValueError for another name.
     """
+    wl, values = library_curves(name)
+    return ColourSensor(name, pattern, tuple(phase), wl, values, tuple(float(g) for g in gains))
+
+
+def cache_dir() -> Path:
+    """Where lf_flame keeps what it derives from its libraries' data: ``$LF_FLAME_CACHE``, else
+    ``$XDG_CACHE_HOME/lf_flame``, else ``~/.cache/lf_flame``."""
+    if os.environ.get("LF_FLAME_CACHE"):
+        return Path(os.environ["LF_FLAME_CACHE"])
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "lf_flame"
+
+
+def library_curves(name: str) -> tuple[np.ndarray, np.ndarray]:
+    """colour-science's camera sensitivities ``name``: wavelengths ``(L,)`` (nm) and sensitivities ``(L, 3)``
+    (R, G, B; clipped at 0).
+
+    Read from the cache file of this name and colour-science version in :func:`cache_dir` where a process wrote it,
+    else from colour-science and written there (a temporary file, then renamed; where it cannot be written, as
+    read). A cache file that cannot be read is read again from colour-science and replaced.
+
+    Raises
+    ------
+    ValueError
+        ``name`` is not one of colour-science's camera sensitivities.
+    """
+    import hashlib
+    from importlib.metadata import version
+    key = hashlib.sha256(name.encode()).hexdigest()[:16]
+    path = cache_dir() / f"camera_sensitivities_colour-{version('colour-science')}_{key}.npz"
+    try:
+        with np.load(path) as f:
+            if str(f["name"]) == name:
+                return f["wavelengths_nm"], f["sensitivities"]
+    except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile):
+        pass
     import colour
 
     lib = colour.MSDS_CAMERA_SENSITIVITIES
     if name not in lib:
         raise ValueError(f"no camera sensitivities named {name!r}; colour-science has {sorted(lib.keys())}")
     m = lib[name]
-    return ColourSensor(name, pattern, tuple(phase), np.asarray(m.wavelengths, float),
-                        np.clip(np.asarray(m.values, float), 0, None), tuple(float(g) for g in gains))
+    wl, values = np.asarray(m.wavelengths, float), np.clip(np.asarray(m.values, float), 0, None)
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.partial")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with open(tmp, "wb") as f:
+            np.savez(f, name=name, wavelengths_nm=wl, sensitivities=values)
+        os.replace(tmp, path)
+    except OSError:
+        tmp.unlink(missing_ok=True)
+    return wl, values
+
+
+#: The radiation constants of Planck's law as CIE 15:2004 rounds them (the values colour-science's ``planck_law``
+#: uses): ``c1 = 2 pi h c^2`` (W m^2) and ``c2 = h c / k`` (m K).
+PLANCK_C1, PLANCK_C2 = 3.741771e-16, 1.4388e-2
 
 
 def planck_radiance(wavelengths_nm, temperature_k) -> np.ndarray:
-    """Planck's spectral radiance B(λ, T), W sr⁻¹ m⁻² m⁻¹ (colour-science's ``planck_law``).
+    """Planck's spectral radiance of a blackbody in vacuum, ``B(λ, T) = (c1 / π) λ⁻⁵ / (exp(c2 / (λ T)) - 1)``,
+    W sr⁻¹ m⁻² m⁻¹, with the CIE's constants (:data:`PLANCK_C1`, :data:`PLANCK_C2`; CIE 15:2004). colour-science's
+    ``planck_law`` to rounding (``tests/test_temperature.py``), without importing colour-science (over a second).
 
     Parameters
     ----------
@@ -151,12 +207,9 @@ def planck_radiance(wavelengths_nm, temperature_k) -> np.ndarray:
     -------
     ndarray of shape (..., L): every temperature at every wavelength.
     """
-    from colour.colorimetry import planck_law
-
     wl = np.atleast_1d(np.asarray(wavelengths_nm, float)) * 1e-9
-    t = np.asarray(temperature_k, float)
-    out = np.asarray(planck_law(wl, t.ravel()), float).reshape(len(wl), t.size)
-    return out.T.reshape(t.shape + (len(wl),))
+    t = np.asarray(temperature_k, float)[..., None]
+    return PLANCK_C1 / np.pi * wl ** -5 / np.expm1(PLANCK_C2 / (wl * t))
 
 
 def band_integrals(sensor: ColourSensor, temperature_k, alpha: float = ALPHA_SOOT, gains: bool = False,
