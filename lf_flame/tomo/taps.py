@@ -34,7 +34,8 @@ class TapPlan:
     ox: np.ndarray
     rows: np.ndarray
     #: Views whose kernels separate, sorted by column of views: row filters (V_s, P, Ty), their origins (V_s, P), rows
-    #: among the views, the first of each column's views in them (C + 1,) and each view's first filtered plane (C P).
+    #: among the views (V_s,), where each column's views start among them (C + 1,) and each view's first plane among
+    #: the column-filtered planes (V_s,), ``c P`` for column ``c``.
     a: np.ndarray
     oy_s: np.ndarray
     rows_s: np.ndarray
