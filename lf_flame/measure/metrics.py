@@ -8,14 +8,20 @@ import numpy as np
 from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
 
+def _checked_pair(first, second, names=("reference", "prediction"), what="images"):
+    """Two arrays of one shape, finite, as float64; ValueError naming ``names`` and ``what`` otherwise."""
+    a = np.asarray(first, np.float64)
+    b = np.asarray(second, np.float64)
+    if a.shape != b.shape:
+        raise ValueError(f"{names[0]} {a.shape} and {names[1]} {b.shape} differ in shape")
+    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+        raise ValueError(f"{what} contain NaN or inf")
+    return a, b
+
+
 def _per_plane(metric, ref, pred) -> np.ndarray:
     """Apply ``metric(ref_plane, pred_plane)`` to each plane after checking the inputs."""
-    ref = np.asarray(ref, np.float64)
-    pred = np.asarray(pred, np.float64)
-    if ref.shape != pred.shape:
-        raise ValueError(f"reference {ref.shape} and prediction {pred.shape} differ in shape")
-    if not (np.all(np.isfinite(ref)) and np.all(np.isfinite(pred))):
-        raise ValueError("images contain NaN or inf")
+    ref, pred = _checked_pair(ref, pred)
     return np.array([metric(r, p) for r, p in zip(ref, pred)])
 
 
@@ -79,12 +85,7 @@ def own_error(first, second) -> float:
     ValueError
         Shapes that differ, values not finite, or a first render without light.
     """
-    a = np.asarray(first, np.float64)
-    b = np.asarray(second, np.float64)
-    if a.shape != b.shape:
-        raise ValueError(f"the renders differ in shape: {a.shape} and {b.shape}")
-    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
-        raise ValueError("renders contain NaN or inf")
+    a, b = _checked_pair(first, second, ("first render", "second render"), "renders")
     norm = np.linalg.norm(a)
     if norm == 0:
         raise ValueError("the first render holds no light")
