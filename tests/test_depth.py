@@ -507,6 +507,46 @@ def test_a_quiet_light_fields_faint_flame_is_found_at_a_lower_prominence(cam, mo
     with pytest.raises(ValueError, match="excess"):
         missed_depths(views, cam, found, excess=-1.0)
 
+def test_a_noisy_light_fields_faint_flame_short_of_the_prominence_is_reported(cam, monkeypatch, tmp_path, capsys):
+    """Where the light field's noise asks :data:`REFINED_PROMINENCE` of the search after the refinement, a faint
+    flame whose residual peak stands between :data:`POSSIBLE_PROMINENCE` and it is not solved on but reported in
+    ``found.possible`` at its depth; ``lf-flame reconstruct`` warns with the planes to give and records it."""
+    import json
+
+    import h5py
+
+    import lf_flame.tomo.noise_knobs as noise_knobs
+    import lf_flame.tomo.refine as refine
+    from lf_flame.cli import main
+    from lf_flame.refocus.shift_and_sum import views_to_raw
+    from lf_flame.simulate.scenes_depth import column_scene
+    scene = column_scene(cam, np.random.default_rng(86))
+    views = _views(cam, scene, 86)
+    faint = min((o for o in scene.objects), key=lambda o: o["radiance"] * o["height_mm"])["depth_offset_mm"]
+    monkeypatch.setattr(noise_knobs, "noise_regime", lambda noise: "noisy")
+    found, _, _ = find_planes(views, cam)
+    assert np.min(np.abs(found.depths_mm - faint)) > 1.0, found.depths_mm          # not taken
+    assert len(found.possible) == 1, found.possible
+    p = found.possible[0]
+    assert abs(p["depth_mm"] - faint) < 0.5 and refine.POSSIBLE_PROMINENCE <= p["prominence"] < refine.REFINED_PROMINENCE
+    assert p["share"] >= refine.REFINED_SHARE
+    # the command line searches the camera's whole imaging range, where this flame stands higher: asked more
+    raw = tmp_path / "column.npz"
+    np.savez(raw, raw=views_to_raw(views), camera=cam.to_json())
+    out = tmp_path / "column.h5"
+    with monkeypatch.context() as mp:
+        mp.setattr(refine, "REFINED_PROMINENCE", 1e3)
+        assert main(["reconstruct", str(raw), "--no-figure", "--out", str(out)]) == 0
+    err = capsys.readouterr().err
+    with h5py.File(out) as f:
+        recorded = json.loads(f.attrs["possible_depths"])
+    assert len(recorded) == 1 and abs(recorded[0]["depth_mm"] - faint) < 0.5, recorded
+    assert f"a flame may stand at {recorded[0]['depth_mm']:+.2f} mm" in err and "--depth" in err, err
+    # asked to stand higher than it does, it is not reported
+    monkeypatch.setattr(refine, "POSSIBLE_PROMINENCE", p["prominence"] + 0.1)
+    assert find_planes(views, cam)[0].possible == []
+
+
 def test_a_faint_flame_behind_refined_ones_is_found_in_their_residual(cam, monkeypatch):
     """A faint flame behind a brighter one near focus: the first search of the residual misses it (the misfit of
     the others' unrefined depths is as strong), the search after the refinement finds it, and every flame comes back

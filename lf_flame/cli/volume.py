@@ -87,6 +87,20 @@ def found_record(found):
                                         found.region, found.masks)]
 
 
+def possible_warning(found, depths) -> list:
+    """The depths the found planes' route saw in its residual and did not take (``found.possible``,
+    :data:`lf_flame.tomo.refine.POSSIBLE_PROMINENCE`): one warning (stderr) per depth naming it and the planes to give
+    to solve with it; their record for the HDF5 (depth, prominence, share, region)."""
+    from ..tomo.refine import REFINED_PROMINENCE
+    for p in found.possible:
+        planes = sorted([float(d) for d in depths] + [p["depth_mm"]])
+        print(f"warning: a flame may stand at {p['depth_mm']:+.2f} mm behind or before the others: its residual's "
+              f"focus peak stands {p['prominence']:.1f} robust deviations high, short of the {REFINED_PROMINENCE:g} "
+              "this noise asks (faint flames and misfits stand alike there); to solve on it give the planes: "
+              + " ".join(f"--depth {d:.2f}" for d in planes), file=sys.stderr)
+    return [{k: (int(v) if k == "region" else float(v)) for k, v in p.items()} for p in found.possible]
+
+
 def _fitted_light_field(lf, saturation):
     """The light field with ``reconstruct``'s ``--saturation`` in place of its own ("file" or "auto": as it is, its
     level found in the image or its decoded samples' mask)."""
@@ -376,6 +390,7 @@ def cmd_reconstruct(a):
             depths = [float(d) for d in voters.planes_mm]
             extra["found_depths"] = found_record(voters)
             arrays = dict(found_masks=np.asarray(voters.masks, bool), found_regions=voters.labels)
+        extra["possible_depths"] = possible_warning(voters, depths)
     fitted = _fitted_light_field(lf, kw["saturation"])
     rec, lattice = lattice_solve(fitted, op, rec, voters,
                                  bool(getattr(a, "support", False)))

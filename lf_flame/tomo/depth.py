@@ -148,6 +148,12 @@ class FoundDepths:
         Each depth's Tenengrad energy against ``grid_slopes``.
     grid_slopes : ndarray of shape (S,)
     time_s : float
+    possible : list of dict
+        Depths the route's last search of the residual saw but did not take
+        (:func:`lf_flame.tomo.refine.peel_and_refine`: a peak in the band where noisy light
+        fields hold both faint flames and misfits): each ``depth_mm``, ``prominence`` (robust
+        standard deviations of the residual's focus curve), ``share`` (of the data's peak
+        energy) and ``region``. Empty from :func:`find_depths`.
     """
 
     depths_mm: np.ndarray
@@ -163,6 +169,7 @@ class FoundDepths:
     curves: list = field(repr=False)
     grid_slopes: np.ndarray = field(repr=False)
     time_s: float = float("nan")
+    possible: list = field(default_factory=list, repr=False)
 
 
 def _grid_depths(camera: PlenopticCamera, slopes) -> np.ndarray:

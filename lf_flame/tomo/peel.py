@@ -36,7 +36,8 @@ PEEL_ROUNDS = 2
 
 def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prominence: float = RESIDUAL_PROMINENCE,
                   share: float = RESIDUAL_SHARE, excess: float = 0.0, sigma: float = 1.5,
-                  min_separation_mm: float | None = None, merge_mm: float | None = None, regions=None):
+                  min_separation_mm: float | None = None, merge_mm: float | None = None, regions=None,
+                  possible: list | None = None, possible_prominence: float = RESIDUAL_PROMINENCE):
     """Depths the votes missed, found in a solve's residual: a flame behind (or before) another in the same
     columns, whose lenslets voted for the other.
 
@@ -69,6 +70,12 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
         As :func:`~lf_flame.tomo.depth.find_depths` (None: scaled to the camera as there).
     regions : sequence of int or None
         The regions (``found.region`` labels) to search; None: all.
+    possible : list or None
+        Where given, each peak that meets every test but ``prominence`` while standing at least
+        ``possible_prominence`` deviations high is appended to it as a dict (``depth_mm``,
+        ``prominence``, ``share``, ``region``): a depth seen, not taken.
+    possible_prominence : float
+        Deviations for ``possible`` (:data:`RESIDUAL_PROMINENCE`).
 
     Returns
     -------
@@ -111,11 +118,15 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
         data_peak = max(float(found.curves[k].max()) for k in np.flatnonzero(found.region == lab))
         med = float(np.median(curve))
         spread = 1.4826 * float(np.median(np.abs(curve - med)))
-        if not (curve[i] - med >= prominence * spread and curve[i] > med and curve[i] >= share * data_peak
-                and curve[i] - med >= excess * data_peak):
+        if not (curve[i] > med and curve[i] >= share * data_peak and curve[i] - med >= excess * data_peak):
             continue
         s = float(np.clip(np.interp(_peak_fit(curve, i), np.arange(len(slopes)), slopes),
                           slopes[ok].min(), slopes[ok].max()))
+        if not curve[i] - med >= prominence * spread:
+            if possible is not None and curve[i] - med >= possible_prominence * spread:
+                possible.append(dict(depth_mm=camera.depth_for_slope(s), prominence=(curve[i] - med) / spread,
+                                     share=curve[i] / data_peak, region=int(lab)))
+            continue
         width = 2 * _half_width(curve, i) * (slopes[1] - slopes[0]) * dz_ds
         rows.append(dict(depth=camera.depth_for_slope(s), slope=s, unc=0.1 * 0.5 * width, width=width,
                          region=int(lab), mask=reg, curve=curve))
