@@ -237,6 +237,8 @@ def test_reconstruct_takes_the_finer_grid_by_default_and_the_lenslet_grid_when_a
         with h5py.File(out) as f:
             shapes[args[1]] = f["planes"].shape
             assert ("2 x 2 samples per lenslet" in printed) == (f["planes"].shape[1] == 82)
+            # the relative residual printed is the written planes' (admm's last fill's is of an older prediction)
+            assert f"relative residual {json.loads(f.attrs['misfit'])['relative_residual']:.4f}" in printed, printed
     assert shapes == {"auto": (4, 82, 82), "1": (4, 41, 41), "fista": (4, 41, 41)}
     with pytest.raises(SystemExit):
         main(["reconstruct", str(small_flame / "flame.npz"), "--subsamples", "3", "--out", str(small_flame / "x.h5")])

@@ -414,7 +414,7 @@ def cmd_reconstruct(a):
         truth = None if scene is None else scene_truth(scene, op)
         plot_reconstruction(fig, rec, refocused, truth, truth_depths_mm=None if scene is None else
                             truth_depths(scene, rec.depths_mm))
-    res = f"{rec.residuals[-1]:.4f}" if len(rec.residuals) else "-"
+    res = f"{extra['misfit']['relative_residual']:.4f}"     # of the planes written (a solver's last is older)
     grid = f", {sub} x {sub} samples per lenslet" if sub > 1 else ""
     m = rec.settings.get("sub_views")
     grid += f", each sample at its own pixel ({m} x {m} sub-views per view)" if m else ""
