@@ -160,6 +160,8 @@ def emission_rows(scene_npz: Path, views: Path, cam: Path, noise: str, seed: int
     """``reconstruct`` (its default: depths found, admm) of one decoded colour capture, whose channels it levels into
     one monochrome light field; each flame scored by :func:`lf_flame.tomo.scoring.score_flames` against its green
     channel's emission (the levelled views' units) in the decoded frame."""
+    import h5py
+
     from lf_flame.cli._io import camera_config, colour_scene
     from lf_flame.real.lightfield import read_light_field
     from lf_flame.tomo.files import load_found, load_reconstruction
@@ -179,7 +181,8 @@ def emission_rows(scene_npz: Path, views: Path, cam: Path, noise: str, seed: int
     df["slope_err"] = [abs(capture.slope_for_depth(e) - capture.slope_for_depth(t)) if np.isfinite(e) else np.nan
                        for e, t in zip(df.depth_mm, df.depth_mm_true)]     # lenslets per view step, as make cameras
     df["planes"] = len(rec.depths_mm)
-    df["relative_residual"] = float(rec.residuals[-1]) if len(rec.residuals) else np.nan
+    with h5py.File(rec_file) as f:                  # the written planes' (admm's last fill's is an older prediction)
+        df["relative_residual"] = json.loads(f.attrs["misfit"])["relative_residual"]
     df["reconstruct_wall_s"] = wall
     return df.to_dict("records")
 

@@ -354,8 +354,8 @@ def column_bars(df: pd.DataFrame) -> pd.DataFrame:
             for seed, f in per:
                 seen = json.loads(f.possible_mm.iloc[0]) if isinstance(f.possible_mm.iloc[0], str) else []
                 missed = f.depth_mm_true[f.depth_mm.isna()].values
-                near = [any(abs(p - m) <= 1.0 for p in seen) for m in missed]
-                reported["missed_reported"] = reported.get("missed_reported", 0) + sum(near)
+                hit = [any(abs(p - m) <= 1.0 for p in seen) for m in missed]
+                reported["missed_reported"] = reported.get("missed_reported", 0) + sum(hit)
                 reported["false_reports"] = reported.get("false_reports", 0) + sum(
                     not any(abs(p - m) <= 1.0 for m in missed) for p in seen)
         out.append(dict(route=route, noise=noise, scenes=len(sep), flames=len(g), found=float(g.depth_mm.notna().mean()),
