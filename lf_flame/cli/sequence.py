@@ -47,10 +47,11 @@ def first_frame_depths(source, camera, calibration=None, sensor=None) -> list:
     """The planes of a recording without given ones: those ``reconstruct --depths auto`` finds in its first frame
     (depths found, the residual searched, the depths of flames one behind another refined:
     :func:`lf_flame.cli.volume.found_planes`, :func:`~lf_flame.cli.volume.solve_found`), the frame decoded with
-    ``calibration`` where given (``camera`` the real one, ``sensor`` a colour camera's)."""
+    ``calibration`` where given (``camera`` the real one, ``sensor`` a colour camera's). A depth the residual's
+    search saw and did not take is warned of (:func:`~lf_flame.cli.volume.possible_warning`)."""
     from ..real.lightfield import decode_capture, from_raw
     from ..temperature.channels import monochrome_light_field
-    from .volume import found_planes, solve_found
+    from .volume import found_planes, possible_warning, solve_found
     raw = np.asarray(next(iter(source.frames(0, 1))), np.float64)
     lf = monochrome_light_field(from_raw(raw, camera, "the first frame") if calibration is None else  # colour: levelled
                                 decode_capture(raw, camera, calibration, sensor, "the first frame"))
@@ -59,6 +60,7 @@ def first_frame_depths(source, camera, calibration=None, sensor=None) -> list:
     found, _, _ = solve_found(lf, found)
     print("planes after the residual's search and refinement: " + ", ".join(f"{d:+.2f}" for d in found.planes_mm)
           + " mm")
+    possible_warning(found, found.planes_mm)           # a depth seen, not taken: the --depth planes to give
     return [float(d) for d in found.planes_mm]
 
 
