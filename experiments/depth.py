@@ -338,6 +338,18 @@ def plot(out: Path, df, stem="depth"):
     plt.close(fig)
 
 
+def possible_reports(per) -> dict:
+    """The depths the auto route saw and did not take (``possible_mm``), per light field of ``per`` (rows grouped by
+    seed): the missed flames within 1 mm of one, and those with no missed flame within 1 mm."""
+    hits = false = 0
+    for _, f in per:
+        seen = json.loads(f.possible_mm.iloc[0]) if isinstance(f.possible_mm.iloc[0], str) else []
+        missed = f.depth_mm_true[f.depth_mm.isna()].values
+        hits += sum(any(abs(p - m) <= 1.0 for p in seen) for m in missed)
+        false += sum(not any(abs(p - m) <= 1.0 for m in missed) for p in seen)
+    return dict(missed_reported=hits, false_reports=false)
+
+
 def column_bars(df: pd.DataFrame) -> pd.DataFrame:
     """The column scenes' bars per route and noise: flames found, depth error (missed: inf), emission error,
     flames near focus, and the closest pairs."""
@@ -349,15 +361,7 @@ def column_bars(df: pd.DataFrame) -> pd.DataFrame:
         sep = per.depth_mm_true.apply(lambda d: float(np.diff(np.sort(d.values)).min()))
         ok = per.apply(lambda s: bool(s.depth_err_mm.notna().all() and (s.rel_err <= 0.15).all()), include_groups=False)
         close = sep[sep <= 5.0].index
-        reported = {}
-        if "possible_mm" in g:      # the depths the auto route saw and did not take: near a missed flame or not
-            for seed, f in per:
-                seen = json.loads(f.possible_mm.iloc[0]) if isinstance(f.possible_mm.iloc[0], str) else []
-                missed = f.depth_mm_true[f.depth_mm.isna()].values
-                hit = [any(abs(p - m) <= 1.0 for p in seen) for m in missed]
-                reported["missed_reported"] = reported.get("missed_reported", 0) + sum(hit)
-                reported["false_reports"] = reported.get("false_reports", 0) + sum(
-                    not any(abs(p - m) <= 1.0 for m in missed) for p in seen)
+        reported = possible_reports(per) if "possible_mm" in g else {}
         out.append(dict(route=route, noise=noise, scenes=len(sep), flames=len(g), found=float(g.depth_mm.notna().mean()),
                         depth_err_p90_mm=float(e.quantile(0.9)), depth_err_worst_mm=float(e.max()),
                         rel_err_median=float(g.rel_err.median()), rel_err_p90=float(g.rel_err.fillna(np.inf).quantile(0.9)),

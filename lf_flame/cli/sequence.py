@@ -60,7 +60,7 @@ def first_frame_depths(source, camera, calibration=None, sensor=None) -> list:
     found, _, _ = solve_found(lf, found)
     print("planes after the residual's search and refinement: " + ", ".join(f"{d:+.2f}" for d in found.planes_mm)
           + " mm")
-    possible_warning(found, found.planes_mm)           # a depth seen, not taken: the --depth planes to give
+    possible_warning(found)                            # a depth seen, not taken: the --depth planes to give
     return [float(d) for d in found.planes_mm]
 
 

@@ -87,13 +87,13 @@ def found_record(found):
                                         found.region, found.masks)]
 
 
-def possible_warning(found, depths) -> list:
+def possible_warning(found) -> list:
     """The depths the found planes' route saw in its residual and did not take (``found.possible``,
     :data:`lf_flame.tomo.refine.POSSIBLE_PROMINENCE`): one warning (stderr) per depth naming it and the planes to give
-    to solve with it; their record for the HDF5 (depth, prominence, share, region)."""
+    to solve with it (``found.planes_mm`` and it); their record for the HDF5 (depth, prominence, share, region)."""
     from ..tomo.refine import REFINED_PROMINENCE
     for p in found.possible:
-        planes = sorted([float(d) for d in depths] + [p["depth_mm"]])
+        planes = sorted([float(d) for d in found.planes_mm] + [p["depth_mm"]])
         print(f"warning: a flame may stand at {p['depth_mm']:+.2f} mm behind or before the others: its residual's "
               f"focus peak stands {p['prominence']:.1f} robust deviations high, short of the {REFINED_PROMINENCE:g} "
               "this noise asks (faint flames and misfits stand alike there); to solve on it give the planes: "
@@ -390,7 +390,7 @@ def cmd_reconstruct(a):
             depths = [float(d) for d in voters.planes_mm]
             extra["found_depths"] = found_record(voters)
             arrays = dict(found_masks=np.asarray(voters.masks, bool), found_regions=voters.labels)
-        extra["possible_depths"] = possible_warning(voters, depths)
+        extra["possible_depths"] = possible_warning(voters)
     fitted = _fitted_light_field(lf, kw["saturation"])
     rec, lattice = lattice_solve(fitted, op, rec, voters,
                                  bool(getattr(a, "support", False)))
