@@ -202,7 +202,7 @@ def test_sequence_refuses_planes_outside_the_cameras_range(tmp_path, capsys, mon
     the camera's imaging range, before any frame is processed."""
     import lf_flame.recordings.runner as runner
     from lf_flame.optics.camera import PAPER_CAMERA
-    from lf_flame.real.lightfield import imaging_range_mm
+    from lf_flame.optics.camera import imaging_range_mm
     monkeypatch.setattr(runner, "run", lambda *a, **k: pytest.fail("the run started"))
     rec = tmp_path / "rec.h5"
     with h5py.File(rec, "w") as f:

@@ -309,10 +309,9 @@ def test_the_cli_solves_found_planes_as_the_library_route(cam, planted, tmp_path
     np.savez(raw, raw=views_to_raw(loud), camera=cam.to_json())
     out = tmp_path / "auto.h5"
     assert main(["reconstruct", str(raw), "--out", str(out)]) == 0
-    from lf_flame.real.lightfield import from_raw, imaging_range_mm
+    from lf_flame.real.lightfield import from_raw
     lf = from_raw(views_to_raw(loud), cam)                 # as the CLI reads it (noise spikes taken for defects)
-    found, _, rec = find_planes(lf.views, cam, saturation=lf.fit_mask(),
-                                depth_range_mm=imaging_range_mm(cam))          # the CLI searches the camera's range
+    found, _, rec = find_planes(lf.views, cam, saturation=lf.fit_mask())
     with h5py.File(out) as f:
         got = json.loads(f.attrs["settings"])
         np.testing.assert_allclose(f["depths_mm"][...], found.planes_mm)
@@ -492,7 +491,8 @@ def test_a_quiet_light_fields_faint_flame_is_found_at_a_lower_prominence(cam, mo
     for prominence in (refine.REFINED_PROMINENCE, refine.REFINED_QUIET_PROMINENCE):
         with monkeypatch.context() as mp:
             mp.setattr(refine, "REFINED_QUIET_PROMINENCE", prominence)
-            found, _, rec = find_planes(views, cam)
+            # searched over -15 .. +25 mm, whose residual curve puts this flame's peak between the two prominences
+            found, _, rec = find_planes(views, cam, depth_range_mm=(-15.0, 25.0))
         scores[prominence] = score_flames(rec.planes, found.planes_mm, scene, cam,
                                           found=list(zip(found.depths_mm, found.masks)))
     strict, quiet = scores[refine.REFINED_PROMINENCE], scores[refine.REFINED_QUIET_PROMINENCE]
@@ -524,13 +524,14 @@ def test_a_noisy_light_fields_faint_flame_short_of_the_prominence_is_reported(ca
     views = _views(cam, scene, 86)
     faint = min((o for o in scene.objects), key=lambda o: o["radiance"] * o["height_mm"])["depth_offset_mm"]
     monkeypatch.setattr(noise_knobs, "noise_regime", lambda noise: "noisy")
-    found, _, _ = find_planes(views, cam)
+    narrow = (-15.0, 25.0)        # searched over these depths, the flame's residual peak stands between the two
+    found, _, _ = find_planes(views, cam, depth_range_mm=narrow)
     assert np.min(np.abs(found.depths_mm - faint)) > 1.0, found.depths_mm          # not taken
     assert len(found.possible) == 1, found.possible
     p = found.possible[0]
     assert abs(p["depth_mm"] - faint) < 0.5 and refine.POSSIBLE_PROMINENCE <= p["prominence"] < refine.REFINED_PROMINENCE
     assert p["share"] >= refine.REFINED_SHARE
-    # the command line searches the camera's whole imaging range, where this flame stands higher: asked more
+    # over the camera's whole imaging range (the default, as on the command line) it stands higher: asked more
     raw = tmp_path / "column.npz"
     np.savez(raw, raw=views_to_raw(views), camera=cam.to_json())
     out = tmp_path / "column.h5"
@@ -544,7 +545,7 @@ def test_a_noisy_light_fields_faint_flame_short_of_the_prominence_is_reported(ca
     assert f"a flame may stand at {recorded[0]['depth_mm']:+.2f} mm" in err and "--depth" in err, err
     # asked to stand higher than it does, it is not reported
     monkeypatch.setattr(refine, "POSSIBLE_PROMINENCE", p["prominence"] + 0.1)
-    assert find_planes(views, cam)[0].possible == []
+    assert find_planes(views, cam, depth_range_mm=narrow)[0].possible == []
     # a recording's planes, found in its first frame as reconstruct finds them, warn of it too
     import dataclasses
 
@@ -601,7 +602,6 @@ def test_the_cli_finds_the_hidden_flame_as_the_library_route(cam, tmp_path, caps
     import h5py
 
     from lf_flame.cli import main
-    from lf_flame.real.lightfield import imaging_range_mm
     from lf_flame.refocus.shift_and_sum import views_to_raw
     from lf_flame.simulate.scenes_depth import column_scene
     views = _views(cam, column_scene(cam, np.random.default_rng(4)), 4)
@@ -610,8 +610,7 @@ def test_the_cli_finds_the_hidden_flame_as_the_library_route(cam, tmp_path, caps
     out = tmp_path / "column.h5"
     assert main(["reconstruct", str(raw), "--out", str(out)]) == 0
     assert "found in the residual" in capsys.readouterr().out
-    found, _, rec = find_planes(raw_to_views(views_to_raw(views), cam.pixels_per_lenslet), cam,
-                                depth_range_mm=imaging_range_mm(cam))
+    found, _, rec = find_planes(raw_to_views(views_to_raw(views), cam.pixels_per_lenslet), cam)
     assert len(found.depths_mm) == 3
     with h5py.File(out) as f:
         np.testing.assert_allclose([d["depth_mm"] for d in json.loads(f.attrs["found_depths"])], found.depths_mm)
@@ -794,12 +793,11 @@ def test_the_depth_search_takes_a_grid_that_runs_past_infinity():
     camera's 50 mm lens at 250 mm too): the search grid runs past the slope that focuses at infinity, where
     converting the grid's slopes to depths raised 'focuses at or beyond infinity' in the residual's search. Both
     searches skip those slopes."""
-    from lf_flame.real.lightfield import imaging_range_mm
     from lf_flame.tomo.peel import missed_depths
     far = PlenopticCamera(focus_distance_mm=10000.0, n_rows=60, n_cols=40)
     scene = random_depth_scene(far, np.random.default_rng(5), n_flames=2)
     views = _views(far, scene, 5, rays=8)
-    found = find_depths(views, far, depth_range_mm=imaging_range_mm(far))
+    found = find_depths(views, far)
     assert found.grid_slopes.max() > far.slope_for_depth(1e15)
     assert len(found.depths_mm) and np.all(np.isfinite(found.depths_mm))
     more = missed_depths(views, far, found, prominence=1.0, share=0.0)      # the data as the residual: a peak

@@ -157,7 +157,7 @@ def cmd_slopes(a):
     views, cam = views_and_camera(a)
     lo, hi = a.lo, a.hi
     if lo is None or hi is None:
-        from ..real.lightfield import MAX_SEARCH_SLOPE, imaging_range_mm
+        from ..optics.camera import MAX_SEARCH_SLOPE, imaging_range_mm
         if cam is None:
             s_lo, s_hi = -MAX_SEARCH_SLOPE, MAX_SEARCH_SLOPE
         else:
@@ -198,10 +198,10 @@ def cmd_slopes(a):
 
 
 def _emission_regions(views, cam):
-    """The flames the depth search finds (:func:`lf_flame.cli.volume.search_depths`, ``reconstruct``'s search): one
+    """The flames the depth search finds (:func:`lf_flame.tomo.depth.find_depths`, ``reconstruct``'s search): one
     object per found depth, the bounding box of the lenslets that voted for it as ``roi`` (lenslets)."""
-    from .volume import search_depths
-    found = search_depths(views, cam)
+    from ..tomo.depth import find_depths
+    found = find_depths(views, cam)
     objects = []
     for k, m in enumerate(found.masks):
         rows, cols = np.nonzero(m)

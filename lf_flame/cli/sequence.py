@@ -128,7 +128,7 @@ def cmd_sequence(a):
         else:                            # the depths found in the first frame, as reconstruct finds a capture's
             depths = first_frame_depths(source, real, calibration, colour)
         slopes = list(a.slope) if a.slope else [cam.slope_for_depth(d) for d in depths]
-        from ..real.lightfield import check_imaging_range
+        from ..optics.camera import check_imaging_range
         check_imaging_range(cam, depths)
         job, truth = SequenceJob(source, cam, fps, tuple(depths), tuple(slopes), (None,) * len(depths), a.route,
                                  cal, a.white, a.dark, chunk=a.chunk, bin_views=k, sensor=sensor, **knobs), None

@@ -45,7 +45,7 @@ def reconstruct_input(a, colour: bool = False):
             raise ValueError(f"--depths takes auto, scene, paper or depths in mm separated by commas. Received: "
                              f"{a.depths!r}") from None
     if depths != "auto":
-        from ..real.lightfield import check_imaging_range
+        from ..optics.camera import check_imaging_range
         check_imaging_range(cam, depths)
     return lf, depths, objects
 
@@ -59,17 +59,10 @@ def found_planes(lf, views=None):
     return search_planes(lf.views if views is None else views, lf.camera)
 
 
-def search_depths(views, camera):
-    """The depth search of every command: :func:`lf_flame.tomo.depth.find_depths` of views (N, N, R, C) of
-    ``camera`` over its imaging range."""
-    from ..real.lightfield import imaging_range_mm
-    from ..tomo.depth import find_depths
-    return find_depths(views, camera, depth_range_mm=imaging_range_mm(camera))
-
-
 def search_planes(views, camera):
     """:func:`found_planes` of views (N, N, R, C) of ``camera``, searched over its imaging range."""
-    found = search_depths(views, camera)
+    from ..tomo.depth import find_depths
+    found = find_depths(views, camera)
     if not len(found.planes_mm):
         raise ValueError("--depths auto found no emission in the views; give the planes (--depth or --depths)")
     record = found_record(found)

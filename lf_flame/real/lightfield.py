@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..optics.camera import PlenopticCamera
+from ..optics.camera import PlenopticCamera, imaging_range_mm
 from .own_camera import DecodedFrame
 
 #: Suffixes read as a raw image by :func:`read_light_field` (besides ``VIEWS.h5``).
@@ -171,7 +171,7 @@ class LightField:
 
     def depth_range_mm(self, depth_range_mm=None) -> tuple[float, float]:
         """Depths to search, mm from the focus distance: the camera's imaging range
-        (:func:`imaging_range_mm`), clipped to ``depth_range_mm`` when given."""
+        (:func:`lf_flame.optics.camera.imaging_range_mm`), clipped to ``depth_range_mm`` when given."""
         lo, hi = imaging_range_mm(self.camera)
         if depth_range_mm is None:
             return lo, hi
@@ -182,83 +182,6 @@ class LightField:
             raise ValueError(f"depths {a:+g} .. {b:+g} mm lie outside what this camera can refocus "
                              f"({lo:+.3g} .. {hi:+.3g} mm from its focus distance)")
         return max(a, lo), min(b, hi)
-
-
-#: The largest |slope| (lenslets per view step) searched unless told: beyond it a point's image
-#: moves more than this many lenslets between neighbouring views and every view sees it blurred
-#: over as many lenslets (the paper's planes reach 2.28).
-MAX_SEARCH_SLOPE = 3.0
-#: The nearest depth searched is where the object distance is this multiple of the main lens's
-#: focal length (nearer, the image runs off to infinity).
-NEAR_LIMIT = 1.05
-
-
-def imaging_range_mm(camera: PlenopticCamera, max_slope: float = MAX_SEARCH_SLOPE) -> tuple[float, float]:
-    """Depths (mm from the focus distance) a camera can refocus: slopes within ``max_slope``,
-    object distances beyond :data:`NEAR_LIMIT` focal lengths (and finite), or, for a camera focused
-    nearer than that (a microscope objective's magnification), beyond halfway from the focal length to
-    the focus distance.
-
-    Parameters
-    ----------
-    camera : PlenopticCamera
-    max_slope : float
-        Largest |slope|, lenslets per view step, > 0.
-
-    Returns
-    -------
-    (near, far) : float, float
-        mm, negative nearer the camera. ``far`` is capped at 10 focus distances.
-
-    Notes
-    -----
-    ``slope(z) = -d (1 - d / z_i) / (g N)`` (``PlenopticCamera.slope_for_depth``) rises
-    monotonically from minus infinity at the main lens's focal length ``F`` to
-    ``d (d - F) / (F g N)`` at infinity; the range is where ``|slope| <= max_slope``, found by
-    bisection on each side of the focus distance.
-    """
-    if not (math.isfinite(max_slope) and max_slope > 0):
-        raise ValueError(f"max_slope must be positive and finite. Received: {max_slope!r}")
-    z_f = camera.focus_distance_mm
-    near_mm = min(NEAR_LIMIT * camera.main_focal_mm, (camera.main_focal_mm + z_f) / 2) - z_f
-    far_mm = 10.0 * z_f
-
-    def slope(d):
-        return camera.slope_for_depth(d)
-
-    def edge(a, b, target):     # bisection for slope(d) = target between a (inside) and b (outside)
-        for _ in range(80):
-            m = 0.5 * (a + b)
-            if abs(slope(m)) <= abs(target):
-                a = m
-            else:
-                b = m
-        return a
-    lo = near_mm if abs(slope(near_mm)) <= max_slope else edge(0.0, near_mm, max_slope)
-    hi = far_mm if abs(slope(far_mm)) <= max_slope else edge(0.0, far_mm, max_slope)
-    return float(lo), float(hi)
-
-
-def check_imaging_range(camera: PlenopticCamera, depths_mm) -> None:
-    """Refuse planes the camera cannot refocus: depths outside :func:`imaging_range_mm`.
-
-    Parameters
-    ----------
-    camera : PlenopticCamera
-    depths_mm : sequence of float
-        Plane depths, mm from the focus distance (> 0 farther).
-
-    Raises
-    ------
-    ValueError
-        Naming the depths outside the range and the range.
-    """
-    lo, hi = imaging_range_mm(camera)
-    far = [float(d) for d in depths_mm if not lo <= d <= hi]
-    if far:
-        raise ValueError(f"planes at {', '.join(f'{d:+g}' for d in far)} mm lie outside what this camera can "
-                         f"refocus ({lo:+.3g} .. {hi:+.3g} mm from its focus distance, |slope| <= "
-                         f"{MAX_SEARCH_SLOPE:g} lenslets per view)")
 
 
 def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation: float | str | None = "auto",

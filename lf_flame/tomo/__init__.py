@@ -35,7 +35,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "revolve": ["RevolveOperator", "NormalMatrices", "fit_emission", "wide_operator"],
         "axis": ["EDGE_SHARE", "MIRROR_ONE_SIDED", "reaches_edge", "lit_profile", "axis_x_from_views"],
         "decoded": ["MIN_WHITE", "white_views", "decoded_problem", "decoded_truth", "decoded_plane_truth", "fit_data"],
-        "depth": ["DEPTH_RANGE_MM", "SLOPE_STEP", "MERGE_MM", "MIN_SEPARATION_MM", "FoundDepths", "find_depths",
+        "depth": ["SLOPE_STEP", "MERGE_MM", "MIN_SEPARATION_MM", "FoundDepths", "find_depths",
                   "merge_depths", "depth_scale", "depth_tolerance_scale", "depth_tolerances"],
         "peel": ["RESIDUAL_PROMINENCE", "RESIDUAL_SHARE", "PEEL_ROUNDS", "missed_depths", "peel_planes"],
         "refine": ["REFINE_STEPS", "REFINE_MAX_SLOPE", "REFINE_TOL", "REFINE_REACH", "REFINED_PROMINENCE",

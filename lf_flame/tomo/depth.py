@@ -44,11 +44,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from ..optics.camera import PlenopticCamera
+from ..optics.camera import PlenopticCamera, imaging_range_mm
 from ..refocus.shift_and_sum import FourierSlice, _check_finite, aperture_mask
 
-#: Depths (mm from the focal plane) searched unless told: the paper camera's usable slopes (-1.9 .. +2.8).
-DEPTH_RANGE_MM = (-15.0, 25.0)
 #: Coarse slope step (lenslets per view step) on 15 views: about 0.33 mm of depth at the paper camera's focal
 #: plane; on ``N`` views ``SLOPE_STEP * 14 / (N - 1)``, so that the outermost view moves as far per step.
 SLOPE_STEP = 0.04
@@ -279,7 +277,7 @@ def _half_width(curve, i):
     return 0.5 * (hi - lo)
 
 
-def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM, slope_step: float | None = None,
+def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_step: float | None = None,
                 threshold: float = 0.12, sigma: float = 1.5, min_pixels: int = 6, peak_fraction: float = 0.1,
                 vote_floor: float = 0.02,
                 min_separation_mm: float | None = None, merge_mm: float | None = None) -> FoundDepths:
@@ -291,8 +289,9 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
         Sub-aperture views (:func:`lf_flame.refocus.shift_and_sum.raw_to_views`), radiance units.
     camera : PlenopticCamera
         The camera that took them (slope <-> depth).
-    depth_range_mm : (float, float)
-        Depths searched (mm from the focal plane, positive farther), low < high.
+    depth_range_mm : (float, float) or None
+        Depths searched (mm from the focal plane, positive farther), low < high; None: every depth the camera
+        can refocus (:func:`lf_flame.optics.camera.imaging_range_mm`, -23.0 .. +26.8 mm on the paper's camera).
     slope_step : float or None
         Step of the coarse slope grid (lenslets per view step), > 0; None: :data:`SLOPE_STEP`
         scaled to the views' count (``14 / (N - 1)``).
@@ -330,7 +329,7 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=DEPTH_RANGE_MM
     if slope_step is None:
         slope_step = SLOPE_STEP * 14.0 / max(v.shape[0] - 1, 1)
     min_separation_mm, merge_mm = depth_tolerances(camera, v.shape[0], min_separation_mm, merge_mm)
-    lo, hi = (float(d) for d in depth_range_mm)
+    lo, hi = (float(d) for d in (imaging_range_mm(camera) if depth_range_mm is None else depth_range_mm))
     if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
         raise ValueError(f"depth_range_mm must be two finite depths, low < high. Received: {depth_range_mm!r}")
     for name, val, ok in (("slope_step", slope_step, slope_step > 0), ("threshold", threshold, 0 < threshold < 1),
