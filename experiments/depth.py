@@ -96,7 +96,8 @@ SCORE_VERSION = "side-by-side"
 #: own (``peel_and_refine``); "-quiet-excess": in a quiet light field that search asks a lower prominence of a peak
 #: whose height above the residual's floor holds ``REFINED_SHARE`` (``REFINED_QUIET_PROMINENCE``); "-possible": the
 #: rows record the depths that search saw and did not take (``FoundDepths.possible``; the route's planes unchanged).
-ROUTE_VERSION = "near-peel-prominence-refine-unmerged-search-own-planes-quiet-excess-possible"
+#: "-camera-range": the depths searched are the camera's imaging range (``imaging_range_mm``), not -15 .. +25 mm.
+ROUTE_VERSION = "near-peel-prominence-refine-unmerged-search-own-planes-quiet-excess-possible-camera-range"
 
 
 def add_noise(raw, snr_db, seed):
