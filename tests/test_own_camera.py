@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from lf_flame import cli
-from lf_flame.optics.camera import PAPER_CAMERA
+from lf_flame.optics.camera import PAPER_CAMERA, imaging_range_mm
 from lf_flame.optics.camera_file import camera_from_datasheet, decoded_camera, load_camera_file
 from lf_flame.real import decoding, view_grid, views_file
 from lf_flame.real.calibration import GridCalibration
@@ -490,7 +490,9 @@ def test_profiles_measure_the_flames_of_decoded_views(tmp_path, capsys):
     assert np.allclose(again.height_mm, df.height_mm, atol=0.02), (again, df)
     capsys.readouterr()                  # no planes given: the depths found in the views, as reconstruct finds them
     assert run("profiles", tmp_path / "v.h5", "--camera", EXAMPLE, "--out", tmp_path / "found") == 0
-    assert "found 3 depths" in capsys.readouterr().out
+    from lf_flame.real.lightfield import read_light_field
+    lo, hi = imaging_range_mm(read_light_field(tmp_path / "v.h5", EXAMPLE).camera)     # the decoded views' camera's
+    assert f"found 3 depths (searched {lo:+.1f} .. {hi:+.1f} mm" in capsys.readouterr().out
     found = pd.read_csv(tmp_path / "found.csv")
     assert np.allclose(found.depth_mm, df.depth_mm, atol=0.5) and np.allclose(found.height_mm, df.height_mm, atol=0.1)
 

@@ -66,7 +66,9 @@ def search_planes(views, camera):
     if not len(found.planes_mm):
         raise ValueError("--depths auto found no emission in the views; give the planes (--depth or --depths)")
     record = found_record(found)
-    print(f"found {len(record)} depths in {found.time_s:.2f} s: " + ", ".join(
+    lo, hi = found.depth_range_mm
+    print(f"found {len(record)} depths (searched {lo:+.1f} .. {hi:+.1f} mm, what the camera can refocus) in "
+          f"{found.time_s:.2f} s: " + ", ".join(
         f"{r['depth_mm']:+.2f} +- {r['uncertainty_mm']:.2f} mm" for r in record)
         + f" -> {len(found.planes_mm)} planes")
     return [float(d) for d in found.planes_mm], record, found

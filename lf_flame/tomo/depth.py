@@ -152,6 +152,8 @@ class FoundDepths:
         fields hold both faint flames and misfits): each ``depth_mm``, ``prominence`` (robust
         standard deviations of the residual's focus curve), ``share`` (of the data's peak
         energy) and ``region``. Empty from :func:`find_depths`.
+    depth_range_mm : (float, float)
+        The depths searched (mm from the focal plane), low < high.
     """
 
     depths_mm: np.ndarray
@@ -168,6 +170,7 @@ class FoundDepths:
     grid_slopes: np.ndarray = field(repr=False)
     time_s: float = float("nan")
     possible: list = field(default_factory=list, repr=False)
+    depth_range_mm: tuple = (float("nan"), float("nan"))
 
 
 def _grid_depths(camera: PlenopticCamera, slopes) -> np.ndarray:
@@ -406,7 +409,7 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
                        weight=np.array([r["weight"] for r in rows]), region=np.array([r["region"] for r in rows], int),
                        masks=np.array([r["mask"] for r in rows], bool).reshape(len(rows), R, C), labels=labels,
                        planes_mm=planes, plane_of=plane_of, curves=[r["curve"] for r in rows], grid_slopes=slopes,
-                       time_s=time.perf_counter() - t0)
+                       time_s=time.perf_counter() - t0, depth_range_mm=(lo, hi))
 
 
 def _focus_energy(views, slopes, sigma, laplacian=False):

@@ -142,7 +142,8 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
                        width_mm=cat(found.width_mm, "width"), weight=weight, region=cat(found.region, "region"),
                        masks=np.concatenate([found.masks, np.array([q["mask"] for q in rows])])[order],
                        labels=found.labels, planes_mm=planes, plane_of=plane_of,
-                       curves=[curves[k] for k in order], grid_slopes=slopes, time_s=found.time_s)
+                       curves=[curves[k] for k in order], grid_slopes=slopes, time_s=found.time_s,
+                       depth_range_mm=found.depth_range_mm)
 
 
 def peel_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamera, solve, rounds: int = PEEL_ROUNDS,
