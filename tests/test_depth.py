@@ -282,6 +282,14 @@ def test_cli_reconstruct_finds_the_planes_by_default(cam, planted, tmp_path, cap
         np.testing.assert_allclose(sorted(r["depth_mm"] for r in found), true, atol=0.3)
         assert all(r["uncertainty_mm"] > 0 for r in found)
         np.testing.assert_allclose(sorted(f["depths_mm"][...]), true, atol=0.3)
+    # a search narrowed to the nearer flame's depths (--search-range) finds it alone, and says where it searched
+    lo, hi = true[0] - 2.0, (true[0] + true[1]) / 2
+    assert main(["reconstruct", str(raw), "--search-range", str(lo), str(hi), "--no-figure", "--out", str(out)]) == 0
+    assert f"found 1 depths (searched {lo:+.1f} .. {hi:+.1f} mm" in capsys.readouterr().out
+    with h5py.File(out) as f:
+        np.testing.assert_allclose(f["depths_mm"][...], true[:1], atol=0.3)
+    assert main(["reconstruct", str(raw), "--search-range", "400", "500", "--out", str(out)]) == 2
+    assert "outside what this camera can refocus" in capsys.readouterr().err
     assert main(["reconstruct", str(raw), "--depths", "1.5,-2", "--solver", "adjoint", "--out", str(out)]) == 0
     with h5py.File(out) as f:
         np.testing.assert_allclose(f["depths_mm"][...], [1.5, -2.0])

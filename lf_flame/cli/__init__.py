@@ -22,7 +22,7 @@ from ..tomo.defaults import (ADMM_KNOBS, ADMM_QUIET, ADMM_SUBSAMPLES, ADMM_TV, D
                               DEFAULT_TV, EXACT_SOLVER, SOLVERS, SUBSAMPLES_MAX_PLANES, VOLUME_L1, VOLUME_MAX_PLANES,
                               VOLUME_PRIOR, VOLUME_PRIORS, VOLUME_STEP_MM, VOLUME_TV)
 from ..tomo.resolution import AXES, CONDITIONS, DEFAULT_FAR_MM, DEFAULT_NEAR_MM, DEFAULT_SPACING_MM, FEATURE_SIZES_MM
-from ._io import RAW_FORMATS, add_camera_args, check_outputs, fraction, positive_int
+from ._io import RAW_FORMATS, add_camera_args, add_search_arg, check_outputs, fraction, positive_int
 from .learning import cmd_dataset, cmd_evaluate, cmd_predict, cmd_tables, cmd_train
 from .optics import cmd_refocus, cmd_simulate, cmd_slopes
 from .profiles import PROFILES_ROUTE, cmd_profiles
@@ -231,6 +231,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="views summed: all, or those inside the main lens's circular aperture")
     s.add_argument("--out", required=True, help=".npz (the planes as 'stack', with 'slopes' and 'depths_mm'), or "
                    ".png/.pdf/.svg: a figure of the planes in object-space mm at their depths, one colour bar")
+    add_search_arg(s)
     s.set_defaults(func=cmd_refocus)
 
     s = sub.add_parser("slopes", help="sharpest slope of each object of a raw image (table and plot of the "
@@ -313,6 +314,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "processes, >= 1 (default: serial, Numba's threads)")
     s.add_argument("--scheduler", help="an existing Dask cluster: address (tcp://...) or scheduler file")
     s.add_argument("--out", required=True, help="output folder (resumed when it holds the same run)")
+    add_search_arg(s)
     s.set_defaults(func=cmd_sequence)
 
     s = sub.add_parser("train", help="train the decoder on cached backbone features (resumable)")
@@ -358,6 +360,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True, help="PREFIX: writes PREFIX.csv (one row per plane), PREFIX.axial.csv "
                                                "and PREFIX.png")
     add_figure_arg(s, "each plane with its height, widths and profiles marked")
+    add_search_arg(s)
     s.set_defaults(func=cmd_profiles)
 
     s = sub.add_parser("reconstruct", help="each plane's emission from one light field (3-D reconstruction with "
@@ -426,6 +429,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True, help="volume.h5 (planes, depths, mm per sample, settings, residuals); "
                                                "the figure goes beside it as .png")
     add_figure_arg(s, "each plane beside its refocused plane and, for a simulated scene, the truth")
+    add_search_arg(s)
     s.set_defaults(func=cmd_reconstruct)
 
     def sensor_args(s, calibration_default):
@@ -485,6 +489,7 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", required=True, help="T.h5: temperature_k, valid, dim (plane, row, col), emission, "
                    "depths_mm, counts, provenance; the figure goes beside it as .png")
     add_figure_arg(s, "each plane's temperature map in mm, one colour bar in K")
+    add_search_arg(s)
     s.set_defaults(func=cmd_temperature)
 
     s = sub.add_parser("resolution", help="the camera's depth-resolution map: the smallest plane spacing that "

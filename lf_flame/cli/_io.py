@@ -183,6 +183,14 @@ def check_outputs(a) -> None:
             check_output(v)
 
 
+def add_search_arg(s):
+    """``--search-range``: the depths the search for the planes covers (``--depths auto``)."""
+    s.add_argument("--search-range", nargs=2, type=float, metavar=("NEAR", "FAR"),
+                   help="depths (mm from the focus distance, > 0 farther) the search for the planes covers, clipped "
+                        "to what the camera can refocus (default: all of that, printed): where the flames are known "
+                        "to lie, a narrower search is faster and takes no light outside it for a flame")
+
+
 def add_camera_args(s):
     """``--camera`` and ``--calibration``: the options of every command that reads a light field."""
     s.add_argument("--camera", help="camera file (TOML: the datasheet tables of docs/own_camera.md, or a [camera] "

@@ -87,7 +87,7 @@ def cmd_refocus(a):
         if cam is None:
             raise ValueError(f"give the planes (--slope), or the camera of {a.raw} (--camera cam.toml) to find them")
         from .volume import search_planes
-        a.depth = search_planes(views, cam)[0]
+        a.depth = search_planes(views, cam, a.search_range)[0]
     if a.depth:
         if cam is None:
             raise ValueError(f"--depth needs the camera of {a.raw}: give --camera cam.toml (or use --slope)")

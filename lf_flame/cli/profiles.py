@@ -117,7 +117,7 @@ def _decoded_profiles_input(a):
     cam = lf.camera
     objects = None if str(a.raw).endswith(".h5") else _raw_objects(a.raw)
     depths = (_given_depths(a) or ([cam.depth_for_slope(v) for v in a.slope] if a.slope else _object_depths(objects))
-              or found_planes(lf)[0])
+              or found_planes(lf, search_range=a.search_range)[0])
     from ..optics.camera import check_imaging_range
     check_imaging_range(cam, depths)
     slopes = [cam.slope_for_depth(d) for d in depths]

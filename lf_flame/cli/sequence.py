@@ -43,11 +43,12 @@ def decoded_views_camera(camera, calibration, colour: bool = False):
     return views_camera(camera, calibration, views_shape(calibration, None, k), k), k
 
 
-def first_frame_depths(source, camera, calibration=None, sensor=None) -> list:
+def first_frame_depths(source, camera, calibration=None, sensor=None, search_range=None) -> list:
     """The planes of a recording without given ones: those ``reconstruct --depths auto`` finds in its first frame
     (depths found, the residual searched, the depths of flames one behind another refined:
     :func:`lf_flame.cli.volume.found_planes`, :func:`~lf_flame.cli.volume.solve_found`), the frame decoded with
-    ``calibration`` where given (``camera`` the real one, ``sensor`` a colour camera's). A depth the residual's
+    ``calibration`` where given (``camera`` the real one, ``sensor`` a colour camera's), searched over
+    ``search_range`` (``--search-range``; None: what the camera can refocus). A depth the residual's
     search saw and did not take is warned of (:func:`~lf_flame.cli.volume.possible_warning`)."""
     from ..real.lightfield import decode_capture, from_raw
     from ..temperature.channels import monochrome_light_field
@@ -56,7 +57,7 @@ def first_frame_depths(source, camera, calibration=None, sensor=None) -> list:
     lf = monochrome_light_field(from_raw(raw, camera, "the first frame") if calibration is None else  # colour: levelled
                                 decode_capture(raw, camera, calibration, sensor, "the first frame"))
     print("the recording's planes, as reconstruct finds a capture's, in its first frame:")
-    _, _, found = found_planes(lf)
+    _, _, found = found_planes(lf, search_range=search_range)
     found, _, _ = solve_found(lf, found)
     print("planes after the residual's search and refinement: " + ", ".join(f"{d:+.2f}" for d in found.planes_mm)
           + " mm")
@@ -126,7 +127,7 @@ def cmd_sequence(a):
         if a.depth or a.slope:
             depths = [float(v) for v in a.depth] if a.depth else [cam.depth_for_slope(s) for s in a.slope]
         else:                            # the depths found in the first frame, as reconstruct finds a capture's
-            depths = first_frame_depths(source, real, calibration, colour)
+            depths = first_frame_depths(source, real, calibration, colour, a.search_range)
         slopes = list(a.slope) if a.slope else [cam.slope_for_depth(d) for d in depths]
         from ..optics.camera import check_imaging_range
         check_imaging_range(cam, depths)

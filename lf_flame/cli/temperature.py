@@ -251,7 +251,7 @@ def cmd_temperature(a):
         else:                                           # the channels' sum on the lattice, then on the square grid
             from ..real.view_grid import hex_to_square
             mono = hex_to_square(channel_sum_views(lf.lattice_views, chan, ch))
-        depths, found, _ = found_planes(lf, mono)
+        depths, found, _ = found_planes(lf, mono, a.search_range)
         extra = dict(depths_from="auto (channel sum)", found_depths=found)
     chosen, knobs, ratio_filter = {}, None, None
     slopes = [cam.slope_for_depth(d) for d in depths]

@@ -50,24 +50,26 @@ def reconstruct_input(a, colour: bool = False):
     return lf, depths, objects
 
 
-def found_planes(lf, views=None):
+def found_planes(lf, views=None, search_range=None):
     """``--depths auto``: the depths holding emission (:func:`lf_flame.tomo.depth.find_depths` over the
-    camera's imaging range), printed, their record for the HDF5 (each found depth, its uncertainty,
-    peak width, plane and region) and the :class:`~lf_flame.tomo.depth.FoundDepths` itself (its masks:
-    the lenslets that voted for each depth). ``views``: other views of ``lf.camera`` to search (a
-    channel sum)."""
-    return search_planes(lf.views if views is None else views, lf.camera)
+    camera's imaging range, clipped to ``search_range``: ``--search-range``), printed, their record for the HDF5
+    (each found depth, its uncertainty, peak width, plane and region) and the
+    :class:`~lf_flame.tomo.depth.FoundDepths` itself (its masks: the lenslets that voted for each depth).
+    ``views``: other views of ``lf.camera`` to search (a channel sum)."""
+    return search_planes(lf.views if views is None else views, lf.camera, search_range)
 
 
-def search_planes(views, camera):
-    """:func:`found_planes` of views (N, N, R, C) of ``camera``, searched over its imaging range."""
+def search_planes(views, camera, search_range=None):
+    """:func:`found_planes` of views (N, N, R, C) of ``camera``, searched over its imaging range clipped to
+    ``search_range`` (:func:`lf_flame.optics.camera.search_range_mm`)."""
+    from ..optics.camera import search_range_mm
     from ..tomo.depth import find_depths
-    found = find_depths(views, camera)
+    found = find_depths(views, camera, depth_range_mm=search_range_mm(camera, search_range))
     if not len(found.planes_mm):
         raise ValueError("--depths auto found no emission in the views; give the planes (--depth or --depths)")
     record = found_record(found)
     lo, hi = found.depth_range_mm
-    print(f"found {len(record)} depths (searched {lo:+.1f} .. {hi:+.1f} mm, what the camera can refocus) in "
+    print(f"found {len(record)} depths (searched {lo:+.1f} .. {hi:+.1f} mm; --search-range to narrow) in "
           f"{found.time_s:.2f} s: " + ", ".join(
         f"{r['depth_mm']:+.2f} +- {r['uncertainty_mm']:.2f} mm" for r in record)
         + f" -> {len(found.planes_mm)} planes")
@@ -354,7 +356,7 @@ def cmd_reconstruct(a):
         raise ValueError("--support holds each plane to the regions its depth was found in: it goes with the found "
                          "depths (--depths auto, the default), not with planes given")
     if depths == "auto":
-        depths, found, voters = found_planes(lf)
+        depths, found, voters = found_planes(lf, search_range=a.search_range)
         extra = dict(depths_from="auto", found_depths=found, support=bool(getattr(a, "support", False)))
         arrays = dict(found_masks=np.asarray(voters.masks, bool), found_regions=voters.labels)
     if lf.decoded:

@@ -525,6 +525,27 @@ def imaging_range_mm(camera: PlenopticCamera, max_slope: float = MAX_SEARCH_SLOP
     return float(lo), float(hi)
 
 
+def search_range_mm(camera: PlenopticCamera, depth_range_mm=None) -> tuple[float, float]:
+    """Depths to search (mm from the focus distance, > 0 farther): the camera's imaging range
+    (:func:`imaging_range_mm`), clipped to ``depth_range_mm`` (low, high) when given.
+
+    Raises
+    ------
+    ValueError
+        ``depth_range_mm`` not two finite depths, low < high, or wholly outside the imaging range.
+    """
+    lo, hi = imaging_range_mm(camera)
+    if depth_range_mm is None:
+        return lo, hi
+    a, b = (float(d) for d in depth_range_mm)
+    if not (math.isfinite(a) and math.isfinite(b) and b > a):
+        raise ValueError(f"a depth range is two finite depths, low < high. Received: {depth_range_mm!r}")
+    if b <= lo or a >= hi:
+        raise ValueError(f"depths {a:+g} .. {b:+g} mm lie outside what this camera can refocus "
+                         f"({lo:+.3g} .. {hi:+.3g} mm from its focus distance)")
+    return max(a, lo), min(b, hi)
+
+
 def check_imaging_range(camera: PlenopticCamera, depths_mm) -> None:
     """Refuse planes the camera cannot refocus: depths outside :func:`imaging_range_mm`.
 

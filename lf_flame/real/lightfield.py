@@ -20,13 +20,12 @@ camera and mask together in the same way).
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from ..optics.camera import PlenopticCamera, imaging_range_mm
+from ..optics.camera import PlenopticCamera, search_range_mm
 from .own_camera import DecodedFrame
 
 #: Suffixes read as a raw image by :func:`read_light_field` (besides ``VIEWS.h5``).
@@ -170,18 +169,8 @@ class LightField:
         return self.defects | (own if np.ndim(own) else self.views >= own)
 
     def depth_range_mm(self, depth_range_mm=None) -> tuple[float, float]:
-        """Depths to search, mm from the focus distance: the camera's imaging range
-        (:func:`lf_flame.optics.camera.imaging_range_mm`), clipped to ``depth_range_mm`` when given."""
-        lo, hi = imaging_range_mm(self.camera)
-        if depth_range_mm is None:
-            return lo, hi
-        a, b = (float(d) for d in depth_range_mm)
-        if not (math.isfinite(a) and math.isfinite(b) and b > a):
-            raise ValueError(f"a depth range is two finite depths, low < high. Received: {depth_range_mm!r}")
-        if b <= lo or a >= hi:
-            raise ValueError(f"depths {a:+g} .. {b:+g} mm lie outside what this camera can refocus "
-                             f"({lo:+.3g} .. {hi:+.3g} mm from its focus distance)")
-        return max(a, lo), min(b, hi)
+        """Depths to search, mm from the focus distance (:func:`lf_flame.optics.camera.search_range_mm`)."""
+        return search_range_mm(self.camera, depth_range_mm)
 
 
 def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation: float | str | None = "auto",

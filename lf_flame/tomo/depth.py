@@ -393,6 +393,8 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
             c_ten = ten[:, voters].sum(axis=1)
             c_lap = lap[:, voters].sum(axis=1)
             i = _local_max(c_ten, p, 2)
+            if i in (0, len(slopes) - 1):       # the focus rises to the grid's end, a step past the range: a flame
+                continue                        # beyond the depths searched, not one at their end
             s_ten = np.clip(np.interp(_peak_fit(c_ten, i), np.arange(len(slopes)), slopes), *imaged)
             j = _local_max(c_lap, p, 2)
             s_lap = np.clip(np.interp(_peak_fit(c_lap, j), np.arange(len(slopes)), slopes), *imaged)
