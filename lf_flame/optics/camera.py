@@ -18,6 +18,10 @@ of pixels apart, on a square or hexagonal lattice. The ``grid_*`` fields describ
 grid (:meth:`PlenopticCamera.lenslet_image_centres_px`); :mod:`lf_flame.simulate.tracer`
 renders through it and :mod:`lf_flame.real.calibration` recovers it from a white image.
 Pixel coordinates: pixel ``(i, j)`` covers rows ``[i, i + 1)`` and columns ``[j, j + 1)``.
+
+Imaging range: the depths a camera can refocus (:func:`imaging_range_mm`), which every depth
+search covers unless narrowed (:func:`search_range_mm`) and outside which planes are refused
+(:func:`check_imaging_range`).
 """
 from __future__ import annotations
 
