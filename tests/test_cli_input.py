@@ -84,8 +84,8 @@ def test_an_output_that_cannot_be_written_is_refused_before_the_work(tmp_path, c
     one line naming the path) before the command runs; the check itself refuses an unwritable
     folder (chmod: not as root, who may write anywhere)."""
     ran = []
-    monkeypatch.setattr(cli, "cmd_temperature", lambda a: ran.append(a))
-    monkeypatch.setattr(cli, "cmd_reconstruct", lambda a: ran.append(a))
+    monkeypatch.setattr(cli.temperature, "cmd_temperature", lambda a: ran.append(a))
+    monkeypatch.setattr(cli.volume, "cmd_reconstruct", lambda a: ran.append(a))
     afile = tmp_path / "afile.txt"
     afile.write_text("x")
     for argv in (["temperature", "in.npz", "--calibration", "bb.json", "--out", str(afile / "t.h5")],
@@ -115,7 +115,7 @@ def test_an_output_that_cannot_be_written_is_refused_before_the_work(tmp_path, c
 def test_ctrl_c_ends_with_one_line_and_130(capsys, monkeypatch):
     def interrupted(a):
         raise KeyboardInterrupt
-    monkeypatch.setattr(cli, "cmd_resolution", interrupted)
+    monkeypatch.setattr(cli.resolution, "cmd_resolution", interrupted)
     assert main(["resolution"]) == 130
     assert _one_error_line(capsys.readouterr().err) == "interrupted"
 
@@ -134,7 +134,7 @@ def test_failures_while_running_give_1_and_bad_input_2(capsys, monkeypatch):
                             (RuntimeError("the solver diverged"), 1, "error: the solver diverged"),
                             (SystemExit("error: give RAW"), 2, "error: give RAW"),
                             (ValueError("bad\nvalue"), 2, "error: bad value")):
-        monkeypatch.setattr(cli, "cmd_resolution", failing(exc))
+        monkeypatch.setattr(cli.resolution, "cmd_resolution", failing(exc))
         assert main(["resolution"]) == code
         assert _one_error_line(capsys.readouterr().err) == text
 

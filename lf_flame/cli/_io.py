@@ -3,6 +3,7 @@ objects stored beside a simulated raw image. Serves every command group.
 """
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
@@ -357,3 +358,22 @@ def camera_config(path):
         raise ValueError(f"{path} describes no camera: a camera file holds the datasheet tables "
                          f"{', '.join(f'[{k}]' for k in DATASHEET_KEYS)} (docs/own_camera.md) or a [camera] table")
     return _build(PlenopticCamera, table["camera"], f"{path} [camera]")
+
+
+def add_figure_arg(s, what: str) -> None:
+    """``--figure/--no-figure`` (``a.figure``, default True) of a command that draws ``what`` beside its output."""
+    s.add_argument("--figure", action=argparse.BooleanOptionalAction, default=True,
+                   help=f"the figure beside --out (.png: {what}); --no-figure skips it, and with it matplotlib's "
+                        "import (about a second of a small camera's command)")
+
+
+def _level_or_none(text: str):
+    """A sensor level for ``--saturation``, None for 'none', or 'auto' (found in the image)."""
+    t = text.strip().lower()
+    return None if t == "none" else "auto" if t == "auto" else float(text)
+
+
+#: What ``--saturation auto`` does (the help of the commands reading raw images).
+AUTO_LEVEL = ("found in the image, where its pixels pile up at its largest value (a sensor clips at one level: a "
+              "12-bit sensor's counts in a 16-bit file pile at 4095, or at 65520 shifted to the top bits), else 1.0 "
+              "for an image in [0, 1] (integer files are read scaled by their type's range)")

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..routes import LEARNED_ROUTES
-from ._io import _load_raw, _write_stack
+from ._io import RAW_FORMATS, _load_raw, _write_stack, positive_int
 
 
 def cmd_dataset(a):
@@ -122,3 +122,56 @@ def cmd_tables(a):
             if tv.exists():
                 targets[f"train {regime} {scene}"] = read_gnu_time(tv)
     print(write_tables(a.results, times, targets))
+
+
+def add_parsers(sub) -> None:
+    """Add ``dataset``, ``train``, ``predict``, ``evaluate`` and ``tables`` to ``sub``, the sub-parsers of
+    :func:`lf_flame.cli.build_parser`."""
+    s = sub.add_parser("dataset", help="generate (or resume) a dataset in HDF5")
+    s.add_argument("--data-config", required=True, help="data config TOML (camera, sizes, seed, regime)")
+    s.add_argument("--scene", choices=["shapes", "flame"], required=True, help="the paper's shapes or four flames")
+    s.add_argument("--slopes", required=True, help="JSON written by 'lf-flame slopes'")
+    s.add_argument("--regime", choices=["paper", "varied"],
+                   help="scene variation (docs/scenes.md) instead of the data config's")
+    s.add_argument("--out", required=True, help="dataset HDF5 (resumed when it exists)")
+    s.add_argument("--shard", help="i/N: render only shard i of N (1 <= i <= N) beside --out; an unsharded "
+                                   "run imports finished shards and renders the rest")
+    s.add_argument("--scheduler", help="render on the Dask cluster at this address (tcp://...) or scheduler file")
+    s.add_argument("--workers", type=positive_int, help="render on a local Dask cluster of this many worker "
+                   "processes (>= 1)")
+    s.add_argument("--quiet", action="store_true", help="no progress bar")
+    s.set_defaults(func=cmd_dataset)
+
+    s = sub.add_parser("train", help="train the decoder on cached backbone features (resumable)")
+    s.add_argument("--dataset", required=True, help="dataset HDF5 written by 'lf-flame dataset'")
+    s.add_argument("--experiment-config", required=True, help="experiment config TOML (model and training)")
+    s.add_argument("--out", required=True, help="model folder")
+    s.add_argument("--input-size", help="ROWSxCOLS: backbone input size instead of the config's")
+    s.add_argument("--time-budget-s", type=float, help="training time budget (s) instead of the config's")
+    s.add_argument("--quiet", action="store_true", help="no progress bar")
+    s.set_defaults(func=cmd_train)
+
+    s = sub.add_parser("predict", help="the trained model's 4 refocused planes of a raw image, with its latency")
+    s.add_argument("raw", help=RAW_FORMATS)
+    s.add_argument("--model-dir", required=True, help="folder written by 'lf-flame train'")
+    s.add_argument("--out", required=True, help=".npz (stack (4, R, C), latency_s) or .png (planes side by side)")
+    s.add_argument("--repeat", type=int, default=5, help="timed calls after the warm-up")
+    s.add_argument("--route", choices=list(LEARNED_ROUTES), default="network",
+                   help="the trained network, or one of its yardsticks saved beside it")
+    s.set_defaults(func=cmd_predict)
+
+    s = sub.add_parser("evaluate", help="SSIM/PSNR per plane on the test split, table and figure")
+    s.add_argument("--dataset", required=True, help="dataset HDF5 written by 'lf-flame dataset'")
+    s.add_argument("--model-dir", required=True, help="folder written by 'lf-flame train'")
+    s.add_argument("--results", required=True, help="folder for the table (CSV) and figure")
+    s.add_argument("--heldout", type=int, default=0,
+                   help="also score a second held-out set of this many samples, drawn with --heldout-seed")
+    s.add_argument("--heldout-seed", type=int, default=None,
+                   help="seed of the second held-out set: needed with --heldout, not the dataset's seed")
+    s.set_defaults(func=cmd_evaluate)
+
+    s = sub.add_parser("tables", help="collect Tables I and II, slopes and stage times into tables.md")
+    s.add_argument("--results", required=True, help="results folder: reads the evaluations, writes tables.md")
+    s.add_argument("--data-dir", required=True, help="folder of the datasets and slopes.json")
+    s.add_argument("--model-dir", required=True, help="folder of the trained models")
+    s.set_defaults(func=cmd_tables)

@@ -4,14 +4,16 @@ calibration of a data config).
 """
 from __future__ import annotations
 
+import argparse
 import json
 import time
 from pathlib import Path
 
 import numpy as np
 
-from ._io import (COLOUR_SCENES, _raw_objects, _save_image, _write_stack, camera_config, colour_scene, light_field,
-                  simulated_scene)
+from ._io import (COLOUR_SCENES, RAW_FORMATS, _raw_objects, _save_image, _write_stack, add_camera_args,
+                  add_search_arg, camera_config, colour_scene, light_field, simulated_scene)
+from ..simulate.scenes import PAPER_DEPTHS_MM
 
 
 
@@ -222,3 +224,92 @@ def _calibrate_slopes(a):
     df = write_slopes(cam, slopes, searches, objects, a.results)
     print(df.to_string(index=False))
     atomic_write_text(a.out, json.dumps({"slopes": slopes, "wall_time_s": time.perf_counter() - t}))
+
+
+def _bit_depth(text: str) -> int:
+    """``--bit-depth``: an integer from 1 to 32."""
+    try:
+        bits = int(text)
+    except ValueError:
+        bits = 0
+    if not 1 <= bits <= 32:
+        raise argparse.ArgumentTypeError(f"--bit-depth takes an integer from 1 to 32. Received: {text!r}")
+    return bits
+
+
+def add_parsers(sub) -> None:
+    """Add ``simulate``, ``refocus`` and ``slopes`` to ``sub``, the sub-parsers of :func:`lf_flame.cli.build_parser`."""
+    s = sub.add_parser("simulate", help="render a raw light-field image of a scene")
+    s.add_argument("--scene", choices=["shapes", "flame", "point", "volume", "depth", "white", "colour-flame",
+                                       "colour-depth", "furnace"], required=True,
+                   help="shapes: the paper's four shapes (rectangle, triangle, circle, square); flame: four "
+                        "flames; both at the paper's depths " + ", ".join(f"{d:+g}" for d in PAPER_DEPTHS_MM) +
+                        " mm; point: one point of light (--depth, --y, --x); volume: a volumetric laminar flame "
+                        "(a luminous sheath 10 mm across, at most 85 %% of the field, about a vertical axis through "
+                        "--depth, default 0, in 32 layers; 'reconstruct --volume'); depth: 2-4 flames at random "
+                        "depths, sizes and places (--seed), scaled to the camera (its depth of field and lenslet "
+                        "footprint); white: a flat field, the white image that 'lf-flame calibrate' takes; seen "
+                        "by a colour (Bayer) sensor, for 'lf-flame temperature': colour-flame: the four flames with "
+                        "their temperature fields; colour-depth: the depth scene's flames, each with a drawn "
+                        "temperature; furnace: a blackbody at --temperature filling the field, for "
+                        "'lf-flame calibrate-temperature'. The colour sensor is the camera file's [sensor] cfa "
+                        "(docs/own_camera.md), else colour-science's Nikon 5100 behind an RGGB CFA")
+    s.add_argument("--out", required=True, help=".npz (raw, camera, objects, scene[, views]) or .png (the raw "
+                   "image in 16 bits, clipped at 1, with the camera, objects and scene in its text); both read by "
+                   "the commands that take a raw image")
+    s.add_argument("--seed", type=int, default=0, help="seed of the scene's random variation and of the rays")
+    s.add_argument("--rays-per-pixel", type=int, default=16, help="rays traced per sensor pixel (fewer: faster, "
+                   "noisier)")
+    s.add_argument("--data-config", "--camera", dest="data_config", help="camera file (the datasheet tables of "
+                   "docs/own_camera.md) or a TOML with a [camera] table (default: the paper's camera); the scene's "
+                   "depths are mm from its focus distance")
+    s.add_argument("--nominal", action="store_true", help="the nominal scene (no random variation)")
+    s.add_argument("--views", action="store_true", help="also store sub-aperture views (N, N, R, C)")
+    s.add_argument("--crosstalk", action="store_true", help="add crosstalk through neighbouring lenslets")
+    s.add_argument("--bit-depth", type=_bit_depth, help="quantise the raw image to this many bits, 1-32 (default: "
+                   "not quantised)")
+    s.add_argument("--temperature", type=float, help="furnace scene: the blackbody's temperature (K)")
+    s.add_argument("--depth", type=float, default=0.0, help="point scene: depth offset (mm)")
+    s.add_argument("--y", type=float, default=0.0, help="point scene: height (mm)")
+    s.add_argument("--x", type=float, default=0.0, help="point scene: lateral position (mm)")
+    s.set_defaults(func=cmd_simulate)
+
+    s = sub.add_parser("refocus", help="refocus a raw image (or decoded views) at one or more slopes")
+    s.add_argument("raw", help=RAW_FORMATS + ", or VIEWS.h5 from decode")
+    s.add_argument("--slope", type=float, action="append", help="lenslets per view (repeatable)")
+    s.add_argument("--depth", type=float, action="append", help="instead of --slope: plane depth, mm from the "
+                   "camera's focus distance (> 0 farther; repeatable); neither: the depths found in the views, as "
+                   "'reconstruct' finds them")
+    add_camera_args(s)
+    s.add_argument("--method", choices=["shift-sum", "fourier"], default="shift-sum",
+                   help="shift-and-sum of the views, or the Fourier slice")
+    s.add_argument("--interpolation", choices=["bilinear", "nearest"], default="bilinear",
+                   help="shift-sum only: bilinear, or whole-lenslet shifts")
+    s.add_argument("--aperture", choices=["square", "circular"], default="circular",
+                   help="views summed: all, or those inside the main lens's circular aperture")
+    s.add_argument("--out", required=True, help=".npz (the planes as 'stack', with 'slopes' and 'depths_mm'), or "
+                   ".png/.pdf/.svg: a figure of the planes in object-space mm at their depths, one colour bar")
+    add_search_arg(s)
+    s.set_defaults(func=cmd_refocus)
+
+    s = sub.add_parser("slopes", help="sharpest slope of each object of a raw image (table and plot of the "
+                       "sharpness curves); without RAW, calibrate the nominal scene of a data config")
+    s.add_argument("raw", nargs="?", help=RAW_FORMATS + " (a simulated .npz: its objects' ROIs are used), "
+                   "or VIEWS.h5 from decode")
+    s.add_argument("--roi", type=int, nargs=4, action="append", metavar=("ROW0", "ROW1", "COL0", "COL1"),
+                   help="region in lenslets (repeatable; default: the stored objects, else per depth the depth "
+                   "search finds the bounding box of the lenslets that vote for it, else the whole image)")
+    s.add_argument("--metric", choices=["tenengrad", "laplacian", "normvar"], default="tenengrad",
+                   help="sharpness of a refocused region")
+    s.add_argument("--method", choices=["fourier", "shift-sum"], default="fourier", help="refocusing of the search")
+    s.add_argument("--lo", type=float, help="lowest slope searched, lenslets per view (default: the camera's "
+                   "imaging range, |slope| <= 3 and object distances beyond 1.05 focal lengths)")
+    s.add_argument("--hi", type=float, help="highest slope searched, lenslets per view (default: as --lo)")
+    add_camera_args(s)
+    s.add_argument("--aperture", choices=["square", "circular"], default="circular",
+                   help="views summed: all, or those inside the main lens's circular aperture")
+    s.add_argument("--out-prefix", help="write PREFIX.slopes.csv and PREFIX.slopes.png (default: beside RAW)")
+    s.add_argument("--data-config", help="calibration mode: data config TOML")
+    s.add_argument("--out", help="calibration mode: JSON of the slopes used for ground truth")
+    s.add_argument("--results", help="calibration mode: folder for slopes.csv and slopes.png")
+    s.set_defaults(func=cmd_slopes)

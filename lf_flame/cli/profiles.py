@@ -8,9 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import _load_raw, _raw_objects
+from ._io import RAW_FORMATS, _load_raw, _raw_objects, add_camera_args, add_figure_arg, add_search_arg
 from ..routes import parse_route
 from .learning import _learned_runner
+from ..routes import LEARNED_ROUTES
+from ..tomo.defaults import SOLVERS
 
 #: ``profiles``' default route: admm's planes of emission (``lf-flame reconstruct``'s default solver).
 #: Every route on ``lf-flame simulate --scene flame`` at seeds 0, 1, 2 (12 flames, 16 rays per pixel):
@@ -220,3 +222,34 @@ def cmd_profiles(a):
                         "centroid_x_mm", "integrated_intensity", "flags", "failure") if c in df]
     print(df[cols].to_string(index=False, float_format=lambda v: f"{v:.3f}"))
     print(f"-> {out}.csv, {out}.axial.csv" + (f", {out}.png" if a.figure else ""))
+
+
+def add_parsers(sub) -> None:
+    """Add ``profiles`` to ``sub``, the sub-parsers of :func:`lf_flame.cli.build_parser`."""
+    s = sub.add_parser("profiles", help="flame diagnostics per plane: height, widths, centroid, intensity, "
+                       "axial and radial profiles in object-space mm (CSV and figure)")
+    s.add_argument("raw", help=RAW_FORMATS + ", or views .h5 from 'lf-flame decode' (the truth is marked when the "
+                   "flames' objects are known: 'simulate --scene flame' .npz, dataset samples)")
+    s.add_argument("--route", choices=["ground-truth", "shift-sum", "shift-sum-nearest", "fourier",
+                                       *LEARNED_ROUTES, *(f"reconstruct-{k}" for k in SOLVERS)],
+                   default=PROFILES_ROUTE, help="how the planes are made. reconstruct-SOLVER: each plane's emission "
+                   "(lf-flame reconstruct, the solver's default iterations; admm's finer grid averaged to the "
+                   "lenslets); the default, reconstruct-admm, measured every flame height of 'simulate --scene "
+                   "flame' (seeds 0-2) within 0.21 mm, where refocused planes carry the other flames' blur (shift-"
+                   "sum: the +20 mm flame of seed 0 measured 13 mm short, flagged untrusted). shift-sum, "
+                   "shift-sum-nearest, fourier: refocused planes (faster; reconstruct-adjoint is plain refocusing "
+                   "too); ground-truth: a dataset's stored planes; learned routes need --model-dir")
+    s.add_argument("--model-dir", help="folder written by 'lf-flame train' (learned routes)")
+    s.add_argument("--slope", type=float, action="append",
+                   help="refocusing routes: one per plane (repeatable); default: the dataset's, else the analytic "
+                   "slopes of the depths")
+    s.add_argument("--depth", type=float, action="append",
+                   help="a plane's depth, mm from the focus distance (repeatable; default: the flames' when RAW "
+                        "stores them, a dataset sample's the paper's four, else the depths found in the views, as "
+                        "'reconstruct --depths auto' finds them)")
+    add_camera_args(s)
+    s.add_argument("--out", required=True, help="PREFIX: writes PREFIX.csv (one row per plane), PREFIX.axial.csv "
+                                               "and PREFIX.png")
+    add_figure_arg(s, "each plane with its height, widths and profiles marked")
+    add_search_arg(s)
+    s.set_defaults(func=cmd_profiles)

@@ -3,6 +3,7 @@
 """
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import json
 import sys
@@ -136,3 +137,52 @@ def _saturation_level(text, raw):
         return auto_saturation(raw)
     except ValueError as e:
         raise ValueError(f"--saturation auto: {e}") from None
+
+
+def _bin_views(text: str):
+    """``decode --bin``: a positive integer, or None for 'auto'."""
+    if text.lower() == "auto":
+        return None
+    if not text.isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"--bin takes auto or a positive integer (pixels per view). Received: {text!r}")
+    return int(text)
+
+
+def add_parsers(sub) -> None:
+    """Add ``calibrate`` and ``decode`` to ``sub``, the sub-parsers of :func:`lf_flame.cli.build_parser`."""
+    s = sub.add_parser("calibrate", help="calibrate a real camera's lenslet grid from a white image")
+    s.add_argument("white", help="white (flat-field) image: PNG, TIFF, .npy or .npz")
+    s.add_argument("--dark", help="dark frame, subtracted first")
+    s.add_argument("--layout", choices=["auto", "square", "hex"], default="auto",
+                   help="lenslet grid; auto: told by the angle between the white image's lattice vectors "
+                        "(90°: square, 60°: hex)")
+    s.add_argument("--camera-id", help="name of the camera, stored and checked by decode")
+    s.add_argument("--camera", help="camera file (TOML): a [sensor] cfa marks the white image as a colour mosaic "
+                                    "(also read from a simulated image's stored sensor)")
+    s.add_argument("--out", required=True, help="calibration JSON")
+    s.set_defaults(func=cmd_calibrate)
+
+    s = sub.add_parser("decode", help="decode a real raw image into sub-aperture views with a calibration")
+    s.add_argument("raw", help="raw light-field image: PNG, TIFF, .npy or .npz")
+    s.add_argument("--calibration", required=True, help="JSON written by 'lf-flame calibrate'")
+    s.add_argument("--white", help="white image (default: the calibration's, checked by its SHA-256)")
+    s.add_argument("--dark", help="dark frame (default: the calibration's, if any)")
+    s.add_argument("--no-white", action="store_true", help="no white-image normalisation")
+    s.add_argument("--views", type=int, help="views per axis (default: as many as the lenslet image holds)")
+    s.add_argument("--bin", default="auto", type=_bin_views,
+                   help="pixels per view sample and axis, summed: views of a camera with larger pixels, as much light "
+                        "and parallax, fewer views for the solvers ('auto': 1 up to 29 pixels per lenslet image, "
+                        "else enough for at least 15 views, e.g. 3 for 48; 1 with --views or a colour sensor)")
+    s.add_argument("--camera-id", help="refuse a calibration of another camera")
+    s.add_argument("--camera", help="camera file (docs/own_camera.md): where its [sensor] names a colour filter array "
+                   "(cfa), each view sample is taken from its nearest pixel and keeps that pixel's channel (the "
+                   "views' channel map, which 'lf-flame temperature' reads); a raw image from 'lf-flame simulate' "
+                   "with a colour sensor is decoded so without it")
+    s.add_argument("--saturation", default="auto",
+                   help="the sensor's clipping level in the raw image's units: the views' samples from pixels at or "
+                        "above it are stored as 'clipped' (reconstruct leaves them out); auto: where the image's "
+                        "pixels pile up at its largest value (a sensor clips at one level), else 1.0 when its values "
+                        "are at most 1 (the simulator's), else the smallest 2**bits - 1 (bits 8, 10, 12, 14, 16) at "
+                        "or above its maximum; 'none': no mask")
+    s.add_argument("--out", required=True, help="HDF5 of the views (N, N, R, C)")
+    s.set_defaults(func=cmd_decode)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from ..tomo.resolution import AXES, CONDITIONS, DEFAULT_FAR_MM, DEFAULT_NEAR_MM, DEFAULT_SPACING_MM, FEATURE_SIZES_MM
 
 
 def cmd_resolution(a):
@@ -47,3 +48,23 @@ def cmd_resolution(a):
                           f"Provenance: `{to_json(provenance())}`\n")
         plot_depth_resolution(out.with_name(out.name + ".png"), res)
         print(f"wrote {out}.csv, {out}.md, {out}.png")
+
+
+def add_parsers(sub) -> None:
+    """Add ``resolution`` to ``sub``, the sub-parsers of :func:`lf_flame.cli.build_parser`."""
+    s = sub.add_parser("resolution", help="the camera's depth-resolution map: the smallest plane spacing that "
+                       "the light field resolves against feature size, at stated condition numbers (from the exact "
+                       "operator's per-frequency normal matrices of a dense stack)")
+    s.add_argument("--camera", help="camera file: the datasheet tables of docs/own_camera.md, or a [camera] table "
+                   "(default: the paper's camera)")
+    s.add_argument("--near", type=float, default=DEFAULT_NEAR_MM, help="nearest plane of the stack, mm from the "
+                   "focal plane (> 0 farther)")
+    s.add_argument("--far", type=float, default=DEFAULT_FAR_MM, help="farthest plane, mm")
+    s.add_argument("--spacing", type=float, default=DEFAULT_SPACING_MM, help="the stack's plane spacing, mm")
+    s.add_argument("--condition", type=float, nargs="+", default=list(CONDITIONS),
+                   help="condition numbers of the two planes' normal block (>= 1)")
+    s.add_argument("--feature", type=float, nargs="+", default=list(FEATURE_SIZES_MM),
+                   help="feature sizes, half a period, mm")
+    s.add_argument("--axis", choices=list(AXES), default="rows", help="direction of the lateral frequency")
+    s.add_argument("--out", help="PREFIX: also write PREFIX.csv, PREFIX.md and PREFIX.png (default: print only)")
+    s.set_defaults(func=cmd_resolution)

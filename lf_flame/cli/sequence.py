@@ -7,6 +7,8 @@ import json
 import math
 
 import numpy as np
+from ..tomo.defaults import ADMM_QUIET, ADMM_TV, DEFAULT_TV, SOLVERS
+from ._io import AUTO_LEVEL, _level_or_none, add_search_arg, positive_int
 
 #: Sensor noise of ``--noise``: full well (e-), read noise (e-), bits (a 12-bit high-speed camera).
 NOISE = (10_000.0, 5.0, 12)
@@ -153,3 +155,74 @@ def cmd_sequence(a):
         overexposure_warning(over["max_share"], f"in {over['frames']} of {s['n_frames']} frames up to ")
     print(f"{s['n_frames']} frames ({s['chunks_processed']} chunks processed, {s['frames_per_s']:.1f} frames/s) "
           f"-> {a.out}/frames.csv, spectra.csv, peaks.csv, sequence.png, summary.json")
+
+
+def _sequence_scene_args(s, simulate_only=False):
+    """Arguments of a simulated recording (``simulate-sequence``; ``sequence --simulate``)."""
+    pre = "--simulate: " if simulate_only else ""
+    if not simulate_only:
+        s.add_argument("--simulate", choices=["paper", "overlap"], default="paper",
+                       help="paper: four flames at the paper's depths; overlap: two flames 20 mm apart, one "
+                            "behind the other")
+    s.add_argument("--fps", type=float, help=("frame rate, frames/s (a recording: default its file's; " if
+                                              simulate_only else "frame rate, frames/s (") + "simulated: 500)")
+    s.add_argument("--duration", type=float, default=1.0, help=pre + "length, s")
+    s.add_argument("--freq", type=float, action="append", help=pre + "each flame's flicker frequency, Hz, farthest "
+                   "first (repeatable; default drawn from 5-20 Hz)")
+    s.add_argument("--noise", action="store_true", help=pre + "shot and read noise, 12 bits")
+    s.add_argument("--seed", type=int, default=0, help=pre + "seed of the frequencies, phases and jitter")
+    s.add_argument("--rays-per-pixel", type=int, default=4, help=pre + "rays traced per sensor pixel")
+    s.add_argument("--camera", help="camera file (TOML: the datasheet tables of docs/own_camera.md, or a [camera] "
+                   "table; default: the file's, else the paper's camera); with --calibration, the camera the frames "
+                   "were taken with")
+    s.add_argument("--data-config", help="TOML with a [camera] table (as --camera)")
+    s.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def add_parsers(sub) -> None:
+    """Add ``simulate-sequence`` and ``sequence`` to ``sub``, the sub-parsers of :func:`lf_flame.cli.build_parser`."""
+    s = sub.add_parser("simulate-sequence", help="render a simulated recording of flickering flames to HDF5 "
+                       "(frames (T, H, W), fps, camera and the truth)")
+    _sequence_scene_args(s)
+    s.add_argument("--out", required=True, help="HDF5 file")
+    s.set_defaults(func=cmd_simulate_sequence)
+
+    s = sub.add_parser("sequence", help="a flame recording: each plane's height, widths and intensity over time, "
+                       "their spectra and dominant flicker frequency (serially or on Dask)")
+    s.add_argument("input", nargs="?", help="HDF5 stack of raw frames (dataset 'frames' (T, H, W); optional "
+                   "'times_s'), a multi-page TIFF (a high-speed camera's or ImageJ's stack: one frame per page; the "
+                   "frame rate from its ImageJ frame interval, else --fps), or a folder of TIFF/PNG/.npy frames in "
+                   "name order")
+    s.add_argument("--simulate", choices=["paper", "overlap"], help="instead of INPUT: a simulated recording, "
+                   "rendered frame by frame in the workers")
+    _sequence_scene_args(s, simulate_only=True)
+    s.add_argument("--depth", type=float, action="append", help="plane depth offset, mm (repeatable); default: a "
+                   "simulated recording's flames' depths, else the depths found in the first frame, as 'reconstruct' "
+                   "finds a capture's")
+    s.add_argument("--slope", type=float, action="append", help="plane slope, lenslets per view (repeatable)")
+    s.add_argument("--route", choices=["shift-sum", *(f"reconstruct-{k}" for k in SOLVERS)], default="shift-sum",
+                   help="planes by shift-and-sum, or each plane's emission (as lf-flame reconstruct; its settings: "
+                        "--iters, --tv, --saturation, --operator-rays)")
+    s.add_argument("--iters", type=positive_int, help="reconstruct-*: iterations, >= 1 (default: the solver's, as "
+                   "lf-flame reconstruct's --iters)")
+    s.add_argument("--tv", type=float, default=None,
+                   help=f"reconstruct-pd-tv / -admm: TV weight (default: pd-tv {DEFAULT_TV}; admm by each frame's "
+                        f"noise: {ADMM_QUIET['tv']} on quiet data, {ADMM_TV} on noisy)")
+    s.add_argument("--saturation", type=_level_or_none, default="auto",
+                   help="reconstruct-*: the sensor's clipping level in the views' units: pixels at or above it are "
+                        "left out of the fit, counted per frame as n_saturated ('none': fit every pixel; default "
+                        "auto, per frame: " + AUTO_LEVEL + ")")
+    s.add_argument("--operator-rays", type=int, default=None,
+                   help="reconstruct-*: rays per pixel of a traced forward operator (default: the exact operator "
+                        "where the camera is a perfect lenslet grid, else 4 rays)")
+    s.add_argument("--calibration", help="real frames: JSON of 'lf-flame calibrate' (frames are decoded)")
+    s.add_argument("--white", help="real frames: white image for decoding")
+    s.add_argument("--dark", help="real frames: dark frame")
+    s.add_argument("--nperseg", type=int, help="Welch segment, frames (default: the whole record, bin 1/T)")
+    s.add_argument("--chunk", type=int, default=16, help="frames per task (default: %(default)s)")
+    s.add_argument("--workers", type=positive_int, help="a local Dask cluster of this many single-thread worker "
+                   "processes, >= 1 (default: serial, Numba's threads)")
+    s.add_argument("--scheduler", help="an existing Dask cluster: address (tcp://...) or scheduler file")
+    s.add_argument("--out", required=True, help="output folder (resumed when it holds the same run)")
+    add_search_arg(s)
+    s.set_defaults(func=cmd_sequence)

@@ -16,7 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import _load_raw, _raw_meta
+from ._io import (AUTO_LEVEL, RAW_FORMATS, _level_or_none, _load_raw, _raw_meta, add_figure_arg, add_search_arg,
+                  fraction)
 
 #: what the ``temperature`` HDF5 holds (its datasets)
 TEMPERATURE_DATASETS = ("temperature_k", "valid", "dim", "emission", "depths_mm", "sample_mm", "n_masked", "n_dim")
@@ -328,3 +329,68 @@ def cmd_temperature(a):
                  "sample in any view (cfa_blind): its temperature is interpolation there" if blind[k] else ""))
     print(f"temperature of {len(depths)} planes ({a.route} {chosen}) in {wall:.1f} s -> {out}"
           + (f", {fig}" if fig else ""))
+
+
+def _sensor_args(s, calibration_default):
+    s.add_argument("--sensor", help="camera sensitivities (a name of colour-science's MSDS_CAMERA_SENSITIVITIES, "
+                   "e.g. 'Nikon 5100 (NPL)'); default: the image's stored sensor record"
+                   + (", else the calibration's" if calibration_default else "") + ", else Nikon 5100 (NPL)")
+    s.add_argument("--cfa", choices=["RGGB", "BGGR", "GRBG", "GBRG"], help="colour filter array (default: as "
+                   "--sensor)")
+    s.add_argument("--cfa-phase", type=int, nargs=2, metavar=("ROW", "COL"),
+                   help="tile row and column (0 or 1) of pixel (0, 0) (default: as --sensor, else 0 0)")
+
+
+def add_parsers(sub) -> None:
+    """Add ``calibrate-temperature`` and ``temperature`` to ``sub``, the sub-parsers of
+    :func:`lf_flame.cli.build_parser`."""
+    s = sub.add_parser("calibrate-temperature", help="two-colour temperature calibration (the channels' gain "
+                       "ratio) from raw images of a blackbody (furnace) at known temperatures -> JSON")
+    s.add_argument("images", nargs="+", help="raw colour images of a blackbody filling the field: " + RAW_FORMATS
+                   + "; a camera whose lenslet grid is not perfect (rotated, hexagonal, a pitch of no whole number of "
+                   "pixels): its images decoded with their channels apart ('lf-flame decode --camera cam.toml')")
+    s.add_argument("--temperature", type=float, action="append", help="each image's temperature, K, in the images' "
+                   "order (repeatable; one per image)")
+    s.add_argument("--channels", default="R,G", help="numerator and denominator channels of the ratio")
+    _sensor_args(s, False)
+    s.add_argument("--out", required=True, help="calibration JSON (read by 'lf-flame temperature')")
+    s.set_defaults(func=cmd_calibrate_temperature)
+
+    s = sub.add_parser("temperature", help="each plane's temperature map (K) from one colour light field by "
+                       "two-colour pyrometry -> HDF5 and a figure")
+    s.add_argument("raw", help="raw colour image (the CFA's mosaic): " + RAW_FORMATS + "; or VIEWS.h5 of a colour "
+                   "capture decoded with its channels apart ('lf-flame decode --camera cam.toml') with --camera")
+    s.add_argument("--calibration", required=True, help="JSON of 'lf-flame calibrate-temperature'; refused when "
+                   "made for another sensor or CFA")
+    s.add_argument("--camera", help="camera file (docs/own_camera.md) of decoded views (VIEWS.h5), or of a raw image "
+                   "that stores none")
+    s.add_argument("--grid-calibration", help="the white-image calibration JSON of 'lf-flame calibrate' (--calibration "
+                   "is the blackbody's here): a raw capture is decoded with it, its channels apart, as 'lf-flame "
+                   "decode --camera' decodes it")
+    s.add_argument("--depth", type=float, action="append", help="plane depth (mm from the focal plane; repeatable). "
+                   "Default: --depths auto")
+    s.add_argument("--depths", default=None, help="'auto' (default): the depths holding emission found by depth from "
+                   "focus on the calibration's two channels interpolated and summed; 'scene', 'paper', or depths in "
+                   "mm separated by commas (as 'lf-flame reconstruct')")
+    s.add_argument("--slope", type=float, action="append", help="plane slope instead of a depth (repeatable)")
+    s.add_argument("--route", choices=["admm-cfa-matched", "admm-cfa", "admm-cfa-smooth", "refocus-cfa"],
+                   default="admm-cfa-matched",
+                   help="each channel's emission: the exact operator's admm on its own pixels (the CFA as a "
+                        "missing-data mask) on a 2 x 2 grid per lenslet, re-imaged and solved again on the other "
+                        "channel's pixels so that both channels' resolution matches, its settings and ratio "
+                        "filter by the light field's noise (decoded captures: their own); admm on its own pixels "
+                        "alone, unsmoothed or smoothed by 0.7 lenslet; or each channel's pixels refocused (a "
+                        "square grid's only) (results/temperature.md)")
+    s.add_argument("--min-fraction", type=fraction, default=0.1, help="pixels whose two channels' emission is below "
+                   "this fraction (0 to 1) of their plane's peak get no temperature (counted as dim)")
+    s.add_argument("--alpha", type=float, default=1.39, help="emissivity exponent of the source, eps ~ lambda^-alpha "
+                   "(soot: 1.39, Hottel & Broughton; 0: a blackbody)")
+    s.add_argument("--saturation", type=_level_or_none, default="auto", help="the sensor's clipping level of a raw "
+                   "image: pixels at or above it are left out of the fit ('none': fit every pixel; default "
+                   + "auto: " + AUTO_LEVEL + ")")
+    _sensor_args(s, True)
+    s.add_argument("--out", required=True, help="T.h5: temperature_k, valid, dim (plane, row, col), emission, "
+                   "depths_mm, counts, provenance; the figure goes beside it as .png")
+    add_figure_arg(s, "each plane's temperature map in mm, one colour bar in K")
+    add_search_arg(s)
+    s.set_defaults(func=cmd_temperature)

@@ -4,13 +4,19 @@ the depths holding emission are found first (:mod:`lf_flame.tomo.depth`).
 """
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from ._io import _raw_objects, _raw_scene, light_field
+from ._io import (AUTO_LEVEL, RAW_FORMATS, _level_or_none, _raw_objects, _raw_scene, add_camera_args, add_figure_arg,
+                  add_search_arg, light_field, positive_int)
+from ..simulate.scenes import PAPER_DEPTHS_MM
+from ..tomo.defaults import (ADMM_KNOBS, ADMM_QUIET, ADMM_SUBSAMPLES, ADMM_TV, DEFAULT_ITERS, DEFAULT_SOLVER,
+                              DEFAULT_TV, EXACT_SOLVER, SOLVERS, SUBSAMPLES_MAX_PLANES, VOLUME_L1,
+                              VOLUME_MAX_PLANES, VOLUME_PRIOR, VOLUME_PRIORS, VOLUME_STEP_MM, VOLUME_TV)
 
 
 def reconstruct_input(a, colour: bool = False):
@@ -480,3 +486,98 @@ def volume_reconstruct(a):
           f"{a.prior} ({rec.solver}), solved in {rec.time_s:.1f} s{axis}{score} -> {out}"
           + ("" if fig is None else f", {fig}"))
     print(resolution_note(table, res.conditions[0], float(rec.depths_mm[-1] - rec.depths_mm[0])))
+
+
+def _subsamples(text: str):
+    """``--subsamples``: 1 or 2, or None for 'auto'."""
+    if text.lower() == "auto":
+        return None
+    if text not in ("1", "2"):
+        raise argparse.ArgumentTypeError(f"--subsamples takes auto, 1 or 2. Received: {text!r}")
+    return int(text)
+
+
+def _admm_fills(subsamples: int) -> str:
+    """admm's cap on its fills on a grid of ``subsamples``, by the noise (:data:`~lf_flame.tomo.defaults.ADMM_KNOBS`)."""
+    quiet, noisy = (ADMM_KNOBS[subsamples, k]["fills"] for k in ("quiet", "noisy"))
+    return f"{quiet}" if quiet == noisy else f"{quiet} (quiet) or {noisy} (noisy)"
+
+
+#: What admm's iterations are by default (``reconstruct --help``): its fills of the missing data, a cap by the
+#: data's noise and the planes' grid, stopped sooner once they converge; ``reconstruct`` prints how many ran.
+ADMM_FILLS_HELP = (f"admm: its fills of the missing data, by the data's noise and the grid: at most "
+                   f"{_admm_fills(ADMM_SUBSAMPLES)} on the {ADMM_SUBSAMPLES} x {ADMM_SUBSAMPLES} grid, "
+                   f"{_admm_fills(1)} on the lenslet grid, stopping sooner once they converge (the output says how "
+                   "many ran); --iters N runs all N")
+
+
+def add_parsers(sub) -> None:
+    """Add ``reconstruct`` to ``sub``, the sub-parsers of :func:`lf_flame.cli.build_parser`."""
+    s = sub.add_parser("reconstruct", help="each plane's emission from one light field (3-D reconstruction with "
+                       "the simulator as the forward operator) -> HDF5 and a figure")
+    s.add_argument("raw", help=RAW_FORMATS + ", or views .h5 from 'lf-flame decode'")
+    s.add_argument("--depth", type=float, action="append",
+                   help="plane depth (mm from the focal plane; repeatable). Default: --depths auto")
+    s.add_argument("--depths", default=None,
+                   help="the planes: 'auto' (the default when neither --depth nor --slope is given) finds the depths "
+                        "that hold emission from the views (depth from focus per region, several per region where "
+                        "flames stand one behind another; lf_flame.tomo.depth) and solves on them, with admm unless "
+                        "--solver says otherwise, writing each found depth and its uncertainty into the HDF5; "
+                        "'scene': the depths of the objects that 'lf-flame simulate' stored (.npz or .png); 'paper': "
+                        "the paper's four planes, " + ", ".join(f"{d:+g}" for d in PAPER_DEPTHS_MM) + " mm; or "
+                        "depths in mm separated by commas")
+    s.add_argument("--slope", type=float, action="append", help="plane slope instead of a depth (repeatable)")
+    s.add_argument("--solver", choices=list(SOLVERS) + ["learned"],
+                   help=f"the default is the one chosen on validation renders: {EXACT_SOLVER} on the exact operator, "
+                        f"{DEFAULT_SOLVER} on a traced one (--rays-per-pixel); adjoint: plain refocusing through "
+                        f"the operator's rays; learned: a trained network on a one-pass Wiener start (lenslet grid; "
+                        f"--model; make train-reconstructor) (default: {EXACT_SOLVER}, traced: {DEFAULT_SOLVER})")
+    s.add_argument("--model", default=None,
+                   help="--solver learned: the folder of a reconstructor trained for this camera (default: "
+                        "models/reconstructor/paper, make train-reconstructor)")
+    s.add_argument("--iters", type=positive_int, help="iterations, >= 1 (default: the solver's, chosen on validation "
+                   "renders: " + ", ".join(f"{k} {v}" for k, v in DEFAULT_ITERS.items() if k not in ("adjoint", "admm"))
+                   + "; " + ADMM_FILLS_HELP + "; adjoint: none)")
+    s.add_argument("--damp", type=float, default=0.0, help="LSQR damping (Tikhonov)")
+    s.add_argument("--tv", type=float, default=None, help=f"TV weight of pd-tv (default: {DEFAULT_TV}) or of admm "
+                   f"(default by the light field's noise and the grid: on {ADMM_SUBSAMPLES} x {ADMM_SUBSAMPLES} samples "
+                   f"per lenslet {ADMM_KNOBS[ADMM_SUBSAMPLES, 'quiet']['tv']} on quiet data, "
+                   f"{ADMM_KNOBS[ADMM_SUBSAMPLES, 'noisy']['tv']} on noisy; on the lenslet grid "
+                   f"{ADMM_QUIET['tv']} and {ADMM_TV})")
+    s.add_argument("--subsamples", type=_subsamples, default=None,
+                   help="samples per lenslet and axis of the planes' grid on the exact operator: 1 (the lenslet grid) "
+                        "or 2 (detail finer than a lenslet, seen off focus in the views' parallax; 4x the unknowns). "
+                        f"Default 'auto': {ADMM_SUBSAMPLES} for admm on at most {SUBSAMPLES_MAX_PLANES} planes, else 1")
+    s.add_argument("--support", action="store_true",
+                   help="hold every found plane's emission to the regions its depth was found in (admm, found "
+                        "depths). Without it only planes within 3 lenslets of parallax of each other are held so, where "
+                        "they meet (their emission would otherwise split between them); docs/own_camera.md")
+    s.add_argument("--saturation", type=_level_or_none, default=argparse.SUPPRESS,
+                   help="the sensor's clipping level in the views' units: pixels at or above it are left out of the "
+                        "fit ('none': fit every pixel; default auto: " + AUTO_LEVEL + "). Decoded views take only "
+                        "'none' (fit every sample): they carry their clipped samples ('lf-flame decode "
+                        "--saturation')")
+    add_camera_args(s)
+    s.add_argument("--rays-per-pixel", type=int, default=None,
+                   help="rays per pixel of a traced forward operator (the reference; default: the exact operator "
+                        "where the camera is a perfect lenslet grid, else 4 rays)")
+    s.add_argument("--volume", action="store_true",
+                   help="a volume: a dense stack every --step mm from --from to --to (mm from the focal plane) on the "
+                        "exact operator's lenslet grid, with a prior (--prior), and the depth resolution the stack "
+                        "carries for the data alone (lf_flame.tomo.volume)")
+    s.add_argument("--from", dest="near", type=float, help="--volume: the nearest plane (mm)")
+    s.add_argument("--to", dest="far", type=float, help="--volume: the farthest plane (mm)")
+    s.add_argument("--step", type=float, default=VOLUME_STEP_MM, help=f"--volume: plane spacing (mm; at most "
+                   f"{VOLUME_MAX_PLANES} planes)")
+    s.add_argument("--prior", choices=list(VOLUME_PRIORS), default=VOLUME_PRIOR,
+                   help=f"--volume: none (admm by the data's noise), tv (admm with TV per plane, weight --tv, "
+                        f"default {VOLUME_TV['quiet']:g} on quiet data, {VOLUME_TV['noisy']:g} on noisy), sparse (admm "
+                        f"with an l1 weight, --l1, default {VOLUME_L1['quiet']:g} of the weight that zeroes every "
+                        f"plane), axisymmetric (a laminar flame's e(r, y) about a vertical axis found from the data: "
+                        f"for laminar flames)")
+    s.add_argument("--l1", type=float, default=None, help="--volume --prior sparse: the l1 weight in [0, 1)")
+    s.add_argument("--out", required=True, help="volume.h5 (planes, depths, mm per sample, settings, residuals); "
+                                               "the figure goes beside it as .png")
+    add_figure_arg(s, "each plane beside its refocused plane and, for a simulated scene, the truth")
+    add_search_arg(s)
+    s.set_defaults(func=cmd_reconstruct)
