@@ -121,6 +121,33 @@ def test_temperature_auto_depth_and_refocus_route(files):
     assert np.nanmedian(t[0][5:16, 13:16]) == pytest.approx(HOT, abs=25.0)
 
 
+def test_found_planes_near_each_other_keep_their_own_flames_temperature(files):
+    """Two flames side by side 1.6 mm apart in depth (2.7 lenslets of parallax across the aperture: the data
+    barely tell the planes apart): with the depths found, each plane holds its own flame and its temperature,
+    as 'reconstruct' holds such planes (its found_support), not half of each flame at their mean temperature."""
+    sensor = files["sensor"]
+    h, w = CAM.field_of_view_mm(0.0)
+    layers, channels = [], []
+    for depth, cols, temp in ((-0.8, slice(2, 10), COOL), (0.8, slice(32, 40), HOT)):
+        soot = np.zeros((42, 42))
+        soot[10:32, cols] = 1.0
+        ch = soot[None] * np.moveaxis(band_integrals(sensor, np.full((42, 42), temp), gains=True), -1, 0)
+        channels.append((ch * 0.8 / ch.max()).astype(np.float32))
+        layers.append(Layer(channels[-1][1], None, depth, (0.0, 0.0), (h, w)))
+    raw = render_colour(CAM, Scene("near", tuple(layers), Effects(occlusion=False)), channels, sensor, 16, 3)
+    out = files["dir"] / "Tnear.h5"
+    assert main(["temperature", _save(files["dir"] / "near.npz", raw, sensor), "--calibration", files["cal"],
+                 "--no-figure", "--out", str(out)]) == 0
+    with h5py.File(out, "r") as f:
+        depths, t, e = f["depths_mm"][:], f["temperature_k"][:], f["emission"][:].sum(axis=0)
+        assert json.loads(f.attrs["route_settings"])["support"] == "near planes"
+    assert depths == pytest.approx([-0.8, 0.8], abs=0.3)
+    left, right = e[:, :, :10].sum(axis=(1, 2)), e[:, :, 11:].sum(axis=(1, 2))
+    assert right[0] < 0.05 * left[0] and left[1] < 0.05 * right[1]
+    assert np.nanmedian(t[0][:, :10]) == pytest.approx(COOL, abs=30.0)
+    assert np.nanmedian(t[1][:, 11:]) == pytest.approx(HOT, abs=30.0)
+
+
 def test_wrong_calibration_refused(files, capsys):
     out = str(files["dir"] / "never.h5")
     sigma = library_sensor("Sigma SDMerill (NPL)")

@@ -245,15 +245,15 @@ def cmd_temperature(a):
     chan = lf.channels if lf.decoded else channel_views((views.shape[2] * n, views.shape[3] * n), sensor, n)
     ch = tuple(CHANNELS.index(c) for c in cal.channels)
     hexagonal = lf if lf.lattice_views is not None and lf.channels is not None else None
-    extra = {}
+    extra, found = {}, None
     if depths == "auto":
         if hexagonal is None:
             mono = channel_sum_views(views, chan, ch)
         else:                                           # the channels' sum on the lattice, then on the square grid
             from ..real.view_grid import hex_to_square
             mono = hex_to_square(channel_sum_views(lf.lattice_views, chan, ch))
-        depths, found, _ = found_planes(lf, mono, a.search_range)
-        extra = dict(depths_from="auto (channel sum)", found_depths=found)
+        depths, record, found = found_planes(lf, mono, a.search_range)
+        extra = dict(depths_from="auto (channel sum)", found_depths=record)
     chosen, knobs, ratio_filter = {}, None, None
     slopes = [cam.slope_for_depth(d) for d in depths]
     op = route_operator(cam, depths, a.route, hexagonal, lf.sample_offsets if hexagonal is None else None)
@@ -273,8 +273,14 @@ def cmd_temperature(a):
     if lf.decoded and a.route == "admm-cfa-matched":    # a decoded capture's knobs, not its noise's
         knobs, ratio_filter = DECODED_OFFSET_KNOBS if op.offset_bins else DECODED_KNOBS, DECODED_RATIO_FILTER
         chosen["regime"] = "decoded"
+    support = None
+    if found is not None and hexagonal is None and op is not None:
+        # found planes near each other held to their own regions where they meet, as reconstruct holds them
+        from ..tomo.found_planes import found_support
+        support = found_support(found, cam, op.subsamples)
+        chosen["support"] = "none" if support is None else "near planes"
     emission = channel_emission(a.route, data, chan, ch, op=op, slopes=slopes, saturation=sat, info=chosen,
-                                knobs=knobs, ratio_filter=ratio_filter)
+                                knobs=knobs, ratio_filter=ratio_filter, support=support)
     if hexagonal is not None:                           # the lattice's planes on the decoded square grid
         emission = tuple(op.to_square(e, cam.n_rows, cam.n_cols) for e in emission)
         chosen["lattice"] = "hexagonal"

@@ -151,7 +151,7 @@ def channel_views(shape, sensor: ColourSensor, pixels_per_lenslet: int) -> np.nd
 
 
 def admm_channel(views: np.ndarray, op, fit: np.ndarray, *, fills: int = CFA_FILLS, lam: float = CFA_LAM,
-                 tv: float = CFA_TV, l1: float = CFA_L1) -> np.ndarray:
+                 tv: float = CFA_TV, l1: float = CFA_L1, support=None) -> np.ndarray:
     """One channel's emission per plane by admm on its own samples.
 
     The views are scaled by the largest fitted sample (so admm's ``lam`` does not depend on
@@ -167,6 +167,9 @@ def admm_channel(views: np.ndarray, op, fit: np.ndarray, *, fills: int = CFA_FIL
         The samples of this channel that are fitted (its own, not clipped).
     fills, lam, tv, l1
         admm's iterations and weights (:func:`lf_flame.tomo.solvers.reconstruct`).
+    support : ndarray of bool of shape ``op.dims`` (P, rows, cols), or None
+        Where each plane may hold emission (found planes near each other held to their own regions:
+        :func:`lf_flame.tomo.found_planes.found_support`); None: everywhere.
 
     Returns
     -------
@@ -183,11 +186,11 @@ def admm_channel(views: np.ndarray, op, fit: np.ndarray, *, fills: int = CFA_FIL
     s = float(views[fit].max()) if fit.any() else 0.0
     if not s > 0:
         raise ValueError("this channel has no sample with signal to fit")
-    rec = reconstruct(views / s, op, "admm", fills, lam=lam, tv=tv, l1=l1, saturation=~fit)
+    rec = reconstruct(views / s, op, "admm", fills, lam=lam, tv=tv, l1=l1, saturation=~fit, support=support)
     return rec.planes.reshape(op.dims) * s
 
 
-def matched_channels(views: np.ndarray, op, fits, **knobs):
+def matched_channels(views: np.ndarray, op, fits, support=None, **knobs):
     """Two channels' emission per plane with their resolution matched: each through both sampling patterns.
 
     Channel ``i`` is reconstructed from its own samples (:func:`admm_channel` with
@@ -205,6 +208,8 @@ def matched_channels(views: np.ndarray, op, fits, **knobs):
         The planes' operator.
     fits : (ndarray, ndarray) of shape (N, N, R, C), bool
         Each channel's fitted samples (its own, not clipped).
+    support : ndarray of bool of shape ``op.dims``, or None
+        Where each plane may hold emission, in all four solves (:func:`admm_channel`).
     **knobs
         admm's ``fills``, ``lam``, ``tv``, ``l1`` (:func:`admm_channel`), the same in all four solves.
 
@@ -219,8 +224,8 @@ def matched_channels(views: np.ndarray, op, fits, **knobs):
     """
     if len(fits) != 2:
         raise ValueError(f"two channels' fit masks are needed. Received {len(fits)}")
-    own = [admm_channel(views, op, f, **knobs) for f in fits]
-    return tuple(admm_channel(op.matvec(x.ravel()).reshape(views.shape), op, fits[1 - i], **knobs)
+    own = [admm_channel(views, op, f, support=support, **knobs) for f in fits]
+    return tuple(admm_channel(op.matvec(x.ravel()).reshape(views.shape), op, fits[1 - i], support=support, **knobs)
                  for i, x in enumerate(own))
 
 
@@ -350,7 +355,7 @@ def refocus_channel(views: np.ndarray, own: np.ndarray, slopes, mask: np.ndarray
 
 def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, *, op=None, slopes=None,
                      saturation: float | None = 1.0, sigma: float | None = None, knobs: dict | None = None,
-                     ratio_filter: dict | None = None, info: dict | None = None):
+                     ratio_filter: dict | None = None, info: dict | None = None, support=None):
     """Two channels' emission per plane from a colour light field by one of :data:`CFA_ROUTES`.
 
     Parameters
@@ -385,6 +390,8 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
         Filled with what the route chose: ``noise`` (measured where ``knobs`` or ``ratio_filter``
         is None), ``regime``, ``knobs``, ``sigma`` and ``ratio_filter`` (``admm-cfa-matched``),
         ``subsamples`` (admm routes).
+    support : ndarray of bool of shape ``op.dims``, or None
+        admm routes: where each plane may hold emission (:func:`admm_channel`); None: everywhere.
 
     Returns
     -------
@@ -421,9 +428,9 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
             if ratio_filter is None:
                 ratio_filter = MATCHED_RATIO_FILTER[info["regime"]]
         info.update(knobs=dict(knobs), sigma=sigma, ratio_filter=dict(ratio_filter))
-        rec = matched_channels(views, op, fits, **knobs)
+        rec = matched_channels(views, op, fits, support=support, **knobs)
     else:
-        rec = [admm_channel(views, op, f) for f in fits]
+        rec = [admm_channel(views, op, f, support=support) for f in fits]
         sigma = SMOOTH_SIGMA if route == "admm-cfa-smooth" else 0.0
         ratio_filter = {}
     rec = [bin_planes(r, op.subsamples) for r in rec]
