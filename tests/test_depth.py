@@ -564,7 +564,7 @@ def test_a_noisy_light_fields_faint_flame_short_of_the_prominence_is_reported(ca
         def frames(self, start, stop):
             yield views_to_raw(views)
     monkeypatch.setattr(volume, "solve_found", lambda lf, f: (dataclasses.replace(f, possible=[p]), None, None))
-    planes = first_frame_depths(Frames(), cam)
+    planes, _ = first_frame_depths(Frames(), cam)
     err = capsys.readouterr().err
     assert f"a flame may stand at {p['depth_mm']:+.2f} mm" in err and f"--depth {planes[0]:.2f}" in err, err
 

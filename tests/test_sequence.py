@@ -574,3 +574,34 @@ def test_a_colour_recording_is_levelled_as_reconstruct_levels_a_capture(tmp_path
     r = json.loads((tmp_path / "out" / "job.json").read_text())["reconstruction"]
     if bins > 1:                                                     # the sub-views' fills, as reconstruct's
         assert (r["iters"], r["tol"]) == (OFFSET_KNOBS["fills"], OFFSET_KNOBS["tol"])
+
+
+def test_a_recordings_found_planes_near_each_other_keep_their_own_flames(tmp_path, capsys):
+    """A recording without given planes: those found in its first frame, where two flames stand side by side
+    1.6 mm apart in depth (2.7 lenslets of parallax across the aperture), are held to their own regions where they
+    meet, as 'reconstruct' holds them, in every frame: each plane measures its own flame, not half of each (the
+    run's identity records the regions' digest)."""
+    from lf_flame.simulate.scenes_time import FlameSequence, FlickerFlame
+    flames = (FlickerFlame(-0.8, 12.0, -3.0, -8.0, 0.6, 7.0), FlickerFlame(0.8, 12.0, 3.0, -8.0, 0.6, 11.0))
+    frames = np.stack(list(SimulatedSource(FlameSequence("near", flames, 100.0, 3, 5), PAPER_CAMERA, 4).frames(0, 3)))
+    _write_h5(tmp_path / "near.h5", frames, fps=100.0)          # no truth stored: the planes are found
+    out = tmp_path / "out"
+    assert main(["sequence", str(tmp_path / "near.h5"), "--route", "reconstruct-admm", "--quiet", "--out",
+                 str(out)]) == 0
+    assert "support_sha256" in json.loads((out / "summary.json").read_text())["settings"]
+    assert sorted(pd.read_csv(out / "frames.csv").depth_mm.unique()) == pytest.approx([-0.8, 0.8], abs=0.2)
+    # the job's planes of a frame so held: each holds its own flame (left: x < 0, right: x > 0)
+    from lf_flame.cli.sequence import first_frame_depths
+    from lf_flame.recordings.job import SequenceJob
+    from lf_flame.tomo.found_planes import found_support
+    src, _ = open_source(tmp_path / "near.h5")
+    depths, found = first_frame_depths(src, PAPER_CAMERA)
+    job = SequenceJob(src, PAPER_CAMERA, 100.0, tuple(depths), tuple(map(PAPER_CAMERA.slope_for_depth, depths)),
+                      (None, None), "reconstruct-admm", support=found_support(found, PAPER_CAMERA))
+    planes = job.planes(job.views(frames[1]))
+    half = planes.shape[2] // 2
+    left, right = planes[:, :, :half].sum(axis=(1, 2)), planes[:, :, half:].sum(axis=(1, 2))
+    assert right[0] < 0.01 * left[0] and left[1] < 0.01 * right[1], (left, right)    # without: 4 %
+    for bad in (dict(support=np.ones((2, 3, 3), bool)), dict(route="shift-sum")):     # another grid; no admm
+        with pytest.raises(ValueError, match="support holds admm's planes"):
+            dataclasses.replace(job, **bad)

@@ -45,13 +45,14 @@ def decoded_views_camera(camera, calibration, colour: bool = False):
     return views_camera(camera, calibration, views_shape(calibration, None, k), k), k
 
 
-def first_frame_depths(source, camera, calibration=None, sensor=None, search_range=None) -> list:
+def first_frame_depths(source, camera, calibration=None, sensor=None, search_range=None):
     """The planes of a recording without given ones: those ``reconstruct --depths auto`` finds in its first frame
     (depths found, the residual searched, the depths of flames one behind another refined:
     :func:`lf_flame.cli.volume.found_planes`, :func:`~lf_flame.cli.volume.solve_found`), the frame decoded with
     ``calibration`` where given (``camera`` the real one, ``sensor`` a colour camera's), searched over
     ``search_range`` (``--search-range``; None: what the camera can refocus). A depth the residual's
-    search saw and did not take is warned of (:func:`~lf_flame.cli.volume.possible_warning`)."""
+    search saw and did not take is warned of (:func:`~lf_flame.cli.volume.possible_warning`). Returns the depths
+    (mm) and the :class:`~lf_flame.tomo.depth.FoundDepths` they are."""
     from ..real.lightfield import decode_capture, from_raw
     from ..temperature.channels import monochrome_light_field
     from .volume import found_planes, possible_warning, solve_found
@@ -64,7 +65,7 @@ def first_frame_depths(source, camera, calibration=None, sensor=None, search_ran
     print("planes after the residual's search and refinement: " + ", ".join(f"{d:+.2f}" for d in found.planes_mm)
           + " mm")
     possible_warning(found)                            # a depth seen, not taken: the --depth planes to give
-    return [float(d) for d in found.planes_mm]
+    return [float(d) for d in found.planes_mm], found
 
 
 def cmd_simulate_sequence(a):
@@ -129,7 +130,11 @@ def cmd_sequence(a):
         if a.depth or a.slope:
             depths = [float(v) for v in a.depth] if a.depth else [cam.depth_for_slope(s) for s in a.slope]
         else:                            # the depths found in the first frame, as reconstruct finds a capture's
-            depths = first_frame_depths(source, real, calibration, colour, a.search_range)
+            depths, found = first_frame_depths(source, real, calibration, colour, a.search_range)
+            if a.route == "reconstruct-admm" and not (calibration and calibration.layout == "hex"):
+                # near planes held to their own regions where they meet, as reconstruct holds them
+                from ..tomo.found_planes import found_support
+                knobs["support"] = found_support(found, cam)
         slopes = list(a.slope) if a.slope else [cam.slope_for_depth(d) for d in depths]
         from ..optics.camera import check_imaging_range
         check_imaging_range(cam, depths)

@@ -5,6 +5,7 @@ measured per plane by :func:`lf_flame.measure.diagnostics.measure_flame`.
 """
 from __future__ import annotations
 
+import hashlib
 import math
 import threading
 import time
@@ -82,13 +83,19 @@ class SequenceJob:
         ``reconstruct-*`` routes: rays per pixel of a traced emission operator (>= 1); None:
         the exact operator where the camera allows it
         (:func:`lf_flame.tomo.exact.emission_operator`).
+    support : ndarray of bool of shape (P, R, C), or None
+        ``reconstruct-admm``: where each plane may hold emission, on the lenslet grid of the planes
+        (planes found in the first frame and near each other held to their own regions where they meet,
+        as ``lf-flame reconstruct`` holds them: :func:`lf_flame.tomo.found_planes.found_support`); None:
+        everywhere. Not on a hexagonal grid's lattice.
 
     Raises
     ------
     ValueError
         ``chunk`` or ``bin_views`` below 1 or not whole, a frame rate not positive and finite, a true
         frequency outside 0 to ``fps / 2``, reconstruction settings out of range, a route
-        other than shift-sum or reconstruct-SOLVER, ``operator_rays`` for real frames.
+        other than shift-sum or reconstruct-SOLVER, ``operator_rays`` for real frames, a ``support``
+        without admm, of another shape than (P, R, C) or on a hexagonal grid.
     """
 
     source: object
@@ -109,6 +116,7 @@ class SequenceJob:
     operator_rays: int | None = None
     bin_views: int = 1
     sensor: dict | None = None
+    support: np.ndarray | None = field(default=None, compare=False)
     _cache: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
@@ -138,6 +146,11 @@ class SequenceJob:
         if self.sensor is not None and (self.calibration is None or self.bin_views != 1):
             raise ValueError("a colour camera's frames are decoded with a calibration, one pixel per sample "
                              "(bin_views 1)")
+        if self.support is not None:
+            shape = (len(self.depths_mm), self.camera.n_rows, self.camera.n_cols)
+            if self.solver != "admm" or self.hexagonal or np.shape(self.support) != shape:
+                raise ValueError(f"support holds admm's planes (P, R, C) = {shape} to regions, on a square grid. "
+                                 f"Received: {np.shape(self.support)} for route {self.route!r}")
         if self.calibration is not None and self.operator_rays is not None:
             raise ValueError("operator_rays (--operator-rays) traces a simulated camera; real frames are solved on "
                              "their decoded views' exact operator")
@@ -186,11 +199,14 @@ class SequenceJob:
 
     def identity(self) -> dict:
         """What makes the run: a folder holding another identity is not resumed."""
-        return dict(source=self.source.identity(), camera=self.camera.to_json(), fps=self.fps,
-                    depths_mm=list(self.depths_mm), slopes=list(self.slopes),
-                    columns=[None if c is None else list(c) for c in self.columns], route=self.route,
-                    calibration=self.calibration, white=self.white, dark=self.dark, chunk=self.chunk,
-                    bin_views=self.bin_views, sensor=self.sensor, reconstruction=self.reconstruction())
+        out = dict(source=self.source.identity(), camera=self.camera.to_json(), fps=self.fps,
+                   depths_mm=list(self.depths_mm), slopes=list(self.slopes),
+                   columns=[None if c is None else list(c) for c in self.columns], route=self.route,
+                   calibration=self.calibration, white=self.white, dark=self.dark, chunk=self.chunk,
+                   bin_views=self.bin_views, sensor=self.sensor, reconstruction=self.reconstruction())
+        if self.support is not None:         # its digest (the planes' regions)
+            out["support_sha256"] = hashlib.sha256(np.packbits(np.asarray(self.support, bool))).hexdigest()
+        return out
 
     @property
     def hexagonal(self) -> bool:
@@ -358,7 +374,8 @@ class SequenceJob:
         data, leave = self.fit_data(views, clipped)
         rec = reconstruct(data, self.operator(), r["solver"], iters, tv=r["tv"], lam=r.get("lam"), l1=r.get("l1"),
                           start=r.get("start"), tol=r.get("tol"), saturation=leave,
-                          state=state if r["solver"] == "admm" else None)
+                          state=state if r["solver"] == "admm" else None,
+                          **({} if self.support is None else dict(support=self.support)))
         planes = self.operator().to_square(rec.planes, self.camera.n_rows, self.camera.n_cols) if self.hexagonal \
             else rec.planes
         return planes, int(rec.settings["n_saturated"])
