@@ -131,7 +131,7 @@ def cmd_sequence(a):
             depths = [float(v) for v in a.depth] if a.depth else [cam.depth_for_slope(s) for s in a.slope]
         else:                            # the depths found in the first frame, as reconstruct finds a capture's
             depths, found = first_frame_depths(source, real, calibration, colour, a.search_range)
-            if a.route == "reconstruct-admm" and not (calibration and calibration.layout == "hex"):
+            if a.route == "reconstruct-admm":
                 # near planes held to their own regions where they meet, as reconstruct holds them
                 from ..tomo.found_planes import found_support
                 knobs["support"] = found_support(found, cam)

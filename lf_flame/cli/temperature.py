@@ -274,10 +274,13 @@ def cmd_temperature(a):
         knobs, ratio_filter = DECODED_OFFSET_KNOBS if op.offset_bins else DECODED_KNOBS, DECODED_RATIO_FILTER
         chosen["regime"] = "decoded"
     support = None
-    if found is not None and hexagonal is None and op is not None:
-        # found planes near each other held to their own regions where they meet, as reconstruct holds them
+    if found is not None and op is not None:
+        # found planes near each other held to their own regions where they meet, as reconstruct holds them (a
+        # hexagonal grid's taken from the decoded square grid to its lattice)
         from ..tomo.found_planes import found_support
         support = found_support(found, cam, op.subsamples)
+        if support is not None and hexagonal is not None:
+            support = op.from_square(support)
         chosen["support"] = "none" if support is None else "near planes"
     emission = channel_emission(a.route, data, chan, ch, op=op, slopes=slopes, saturation=sat, info=chosen,
                                 knobs=knobs, ratio_filter=ratio_filter, support=support)

@@ -87,7 +87,7 @@ class SequenceJob:
         ``reconstruct-admm``: where each plane may hold emission, on the lenslet grid of the planes
         (planes found in the first frame and near each other held to their own regions where they meet,
         as ``lf-flame reconstruct`` holds them: :func:`lf_flame.tomo.found_planes.found_support`); None:
-        everywhere. Not on a hexagonal grid's lattice.
+        everywhere. A hexagonal grid's is taken to its lattice (:meth:`~lf_flame.tomo.lattice.LatticeOperator.from_square`).
 
     Raises
     ------
@@ -95,7 +95,7 @@ class SequenceJob:
         ``chunk`` or ``bin_views`` below 1 or not whole, a frame rate not positive and finite, a true
         frequency outside 0 to ``fps / 2``, reconstruction settings out of range, a route
         other than shift-sum or reconstruct-SOLVER, ``operator_rays`` for real frames, a ``support``
-        without admm, of another shape than (P, R, C) or on a hexagonal grid.
+        without admm or of another shape than (P, R, C).
     """
 
     source: object
@@ -148,8 +148,8 @@ class SequenceJob:
                              "(bin_views 1)")
         if self.support is not None:
             shape = (len(self.depths_mm), self.camera.n_rows, self.camera.n_cols)
-            if self.solver != "admm" or self.hexagonal or np.shape(self.support) != shape:
-                raise ValueError(f"support holds admm's planes (P, R, C) = {shape} to regions, on a square grid. "
+            if self.solver != "admm" or np.shape(self.support) != shape:
+                raise ValueError(f"support holds admm's planes (P, R, C) = {shape} to regions. "
                                  f"Received: {np.shape(self.support)} for route {self.route!r}")
         if self.calibration is not None and self.operator_rays is not None:
             raise ValueError("operator_rays (--operator-rays) traces a simulated camera; real frames are solved on "
@@ -375,10 +375,14 @@ class SequenceJob:
         rec = reconstruct(data, self.operator(), r["solver"], iters, tv=r["tv"], lam=r.get("lam"), l1=r.get("l1"),
                           start=r.get("start"), tol=r.get("tol"), saturation=leave,
                           state=state if r["solver"] == "admm" else None,
-                          **({} if self.support is None else dict(support=self.support)))
+                          **({} if self.support is None else dict(support=self._support())))
         planes = self.operator().to_square(rec.planes, self.camera.n_rows, self.camera.n_cols) if self.hexagonal \
             else rec.planes
         return planes, int(rec.settings["n_saturated"])
+
+    def _support(self) -> np.ndarray:
+        """``support`` on the operator's planes: a hexagonal grid's taken to its lattice."""
+        return self.operator().from_square(self.support) if self.hexagonal else self.support
 
     def operator(self):
         """The emission operator of the planes (:func:`lf_flame.tomo.exact.emission_operator`:
