@@ -148,6 +148,25 @@ def test_found_planes_near_each_other_keep_their_own_flames_temperature(files):
     assert np.nanmedian(t[1][:, 11:]) == pytest.approx(HOT, abs=30.0)
 
 
+def test_a_raw_colour_mosaic_is_levelled_for_the_emission_and_its_planes_are_temperatures(files, capsys):
+    """A perfect grid's raw colour mosaic (the sensor stored beside it): reconstruct levels its red and green samples
+    into one light field, as it levels a decoded colour capture, instead of fitting the mosaic's checkerboard of
+    channel levels; temperature takes reconstruct's planes."""
+    out = files["dir"] / "mono.h5"
+    assert main(["reconstruct", files["flame"], "--no-figure", "--out", str(out)]) == 0
+    assert "colour capture: channels [0, 1] levelled" in capsys.readouterr().out
+    with h5py.File(out, "r") as f:
+        depths, residuals = f["depths_mm"][:], f["residuals"][:]
+        assert "levelled" in f.attrs["monochrome"]
+    assert depths == pytest.approx([0.0], abs=0.3) and residuals[-1] < 0.1     # the mosaic as it is: 0.4
+    t_out = files["dir"] / "Tplanes.h5"
+    assert main(["temperature", files["flame"], "--calibration", files["cal"], "--route", "admm-cfa", "--no-figure",
+                 "--out", str(t_out)]) == 0
+    with h5py.File(t_out, "r") as f:
+        assert list(f["depths_mm"][:]) == list(depths)
+        assert "as reconstruct" in f.attrs["depths_from"]
+
+
 def test_wrong_calibration_refused(files, capsys):
     out = str(files["dir"] / "never.h5")
     sigma = library_sensor("Sigma SDMerill (NPL)")

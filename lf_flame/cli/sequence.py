@@ -62,8 +62,6 @@ def first_frame_depths(source, camera, calibration=None, sensor=None, search_ran
     print("the recording's planes, as reconstruct finds a capture's, in its first frame:")
     _, _, found = found_planes(lf, search_range=search_range)
     found, _, _ = solve_found(lf, found)
-    print("planes after the residual's search and refinement: " + ", ".join(f"{d:+.2f}" for d in found.planes_mm)
-          + " mm")
     possible_warning(found)                            # a depth seen, not taken: the --depth planes to give
     return [float(d) for d in found.planes_mm], found
 

@@ -216,8 +216,8 @@ def cmd_temperature(a):
     from ..temperature.pyrometry import bright_pixels, load_calibration, temperature_planes
     from ..optics.colour import CHANNELS
     from ..temperature.channels import (DECODED_KNOBS, DECODED_OFFSET_KNOBS, DECODED_RATIO_FILTER, cfa_blind,
-                                        channel_emission, channel_sum_views, channel_views, route_operator)
-    from .volume import found_planes, reconstruct_input
+                                        channel_emission, channel_views, monochrome_light_field, route_operator)
+    from .volume import found_planes, found_record, possible_warning, reconstruct_input, solve_found
     from ..tomo.decoded import fit_data
     src = str(a.raw)
     if not (src.endswith(".h5") and ".h5:" not in src):
@@ -246,14 +246,13 @@ def cmd_temperature(a):
     ch = tuple(CHANNELS.index(c) for c in cal.channels)
     hexagonal = lf if lf.lattice_views is not None and lf.channels is not None else None
     extra, found = {}, None
-    if depths == "auto":
-        if hexagonal is None:
-            mono = channel_sum_views(views, chan, ch)
-        else:                                           # the channels' sum on the lattice, then on the square grid
-            from ..real.view_grid import hex_to_square
-            mono = hex_to_square(channel_sum_views(lf.lattice_views, chan, ch))
-        depths, record, found = found_planes(lf, mono, a.search_range)
-        extra = dict(depths_from="auto (channel sum)", found_depths=record)
+    if depths == "auto":                                # reconstruct's planes: the levelled channels' found route
+        mono = monochrome_light_field(lf)
+        _, _, found = found_planes(mono, search_range=a.search_range)
+        found, _, _ = solve_found(mono, found)
+        depths = [float(d) for d in found.planes_mm]
+        extra = dict(depths_from="auto (as reconstruct: the channels levelled, depths found, the residual searched, "
+                                 "refined)", found_depths=found_record(found), possible_depths=possible_warning(found))
     chosen, knobs, ratio_filter = {}, None, None
     slopes = [cam.slope_for_depth(d) for d in depths]
     op = route_operator(cam, depths, a.route, hexagonal, lf.sample_offsets if hexagonal is None else None)
@@ -378,9 +377,10 @@ def add_parsers(sub) -> None:
                    "decode --camera' decodes it")
     s.add_argument("--depth", type=float, action="append", help="plane depth (mm from the focal plane; repeatable). "
                    "Default: --depths auto")
-    s.add_argument("--depths", default=None, help="'auto' (default): the depths holding emission found by depth from "
-                   "focus on the calibration's two channels interpolated and summed; 'scene', 'paper', or depths in "
-                   "mm separated by commas (as 'lf-flame reconstruct')")
+    s.add_argument("--depths", default=None, help="'auto' (default): the planes 'lf-flame reconstruct' finds in the "
+                   "capture (its red and green samples levelled into one light field, depths found, the solve's "
+                   "residual searched, flames one behind another refined); 'scene', 'paper', or depths in mm "
+                   "separated by commas (as 'lf-flame reconstruct')")
     s.add_argument("--slope", type=float, action="append", help="plane slope instead of a depth (repeatable)")
     s.add_argument("--route", choices=["admm-cfa-matched", "admm-cfa", "admm-cfa-smooth", "refocus-cfa"],
                    default="admm-cfa-matched",

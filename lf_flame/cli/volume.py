@@ -120,7 +120,8 @@ def solve_found(lf, found, **kw):
     depths the votes missed and solved again with them (:func:`lf_flame.tomo.peel.peel_planes`), and the depths of
     flames one behind another refined by the residual and their regions searched once more
     (:func:`lf_flame.tomo.refine.peel_and_refine`), as :func:`lf_flame.tomo.found_planes.find_planes`:
-    ``(found, op, rec)``."""
+    ``(found, op, rec)``. Prints the depths found in the residual and the planes after the refinement where they
+    differ from those found."""
     from ..tomo.decoded import fit_data
     from ..tomo.refine import peel_and_refine
     from ..tomo.solvers import fitted_pixels
@@ -131,7 +132,16 @@ def solve_found(lf, found, **kw):
     op, rec = solve(found)
     data, fit = fit_data(_fitted_light_field(lf, kw.get("saturation", "file")), op)
     fit = fitted_pixels(data, fit)
-    return peel_and_refine(found, op, rec, data, fit, lf.camera, solve)
+    voted = np.array(found.planes_mm)
+    found, op, rec = peel_and_refine(found, op, rec, data, fit, lf.camera, solve)
+    if len(found.planes_mm) != len(voted) or not np.allclose(found.planes_mm, voted):
+        added = found.depths_mm[found.weight == 0]       # no votes: found in the residual
+        if len(added):
+            print("found in the residual (behind or before other flames): " + ", ".join(
+                f"{d:+.2f} mm" for d in added) + f" -> {len(found.planes_mm)} planes")
+        print("planes after the residual's search and refinement: " + ", ".join(
+            f"{d:+.2f}" for d in found.planes_mm) + " mm")
+    return found, op, rec
 
 
 def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None, saturation="file",
@@ -234,7 +244,7 @@ def left_out_notes(lf, rec, lattice=None) -> list:
     """What the fit of the light field ``lf`` left out, one line each: its saturated pixels (:func:`saturation_note`),
     or a decoded capture's samples (:func:`decoded_note`), and its defective pixels where it has some."""
     from .real import defects_note
-    notes = [decoded_note(lf, rec, lattice) if lf.decoded else saturation_note(rec, lf)]
+    notes = [decoded_note(lf, rec, lattice) if lf.decoded or lf.leave_out is not None else saturation_note(rec, lf)]
     return notes + ([defects_note(lf.defective_pixels)] if lf.defective_pixels else [])
 
 
@@ -249,14 +259,15 @@ def resolution_note(table, condition: float, span_mm: float) -> str:
 
 
 def decoded_note(lf, rec, lattice=None) -> str:
-    """What the fit of decoded views left out: the count and share of the samples (of the hexagonal lattice's views
-    where ``lattice``, a :class:`~lf_flame.tomo.lattice.LatticeSolve`, solved them) and why."""
+    """What the fit of decoded views (or of a raw colour mosaic, levelled) left out: the count and share of the
+    samples (of the hexagonal lattice's views where ``lattice``, a :class:`~lf_flame.tomo.lattice.LatticeSolve`,
+    solved them) and why."""
     if lattice is None:
         n, total = int(rec.settings.get("n_saturated", 0)), lf.views.size
     else:                                # the axial array's cells that hold no lenslet are no samples
         inside = np.broadcast_to(lattice.op.inside, lattice.leave_out.shape)
         n, total = int(np.count_nonzero(lattice.leave_out & inside)), int(np.count_nonzero(inside))
-    why = "clipped, or dark: outside the aperture's image" + (
+    why = ("clipped, or dark: outside the aperture's image" if lf.decoded else "clipped") + (
         "; a colour camera's blue samples, which the levelled light field leaves out" if "monochrome" in lf.meta else "")
     return f"{n} of {total} samples ({100 * n / total:.0f} %) left out of the fit ({why})"
 
@@ -365,14 +376,14 @@ def cmd_reconstruct(a):
         depths, found, voters = found_planes(lf, search_range=a.search_range)
         extra = dict(depths_from="auto", found_depths=found, support=bool(getattr(a, "support", False)))
         arrays = dict(found_masks=np.asarray(voters.masks, bool), found_regions=voters.labels)
+    if "monochrome" in lf.meta:                        # a colour capture's channels levelled
+        extra["monochrome"] = lf.meta["monochrome"]
+        print(f"colour capture: {lf.meta['monochrome']}")
     if lf.decoded:
         operator = "exact" if lf.interpolation is None else "exact, with decoding's interpolation" + (
             ", on the hexagonal lattice" if lf.lattice_views is not None else "")
         extra.update(own_camera=lf.capture_camera.to_json(), frame=lf.frame.to_dict(), operator=operator,
                      n_clipped=0 if lf.leave_out is None else int(lf.leave_out.sum()))
-        if "monochrome" in lf.meta:                    # a colour capture's channels levelled
-            extra["monochrome"] = lf.meta["monochrome"]
-            print(f"colour capture: {lf.meta['monochrome']}")
         if lf.camera_file:
             extra["camera_file"] = lf.camera_file
     kw = dict(solver=a.solver, iters=a.iters, damp=a.damp, tv=a.tv, saturation=getattr(a, "saturation", "file"),
@@ -384,12 +395,6 @@ def cmd_reconstruct(a):
         voted = np.array(voters.planes_mm)
         voters, op, rec = solve_found(lf, voters, support=bool(getattr(a, "support", False)), **kw)
         if len(voters.planes_mm) != len(voted) or not np.allclose(voters.planes_mm, voted):
-            added = voters.depths_mm[voters.weight == 0]       # no votes: found in the residual
-            if len(added):
-                print("found in the residual (behind or before other flames): " + ", ".join(
-                    f"{d:+.2f} mm" for d in added) + f" -> {len(voters.planes_mm)} planes")
-            print("planes after the residual's search and refinement: " + ", ".join(
-                f"{d:+.2f}" for d in voters.planes_mm) + " mm")
             depths = [float(d) for d in voters.planes_mm]
             extra["found_depths"] = found_record(voters)
             arrays = dict(found_masks=np.asarray(voters.masks, bool), found_regions=voters.labels)

@@ -174,9 +174,10 @@ class LightField:
 
 
 def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation: float | str | None = "auto",
-             camera_file: str | None = None, meta: dict | None = None) -> LightField:
+             camera_file: str | None = None, meta: dict | None = None, sensor=None) -> LightField:
     """The light field of a raw image of a perfect lenslet grid, its defective pixels repaired and left out of the fit
-    (:func:`lf_flame.real.defects.defective_pixels`).
+    (:func:`lf_flame.real.defects.defective_pixels`); a colour sensor's mosaic with each sample's channel
+    (``channels``: each view sample is one pixel, of that pixel's channel).
 
     Parameters
     ----------
@@ -188,6 +189,8 @@ def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation
         the fit); "auto": found in the image (:func:`lf_flame.real.clipping.auto_saturation`:
         where its pixels pile up at its largest value, else 1.0 for an image in [0, 1]); None:
         none.
+    sensor : ColourSensor or None
+        A colour capture's sensor (:func:`capture_sensor`): its CFA gives the channel map.
 
     Raises
     ------
@@ -210,14 +213,18 @@ def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation
     if isinstance(saturation, str) and saturation != "auto":
         raise ValueError(f"saturation must be a level, 'auto' or None. Received: {saturation!r}")
     n = camera.pixels_per_lenslet
-    flagged, repaired = defective_pixels(raw, grid_offsets(n, colour=bool((meta or {}).get("sensor"))))
+    colour = sensor is not None or bool((meta or {}).get("sensor"))
+    flagged, repaired = defective_pixels(raw, grid_offsets(n, colour=colour))
     n_bad = int(np.count_nonzero(flagged))
     views = raw_to_views(repaired.astype(raw.dtype) if n_bad else raw, n)
     if saturation == "auto":                            # found in the views' own values (float32: their rounding)
         from .clipping import found_level
         saturation = found_level(views)
+    channels = None if sensor is None else raw_to_views(sensor.channel_map(raw.shape).astype(np.float32),
+                                                        n).astype(np.int8)
     return LightField(views, camera, source, saturation=saturation, camera_file=camera_file, meta=dict(meta or {}),
-                      defective_pixels=n_bad, defects=raw_to_views(flagged, n) > 0.5 if n_bad else None)
+                      defective_pixels=n_bad, defects=raw_to_views(flagged, n) > 0.5 if n_bad else None,
+                      channels=channels)
 
 
 def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "decoded views", clipped=None,
@@ -361,7 +368,7 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
         from ..optics.camera import PAPER_CAMERA
         cam = PAPER_CAMERA
     if cal is None:
-        return from_raw(raw, cam, src, camera_file=cam_file, meta=meta)
+        return from_raw(raw, cam, src, camera_file=cam_file, meta=meta, sensor=capture_sensor(camera, meta, src)[0])
     if p.suffix.lower() not in (".npz", ".npy"):    # an image file: in the units of the calibration's white and dark
         from .images import load_image
         raw = load_image(p)

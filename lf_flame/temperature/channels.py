@@ -570,8 +570,9 @@ def monochrome_light_field(lf, channels=(0, 1)):
     Parameters
     ----------
     lf : lf_flame.real.lightfield.LightField
-        With :attr:`~lf_flame.real.lightfield.LightField.channels` (decoded with the channels apart;
-        a hexagonal grid's on its lattice). A light field without them is returned as it is.
+        With :attr:`~lf_flame.real.lightfield.LightField.channels` (decoded with the channels apart,
+        a hexagonal grid's on its lattice; or a perfect grid's raw mosaic, whose pixels at or above its
+        clipping level join the samples left out). A light field without them is returned as it is.
     channels : sequence of int
         The channels kept (0 R, 1 G, 2 B).
 
@@ -591,6 +592,8 @@ def monochrome_light_field(lf, channels=(0, 1)):
     meta = {**lf.meta, "monochrome": note}
     if not lattice:
         leave = other if lf.leave_out is None else other | lf.leave_out
+        if not lf.white_normalised and lf.saturation is not None:   # a raw mosaic: its clipped pixels too
+            leave = leave | (lf.views >= lf.saturation)
         return dataclasses.replace(lf, views=out, leave_out=leave, channels=None, meta=meta)
     lattice_leave = other if lf.lattice_leave_out is None else other | lf.lattice_leave_out
     square_leave = hex_to_square(lattice_leave.astype(np.float32)) > 1e-6       # any of its three samples
