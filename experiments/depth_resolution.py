@@ -37,6 +37,9 @@ from lf_flame.optics.camera import PAPER_CAMERA, PlenopticCamera
 from lf_flame.tomo.quadrature import exact_kernels
 from lf_flame.tomo.resolution import (
     CONDITIONS,
+    DEFAULT_FAR_MM,
+    DEFAULT_NEAR_MM,
+    DEFAULT_SPACING_MM,
     FEATURE_SIZES_MM,
     depth_resolution,
     normal_matrix,
@@ -98,7 +101,8 @@ def main(argv=None):
     fine = depth_resolution(PAPER_CAMERA, spacing_mm=0.25)
     frames.append(_frame(fine, "finer stack", 0.25))
     other_cam = PlenopticCamera(**OTHER_CAMERA)
-    other = depth_resolution(other_cam)
+    other = depth_resolution(other_cam, near_mm=DEFAULT_NEAR_MM, far_mm=DEFAULT_FAR_MM, spacing_mm=DEFAULT_SPACING_MM,
+                             feature_mm=FEATURE_SIZES_MM)   # the paper camera's stack, as published
     frames.append(_frame(other, "other camera", 0.5))
     df = pd.concat(frames, ignore_index=True)
     args.out.mkdir(parents=True, exist_ok=True)

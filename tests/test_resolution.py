@@ -10,10 +10,11 @@ import pandas as pd
 import pytest
 
 from lf_flame.cli import main
-from lf_flame.optics.camera import PlenopticCamera
+from lf_flame.optics.camera import PAPER_CAMERA, PlenopticCamera
 from lf_flame.tomo.exact import ExactOperator
 from lf_flame.tomo.quadrature import exact_kernels
 from lf_flame.tomo.resolution import (
+    FEATURE_SIZES_MM,
     depth_resolution,
     kernel_response,
     normal_matrix,
@@ -160,15 +161,29 @@ def test_bad_input_is_refused(camera, dense):
 def test_the_command_maps_another_cameras_geometry(tmp_path, capsys):
     """9 x 9 views behind a 100 mm main lens on 40 x 30 lenslets: fewer views, less
     parallax, so a 1.3 mm feature needs a wider spacing than on the paper's camera (4.5 mm);
-    the files are written and agree with the printed table."""
+    by default the paper camera's stack and feature sizes are carried to it (equal parallax
+    across the aperture, its lenslets), where the paper's -15 to +25 mm would hold few of the
+    depths it resolves; the files are written and agree with the printed table."""
+    from lf_flame.tomo.depth import depth_scale
+    from lf_flame.tomo.resolution import camera_stack
+    assert camera_stack(PAPER_CAMERA) == (-15.0, 25.0, 0.5, FEATURE_SIZES_MM)      # the paper's own
+    other = PlenopticCamera(pixels_per_lenslet=9, n_rows=40, n_cols=30, main_focal_mm=100.0)
+    near, far, spacing, features = camera_stack(other)
+    from lf_flame.optics.camera import imaging_range_mm
+    scale, (lo, hi) = depth_scale(other, 9), imaging_range_mm(other)          # within what the camera refocuses
+    assert scale > 2 and near == pytest.approx(max(-15 * scale, lo), rel=0.05)
+    assert far == pytest.approx(min(25 * scale, hi), rel=0.05) and lo <= near < far <= hi
+    assert (far - near) / spacing == pytest.approx(80, rel=0.05) and features[1] > FEATURE_SIZES_MM[1]
     cam = tmp_path / "cam.toml"
     cam.write_text("[camera]\npixels_per_lenslet = 9\nn_rows = 40\nn_cols = 30\nmain_focal_mm = 100\n")
     out = tmp_path / "res" / "other"
     assert main(["resolution", "--camera", str(cam), "--out", str(out)]) == 0
     text = capsys.readouterr().out
-    assert "| 1.3 |" in text and f"camera of {cam}" in text
+    assert f"every {spacing:g} mm from {near:+g} to {far:+g} mm" in text and f"camera of {cam}" in text
     df = pd.read_csv(out.with_name("other.csv"))
-    assert list(df.feature_mm) == list(FEATURES)
+    assert list(df.feature_mm) == list(features)
+    assert main(["resolution", "--camera", str(cam), "--feature", *map(str, FEATURES), "--out", str(out)]) == 0
+    df = pd.read_csv(out.with_name("other.csv"))
     row = df[df.feature_mm == 1.3].iloc[0]
     assert 6.0 < row.spacing_interp_mm_10 < 40.0
     assert "Provenance" in out.with_name("other.md").read_text() and out.with_name("other.png").stat().st_size > 0

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from ..tomo.resolution import AXES, CONDITIONS, DEFAULT_FAR_MM, DEFAULT_NEAR_MM, DEFAULT_SPACING_MM, FEATURE_SIZES_MM
+from ..tomo.resolution import AXES, CONDITIONS
 
 
 def cmd_resolution(a):
@@ -17,11 +17,14 @@ def cmd_resolution(a):
     from ..optics.camera import PAPER_CAMERA
     from ..optics.camera_file import load_camera_file
     from ..real.own_camera import nominal_views_camera
-    from ..tomo.resolution import depth_resolution, plot_depth_resolution, stack_depths
+    from ..tomo.resolution import camera_stack, depth_resolution, plot_depth_resolution, stack_depths
     t0 = time.perf_counter()
-    stack_depths(a.near, a.far, a.spacing)          # refuse a bad stack before reading or computing anything
     camera = load_camera_file(a.camera) if a.camera else PAPER_CAMERA
     views = nominal_views_camera(camera)         # a real grid: the camera of its decoded views
+    own = camera_stack(views)                    # the defaults: the paper camera's stack carried to this camera
+    a.near, a.far, a.spacing = (own[k] if v is None else v for k, v in enumerate((a.near, a.far, a.spacing)))
+    a.feature = list(own[3]) if a.feature is None else a.feature
+    stack_depths(a.near, a.far, a.spacing)          # refuse a bad stack before computing anything
     res = depth_resolution(views, near_mm=a.near, far_mm=a.far, spacing_mm=a.spacing, feature_mm=a.feature,
                            conditions=a.condition, axis=a.axis)
     wall = time.perf_counter() - t0
@@ -57,14 +60,16 @@ def add_parsers(sub) -> None:
                        "operator's per-frequency normal matrices of a dense stack)")
     s.add_argument("--camera", help="camera file: the datasheet tables of docs/own_camera.md, or a [camera] table "
                    "(default: the paper's camera)")
-    s.add_argument("--near", type=float, default=DEFAULT_NEAR_MM, help="nearest plane of the stack, mm from the "
-                   "focal plane (> 0 farther)")
-    s.add_argument("--far", type=float, default=DEFAULT_FAR_MM, help="farthest plane, mm")
-    s.add_argument("--spacing", type=float, default=DEFAULT_SPACING_MM, help="the stack's plane spacing, mm")
+    s.add_argument("--near", type=float, help="nearest plane of the stack, mm from the focal plane (> 0 farther; "
+                   "default: the paper camera's -15 mm carried to this camera at equal parallax across the aperture, "
+                   "within what it refocuses)")
+    s.add_argument("--far", type=float, help="farthest plane, mm (default: the paper camera's +25 mm, carried so)")
+    s.add_argument("--spacing", type=float, help="the stack's plane spacing, mm (default: 80 steps from --near to "
+                   "--far; 0.5 mm on the paper's camera)")
     s.add_argument("--condition", type=float, nargs="+", default=list(CONDITIONS),
                    help="condition numbers of the two planes' normal block (>= 1)")
-    s.add_argument("--feature", type=float, nargs="+", default=list(FEATURE_SIZES_MM),
-                   help="feature sizes, half a period, mm")
+    s.add_argument("--feature", type=float, nargs="+", help="feature sizes, half a period, mm (default: the paper "
+                   "camera's 0.33-6.6 mm, 2.5 to 50 of its lenslets at the focal plane, in this camera's lenslets)")
     s.add_argument("--axis", choices=list(AXES), default="rows", help="direction of the lateral frequency")
     s.add_argument("--out", help="PREFIX: also write PREFIX.csv, PREFIX.md and PREFIX.png (default: print only)")
     s.set_defaults(func=cmd_resolution)

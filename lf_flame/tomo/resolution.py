@@ -93,6 +93,43 @@ AXES = ("rows", "columns", "diagonal")
 MAX_PLANES = 401
 
 
+def _round(x: float, digits: int = 2) -> float:
+    """``x`` to ``digits`` significant digits."""
+    return float(f"{x:.{digits}g}")
+
+
+def camera_stack(camera: PlenopticCamera) -> tuple:
+    """The default stack and feature sizes of ``camera``'s map: the paper camera's carried to it.
+
+    The stack :data:`DEFAULT_NEAR_MM` to :data:`DEFAULT_FAR_MM` is taken in the paper camera's parallax across
+    the aperture (:func:`lf_flame.tomo.depth.depth_scale`, the depth finder's scaling), clipped to what the
+    camera refocuses (:func:`lf_flame.optics.camera.imaging_range_mm`), in 80 steps; the feature sizes
+    :data:`FEATURE_SIZES_MM` in lenslet footprints at the focal plane. Each is rounded to two significant
+    digits, so the paper's camera gets its own values.
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+        A perfect lenslet grid (a real grid's decoded views' camera).
+
+    Returns
+    -------
+    near_mm, far_mm, spacing_mm : float
+        mm from the focal plane, > 0 farther.
+    feature_mm : tuple of float
+        Half a period, mm.
+    """
+    from ..optics.camera import imaging_range_mm
+    from .depth import depth_scale
+    scale = depth_scale(camera, camera.pixels_per_lenslet)
+    lo, hi = imaging_range_mm(camera)
+    near, far = _round(max(DEFAULT_NEAR_MM * scale, lo)), _round(min(DEFAULT_FAR_MM * scale, hi))
+    near, far = max(near, lo), min(far, hi)             # rounding past the range's ends
+    footprint = lambda cam: cam.field_of_view_mm(0.0)[0] / cam.n_rows   # mm per lenslet at focus
+    ratio = footprint(camera) / footprint(PAPER_CAMERA)
+    return near, far, _round((far - near) / 80), tuple(_round(f * ratio) for f in FEATURE_SIZES_MM)
+
+
 def stack_depths(near_mm: float = DEFAULT_NEAR_MM, far_mm: float = DEFAULT_FAR_MM,
                  spacing_mm: float = DEFAULT_SPACING_MM) -> np.ndarray:
     """Depths (mm from the focal plane, > 0 farther) of a stack every ``spacing_mm`` from
@@ -435,9 +472,9 @@ def resolution_from_kernels(kern: ExactKernels, feature_mm=FEATURE_SIZES_MM, con
         depths_mm=depths, sample_mm=sample, axis=axis, camera=camera, setup_s=0.0, map_s=time.perf_counter() - t0)
 
 
-def depth_resolution(camera: PlenopticCamera | None = None, *, near_mm: float = DEFAULT_NEAR_MM,
-                     far_mm: float = DEFAULT_FAR_MM, spacing_mm: float = DEFAULT_SPACING_MM,
-                     feature_mm=FEATURE_SIZES_MM, conditions=CONDITIONS, axis: str = "rows",
+def depth_resolution(camera: PlenopticCamera | None = None, *, near_mm: float | None = None,
+                     far_mm: float | None = None, spacing_mm: float | None = None,
+                     feature_mm=None, conditions=CONDITIONS, axis: str = "rows",
                      effects: Effects = FLAME_EFFECTS, quadrature_nodes: int | None = None) -> DepthResolution:
     """The camera's depth-resolution map over a dense stack (module docstring).
 
@@ -446,10 +483,11 @@ def depth_resolution(camera: PlenopticCamera | None = None, *, near_mm: float = 
     camera : PlenopticCamera or None
         A perfect lenslet grid (:func:`~lf_flame.tomo.quadrature.exact_kernels`); None: the
         paper's camera.
-    near_mm, far_mm, spacing_mm : float
-        The stack (:func:`stack_depths`), mm from the focal plane, > 0 farther.
-    feature_mm : sequence of float
-        Feature sizes, half a period, mm.
+    near_mm, far_mm, spacing_mm : float or None
+        The stack (:func:`stack_depths`), mm from the focal plane, > 0 farther; None: the camera's
+        (:func:`camera_stack`: on the paper's camera every 0.5 mm from -15 to +25 mm).
+    feature_mm : sequence of float or None
+        Feature sizes, half a period, mm; None: the camera's (:func:`camera_stack`).
     conditions : sequence of float
         Condition numbers (>= 1).
     axis : {"rows", "columns", "diagonal"}
@@ -478,6 +516,10 @@ def depth_resolution(camera: PlenopticCamera | None = None, *, near_mm: float = 
     """
     from .quadrature import QUADRATURE_NODES, exact_kernels
     camera = PAPER_CAMERA if camera is None else camera
+    if None in (near_mm, far_mm, spacing_mm) or feature_mm is None:
+        own = camera_stack(camera)
+        near_mm, far_mm, spacing_mm = (own[k] if v is None else v for k, v in enumerate((near_mm, far_mm, spacing_mm)))
+        feature_mm = own[3] if feature_mm is None else feature_mm
     if axis not in AXES:
         raise ValueError(f"axis must be one of {AXES}. Received: {axis!r}")
     depths = stack_depths(near_mm, far_mm, spacing_mm)
