@@ -196,7 +196,7 @@ def offsets_figure(scene_npz: Path, views: Path, cam: Path, depths, path: Path):
     from lf_flame.cli.volume import run_reconstruction
     from lf_flame.measure.figures import save_figure
     from lf_flame.real.lightfield import read_light_field
-    from lf_flame.temperature.channels import monochrome_light_field
+    from lf_flame.temperature.mosaic import monochrome_light_field
     from lf_flame.tomo.truth import bin_planes
     lf = monochrome_light_field(read_light_field(views, cam))
     truth = channel_truth(scene_npz, lf, depths)[1]                      # green
@@ -360,7 +360,7 @@ def main(argv=None):
           f"`reconstruct` as a user runs it (depths found, admm; {name}_emission.csv, one row per flame): the "
           "decoded colour views levelled into one monochrome light field (red and green samples each divided by "
           "their channel's mean and put in green's units, blue left out: "
-          "`lf_flame.temperature.channels.monochrome_light_field`), scored per flame by `score_flames` against its "
+          "`lf_flame.temperature.mosaic.monochrome_light_field`), scored per flame by `score_flames` against its "
           "green channel's emission in the decoded frame (a flame whose colour varies is not one grey image: "
           "its red samples differ from green's by that variation). Each sample is modelled at its own pixel, up to "
           "half a view step from its view's place, where the planes' parallax calls for it "

@@ -71,8 +71,10 @@ from lf_flame.simulate.colour import render_colour
 from lf_flame.simulate.scenes_temperature import (BEHIND_PEAK_K, FLAME_PEAK_K, colour_behind_scene, colour_flame_scene,
                                                   furnace_scene)
 from lf_flame.temperature.channels import (CFA_FILLS as FILLS, CFA_LAM as LAM, CFA_TV as TV, MATCHED_KNOBS,
-                                  MATCHED_QUIET_NOISE, MATCHED_RATIO_FILTER, MATCHED_SUBSAMPLES, MATCHED_WIDE_NOISE,
-                                  admm_channel, channel_emission, channel_views, colour_truth, route_operator)
+                                           MATCHED_QUIET_NOISE, MATCHED_RATIO_FILTER, MATCHED_SUBSAMPLES,
+                                           MATCHED_WIDE_NOISE, admm_channel, channel_emission, colour_truth,
+                                           route_operator)
+from lf_flame.temperature.mosaic import channel_views
 from lf_flame.temperature.ratio import SMOOTH_SIGMA, smooth_planes
 from lf_flame.tomo.truth import bin_planes
 

@@ -50,7 +50,8 @@ from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.colour import render_colour  # noqa: E402
 from lf_flame.simulate.scenes_temperature import FLAME_PEAK_K, FLICKER_K, colour_flicker_frame  # noqa: E402
 from lf_flame.simulate.scenes_time import flicker_sequence  # noqa: E402
-from lf_flame.temperature.channels import channel_emission, channel_views, route_operator  # noqa: E402
+from lf_flame.temperature.channels import channel_emission, route_operator  # noqa: E402
+from lf_flame.temperature.mosaic import channel_views  # noqa: E402
 
 #: the recording's seed (frequencies, amplitudes, phases, jitter; ray samples and noise from it)
 SEED = 2026_11_25

@@ -54,7 +54,8 @@ from lf_flame.simulate.scenes_volume_temperature import (axisymmetric_node_truth
                                                          colour_axisymmetric_scene)
 from lf_flame.temperature.axisymmetric import (COLOUR_FILLS, COLOUR_INNER, axisymmetric_temperature,  # noqa: E402
                                               volume_temperature)  # noqa: E402
-from lf_flame.temperature.channels import channel_views, refocus_channel  # noqa: E402
+from lf_flame.temperature.channels import refocus_channel  # noqa: E402
+from lf_flame.temperature.mosaic import channel_views  # noqa: E402
 from lf_flame.tomo.exact import ExactOperator  # noqa: E402
 from lf_flame.tomo.truth import scene_truth  # noqa: E402
 

@@ -249,7 +249,8 @@ def test_matched_route_keeps_a_uniform_ratio_off_focus():
     aliasing, about 7 % in the ratio (p90 over the bright lenslets); the matched route (each
     channel through both channels' samples) keeps the ratio within a third of that,
     unfiltered."""
-    from lf_flame.temperature.channels import MATCHED_KNOBS, channel_emission, channel_views, route_operator
+    from lf_flame.temperature.channels import MATCHED_KNOBS, channel_emission, route_operator
+    from lf_flame.temperature.mosaic import channel_views
     sensor = library_sensor(gains=GAINS)
     y, x = np.mgrid[0:42, 0:42]
     soot = np.exp(-(((x - 21) / 7.0) ** 2 + ((y - 21) / 12.0) ** 2)) * (1 + 0.5 * np.cos(1.3 * x) * np.cos(0.9 * y))
@@ -291,7 +292,8 @@ def test_cfa_noise_reads_each_channel_alone():
     """The noise of a colour light field measured on each channel's own samples: a smooth
     noise-free flame reads quiet (the CFA's pattern is not noise), the same at about 14 dB noisy;
     the sub-views hold one channel only."""
-    from lf_flame.temperature.channels import channel_subviews, cfa_noise, channel_views
+    from lf_flame.temperature.channels import cfa_noise
+    from lf_flame.temperature.mosaic import channel_subviews, channel_views
     from lf_flame.tomo.defaults import ADMM_QUIET_NOISE
     sensor, raw, noisy = _smooth_blob()
     n = CAM.pixels_per_lenslet
@@ -307,14 +309,14 @@ def test_matched_route_takes_its_knobs_by_the_noise(monkeypatch):
     the quiet knobs, one above it with the noisy knobs, each with the guided ratio filter of its
     noise (the very noisy knobs and the wider filter from ``MATCHED_WIDE_NOISE``); given knobs and
     filter, it measures nothing."""
-    from lf_flame.temperature import channels
+    from lf_flame.temperature import channels, mosaic
     quiet = dict(fills=2, lam=0.003, tv=0.0, l1=0.0)            # (few fills: the test's time)
     monkeypatch.setitem(channels.MATCHED_KNOBS, "quiet", quiet)
     monkeypatch.setitem(channels.MATCHED_KNOBS, "noisy", dict(channels.MATCHED_KNOBS["noisy"], fills=3))
     monkeypatch.setitem(channels.MATCHED_KNOBS, "very noisy", dict(channels.MATCHED_KNOBS["very noisy"], fills=4))
     sensor, raw, noisy = _smooth_blob()
     n, op = CAM.pixels_per_lenslet, channels.route_operator(CAM, [0.0], "admm-cfa-matched")
-    chan = channels.channel_views(raw.shape, sensor, n)
+    chan = mosaic.channel_views(raw.shape, sensor, n)
     filtered = {}
     for image, thresholds, regime in ((raw, (0.01, 0.1), "quiet"), (raw, (0.003, 0.1), "noisy"),
                                       (noisy, (0.01, 0.1), "noisy"), (noisy, (0.01, 0.02), "very noisy")):
@@ -405,7 +407,7 @@ def test_cfa_blind_marks_the_slopes_where_half_the_lenslets_have_no_red_sample()
     """At an odd-integer slope (odd pixels per lenslet) the points on every other lenslet row
     have no red sample in any view; elsewhere every row has one. ``cfa_blind`` flags exactly
     the former among these slopes, and no plane with an even number of pixels per lenslet."""
-    from lf_flame.temperature.channels import cfa_blind, channel_views
+    from lf_flame.temperature.mosaic import cfa_blind, channel_views
     n = CAM.pixels_per_lenslet
     chan = channel_views((CAM.n_rows * n, CAM.n_cols * n), library_sensor(), n)
     red_row = (chan == 0).any(axis=(1, 3))                    # (view row u, lenslet row k)

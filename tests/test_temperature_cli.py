@@ -12,7 +12,8 @@ from lf_flame.refocus.shift_and_sum import raw_to_views
 from lf_flame.simulate.colour import render_colour
 from lf_flame.simulate.scenes import Effects, Layer, Scene
 from lf_flame.simulate.scenes_temperature import furnace_scene
-from lf_flame.temperature.channels import DECODED_KNOBS, channel_sum_views, channel_views
+from lf_flame.temperature.channels import DECODED_KNOBS
+from lf_flame.temperature.mosaic import channel_sum_views, channel_views
 
 CAM = PlenopticCamera(n_rows=21, n_cols=21)
 GAINS = (1.0, 1.3, 0.7)
@@ -384,7 +385,7 @@ def test_a_colour_captures_emission_is_solved_at_each_samples_own_pixel(tmp_path
 
     from lf_flame.cli._io import colour_scene
     from lf_flame.real.lightfield import read_light_field
-    from lf_flame.temperature.channels import monochrome_light_field
+    from lf_flame.temperature.mosaic import monochrome_light_field
     from lf_flame.tomo.decoded import decoded_plane_truth, fit_data
     from lf_flame.tomo.exact import ExactOperator
     from lf_flame.tomo.solvers import reconstruct

@@ -13,7 +13,7 @@ from lf_flame.simulate.scenes_temperature import blackbody_channels, colour_flam
 from lf_flame.simulate.scenes_volume_temperature import (axisymmetric_node_truth, axisymmetric_temperature_field,
                                                          colour_axisymmetric_scene)
 from lf_flame.temperature.axisymmetric import axisymmetric_temperature, volume_temperature
-from lf_flame.temperature.channels import channel_views
+from lf_flame.temperature.mosaic import channel_views
 from lf_flame.tomo.exact import ExactOperator
 from lf_flame.tomo.truth import scene_truth
 

@@ -48,7 +48,8 @@ from lf_flame.optics.colour import library_sensor  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_flame_scene  # noqa: E402
 from lf_flame.simulate import tracer  # noqa: E402
-from lf_flame.temperature.channels import CFA_LAM, admm_channel, channel_views, matched_channels  # noqa: E402
+from lf_flame.temperature.channels import CFA_LAM, admm_channel, matched_channels  # noqa: E402
+from lf_flame.temperature.mosaic import channel_views  # noqa: E402
 from lf_flame.temperature.ratio import smooth_planes  # noqa: E402
 from lf_flame.tomo.defaults import ADMM_KNOBS  # noqa: E402
 from lf_flame.tomo.exact import ExactOperator  # noqa: E402

@@ -38,7 +38,8 @@ from lf_flame.optics.colour import library_sensor, mosaic  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate import tracer  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_flame_scene  # noqa: E402
-from lf_flame.temperature.channels import channel_emission, channel_views, colour_truth  # noqa: E402
+from lf_flame.temperature.channels import channel_emission, colour_truth  # noqa: E402
+from lf_flame.temperature.mosaic import channel_views  # noqa: E402
 from lf_flame.temperature.ratio import smooth_planes  # noqa: E402
 from lf_flame.tomo.exact import ExactOperator  # noqa: E402
 

@@ -13,7 +13,7 @@ seeds :data:`BEHIND_SEEDS`, not the scored 937200-937203), scored over the mixed
 ``temperature_behind.md``. Per noisy level: the filter with the smallest worst-plane p90 is chosen;
 noise-free, the one with the smallest larger of the flames' worst-plane p90 over 30 K and the behind
 scenes' over 50 K (their bars), the behind planes the CFA leaves blind apart
-(:func:`lf_flame.temperature.channels.cfa_blind`: at a slope near +-1 lenslet per view, half the lenslets hold
+(:func:`lf_flame.temperature.mosaic.cfa_blind`: at a slope near +-1 lenslet per view, half the lenslets hold
 no red sample in any view, a ratio no filter restores); ``MATCHED_RATIO_FILTER`` and
 ``MATCHED_WIDE_NOISE`` are checked against the choices, the relative noise ``cfa_noise`` measures
 beside each level. Writes ``<out>/temperature_ratio_filter.{csv,md}``.
@@ -38,8 +38,9 @@ from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.refocus.shift_and_sum import raw_to_views  # noqa: E402
 from lf_flame.simulate.scenes_temperature import colour_behind_scene  # noqa: E402
 from lf_flame.temperature.channels import (MATCHED_KNOBS, MATCHED_QUIET_NOISE, MATCHED_RATIO_FILTER,  # noqa: E402
-                                  MATCHED_SIGMA_NOISY, MATCHED_WIDE_NOISE, cfa_blind, cfa_noise, matched_channels,
-                                  matched_regime, route_operator)
+                                           MATCHED_SIGMA_NOISY, MATCHED_WIDE_NOISE, cfa_noise, matched_channels,
+                                           matched_regime, route_operator)
+from lf_flame.temperature.mosaic import cfa_blind  # noqa: E402
 from lf_flame.temperature.ratio import guided_ratio, smooth_planes  # noqa: E402
 from lf_flame.tomo.truth import bin_planes  # noqa: E402
 

@@ -210,14 +210,14 @@ def light_field(a, path=None, colour: bool = False):
     """The light field of a command's input (``a.raw`` or ``path``) with its ``--camera`` and
     ``--calibration`` (:func:`lf_flame.real.lightfield.read_light_field`); a colour capture's
     decoded views as one monochrome light field
-    (:func:`lf_flame.temperature.channels.monochrome_light_field`) unless ``colour``."""
+    (:func:`lf_flame.temperature.mosaic.monochrome_light_field`) unless ``colour``."""
     from ..real.lightfield import read_light_field
     lf = read_light_field(path or a.raw, getattr(a, "camera", None), getattr(a, "calibration", None),
                           views=getattr(a, "views", None), raw_reader=_raw_reader, formats=RAW_FORMATS)
     black_level_warning(lf.unlit_level)
     if lf.channels is None or colour:
         return lf
-    from ..temperature.channels import monochrome_light_field
+    from ..temperature.mosaic import monochrome_light_field
     return monochrome_light_field(lf)
 
 

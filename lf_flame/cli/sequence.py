@@ -54,7 +54,7 @@ def first_frame_depths(source, camera, calibration=None, sensor=None, search_ran
     search saw and did not take is warned of (:func:`~lf_flame.cli.volume.possible_warning`). Returns the depths
     (mm) and the :class:`~lf_flame.tomo.depth.FoundDepths` they are."""
     from ..real.lightfield import decode_capture, from_raw
-    from ..temperature.channels import monochrome_light_field
+    from ..temperature.mosaic import monochrome_light_field
     from .volume import found_planes, possible_warning, solve_found
     raw = np.asarray(next(iter(source.frames(0, 1))), np.float64)
     lf = monochrome_light_field(from_raw(raw, camera, "the first frame") if calibration is None else  # colour: levelled

@@ -215,8 +215,9 @@ def cmd_temperature(a):
     from ..measure.figures import save_figure
     from ..temperature.pyrometry import bright_pixels, load_calibration, temperature_planes
     from ..optics.colour import CHANNELS
-    from ..temperature.channels import (DECODED_KNOBS, DECODED_OFFSET_KNOBS, DECODED_RATIO_FILTER, cfa_blind,
-                                        channel_emission, channel_views, monochrome_light_field, route_operator)
+    from ..temperature.channels import (DECODED_KNOBS, DECODED_OFFSET_KNOBS, DECODED_RATIO_FILTER, channel_emission,
+                                        route_operator)
+    from ..temperature.mosaic import cfa_blind, channel_views, monochrome_light_field
     from .volume import found_planes, found_record, possible_warning, reconstruct_input, solve_found
     from ..tomo.decoded import fit_data
     src = str(a.raw)
@@ -309,7 +310,7 @@ def cmd_temperature(a):
         f["n_dim"] = np.asarray(n_dim, np.int64)
         f["cfa_blind"] = blind
         f["cfa_blind"].attrs["meaning"] = ("plane at a slope near an odd integer: half its lenslets have no sample of "
-                                           "a CFA phase in any view (lf_flame.temperature.channels.cfa_blind)")
+                                           "a CFA phase in any view (lf_flame.temperature.mosaic.cfa_blind)")
         attrs = dict(kind="lf_flame temperature", source=src, calibration=json.dumps(
             dict(path=str(a.calibration), **{k: getattr(cal, k) for k in cal.__dataclass_fields__})),
                      sensor=json.dumps(dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase),

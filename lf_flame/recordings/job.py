@@ -61,7 +61,7 @@ class SequenceJob:
         :func:`lf_flame.optics.colour.library_sensor`). Each frame is decoded with its channels apart
         (:func:`lf_flame.real.decoding.decode_colour`, one pixel per sample) and levelled into one
         monochrome light field as ``lf-flame reconstruct`` levels a capture
-        (:func:`lf_flame.temperature.channels.levelled_views`: the other channels' samples left out).
+        (:func:`lf_flame.temperature.mosaic.levelled_views`: the other channels' samples left out).
     truth_freqs_hz : tuple of float or None
         Simulated: plane ``k``'s flame's flicker frequency (Hz), within 0 to ``fps / 2``.
     chunk : int
@@ -277,7 +277,7 @@ class SequenceJob:
         self._cache["grid_checked"] = True
         if channels is None:
             return views, clipped
-        from ..temperature.channels import levelled_views
+        from ..temperature.mosaic import levelled_views
         views, other, _ = levelled_views(views, channels)
         return views, other if clipped is None else other | clipped
 

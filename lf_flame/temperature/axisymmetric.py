@@ -10,7 +10,7 @@ samples still differ, and so do their errors; the matched second pass (step 2) e
 :func:`axisymmetric_temperature`:
 
 1. the axis, once: :func:`~lf_flame.tomo.axisymmetric.solve_axisymmetric`'s search on the
-   channels' sum (:func:`lf_flame.temperature.channels.channel_sum_views`, the CFA's checkerboard
+   channels' sum (:func:`lf_flame.temperature.mosaic.channel_sum_views`, the CFA's checkerboard
    interpolated away), unless given; both channels' solves get the same axis, radius and
    radial nodes;
 2. ``e_a(r, y)`` and ``e_b(r, y)`` of the calibration's two channels, each on its own samples,
@@ -31,7 +31,7 @@ import numpy as np
 
 from ..optics.colour import ALPHA_SOOT, CHANNELS, ColourSensor
 from ..tomo.axisymmetric import solve_axisymmetric
-from .channels import channel_sum_views
+from .mosaic import channel_sum_views
 from .pyrometry import MIN_FRACTION, TemperatureCalibration, temperature_planes
 
 #: Fills of the missing data and FISTA steps per fill of each channel's solve. A channel's own samples
@@ -157,7 +157,7 @@ def axisymmetric_temperature(views, op, chan, cal: TemperatureCalibration, senso
     op : ExactOperator
         The dense stack (``subsamples=1``) the volume is returned on.
     chan : ndarray of shape (N, N, R, C), int
-        Each sample's channel (:func:`lf_flame.temperature.channels.channel_views`).
+        Each sample's channel (:func:`lf_flame.temperature.mosaic.channel_views`).
     cal : TemperatureCalibration
         Its ``channels`` (e.g. ``("R", "G")``) are the ratio's numerator and denominator.
     sensor : ColourSensor

@@ -2,7 +2,7 @@
 
 A colour plenoptic camera records one channel per pixel (the colour filter array). Split
 into sub-aperture views, each view sample keeps the channel of the pixel it came from
-(:func:`channel_views`), so each channel's data are its own samples and the others are
+(:func:`lf_flame.temperature.mosaic.channel_views`), so each channel's data are its own samples and the others are
 missing. Routes from those samples to each plane's emission in two channels, whose ratio
 :func:`lf_flame.temperature.pyrometry.temperature_planes` turns into temperature:
 
@@ -24,9 +24,9 @@ missing. Routes from those samples to each plane's emission in two channels, who
   the mean over the views that hold that channel (:func:`refocus_channel`): the focal-stack
   ratio baseline.
 
-:func:`channel_sum_views` equalises and interpolates the channels into one monochrome light
-field without the CFA's checkerboard, for depth from focus (:func:`lf_flame.tomo.depth.find_depths`).
-:func:`colour_truth` puts a colour scene's per-channel truth on the planes' grids.
+Each sample's channel and the channels as one monochrome light field (for reconstruct and the
+depth search): :mod:`lf_flame.temperature.mosaic`. :func:`colour_truth` puts a colour scene's
+per-channel truth on the planes' grids.
 ``experiments/temperature.py`` measures the routes; ``lf-flame temperature`` runs them.
 """
 from __future__ import annotations
@@ -35,11 +35,11 @@ import dataclasses
 
 import numpy as np
 
-from ..optics.colour import ColourSensor
-from ..refocus.shift_and_sum import aperture_mask, focal_stack, raw_to_views
+from ..refocus.shift_and_sum import aperture_mask, focal_stack
 from ..tomo.noise_knobs import relative_noise
 from ..tomo.solvers import reconstruct
 from ..tomo.truth import bin_planes, resample_layer
+from .mosaic import channel_subviews
 from .ratio import SMOOTH_SIGMA, filter_ratio, smooth_planes
 
 #: The routes from a colour light field to two channels' emission per plane (the first: the default).
@@ -122,34 +122,6 @@ DECODED_OFFSET_BINS = 2
 MATCHED_WIDE_NOISE = 0.017
 
 
-def channel_views(shape, sensor: ColourSensor, pixels_per_lenslet: int) -> np.ndarray:
-    """Channel index (0 R, 1 G, 2 B) of each view sample of a raw image of ``shape``.
-
-    Parameters
-    ----------
-    shape : (int, int)
-        The raw image's rows and columns, ``(R * N, C * N)``.
-    sensor : ColourSensor
-        Its CFA pattern and phase.
-    pixels_per_lenslet : int
-        ``N``.
-
-    Returns
-    -------
-    ndarray of shape (N, N, R, C), int8: views' axes as
-    :func:`lf_flame.refocus.shift_and_sum.raw_to_views`.
-
-    Raises
-    ------
-    ValueError
-        A shape that is not a grid of N x N lenslet images.
-    """
-    n = int(pixels_per_lenslet)
-    if len(shape) != 2 or n < 1 or shape[0] % n or shape[1] % n:
-        raise ValueError(f"a raw image of {n} x {n} lenslet images is needed. Received shape {tuple(shape)}")
-    return raw_to_views(sensor.channel_map(shape).astype(np.float32), n).astype(np.int8)
-
-
 def admm_channel(views: np.ndarray, op, fit: np.ndarray, *, fills: int = CFA_FILLS, lam: float = CFA_LAM,
                  tv: float = CFA_TV, l1: float = CFA_L1, support=None) -> np.ndarray:
     """One channel's emission per plane by admm on its own samples.
@@ -229,61 +201,6 @@ def matched_channels(views: np.ndarray, op, fits, support=None, **knobs):
                  for i, x in enumerate(own))
 
 
-def channel_subviews(views: np.ndarray, chan: np.ndarray, channel: int) -> np.ndarray:
-    """One channel's samples of each view as a regular image: every other lenslet, at the phase holding it.
-
-    With a 2 x 2 CFA a view's samples of one channel lie on every other lenslet row and
-    column (odd pixels per lenslet) or on all of them (even): per view, the one of the four
-    phases ``views[u, v, a::2, b::2]`` holding most of the channel's samples.
-
-    Parameters
-    ----------
-    views, chan : ndarray of shape (N, N, R, C)
-    channel : int
-
-    Returns
-    -------
-    ndarray of shape (N, N, R // 2, C // 2), float64
-    """
-    N, _, R, C = views.shape
-    out = np.zeros((N, N, R // 2, C // 2))
-    phases = [(a, b) for a in (0, 1) for b in (0, 1)]
-    for u in range(N):
-        for v in range(N):
-            a, b = max(phases, key=lambda ab: np.count_nonzero(chan[u, v, ab[0]::2, ab[1]::2] == channel))
-            out[u, v] = views[u, v, a::2, b::2][:R // 2, :C // 2]
-    return out
-
-
-def cfa_blind(slopes, pixels_per_lenslet: int) -> np.ndarray:
-    """Planes whose points a 2 x 2 CFA shows in one phase only: no ratio there for half the lenslets.
-
-    With an odd number ``N`` of pixels per lenslet, the CFA's phase along an axis alternates
-    from lenslet to lenslet, so view ``u`` of lenslet ``k`` holds phase ``(k + u) mod 2``. A
-    point of a plane of slope ``s`` at lenslet ``y`` lies in lenslet ``y + s u`` of view ``u``,
-    at phase ``(y + (s + 1) u) mod 2``: at an odd-integer slope that is ``y``'s alone, and
-    the points on every other lenslet row (column) have no sample of that phase in any view
-    (no red sample, in the RGGB pattern). Within ``2 / (N - 1)`` of an odd integer the views'
-    spread of ``s u`` stays under two lenslets and most of them still see one phase only.
-    With ``N`` even, each view holds one phase at every lenslet and no plane is blind.
-
-    Parameters
-    ----------
-    slopes : sequence of float, lenslets per view
-    pixels_per_lenslet : int
-
-    Returns
-    -------
-    ndarray of bool, shape (len(slopes),)
-    """
-    s = np.asarray(slopes, float)
-    n = int(pixels_per_lenslet)
-    if n % 2 == 0 or n < 3:
-        return np.zeros(s.shape, bool)
-    odd = 2 * np.floor(s / 2) + 1                       # the nearest odd integer
-    return np.abs(s - odd) < 2.0 / (n - 1)
-
-
 def matched_regime(noise: float) -> str:
     """``admm-cfa-matched``'s noise regime for a relative noise (:func:`cfa_noise`): ``"quiet"``
     below :data:`MATCHED_QUIET_NOISE`, ``"noisy"`` below :data:`MATCHED_WIDE_NOISE`, else
@@ -293,7 +210,7 @@ def matched_regime(noise: float) -> str:
 
 def cfa_noise(views: np.ndarray, chan: np.ndarray, channels) -> float:
     """A colour light field's relative noise: the largest of ``channels``' (:func:`lf_flame.tomo.noise_knobs.relative_noise`
-    of :func:`channel_subviews`, each channel's samples only, so the CFA's pattern is not taken for noise)."""
+    of :func:`~lf_flame.temperature.mosaic.channel_subviews`, each channel's samples only, so the CFA's pattern is not taken for noise)."""
     return max(relative_noise(channel_subviews(views, chan, c)) for c in channels)
 
 
@@ -442,49 +359,6 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
     return rec[0], rec[1]
 
 
-def channel_sum_views(views: np.ndarray, chan: np.ndarray, channels=(0, 1), sigma: float = 0.7) -> np.ndarray:
-    """One monochrome light field from a colour one, without the CFA's checkerboard: for depth from focus.
-
-    Per channel of ``channels``, its samples are interpolated over each view's lenslets by
-    normalised convolution (a Gaussian of ``sigma`` lenslets: ``G(v m) / G(m)``), scaled by
-    the channel's mean sample, and the channels present at a sample averaged. With an odd
-    number of pixels per lenslet every view holds every channel on alternate lenslets; with
-    an even number a view holds one channel, which is then that view's value.
-
-    Parameters
-    ----------
-    views, chan : ndarray of shape (N, N, R, C)
-    channels : sequence of int
-    sigma : float, lenslets
-
-    Returns
-    -------
-    ndarray of shape (N, N, R, C), float32, about 1 where the channels are at their mean.
-
-    Raises
-    ------
-    ValueError
-        Shapes that differ, or a channel with no signal.
-    """
-    from scipy.ndimage import gaussian_filter
-    v = np.asarray(views, np.float64)
-    if np.shape(chan) != v.shape:
-        raise ValueError(f"channel map of shape {np.shape(chan)} for views of shape {v.shape}")
-    num = np.zeros_like(v)
-    cnt = np.zeros_like(v)
-    for c in channels:
-        m = np.asarray(chan) == c
-        mean = float(v[m].mean()) if m.any() else 0.0
-        if not mean > 0:
-            raise ValueError(f"channel {c} has no signal")
-        a = gaussian_filter(v * m, (0, 0, sigma, sigma))
-        b = gaussian_filter(m.astype(np.float64), (0, 0, sigma, sigma))
-        has = b > 1e-3
-        num += np.where(has, a / np.maximum(b, 1e-3), 0.0) / mean
-        cnt += has
-    return (num / np.maximum(cnt, 1)).astype(np.float32)
-
-
 def colour_truth(channel_radiance, layers, op) -> np.ndarray:
     """A colour scene's emission per channel on the planes' grids.
 
@@ -518,86 +392,3 @@ def colour_truth(channel_radiance, layers, op) -> np.ndarray:
     return truth
 
 
-def levelled_views(views: np.ndarray, chan: np.ndarray, channels=(0, 1)):
-    """A colour light field's samples as one monochrome light field (:func:`monochrome_light_field`).
-
-    Parameters
-    ----------
-    views, chan : ndarray of shape (N, N, R, C)
-        The samples and each one's channel (0 R, 1 G, 2 B; a hexagonal grid's on its lattice rows).
-    channels : sequence of int
-        The channels kept; the last one's mean sets the units.
-
-    Returns
-    -------
-    levelled : ndarray of shape (N, N, R, C), float32
-        Each kept channel's samples times (last channel's mean / its mean); the other samples
-        :func:`channel_sum_views`' interpolation in the same units.
-    other : ndarray of bool of shape (N, N, R, C)
-        The samples of the channels not kept (to leave out of a fit).
-    gains : list of float
-        Each kept channel's factor; all 1 where a kept channel has no signal (its mean not above 0:
-        a dark frame of a recording), whose samples are kept as they are and the others set to 0.
-    """
-    src = np.asarray(views, np.float64)
-    chan = np.asarray(chan)
-    other = ~np.isin(chan, channels)
-    means = [float(src[chan == c].mean()) if np.any(chan == c) else 0.0 for c in channels]
-    if not all(m > 0 for m in means):                       # a dark frame: nothing to level
-        return np.where(other, 0.0, src).astype(np.float32), other, [1.0] * len(channels)
-    fill = channel_sum_views(src, chan, channels)
-    gains = [means[-1] / m for m in means]
-    out = fill * means[-1]
-    for c, g in zip(channels, gains):
-        own = chan == c
-        out[own] = src[own] * g
-    return out.astype(np.float32), other, gains
-
-
-def monochrome_light_field(lf, channels=(0, 1)):
-    """A colour capture as one monochrome light field, for the routes that solve or refocus emission.
-
-    A Bayer mosaic read as one light field is a checkerboard of the channels' levels: depth from
-    focus takes it for texture and the exact operator cannot fit it (on the example camera's
-    colour flames: 6 planes found for 2 flames, relative residual 0.41). Here each sample of
-    ``channels`` is divided by its channel's mean over the light field and multiplied by the
-    last channel's (green by default: the views are in its units), so that where the flame's
-    colour is uniform the channels agree; the other channels' samples (blue: a flame's faintest)
-    are left out of the fit and hold :func:`channel_sum_views`' interpolation (for refocusing
-    and the depth search) (:func:`levelled_views`). Where the colour varies across the flame
-    (temperature), the levelled channels differ by that variation.
-
-    Parameters
-    ----------
-    lf : lf_flame.real.lightfield.LightField
-        With :attr:`~lf_flame.real.lightfield.LightField.channels` (decoded with the channels apart,
-        a hexagonal grid's on its lattice; or a perfect grid's raw mosaic, whose pixels at or above its
-        clipping level join the samples left out). A light field without them is returned as it is.
-    channels : sequence of int
-        The channels kept (0 R, 1 G, 2 B).
-
-    Returns
-    -------
-    LightField
-        Without channels; ``leave_out`` (``lattice_leave_out``) holds the other channels' samples
-        and those already left out; ``meta["monochrome"]`` says how it was made.
-    """
-    from ..real.view_grid import hex_to_square
-    if lf.channels is None:
-        return lf
-    lattice = lf.lattice_views is not None
-    out, other, gains = levelled_views(lf.lattice_views if lattice else lf.views, lf.channels, channels)
-    note = (f"channels {list(channels)} levelled by their means (x {[round(g, 4) for g in gains]}), "
-            "the others left out of the fit")
-    meta = {**lf.meta, "monochrome": note}
-    if not lattice:
-        leave = other if lf.leave_out is None else other | lf.leave_out
-        if not lf.white_normalised and lf.saturation is not None:   # a raw mosaic: its clipped pixels too
-            leave = leave | (lf.views >= lf.saturation)
-        return dataclasses.replace(lf, views=out, leave_out=leave, channels=None, meta=meta)
-    lattice_leave = other if lf.lattice_leave_out is None else other | lf.lattice_leave_out
-    square_leave = hex_to_square(lattice_leave.astype(np.float32)) > 1e-6       # any of its three samples
-    if lf.leave_out is not None:
-        square_leave |= lf.leave_out
-    return dataclasses.replace(lf, views=np.ascontiguousarray(hex_to_square(out)), leave_out=square_leave,
-                               channels=None, lattice_views=out, lattice_leave_out=lattice_leave, meta=meta)
