@@ -373,9 +373,8 @@ def cmd_reconstruct(a):
         raise ValueError("--support holds each plane to the regions its depth was found in: it goes with the found "
                          "depths (--depths auto, the default), not with planes given")
     if depths == "auto":
-        depths, found, voters = found_planes(lf, search_range=a.search_range)
-        extra = dict(depths_from="auto", found_depths=found, support=bool(getattr(a, "support", False)))
-        arrays = dict(found_masks=np.asarray(voters.masks, bool), found_regions=voters.labels)
+        _, _, voters = found_planes(lf, search_range=a.search_range)   # their record once solved (below)
+        extra = dict(depths_from="auto", support=bool(getattr(a, "support", False)))
     if "monochrome" in lf.meta:                        # a colour capture's channels levelled
         extra["monochrome"] = lf.meta["monochrome"]
         print(f"colour capture: {lf.meta['monochrome']}")
@@ -392,12 +391,10 @@ def cmd_reconstruct(a):
     if voters is None:
         op, rec = run_reconstruction(lf, depths, **kw)
     else:
-        voted = np.array(voters.planes_mm)
         voters, op, rec = solve_found(lf, voters, support=bool(getattr(a, "support", False)), **kw)
-        if len(voters.planes_mm) != len(voted) or not np.allclose(voters.planes_mm, voted):
-            depths = [float(d) for d in voters.planes_mm]
-            extra["found_depths"] = found_record(voters)
-            arrays = dict(found_masks=np.asarray(voters.masks, bool), found_regions=voters.labels)
+        depths = [float(d) for d in voters.planes_mm]      # after the residual's search and the refinement
+        extra["found_depths"] = found_record(voters)
+        arrays = dict(found_masks=np.asarray(voters.masks, bool), found_regions=voters.labels)
         extra["possible_depths"] = possible_warning(voters)
     fitted = _fitted_light_field(lf, kw["saturation"])
     rec, lattice = lattice_solve(fitted, op, rec, voters,
