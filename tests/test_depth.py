@@ -234,6 +234,19 @@ def test_depth_tolerances_carry_the_paper_cameras_parallax(camera_file):
     assert (depth_tolerance_scale(other, other.pixels_per_lenslet) < 0.05) == ("napari" in camera_file)
 
 
+def test_a_flame_past_the_searched_depths_is_found_at_their_end_not_beyond(cam, planted):
+    """The search grid runs a step past the searched depths' ends; a flame beyond them peaks there and is found at
+    the range's end (the residual's search and the refinement alike), never past it: a plane outside the searched
+    depths would lie where the user asked not to look, or outside what the camera refocuses."""
+    scene, views = planted
+    near = min(o["depth_offset_mm"] for o in scene.objects)
+    rng = (near + 0.1, 12.0)                               # the nearer flame lies 0.1 mm short of the range
+    found = find_depths(views, cam, depth_range_mm=rng)
+    assert found.depths_mm.min() == pytest.approx(rng[0], abs=1e-9), found.depths_mm
+    routed, _, _ = find_planes(views, cam, depth_range_mm=rng)
+    assert routed.depths_mm.min() >= rng[0] - 1e-9 and routed.planes_mm.min() >= rng[0] - 1e-9, routed.depths_mm
+
+
 def test_refusals(cam, planted):
     scene, views = planted
     with pytest.raises(ValueError, match="shape"):

@@ -185,6 +185,17 @@ def _grid_depths(camera: PlenopticCamera, slopes) -> np.ndarray:
     return out
 
 
+def searched_depths(camera: PlenopticCamera, found: FoundDepths) -> tuple[float, float]:
+    """The depths (near, far; mm from the focal plane) ``found``'s search ran over: its ``depth_range_mm``, else (a
+    record without one) the depths of its grid's slopes that the camera images. A depth found there (a peak fitted
+    past the range's end, the grid running a step beyond it) is clipped to them."""
+    lo, hi = (float(d) for d in found.depth_range_mm)
+    if math.isfinite(lo) and math.isfinite(hi):
+        return lo, hi
+    d = _grid_depths(camera, found.grid_slopes)
+    return float(np.nanmin(d)), float(np.nanmax(d))
+
+
 def _check_views(views, camera):
     if not isinstance(camera, PlenopticCamera):
         raise ValueError(f"camera must be a PlenopticCamera. Received: {type(camera).__name__}")
@@ -366,8 +377,8 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
     for lab in np.flatnonzero(sizes < min_pixels):
         labels[labels == lab] = 0
 
-    # 3. depths per region; a peak fitted a step past the range (beyond infinity) at the grid's farthest imaged slope
-    imaged = slopes[np.isfinite(_grid_depths(camera, slopes))][[0, -1]]
+    # 3. depths per region; a peak fitted past the range's end (the grid runs a step beyond it) at that end
+    imaged = (s_lo, s_hi)
     dz_ds = abs(camera.depth_for_slope(slope_step) - camera.depth_for_slope(0.0)) / slope_step   # mm per slope
     sep_bins = max(1, int(round(min_separation_mm / (dz_ds * slope_step))))
     rows = []

@@ -16,7 +16,7 @@ import numpy as np
 from ..optics.camera import PlenopticCamera
 from ..refocus.shift_and_sum import _check_finite
 from .depth import (FoundDepths, _focus_energy, _grid_depths, _half_width, _peak_fit, depth_tolerances,
-                    merge_depths)
+                    merge_depths, searched_depths)
 
 #: A depth the solve missed (:func:`missed_depths`): the residual views' Tenengrad energy over a region, refocused,
 #: peaks at least ``RESIDUAL_PROMINENCE`` robust standard deviations (1.4826 times the median absolute deviation
@@ -106,6 +106,7 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
     depth_of = _grid_depths(camera, slopes)      # NaN where the grid runs past what the camera images
     ok = np.flatnonzero(np.isfinite(depth_of))
     dz_ds = abs(depth_of[ok[-1]] - depth_of[ok[0]]) / max(abs(slopes[ok[-1]] - slopes[ok[0]]), 1e-12)
+    searched = sorted(camera.slope_for_depth(d) for d in searched_depths(camera, found))   # a peak past: at the end
     rows = []
     for lab in np.unique(found.region) if regions is None else np.intersect1d(found.region, regions):
         reg = found.labels == lab
@@ -120,8 +121,7 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
         spread = 1.4826 * float(np.median(np.abs(curve - med)))
         if not (curve[i] > med and curve[i] >= share * data_peak and curve[i] - med >= excess * data_peak):
             continue
-        s = float(np.clip(np.interp(_peak_fit(curve, i), np.arange(len(slopes)), slopes),
-                          slopes[ok].min(), slopes[ok].max()))
+        s = float(np.clip(np.interp(_peak_fit(curve, i), np.arange(len(slopes)), slopes), *searched))
         if not curve[i] - med >= prominence * spread:
             if possible is not None and curve[i] - med >= possible_prominence * spread:
                 possible.append(dict(depth_mm=camera.depth_for_slope(s), prominence=(curve[i] - med) / spread,

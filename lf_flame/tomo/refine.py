@@ -25,7 +25,7 @@ import dataclasses
 import numpy as np
 
 from ..optics.camera import PlenopticCamera
-from .depth import FoundDepths, _grid_depths
+from .depth import FoundDepths, searched_depths
 from .peel import PEEL_ROUNDS, missed_depths, peel_planes
 
 #: Gauss-Newton steps of :func:`refine_planes` (each a solve at the new depths). Chosen on 25 validation column
@@ -108,21 +108,12 @@ def slope_jacobian(op, planes, fit, which=None) -> np.ndarray:
     return out
 
 
-def _imaged(camera: PlenopticCamera, depth_mm: float, end_mm: float) -> float:
-    """``depth_mm`` where the camera images it (a slope exists), else ``end_mm``."""
-    try:
-        camera.slope_for_depth(depth_mm)
-    except ValueError:
-        return end_mm
-    return depth_mm
-
-
 def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamera, solve,
                   steps: int = REFINE_STEPS, residual=None):
     """Refine the planes that hold flames one behind another (depths found in a region that holds
     several) by Gauss-Newton on their slopes against the solve's residual (the module's notes), each
     within :data:`REFINE_REACH` times its found uncertainty of where it was found (a reach past the depths
-    the camera images stops at the end of those the search ran over, ``found.grid_slopes``). A plane that merged
+    the searched depths stops at their end, :func:`~lf_flame.tomo.depth.searched_depths`). A plane that merged
     several found depths (within ``merge_mm``) is a compromise between them and is left where it is.
 
     Parameters
@@ -154,11 +145,10 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
     fit = np.asarray(fit, bool)
     residual = Residuals(data, fit) if residual is None else residual
     k_of = {int(p): k for k, p in enumerate(found.plane_of)}          # each refined plane holds one depth
-    searched = _grid_depths(camera, found.grid_slopes)               # NaN past what the camera images
-    near, far = float(np.nanmin(searched)), float(np.nanmax(searched))
+    near, far = searched_depths(camera, found)
     reach = {p: REFINE_REACH * found.uncertainty_mm[k_of[p]] for p in todo}
-    lo = {p: _imaged(camera, found.depths_mm[k_of[p]] - reach[p], near) for p in todo}
-    hi = {p: _imaged(camera, found.depths_mm[k_of[p]] + reach[p], far) for p in todo}
+    lo = {p: max(found.depths_mm[k_of[p]] - reach[p], near) for p in todo}        # near and far: imaged depths
+    hi = {p: min(found.depths_mm[k_of[p]] + reach[p], far) for p in todo}
 
     r = residual(op, rec)                                             # data minus prediction
     cost = float(np.vdot(r, r))
