@@ -242,3 +242,29 @@ def test_reconstruct_takes_the_finer_grid_by_default_and_the_lenslet_grid_when_a
     assert shapes == {"auto": (4, 82, 82), "1": (4, 41, 41), "fista": (4, 41, 41)}
     with pytest.raises(SystemExit):
         main(["reconstruct", str(small_flame / "flame.npz"), "--subsamples", "3", "--out", str(small_flame / "x.h5")])
+
+
+def test_a_monochrome_render_of_a_colour_camera_is_read_as_monochrome(tmp_path, capsys):
+    """A camera file naming a CFA, a scene that renders monochrome (``simulate --scene depth``, ``simulate-sequence``):
+    the render says so and records it, and ``reconstruct`` and ``sequence`` given the same camera file read it as the
+    monochrome light field it is, not as a mosaic to level (which would leave a quarter of it, the 'blue' samples,
+    out of the fit)."""
+    cam = tmp_path / "colour.toml"
+    cam.write_text('[main_lens]\nfocal_length_mm = 80.0\nf_number = 8.0\nfocus_distance_mm = 400.0\n'
+                   '[microlens_array]\npitch_um = 90.0\nfocal_length_mm = 0.9\n'
+                   '[sensor]\npixel_size_um = 6.054\nrows = 300\ncols = 240\ncfa = "GRBG"\n')
+    raw, rec = tmp_path / "depth.npz", tmp_path / "depth.h5"
+    assert main(["simulate", "--camera", str(cam), "--scene", "depth", "--seed", "3", "--rays-per-pixel", "2",
+                 "--out", str(raw)]) == 0
+    assert "rendered monochrome" in capsys.readouterr().out
+    assert main(["reconstruct", str(raw), "--camera", str(cam), "--depth", "0", "--no-figure", "--out", str(rec)]) == 0
+    assert "levelled" not in capsys.readouterr().out
+    with h5py.File(rec, "r") as f:
+        assert "monochrome" not in f.attrs
+    frames = tmp_path / "frames.h5"
+    assert main(["simulate-sequence", "--camera", str(cam), "--duration", "0.02", "--fps", "100", "--quiet",
+                 "--out", str(frames)]) == 0
+    assert "rendered monochrome" in capsys.readouterr().out
+    assert main(["sequence", str(frames), "--camera", str(cam), "--depth", "0", "--route", "reconstruct-admm",
+                 "--quiet", "--out", str(tmp_path / "seq")]) == 0
+    assert "levelled" not in capsys.readouterr().out

@@ -168,6 +168,36 @@ def test_a_raw_colour_mosaic_is_levelled_for_the_emission_and_its_planes_are_tem
         assert "as reconstruct" in f.attrs["depths_from"]
 
 
+def test_a_perfect_grids_colour_recording_is_levelled_as_reconstruct_levels_a_capture(files, capsys, monkeypatch):
+    """A recording of a colour camera on a perfect grid (no calibration; its sensor in the file's attributes): each
+    frame's mosaic is levelled exactly as reconstruct levels the same raw capture (the same views, the same samples
+    left out: blue and clipped), and the planes found in its first frame are the flame's, as reconstruct's."""
+    from lf_flame.real.lightfield import from_raw
+    from lf_flame.recordings.job import SequenceJob
+    from lf_flame.temperature.mosaic import monochrome_light_field
+    raw, s = np.load(files["flame"])["raw"], files["sensor"]
+    sensor = dict(name=s.name, pattern=s.pattern, phase=list(s.phase))
+    lf = monochrome_light_field(from_raw(raw, CAM, sensor=s))
+    job = SequenceJob(None, CAM, 100.0, (0.0,), (0.0,), (None,), "reconstruct-admm", sensor=sensor)
+    views, leave = job.frame(raw)
+    assert np.array_equal(views, lf.views) and np.array_equal(leave, lf.leave_out)
+    assert job.fit_data(views, leave)[1] is leave           # the levelled views not compared with the level again
+    rec, out = files["dir"] / "colour_recording.h5", files["dir"] / "colour_recording"
+    with h5py.File(rec, "w") as f:
+        f["frames"] = np.stack([raw, 0.9 * raw, raw]).astype(np.float32)
+        f.attrs.update(fps=100.0, camera=json.dumps(CAM.to_dict()), sensor=json.dumps(sensor))
+    import lf_flame.cli.volume as volume
+    searched, found_planes = [], volume.found_planes
+    monkeypatch.setattr(volume, "found_planes", lambda lf, **k: searched.append(lf) or found_planes(lf, **k))
+    capsys.readouterr()
+    assert main(["sequence", str(rec), "--route", "reconstruct-admm", "--quiet", "--out", str(out)]) == 0
+    assert "levelled into one light field" in capsys.readouterr().out
+    assert np.array_equal(searched[0].views, lf.views)      # the first frame's depths found on it levelled
+    job = json.loads((out / "job.json").read_text())
+    assert job["depths_mm"] == pytest.approx([0.0], abs=0.3)
+    assert job["reconstruction"]["admm_noise"] < 0.02        # the mosaic as it is reads as noise: 0.08
+
+
 def test_wrong_calibration_refused(files, capsys):
     out = str(files["dir"] / "never.h5")
     sigma = library_sensor("Sigma SDMerill (NPL)")

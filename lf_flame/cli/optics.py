@@ -27,8 +27,12 @@ def cmd_simulate(a):
         raise ValueError("--scene furnace needs its blackbody temperature: give --temperature K")
     # the colour sensor the camera file names ([sensor] cfa): a colour camera's white image is a mosaic too
     from ..optics.camera_file import load_colour_sensor
-    sensor = load_colour_sensor(a.data_config) if a.data_config and a.scene in COLOUR_SCENES + ("white",) else None
+    named = load_colour_sensor(a.data_config) if a.data_config else None
+    sensor = named if a.scene in COLOUR_SCENES + ("white",) else None
     colour = a.scene in COLOUR_SCENES or sensor is not None
+    if named is not None and not colour:
+        print(f"{a.data_config} names a colour sensor ({named.pattern}); scene {a.scene!r} is rendered monochrome "
+              f"and recorded so (the colour scenes: {', '.join(COLOUR_SCENES)}, white)")
     if colour:
         where = f"{a.data_config} [sensor]" if sensor is not None else "default: the camera file names no cfa"
         if sensor is None:

@@ -57,8 +57,8 @@ def first_frame_depths(source, camera, calibration=None, sensor=None, search_ran
     from ..temperature.mosaic import monochrome_light_field
     from .volume import found_planes, possible_warning, solve_found
     raw = np.asarray(next(iter(source.frames(0, 1))), np.float64)
-    lf = monochrome_light_field(from_raw(raw, camera, "the first frame") if calibration is None else  # colour: levelled
-                                decode_capture(raw, camera, calibration, sensor, "the first frame"))
+    lf = monochrome_light_field(from_raw(raw, camera, "the first frame", sensor=sensor) if calibration is None else
+                                decode_capture(raw, camera, calibration, sensor, "the first frame"))  # colour: levelled
     print("the recording's planes, as reconstruct finds a capture's, in its first frame:")
     _, _, found = found_planes(lf, search_range=search_range)
     found, _, _ = solve_found(lf, found)
@@ -70,6 +70,13 @@ def cmd_simulate_sequence(a):
     from ..recordings.sources import SimulatedSource, write_frames
     cam = _camera(a)
     seq = _sequence_of(a, cam)
+    camera_file = getattr(a, "camera", None) or getattr(a, "data_config", None)
+    if camera_file:
+        from ..optics.camera_file import load_colour_sensor
+        named = load_colour_sensor(camera_file)
+        if named is not None:
+            print(f"{camera_file} names a colour sensor ({named.pattern}); the recording is rendered monochrome "
+                  "and recorded so ('lf-flame sequence' reads it as monochrome)")
     path = write_frames(a.out, SimulatedSource(seq, cam, a.rays_per_pixel), progress=not a.quiet)
     print(f"{seq.n_frames} frames at {seq.fps:g} frames/s, flames at "
           + ", ".join(f"{f.depth_offset_mm:+g} mm {f.freq_hz:g} Hz" for f in seq.flames) + f" -> {path}")
@@ -114,16 +121,18 @@ def cmd_sequence(a):
     else:
         if seq is not None and not (a.depth or a.slope):     # a simulated recording decoded as a real one
             a.depth = [f.depth_offset_mm for f in seq.flames]
-        cal, k, sensor, calibration, colour, real = None, 1, None, None, None, cam
+        cal, k, sensor, calibration, real = None, 1, None, None, cam
+        # a colour camera (its camera file's [sensor] cfa, else the recording's record): each frame's channels
+        # apart, levelled into one light field
+        from ..real.lightfield import capture_sensor
+        colour = capture_sensor(a.camera or None, attrs, str(a.input))[0] if a.input else None
+        if colour is not None:
+            sensor = dict(name=colour.name, pattern=colour.pattern, phase=list(colour.phase))
+            print(f"colour sensor {colour.name}, {colour.pattern} phase {colour.phase}: each frame's red and "
+                  "green samples levelled into one light field (blue left out)")
         if a.calibration:                # real frames: the planes are the decoded views' camera's
             from ..real.calibration import GridCalibration
-            from .real import colour_sensor
             calibration = GridCalibration.load(a.calibration)
-            colour = colour_sensor(a.camera, a.input)[0]
-            if colour is not None:       # decoded with the channels apart and levelled into one light field
-                sensor = dict(name=colour.name, pattern=colour.pattern, phase=list(colour.phase))
-                print(f"colour sensor {colour.name}, {colour.pattern} phase {colour.phase}: each frame's red and "
-                      "green samples levelled into one light field (blue left out)")
             cal, cam, k = calibration.to_dict(), *decoded_views_camera(cam, calibration, colour is not None)
         if a.depth or a.slope:
             depths = [float(v) for v in a.depth] if a.depth else [cam.depth_for_slope(s) for s in a.slope]

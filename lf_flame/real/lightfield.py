@@ -412,7 +412,9 @@ def decode_capture(raw, camera: PlenopticCamera, calibration, sensor=None, sourc
 
 def capture_sensor(camera, meta, source: str = "the image") -> tuple:
     """A raw capture's colour sensor and where it came from: the camera file's ``[sensor] cfa``, else the record
-    ``lf-flame simulate`` stored beside the image (``meta["sensor"]``); ``(None, "")`` for a monochrome one.
+    ``lf-flame simulate`` stored beside the image (``meta["sensor"]``); ``(None, "")`` for a monochrome one, and for
+    an image ``lf-flame simulate`` or ``simulate-sequence`` rendered without colour (its record names a ``scene`` or
+    a ``sequence`` and no ``sensor``: a monochrome scene's render, whatever CFA the camera file names).
 
     Parameters
     ----------
@@ -429,11 +431,14 @@ def capture_sensor(camera, meta, source: str = "the image") -> tuple:
     """
     from ..optics.camera_file import load_colour_sensor
     from ..optics.colour import library_sensor
+    meta = meta or {}
+    if not meta.get("sensor") and ("scene" in meta or "sequence" in meta):
+        return None, ""
     if camera is not None and not isinstance(camera, PlenopticCamera):
         sensor = load_colour_sensor(camera)
         if sensor is not None:
             return sensor, f"{camera} [sensor]"
-    rec = (meta or {}).get("sensor")
+    rec = meta.get("sensor")
     if not rec:
         return None, ""
     r = json.loads(rec)

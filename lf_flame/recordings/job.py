@@ -57,9 +57,10 @@ class SequenceJob:
     bin_views : int
         Real frames: pixels per view sample and axis they are decoded with (:func:`lf_flame.real.view_grid.auto_bin`).
     sensor : dict or None
-        Real frames of a colour camera: its sensor (``name``, ``pattern``, ``phase``;
+        The frames of a colour camera: its sensor (``name``, ``pattern``, ``phase``;
         :func:`lf_flame.optics.colour.library_sensor`). Each frame is decoded with its channels apart
-        (:func:`lf_flame.real.decoding.decode_colour`, one pixel per sample) and levelled into one
+        (:func:`lf_flame.real.decoding.decode_colour`, one pixel per sample; on a perfect grid without a
+        calibration each view sample is its pixel, of that pixel's channel) and levelled into one
         monochrome light field as ``lf-flame reconstruct`` levels a capture
         (:func:`lf_flame.temperature.mosaic.levelled_views`: the other channels' samples left out).
     truth_freqs_hz : tuple of float or None
@@ -143,9 +144,8 @@ class SequenceJob:
             raise ValueError(f"operator_rays must be a whole number >= 1. Received: {self.operator_rays!r}")
         if isinstance(self.bin_views, bool) or int(self.bin_views) != self.bin_views or self.bin_views < 1:
             raise ValueError(f"bin_views must be a whole number >= 1. Received: {self.bin_views!r}")
-        if self.sensor is not None and (self.calibration is None or self.bin_views != 1):
-            raise ValueError("a colour camera's frames are decoded with a calibration, one pixel per sample "
-                             "(bin_views 1)")
+        if self.sensor is not None and self.bin_views != 1:
+            raise ValueError("a colour camera's frames are read one pixel per sample (bin_views 1)")
         if self.support is not None:
             shape = (len(self.depths_mm), self.camera.n_rows, self.camera.n_cols)
             if self.solver != "admm" or np.shape(self.support) != shape:
@@ -244,9 +244,24 @@ class SequenceJob:
             off = grid_offsets(n, colour=self.sensor is not None)
             bad = self._defect_map(raw, off)
             if not bad.any():                           # nothing to repair: the frame as it is
-                return raw_to_views(raw, n), None
-            fixed = capture_defects(raw, off, flagged=bad)[1]
-            return raw_to_views(fixed.astype(np.float32), n), raw_to_views(bad, n) > 0.5
+                views, left = raw_to_views(raw, n), None
+            else:
+                fixed = capture_defects(raw, off, flagged=bad)[1]
+                views, left = raw_to_views(fixed.astype(np.float32), n), raw_to_views(bad, n) > 0.5
+            if self.sensor is None:
+                return views, left
+            # a colour mosaic on a perfect grid: each sample its pixel's channel, levelled as a decoded colour
+            # frame is (lf_flame.temperature.mosaic.monochrome_light_field), its clipped pixels left out first
+            from ..temperature.mosaic import levelled_views
+            if "channels" not in self._cache:
+                self._cache["channels"] = raw_to_views(self._sensor().channel_map(raw.shape).astype(np.float32),
+                                                       n).astype(np.int8)
+            level = self._level(views)
+            clipped = None if level is None else views >= level
+            views, other, _ = levelled_views(views, self._cache["channels"])
+            for m in (left, clipped):
+                other = other if m is None else other | m
+            return views, other
         from ..real.decoding import decode_repaired
         from ..real.view_grid import views_shape
         c = self._decoding()
@@ -281,18 +296,22 @@ class SequenceJob:
         views, other, _ = levelled_views(views, channels)
         return views, other if clipped is None else other | clipped
 
+    def _sensor(self):
+        """The colour sensor (:func:`lf_flame.optics.colour.library_sensor`) of ``sensor``, or None."""
+        if self.sensor is None:
+            return None
+        from ..optics.colour import library_sensor
+        return library_sensor(self.sensor["name"], self.sensor["pattern"], tuple(self.sensor["phase"]))
+
     def _decoding(self) -> dict:
         """What decodes each real frame, read once: the grid calibration (``cal``), the ``white`` and ``dark``
         images (or None) and the colour ``sensor`` (or None)."""
         if "cal" not in self._cache:
-            from ..optics.colour import library_sensor
             from ..real.calibration import GridCalibration
             from ..real.images import load_image
             self._cache.update(cal=GridCalibration.from_dict(self.calibration),
                                white=None if self.white is None else load_image(self.white),
-                               dark=None if self.dark is None else load_image(self.dark),
-                               sensor=None if self.sensor is None else library_sensor(
-                                   self.sensor["name"], self.sensor["pattern"], tuple(self.sensor["phase"])))
+                               dark=None if self.dark is None else load_image(self.dark), sensor=self._sensor())
         return self._cache
 
     def unlit_level(self, raw: np.ndarray) -> float | None:
@@ -338,6 +357,8 @@ class SequenceJob:
         (:func:`lf_flame.tomo.decoded.decoded_problem`; a hexagonal lattice's in axial storage, its empty
         corners left out too, :func:`lf_flame.tomo.lattice.to_axial`)."""
         if self.calibration is None:
+            if self.sensor is not None:                 # levelled colour views: clipped pixels already out
+                return views, clipped
             level = self._level(views)
             if clipped is None or level is None:
                 return views, level if clipped is None else clipped
