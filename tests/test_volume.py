@@ -70,6 +70,7 @@ def test_volume_cli_refusals(volume_raw, tmp_path, capsys):
     out = str(tmp_path / "v.h5")
     cases = [(["--volume"], "--from MM and --to MM"),
              (["--from", "-3", "--to", "3"], "go with --volume"),
+             (["--step", "1"], "--step go with --volume"),
              (["--volume", "--from", "-3", "--to", "3", "--depth", "0"], "drop --depth"),
              (["--volume", "--from", "-3", "--to", "3", "--prior", "tv", "--l1", "0.01"], "l1 weight with 'sparse'"),
              (["--volume", "--from", "3", "--to", "-3"], "near < far"),

@@ -363,7 +363,7 @@ def cmd_reconstruct(a):
     from ..refocus.shift_and_sum import aperture_mask, focal_stack
     if getattr(a, "volume", False):
         return volume_reconstruct(a)
-    given = [f"--{k}" for k, n in (("from", "near"), ("to", "far"), ("l1", "l1")) if getattr(a, n, None) is not None]
+    given = [f"--{k}" for k, n in (("from", "near"), ("to", "far"), ("step", "step"), ("l1", "l1")) if getattr(a, n, None) is not None]
     if given:
         raise ValueError(" and ".join(given) + " go with --volume")
     lf, depths, objects = reconstruct_input(a)
@@ -460,7 +460,8 @@ def volume_reconstruct(a):
         raise ValueError(f"--from {a.near:g} --to {a.far:g}: this camera refocuses {lo:+.3g} .. {hi:+.3g} mm from its "
                          "focus distance")
     level = getattr(a, "saturation", "file")
-    rec, extra = solve_volume(views, cam, a.near, a.far, a.step, a.prior,
+    step = VOLUME_STEP_MM if a.step is None else a.step
+    rec, extra = solve_volume(views, cam, a.near, a.far, step, a.prior,
                               saturation=_fitted_light_field(lf, level).fit_mask(),
                               tv=a.tv, l1=a.l1, progress=True, white_normalised=lf.white_normalised,
                               interpolation=lf.interpolation)
@@ -480,11 +481,12 @@ def volume_reconstruct(a):
         refocused = focal_stack(views, [cam.slope_for_depth(d) for d in rec.depths_mm],
                                 aperture_mask(cam.pixels_per_lenslet, "circular"))
         plot_reconstruction(fig, rec, refocused, truth, title=f"volume, prior {a.prior}: {len(rec.depths_mm)} "
-                            f"planes every {a.step:g} mm, {rec.time_s:.1f} s")
+                            f"planes every {step:g} mm, {rec.time_s:.1f} s")
     axis = "" if axi is None else f"; axis at x {axi.axis_x_mm:+.2f} mm, depth {axi.axis_z_mm:+.2f} mm"
     score = "" if truth is None else (f"; against the scene's truth: 3-D relative error "
                                       f"{np.linalg.norm(rec.planes - truth) / np.linalg.norm(truth):.3f}")
-    print(f"volume of {len(rec.depths_mm)} planes from {rec.depths_mm[0]:+g} to {rec.depths_mm[-1]:+g} mm, prior "
+    print(f"volume of {len(rec.depths_mm)} planes from {rec.depths_mm[0]:+g} to {rec.depths_mm[-1]:+g} mm every "
+          f"{step:g} mm, prior "
           f"{a.prior} ({rec.solver}), solved in {rec.time_s:.1f} s{axis}{score} -> {out}"
           + ("" if fig is None else f", {fig}"))
     print(resolution_note(table, res.conditions[0], float(rec.depths_mm[-1] - rec.depths_mm[0])))
@@ -569,8 +571,8 @@ def add_parsers(sub) -> None:
                         "carries for the data alone (lf_flame.tomo.volume)")
     s.add_argument("--from", dest="near", type=float, help="--volume: the nearest plane (mm)")
     s.add_argument("--to", dest="far", type=float, help="--volume: the farthest plane (mm)")
-    s.add_argument("--step", type=float, default=VOLUME_STEP_MM, help=f"--volume: plane spacing (mm; at most "
-                   f"{VOLUME_MAX_PLANES} planes)")
+    s.add_argument("--step", type=float, default=None, help=f"--volume: plane spacing (mm; at most "
+                   f"{VOLUME_MAX_PLANES} planes; default {VOLUME_STEP_MM:g}: finer than a flame, whatever the camera)")
     s.add_argument("--prior", choices=list(VOLUME_PRIORS), default=VOLUME_PRIOR,
                    help=f"--volume: none (admm by the data's noise), tv (admm with TV per plane, weight --tv, "
                         f"default {VOLUME_TV['quiet']:g} on quiet data, {VOLUME_TV['noisy']:g} on noisy), sparse (admm "
