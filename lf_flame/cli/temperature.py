@@ -1,7 +1,7 @@
 """The temperature commands: ``calibrate-temperature`` (a blackbody calibration of
 two colour channels from furnace images) and ``temperature`` (each plane's temperature map from
-one colour light field, :mod:`lf_flame.temperature.channels` and :mod:`lf_flame.temperature.pyrometry`),
-written to HDF5 with a figure.
+one colour light field, or from each frame of a recording, :mod:`lf_flame.temperature.channels` and
+:mod:`lf_flame.temperature.pyrometry`), written to HDF5 with a figure.
 
 The colour sensor of an image (sensitivities, CFA pattern and phase) is, in order: the
 ``--sensor``/``--cfa``/``--cfa-phase`` options, the ``sensor`` record stored beside the raw
@@ -69,7 +69,12 @@ def _refuse_monochrome(path):
     if "camera" in meta and "sensor" not in meta:
         raise ValueError(f"{path} is a monochrome light field (rendered without a colour sensor): two-colour "
                          "pyrometry needs a colour (Bayer) capture")
-    raw, _ = _load_raw(path)
+    _refuse_no_mosaic(_load_raw(path)[0], path)
+
+
+def _refuse_no_mosaic(raw, path):
+    """Refuse a raw image (named ``path``) whose four 2 x 2 pixel phases have the same mean over its lit pixels
+    (within :data:`MOSAIC_SPREAD`): a monochrome sensor's."""
     lit = raw > 0.1 * float(raw.max()) if raw.max() > 0 else np.zeros(raw.shape, bool)
     means = []
     for i in (0, 1):
@@ -205,58 +210,40 @@ def _level_record(saturation, lf) -> str | float:
     return "none" if level is None else float(level)
 
 
-def cmd_temperature(a):
-    """``temperature RAW --calibration bb.json [--depths ...|auto] --out T.h5``."""
-    import time
+def _plane_temperatures(a, lf, depths, found, cal, sensor, cache=None) -> dict:
+    """Each plane's temperature of one colour light field ``lf`` on ``depths`` (``found``: the
+    :class:`~lf_flame.tomo.depth.FoundDepths` they came from, or None) by ``a.route``: the channels' emission
+    (:func:`lf_flame.temperature.channels.channel_emission`) and their ratio through ``cal``
+    (:func:`lf_flame.temperature.pyrometry.temperature_planes`). ``cache``: a dict that keeps the route's operator
+    for the next light field of the same camera and planes (a recording's frames).
 
-    import h5py
-
-    from ..config import provenance
-    from ..measure.figures import save_figure
-    from ..temperature.pyrometry import bright_pixels, load_calibration, temperature_planes
+    Returns
+    -------
+    dict
+        ``temp`` (P, R, C) K, NaN where none; ``valid``, ``dim`` (P, R, C) bool; ``n_masked``, ``n_dim`` (P,);
+        ``emission`` (2, P, R, C); ``chosen`` (the route's settings); ``slopes``, ``blind`` (P,); ``sample`` (P, 2) mm.
+    """
     from ..optics.colour import CHANNELS
+    from ..temperature.pyrometry import bright_pixels, temperature_planes
     from ..temperature.channels import (DECODED_KNOBS, DECODED_OFFSET_KNOBS, DECODED_RATIO_FILTER, channel_emission,
                                         route_operator)
-    from ..temperature.mosaic import cfa_blind, channel_views, monochrome_light_field
-    from .volume import found_planes, found_record, possible_warning, reconstruct_input, solve_found
+    from ..temperature.mosaic import cfa_blind, channel_views
     from ..tomo.decoded import fit_data
-    src = str(a.raw)
-    if not (src.endswith(".h5") and ".h5:" not in src):
-        _refuse_monochrome(src)
-    cal = load_calibration(a.calibration)
-    sensor, where = _sensor(src, a, cal)
-    cal.check_sensor(sensor)
-    cal = load_calibration(a.calibration, sensor)      # also refuses a ratio with no unique temperature
-    print(f"sensor {sensor.name}, {sensor.pattern} phase {sensor.phase} ({where}); calibration "
-          f"{cal.channels[0]}/{cal.channels[1]}, gain ratio {cal.gain_ratio:.5f}")
-    t0 = time.perf_counter()
-    import argparse
-    # --calibration is the blackbody calibration here; the lenslet grid's is --grid-calibration
-    try:
-        lf, depths, _ = reconstruct_input(argparse.Namespace(**{**vars(a), "calibration": a.grid_calibration}),
-                                          colour=True)
-    except ValueError as e:              # the light field's refusals name the grid's calibration by its flag here
-        raise ValueError(str(e).replace("--calibration", "--grid-calibration")) from None
     cam, views = lf.camera, lf.views
     n = cam.pixels_per_lenslet
     if lf.decoded and lf.channels is None:
-        raise ValueError(f"{src}: decoded views without their colour channels (a monochrome capture, or a colour one "
-                         "decoded without its camera file): 'lf-flame decode RAW --camera cam.toml' keeps them apart "
-                         "where the file's [sensor] names its cfa")
+        raise ValueError(f"{lf.source}: decoded views without their colour channels (a monochrome capture, or a colour "
+                         "one decoded without its camera file): 'lf-flame decode RAW --camera cam.toml' keeps them "
+                         "apart where the file's [sensor] names its cfa")
     chan = lf.channels if lf.decoded else channel_views((views.shape[2] * n, views.shape[3] * n), sensor, n)
     ch = tuple(CHANNELS.index(c) for c in cal.channels)
     hexagonal = lf if lf.lattice_views is not None and lf.channels is not None else None
-    extra, found = {}, None
-    if depths == "auto":                                # reconstruct's planes: the levelled channels' found route
-        mono = monochrome_light_field(lf)
-        _, _, found = found_planes(mono, search_range=a.search_range)
-        found, _, _ = solve_found(mono, found)
-        depths = [float(d) for d in found.planes_mm]
-        extra = dict(depths_from="auto (as reconstruct: the channels levelled, depths found, the residual searched, "
-                                 "refined)", found_depths=found_record(found), possible_depths=possible_warning(found))
     chosen, knobs, ratio_filter = {}, None, None
     slopes = [cam.slope_for_depth(d) for d in depths]
-    op = route_operator(cam, depths, a.route, hexagonal, lf.sample_offsets if hexagonal is None else None)
+    cache = {} if cache is None else cache
+    if "op" not in cache:
+        cache["op"] = route_operator(cam, depths, a.route, hexagonal, lf.sample_offsets if hexagonal is None else None)
+    op = cache["op"]
     if getattr(op, "offset_bins", None):                # each sample at its own pixel: recorded with the route
         chosen["sub_views"] = op.offset_bins
     if not lf.decoded:                                  # the level given, and the image's defective pixels
@@ -289,9 +276,79 @@ def cmd_temperature(a):
         chosen["lattice"] = "hexagonal"
     temp, valid, n_masked = temperature_planes(emission[0], emission[1], cal, sensor, a.alpha, a.min_fraction)
     dim = ~bright_pixels(emission[0] + emission[1], a.min_fraction)
-    blind = cfa_blind(slopes, n)
-    n_dim = dim.reshape(len(dim), -1).sum(axis=1)
-    sample = np.array([np.asarray(cam.field_of_view_mm(d)) / (cam.n_rows, cam.n_cols) for d in depths])
+    return dict(temp=temp, valid=valid, n_masked=n_masked, dim=dim, n_dim=dim.reshape(len(dim), -1).sum(axis=1),
+                emission=emission, chosen=chosen, slopes=slopes, blind=cfa_blind(slopes, n),
+                sample=np.array([np.asarray(cam.field_of_view_mm(d)) / (cam.n_rows, cam.n_cols) for d in depths]))
+
+
+def _auto_depths(a, lf):
+    """``--depths auto``: reconstruct's planes of the colour light field ``lf`` (its channels levelled, the depths
+    found, the residual searched, refined): (depths, found, the record's extra attributes)."""
+    from ..temperature.mosaic import monochrome_light_field
+    from .volume import found_planes, found_record, possible_warning, solve_found
+    mono = monochrome_light_field(lf)
+    _, _, found = found_planes(mono, search_range=a.search_range)
+    found, _, _ = solve_found(mono, found)
+    extra = dict(depths_from="auto (as reconstruct: the channels levelled, depths found, the residual searched, "
+                             "refined)", found_depths=found_record(found), possible_depths=possible_warning(found))
+    return [float(d) for d in found.planes_mm], found, extra
+
+
+def _plane_lines(a, depths, r) -> list:
+    """The printout's line per plane: its pixels with a temperature, their median and p10-p90, and the pixels left
+    without one (:func:`_plane_temperatures`' ``r``)."""
+    lines = []
+    for k, d in enumerate(depths):
+        v = r["temp"][k][r["valid"][k]]
+        stats = (f"median {np.median(v):.0f} K, p10-p90 {np.percentile(v, 10):.0f}-{np.percentile(v, 90):.0f} K"
+                 if v.size else "no temperature")
+        lines.append(f"plane {k} ({d:+.2f} mm): {int(r['valid'][k].sum())} px with a temperature, {stats}; "
+                     f"{int(r['n_masked'][k])} bright px masked (ratio out of the table), {int(r['n_dim'][k])} px "
+                     f"below {a.min_fraction:g} of the peak"
+                     + (f"; WARNING: slope {r['slopes'][k]:+.3f} near an odd integer, half its lenslets have no red "
+                        "sample in any view (cfa_blind): its temperature is interpolation there" if r["blind"][k]
+                        else ""))
+    return lines
+
+
+def cmd_temperature(a):
+    """``temperature RAW --calibration bb.json [--depths ...|auto] --out T.h5``; a recording (an HDF5 stack, a
+    multi-page TIFF, a folder of frames): each frame's planes, :func:`_temperature_recording`."""
+    import time
+
+    import h5py
+
+    from ..config import provenance
+    from ..measure.figures import save_figure
+    from ..temperature.pyrometry import load_calibration
+    from .volume import reconstruct_input
+    src = str(a.raw)
+    recording = _recording(src)
+    if recording is None and not (src.endswith(".h5") and ".h5:" not in src):
+        _refuse_monochrome(src)
+    cal = load_calibration(a.calibration)
+    sensor, where = _sensor(src, a, cal)
+    cal.check_sensor(sensor)
+    cal = load_calibration(a.calibration, sensor)      # also refuses a ratio with no unique temperature
+    print(f"sensor {sensor.name}, {sensor.pattern} phase {sensor.phase} ({where}); calibration "
+          f"{cal.channels[0]}/{cal.channels[1]}, gain ratio {cal.gain_ratio:.5f}")
+    if recording is not None:
+        return _temperature_recording(a, *recording, cal, sensor, where)
+    if getattr(a, "fps", None) is not None:
+        raise ValueError("--fps goes with a recording (an HDF5 stack of frames, a multi-page TIFF or a folder)")
+    t0 = time.perf_counter()
+    import argparse
+    # --calibration is the blackbody calibration here; the lenslet grid's is --grid-calibration
+    try:
+        lf, depths, _ = reconstruct_input(argparse.Namespace(**{**vars(a), "calibration": a.grid_calibration}),
+                                          colour=True)
+    except ValueError as e:              # the light field's refusals name the grid's calibration by its flag here
+        raise ValueError(str(e).replace("--calibration", "--grid-calibration")) from None
+    extra, found = {}, None
+    if depths == "auto":                                # reconstruct's planes: the levelled channels' found route
+        depths, found, extra = _auto_depths(a, lf)
+    r = _plane_temperatures(a, lf, depths, found, cal, sensor)
+    cam, temp, valid = lf.camera, r["temp"], r["valid"]
     wall = time.perf_counter() - t0
     out = Path(a.out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -301,24 +358,19 @@ def cmd_temperature(a):
         f["temperature_k"] = temp.astype(np.float32)
         f["temperature_k"].attrs.update(units="K", masked="NaN: no temperature (see valid, dim)")
         f["valid"] = valid
-        f["dim"] = dim
-        f["emission"] = np.stack(emission).astype(np.float32)
+        f["dim"] = r["dim"]
+        f["emission"] = np.stack(r["emission"]).astype(np.float32)
         f["emission"].attrs["channels"] = json.dumps(list(cal.channels))
         f["depths_mm"] = np.asarray(depths, float)
-        f["sample_mm"] = sample
-        f["n_masked"] = np.asarray(n_masked, np.int64)
-        f["n_dim"] = np.asarray(n_dim, np.int64)
-        f["cfa_blind"] = blind
+        f["sample_mm"] = r["sample"]
+        f["n_masked"] = np.asarray(r["n_masked"], np.int64)
+        f["n_dim"] = np.asarray(r["n_dim"], np.int64)
+        f["cfa_blind"] = r["blind"]
         f["cfa_blind"].attrs["meaning"] = ("plane at a slope near an odd integer: half its lenslets have no sample of "
                                            "a CFA phase in any view (lf_flame.temperature.mosaic.cfa_blind)")
-        attrs = dict(kind="lf_flame temperature", source=src, calibration=json.dumps(
-            dict(path=str(a.calibration), **{k: getattr(cal, k) for k in cal.__dataclass_fields__})),
-                     sensor=json.dumps(dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase),
-                                            where=where)),
-                     route=a.route, route_settings=json.dumps(chosen), alpha=float(a.alpha),
-                     min_fraction=float(a.min_fraction),
-                     saturation=_level_record(a.saturation, lf), camera=cam.to_json(),
-                     time_s=wall, provenance=json.dumps(provenance()),
+        attrs = dict(kind="lf_flame temperature", source=src, **_record(a, cal, sensor, where, r["chosen"]),
+                     saturation=_level_record(a.saturation, lf), camera=cam.to_json(), time_s=wall,
+                     provenance=json.dumps(provenance()),
                      axes="temperature_k, valid, dim: (plane, lenslet row, lenslet col); emission: (channel, plane, "
                           "row, col); sample_mm: (plane, [height, width]) mm per lenslet sample",
                      **{k: json.dumps(v, default=float) for k, v in extra.items()})
@@ -328,16 +380,149 @@ def cmd_temperature(a):
     fig = out.with_suffix(".png") if a.figure else None
     if fig is not None:
         save_figure(temperature_figure(temp, depths, valid, cam), fig)
-    for k, d in enumerate(depths):
-        v = temp[k][valid[k]]
-        stats = (f"median {np.median(v):.0f} K, p10-p90 {np.percentile(v, 10):.0f}-{np.percentile(v, 90):.0f} K"
-                 if v.size else "no temperature")
-        print(f"plane {k} ({d:+.2f} mm): {int(valid[k].sum())} px with a temperature, {stats}; {int(n_masked[k])} "
-              f"bright px masked (ratio out of the table), {int(n_dim[k])} px below {a.min_fraction:g} of the peak"
-              + (f"; WARNING: slope {slopes[k]:+.3f} near an odd integer, half its lenslets have no red "
-                 "sample in any view (cfa_blind): its temperature is interpolation there" if blind[k] else ""))
-    print(f"temperature of {len(depths)} planes ({a.route} {chosen}) in {wall:.1f} s -> {out}"
+    print("\n".join(_plane_lines(a, depths, r)))
+    print(f"temperature of {len(depths)} planes ({a.route} {r['chosen']}) in {wall:.1f} s -> {out}"
           + (f", {fig}" if fig else ""))
+
+
+def _recording(src):
+    """``(source, attrs)`` of the recording at ``src`` (:func:`lf_flame.recordings.sources.open_source`: a folder of
+    frames, an HDF5 file holding a ``frames`` stack, a TIFF of more than one page), else None (one capture)."""
+    p = Path(src)
+    suffix = p.suffix.lower()
+    if p.is_file() and suffix == ".h5":
+        import h5py
+
+        from ..config import reading
+        with reading(p, "HDF5 file"), h5py.File(p, "r") as f:
+            if "frames" not in f:
+                return None
+    elif not (p.is_dir() or (p.is_file() and suffix in (".tif", ".tiff"))):
+        return None
+    from ..recordings.sources import open_source
+    source, attrs = open_source(p)
+    return None if suffix in (".tif", ".tiff") and source.n_frames < 2 else (source, attrs)
+
+
+def _temperature_recording(a, source, attrs, cal, sensor, where):
+    """``temperature RECORDING``: each frame's planes' temperature (:func:`_plane_temperatures`, the route's operator
+    built once), on the planes given or found in the first frame, each frame decoded with ``--grid-calibration``
+    where the camera's grid is not a perfect one. Writes ``--out`` (HDF5: ``temperature_k`` and ``valid`` (frame,
+    plane, row, col), ``depths_mm``, ``times_s``), its ``.csv`` (per frame and plane: the pixels with a
+    temperature, their median, p10 and p90, K) and figure (each plane's median over time); prints each plane's
+    dominant frequency of its median temperature (:func:`lf_flame.recordings.flicker.spectra`)."""
+    import time
+
+    import h5py
+    import pandas as pd
+    from tqdm.auto import tqdm
+
+    from ..config import atomic_write_text, provenance, removed_on_error
+    from ..optics.camera import PAPER_CAMERA, PlenopticCamera
+    from ..real.lightfield import decode_capture, from_raw
+    from ..recordings.flicker import peaks, spectra
+    from ..recordings.sources import H5Source, frame_rate
+    from .volume import planes_from_args
+    src, t0 = str(a.raw), time.perf_counter()
+    if "sequence" in attrs and "sensor" not in attrs:
+        raise ValueError(f"{src} is a monochrome recording (rendered without a colour sensor): two-colour pyrometry "
+                         "needs a colour (Bayer) recording")
+    if a.camera:
+        from ..optics.camera_file import load_camera_file
+        cam, cam_file = load_camera_file(a.camera), str(Path(a.camera).resolve())
+    else:
+        cam, cam_file = (PlenopticCamera.from_dict(json.loads(attrs["camera"])) if "camera" in attrs
+                         else PAPER_CAMERA), None
+    grid = None
+    if a.grid_calibration:
+        from ..real.calibration import GridCalibration
+        grid = GridCalibration.load(a.grid_calibration)
+    times = None
+    if isinstance(source, H5Source):
+        with h5py.File(source.path, "r") as f:
+            times = f["times_s"][:] if "times_s" in f else None
+    fps = frame_rate(a.fps, attrs, times)
+    depths, found, extra, cache, rows, temps, valids = None, None, {}, {}, [], [], []
+    for i, raw in enumerate(tqdm(source.frames(0, source.n_frames), total=source.n_frames, desc="temperature",
+                                 unit="frame", disable=None)):
+        raw = np.asarray(raw, np.float64)
+        name = f"{src} frame {i}"
+        try:
+            lf = (from_raw(raw, cam, name, camera_file=cam_file, sensor=sensor) if grid is None else
+                  decode_capture(raw, cam, grid, sensor, name))
+        except ValueError as e:
+            raise ValueError(str(e).replace("--calibration", "--grid-calibration")) from None
+        if depths is None:                                  # the planes: given, or found in the first frame
+            _refuse_no_mosaic(raw, name)
+            depths = planes_from_args(a, lf.camera)
+            if depths == "auto":
+                depths, found, extra = _auto_depths(a, lf)
+        r = _plane_temperatures(a, lf, depths, found, cal, sensor, cache)
+        temps.append(r["temp"].astype(np.float32))
+        valids.append(r["valid"])
+        for k, d in enumerate(depths):
+            v = r["temp"][k][r["valid"][k]]
+            q = np.percentile(v, [10, 50, 90]) if v.size else (np.nan,) * 3
+            rows.append(dict(frame=i, time_s=i / fps, plane=k, depth_mm=d, n_px=int(v.size), median_k=float(q[1]),
+                             p10_k=float(q[0]), p90_k=float(q[2])))
+    df = pd.DataFrame(rows)
+    wall = time.perf_counter() - t0
+    out = Path(a.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.name + ".part")
+    with removed_on_error(tmp), h5py.File(tmp, "w") as f:
+        f["temperature_k"] = np.stack(temps)
+        f["temperature_k"].attrs.update(units="K", masked="NaN: no temperature (see valid)")
+        f["valid"] = np.stack(valids)
+        f["depths_mm"] = np.asarray(depths, float)
+        f["times_s"] = np.arange(len(temps)) / fps
+        attrs_out = dict(kind="lf_flame temperature recording", source=src, fps=float(fps),
+                         **_record(a, cal, sensor, where, r["chosen"]), saturation=_level_record(a.saturation, lf),
+                         camera=lf.camera.to_json(), time_s=wall,
+                         provenance=json.dumps(provenance()),
+                         axes="temperature_k, valid: (frame, plane, lenslet row, lenslet col)",
+                         **{k: json.dumps(v, default=float) for k, v in extra.items()})
+        for k, v in attrs_out.items():
+            f.attrs[k] = v
+    tmp.replace(out)
+    atomic_write_text(out.with_suffix(".csv"), df.to_csv(index=False))
+    fig = out.with_suffix(".png") if a.figure else None
+    if fig is not None:
+        from ..measure.figures import save_figure
+        save_figure(_recording_figure(df), fig)
+    if len(temps) > 1:
+        pk = peaks(spectra(df, fps, signals=("median_k",)))
+        print(pk[["plane", "depth_mm", "bin_hz", "dominant_hz", "amplitude"]].to_string(
+            index=False, float_format=lambda v: f"{v:.3g}"))
+    med = df.groupby("plane").median_k
+    for k, d in enumerate(depths):
+        print(f"plane {k} ({d:+.2f} mm): median temperature over the frames {med.median()[k]:.0f} K "
+              f"(frames' medians {med.min()[k]:.0f}-{med.max()[k]:.0f} K)")
+    print(f"temperature of {len(depths)} planes in {len(temps)} frames ({a.route}) in {wall:.1f} s "
+          f"({len(temps) / wall:.2f} frames/s) -> {out}, {out.with_suffix('.csv')}" + (f", {fig}" if fig else ""))
+
+
+def _recording_figure(df):
+    """Each plane's median temperature over a recording's frames, its p10-p90 band shaded."""
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    for (k, d), g in df.groupby(["plane", "depth_mm"], sort=True):
+        line, = ax.plot(g.time_s, g.median_k, label=f"plane {k} ({d:+.1f} mm)")
+        ax.fill_between(g.time_s, g.p10_k, g.p90_k, color=line.get_color(), alpha=0.2)
+    ax.set(xlabel="time (s)", ylabel="temperature (K): median, p10-p90")
+    ax.legend(fontsize="small")
+    fig.tight_layout()
+    return fig
+
+
+def _record(a, cal, sensor, where, chosen) -> dict:
+    """What a temperature file records of its calibration, sensor and route (HDF5 attributes)."""
+    return dict(calibration=json.dumps(dict(path=str(a.calibration),
+                                            **{k: getattr(cal, k) for k in cal.__dataclass_fields__})),
+                sensor=json.dumps(dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase),
+                                       where=where)),
+                route=a.route, route_settings=json.dumps(chosen), alpha=float(a.alpha),
+                min_fraction=float(a.min_fraction))
 
 
 def _sensor_args(s, calibration_default):
@@ -368,7 +553,9 @@ def add_parsers(sub) -> None:
     s = sub.add_parser("temperature", help="each plane's temperature map (K) from one colour light field by "
                        "two-colour pyrometry -> HDF5 and a figure")
     s.add_argument("raw", help="raw colour image (the CFA's mosaic): " + RAW_FORMATS + "; or VIEWS.h5 of a colour "
-                   "capture decoded with its channels apart ('lf-flame decode --camera cam.toml') with --camera")
+                   "capture decoded with its channels apart ('lf-flame decode --camera cam.toml') with --camera; or a "
+                   "recording of raw colour frames (an HDF5 file with a 'frames' stack (T, H, W), a multi-page TIFF, "
+                   "a folder of frames): each frame's planes, on the planes given or found in its first frame")
     s.add_argument("--calibration", required=True, help="JSON of 'lf-flame calibrate-temperature'; refused when "
                    "made for another sensor or CFA")
     s.add_argument("--camera", help="camera file (docs/own_camera.md) of decoded views (VIEWS.h5), or of a raw image "
@@ -400,7 +587,10 @@ def add_parsers(sub) -> None:
                    + "auto: " + AUTO_LEVEL + ")")
     _sensor_args(s, True)
     s.add_argument("--out", required=True, help="T.h5: temperature_k, valid, dim (plane, row, col), emission, "
-                   "depths_mm, counts, provenance; the figure goes beside it as .png")
+                   "depths_mm, counts, provenance; the figure goes beside it as .png. A recording's: temperature_k and "
+                   "valid (frame, plane, row, col), depths_mm, times_s, and T.csv (per frame and plane: median, p10, "
+                   "p90 K)")
+    s.add_argument("--fps", type=float, help="a recording's frame rate, frames/s (default: its file's)")
     add_figure_arg(s, "each plane's temperature map in mm, one colour bar in K")
     add_search_arg(s)
     s.set_defaults(func=cmd_temperature)

@@ -22,10 +22,15 @@ from ..tomo.defaults import (ADMM_KNOBS, ADMM_QUIET, ADMM_SUBSAMPLES, ADMM_TV, D
 def reconstruct_input(a, colour: bool = False):
     """Light field, depths (mm, or "auto") and flame objects (or None) of ``reconstruct``/``temperature``
     (``colour``: a colour capture's channels kept, :func:`._io.light_field`)."""
-    from ..simulate.scenes import PAPER_DEPTHS_MM
     lf = light_field(a, colour=colour)
-    cam = lf.camera
     objects = None if lf.decoded else _raw_objects(a.raw)
+    return lf, planes_from_args(a, lf.camera, objects), objects
+
+
+def planes_from_args(a, cam, objects=None):
+    """The planes a command's ``--depth``, ``--slope`` or ``--depths`` name on ``cam`` (mm from the focal plane), or
+    "auto"; ``objects``: those ``lf-flame simulate`` stored beside the input (``--depths scene``), or None."""
+    from ..simulate.scenes import PAPER_DEPTHS_MM
     given = [k for k in ("depth", "slope", "depths") if getattr(a, k, None)]
     if len(given) > 1:
         raise ValueError("give the planes one way: --depth, --slope or --depths, not " + " and ".join(
@@ -53,7 +58,7 @@ def reconstruct_input(a, colour: bool = False):
     if depths != "auto":
         from ..optics.camera import check_imaging_range
         check_imaging_range(cam, depths)
-    return lf, depths, objects
+    return depths
 
 
 def found_planes(lf, views=None, search_range=None):
