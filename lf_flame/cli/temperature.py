@@ -231,10 +231,6 @@ def _plane_temperatures(a, lf, depths, found, cal, sensor, cache=None) -> dict:
     from ..tomo.decoded import fit_data
     cam, views = lf.camera, lf.views
     n = cam.pixels_per_lenslet
-    if lf.decoded and lf.channels is None:
-        raise ValueError(f"{lf.source}: decoded views without their colour channels (a monochrome capture, or a colour "
-                         "one decoded without its camera file): 'lf-flame decode RAW --camera cam.toml' keeps them "
-                         "apart where the file's [sensor] names its cfa")
     chan = lf.channels if lf.decoded else channel_views((views.shape[2] * n, views.shape[3] * n), sensor, n)
     ch = tuple(CHANNELS.index(c) for c in cal.channels)
     hexagonal = lf if lf.lattice_views is not None and lf.channels is not None else None
@@ -344,6 +340,10 @@ def cmd_temperature(a):
                                           colour=True)
     except ValueError as e:              # the light field's refusals name the grid's calibration by its flag here
         raise ValueError(str(e).replace("--calibration", "--grid-calibration")) from None
+    if lf.decoded and lf.channels is None:
+        raise ValueError(f"{src}: decoded views without their colour channels (a monochrome capture, or a colour one "
+                         "decoded without its camera file): 'lf-flame decode RAW --camera cam.toml' keeps them apart "
+                         "where the file's [sensor] names its cfa")
     extra, found = {}, None
     if depths == "auto":                                # reconstruct's planes: the levelled channels' found route
         depths, found, extra = _auto_depths(a, lf)
