@@ -85,7 +85,7 @@ def cmd_simulate_sequence(a):
 def cmd_sequence(a):
     from ..simulate.scenes_time import FlameSequence
     from ..recordings.job import SequenceJob, simulated_job
-    from ..recordings.sources import H5Source, SimulatedSource, frame_rate, open_source
+    from ..recordings.sources import SimulatedSource, open_source, source_frame_rate
     from ..recordings.runner import run
     if (a.input is None) == (a.simulate is None):
         raise ValueError("give a recording INPUT or --simulate KIND, not both or neither")
@@ -96,15 +96,10 @@ def cmd_sequence(a):
         fps = seq.fps
     else:
         source, attrs = open_source(a.input)
-        times = None
         if "camera" in attrs and not (a.data_config or a.camera):
             from ..optics.camera import PlenopticCamera
             cam = PlenopticCamera.from_dict(json.loads(attrs["camera"]))
-        if isinstance(source, H5Source):                 # its frame times, where it holds them
-            import h5py
-            with h5py.File(source.path, "r") as f:
-                times = f["times_s"][:] if "times_s" in f else None
-        fps = frame_rate(a.fps, attrs, times)
+        fps = source_frame_rate(source, attrs, a.fps)
         if "sequence" in attrs:
             seq = FlameSequence.from_dict(json.loads(attrs["sequence"]))
     if a.depth and a.slope:

@@ -421,7 +421,7 @@ def _temperature_recording(a, source, attrs, cal, sensor, where):
     from ..optics.camera import PAPER_CAMERA, PlenopticCamera
     from ..real.lightfield import decode_capture, from_raw
     from ..recordings.flicker import peaks, spectra
-    from ..recordings.sources import H5Source, frame_rate
+    from ..recordings.sources import source_frame_rate
     from .volume import planes_from_args
     src, t0 = str(a.raw), time.perf_counter()
     if "sequence" in attrs and "sensor" not in attrs:
@@ -437,11 +437,7 @@ def _temperature_recording(a, source, attrs, cal, sensor, where):
     if a.grid_calibration:
         from ..real.calibration import GridCalibration
         grid = GridCalibration.load(a.grid_calibration)
-    times = None
-    if isinstance(source, H5Source):
-        with h5py.File(source.path, "r") as f:
-            times = f["times_s"][:] if "times_s" in f else None
-    fps = frame_rate(a.fps, attrs, times)
+    fps = source_frame_rate(source, attrs, a.fps)
     depths, found, extra, cache, rows, temps, valids = None, None, {}, {}, [], [], []
     for i, raw in enumerate(tqdm(source.frames(0, source.n_frames), total=source.n_frames, desc="temperature",
                                  unit="frame", disable=None)):

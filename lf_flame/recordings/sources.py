@@ -288,6 +288,17 @@ def _resumed_frames(tmp: Path, settings: str, shape: tuple):
     return f
 
 
+def source_frame_rate(source, attrs: dict, fps: float | None = None) -> float:
+    """The frame rate of a recording opened by :func:`open_source` (:func:`frame_rate`), with an HDF5 stack's frame
+    times (its dataset ``times_s``) where it holds them."""
+    times = None
+    if isinstance(source, H5Source):
+        import h5py
+        with h5py.File(source.path, "r") as f:
+            times = f["times_s"][:] if "times_s" in f else None
+    return frame_rate(fps, attrs, times)
+
+
 def frame_rate(fps: float | None, attrs: dict, times_s=None) -> float:
     """The recording's frame rate (frames/s): ``fps`` if given, else the file's ``fps``
     attribute, else from its frame times; both must agree where both exist.
