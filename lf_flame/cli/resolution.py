@@ -17,13 +17,12 @@ def cmd_resolution(a):
     from ..optics.camera import PAPER_CAMERA
     from ..optics.camera_file import load_camera_file
     from ..real.own_camera import nominal_views_camera
-    from ..tomo.resolution import camera_stack, depth_resolution, plot_depth_resolution, stack_depths
+    from ..tomo.resolution import depth_resolution, plot_depth_resolution, stack_depths, stack_settings
     t0 = time.perf_counter()
     camera = load_camera_file(a.camera) if a.camera else PAPER_CAMERA
     views = nominal_views_camera(camera)         # a real grid: the camera of its decoded views
-    own = camera_stack(views)                    # the defaults: the paper camera's stack carried to this camera
-    a.near, a.far, a.spacing = (own[k] if v is None else v for k, v in enumerate((a.near, a.far, a.spacing)))
-    a.feature = list(own[3]) if a.feature is None else a.feature
+    # the defaults: the paper camera's stack carried to this camera
+    a.near, a.far, a.spacing, a.feature = stack_settings(views, a.near, a.far, a.spacing, a.feature)
     stack_depths(a.near, a.far, a.spacing)          # refuse a bad stack before computing anything
     res = depth_resolution(views, near_mm=a.near, far_mm=a.far, spacing_mm=a.spacing, feature_mm=a.feature,
                            conditions=a.condition, axis=a.axis)

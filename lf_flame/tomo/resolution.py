@@ -472,6 +472,26 @@ def resolution_from_kernels(kern: ExactKernels, feature_mm=FEATURE_SIZES_MM, con
         depths_mm=depths, sample_mm=sample, axis=axis, camera=camera, setup_s=0.0, map_s=time.perf_counter() - t0)
 
 
+def stack_settings(camera: PlenopticCamera, near_mm: float | None = None, far_mm: float | None = None,
+                   spacing_mm: float | None = None, feature_mm=None) -> tuple:
+    """The stack and feature sizes of ``camera``'s map: those given, the camera's (:func:`camera_stack`) for each
+    left None.
+
+    Returns
+    -------
+    near_mm, far_mm, spacing_mm : float
+        mm from the focal plane, > 0 farther.
+    feature_mm : tuple of float
+        Half a period, mm.
+    """
+    given = (near_mm, far_mm, spacing_mm, feature_mm)
+    if None not in given:
+        return near_mm, far_mm, spacing_mm, tuple(feature_mm)
+    own = camera_stack(camera)
+    return tuple(own[k] if v is None else v for k, v in enumerate(given[:3])) + (
+        tuple(own[3] if feature_mm is None else feature_mm),)
+
+
 def depth_resolution(camera: PlenopticCamera | None = None, *, near_mm: float | None = None,
                      far_mm: float | None = None, spacing_mm: float | None = None,
                      feature_mm=None, conditions=CONDITIONS, axis: str = "rows",
@@ -516,10 +536,7 @@ def depth_resolution(camera: PlenopticCamera | None = None, *, near_mm: float | 
     """
     from .quadrature import QUADRATURE_NODES, exact_kernels
     camera = PAPER_CAMERA if camera is None else camera
-    if None in (near_mm, far_mm, spacing_mm) or feature_mm is None:
-        own = camera_stack(camera)
-        near_mm, far_mm, spacing_mm = (own[k] if v is None else v for k, v in enumerate((near_mm, far_mm, spacing_mm)))
-        feature_mm = own[3] if feature_mm is None else feature_mm
+    near_mm, far_mm, spacing_mm, feature_mm = stack_settings(camera, near_mm, far_mm, spacing_mm, feature_mm)
     if axis not in AXES:
         raise ValueError(f"axis must be one of {AXES}. Received: {axis!r}")
     depths = stack_depths(near_mm, far_mm, spacing_mm)
