@@ -221,6 +221,8 @@ class _Frames:
     """A stand-in for SimulatedSource: 6 frames of 4 x 5 pixels, frame i filled with i / 10; it
     counts the frames rendered and stops (Ctrl-C) at frame ``stop_at``."""
 
+    sensor = None                           # monochrome
+
     def __init__(self, seed=0, stop_at=None):
         self.n_frames, self.seed, self.stop_at, self.rendered = 6, seed, stop_at, []
         self.camera = types.SimpleNamespace(sensor_shape=(4, 5), to_json=lambda: '{"camera": 1}')

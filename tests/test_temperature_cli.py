@@ -359,6 +359,52 @@ def test_simulate_renders_colour_scenes_of_any_camera_file(tmp_path, capsys):
     assert "--temperature" in capsys.readouterr().err
 
 
+def test_simulate_sequence_renders_a_colour_recording_that_temperature_and_sequence_read(tmp_path, capsys):
+    """``simulate-sequence --colour`` renders each frame's flames with their temperature through the camera file's
+    CFA at one exposure (the first frame's: a camera's is fixed over a recording), records the sensor and each
+    flame's sheath temperature per frame; ``temperature`` gives every frame its planes' temperatures and
+    ``sequence`` levels its frames' channels, where a recording rendered without --colour is monochrome."""
+    from lf_flame.simulate.scenes_temperature import FLICKER_K, colour_flicker_frame, flicker_peaks
+    from lf_flame.simulate.scenes_time import FlameSequence
+    cam_file = tmp_path / "colour.toml"
+    cam_file.write_text(COLOUR_FILE + 'cfa = "GRBG"\n')
+    rec = tmp_path / "rec.h5"
+    assert main(["simulate-sequence", "--camera", str(cam_file), "--colour", "--fps", "100", "--duration", "0.04",
+                 "--rays-per-pixel", "2", "--quiet", "--out", str(rec)]) == 0
+    with h5py.File(rec) as f:
+        frames, truth = f["frames"][...], f["sheath_temperature_k"][...]
+        sensor_rec = json.loads(f.attrs["sensor"])
+        seq = FlameSequence.from_dict(json.loads(f.attrs["sequence"]))
+        cam = PlenopticCamera.from_dict(json.loads(f.attrs["camera"]))
+    assert sensor_rec["pattern"] == "GRBG" and frames.shape[0] == truth.shape[0] == 4
+    peaks = np.array(flicker_peaks(len(seq.flames)))
+    assert truth.shape[1] == len(seq.flames) and np.all(np.abs(truth - peaks) <= FLICKER_K + 1e-9)
+    assert np.ptp(truth, axis=0).min() > 1.0                            # each sheath flickers
+    sensor = library_sensor(sensor_rec["name"], "GRBG", (0, 0))
+    exposure = colour_flicker_frame(seq, cam, sensor, 0, peaks_k=peaks).exposure
+    cs = colour_flicker_frame(seq, cam, sensor, 3, peaks_k=peaks, exposure=exposure)
+    assert [o["peak_k"] for o in cs.scene.objects] == pytest.approx(truth[3])
+    raw = render_colour(cam, cs.scene, cs.channel_radiance, sensor, 2, (seq.seed * 1_000_003 + 3) % 2**63)
+    assert np.array_equal(frames[3], np.round(np.clip(raw, 0, 1) * 65535).astype(np.uint16))
+    bb = []
+    for t in (1600, 2000, 2400):
+        bb.append(str(tmp_path / f"bb{t}.npz"))
+        assert main(["simulate", "--camera", str(cam_file), "--scene", "furnace", "--temperature", str(t),
+                     "--rays-per-pixel", "2", "--out", bb[-1]]) == 0
+    cal = str(tmp_path / "bb.json")
+    assert main(["calibrate-temperature", *bb, *[x for t in (1600, 2000, 2400) for x in ("--temperature", str(t))],
+                 "--out", cal]) == 0
+    out = tmp_path / "T.h5"
+    assert main(["temperature", str(rec), "--calibration", cal, "--route", "admm-cfa", "--depth", "0",
+                 "--no-figure", "--out", str(out)]) == 0
+    with h5py.File(out) as f:
+        t = f["temperature_k"][...]
+    assert t.shape[:2] == (4, 1) and np.isfinite(t).any(axis=(1, 2, 3)).all()
+    capsys.readouterr()
+    assert main(["sequence", str(rec), "--quiet", "--out", str(tmp_path / "seq")]) == 0
+    assert "levelled into one light field" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("layout", ["square", "hex"])
 def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, capsys, layout):
     """The example camera (10.57 px lenslet images, rotated 0.4°) with an RGGB CFA, on a square and on a hexagonal

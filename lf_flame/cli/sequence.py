@@ -68,18 +68,29 @@ def first_frame_depths(source, camera, calibration=None, sensor=None, search_ran
 
 def cmd_simulate_sequence(a):
     from ..recordings.sources import SimulatedSource, write_frames
+    from ..simulate.scenes_temperature import FLICKER_K
     cam = _camera(a)
     seq = _sequence_of(a, cam)
     camera_file = getattr(a, "camera", None) or getattr(a, "data_config", None)
-    if camera_file:
-        from ..optics.camera_file import load_colour_sensor
-        named = load_colour_sensor(camera_file)
-        if named is not None:
-            print(f"{camera_file} names a colour sensor ({named.pattern}); the recording is rendered monochrome "
-                  "and recorded so ('lf-flame sequence' reads it as monochrome)")
-    path = write_frames(a.out, SimulatedSource(seq, cam, a.rays_per_pixel), progress=not a.quiet)
+    from ..optics.camera_file import load_colour_sensor
+    named = load_colour_sensor(camera_file) if camera_file else None
+    sensor = named
+    if a.colour:
+        where = f"{camera_file} [sensor]" if named is not None else "default: the camera file names no cfa"
+        if sensor is None:
+            from ..optics.colour import DEFAULT_SENSITIVITIES, library_sensor
+            sensor = library_sensor(DEFAULT_SENSITIVITIES, "RGGB", (0, 0))
+        print(f"colour sensor {sensor.name}, {sensor.pattern} phase {sensor.phase} ({where}): each flame with its "
+              "temperature field, its sheath's flickering at the flame's frequency")
+    elif named is not None:
+        print(f"{camera_file} names a colour sensor ({named.pattern}); the recording is rendered monochrome "
+              "and recorded so ('lf-flame sequence' reads it as monochrome; --colour renders it through the mosaic)")
+    source = SimulatedSource(seq, cam, a.rays_per_pixel, sensor if a.colour else None)
+    path = write_frames(a.out, source, progress=not a.quiet)
+    temps = [f" sheath {pk:g} K +- {FLICKER_K:g} K" for pk in source.peaks_k] if a.colour else [""] * len(seq.flames)
     print(f"{seq.n_frames} frames at {seq.fps:g} frames/s, flames at "
-          + ", ".join(f"{f.depth_offset_mm:+g} mm {f.freq_hz:g} Hz" for f in seq.flames) + f" -> {path}")
+          + ", ".join(f"{f.depth_offset_mm:+g} mm {f.freq_hz:g} Hz{t}" for f, t in zip(seq.flames, temps))
+          + f" -> {path}")
 
 
 def cmd_sequence(a):
@@ -109,18 +120,18 @@ def cmd_sequence(a):
         raise ValueError("the frames are a camera's whose lenslet grid is not a perfect one (rotated, hexagonal, or "
                          "lenslet images no whole number of pixels apart): give its white image's --calibration "
                          "('lf-flame calibrate'), with which each frame is decoded")
-    if seq is not None and not a.depth and not a.calibration:
+    # a colour camera (its camera file's [sensor] cfa, else the recording's record): each frame's channels
+    # apart, levelled into one light field
+    from ..real.lightfield import capture_sensor
+    colour = capture_sensor(a.camera or None, attrs, str(a.input))[0] if a.input else None
+    if seq is not None and colour is None and not a.depth and not a.calibration:
         if a.slope and len(a.slope) != len(seq.flames):
             raise ValueError(f"give one --slope per flame ({len(seq.flames)}). Received: {a.slope}")
         job, truth = simulated_job(seq, cam, source, route=a.route, chunk=a.chunk, slopes=a.slope, **knobs)
     else:
-        if seq is not None and not (a.depth or a.slope):     # a simulated recording decoded as a real one
+        if seq is not None and not (a.depth or a.slope):     # a simulated recording decoded, or in colour: its flames
             a.depth = [f.depth_offset_mm for f in seq.flames]
         cal, k, sensor, calibration, real = None, 1, None, None, cam
-        # a colour camera (its camera file's [sensor] cfa, else the recording's record): each frame's channels
-        # apart, levelled into one light field
-        from ..real.lightfield import capture_sensor
-        colour = capture_sensor(a.camera or None, attrs, str(a.input))[0] if a.input else None
         if colour is not None:
             sensor = dict(name=colour.name, pattern=colour.pattern, phase=list(colour.phase))
             print(f"colour sensor {colour.name}, {colour.pattern} phase {colour.phase}: each frame's red and "
@@ -191,6 +202,9 @@ def add_parsers(sub) -> None:
     s = sub.add_parser("simulate-sequence", help="render a simulated recording of flickering flames to HDF5 "
                        "(frames (T, H, W), fps, camera and the truth)")
     _sequence_scene_args(s)
+    s.add_argument("--colour", action="store_true", help="each flame with its temperature field (its sheath "
+                   "flickering at the flame's frequency), through the colour sensor of the camera file's [sensor] "
+                   "cfa (else RGGB): a recording for 'lf-flame temperature'")
     s.add_argument("--out", required=True, help="HDF5 file")
     s.set_defaults(func=cmd_simulate_sequence)
 

@@ -28,23 +28,58 @@ FRAME_SUFFIXES = (".tif", ".tiff", ".png", ".npy")
 @dataclass(frozen=True)
 class SimulatedSource:
     """Frames rendered from a :class:`~lf_flame.simulate.scenes_time.FlameSequence` (frame ``i`` with ray
-    seed ``seed * 1000003 + i``), ``rays_per_pixel`` rays per pixel."""
+    seed ``seed * 1000003 + i``), ``rays_per_pixel`` rays per pixel; with a colour ``sensor``
+    (:class:`lf_flame.optics.colour.ColourSensor`) each flame with its temperature field through the sensor's
+    mosaic (:func:`lf_flame.simulate.scenes_temperature.colour_flicker_frame`, the sheath temperatures
+    :meth:`sheath_temperatures`, one exposure for the recording: its first frame's;
+    :func:`lf_flame.simulate.colour.render_colour`)."""
 
     sequence: FlameSequence
     camera: PlenopticCamera
     rays_per_pixel: int = 4
+    sensor: object = None
 
     @property
     def n_frames(self) -> int:
         return int(self.sequence.n_frames)
 
+    @cached_property
+    def peaks_k(self) -> tuple:
+        """Each flame's mean sheath temperature, K (:func:`~lf_flame.simulate.scenes_temperature.flicker_peaks`)."""
+        from ..simulate.scenes_temperature import flicker_peaks
+        return flicker_peaks(len(self.sequence.flames))
+
+    @cached_property
+    def exposure(self) -> float:
+        """A colour recording's exposure: the one that brings its first frame's brightest texel to 0.8."""
+        from ..simulate.scenes_temperature import colour_flicker_frame
+        return colour_flicker_frame(self.sequence, self.camera, self.sensor, 0, peaks_k=self.peaks_k).exposure
+
+    def sheath_temperatures(self, i: int) -> list:
+        """A colour recording's truth: each flame's sheath temperature (K) in frame ``i``."""
+        from ..simulate.scenes_temperature import sheath_temperatures
+        return sheath_temperatures(self.sequence, i, self.peaks_k)
+
     def raw(self, i: int) -> np.ndarray:
-        from ..simulate.tracer import render
-        return render(self.camera, self.sequence.scene(self.camera, i), self.rays_per_pixel,
-                      seed=(self.sequence.seed * 1_000_003 + int(i)) % 2**63)
+        seed = (self.sequence.seed * 1_000_003 + int(i)) % 2**63
+        if self.sensor is None:
+            from ..simulate.tracer import render
+            return render(self.camera, self.sequence.scene(self.camera, i), self.rays_per_pixel, seed=seed)
+        from ..simulate.colour import render_colour
+        from ..simulate.scenes_temperature import colour_flicker_frame
+        cs = colour_flicker_frame(self.sequence, self.camera, self.sensor, i, peaks_k=self.peaks_k,
+                                  exposure=self.exposure)
+        return render_colour(self.camera, cs.scene, cs.channel_radiance, self.sensor, self.rays_per_pixel, seed)
+
+    def sensor_record(self) -> dict | None:
+        """The colour sensor as ``lf-flame simulate`` records it beside a capture (``name``, ``pattern``,
+        ``phase``); None for a monochrome recording."""
+        s = self.sensor
+        return None if s is None else dict(name=s.name, pattern=s.pattern, phase=list(s.phase))
 
     def identity(self) -> dict:
-        return dict(kind="simulated", sequence=self.sequence.to_dict(), rays_per_pixel=self.rays_per_pixel)
+        out = dict(kind="simulated", sequence=self.sequence.to_dict(), rays_per_pixel=self.rays_per_pixel)
+        return out if self.sensor is None else dict(out, sensor=self.sensor_record())
 
     def frames(self, start: int, stop: int):
         """Frames ``start`` to ``stop`` (exclusive): an iterator of (H, W) float32 images."""
@@ -232,8 +267,10 @@ def open_source(path, camera: PlenopticCamera | None = None):
 
 def write_frames(path, source: SimulatedSource, progress: bool = True) -> Path:
     """Render a simulated recording into an HDF5 stack: ``frames`` (T, H, W) uint16 counts
-    (x 65535), attributes ``fps``, ``camera`` and ``sequence`` (JSON, the truth); written
-    to ``PATH.partial``, then renamed.
+    (x 65535), attributes ``fps``, ``camera`` and ``sequence`` (JSON, the truth); a colour recording
+    also ``sensor`` (JSON: ``name``, ``pattern``, ``phase``, as ``lf-flame simulate`` records a capture's) and
+    ``sheath_temperature_k`` (T, flames) float64, each flame's sheath temperature per frame (K; attribute
+    ``flicker_k``, their amplitude). Written to ``PATH.partial``, then renamed.
 
     A run stopped part-way (an error, Ctrl-C) leaves ``PATH.partial`` holding the frames
     written so far (each marked in its dataset ``done`` once written) and the settings it was
@@ -260,6 +297,11 @@ def write_frames(path, source: SimulatedSource, progress: bool = True) -> Path:
         del f["done"]
         f.attrs.update(fps=source.sequence.fps, camera=source.camera.to_json(),
                        sequence=json.dumps(source.sequence.to_dict()))
+        if source.sensor is not None:
+            from ..simulate.scenes_temperature import FLICKER_K
+            f.attrs["sensor"] = json.dumps(source.sensor_record())
+            truth = f.create_dataset("sheath_temperature_k", data=[source.sheath_temperatures(i) for i in range(n)])
+            truth.attrs["flicker_k"] = FLICKER_K
     os.replace(tmp, path)
     return path
 

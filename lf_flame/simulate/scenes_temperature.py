@@ -284,12 +284,24 @@ def colour_flicker_frame(seq: FlameSequence, camera: PlenopticCamera, sensor: Co
         raise ValueError(f"peak must be in (0, 1] and the exposure positive. Received: peak={peak}, "
                          f"exposure={exposure!r}")
     mono = seq.scene(camera, frame)
-    t = int(frame) / float(seq.fps)
-    sheath = [float(pk) - flicker_k * np.sin(2 * np.pi * f.freq_hz * t + f.phase) for pk, f in zip(peaks_k, seq.flames)]
+    sheath = sheath_temperatures(seq, frame, peaks_k, flicker_k)
     if min(sheath) <= base_k:
         raise ValueError(f"the sheath temperatures {sheath} K must stay above base_k {base_k} K: lower flicker_k")
     temps, soots = _layer_temperatures(camera, mono, sheath, base_k, seq.texels_per_lenslet)
     return _in_colour(mono, "colour_flicker", temps, soots, sensor, alpha, peak, sheath, base_k, exposure)
+
+
+def flicker_peaks(n_flames: int) -> tuple:
+    """Each flame's mean sheath temperature (K) of a recording of ``n_flames`` flickering in colour: the paper's
+    flames' (:data:`FLAME_PEAK_K`, farthest first), taken again from the first for a fifth flame and on."""
+    return tuple(FLAME_PEAK_K[k % len(FLAME_PEAK_K)] for k in range(int(n_flames)))
+
+
+def sheath_temperatures(seq: FlameSequence, frame: int, peaks_k=FLAME_PEAK_K, flicker_k: float = FLICKER_K) -> list:
+    """Each flame's sheath temperature (K) in frame ``frame`` of ``seq``, as :func:`colour_flicker_frame` draws it:
+    ``peaks_k[k] - flicker_k sin(2 pi f_k t + phase_k)`` at ``t = frame / seq.fps`` s (``seq.flames``' order)."""
+    t = int(frame) / float(seq.fps)
+    return [float(pk) - flicker_k * np.sin(2 * np.pi * f.freq_hz * t + f.phase) for pk, f in zip(peaks_k, seq.flames)]
 
 
 #: Sheath temperatures (K) of the far and the near flame of :func:`colour_behind_scene`.
