@@ -35,7 +35,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SENSOR = (1080, 1080)
 SEED = 3
 VARIANTS = {"figure": [], "no figure": ["--no-figure"]}
-#: A recording of the same camera (``simulate-sequence --simulate overlap``: two flames at +10 and -10 mm, 30 frames
+#: A recording of the same camera (``simulate-sequence --simulate overlap``: two flames one behind the other, 30 frames
 #: at 100 frames/s), each frame decoded with the calibration and its white image, at the flames' depths: the route.
 RECORDING = dict(fps=100, duration=0.3)
 RECORDING_ROUTES = {"recording, shift-sum": "shift-sum", "recording, admm": "reconstruct-admm"}

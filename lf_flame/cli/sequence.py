@@ -181,7 +181,7 @@ def _sequence_scene_args(s, simulate_only=False):
     if not simulate_only:
         s.add_argument("--simulate", choices=["paper", "overlap"], default="paper",
                        help="paper: four flames at the paper's depths; overlap: two flames 20 mm apart, one "
-                            "behind the other")
+                            "behind the other (another camera: the depths of the same parallax)")
     s.add_argument("--fps", type=float, help=("frame rate, frames/s (a recording: default its file's; " if
                                               simulate_only else "frame rate, frames/s (") + "simulated: 500)")
     s.add_argument("--duration", type=float, default=1.0, help=pre + "length, s")

@@ -125,6 +125,40 @@ def random_depth_scene(camera: PlenopticCamera, rng: np.random.Generator, *, n_f
     return Scene("depth", tuple(layers), FLAME_EFFECTS, tuple(objects))
 
 
+def _parallax_scale(camera: PlenopticCamera) -> float:
+    """:func:`camera_depth_ranges`' factor from the paper camera's slopes to ``camera``'s: ``min(14 / (N - 1),
+    min(R, C) / 90)`` (``N`` views, ``R x C`` lenslets), 1 on the paper's camera."""
+    n, R, C = camera.pixels_per_lenslet, camera.n_rows, camera.n_cols
+    return min(14.0 / max(n - 1, 1), min(R, C) / 90.0)
+
+
+def carried_depths(camera: PlenopticCamera, paper_depths_mm) -> tuple:
+    """Depths on the paper's camera carried to ``camera`` as :func:`camera_depth_ranges` carries its range: each
+    depth's slope on the paper's camera times the same factor, the depth of that slope on ``camera``, so that a
+    scene's flames lie as far apart in parallax on any camera; where one would fall outside the
+    :func:`camera_depth_ranges` range, every slope shrinks by one factor until it fits (the flames keep their
+    order and their spacing's proportions).
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+    paper_depths_mm : sequence of float
+        mm from the paper camera's focus distance, > 0 farther.
+
+    Returns
+    -------
+    tuple of float
+        mm from ``camera``'s focus distance (to 1e-6 mm: the paper's camera keeps the depths given).
+    """
+    from ..optics.camera import PAPER_CAMERA
+    lo, hi = camera_depth_ranges(camera)["depth_range"]
+    scale = _parallax_scale(camera)
+    s_lo, s_hi = camera.slope_for_depth(lo), camera.slope_for_depth(hi)
+    slopes = np.array([PAPER_CAMERA.slope_for_depth(float(d)) * scale for d in paper_depths_mm])
+    fit = min([1.0] + [s_hi / s for s in slopes if s > s_hi] + [s_lo / s for s in slopes if s < s_lo])
+    return tuple(round(float(np.clip(camera.depth_for_slope(fit * s), lo, hi)), 6) + 0.0 for s in slopes)
+
+
 def camera_depth_ranges(camera: PlenopticCamera) -> dict:
     """:func:`random_depth_scene`'s ranges for any camera: the paper camera's, scaled.
 
@@ -149,8 +183,7 @@ def camera_depth_ranges(camera: PlenopticCamera) -> dict:
         ``depth_range`` (near, far) mm from the focus distance, ``height_range`` (mm),
         ``min_half_width_mm`` (mm): :func:`random_depth_scene`'s keyword arguments.
     """
-    n, R, C = camera.pixels_per_lenslet, camera.n_rows, camera.n_cols
-    scale = min(14.0 / max(n - 1, 1), min(R, C) / 90.0)
+    scale = _parallax_scale(camera)
     s_inf = camera.slope_for_depth(1e6 * camera.focus_distance_mm)
     lo_s, hi_s = (v * scale for v in PAPER_SLOPE_RANGE)
     if s_inf > 0:

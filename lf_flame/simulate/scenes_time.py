@@ -165,6 +165,11 @@ def flicker_sequence(camera: PlenopticCamera, rng: np.random.Generator, kind: st
       depth (+10 and −10 mm): a tall bright one behind (80 % of the field, radiance 1) and
       a shorter dimmer one in front (50 %, radiance 0.6).
 
+    Those are the paper camera's depths; another camera's flames stand at the depths of the same
+    parallax (:func:`lf_flame.simulate.scenes_depth.carried_depths`, as ``lf-flame simulate --scene depth``
+    carries its depth range), where the paper's millimetres could be far out of focus or all at one
+    slope.
+
     Frequencies default to draws from 5–20 Hz at least 2 Hz apart (and 2 Hz from each
     other's second harmonic); amplitudes 8–12 % of the height with a second harmonic of a
     third of that, 1 % jitter, sway 3 %, random phases.
@@ -212,7 +217,8 @@ def flicker_sequence(camera: PlenopticCamera, rng: np.random.Generator, kind: st
     h0, w0 = camera.field_of_view_mm(0.0)
     if template_scale is None:
         template_scale = 0.64 * h0 / PAPER_CAMERA.field_of_view_mm(0.0)[0]
-    depths = PAPER_DEPTHS_MM if kind == "paper" else (10.0, -10.0)
+    from .scenes_depth import carried_depths
+    depths = carried_depths(camera, PAPER_DEPTHS_MM if kind == "paper" else (10.0, -10.0))
     flames = []
     for k, dz in enumerate(depths):
         camera.image_distance_mm(camera.object_distance_mm(dz))   # raises for a depth it cannot image
