@@ -475,15 +475,7 @@ def resolution_from_kernels(kern: ExactKernels, feature_mm=FEATURE_SIZES_MM, con
 def stack_settings(camera: PlenopticCamera, near_mm: float | None = None, far_mm: float | None = None,
                    spacing_mm: float | None = None, feature_mm=None) -> tuple:
     """The stack and feature sizes of ``camera``'s map: those given, the camera's (:func:`camera_stack`) for each
-    left None.
-
-    Returns
-    -------
-    near_mm, far_mm, spacing_mm : float
-        mm from the focal plane, > 0 farther.
-    feature_mm : tuple of float
-        Half a period, mm.
-    """
+    left None: ``(near_mm, far_mm, spacing_mm, feature_mm)`` as :func:`camera_stack` returns them."""
     given = (near_mm, far_mm, spacing_mm, feature_mm)
     if None not in given:
         return near_mm, far_mm, spacing_mm, tuple(feature_mm)
