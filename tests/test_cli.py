@@ -256,7 +256,10 @@ def test_a_monochrome_render_of_a_colour_camera_is_read_as_monochrome(tmp_path, 
     raw, rec = tmp_path / "depth.npz", tmp_path / "depth.h5"
     assert main(["simulate", "--camera", str(cam), "--scene", "depth", "--seed", "3", "--rays-per-pixel", "2",
                  "--out", str(raw)]) == 0
-    assert "rendered monochrome" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "rendered monochrome" in printed
+    depths = [o["depth_offset_mm"] for o in json.loads(str(np.load(raw)["objects"]))]     # the flames drawn, said
+    assert f"({len(depths)} flame" in printed and all(f"{d:+.2f}" in printed for d in depths)
     assert main(["reconstruct", str(raw), "--camera", str(cam), "--depth", "0", "--no-figure", "--out", str(rec)]) == 0
     assert "levelled" not in capsys.readouterr().out
     with h5py.File(rec, "r") as f:

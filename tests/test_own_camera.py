@@ -359,6 +359,23 @@ def test_cli_refusals(route, tmp_path, capsys):
         assert cli.main(["reconstruct", str(d / "raw.npy"), "--calibration", str(d / "cal.json"), "--depth", "0",
                          "--out", str(tmp_path / "v.h5")]) == 2
     assert "the paper's camera was taken; give the capture's --camera" in capsys.readouterr().err
+    # decode --camera checks the calibration against the camera file as the routes do: a white image of another
+    # set-up (pixels 6 % smaller: its lenslet images 6.7 % more pixels apart) is refused, nothing written; a NaN in
+    # the raw image is named
+    sheet = tmp_path / "smaller_pixels.toml"
+    sheet.write_text(Path(EXAMPLE).read_text().replace("pixel_size_um = 14.4", "pixel_size_um = 13.5"))
+    np.save(tmp_path / "white.npy", tracer.render(load_camera_file(sheet), scenes.white_scene(cam), 8))
+    assert cli.main(["calibrate", str(tmp_path / "white.npy"), "--out", str(tmp_path / "other_cal.json")]) == 0
+    views = tmp_path / "views.h5"
+    assert cli.main(["decode", str(d / "raw.npy"), "--calibration", str(tmp_path / "other_cal.json"), "--camera",
+                     EXAMPLE, "--out", str(views)]) == 2
+    assert "5 % tolerated" in capsys.readouterr().err and not views.exists()
+    bad = np.load(d / "raw.npy")
+    bad[3, 4] = np.nan
+    np.save(tmp_path / "nan.npy", bad)
+    assert cli.main(["decode", str(tmp_path / "nan.npy"), "--calibration", str(d / "cal.json"), "--out",
+                     str(views)]) == 2
+    assert "contains NaN or inf (1 pixels)" in capsys.readouterr().err and not views.exists()
 
 
 def test_the_commands_show_the_packages_warnings_in_one_line():

@@ -70,6 +70,10 @@ def cmd_simulate(a):
             extra["views"] = raw_to_views(raw, cam.pixels_per_lenslet)
         np.savez_compressed(out, raw=raw, **meta, **extra)
     name = f"furnace at {a.temperature:g} K" if a.scene == "furnace" else sc.name    # a blackbody filling the field
+    if a.scene in ("depth", "colour-depth"):        # drawn for this camera: how many (a small field holds fewer)
+        depths = [float(o["depth_offset_mm"]) for o in sc.objects]
+        name += (f" ({len(depths)} flame{'s' * (len(depths) != 1)} at "
+                 + ", ".join(f"{d:+.2f}" for d in depths) + " mm)")
     print(f"rendered {name} {raw.shape} at {a.rays_per_pixel} rays/pixel in {dt:.2f} s -> {out}")
 
 
@@ -252,7 +256,8 @@ def add_parsers(sub) -> None:
                         "(a luminous sheath 10 mm across, at most 85 %% of the field, about a vertical axis through "
                         "--depth, default 0, in 32 layers; 'reconstruct --volume'); depth: 2-4 flames at random "
                         "depths, sizes and places (--seed), scaled to the camera (its depth of field and lenslet "
-                        "footprint); white: a flat field, the white image that 'lf-flame calibrate' takes; seen "
+                        "footprint; fewer, down to one, where a small field has no room for them: the printout "
+                        "says how many and where); white: a flat field, the white image that 'lf-flame calibrate' takes; seen "
                         "by a colour (Bayer) sensor, for 'lf-flame temperature': colour-flame: the four flames with "
                         "their temperature fields; colour-depth: the depth scene's flames, each with a drawn "
                         "temperature; furnace: a blackbody at --temperature filling the field, for "

@@ -50,7 +50,13 @@ def cmd_decode(a):
     raw = load_image(a.raw)
     white = None if a.no_white else calibration_image(cal.white, "white", a.white)
     dark = calibration_image(cal.dark, "dark", a.dark)
+    if a.camera:                    # the calibration of this camera's set-up (as every route with --camera checks)
+        from ..optics.camera_file import load_camera_file
+        from ..real.own_camera import check_calibration
+        check_calibration(load_camera_file(a.camera), cal)
     sensor, where = colour_sensor(a.camera, a.raw)
+    from ..real.images import _image
+    _image(str(a.raw), raw)         # NaN or inf named before the clipping level is looked for in them
     t = time.perf_counter()
     # a hexagonal grid keeps its lattice's views (and a colour capture's channels there) beside the square grid's
     level = _saturation_level(a.saturation, raw)

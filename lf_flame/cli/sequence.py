@@ -191,8 +191,8 @@ def _sequence_scene_args(s, simulate_only=False):
     s.add_argument("--seed", type=int, default=0, help=pre + "seed of the frequencies, phases and jitter")
     s.add_argument("--rays-per-pixel", type=int, default=4, help=pre + "rays traced per sensor pixel")
     s.add_argument("--camera", help="camera file (TOML: the datasheet tables of docs/own_camera.md, or a [camera] "
-                   "table; default: the file's, else the paper's camera); with --calibration, the camera the frames "
-                   "were taken with")
+                   "table; default: " + ("the file's, else the paper's camera); with --calibration, the camera the "
+                                         "frames were taken with" if simulate_only else "the paper's camera)"))
     s.add_argument("--data-config", help="TOML with a [camera] table (as --camera)")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
 

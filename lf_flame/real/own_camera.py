@@ -125,6 +125,29 @@ def views_camera(camera: PlenopticCamera, calibration: GridCalibration, views_sh
     shape = tuple(int(v) for v in views_shape)
     if len(shape) != 4 or shape[0] != shape[1]:
         raise ValueError(f"views of shape {shape} are not (N, N, R, C)")
+    check_calibration(camera, calibration)
+    decoded_frame(calibration, shape[2], shape[3])                      # views of this calibration
+    if isinstance(bin_views, bool) or int(bin_views) != bin_views or bin_views < 1:
+        raise ValueError(f"bin_views must be an integer >= 1. Received: {bin_views!r}")
+    k = int(bin_views)
+    return replace(decoded_camera(camera, shape[0] * k, shape[2], shape[3]), pixels_per_lenslet=shape[0])
+
+
+def check_calibration(camera: PlenopticCamera, calibration: GridCalibration) -> None:
+    """Refuse a white-image calibration of another set-up than ``camera``'s (:func:`views_camera`'s checks of the
+    sensor, the grid's layout and its pitch).
+
+    Raises
+    ------
+    ValueError
+        Images larger than the camera's sensor, another layout than the camera's, a calibrated pitch more than
+        :data:`PITCH_TOLERANCE` away from the camera's.
+
+    Warns
+    -----
+    UserWarning
+        A calibrated pitch more than :data:`PITCH_WARN` away from the camera's; images smaller than its sensor.
+    """
     (H, W), (Hc, Wc) = calibration.sensor_shape, camera.sensor_shape
     if (H, W) != (Hc, Wc):
         if not (H <= Hc and W <= Wc):
@@ -132,7 +155,7 @@ def views_camera(camera: PlenopticCamera, calibration: GridCalibration, views_sh
                              "sensor: another camera")
         warnings.warn(f"the images are {H} x {W} px of the camera's {Hc} x {Wc} px sensor: taken as its centred "
                       "crop (the optical axis at the image's centre, as the file's offset_px counts it)", UserWarning,
-                      stacklevel=2)
+                      stacklevel=3)
     if calibration.layout != camera.grid_layout:
         raise ValueError(f"the calibration found a {calibration.layout} lenslet grid, the camera file says "
                          f"{camera.grid_layout}")
@@ -143,12 +166,7 @@ def views_camera(camera: PlenopticCamera, calibration: GridCalibration, views_sh
     if off > PITCH_TOLERANCE:
         raise ValueError(msg + f" ({100 * PITCH_TOLERANCE:g} % tolerated)")
     if off > PITCH_WARN:
-        warnings.warn(msg + "; the views' angles are taken from the file", UserWarning, stacklevel=2)
-    decoded_frame(calibration, shape[2], shape[3])                      # views of this calibration
-    if isinstance(bin_views, bool) or int(bin_views) != bin_views or bin_views < 1:
-        raise ValueError(f"bin_views must be an integer >= 1. Received: {bin_views!r}")
-    k = int(bin_views)
-    return replace(decoded_camera(camera, shape[0] * k, shape[2], shape[3]), pixels_per_lenslet=shape[0])
+        warnings.warn(msg + "; the views' angles are taken from the file", UserWarning, stacklevel=3)
 
 
 def nominal_views_camera(camera: PlenopticCamera) -> PlenopticCamera:
