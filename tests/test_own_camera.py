@@ -512,6 +512,11 @@ def test_profiles_measure_the_flames_of_decoded_views(tmp_path, capsys):
     assert f"found 3 depths (searched {lo:+.1f} .. {hi:+.1f} mm" in capsys.readouterr().out
     found = pd.read_csv(tmp_path / "found.csv")
     assert np.allclose(found.depth_mm, df.depth_mm, atol=0.5) and np.allclose(found.height_mm, df.height_mm, atol=0.1)
+    # reconstruct --depths scene on the capture decoded on the fly: the planes the simulation stored
+    assert run("reconstruct", tmp_path / "sc.npz", "--camera", EXAMPLE, "--calibration", tmp_path / "cal.json",
+               "--depths", "scene", "--no-figure", "--out", tmp_path / "scene.h5") == 0
+    stored = [o["depth_offset_mm"] for o in json.loads(str(np.load(tmp_path / "sc.npz")["objects"]))]
+    assert np.allclose(load_reconstruction(tmp_path / "scene.h5").depths_mm, stored)
 
 
 def _offset_captures(folder):

@@ -23,8 +23,8 @@ def reconstruct_input(a, colour: bool = False):
     """Light field, depths (mm, or "auto") and flame objects (or None) of ``reconstruct``/``temperature``
     (``colour``: a colour capture's channels kept, :func:`._io.light_field`)."""
     lf = light_field(a, colour=colour)
-    objects = None if lf.decoded else _raw_objects(a.raw)
-    return lf, planes_from_args(a, lf.camera, objects), objects
+    stored = _raw_objects(a.raw)          # what 'lf-flame simulate' stored beside a raw image, decoded here or not
+    return lf, planes_from_args(a, lf.camera, stored), None if lf.decoded else stored
 
 
 def planes_from_args(a, cam, objects=None):
