@@ -540,6 +540,10 @@ def test_a_simulated_recording_of_another_camera_is_decoded_at_its_flames_depths
     assert summary["n_frames"] == 4 and len(checked) == 1
     frames = pd.read_csv(tmp_path / "out" / "frames.csv")
     assert sorted(frames.depth_mm.unique()) == pytest.approx(sorted(fl["depth_offset_mm"] for fl in flames), abs=1e-4)
+    # the recording's truth beside: each plane's flame's frequency and heights
+    pk = pd.read_csv(tmp_path / "out" / "peaks.csv").query("signal == 'height_mm'")
+    assert list(pk.true_hz) == pytest.approx([fl["freq_hz"] for fl in flames])
+    assert (frames.height_mm - frames.height_mm_true).abs().median() < 0.1 * frames.height_mm_true.median()
     # the same frames as files of a folder, which record no flames: the depths found in the first frame
     (tmp_path / "folder").mkdir()
     with h5py.File(tmp_path / "frames.h5") as f:

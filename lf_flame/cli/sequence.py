@@ -129,8 +129,11 @@ def cmd_sequence(a):
             raise ValueError(f"give one --slope per flame ({len(seq.flames)}). Received: {a.slope}")
         job, truth = simulated_job(seq, cam, source, route=a.route, chunk=a.chunk, slopes=a.slope, **knobs)
     else:
+        truth = None
         if seq is not None and not (a.depth or a.slope):     # a simulated recording decoded, or in colour: its flames
-            a.depth = [f.depth_offset_mm for f in seq.flames]
+            a.depth = [f.depth_offset_mm for f in seq.flames]  # plane k flame k's: its frequency and heights the truth
+            knobs["truth_freqs_hz"] = tuple(f.freq_hz for f in seq.flames)
+            truth = np.array([seq.heights_mm(i) for i in range(seq.n_frames)])
         cal, k, sensor, calibration, real = None, 1, None, None, cam
         if colour is not None:
             sensor = dict(name=colour.name, pattern=colour.pattern, phase=list(colour.phase))
@@ -151,9 +154,9 @@ def cmd_sequence(a):
         slopes = list(a.slope) if a.slope else [cam.slope_for_depth(d) for d in depths]
         from ..optics.camera import check_imaging_range
         check_imaging_range(cam, depths)
-        job, truth = SequenceJob(source, cam, fps, tuple(depths), tuple(slopes), (None,) * len(depths), a.route,
-                                 cal, a.white, a.dark, chunk=a.chunk, bin_views=k, sensor=sensor, **knobs), None
-    if truth is None:                    # real frames: a black level left in, read in the first frame
+        job = SequenceJob(source, cam, fps, tuple(depths), tuple(slopes), (None,) * len(depths), a.route,
+                          cal, a.white, a.dark, chunk=a.chunk, bin_views=k, sensor=sensor, **knobs)
+    if seq is None:                      # real frames: a black level left in, read in the first frame
         from ._io import black_level_warning
         black_level_warning(job.unlit_level(source.raw(0)))
     s = run(job, a.out, scheduler=a.scheduler, workers=a.workers, nperseg=a.nperseg, truth=truth,
