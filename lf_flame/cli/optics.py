@@ -187,7 +187,7 @@ def cmd_slopes(a):
                 for o in objects]
     rows = []
     for o, s in zip(objects, searches):
-        row = dict(object=o["name"], roi=" ".join(str(int(x)) for x in o["roi"]), slope=float(f"{s.slope:.5g}"))
+        row = dict(object=o["name"], roi=" ".join(str(int(x)) for x in o["roi"]), slope=round(s.slope, 6) + 0.0)
         if cam is not None:  # decoded views without --camera: no optics, no depth
             try:
                 row["depth_mm"] = round(cam.depth_for_slope(s.slope), 3)
