@@ -267,6 +267,15 @@ def _raw_objects(path):
 COLOUR_SCENES = ("colour-flame", "colour-depth", "furnace")
 
 
+def render_sensor(named, camera_file):
+    """The colour sensor a colour render goes through and where it came from: ``named`` (the camera file's
+    ``[sensor] cfa``), else the default sensitivities with an RGGB mosaic."""
+    if named is not None:
+        return named, f"{camera_file} [sensor]"
+    from ..optics.colour import DEFAULT_SENSITIVITIES, library_sensor
+    return library_sensor(DEFAULT_SENSITIVITIES, "RGGB", (0, 0)), "default: the camera file names no cfa"
+
+
 def colour_scene(record: dict, camera):
     """A colour scene of ``lf-flame simulate`` from its record: ``(scene, channel_radiance, sensor)`` for
     :func:`lf_flame.simulate.colour.render_colour`.

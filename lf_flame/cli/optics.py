@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ._io import (COLOUR_SCENES, RAW_FORMATS, _raw_objects, _save_image, _write_stack, add_camera_args,
-                  add_search_arg, camera_config, colour_scene, light_field, simulated_scene)
+                  add_search_arg, camera_config, colour_scene, light_field, render_sensor, simulated_scene)
 from ..simulate.scenes import PAPER_DEPTHS_MM
 
 
@@ -34,11 +34,8 @@ def cmd_simulate(a):
         print(f"{a.data_config} names a colour sensor ({named.pattern}); scene {a.scene!r} is rendered monochrome "
               f"and recorded so (the colour scenes: {', '.join(COLOUR_SCENES)}, white)")
     if colour:
-        where = f"{a.data_config} [sensor]" if sensor is not None else "default: the camera file names no cfa"
-        if sensor is None:
-            from ..optics.colour import DEFAULT_SENSITIVITIES, library_sensor
-            sensor = library_sensor(DEFAULT_SENSITIVITIES, "RGGB", (0, 0))
-        record.update(sensor=dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase)))
+        sensor, where = render_sensor(sensor, a.data_config)
+        record.update(sensor=sensor.record())
         if a.scene == "furnace":
             record["temperature_k"] = float(a.temperature)
         sc, chans, sensor = colour_scene(record, cam)

@@ -79,7 +79,7 @@ def cmd_decode(a):
     if level is not None:
         extra.update(saturation=level, clipped_share=share)
     if sensor is not None:
-        extra["sensor"] = json.dumps(dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase)))
+        extra["sensor"] = json.dumps(sensor.record())
     save_views(a.out, views, cal, clipped, channels, lattice, hit, raw=str(Path(a.raw).resolve()),
                white_normalised=white is not None, **extra)
     note = "no clipping level" if level is None else (

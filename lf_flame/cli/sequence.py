@@ -73,19 +73,16 @@ def cmd_simulate_sequence(a):
     seq = _sequence_of(a, cam)
     camera_file = getattr(a, "camera", None) or getattr(a, "data_config", None)
     from ..optics.camera_file import load_colour_sensor
-    named = load_colour_sensor(camera_file) if camera_file else None
-    sensor = named
+    named, sensor = (load_colour_sensor(camera_file) if camera_file else None), None
     if a.colour:
-        where = f"{camera_file} [sensor]" if named is not None else "default: the camera file names no cfa"
-        if sensor is None:
-            from ..optics.colour import DEFAULT_SENSITIVITIES, library_sensor
-            sensor = library_sensor(DEFAULT_SENSITIVITIES, "RGGB", (0, 0))
+        from ._io import render_sensor
+        sensor, where = render_sensor(named, camera_file)
         print(f"colour sensor {sensor.name}, {sensor.pattern} phase {sensor.phase} ({where}): each flame with its "
               "temperature field, its sheath's flickering at the flame's frequency")
     elif named is not None:
         print(f"{camera_file} names a colour sensor ({named.pattern}); the recording is rendered monochrome "
               "and recorded so ('lf-flame sequence' reads it as monochrome; --colour renders it through the mosaic)")
-    source = SimulatedSource(seq, cam, a.rays_per_pixel, sensor if a.colour else None)
+    source = SimulatedSource(seq, cam, a.rays_per_pixel, sensor)
     path = write_frames(a.out, source, progress=not a.quiet)
     temps = [f" sheath {pk:g} K +- {FLICKER_K:g} K" for pk in source.peaks_k] if a.colour else [""] * len(seq.flames)
     print(f"{seq.n_frames} frames at {seq.fps:g} frames/s, flames at "
@@ -95,7 +92,7 @@ def cmd_simulate_sequence(a):
 
 def cmd_sequence(a):
     from ..simulate.scenes_time import FlameSequence
-    from ..recordings.job import SequenceJob, simulated_job
+    from ..recordings.job import SequenceJob, sequence_truth, simulated_job
     from ..recordings.sources import SimulatedSource, open_source, source_frame_rate
     from ..recordings.runner import run
     if (a.input is None) == (a.simulate is None):
@@ -131,12 +128,11 @@ def cmd_sequence(a):
     else:
         truth = None
         if seq is not None and not (a.depth or a.slope):     # a simulated recording decoded, or in colour: its flames
-            a.depth = [f.depth_offset_mm for f in seq.flames]  # plane k flame k's: its frequency and heights the truth
-            knobs["truth_freqs_hz"] = tuple(f.freq_hz for f in seq.flames)
-            truth = np.array([seq.heights_mm(i) for i in range(seq.n_frames)])
+            a.depth = [f.depth_offset_mm for f in seq.flames]
+            knobs["truth_freqs_hz"], truth = sequence_truth(seq)
         cal, k, sensor, calibration, real = None, 1, None, None, cam
         if colour is not None:
-            sensor = dict(name=colour.name, pattern=colour.pattern, phase=list(colour.phase))
+            sensor = colour.record()
             print(f"colour sensor {colour.name}, {colour.pattern} phase {colour.phase}: each frame's red and "
                   "green samples levelled into one light field (blue left out)")
         if a.calibration:                # real frames: the planes are the decoded views' camera's

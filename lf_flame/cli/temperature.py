@@ -214,8 +214,9 @@ def _plane_temperatures(a, lf, depths, found, cal, sensor, cache=None) -> dict:
     """Each plane's temperature of one colour light field ``lf`` on ``depths`` (``found``: the
     :class:`~lf_flame.tomo.depth.FoundDepths` they came from, or None) by ``a.route``: the channels' emission
     (:func:`lf_flame.temperature.channels.channel_emission`) and their ratio through ``cal``
-    (:func:`lf_flame.temperature.pyrometry.temperature_planes`). ``cache``: a dict that keeps the route's operator
-    for the next light field of the same camera and planes (a recording's frames).
+    (:func:`lf_flame.temperature.pyrometry.temperature_planes`). ``cache``: a dict that keeps what the next light field
+    of the same camera and planes (a recording's frames) shares: the route's operator, a raw mosaic's channel map and
+    the found planes' support.
 
     Returns
     -------
@@ -231,12 +232,14 @@ def _plane_temperatures(a, lf, depths, found, cal, sensor, cache=None) -> dict:
     from ..tomo.decoded import fit_data
     cam, views = lf.camera, lf.views
     n = cam.pixels_per_lenslet
-    chan = lf.channels if lf.decoded else channel_views((views.shape[2] * n, views.shape[3] * n), sensor, n)
+    cache = {} if cache is None else cache
+    if not lf.decoded and "chan" not in cache:
+        cache["chan"] = channel_views((views.shape[2] * n, views.shape[3] * n), sensor, n)
+    chan = lf.channels if lf.decoded else cache["chan"]
     ch = tuple(CHANNELS.index(c) for c in cal.channels)
     hexagonal = lf if lf.lattice_views is not None and lf.channels is not None else None
     chosen, knobs, ratio_filter = {}, None, None
     slopes = [cam.slope_for_depth(d) for d in depths]
-    cache = {} if cache is None else cache
     if "op" not in cache:
         cache["op"] = route_operator(cam, depths, a.route, hexagonal, lf.sample_offsets if hexagonal is None else None)
     op = cache["op"]
@@ -260,10 +263,11 @@ def _plane_temperatures(a, lf, depths, found, cal, sensor, cache=None) -> dict:
     if found is not None and op is not None:
         # found planes near each other held to their own regions where they meet, as reconstruct holds them (a
         # hexagonal grid's taken from the decoded square grid to its lattice)
-        from ..tomo.found_planes import found_support
-        support = found_support(found, cam, op.subsamples)
-        if support is not None and hexagonal is not None:
-            support = op.from_square(support)
+        if "support" not in cache:
+            from ..tomo.found_planes import found_support
+            support = found_support(found, cam, op.subsamples)
+            cache["support"] = op.from_square(support) if support is not None and hexagonal is not None else support
+        support = cache["support"]
         chosen["support"] = "none" if support is None else "near planes"
     emission = channel_emission(a.route, data, chan, ch, op=op, slopes=slopes, saturation=sat, info=chosen,
                                 knobs=knobs, ratio_filter=ratio_filter, support=support)
@@ -515,8 +519,7 @@ def _record(a, cal, sensor, where, chosen) -> dict:
     """What a temperature file records of its calibration, sensor and route (HDF5 attributes)."""
     return dict(calibration=json.dumps(dict(path=str(a.calibration),
                                             **{k: getattr(cal, k) for k in cal.__dataclass_fields__})),
-                sensor=json.dumps(dict(name=sensor.name, pattern=sensor.pattern, phase=list(sensor.phase),
-                                       where=where)),
+                sensor=json.dumps(dict(sensor.record(), where=where)),
                 route=a.route, route_settings=json.dumps(chosen), alpha=float(a.alpha),
                 min_fraction=float(a.min_fraction))
 

@@ -94,6 +94,11 @@ class ColourSensor:
         """Channel index (0 R, 1 G, 2 B) of each pixel of a sensor of ``shape`` (rows, cols), int8."""
         return cfa_channels(shape, self.pattern, self.phase)
 
+    def record(self) -> dict:
+        """What a capture records of its sensor (``name``, ``pattern``, ``phase`` as a list; JSON-ready): the
+        record that :func:`library_sensor` rebuilds it from."""
+        return dict(name=self.name, pattern=self.pattern, phase=list(self.phase))
+
 
 def cfa_channels(shape, pattern: str = "RGGB", phase=(0, 0)) -> np.ndarray:
     """Channel index (0 R, 1 G, 2 B) of each pixel under a 2 x 2 colour filter array.

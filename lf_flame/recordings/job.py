@@ -467,9 +467,16 @@ def simulated_job(seq: FlameSequence, camera: PlenopticCamera, source=None, *, r
     cols = tuple((max(0, o["roi"][2] - 2), min(camera.n_cols, o["roi"][3] + 2))
                  for o in seq.scene(camera, 0).objects)
     slopes = tuple(camera.slope_for_depth(d) for d in depths) if slopes is None else tuple(slopes)
+    freqs, heights = sequence_truth(seq)
     job = SequenceJob(source or SimulatedSource(seq, camera, 4), camera, seq.fps, depths, slopes, cols, route,
-                      truth_freqs_hz=tuple(f.freq_hz for f in seq.flames), chunk=chunk, **reconstruction)
-    return job, np.array([seq.heights_mm(i) for i in range(seq.n_frames)])
+                      truth_freqs_hz=freqs, chunk=chunk, **reconstruction)
+    return job, heights
+
+
+def sequence_truth(seq) -> tuple:
+    """A simulated recording's truth for planes at its flames' depths (plane ``k`` flame ``k``'s): each flame's
+    flicker frequency (Hz) and its true height (mm) per frame, (T, P)."""
+    return tuple(f.freq_hz for f in seq.flames), np.array([seq.heights_mm(i) for i in range(seq.n_frames)])
 
 
 def _warm_up(job: SequenceJob) -> None:

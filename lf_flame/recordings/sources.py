@@ -71,15 +71,9 @@ class SimulatedSource:
                                   exposure=self.exposure)
         return render_colour(self.camera, cs.scene, cs.channel_radiance, self.sensor, self.rays_per_pixel, seed)
 
-    def sensor_record(self) -> dict | None:
-        """The colour sensor as ``lf-flame simulate`` records it beside a capture (``name``, ``pattern``,
-        ``phase``); None for a monochrome recording."""
-        s = self.sensor
-        return None if s is None else dict(name=s.name, pattern=s.pattern, phase=list(s.phase))
-
     def identity(self) -> dict:
         out = dict(kind="simulated", sequence=self.sequence.to_dict(), rays_per_pixel=self.rays_per_pixel)
-        return out if self.sensor is None else dict(out, sensor=self.sensor_record())
+        return out if self.sensor is None else dict(out, sensor=self.sensor.record())
 
     def frames(self, start: int, stop: int):
         """Frames ``start`` to ``stop`` (exclusive): an iterator of (H, W) float32 images."""
@@ -299,7 +293,7 @@ def write_frames(path, source: SimulatedSource, progress: bool = True) -> Path:
                        sequence=json.dumps(source.sequence.to_dict()))
         if source.sensor is not None:
             from ..simulate.scenes_temperature import FLICKER_K
-            f.attrs["sensor"] = json.dumps(source.sensor_record())
+            f.attrs["sensor"] = json.dumps(source.sensor.record())
             truth = f.create_dataset("sheath_temperature_k", data=[source.sheath_temperatures(i) for i in range(n)])
             truth.attrs["flicker_k"] = FLICKER_K
     os.replace(tmp, path)
