@@ -852,3 +852,17 @@ def test_the_peak_finder_is_scipys():
         want = scipy_find_peaks(x, distance=distance, height=height)[0]
         np.testing.assert_array_equal(find_peaks(x, distance, height), want, err_msg=f"{x}, {distance}, {height}")
     assert plateaus > 100
+
+
+def test_a_refinement_step_keeps_the_planes_in_order_and_apart():
+    """``kept_apart``: a refined plane that would pass another, or come within the merge distance of it, stays where
+    it was (once put back, the plane beside it is checked again); moves that keep the planes apart are kept, and a
+    plane the step does not refine is never moved."""
+    from lf_flame.tomo.refine import kept_apart
+    before = np.array([-3.0, 2.0, 8.0])
+    np.testing.assert_array_equal(kept_apart([-2.0, 9.0, 8.0], before, [0, 1], 1.0), [-2.0, 2.0, 8.0])
+    np.testing.assert_array_equal(kept_apart([-3.0, 4.5, 5.0], before, [1, 2], 1.0), [-3.0, 2.0, 8.0])
+    np.testing.assert_array_equal(kept_apart([1.5, 7.4, 8.0], before, [0, 1], 1.0), [-3.0, 2.0, 8.0])
+    np.testing.assert_array_equal(kept_apart([-1.0, 0.5, 8.0], before, [0, 1], 1.0), [-1.0, 0.5, 8.0])
+    np.testing.assert_array_equal(kept_apart([-3.0, 7.5, 8.0], before, [1], 0.4), [-3.0, 7.5, 8.0])
+

@@ -25,7 +25,7 @@ import dataclasses
 import numpy as np
 
 from ..optics.camera import PlenopticCamera
-from .depth import FoundDepths, searched_depths
+from .depth import FoundDepths, depth_tolerances, searched_depths
 from .peel import PEEL_ROUNDS, missed_depths, peel_planes
 
 #: Gauss-Newton steps of :func:`refine_planes` (each a solve at the new depths). Chosen on 25 validation column
@@ -114,7 +114,8 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
     several) by Gauss-Newton on their slopes against the solve's residual (the module's notes), each
     within :data:`REFINE_REACH` times its found uncertainty of where it was found (a reach past the depths
     the searched depths stops at their end, :func:`~lf_flame.tomo.depth.searched_depths`). A plane that merged
-    several found depths (within ``merge_mm``) is a compromise between them and is left where it is.
+    several found depths (within ``merge_mm``) is a compromise between them and is left where it is; a step never
+takes a plane past another nor within the merge distance of it (:func:`kept_apart`).
 
     Parameters
     ----------
@@ -146,6 +147,7 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
     residual = Residuals(data, fit) if residual is None else residual
     k_of = {int(p): k for k, p in enumerate(found.plane_of)}          # each refined plane holds one depth
     near, far = searched_depths(camera, found)
+    gap = depth_tolerances(camera, camera.pixels_per_lenslet)[1]      # planes nearer than this are one plane
     reach = {p: REFINE_REACH * found.uncertainty_mm[k_of[p]] for p in todo}
     lo = {p: max(found.depths_mm[k_of[p]] - reach[p], near) for p in todo}        # near and far: imaged depths
     hi = {p: min(found.depths_mm[k_of[p]] + reach[p], far) for p in todo}
@@ -165,6 +167,7 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
                 planes[p] = lo[p]
             else:
                 planes[p] = np.clip(camera.depth_for_slope(s_new), lo[p], hi[p])
+        planes = kept_apart(planes, found.planes_mm, todo, gap)
         moved = [abs(camera.slope_for_depth(planes[p]) - camera.slope_for_depth(found.planes_mm[p])) for p in todo]
         if max(moved) < REFINE_TOL:
             break
@@ -178,6 +181,38 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
             break
         found, op, rec, r, cost = trial, op2, rec2, r2, c2
     return found, op, rec
+
+
+def kept_apart(planes, before, moved, gap_mm: float) -> np.ndarray:
+    """The planes of one refinement step (mm, the order of ``before``) with each moved plane that would pass
+    another or come within ``gap_mm`` of it (the distance within which found depths are one plane,
+    :func:`~lf_flame.tomo.depth.depth_tolerances`) left where it was (``before``, ascending and at least
+    ``gap_mm`` apart). On a camera of little parallax per millimetre, a plane's reach spans several millimetres and
+    Gauss-Newton moved planes one behind another past each other or onto one depth, which the data cannot tell
+    apart.
+
+    Parameters
+    ----------
+    planes, before : ndarray of shape (P,)
+        Depths (mm) after and before the step.
+    moved : sequence of int
+        The planes the step may move (the others are ``before``'s).
+    gap_mm : float
+        >= 0.
+
+    Returns
+    -------
+    ndarray of shape (P,)
+    """
+    planes, before = np.array(planes, np.float64), np.asarray(before, np.float64)
+    moved = set(int(p) for p in moved)
+    for _ in range(len(planes)):
+        close = np.flatnonzero(np.diff(planes) <= gap_mm)
+        back = [p for k in close for p in (k, k + 1) if p in moved and planes[p] != before[p]]
+        if not back:
+            break
+        planes[back] = before[back]
+    return planes
 
 
 def refined_regions(found: FoundDepths) -> list:
