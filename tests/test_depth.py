@@ -866,3 +866,33 @@ def test_a_refinement_step_keeps_the_planes_in_order_and_apart():
     np.testing.assert_array_equal(kept_apart([-1.0, 0.5, 8.0], before, [0, 1], 1.0), [-1.0, 0.5, 8.0])
     np.testing.assert_array_equal(kept_apart([-3.0, 7.5, 8.0], before, [1], 0.4), [-3.0, 7.5, 8.0])
 
+
+def test_profiles_solve_the_found_planes_as_reconstruct_does(cam, behind, tmp_path, capsys):
+    """``profiles`` of a light field whose depths it finds measures the planes ``reconstruct`` writes: the depths
+    after the residual's search and the refinement (two flames one behind another, which the votes place off),
+    each plane the reconstruction's binned to the lenslets."""
+    import argparse
+
+    import pandas as pd
+
+    from lf_flame.cli import main
+    from lf_flame.cli.profiles import profiles_table
+    from lf_flame.refocus.shift_and_sum import views_to_raw
+    from lf_flame.tomo.files import load_reconstruction
+    from lf_flame.tomo.truth import bin_planes
+    raw = tmp_path / "behind.npz"
+    np.savez(raw, raw=views_to_raw(behind[1]), camera=cam.to_json())
+    assert main(["reconstruct", str(raw), "--no-figure", "--out", str(tmp_path / "rec.h5")]) == 0
+    out, err = capsys.readouterr()
+    assert "planes after the residual's search and refinement" in out
+    assert "reconstruct (admm)" not in err, err          # its solves' progress bars: none for a second's solves
+    rec = load_reconstruction(tmp_path / "rec.h5")
+    voted = find_depths(behind[1], cam).planes_mm
+    assert np.abs(np.asarray(rec.depths_mm) - voted).max() > 0.05, (rec.depths_mm, voted)
+    assert main(["profiles", str(raw), "--no-figure", "--out", str(tmp_path / "p")]) == 0
+    np.testing.assert_allclose(pd.read_csv(tmp_path / "p.csv").depth_mm, rec.depths_mm, atol=1e-3)  # %.5g
+    a = argparse.Namespace(raw=str(raw), route="reconstruct-admm", slope=None, depth=None, camera=None,
+                           model_dir=None, search_range=None)
+    stack = profiles_table(a)[1]
+    want = bin_planes(rec.planes, rec.planes.shape[1] // cam.n_rows)
+    np.testing.assert_allclose(stack, want, atol=1e-4 * np.abs(want).max())

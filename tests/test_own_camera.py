@@ -489,7 +489,8 @@ def test_profiles_measure_the_flames_of_decoded_views(tmp_path, capsys):
     """``profiles`` of a raw capture of the example camera with its calibration (decoded on the fly), and of
     its decoded views with the planes given: each flame's height on its plane by admm's planes of the decoded
     views (here within 0.03 mm of 2.5-2.8 mm flames), the same from both inputs, and at the depths found in the
-    views where none are given."""
+    views where none are given (solved as ``reconstruct`` solves them, its near planes held to their regions:
+    within 0.15 mm of the truth)."""
     import pandas as pd
     run = lambda *a: cli.main([str(x) for x in a])                                  # noqa: E731
     assert run("simulate", "--camera", EXAMPLE, "--scene", "white", "--out", tmp_path / "white.npz") == 0
@@ -511,7 +512,8 @@ def test_profiles_measure_the_flames_of_decoded_views(tmp_path, capsys):
     lo, hi = imaging_range_mm(read_light_field(tmp_path / "v.h5", EXAMPLE).camera)     # the decoded views' camera's
     assert f"found 3 depths (searched {lo:+.1f} .. {hi:+.1f} mm" in capsys.readouterr().out
     found = pd.read_csv(tmp_path / "found.csv")
-    assert np.allclose(found.depth_mm, df.depth_mm, atol=0.5) and np.allclose(found.height_mm, df.height_mm, atol=0.1)
+    assert np.allclose(found.depth_mm, df.depth_mm, atol=0.5) and np.allclose(found.height_mm, df.height_mm_true,
+                                                                              atol=0.15), (found, df)
     # reconstruct --depths scene on the capture decoded on the fly: the planes the simulation stored
     assert run("reconstruct", tmp_path / "sc.npz", "--camera", EXAMPLE, "--calibration", tmp_path / "cal.json",
                "--depths", "scene", "--no-figure", "--out", tmp_path / "scene.h5") == 0

@@ -26,8 +26,10 @@ PROFILES_ROUTE = "reconstruct-admm"
 def _profiles_input(a):
     """Camera, 4-plane stack, depths, slopes and flame objects (or None) for ``profiles``."""
     from ..optics.camera import PAPER_CAMERA
+    from ..real.lightfield import from_raw
     from ..refocus.shift_and_sum import aperture_mask, refocus
     from ..simulate.scenes import PAPER_DEPTHS_MM
+    from .volume import found_planes
     s = str(a.raw)
     if _decoded(a):
         return _decoded_profiles_input(a)
@@ -47,24 +49,27 @@ def _profiles_input(a):
     cam = cam or PAPER_CAMERA
     if objects is not None and not all("height_mm" in o for o in objects):
         raise ValueError(f"{a.raw} does not hold a flame scene (its objects have no flame heights)")
-    depths = _given_depths(a) or _object_depths(objects)
-    if not depths and not a.slope:
-        if slopes is not None:           # a dataset sample: the paper's planes
-            depths = list(PAPER_DEPTHS_MM)
-        else:
-            from ..real.lightfield import from_raw
-            from .volume import found_planes
-            depths = found_planes(from_raw(raw, cam, str(a.raw)))[0]
-    elif not depths:
+    given = _given_depths(a)
+    depths = given or _object_depths(objects)
+    if not depths and a.slope:
         depths = [cam.depth_for_slope(v) for v in a.slope]
+    elif not depths and slopes is not None:       # a dataset sample: the paper's planes
+        depths = list(PAPER_DEPTHS_MM)
+    if given or slopes is None:                   # the dataset's slopes go with its own planes only
+        slopes = [cam.slope_for_depth(d) for d in depths] if depths else None
+    route = parse_route(a.route)
+    lf = from_raw(raw, cam, str(a.raw))
+    if route.tomographic:
+        depths, stack = solved_planes(lf, depths, route.solver, getattr(a, "search_range", None))
+    elif not depths:
+        depths = found_planes(lf, search_range=getattr(a, "search_range", None))[0]
     if a.slope:
         slopes = a.slope
-    elif slopes is None:
+    elif slopes is None:                          # the planes found
         slopes = [cam.slope_for_depth(d) for d in depths]
     if len(slopes) != len(depths):
         raise ValueError(f"need {len(depths)} slopes, one per plane. Received: {slopes}")
     n = cam.pixels_per_lenslet
-    route = parse_route(a.route)
     if route.kind == "stored":
         if gt is None:
             raise ValueError("--route ground-truth needs a dataset sample DATASET.h5:INDEX")
@@ -74,15 +79,7 @@ def _profiles_input(a):
             raise ValueError(f"--route {a.route} needs --model-dir")
         run, _ = _learned_runner(raw, cam, a.raw, a.model_dir, route.solver)
         stack = run(raw.astype(np.float32)[None, ..., None])
-    elif route.tomographic:
-        from ..real.lightfield import from_raw
-        from ..tomo.truth import bin_planes
-        from .volume import left_out_notes, run_reconstruction
-        lf = from_raw(raw, cam, str(a.raw))
-        op, rec = run_reconstruction(lf, depths, route.solver)
-        print("\n".join(left_out_notes(lf, rec)))
-        stack = bin_planes(rec.planes, op.subsamples)      # admm's finer grid, measured on the lenslets
-    else:
+    elif not route.tomographic:
         stack = refocus(raw, slopes, n, aperture_mask(n, "circular"), **route.options)
     return cam, np.asarray(stack), depths, list(slopes), objects
 
@@ -111,29 +108,50 @@ def _decoded_profiles_input(a):
     """:func:`_profiles_input` of decoded views (``VIEWS.h5``, or a raw capture with ``--calibration``):
     the planes of the decoded views' camera (:func:`lf_flame.cli._io.light_field`), solved as ``reconstruct``
     solves them (a hexagonal grid's admm planes once more on its lattice) or refocused."""
+    from ..optics.camera import check_imaging_range
     from ..refocus.shift_and_sum import aperture_mask, refocus_views
-    from ..tomo.truth import bin_planes
     from ._io import light_field
-    from .volume import found_planes, lattice_solve, run_reconstruction
+    from .volume import found_planes
     lf = light_field(a)
     cam = lf.camera
     objects = None if str(a.raw).endswith(".h5") else _raw_objects(a.raw)
-    depths = (_given_depths(a) or ([cam.depth_for_slope(v) for v in a.slope] if a.slope else _object_depths(objects))
-              or found_planes(lf, search_range=a.search_range)[0])
-    from ..optics.camera import check_imaging_range
-    check_imaging_range(cam, depths)
-    slopes = [cam.slope_for_depth(d) for d in depths]
+    depths = _given_depths(a) or ([cam.depth_for_slope(v) for v in a.slope] if a.slope else _object_depths(objects))
     route = parse_route(a.route)
     if route.kind in ("stored", "learned"):
         raise ValueError(f"--route {a.route} takes the paper camera's raw images or dataset samples, not decoded views")
+    if depths:
+        check_imaging_range(cam, depths)
     if route.tomographic:
-        op, rec = run_reconstruction(lf, depths, route.solver)
-        rec = lattice_solve(lf, op, rec)[0]
-        stack = bin_planes(rec.planes, getattr(op, "subsamples", 1))
+        depths, stack = solved_planes(lf, depths, route.solver, getattr(a, "search_range", None))
     else:
+        depths = depths or found_planes(lf, search_range=getattr(a, "search_range", None))[0]
         n = cam.pixels_per_lenslet
-        stack = refocus_views(lf.views, slopes, aperture_mask(n, "circular"), **route.options)
+        stack = refocus_views(lf.views, [cam.slope_for_depth(d) for d in depths], aperture_mask(n, "circular"),
+                              **route.options)
+    slopes = [cam.slope_for_depth(d) for d in depths]
     return cam, np.asarray(stack), depths, slopes, objects
+
+
+def solved_planes(lf, depths, solver, search_range=None):
+    """Each plane's emission as ``lf-flame reconstruct`` solves it, averaged to the lenslets
+    (:func:`lf_flame.tomo.truth.bin_planes`): ``(depths, stack)``, stack (P, rows, cols).
+
+    ``depths`` (mm from the focal plane) given: solved on them (:func:`lf_flame.cli.volume.run_reconstruction`).
+    None or empty: found as ``reconstruct --depths auto`` finds them, within ``search_range`` (mm): the votes, then
+    the residual's search and the refinement, near planes held to their regions
+    (:func:`lf_flame.cli.volume.solve_found`); the votes' depths alone leave those out. A hexagonal grid's admm
+    planes are solved once more on its lattice (:func:`lf_flame.cli.volume.lattice_solve`)."""
+    from ..tomo.truth import bin_planes
+    from .volume import found_planes, lattice_solve, left_out_notes, run_reconstruction, solve_found
+    found = None
+    if depths:
+        op, rec = run_reconstruction(lf, depths, solver)
+    else:
+        found, op, rec = solve_found(lf, found_planes(lf, search_range=search_range)[2], solver=solver)
+        depths = [float(d) for d in found.planes_mm]
+    rec, lattice = lattice_solve(lf, op, rec, found)
+    print("\n".join(left_out_notes(lf, rec, lattice)))
+    return list(depths), bin_planes(rec.planes, getattr(op, "subsamples", 1))
 
 
 def profiles_table(a):

@@ -401,13 +401,18 @@ def _fitted_problem(op: EmissionOperator, y: np.ndarray, saturation) -> _Problem
     return _Problem(op, y, fit, int(y.size - np.count_nonzero(fit)))
 
 
+#: A solve's progress bar shows once it has run this long (s): the found planes' route solves 4-8 times in a few
+#: seconds, where a bar each was a screenful of finished bars on stderr.
+PROGRESS_DELAY_S = 2.0
+
+
 class _Steps:
-    """Called after each iteration with the iterate: counts it, moves the tqdm bar and calls
-    :func:`reconstruct`'s ``callback(k, x)`` (``k`` 1-based, ``x`` flat)."""
+    """Called after each iteration with the iterate: counts it, moves the tqdm bar (shown after
+    :data:`PROGRESS_DELAY_S`) and calls :func:`reconstruct`'s ``callback(k, x)`` (``k`` 1-based, ``x`` flat)."""
 
     def __init__(self, total: int, desc: str, progress: bool, callback):
         self.count, self.callback = 0, callback
-        self.bar = tqdm(total=total, desc=desc, unit="it", disable=not progress)
+        self.bar = tqdm(total=total, desc=desc, unit="it", disable=not progress, delay=PROGRESS_DELAY_S)
 
     def __call__(self, x):
         self.count += 1
@@ -438,7 +443,6 @@ def _solve_admm(p: _Problem, settings: dict, step: _Steps, iters, tv, *, lam, l1
     elif start_planes is not None:
         settings["start"] = "given"
     step.bar.total = iters                                            # the fills the noise chose
-    step.bar.refresh()
     planes, residuals, settings["system_s"] = solve_admm(
         p.y.reshape(op.dimsd), op, p.fit.reshape(op.dimsd), fills=iters, lam=knobs["lam"], tv=knobs["tv"],
         l1=knobs["l1"], start=knobs["start"], tol=knobs["tol"], support=support, callback=lambda j, x: step(x),
