@@ -94,8 +94,11 @@ def test_reconstruction_figure_titles_the_truth_with_its_own_depth():
 
 
 def test_reconstruct_titles_its_truth_with_the_scenes_depths(tmp_path, monkeypatch):
-    """'reconstruct' at planes beside the flames' depths (+19.5 for +20, -0.02 for 0): the
+    """'reconstruct' at planes beside the flames' depths (0.5 mm nearer the first, -0.02 for 0): the
     figure's truth panels carry the flames' own depths, its planes theirs, none '-0.0'."""
+    from lf_flame.optics.camera import PlenopticCamera
+    from lf_flame.simulate.scenes import PAPER_DEPTHS_MM
+    from lf_flame.simulate.scenes_depth import carried_depths
     from lf_flame.tomo import files
     figures = []
 
@@ -107,9 +110,11 @@ def test_reconstruct_titles_its_truth_with_the_scenes_depths(tmp_path, monkeypat
     (tmp_path / "small.toml").write_text("[camera]\nn_rows = 41\nn_cols = 41\n")
     assert main(["simulate", "--scene", "flame", "--data-config", str(tmp_path / "small.toml"), "--rays-per-pixel",
                  "1", "--out", str(tmp_path / "flame.npz")]) == 0
-    assert main(["reconstruct", str(tmp_path / "flame.npz"), "--depths", "19.5,10,-0.02,-10", "--out",
-                 str(tmp_path / "r.h5")]) == 0
+    true = carried_depths(PlenopticCamera(n_rows=41, n_cols=41), PAPER_DEPTHS_MM)   # the flames' on this camera
+    planes = [true[0] - 0.5, true[1], -0.02, true[3]]
+    assert true[2] == 0.0 and main(["reconstruct", str(tmp_path / "flame.npz"), "--depths",
+                                    ",".join(f"{d:.6f}" for d in planes), "--out", str(tmp_path / "r.h5")]) == 0
     titles = [t for t, _, _ in _texts(figures[0])[:12]]
-    assert titles[2::3] == ["truth +20.0 mm", "truth +10.0 mm", "truth +0.0 mm", "truth -10.0 mm"]
-    assert titles[0::3] == ["reconstructed +19.5 mm", "reconstructed +10.0 mm", "reconstructed +0.0 mm",
-                            "reconstructed -10.0 mm"]
+    assert titles[2::3] == [f"truth {d:+.1f} mm" for d in true]
+    assert titles[0::3] == [f"reconstructed {d:+.1f} mm" for d in planes[:2]] + ["reconstructed +0.0 mm",
+                                                                                  f"reconstructed {planes[3]:+.1f} mm"]

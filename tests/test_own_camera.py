@@ -415,8 +415,8 @@ def test_camera_file_and_calibration_must_agree(route):
 
 
 def test_simulate_refocus_and_slopes_take_a_camera_file(route, tmp_path, capsys):
-    """``simulate --camera`` renders the datasheet camera (not the paper's); an empty camera file is
-    refused; ``refocus --depth`` and ``slopes`` work in the camera's own depths (an even 10 views); without planes
+    """``simulate --camera`` renders the datasheet camera (not the paper's), the paper's flames fitted to it; an empty
+    camera file is refused; ``refocus --depth`` and ``slopes`` work in the camera's own depths (an even 10 views); without planes
     ``refocus`` takes the depths the search finds, and ``slopes`` searches the lenslets that vote for each depth
     found where no region is given (each flame's depth within 0.6 mm)."""
     cam, _, _, d = route
@@ -425,6 +425,17 @@ def test_simulate_refocus_and_slopes_take_a_camera_file(route, tmp_path, capsys)
                      str(out)]) == 0
     with np.load(out) as z:
         assert z["raw"].shape == cam.sensor_shape
+        objects = json.loads(str(z["objects"]))
+    # the paper's four flames carried to this camera's depths (as far apart in parallax) and inside its field, where
+    # the paper's 8-21 mm flames stood past the edges of its 7 mm field
+    from lf_flame.simulate.scenes_depth import carried_depths
+    assert [o["depth_offset_mm"] for o in objects] == list(carried_depths(cam, scenes.PAPER_DEPTHS_MM))
+    for o in objects:
+        h = cam.field_of_view_mm(o["depth_offset_mm"])[0]
+        assert -h / 2 <= o["base_y_mm"] and o["base_y_mm"] + o["height_mm"] <= h / 2, (o, h)
+    from lf_flame.cli._io import paper_layout                     # the paper's camera keeps its own
+    from lf_flame.optics.camera import PAPER_CAMERA
+    assert paper_layout(PAPER_CAMERA) == dict(depths_mm=scenes.PAPER_DEPTHS_MM, template_scale=scenes.TEMPLATE_SCALE)
     (tmp_path / "empty.toml").write_text("")
     capsys.readouterr()
     assert cli.main(["simulate", "--scene", "flame", "--camera", str(tmp_path / "empty.toml"), "--out",

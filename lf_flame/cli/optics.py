@@ -249,7 +249,8 @@ def add_parsers(sub) -> None:
                                        "colour-depth", "furnace"], required=True,
                    help="shapes: the paper's four shapes (rectangle, triangle, circle, square); flame: four "
                         "flames; both at the paper's depths " + ", ".join(f"{d:+g}" for d in PAPER_DEPTHS_MM) +
-                        " mm; point: one point of light (--depth, --y, --x); volume: a volumetric laminar flame "
+                        " mm (on another camera carried to its depths as far apart in parallax, and the flames "
+                        "scaled to its field); point: one point of light (--depth, --y, --x); volume: a volumetric laminar flame "
                         "(a luminous sheath 10 mm across, at most 85 %% of the field, about a vertical axis through "
                         "--depth, default 0, in 32 layers; 'reconstruct --volume'); depth: 2-4 flames at random "
                         "depths, sizes and places (--seed), scaled to the camera (its depth of field and lenslet "

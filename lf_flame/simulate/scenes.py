@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..optics.camera import PlenopticCamera
+from ..optics.camera import PAPER_CAMERA, PlenopticCamera
 
 #: Depth offsets (mm) of the paper's four planes, in the order of its tables.
 PAPER_DEPTHS_MM = (20.0, 10.0, 0.0, -10.0)
@@ -355,7 +355,19 @@ def _flame_params(k: int, w0: float, rng: np.random.Generator, vary: bool, regim
             rng.uniform(0.0, 0.06), rng.uniform(0.0, 2 * math.pi))
 
 
-def flame_scene(camera: PlenopticCamera, rng: np.random.Generator, *, template_scale: float = 0.64,
+#: :func:`flame_scene`'s scale of the paper's flame heights on the paper's camera: the tallest flame (mean + 3 sd)
+#: fills 90 % of the field at +20 mm.
+TEMPLATE_SCALE = 0.64
+
+
+def camera_template_scale(camera: PlenopticCamera) -> float:
+    """:data:`TEMPLATE_SCALE` times ``camera``'s field height at its focus distance over the paper camera's
+    (dimensionless): the paper's flames fill any camera's field as they fill the paper's (the paper's camera:
+    :data:`TEMPLATE_SCALE` itself)."""
+    return TEMPLATE_SCALE * camera.field_of_view_mm(0.0)[0] / PAPER_CAMERA.field_of_view_mm(0.0)[0]
+
+
+def flame_scene(camera: PlenopticCamera, rng: np.random.Generator, *, template_scale: float = TEMPLATE_SCALE,
                 texels_per_lenslet: float = 3.0, vary: bool = True, regime: str = "varied",
                 depths_mm=PAPER_DEPTHS_MM) -> Scene:
     """The paper's flame scene (Fig. 6): four flames, one at each of the four depths.

@@ -16,7 +16,8 @@ import numpy as np
 
 from ..optics.camera import PlenopticCamera
 from ..optics.colour import ALPHA_SOOT, ColourSensor, band_integrals
-from .scenes import PAPER_DEPTHS_MM, Scene, _layer_grid, flame_centreline, flame_luminosity, flame_scene
+from .scenes import (PAPER_DEPTHS_MM, TEMPLATE_SCALE, Scene, _layer_grid, flame_centreline, flame_luminosity,
+                     flame_scene)
 from .scenes_time import FlameSequence
 
 #: Sheath (hottest) temperature of each of the paper's four flames, K, in the order of
@@ -93,7 +94,7 @@ class ColourFlameScene:
 def colour_flame_scene(camera: PlenopticCamera, sensor: ColourSensor, rng: np.random.Generator | None = None, *,
                        peaks_k=FLAME_PEAK_K, base_k: float = FLAME_BASE_K, alpha: float = ALPHA_SOOT,
                        peak: float = 0.8, depths_mm=PAPER_DEPTHS_MM, texels_per_lenslet: float = 3.0,
-                       regime: str = "paper") -> ColourFlameScene:
+                       regime: str = "paper", template_scale: float = TEMPLATE_SCALE) -> ColourFlameScene:
     """The paper's four flames, each with its own temperature field, seen by a colour sensor.
 
     Geometry and soot are those of :func:`lf_flame.simulate.scenes.flame_scene` (``rng``
@@ -116,6 +117,8 @@ def colour_flame_scene(camera: PlenopticCamera, sensor: ColourSensor, rng: np.ra
     texels_per_lenslet : float
     regime : str
         ``"paper"`` (heights only vary) is the one supported with ``rng``.
+    template_scale : float
+        The flames' heights' scale (:func:`~lf_flame.simulate.scenes.flame_scene`).
 
     Returns
     -------
@@ -134,7 +137,8 @@ def colour_flame_scene(camera: PlenopticCamera, sensor: ColourSensor, rng: np.ra
     if rng is not None and regime != "paper":
         raise ValueError(f"colour flames support regime 'paper' (no sway). Received: {regime!r}")
     mono = flame_scene(camera, rng if rng is not None else np.random.default_rng(0), vary=rng is not None,
-                       regime=regime, depths_mm=depths_mm, texels_per_lenslet=texels_per_lenslet)
+                       regime=regime, depths_mm=depths_mm, texels_per_lenslet=texels_per_lenslet,
+                       template_scale=template_scale)
     temps, soots = [], []
     for L, obj, pk in zip(mono.layers, mono.objects, peaks_k):
         eta, xi = _flame_coordinates(camera, L, obj, texels_per_lenslet)

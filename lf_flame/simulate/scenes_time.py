@@ -12,8 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..optics.camera import PAPER_CAMERA, PlenopticCamera
-from .scenes import FLAME_EFFECTS, FLAME_HEIGHT_MEAN_MM, PAPER_DEPTHS_MM, Effects, Scene, _flame_layer
+from ..optics.camera import PlenopticCamera
+from .scenes import (FLAME_EFFECTS, FLAME_HEIGHT_MEAN_MM, PAPER_DEPTHS_MM, Effects, Scene, _flame_layer,
+                     camera_template_scale)
 
 
 @dataclass(frozen=True)
@@ -190,8 +191,8 @@ def flicker_sequence(camera: PlenopticCamera, rng: np.random.Generator, kind: st
         Sensor noise of every frame (:class:`Effects`); None: noise-free.
     template_scale : float or None
         ``"paper"``: object-space scale of the paper's flame heights (:func:`flame_scene`);
-        None: 0.64 times the camera's field height over the paper camera's, so the flames
-        fill any camera's field as they fill the paper's.
+        None: :func:`~lf_flame.simulate.scenes.camera_template_scale`, so the flames fill any
+        camera's field as they fill the paper's.
 
     Returns
     -------
@@ -216,7 +217,7 @@ def flicker_sequence(camera: PlenopticCamera, rng: np.random.Generator, kind: st
                          f"Received: fps={fps}, duration_s={duration_s}")
     h0, w0 = camera.field_of_view_mm(0.0)
     if template_scale is None:
-        template_scale = 0.64 * h0 / PAPER_CAMERA.field_of_view_mm(0.0)[0]
+        template_scale = camera_template_scale(camera)
     from .scenes_depth import carried_depths
     depths = carried_depths(camera, PAPER_DEPTHS_MM if kind == "paper" else (10.0, -10.0))
     flames = []
