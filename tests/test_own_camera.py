@@ -496,7 +496,7 @@ def test_support_holds_each_found_plane_to_its_regions(route, tmp_path, capsys):
     assert "takes the admm solver" in capsys.readouterr().err
 
 
-def test_profiles_measure_the_flames_of_decoded_views(tmp_path, capsys):
+def test_profiles_measure_the_flames_of_decoded_views(tmp_path, capsys, monkeypatch):
     """``profiles`` of a raw capture of the example camera with its calibration (decoded on the fly), and of
     its decoded views with the planes given: each flame's height on its plane by admm's planes of the decoded
     views (here within 0.03 mm of 2.5-2.8 mm flames), the same from both inputs, and at the depths found in the
@@ -525,11 +525,24 @@ def test_profiles_measure_the_flames_of_decoded_views(tmp_path, capsys):
     found = pd.read_csv(tmp_path / "found.csv")
     assert np.allclose(found.depth_mm, df.depth_mm, atol=0.5) and np.allclose(found.height_mm, df.height_mm_true,
                                                                               atol=0.15), (found, df)
-    # reconstruct --depths scene on the capture decoded on the fly: the planes the simulation stored
+    # reconstruct --depths scene on the capture decoded on the fly: the planes the simulation stored, and the figure
+    # draws the scene's truth in the decoded frame beside them
+    from lf_flame.tomo import files
+    drawn = {}
+    monkeypatch.setattr(files, "plot_reconstruction", lambda path, rec, refocused=None, truth=None, **kw:
+                        drawn.update(rec=rec, truth=truth))
+    capsys.readouterr()
     assert run("reconstruct", tmp_path / "sc.npz", "--camera", EXAMPLE, "--calibration", tmp_path / "cal.json",
-               "--depths", "scene", "--no-figure", "--out", tmp_path / "scene.h5") == 0
+               "--depths", "scene", "--out", tmp_path / "scene.h5") == 0
+    assert "(with the scene's truth)" in capsys.readouterr().out
     stored = [o["depth_offset_mm"] for o in json.loads(str(np.load(tmp_path / "sc.npz")["objects"]))]
     assert np.allclose(load_reconstruction(tmp_path / "scene.h5").depths_mm, stored)
+    planes, truth = drawn["rec"].planes, drawn["truth"]
+    assert truth.shape == planes.shape
+    cos = np.sum(planes * truth, axis=(1, 2)) / np.linalg.norm(planes, axis=(1, 2)) / np.linalg.norm(truth, axis=(1, 2))
+    shifted = np.sum(planes * np.roll(truth, 2, axis=2), axis=(1, 2)) / np.linalg.norm(planes, axis=(1, 2)) / \
+        np.linalg.norm(truth, axis=(1, 2))
+    assert np.all(cos > 0.9) and np.all(shifted < cos - 0.1), (cos, shifted)
 
 
 def _offset_captures(folder):

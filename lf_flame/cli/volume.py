@@ -364,6 +364,7 @@ def lattice_solve(lf, op, rec, found=None, support: bool = False):
 
 def cmd_reconstruct(a):
     from ..tomo.files import plot_reconstruction, save_reconstruction
+    from ..tomo.decoded import decoded_truth
     from ..tomo.truth import scene_truth, truth_depths
     from ..refocus.shift_and_sum import aperture_mask, focal_stack
     if getattr(a, "volume", False):
@@ -420,8 +421,9 @@ def cmd_reconstruct(a):
         refocused = focal_stack(views, [cam.slope_for_depth(d) for d in depths],
                                 aperture_mask(cam.pixels_per_lenslet, "circular"))
         refocused = np.repeat(np.repeat(refocused, sub, axis=1), sub, axis=2)      # on the planes' grid
-        scene = None if lf.decoded else _raw_scene(a.raw, cam)
-        truth = None if scene is None else scene_truth(scene, op)
+        scene = _raw_scene(a.raw, lf.capture_camera if lf.decoded else cam)      # decoded: the camera it was drawn for
+        truth = None if scene is None else (decoded_truth(scene, op, lf.frame.rotation_deg, lf.frame.centre_lenslets)
+                                            if lf.decoded else scene_truth(scene, op))
         plot_reconstruction(fig, rec, refocused, truth, truth_depths_mm=None if scene is None else
                             truth_depths(scene, rec.depths_mm))
     res = f"{extra['misfit']['relative_residual']:.4f}"     # of the planes written (a solver's last is older)
