@@ -118,3 +118,23 @@ def test_reconstruct_titles_its_truth_with_the_scenes_depths(tmp_path, monkeypat
     assert titles[2::3] == [f"truth {d:+.1f} mm" for d in true]
     assert titles[0::3] == [f"reconstructed {d:+.1f} mm" for d in planes[:2]] + ["reconstructed +0.0 mm",
                                                                                   f"reconstructed {planes[3]:+.1f} mm"]
+
+
+def test_a_truth_plane_is_titled_with_the_layers_it_is_nearest_to():
+    """``truth_depths``: a plane holding a flame and a sliver of another flame's light (a layer shared linearly
+    between it and a far plane) is titled with its own flame's depth; a plane given only slivers takes their
+    light-weighted mean; layers between two planes of a dense stack count toward the nearer plane."""
+    from lf_flame.simulate.scenes import FLAME_EFFECTS, Layer, Scene
+    from lf_flame.tomo.truth import truth_depths
+
+    def layer(d, level=1.0):
+        return Layer(radiance=np.full((4, 4), level, np.float32), alpha=None, depth_offset_mm=d, centre_mm=(0.0, 0.0),
+                     size_mm=(1.0, 1.0))
+    scene = Scene("t", (layer(-12.77), layer(0.0, 3.0)), FLAME_EFFECTS, ())
+    np.testing.assert_allclose(truth_depths(scene, [-12.78, 0.13]), [-12.77, 0.0], atol=1e-9)
+    np.testing.assert_allclose(truth_depths(Scene("t", (layer(0.3),), FLAME_EFFECTS, ()), [0.0, 1.0, 5.0]),
+                               [0.3, 0.3, np.nan])
+    dense = Scene("t", tuple(layer(d) for d in (0.1, 0.2, 0.6, 0.9)), FLAME_EFFECTS, ())
+    got = truth_depths(dense, [0.0, 1.0])
+    assert got[0] == pytest.approx((0.9 * 0.1 + 0.8 * 0.2) / 1.7) and got[1] == pytest.approx(
+        (0.6 * 0.6 + 0.9 * 0.9) / 1.5)
