@@ -106,3 +106,21 @@ def test_render_views_of_the_perfect_grid_are_the_raw_pixels(tiny):
     assert b.shape == a.shape and a.mean() > 0.01
     d = np.abs(a - b)
     assert d.mean() < 1e-5 and np.mean(d > 1e-4) < 1e-3
+
+
+def test_a_hexagonal_cameras_field_spans_its_rows_spacing(tiny):
+    """``field_of_view_mm`` of a hexagonal grid: its rows lie sqrt(3)/2 pitches apart, so its height is the extent of
+    the lenslet centres' rows (one spacing per row), not a pitch per row; the width, and a square grid's field, as
+    before. The paper's flames drawn on it stand inside its lenslets' rows (they stood past the sensor's edge)."""
+    hexa = dataclasses.replace(tiny, grid_pitch_px=10.37, grid_layout="hex")
+    square = dataclasses.replace(tiny, grid_pitch_px=10.37)
+    s = hexa.object_distance_mm(0.0) / hexa.mla_distance_mm
+    rows = hexa.lattice_offsets()[..., 0]
+    assert hexa.field_of_view_mm(0.0)[0] == pytest.approx((rows.max() - rows.min() + math.sqrt(3) / 2)
+                                                          * hexa.mla_pitch_mm * s)
+    assert hexa.field_of_view_mm(0.0)[1] == square.field_of_view_mm(0.0)[1] == tiny.n_cols * tiny.mla_pitch_mm * s
+    assert square.field_of_view_mm(0.0)[0] == tiny.n_rows * tiny.mla_pitch_mm * s
+    half = hexa.field_of_view_mm(0.0)[0] / 2
+    for o in scenes.flame_scene(hexa, np.random.default_rng(0), vary=False).objects:
+        z = hexa.object_distance_mm(o["depth_offset_mm"]) / hexa.focus_distance_mm
+        assert -half * z <= o["base_y_mm"], o

@@ -224,6 +224,7 @@ def _plane_temperatures(a, lf, depths, found, cal, sensor, cache=None) -> dict:
         ``temp`` (P, R, C) K, NaN where none; ``valid``, ``dim`` (P, R, C) bool; ``n_masked``, ``n_dim`` (P,);
         ``emission`` (2, P, R, C); ``chosen`` (the route's settings); ``slopes``, ``blind`` (P,); ``sample`` (P, 2) mm.
     """
+    from ..measure.diagnostics import lenslet_size_mm
     from ..optics.colour import CHANNELS
     from ..temperature.pyrometry import bright_pixels, temperature_planes
     from ..temperature.channels import (DECODED_KNOBS, DECODED_OFFSET_KNOBS, DECODED_RATIO_FILTER, channel_emission,
@@ -278,7 +279,7 @@ def _plane_temperatures(a, lf, depths, found, cal, sensor, cache=None) -> dict:
     dim = ~bright_pixels(emission[0] + emission[1], a.min_fraction)
     return dict(temp=temp, valid=valid, n_masked=n_masked, dim=dim, n_dim=dim.reshape(len(dim), -1).sum(axis=1),
                 emission=emission, chosen=chosen, slopes=slopes, blind=cfa_blind(slopes, n),
-                sample=np.array([np.asarray(cam.field_of_view_mm(d)) / (cam.n_rows, cam.n_cols) for d in depths]))
+                sample=np.array([[lenslet_size_mm(cam, d)] * 2 for d in depths]))
 
 
 def _auto_depths(a, lf):

@@ -132,7 +132,7 @@ def lenslet_size_mm(camera: PlenopticCamera, depth_offset_mm: float) -> float:
     """
     z = camera.object_distance_mm(depth_offset_mm)
     camera.image_distance_mm(z)  # raises for an impossible plane
-    return camera.field_of_view_mm(depth_offset_mm)[0] / camera.n_rows
+    return camera.mla_pitch_mm * z / camera.mla_distance_mm
 
 
 def lenslet_to_object_mm(camera: PlenopticCamera, rows, cols, depth_offset_mm: float):

@@ -441,9 +441,12 @@ class PlenopticCamera:
         return self.n_rows / 2 - y_mm * m, self.n_cols / 2 + x_mm * m
 
     def field_of_view_mm(self, depth_offset_mm: float = 0.0) -> tuple[float, float]:
-        """Object-space field (height, width) in mm seen by the lenslet grid at ``dz``."""
+        """Object-space field (height, width) in mm seen by the lenslet grid at ``dz``: its rows and columns of
+        lenslets times their spacing, a pitch (a hexagonal lattice's rows ``sqrt(3)/2`` pitches apart, where the
+        height was once taken a pitch per row and scenes drawn to it stood past the sensor's edge)."""
         s = self.object_distance_mm(depth_offset_mm) / self.mla_distance_mm
-        return self.n_rows * self.mla_pitch_mm * s, self.n_cols * self.mla_pitch_mm * s
+        row = math.sqrt(3) / 2 if self.grid_layout == "hex" else 1.0
+        return self.n_rows * row * self.mla_pitch_mm * s, self.n_cols * self.mla_pitch_mm * s
 
     # ---- serialisation --------------------------------------------------------------
     def to_dict(self) -> dict:

@@ -119,14 +119,14 @@ def camera_stack(camera: PlenopticCamera) -> tuple:
     feature_mm : tuple of float
         Half a period, mm.
     """
+    from ..measure.diagnostics import lenslet_size_mm
     from ..optics.camera import imaging_range_mm
     from .depth import depth_scale
     scale = depth_scale(camera, camera.pixels_per_lenslet)
     lo, hi = imaging_range_mm(camera)
     near, far = _round(max(DEFAULT_NEAR_MM * scale, lo)), _round(min(DEFAULT_FAR_MM * scale, hi))
     near, far = max(near, lo), min(far, hi)             # rounding past the range's ends
-    footprint = lambda cam: cam.field_of_view_mm(0.0)[0] / cam.n_rows   # mm per lenslet at focus
-    ratio = footprint(camera) / footprint(PAPER_CAMERA)
+    ratio = lenslet_size_mm(camera, 0.0) / lenslet_size_mm(PAPER_CAMERA, 0.0)     # mm per lenslet at focus
     return near, far, _round((far - near) / 80), tuple(_round(f * ratio) for f in FEATURE_SIZES_MM)
 
 
