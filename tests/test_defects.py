@@ -93,6 +93,10 @@ def test_neighbours_and_refusals():
     assert {(15, 0), (0, -15), (15, 15), (-15, 15)} <= {tuple(o) for o in off}
     colour = lenslet_offsets(10.57 * np.eye(2), step=2)                   # a Bayer mosaic: pixels of one colour
     assert np.all(colour % 2 == 0) and {(10, 0), (0, 10), (2, 2)} <= {tuple(o) for o in colour}
+    # a step that rounds to even pixels 0.96 px off its place (another view) is taken twice: 21.92 -> 22 px
+    wide = {tuple(o) for o in lenslet_offsets(10.96 * np.eye(2), step=2)}
+    assert {(22, 0), (0, -22), (22, 22)} <= wide and (10, 0) not in wide
+    assert (11, 0) in {tuple(o) for o in lenslet_offsets(10.96 * np.eye(2))}            # monochrome: as before
     hexa = lenslet_offsets(10 * np.eye(2), "hex")
     assert {(0, 10), (9, 5), (9, -5), (17, 0)} <= {tuple(o) for o in hexa}
     img = np.zeros((30, 30))

@@ -59,7 +59,8 @@ def lenslet_offsets(matrix, layout: str = "square", step: int = 1) -> np.ndarray
         ``hex``: rows of lenslets half a pitch apart in columns, ``sqrt(3) / 2`` pitches apart in rows.
     step : int
         Pixels between two pixels of one colour along rows and columns: 1 for a monochrome sensor, 2 for a Bayer
-        mosaic (the offsets are then rounded to even pixels, so a pixel meets pixels of its own colour).
+        mosaic (the offsets are then rounded to even pixels, so a pixel meets pixels of its own colour; a lattice
+        step that rounds more than half a pixel off its place is taken twice, where that lands nearer).
 
     Returns
     -------
@@ -90,9 +91,16 @@ def lenslet_offsets(matrix, layout: str = "square", step: int = 1) -> np.ndarray
     near = [(dy * step, dx * step) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if dy or dx]
     far = []
     for v in lattice:
-        q = np.rint(v / step).astype(np.int64) * step
-        if max(abs(int(q[0])), abs(int(q[1]))) <= step:
+        if max(abs(float(v[0])), abs(float(v[1]))) < 1.5 * step:
             raise ValueError(f"lenslet images {np.hypot(*v):.2f} px apart are too close to find defective pixels")
+        # the lattice step (or its double) whose pixel of the same colour lies nearest its place: rounded to even
+        # pixels a Bayer mosaic's step of 10.96 px lands 0.96 px off, in another view, and the lit pixels at the
+        # rim of a lenslet's aperture image stood out of dark neighbours and were taken for defects; twice the step
+        # lands 0.08 px off
+        q = np.rint(v / step).astype(np.int64) * step
+        if np.max(np.abs(q - v)) > 0.5:
+            q2 = np.rint(2 * v / step).astype(np.int64) * step
+            q = q2 if np.max(np.abs(q2 - 2 * v)) < np.max(np.abs(q - v)) else q
         far += [(int(q[0]), int(q[1])), (-int(q[0]), -int(q[1]))]
     return np.array(near + far, np.int64)
 
