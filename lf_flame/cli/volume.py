@@ -126,8 +126,10 @@ def solve_found(lf, found, **kw):
     flames one behind another refined by the residual and their regions searched once more
     (:func:`lf_flame.tomo.refine.peel_and_refine`), as :func:`lf_flame.tomo.found_planes.find_planes`:
     ``(found, op, rec)``. Prints the depths found in the residual and the planes after the refinement where they
-    differ from those found."""
+    differ from those found. A colour capture's levelled light field on a hexagonal lattice has its residual smoothed
+    before each search (:data:`lf_flame.tomo.peel.COLOUR_RESIDUAL_SMOOTH`)."""
     from ..tomo.decoded import fit_data
+    from ..tomo.peel import COLOUR_RESIDUAL_SMOOTH
     from ..tomo.refine import peel_and_refine
     from ..tomo.solvers import fitted_pixels
 
@@ -138,7 +140,9 @@ def solve_found(lf, found, **kw):
     data, fit = fit_data(_fitted_light_field(lf, kw.get("saturation", "file")), op)
     fit = fitted_pixels(data, fit)
     voted = np.array(found.planes_mm)
-    found, op, rec = peel_and_refine(found, op, rec, data, fit, lf.camera, solve)
+    found, op, rec = peel_and_refine(found, op, rec, data, fit, lf.camera, solve,
+                                     smooth=COLOUR_RESIDUAL_SMOOTH if "monochrome" in lf.meta and
+                                     lf.lattice_views is not None else 0.0)
     if len(found.planes_mm) != len(voted) or not np.allclose(found.planes_mm, voted):
         added = found.depths_mm[found.weight == 0]       # no votes: found in the residual
         if len(added):

@@ -29,6 +29,16 @@ from .depth import (FoundDepths, _focus_energy, _grid_depths, _half_width, _peak
 #: they hold 0.01 of it or more, and those that stand higher (up to 74) hold at most 0.0056.
 RESIDUAL_PROMINENCE = 7.5
 RESIDUAL_SHARE = 0.01
+#: A colour capture's levelled mosaic (:func:`lf_flame.temperature.mosaic.monochrome_light_field`) leaves a residual
+#: that alternates between its channels' samples where the flame's colour varies; on a hexagonal lattice the pattern
+#: repeats every other row of lenslets and refocuses to sharp peaks at false depths (a new user's 50 x 43-lenslet
+#: GRBG camera: 4 and 6 false depths beside 4 and 3 flames, the solve 3-5 times slower; the same camera on a square
+#: grid, or without its mosaic, none). A hexagonal colour capture's residual is smoothed by a Gaussian of this many
+#: lenslets before each search (:func:`missed_depths`' ``smooth``): on that camera's four captures 2 lenslets left
+#: no false depth (1 lenslet: one, in one capture). Not on a square grid: on the paper camera's colour captures of
+#: two flames one behind another (``experiments/studies/colour_behind_depths.py``, 9 scenes) the smoothed residual
+#: lost every flame behind that the search had found there (14 -> 9 of 18 flames found).
+COLOUR_RESIDUAL_SMOOTH = 2.0
 #: Rounds of :func:`missed_depths` in :func:`~lf_flame.tomo.found_planes.find_planes` (each a search of the residual
 #: and a solve).
 PEEL_ROUNDS = 2
@@ -37,7 +47,8 @@ PEEL_ROUNDS = 2
 def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prominence: float = RESIDUAL_PROMINENCE,
                   share: float = RESIDUAL_SHARE, excess: float = 0.0, sigma: float = 1.5,
                   min_separation_mm: float | None = None, merge_mm: float | None = None, regions=None,
-                  possible: list | None = None, possible_prominence: float = RESIDUAL_PROMINENCE):
+                  possible: list | None = None, possible_prominence: float = RESIDUAL_PROMINENCE,
+                  smooth: float = 0.0):
     """Depths the votes missed, found in a solve's residual: a flame behind (or before) another in the same
     columns, whose lenslets voted for the other.
 
@@ -77,6 +88,9 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
     possible_prominence : float
         Deviations for ``possible`` (:data:`RESIDUAL_PROMINENCE`).
 
+    smooth : float
+        The residual's views smoothed by a Gaussian of this many lenslets (per view, >= 0; 0: not) before they are
+        refocused (:data:`COLOUR_RESIDUAL_SMOOTH` for a colour capture's levelled mosaic).
     Returns
     -------
     FoundDepths or None
@@ -93,11 +107,16 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
         if not (math.isfinite(float(value)) and value >= 0):
             raise ValueError(f"{name} must be a finite ratio >= 0. Received: {value!r}")
     n = camera.pixels_per_lenslet
+    if not (math.isfinite(float(smooth)) and smooth >= 0):
+        raise ValueError(f"smooth must be a finite width >= 0 (lenslets). Received: {smooth!r}")
     r = np.ascontiguousarray(residual, np.float32)
     if r.shape != (n, n, camera.n_rows, camera.n_cols):
         raise ValueError(f"residual must have the camera's views' shape {(n, n, camera.n_rows, camera.n_cols)}. "
                          f"Received: {r.shape}")
     _check_finite("residual", r)
+    if smooth > 0:
+        from scipy.ndimage import gaussian_filter
+        r = gaussian_filter(r, (0, 0, float(smooth), float(smooth)))
     if not np.any(r) or not len(found.depths_mm):
         return None
     min_separation_mm, merge_mm = depth_tolerances(camera, n, min_separation_mm, merge_mm)
@@ -147,7 +166,7 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
 
 
 def peel_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamera, solve, rounds: int = PEEL_ROUNDS,
-                residual=None):
+                residual=None, smooth: float = 0.0):
     """Search a solve's residual for depths the votes missed and solve again with them, up to ``rounds`` times
     (:func:`missed_depths`): :func:`~lf_flame.tomo.found_planes.find_planes`' and ``lf-flame reconstruct``'s route.
 
@@ -170,6 +189,8 @@ def peel_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamera,
         ``residual(op, rec)``: the data minus ``rec``'s prediction where fitted
         (:class:`~lf_flame.tomo.solvers.Residuals`, which keeps the last ones for the route's next
         step); None: :func:`~lf_flame.tomo.solvers.fitted_residual` of ``data`` and ``fit``.
+    smooth : float
+        As :func:`missed_depths`.
 
     Returns
     -------
@@ -181,7 +202,7 @@ def peel_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamera,
         raise ValueError(f"rounds must be an integer >= 0. Received: {rounds!r}")
     residual = Residuals(data, fit) if residual is None else residual
     for _ in range(int(rounds)):
-        more = missed_depths(residual(op, rec), camera, found)
+        more = missed_depths(residual(op, rec), camera, found, smooth=smooth)
         if more is None:
             break
         found = more

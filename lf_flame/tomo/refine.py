@@ -225,7 +225,7 @@ def refined_regions(found: FoundDepths) -> list:
 
 
 def peel_and_refine(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamera, solve,
-                    rounds: int = PEEL_ROUNDS, steps: int = REFINE_STEPS):
+                    rounds: int = PEEL_ROUNDS, steps: int = REFINE_STEPS, smooth: float = 0.0):
     """The found planes' route after their first solve: the residual searched for depths the votes missed
     (:func:`~lf_flame.tomo.peel.peel_planes`, up to ``rounds`` times), the planes of flames one behind another
     refined (:func:`refine_planes`, ``steps``), and then, once, the regions that hold several depths, each on a
@@ -243,6 +243,8 @@ def peel_and_refine(found: FoundDepths, op, rec, data, fit, camera: PlenopticCam
         >= 0; 0: no search of the residual (nor after the refinement).
     steps : int
         >= 0; 0: no refinement (nor the search after it).
+    smooth : float
+        The residual's smoothing before each search (lenslets, :func:`~lf_flame.tomo.peel.missed_depths`).
 
     Returns
     -------
@@ -255,7 +257,7 @@ def peel_and_refine(found: FoundDepths, op, rec, data, fit, camera: PlenopticCam
     """
     from .solvers import Residuals
     residual = Residuals(data, fit)
-    found, op, rec = peel_planes(found, op, rec, data, fit, camera, solve, rounds, residual)
+    found, op, rec = peel_planes(found, op, rec, data, fit, camera, solve, rounds, residual, smooth)
     found, op, rec = refine_planes(found, op, rec, data, fit, camera, solve, steps, residual)
     several = refined_regions(found)
     if not (rounds and steps and len(several)) or rec.solver == "learned":
@@ -266,7 +268,7 @@ def peel_and_refine(found: FoundDepths, op, rec, data, fit, camera: PlenopticCam
     more = missed_depths(residual(op, rec), camera, found, regions=several, share=REFINED_SHARE,
                          prominence=REFINED_QUIET_PROMINENCE if quiet else REFINED_PROMINENCE,
                          excess=REFINED_SHARE if quiet else 0.0, possible=possible,
-                         possible_prominence=POSSIBLE_PROMINENCE)
+                         possible_prominence=POSSIBLE_PROMINENCE, smooth=smooth)
     if more is not None:
         op, rec = solve(more)
         found, op, rec = refine_planes(more, op, rec, data, fit, camera, solve, steps, residual)
