@@ -162,7 +162,7 @@ def test_admm_help_output_and_run_agree_on_its_fills(monkeypatch):
     one plane on a 12 x 12-lenslet camera, the 2 x 2 grid."""
     import re
 
-    from lf_flame.cli.volume import iterations_note
+    from lf_flame.tomo.files import iterations_note
     from lf_flame.optics.camera import PlenopticCamera
     from lf_flame.tomo.defaults import ADMM_KNOBS
     from lf_flame.tomo.exact import emission_operator

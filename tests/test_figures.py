@@ -115,6 +115,9 @@ def test_reconstruct_titles_its_truth_with_the_scenes_depths(tmp_path, monkeypat
     assert true[2] == 0.0 and main(["reconstruct", str(tmp_path / "flame.npz"), "--depths",
                                     ",".join(f"{d:.6f}" for d in planes), "--out", str(tmp_path / "r.h5")]) == 0
     titles = [t for t, _, _ in _texts(figures[0])[:12]]
+    rec = files.load_reconstruction(tmp_path / "r.h5")       # the fills that ran, as the command prints them
+    assert figures[0]._suptitle.get_text() == f"admm, {files.iterations_note(rec)}, {rec.time_s:.2f} s"
+    assert "fills" in figures[0]._suptitle.get_text()
     assert titles[2::3] == [f"truth {d:+.1f} mm" for d in true]
     assert titles[0::3] == [f"reconstructed {d:+.1f} mm" for d in planes[:2]] + ["reconstructed +0.0 mm",
                                                                                   f"reconstructed {planes[3]:+.1f} mm"]
@@ -138,3 +141,20 @@ def test_a_truth_plane_is_titled_with_the_layers_it_is_nearest_to():
     got = truth_depths(dense, [0.0, 1.0])
     assert got[0] == pytest.approx((0.9 * 0.1 + 0.8 * 0.2) / 1.7) and got[1] == pytest.approx(
         (0.6 * 0.6 + 0.9 * 0.9) / 1.5)
+
+
+def test_a_dense_stacks_sums_stand_below_the_top_of_their_plot():
+    """The volume figure (more than six planes): each row's sum over each plane is drawn with headroom, so that the
+    refocused planes' sums (each holds all the light: a flat line) do not lie on the plot's top edge."""
+    from lf_flame.tomo.files import reconstruction_figure
+    from lf_flame.tomo.solvers import Reconstruction
+    planes = np.random.default_rng(1).random((9, 10, 8))
+    refocused = np.broadcast_to(planes.mean(axis=0), planes.shape).copy()       # the same light on every plane
+    rec = Reconstruction(planes, tuple(np.arange(9.0) - 4), ((0.13, 0.13),) * 9, "admm", {"iters": 3},
+                         np.array([0.1]), 0.5)
+    fig = reconstruction_figure(rec, refocused)
+    sums = [ax for ax in fig.axes if ax.get_title().endswith("summed over each plane")]
+    assert len(sums) == 2
+    for ax in sums:
+        top = max(float(np.max(line.get_ydata())) for line in ax.get_lines())
+        assert ax.get_ylim()[0] == 0 and ax.get_ylim()[1] >= 1.05 * top, (ax.get_title(), ax.get_ylim(), top)

@@ -222,18 +222,6 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
     return op, rec
 
 
-def iterations_note(rec) -> str:
-    """The iterations that ran: admm's fills (``settings["fills_run"]``, "of at most" the cap where
-    they converged sooner), else the solver's ``settings["iters"]``."""
-    cap = int(rec.settings["iters"])
-    if rec.solver == "learned":
-        return f"the network of {rec.settings.get('model')}"
-    if rec.solver != "admm":
-        return f"{cap} iterations"
-    ran = int(rec.settings.get("fills_run", cap))
-    return f"{ran} fills" + (f" of at most {cap}, converged" if ran < cap else "")
-
-
 def saturation_note(rec, lf=None) -> str:
     """What the fit left out: the count of saturated pixels (``reconstruct``'s settings; of the light field ``lf``
     where its defective pixels' samples make the fit's mask, :func:`defects_note` counting those)."""
@@ -367,7 +355,7 @@ def lattice_solve(lf, op, rec, found=None, support: bool = False):
 
 
 def cmd_reconstruct(a):
-    from ..tomo.files import plot_reconstruction, save_reconstruction
+    from ..tomo.files import iterations_note, plot_reconstruction, save_reconstruction
     from ..tomo.decoded import decoded_truth
     from ..tomo.truth import scene_truth, truth_depths
     from ..refocus.shift_and_sum import aperture_mask, focal_stack

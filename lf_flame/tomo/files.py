@@ -118,6 +118,18 @@ def _side_mesh(depths, sample_h, rows):
     return np.broadcast_to(edges, (rows + 1, len(edges))), (rows / 2 - r) * h[None, :]
 
 
+def iterations_note(rec) -> str:
+    """The iterations that ran: admm's fills (``settings["fills_run"]``, "of at most" the cap where
+    they converged sooner), else the solver's ``settings["iters"]``."""
+    cap = int(rec.settings.get("iters", 0))
+    if rec.solver == "learned":
+        return f"the network of {rec.settings.get('model')}"
+    if rec.solver != "admm":
+        return f"{cap} iterations"
+    ran = int(rec.settings.get("fills_run", cap))
+    return f"{ran} fills" + (f" of at most {cap}, converged" if ran < cap else "")
+
+
 def plot_reconstruction(path, rec: Reconstruction, refocused=None, truth=None, title: str = "",
                         truth_depths_mm=None) -> None:
     """Write :func:`reconstruction_figure` to ``path`` (PNG), atomically."""
@@ -170,7 +182,7 @@ def reconstruction_figure(rec: Reconstruction, refocused=None, truth=None, title
         return dict(cmap="inferno", vmin=0, vmax=scales["refocused" if name == "refocused" else "emission"])
     images = {}
     P = len(rec.planes)
-    title = title or f"{rec.solver}, {rec.settings.get('iters', 0)} iterations, {rec.time_s:.2f} s"
+    title = title or f"{rec.solver}, {iterations_note(rec)}, {rec.time_s:.2f} s"
     if P <= 6:
         ext = _plane_extents(rec)
         aspect = max((e[3] - e[2]) / (e[1] - e[0]) for e in ext)
@@ -213,10 +225,12 @@ def reconstruction_figure(rec: Reconstruction, refocused=None, truth=None, title
             sl = (st[kk, :, lo[kk]] * (1 - f)[:, None] + st[kk, :, hi[kk]] * f[:, None]) * inside[:, None]
             ax[j, 2].pcolormesh(X, Y, sl.T, shading="flat", **style(name))
             ax[j, 2].set_title(f"{name}: slice at x = {x0:+.2f} mm", fontsize=8)
-            ax[j, 3].plot(depths, st.sum(axis=(1, 2)), ".-", ms=3)
+            sums = st.sum(axis=(1, 2))
+            ax[j, 3].plot(depths, sums, ".-", ms=3)
             ax[j, 3].set_title(f"{name}: summed over each plane", fontsize=8)
             ax[j, 3].set_ylabel("sum (radiance units x samples)", fontsize=7)
-            ax[j, 3].set_ylim(bottom=0)
+            # headroom above the largest: refocused planes each hold all the light, a flat line on the top edge
+            ax[j, 3].set_ylim(0, 1.1 * float(sums.max()) if sums.max() > 0 else 1.0)
             for a in ax[j, 1:]:
                 a.set_xlabel("depth (mm from the focal plane)", fontsize=7)
             for a in ax[j, 1:3]:
