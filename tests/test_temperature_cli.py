@@ -400,6 +400,11 @@ def test_simulate_sequence_renders_a_colour_recording_that_temperature_and_seque
     with h5py.File(out) as f:
         t = f["temperature_k"][...]
     assert t.shape[:2] == (4, 1) and np.isfinite(t).any(axis=(1, 2, 3)).all()
+    # --depths scene: the recording's flames' depths (a simulated recording stores them, as sequence reads them)
+    assert main(["temperature", str(rec), "--calibration", cal, "--route", "admm-cfa", "--depths", "scene",
+                 "--no-figure", "--out", str(out)]) == 0
+    with h5py.File(out) as f:
+        assert np.allclose(f["depths_mm"][...], [fl.depth_offset_mm for fl in seq.flames])
     capsys.readouterr()
     assert main(["sequence", str(rec), "--quiet", "--out", str(tmp_path / "seq")]) == 0
     assert "levelled into one light field" in capsys.readouterr().out

@@ -455,7 +455,8 @@ def _temperature_recording(a, source, attrs, cal, sensor, where):
             raise ValueError(str(e).replace("--calibration", "--grid-calibration")) from None
         if depths is None:                                  # the planes: given, or found in the first frame
             _refuse_no_mosaic(raw, name)
-            depths = planes_from_args(a, lf.camera)
+            stored = json.loads(attrs["sequence"]).get("flames") if "sequence" in attrs else None  # a simulated one
+            depths = planes_from_args(a, lf.camera, stored)
             if depths == "auto":
                 depths, found, extra = _auto_depths(a, lf)
         r = _plane_temperatures(a, lf, depths, found, cal, sensor, cache)
