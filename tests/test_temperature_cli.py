@@ -84,6 +84,18 @@ def test_a_colour_filter_array_read_at_the_wrong_phase_is_refused(files, capsys,
     assert not (files["dir"] / "wrong.json").exists()
 
 
+def test_blackbody_temperatures_given_in_another_order_are_named(files, capsys):
+    """The blackbodies' temperatures given in reverse order: the ratio rises with the temperatures given, and the
+    refusal names the temperatures as given beside the colour filter array."""
+    args = ["calibrate-temperature", *files["bb"]]
+    for t in (2400, 2000, 1600):
+        args += ["--temperature", str(t)]
+    capsys.readouterr()
+    assert main(args + ["--out", str(files["dir"] / "reversed.json")]) == 2
+    err = capsys.readouterr().err
+    assert "the temperatures given are not the images'" in err and "2400 K, 2000 K, 1600 K" in err, err
+
+
 def test_temperature_round_trip(files, capsys):
     out = files["dir"] / "T.h5"
     assert main(["temperature", files["flame"], "--calibration", files["cal"], "--depths", "0", "--out",

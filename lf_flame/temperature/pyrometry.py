@@ -205,8 +205,9 @@ def fit_calibration(sensor: ColourSensor, temperatures_k, ratios, channels=("R",
         Fewer than one image, lengths that differ, non-positive ratios or temperatures; images at
         two or more temperatures whose ratio moves with temperature against the model's (whatever
         the channels' gains, a blackbody's ratio of a longer- over a shorter-wavelength band falls
-        as it heats): the samples of those channels are not the sensor's, a colour filter array
-        read at the wrong phase (red and blue swapped) or the wrong pattern.
+        as it heats): the temperatures given in another order than the images, or the samples of those
+        channels not the sensor's (a colour filter array read at the wrong phase, red and blue swapped, or
+        the wrong pattern).
     """
     t = np.asarray(temperatures_k, float)
     r = np.asarray(ratios, float)
@@ -220,7 +221,9 @@ def fit_calibration(sensor: ColourSensor, temperatures_k, ratios, channels=("R",
         if slope * want < 0:
             raise ValueError(f"the measured {channels[0]}/{channels[1]} ratio {'rises' if slope > 0 else 'falls'} with "
                              f"the blackbody's temperature where sensor {sensor.name!r}'s "
-                             f"{'falls' if want < 0 else 'rises'}: these images' {channels[0]} and {channels[1]} "
+                             f"{'falls' if want < 0 else 'rises'}: either the temperatures given are not the images' "
+                             f"(each image takes the temperature in the same place: here {', '.join(f'{v:g} K' for v in t)})"
+                             f", or these images' {channels[0]} and {channels[1]} "
                              f"samples are not those channels' pixels. Check the colour filter array: pattern "
                              f"{sensor.pattern}, phase {tuple(int(p) for p in sensor.phase)} (the camera file's cfa "
                              "and cfa_phase, or --cfa and --cfa-phase)")
