@@ -498,10 +498,20 @@ def test_a_recording_of_another_camera_is_decoded_and_reconstructed(tmp_path, la
         assert abs(row.dominant_hz - fl["freq_hz"]) <= 1.0, (row, fl["freq_hz"])
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["n_frames"] == 100
-    heights = pd.read_csv(tmp_path / "out" / "frames.csv").groupby("plane").height_mm.median()
+    frames = pd.read_csv(tmp_path / "out" / "frames.csv")
+    heights = frames.groupby("plane").height_mm.median()
     for k, fl in enumerate(flames):
         assert abs(heights[k] / fl["height_mm"] - 1) < (0.05 if layout == "square" else 0.09), \
             (heights, [f["height_mm"] for f in flames])
+    # each frame's samples left out of the fit, as reconstruct counts them on that frame (a hexagonal grid's axial
+    # array's cells that hold no lenslet are no samples: they were counted, 3-4 times the samples left out)
+    with h5py.File(tmp_path / "frames.h5") as f:
+        np.save(tmp_path / "f0.npy", f["frames"][0] / 65535.0)
+    capsys.readouterr()
+    assert main(["reconstruct", str(tmp_path / "f0.npy"), "--camera", str(cam), "--calibration",
+                 str(tmp_path / "cal.json"), *[x for fl in flames for x in ("--depth", str(fl["depth_offset_mm"]))],
+                 "--no-figure", "--out", str(tmp_path / "f0.h5")]) == 0
+    assert f"{frames.query('frame == 0').n_saturated.iloc[0]} of " in capsys.readouterr().out
     capsys.readouterr()
     assert main(["sequence", str(tmp_path / "frames.h5"), "--camera", str(cam), "--calibration",
                  str(tmp_path / "cal.json"), "--route", "reconstruct-admm", "--operator-rays", "4", "--depth", "5",
