@@ -58,11 +58,11 @@ def _profiles_input(a):
     if given or slopes is None:                   # the dataset's slopes go with its own planes only
         slopes = [cam.slope_for_depth(d) for d in depths] if depths else None
     route = parse_route(a.route)
-    lf = from_raw(raw, cam, str(a.raw))
+    lf, search = from_raw(raw, cam, str(a.raw)), getattr(a, "search_range", None)
     if route.tomographic:
-        depths, stack = solved_planes(lf, depths, route.solver, getattr(a, "search_range", None))
+        depths, stack = solved_planes(lf, depths, route.solver, search)
     elif not depths:
-        depths = found_planes(lf, search_range=getattr(a, "search_range", None))[0]
+        depths = found_planes(lf, search_range=search)[0]
     if a.slope:
         slopes = a.slope
     elif slopes is None:                          # the planes found
@@ -121,14 +121,14 @@ def _decoded_profiles_input(a):
         raise ValueError(f"--route {a.route} takes the paper camera's raw images or dataset samples, not decoded views")
     if depths:
         check_imaging_range(cam, depths)
+    search = getattr(a, "search_range", None)
     if route.tomographic:
-        depths, stack = solved_planes(lf, depths, route.solver, getattr(a, "search_range", None))
+        depths, stack = solved_planes(lf, depths, route.solver, search)
     else:
-        depths = depths or found_planes(lf, search_range=getattr(a, "search_range", None))[0]
-        n = cam.pixels_per_lenslet
-        stack = refocus_views(lf.views, [cam.slope_for_depth(d) for d in depths], aperture_mask(n, "circular"),
-                              **route.options)
+        depths = depths or found_planes(lf, search_range=search)[0]
     slopes = [cam.slope_for_depth(d) for d in depths]
+    if not route.tomographic:
+        stack = refocus_views(lf.views, slopes, aperture_mask(cam.pixels_per_lenslet, "circular"), **route.options)
     return cam, np.asarray(stack), depths, slopes, objects
 
 

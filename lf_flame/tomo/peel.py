@@ -87,10 +87,10 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
         ``prominence``, ``share``, ``region``): a depth seen, not taken.
     possible_prominence : float
         Deviations for ``possible`` (:data:`RESIDUAL_PROMINENCE`).
-
     smooth : float
         The residual's views smoothed by a Gaussian of this many lenslets (per view, >= 0; 0: not) before they are
-        refocused (:data:`COLOUR_RESIDUAL_SMOOTH` for a colour capture's levelled mosaic).
+        refocused (:data:`COLOUR_RESIDUAL_SMOOTH` for a colour capture's levelled mosaic on a hexagonal lattice).
+
     Returns
     -------
     FoundDepths or None
@@ -99,7 +99,8 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
     Raises
     ------
     ValueError
-        A residual of another shape than the camera's views, or not finite; ``prominence`` <= 0, ``share`` < 0.
+        A residual of another shape than the camera's views, or not finite; ``prominence`` <= 0, ``share`` < 0,
+        ``smooth`` < 0 or not finite.
     """
     if not (math.isfinite(float(prominence)) and prominence > 0):
         raise ValueError(f"prominence must be finite and > 0. Received: {prominence!r}")

@@ -115,7 +115,7 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
     within :data:`REFINE_REACH` times its found uncertainty of where it was found (a reach past the depths
     the searched depths stops at their end, :func:`~lf_flame.tomo.depth.searched_depths`). A plane that merged
     several found depths (within ``merge_mm``) is a compromise between them and is left where it is; a step never
-takes a plane past another nor within the merge distance of it (:func:`kept_apart`).
+    takes a plane past another nor within the merge distance of it (:func:`kept_apart`).
 
     Parameters
     ----------
