@@ -433,7 +433,7 @@ def test_simulate_refocus_and_slopes_take_a_camera_file(route, tmp_path, capsys)
     for o in objects:
         h = cam.field_of_view_mm(o["depth_offset_mm"])[0]
         assert -h / 2 <= o["base_y_mm"] and o["base_y_mm"] + o["height_mm"] <= h / 2, (o, h)
-    from lf_flame.cli._io import paper_layout                     # the paper's camera keeps its own
+    from lf_flame.simulate.scenes_depth import paper_layout        # the paper's camera keeps its own
     from lf_flame.optics.camera import PAPER_CAMERA
     assert paper_layout(PAPER_CAMERA) == dict(depths_mm=scenes.PAPER_DEPTHS_MM, template_scale=scenes.TEMPLATE_SCALE)
     (tmp_path / "empty.toml").write_text("")

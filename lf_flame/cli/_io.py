@@ -291,6 +291,7 @@ def colour_scene(record: dict, camera):
     """
     from ..optics.colour import library_sensor
     from ..simulate import scenes_temperature as st
+    from ..simulate.scenes_depth import paper_layout
     sr = record["sensor"]
     sensor = library_sensor(sr["name"], sr["pattern"], tuple(sr["phase"]))
     rng = np.random.default_rng(record["seed"])
@@ -327,22 +328,12 @@ def simulated_scene(record: dict, camera):
         return volume_flame_scene(camera, None if record["nominal"] else np.random.default_rng(record["seed"]),
                                   centre_depth_mm=dz, n_layers=VOLUME_LAYERS,
                                   diameter_mm=min(10.0, 0.85 * camera.field_of_view_mm(dz)[1]))
+    from ..simulate.scenes_depth import paper_layout
     layout = paper_layout(camera)
     if record["kind"] == "shapes":
         layout.pop("template_scale")
     return scenes.SCENES[record["kind"]](camera, np.random.default_rng(record["seed"]), vary=not record["nominal"],
                                          **layout)
-
-
-def paper_layout(camera) -> dict:
-    """The paper's four-plane scenes (``shapes``, ``flame``, ``colour-flame``) on ``camera``: ``depths_mm``, the
-    paper's +20, +10, 0, -10 mm carried to it as far apart in parallax
-    (:func:`lf_flame.simulate.scenes_depth.carried_depths`), and the flames' ``template_scale``
-    (:func:`lf_flame.simulate.scenes.camera_template_scale`): on a camera of a smaller field the paper's 8-21 mm
-    flames stood past its edges. The paper's camera keeps its own."""
-    from ..simulate.scenes import PAPER_DEPTHS_MM, camera_template_scale
-    from ..simulate.scenes_depth import carried_depths
-    return dict(depths_mm=carried_depths(camera, PAPER_DEPTHS_MM), template_scale=camera_template_scale(camera))
 
 
 def _raw_scene(path, camera):

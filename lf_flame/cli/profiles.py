@@ -58,11 +58,11 @@ def _profiles_input(a):
     if given or slopes is None:                   # the dataset's slopes go with its own planes only
         slopes = [cam.slope_for_depth(d) for d in depths] if depths else None
     route = parse_route(a.route)
-    lf, search = from_raw(raw, cam, str(a.raw)), getattr(a, "search_range", None)
+    search = getattr(a, "search_range", None)
     if route.tomographic:
-        depths, stack = solved_planes(lf, depths, route.solver, search)
+        depths, stack = solved_planes(from_raw(raw, cam, str(a.raw)), depths, route.solver, search)
     elif not depths:
-        depths = found_planes(lf, search_range=search)[0]
+        depths = found_planes(from_raw(raw, cam, str(a.raw)), search_range=search)[0]
     if a.slope:
         slopes = a.slope
     elif slopes is None:                          # the planes found

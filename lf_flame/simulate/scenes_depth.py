@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from ..optics.camera import PlenopticCamera
-from .scenes import FLAME_EFFECTS, Scene, _flame_layer, _roi
+from .scenes import FLAME_EFFECTS, PAPER_DEPTHS_MM, Scene, _flame_layer, _roi, camera_template_scale
 
 #: Depth range (mm from the focal plane) of the paper camera's usable slopes (about -1.9 .. +2.8).
 DEPTH_RANGE_MM = (-15.0, 25.0)
@@ -157,6 +157,14 @@ def carried_depths(camera: PlenopticCamera, paper_depths_mm) -> tuple:
     slopes = np.array([PAPER_CAMERA.slope_for_depth(float(d)) * scale for d in paper_depths_mm])
     fit = min([1.0] + [s_hi / s for s in slopes if s > s_hi] + [s_lo / s for s in slopes if s < s_lo])
     return tuple(round(float(np.clip(camera.depth_for_slope(fit * s), lo, hi)), 6) + 0.0 for s in slopes)
+
+
+def paper_layout(camera: PlenopticCamera) -> dict:
+    """The paper's four-plane scenes (``shapes``, ``flame``, ``colour-flame``) on ``camera``: ``depths_mm``, the
+    paper's +20, +10, 0, -10 mm carried to it as far apart in parallax (:func:`carried_depths`), and the flames'
+    ``template_scale`` (:func:`lf_flame.simulate.scenes.camera_template_scale`): on a camera of a smaller field the
+    paper's 8-21 mm flames stood past its edges. The paper's camera keeps its own."""
+    return dict(depths_mm=carried_depths(camera, PAPER_DEPTHS_MM), template_scale=camera_template_scale(camera))
 
 
 def camera_depth_ranges(camera: PlenopticCamera) -> dict:
