@@ -266,3 +266,16 @@ def test_impossible_lattices_and_views_are_refused(capture):
         dataclasses.replace(lf, lattice_views=bad)
     with pytest.raises(ValueError, match="no hexagonal lattice views"):
         hx.solve_on_lattice(dataclasses.replace(lf, lattice_views=None), None, None)
+
+
+def test_left_out_samples_are_counted_among_the_lattices_own(operator):
+    """On the axial array the cells that hold no lenslet are no samples: a solve's ``n_saturated`` counts only the
+    lenslets' samples left out, of ``n_samples`` (the lenslets' samples), as ``reconstruct`` and ``sequence`` report."""
+    from lf_flame.tomo.solvers import reconstruct
+    rng = np.random.default_rng(5)
+    inside = np.broadcast_to(operator.inside, operator.dimsd)
+    clipped = inside & (rng.random(operator.dimsd) < 0.01)
+    leave = clipped | ~inside
+    rec = reconstruct(rng.random(operator.dimsd), operator, "adjoint", saturation=leave)
+    assert rec.settings["n_saturated"] == int(clipped.sum()) > 0
+    assert rec.settings["n_samples"] == int(inside.sum()) < leave.size

@@ -259,11 +259,8 @@ def decoded_note(lf, rec, lattice=None) -> str:
     """What the fit of decoded views (or of a raw colour mosaic, levelled) left out: the count and share of the
     samples (of the hexagonal lattice's views where ``lattice``, a :class:`~lf_flame.tomo.lattice.LatticeSolve`,
     solved them) and why."""
-    if lattice is None:
-        n, total = int(rec.settings.get("n_saturated", 0)), lf.views.size
-    else:                                # the axial array's cells that hold no lenslet are no samples
-        inside = np.broadcast_to(lattice.op.inside, lattice.leave_out.shape)
-        n, total = int(np.count_nonzero(lattice.leave_out & inside)), int(np.count_nonzero(inside))
+    rec = rec if lattice is None else lattice.rec   # on the lattice: its axial cells that hold a lenslet
+    n, total = int(rec.settings.get("n_saturated", 0)), int(rec.settings.get("n_samples", lf.views.size))
     why = ("clipped, or dark: outside the aperture's image" if lf.decoded else "clipped") + (
         "; a colour camera's blue samples, which the levelled light field leaves out" if "monochrome" in lf.meta else "")
     return f"{n} of {total} samples ({100 * n / total:.0f} %) left out of the fit ({why})"

@@ -397,11 +397,9 @@ class SequenceJob:
                           start=r.get("start"), tol=r.get("tol"), saturation=leave,
                           state=state if r["solver"] == "admm" else None,
                           **({} if self.support is None else dict(support=self._support())))
-        if not self.hexagonal:
-            return rec.planes, int(rec.settings["n_saturated"])
-        inside = np.broadcast_to(self.operator().inside, leave.shape)   # the axial array's cells with no lenslet
-        return (self.operator().to_square(rec.planes, self.camera.n_rows, self.camera.n_cols),   # are no samples
-                int(np.count_nonzero(leave & inside)))
+        planes = self.operator().to_square(rec.planes, self.camera.n_rows, self.camera.n_cols) if self.hexagonal \
+            else rec.planes
+        return planes, int(rec.settings["n_saturated"])    # a hexagonal lattice's: of its cells with a lenslet
 
     def _support(self) -> np.ndarray:
         """``support`` on the operator's planes: a hexagonal grid's taken to its lattice."""

@@ -303,8 +303,10 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
     if p.n_sat == p.y.size:
         raise ValueError(f"every one of the views' {p.y.size} samples is left out of the fit (clipped, or in a saturation "
                          "mask): there is nothing to solve")
+    n_left, n_samples = left_out_samples(op, p.fit)
     settings = dict(iters=iters, rays_per_pixel=op.rays_per_pixel, seed=op.seed,
-                    saturation="mask" if np.ndim(saturation) > 0 else saturation, n_saturated=p.n_sat)
+                    saturation="mask" if np.ndim(saturation) > 0 else saturation, n_saturated=n_left,
+                    n_samples=n_samples)
     if getattr(op, "offset_bins", None):                              # each sample at its own pixel
         settings["sub_views"] = op.offset_bins
     step = _Steps(iters, f"reconstruct ({solver})", progress, callback)
@@ -392,6 +394,28 @@ def fitted_pixels(views, saturation) -> np.ndarray:
     if np.ndim(saturation) > 0:
         return ~np.asarray(saturation, bool).reshape(views.shape)
     return np.ones(views.shape, bool) if saturation is None else views < saturation
+
+
+def left_out_samples(op: EmissionOperator, fit) -> tuple[int, int]:
+    """The samples left out of the fit and the samples there are: on a hexagonal lattice's axial array
+    (:class:`~lf_flame.tomo.lattice.LatticeOperator`'s ``inside``) only its cells that hold a lenslet are samples.
+
+    Parameters
+    ----------
+    op : EmissionOperator
+    fit : ndarray of bool of ``op.dimsd``'s size
+        The fitted samples (:func:`fitted_pixels`).
+
+    Returns
+    -------
+    (left out, samples) : (int, int)
+    """
+    fit = np.asarray(fit, bool).reshape(op.dimsd)
+    inside = getattr(op, "inside", None)
+    if inside is None:
+        return int(fit.size - np.count_nonzero(fit)), int(fit.size)
+    inside = np.broadcast_to(inside, fit.shape)
+    return int(np.count_nonzero(inside & ~fit)), int(np.count_nonzero(inside))
 
 
 def _fitted_problem(op: EmissionOperator, y: np.ndarray, saturation) -> _Problem:
