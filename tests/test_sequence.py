@@ -579,6 +579,22 @@ def test_a_simulated_recording_of_another_camera_is_decoded_at_its_flames_depths
                  str(found[0]), "--quiet", "--out", str(tmp_path / "offset_out")]) == 0
     assert "black level" in capsys.readouterr().err
     assert len(whites) == 1                                 # its white image sampled once for the four frames
+    # the white image read in the frames' units, and by default the calibration's (as decode reads it): a 16-bit
+    # TIFF of it gives the float file's measurements (its counts were taken for a white 65535 times as bright), and
+    # so does none given (the frames were left undivided)
+    import tifffile
+    with np.load(tmp_path / "white.npz") as z:
+        tifffile.imwrite(tmp_path / "white.tif", np.round(np.clip(z["raw"], 0, 1) * 65535).astype(np.uint16))
+    tables = {}
+    for white in ("white.npz", "white.tif", None):
+        assert main(["sequence", str(tmp_path / "folder"), "--camera", str(cam), "--calibration",
+                     str(tmp_path / "cal.json"), *(["--white", str(tmp_path / white)] if white else []), "--fps", "100",
+                     "--route", "shift-sum", "--depth", str(found[0]), "--quiet", "--out", str(tmp_path / f"w_{white}")]) == 0
+        tables[white] = pd.read_csv(tmp_path / f"w_{white}" / "frames.csv")
+    for white in ("white.tif", None):
+        np.testing.assert_allclose(tables[white].integrated_intensity, tables["white.npz"].integrated_intensity,
+                                   rtol=2e-3)
+        np.testing.assert_allclose(tables[white].height_mm, tables["white.npz"].height_mm, atol=0.05)
 
 
 def test_a_colour_recording_is_levelled_as_reconstruct_levels_a_capture(tmp_path, capsys, colour_capture, monkeypatch):

@@ -45,20 +45,22 @@ def decoded_views_camera(camera, calibration, colour: bool = False):
     return views_camera(camera, calibration, views_shape(calibration, None, k), k), k
 
 
-def first_frame_depths(source, camera, calibration=None, sensor=None, search_range=None):
+def first_frame_depths(source, camera, calibration=None, sensor=None, search_range=None, images=None):
     """The planes of a recording without given ones: those ``reconstruct --depths auto`` finds in its first frame
     (depths found, the residual searched, the depths of flames one behind another refined:
     :func:`lf_flame.cli.volume.found_planes`, :func:`~lf_flame.cli.volume.solve_found`), the frame decoded with
     ``calibration`` where given (``camera`` the real one, ``sensor`` a colour camera's), searched over
-    ``search_range`` (``--search-range``; None: what the camera can refocus). A depth the residual's
+    ``search_range`` (``--search-range``; None: what the camera can refocus), with the white image and dark frame
+    ``images`` (:func:`~lf_flame.real.lightfield.decode_capture`'s). A depth the residual's
     search saw and did not take is warned of (:func:`~lf_flame.cli.volume.possible_warning`). Returns the depths
     (mm) and the :class:`~lf_flame.tomo.depth.FoundDepths` they are."""
     from ..real.lightfield import decode_capture, from_raw
     from ..temperature.mosaic import monochrome_light_field
     from .volume import found_planes, possible_warning, solve_found
     raw = np.asarray(next(iter(source.frames(0, 1))), np.float64)
+    # a colour capture's channels levelled into one light field
     lf = monochrome_light_field(from_raw(raw, camera, "the first frame", sensor=sensor) if calibration is None else
-                                decode_capture(raw, camera, calibration, sensor, "the first frame"))  # colour: levelled
+                                decode_capture(raw, camera, calibration, sensor, "the first frame", images))
     print("the recording's planes, as reconstruct finds a capture's, in its first frame:")
     _, _, found = found_planes(lf, search_range=search_range)
     found, _, _ = solve_found(lf, found)
@@ -135,14 +137,21 @@ def cmd_sequence(a):
             sensor = colour.record()
             print(f"colour sensor {colour.name}, {colour.pattern} phase {colour.phase}: each frame's red and "
                   "green samples levelled into one light field (blue left out)")
+        white, dark = a.white, a.dark
         if a.calibration:                # real frames: the planes are the decoded views' camera's
             from ..real.calibration import GridCalibration
+            from ..real.images import calibration_image_path
             calibration = GridCalibration.load(a.calibration)
             cal, cam, k = calibration.to_dict(), *decoded_views_camera(cam, calibration, colour is not None)
+            # as decode: the calibration's white image and dark frame unless others are given
+            white = None if a.no_white else calibration_image_path(calibration.white, "white", a.white)
+            dark = calibration_image_path(calibration.dark, "dark", a.dark)
         if a.depth or a.slope:
             depths = [float(v) for v in a.depth] if a.depth else [cam.depth_for_slope(s) for s in a.slope]
         else:                            # the depths found in the first frame, as reconstruct finds a capture's
-            depths, found = first_frame_depths(source, real, calibration, colour, a.search_range)
+            from ..recordings.sources import decoding_images
+            depths, found = first_frame_depths(source, real, calibration, colour, a.search_range,
+                                               decoding_images(white, dark) if calibration else None)
             if a.route == "reconstruct-admm":
                 # near planes held to their own regions where they meet, as reconstruct holds them
                 from ..tomo.found_planes import found_support
@@ -151,7 +160,7 @@ def cmd_sequence(a):
         from ..optics.camera import check_imaging_range
         check_imaging_range(cam, depths)
         job = SequenceJob(source, cam, fps, tuple(depths), tuple(slopes), (None,) * len(depths), a.route,
-                          cal, a.white, a.dark, chunk=a.chunk, bin_views=k, sensor=sensor, **knobs)
+                          cal, white, dark, chunk=a.chunk, bin_views=k, sensor=sensor, **knobs)
     if seq is None:                      # real frames: a black level left in, read in the first frame
         from ._io import black_level_warning
         black_level_warning(job.unlit_level(source.raw(0)))
@@ -236,8 +245,10 @@ def add_parsers(sub) -> None:
                    help="reconstruct-*: rays per pixel of a traced forward operator (default: the exact operator "
                         "where the camera is a perfect lenslet grid, else 4 rays)")
     s.add_argument("--calibration", help="real frames: JSON of 'lf-flame calibrate' (frames are decoded)")
-    s.add_argument("--white", help="real frames: white image for decoding")
-    s.add_argument("--dark", help="real frames: dark frame")
+    s.add_argument("--white", help="real frames: white image for decoding (default: the calibration's, checked by its "
+                   "SHA-256), read in the frames' units (an integer file scaled by its type's range, as the frames)")
+    s.add_argument("--no-white", action="store_true", help="real frames: no white-image normalisation")
+    s.add_argument("--dark", help="real frames: dark frame (default: the calibration's, if it has one)")
     s.add_argument("--nperseg", type=int, help="Welch segment, frames (default: the whole record, bin 1/T)")
     s.add_argument("--chunk", type=int, default=16, help="frames per task (default: %(default)s)")
     s.add_argument("--workers", type=positive_int, help="a local Dask cluster of this many single-thread worker "

@@ -438,10 +438,14 @@ def _temperature_recording(a, source, attrs, cal, sensor, where):
     else:
         cam, cam_file = (PlenopticCamera.from_dict(json.loads(attrs["camera"])) if "camera" in attrs
                          else PAPER_CAMERA), None
-    grid = None
+    grid = images = None
     if a.grid_calibration:
         from ..real.calibration import GridCalibration
+        from ..real.images import calibration_image_path
+        from ..recordings.sources import decoding_images
         grid = GridCalibration.load(a.grid_calibration)
+        images = decoding_images(calibration_image_path(grid.white, "white"),     # in the frames' units
+                                 calibration_image_path(grid.dark, "dark"))
     fps = source_frame_rate(source, attrs, a.fps)
     depths, found, extra, cache, rows, temps, valids = None, None, {}, {}, [], [], []
     for i, raw in enumerate(tqdm(source.frames(0, source.n_frames), total=source.n_frames, desc="temperature",
@@ -450,7 +454,7 @@ def _temperature_recording(a, source, attrs, cal, sensor, where):
         name = f"{src} frame {i}"
         try:
             lf = (from_raw(raw, cam, name, camera_file=cam_file, sensor=sensor) if grid is None else
-                  decode_capture(raw, cam, grid, sensor, name))
+                  decode_capture(raw, cam, grid, sensor, name, images))
         except ValueError as e:
             raise ValueError(str(e).replace("--calibration", "--grid-calibration")) from None
         if depths is None:                                  # the planes: given, or found in the first frame

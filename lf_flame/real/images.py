@@ -20,6 +20,18 @@ def load_image(path) -> np.ndarray:
     -------
     image : ndarray of shape (rows, cols), float64 (the file's values, unscaled)
     """
+    return to_gray(read_image(path)).astype(np.float64)
+
+
+def read_image(path) -> np.ndarray:
+    """The array an image file holds, in its own dtype (as :func:`load_image` reads it, before the gray mean and
+    float64): a recording's frames scale it by its type's range (:func:`lf_flame.recordings.sources.frame_image`).
+
+    Raises
+    ------
+    FileNotFoundError, ValueError
+        No such file; an unreadable file, an .npz of several arrays none of which is ``raw``.
+    """
     p = Path(path)
     if not p.is_file():
         raise FileNotFoundError(f"image file not found: {p}")
@@ -42,7 +54,7 @@ def load_image(path) -> np.ndarray:
             a = io.imread(p)
         except Exception as e:  # the readers raise many kinds
             raise ValueError(f"{p} is not a readable image: {e}") from None
-    return to_gray(a).astype(np.float64)
+    return a
 
 
 def to_gray(a: np.ndarray) -> np.ndarray:
@@ -113,8 +125,15 @@ def calibration_image(info, kind: str, override=None):
     ValueError
         The named image has changed since the calibration.
     """
+    p = calibration_image_path(info, kind, override)
+    return None if p is None else load_image(p)
+
+
+def calibration_image_path(info, kind: str, override=None):
+    """The path of the white or dark image a calibration names, checked as :func:`calibration_image` checks it
+    (``override`` unchecked); None when neither is given. Raises as :func:`calibration_image`."""
     if override:
-        return load_image(override)
+        return str(override)
     if not info:
         return None
     p = Path(info["path"])
@@ -122,4 +141,4 @@ def calibration_image(info, kind: str, override=None):
         raise FileNotFoundError(f"the calibration's {kind} image {p} is gone; give it with --{kind}")
     if file_digest(p)["sha256"] != info["sha256"]:
         raise ValueError(f"the calibration's {kind} image {p} has changed since the calibration")
-    return load_image(p)
+    return str(p)

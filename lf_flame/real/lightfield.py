@@ -381,7 +381,8 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
         raise
 
 
-def decode_capture(raw, camera: PlenopticCamera, calibration, sensor=None, source: str = "raw capture") -> LightField:
+def decode_capture(raw, camera: PlenopticCamera, calibration, sensor=None, source: str = "raw capture",
+                   images=None) -> LightField:
     """The light field of one raw capture (a recording's frame) decoded with its calibration, as
     :func:`read_light_field` decodes a raw image file: every view the lenslet image holds, binned as
     ``lf-flame decode`` bins by default, a colour ``sensor``'s capture one pixel per sample, its channels apart.
@@ -389,7 +390,7 @@ def decode_capture(raw, camera: PlenopticCamera, calibration, sensor=None, sourc
     Parameters
     ----------
     raw : ndarray of shape (rows, cols)
-        In the units of the calibration's white and dark images.
+        In the units of the white and dark images (``images``, else the calibration's files as read).
     camera : PlenopticCamera
         The real camera (:func:`lf_flame.optics.camera_file.load_camera_file`).
     calibration : GridCalibration
@@ -397,6 +398,11 @@ def decode_capture(raw, camera: PlenopticCamera, calibration, sensor=None, sourc
         A colour capture's sensor (:func:`lf_flame.optics.camera_file.load_colour_sensor`).
     source : str
         Names the capture in messages.
+    images : (white, dark) or None
+        The white image and dark frame (rows, cols) in the raw's units (a recording's frames':
+        :func:`lf_flame.recordings.sources.frame_image`), either None (no white normalisation, no dark
+        subtracted); None: the calibration's, read from their files
+        (:func:`lf_flame.real.images.calibration_image`).
 
     Returns
     -------
@@ -407,7 +413,7 @@ def decode_capture(raw, camera: PlenopticCamera, calibration, sensor=None, sourc
     ValueError
         As :func:`read_light_field` refuses a raw capture.
     """
-    return _decode_here(np.asarray(raw, np.float64), source, camera, calibration, None, None, None, sensor)
+    return _decode_here(np.asarray(raw, np.float64), source, camera, calibration, None, None, None, sensor, images)
 
 
 def capture_sensor(camera, meta, source: str = "the image") -> tuple:
@@ -445,17 +451,18 @@ def capture_sensor(camera, meta, source: str = "the image") -> tuple:
     return library_sensor(r["name"], r["pattern"], tuple(r["phase"])), f"stored in {source}"
 
 
-def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None, sensor=None) -> LightField:
+def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None, sensor=None, images=None) -> LightField:
     """A raw capture decoded with its calibration's white (and dark) image, as ``lf-flame decode`` decodes it:
     ``bin_views`` None: binned by default (:func:`lf_flame.real.view_grid.auto_bin`, one pixel per view where
     ``n_views`` is given); a colour ``sensor``'s capture one pixel per sample, its channels apart
-    (:func:`lf_flame.real.decoding.decode_colour`)."""
+    (:func:`lf_flame.real.decoding.decode_colour`); ``images``: as :func:`decode_capture`'s."""
     from .images import calibration_image
     from .black_level import unlit_level
     from .clipping import clipped_share, found_level
     from .decoding import decode_repaired
     from .view_grid import on_square_grid
-    white, dark = calibration_image(cal.white, "white"), calibration_image(cal.dark, "dark")
+    white, dark = (calibration_image(cal.white, "white"), calibration_image(cal.dark, "dark")) if images is None \
+        else images
     level = found_level(raw)
     lattice, channels, k, hit, bad = decode_repaired(raw, cal, white, dark, sensor, level, n_views=n_views,
                                                        bin_views=bin_views)

@@ -308,10 +308,10 @@ class SequenceJob:
         images (or None) and the colour ``sensor`` (or None)."""
         if "cal" not in self._cache:
             from ..real.calibration import GridCalibration
-            from ..real.images import load_image
-            self._cache.update(cal=GridCalibration.from_dict(self.calibration),
-                               white=None if self.white is None else load_image(self.white),
-                               dark=None if self.dark is None else load_image(self.dark), sensor=self._sensor())
+            from .sources import decoding_images
+            white, dark = decoding_images(self.white, self.dark)                  # in the frames' units
+            self._cache.update(cal=GridCalibration.from_dict(self.calibration), white=white, dark=dark,
+                               sensor=self._sensor())
         return self._cache
 
     def unlit_level(self, raw: np.ndarray) -> float | None:

@@ -130,11 +130,7 @@ class FolderSource:
         return len(self.files)
 
     def raw(self, i: int) -> np.ndarray:
-        p = self.files[int(i)]
-        if p.endswith(".npy"):
-            return _scaled(np.load(p))
-        from skimage import io
-        return _scaled(np.asarray(io.imread(p)))   # keeps the dtype (load_image returns float64)
+        return frame_image(self.files[int(i)])
 
     def identity(self) -> dict:
         """The files (absolute paths), each with its size and modification time (a changed frame
@@ -206,6 +202,21 @@ def _imagej_rate(meta: dict) -> dict:
     if not interval or unit not in _TIME_UNITS:
         return {}
     return {"fps": 1.0 / (float(interval) * _TIME_UNITS[unit])}
+
+
+def frame_image(path) -> np.ndarray:
+    """An image file (:func:`lf_flame.real.images.read_image`: .npy, .npz, PNG, TIFF) in a recording's frames' units:
+    float32 (H, W), integers scaled by their type's range. A recording's white image and dark frame are read so, as
+    its frames are: decoding divides by the white image, whose units must be the frames' (a 12-bit TIFF's counts
+    against PNG frames scaled to [0, 1] left every sample 1/4095 of its light)."""
+    from ..real.images import read_image
+    return _scaled(read_image(path))
+
+
+def decoding_images(white, dark) -> tuple:
+    """A recording's white image and dark frame (paths or None) read in its frames' units (:func:`frame_image`), as
+    :func:`lf_flame.real.lightfield.decode_capture` takes them: (white, dark), each (H, W) float64 or None."""
+    return tuple(None if p is None else frame_image(p).astype(np.float64) for p in (white, dark))
 
 
 def _scaled(a: np.ndarray) -> np.ndarray:
