@@ -103,6 +103,20 @@ def test_a_dark_image_cannot_be_checked_and_passes(calibrations):
     check_grid(np.random.default_rng(0).normal(size=cal.sensor_shape), cal)
 
 
+@pytest.mark.parametrize("depth_mm", [-10.0, 10.0, 20.0])
+def test_a_point_of_light_cannot_be_checked_and_passes(calibrations, depth_mm):
+    """A point source out of focus lights one or two lenslet images' worth of pixels (:func:`lit_lenslets`), whose
+    few peaks fit other grids as well as the calibration's: its capture was refused (pitches of 8.0, 9.6 and
+    12.1 px seen against the calibration's 10.57 px) and decodes now; a capture of flames of another grid is still
+    refused (above)."""
+    from lf_flame.real.grid_check import GRID_CHECK_MIN_LIT, lit_lenslets
+    cam = _camera("square")
+    cal = calibrations("square")
+    raw = tracer.render(cam, scenes.point_scene(cam, depth_mm, y_mm=-1.0), 64, 7)
+    assert 0 < lit_lenslets(raw, cal.pitch_px) < GRID_CHECK_MIN_LIT
+    check_grid(raw, cal)
+
+
 def test_each_colour_samples_offset_leads_from_its_view_to_its_pixel(calibrations):
     """:func:`~lf_flame.real.view_grid.sample_offsets`: the view's place plus its offset (turned back onto the
     sensor) is the centre of the pixel decode_colour reads, each offset within half a step (a little more on a

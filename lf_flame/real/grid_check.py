@@ -24,6 +24,11 @@ GRID_CHECK_PITCHES = (0.6, 1.6)
 #: Harmonics :func:`check_grid` weighs: reciprocal lattice points up to this many times the
 #: calibration's fundamental frequency (and at most 0.5 cycle per pixel).
 GRID_CHECK_HARMONICS = 6.0
+#: Lenslet images' worth of lit pixels (above a tenth of the brightest lenslet image's level, :func:`lit_lenslets`)
+#: under which an image cannot show its grid and :func:`check_grid` passes it: a point of light lit 1.3-2.4
+#: lenslet images and its few peaks took other grids for the calibration's (refused captures of the calibrated
+#: camera of a new user's, 8-13 px pitches); scenes of flames light 200-600, a white image thousands.
+GRID_CHECK_MIN_LIT = 16.0
 #: Percentile of the flattened log power in the weighed band that a lattice point must pass to
 #: add to a grid's score (below it, it takes away): lattice points off the image's peaks cost.
 GRID_CHECK_LEVEL_PERCENTILE = 90.0
@@ -182,6 +187,28 @@ def _peak_refusal(image: np.ndarray, calibration: GridCalibration, significance:
     return None
 
 
+def lit_lenslets(image: np.ndarray, pitch_px: float) -> float:
+    """How many lenslet images' worth of pixels an image lights: its pixels above a tenth of the level of its
+    brightest lenslet image's worth of pixels (the ``pitch_px ** 2``-th brightest), over ``pitch_px ** 2``.
+
+    Parameters
+    ----------
+    image : ndarray of shape (H, W)
+        A raw image, dark-subtracted (any units).
+    pitch_px : float
+        The lenslet images' pitch, px.
+
+    Returns
+    -------
+    float
+        Lenslet images (0 for an image that is nowhere positive).
+    """
+    flat = np.asarray(image, np.float64).ravel()
+    k = int(min(max(round(pitch_px ** 2), 1), flat.size))
+    top = np.partition(flat, -k)[-k]
+    return float(np.count_nonzero(flat > 0.1 * top) / pitch_px ** 2) if top > 0 else 0.0
+
+
 def check_grid(image: np.ndarray, calibration: GridCalibration, significance: float = 50.0,
                margin: float = 0.0) -> None:
     """Raise ValueError if ``image`` visibly shows a lenslet grid other than the calibration's.
@@ -192,7 +219,9 @@ def check_grid(image: np.ndarray, calibration: GridCalibration, significance: fl
     of its two reciprocal vectors. First, visibility: the strongest bin among spatial
     frequencies of periods between 0.6 and 1.6 pitches is compared with the median there;
     below ``significance`` × the median the image shows no grid (a dark raw image) and cannot
-    be checked, which passes.
+    be checked, which passes; so does an image that lights fewer than :data:`GRID_CHECK_MIN_LIT`
+    lenslet images (:func:`lit_lenslets`: a point of light, whose few lenslet images' peaks fit
+    other grids as well).
 
     Then two tests, and the image is refused only where both find another grid. The first: the
     power at the calibration's fundamental frequencies (two for a square lattice, three for a
@@ -246,6 +275,8 @@ def check_grid(image: np.ndarray, calibration: GridCalibration, significance: fl
         grid that fits best: its layout, pitch (px, to about a bin at the fundamentals) and
         rotation (degrees).
     """
+    if lit_lenslets(image, calibration.pitch_px) < GRID_CHECK_MIN_LIT:
+        return
     if _peak_refusal(image, calibration, significance) is None:
         return
     found = _grid_evidence(image, calibration, significance)
