@@ -217,6 +217,26 @@ def test_sequence_refuses_planes_outside_the_cameras_range(tmp_path, capsys, mon
     assert not (tmp_path / "o").exists()
 
 
+def test_refocus_and_simulate_refuse_planes_no_camera_images(tmp_path, capsys):
+    """``refocus --depth 500`` (slope 4.4 on the paper camera) and ``--slope 40`` are refused as reconstruct refuses
+    them (they were refocused, onto nothing); ``simulate --depth -1000`` (the object behind the main lens, 1 m in
+    front of the focus distance) is refused naming the depth (it stopped in a ZeroDivisionError)."""
+    from lf_flame.optics.camera import PAPER_CAMERA, imaging_range_mm
+    views = tmp_path / "raw.npy"                                       # the paper camera's raw image
+    np.save(views, np.ones(PAPER_CAMERA.sensor_shape, np.float32))
+    lo, hi = imaging_range_mm(PAPER_CAMERA)
+    for planes, shown in ((["--depth", "500", "--depth", "0"], f"planes at +500 mm lie outside what this camera can "
+                           f"refocus ({lo:+.3g} .. {hi:+.3g} mm"), (["--slope", "40"], "planes at slopes +40 lie outside")):
+        assert main(["refocus", str(views), *planes, "--out", str(tmp_path / "r.npz")]) == 2
+        line = _one_error_line(capsys.readouterr().err)
+        assert shown in line, line
+    assert not (tmp_path / "r.npz").exists()
+    z = PAPER_CAMERA.focus_distance_mm
+    assert main(["simulate", "--scene", "point", "--depth", str(-z - 1000), "--out", str(tmp_path / "p.npz")]) == 2
+    line = _one_error_line(capsys.readouterr().err)
+    assert f"--depth {-z - 1000:+g} mm puts the object" in line and "behind it" in line, line
+
+
 class _Frames:
     """A stand-in for SimulatedSource: 6 frames of 4 x 5 pixels, frame i filled with i / 10; it
     counts the frames rendered and stops (Ctrl-C) at frame ``stop_at``."""

@@ -23,6 +23,10 @@ def cmd_simulate(a):
     from ..optics.camera import PAPER_CAMERA
     cam = camera_config(a.data_config) if a.data_config else PAPER_CAMERA
     record = dict(kind=a.scene, seed=a.seed, nominal=a.nominal, depth_mm=a.depth, y_mm=a.y, x_mm=a.x)
+    if a.depth is not None and not cam.object_distance_mm(a.depth) > 0:
+        raise ValueError(f"--depth {a.depth:+g} mm puts the object {cam.object_distance_mm(a.depth):.4g} mm from the "
+                         f"main lens, at or behind it: depths are mm from the focus distance "
+                         f"({cam.focus_distance_mm:.4g} mm), more than {-cam.focus_distance_mm:+.4g} mm")
     if a.scene == "furnace" and a.temperature is None:
         raise ValueError("--scene furnace needs its blackbody temperature: give --temperature K")
     # the colour sensor the camera file names ([sensor] cfa): a colour camera's white image is a mosaic too
@@ -98,9 +102,16 @@ def cmd_refocus(a):
     if a.depth:
         if cam is None:
             raise ValueError(f"--depth needs the camera of {a.raw}: give --camera cam.toml (or use --slope)")
+        from ..optics.camera import check_imaging_range
+        check_imaging_range(cam, a.depth)            # as every route that takes planes
         slopes = [cam.slope_for_depth(d) for d in a.depth]
     else:
+        from ..optics.camera import MAX_SEARCH_SLOPE
         slopes = list(a.slope)
+        far = [s for s in slopes if not abs(s) <= MAX_SEARCH_SLOPE]
+        if far:
+            raise ValueError(f"planes at slopes {', '.join(f'{s:+g}' for s in far)} lie outside what a camera can "
+                             f"refocus (|slope| <= {MAX_SEARCH_SLOPE:g} lenslets per view)")
     n = views.shape[0]
     t = time.perf_counter()
     stack = refocus_views(views, slopes, aperture_mask(n, a.aperture), method=a.method,
