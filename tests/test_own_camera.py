@@ -433,13 +433,6 @@ def test_simulate_refocus_and_slopes_take_a_camera_file(route, tmp_path, capsys)
     for o in objects:
         h = cam.field_of_view_mm(o["depth_offset_mm"])[0]
         assert -h / 2 <= o["base_y_mm"] and o["base_y_mm"] + o["height_mm"] <= h / 2, (o, h)
-    # the outer flames 2 lenslets or more inside the field's sides (swayed as far as they may), where a decoded
-    # capture's field, a lenslet or two narrower, held 5-9 % of their emission in its 2-lenslet edge band
-    z_f = cam.focus_distance_mm
-    for o in objects:
-        scale = cam.object_distance_mm(o["depth_offset_mm"]) / z_f
-        inside = cam.field_of_view_mm(0.0)[1] / 2 - (abs(o["centre_x_mm"]) + (0.07 + o["sway"]) * o["height_mm"]) / scale
-        assert inside >= 2 * cam.mla_pitch_mm * z_f / cam.mla_distance_mm, (o, inside)
     from lf_flame.simulate.scenes_depth import paper_layout        # the paper's camera keeps its own
     from lf_flame.optics.camera import PAPER_CAMERA
     assert paper_layout(PAPER_CAMERA) == dict(depths_mm=scenes.PAPER_DEPTHS_MM, template_scale=scenes.TEMPLATE_SCALE)

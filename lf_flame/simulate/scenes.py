@@ -360,24 +360,6 @@ def _flame_params(k: int, w0: float, rng: np.random.Generator, vary: bool, regim
 TEMPLATE_SCALE = 0.64
 
 
-#: The least distance, in lenslet footprints at the focus distance, between the side edges of the field and the
-#: width over which the scenes' flames stand side by side (:func:`flame_row_share`). A decoded capture's field
-#: loses a lenslet or two at each edge: on the example camera (31 lenslet columns) the outer flames of the paper's
-#: scene then stood within 2 lenslets of its edge, 5-9 % of their emission in that band (``lf-flame reconstruct``
-#: warned of their planes reaching the field's edge, :data:`lf_flame.tomo.solvers.EDGE_BAND_LENSLETS`).
-SIDE_MARGIN_LENSLETS = 4.0
-
-
-def flame_row_share(camera: PlenopticCamera) -> float:
-    """The share of the field's width over which the scenes' flames stand side by side, centres at
-    ``((k + 0.5) / n - 0.5)`` of it: 0.9 (the paper camera's), or the field less :data:`SIDE_MARGIN_LENSLETS` lenslet
-    footprints either side where that is narrower. A flame at another depth scales it with its object distance, as
-    the field."""
-    w0 = camera.field_of_view_mm(0.0)[1]
-    margin = SIDE_MARGIN_LENSLETS * camera.mla_pitch_mm * camera.focus_distance_mm / camera.mla_distance_mm
-    return 0.9 if 0.05 * w0 >= margin else max(1.0 - 2 * margin / w0, 0.0)
-
-
 def camera_template_scale(camera: PlenopticCamera) -> float:
     """:data:`TEMPLATE_SCALE` times ``camera``'s field height at its focus distance over the paper camera's
     (dimensionless): the paper's flames fill any camera's field as they fill the paper's (the paper's camera:
@@ -444,13 +426,12 @@ def flame_scene(camera: PlenopticCamera, rng: np.random.Generator, *, template_s
     if len(depths_mm) != len(FLAME_HEIGHT_MEAN_MM):
         raise ValueError(f"depths_mm must hold {len(FLAME_HEIGHT_MEAN_MM)} depths. Received: {depths_mm}")
     h0, w0 = camera.field_of_view_mm(0.0)
-    row = flame_row_share(camera)
     layers, objects = [], []
     for k, dz in enumerate(depths_mm):
         dz = float(dz)
         scale = camera.object_distance_mm(dz) / camera.focus_distance_mm
         height, jitter, level, sway, phase = _flame_params(k, w0, rng, vary, regime)
-        cx = ((k + 0.5) / 4 - 0.5) * w0 * row * scale + jitter * scale
+        cx = ((k + 0.5) / 4 - 0.5) * w0 * 0.9 * scale + jitter * scale
         layer, obj = _flame_layer(camera, dz, max(height, 1.0) * template_scale * scale, cx, -0.45 * h0 * scale,
                                   level, sway, phase, texels_per_lenslet)
         layers.append(layer)

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..optics.camera import PlenopticCamera
 from .scenes import (FLAME_EFFECTS, FLAME_HEIGHT_MEAN_MM, PAPER_DEPTHS_MM, Effects, Scene, _flame_layer,
-                     camera_template_scale, flame_row_share)
+                     camera_template_scale)
 
 
 @dataclass(frozen=True)
@@ -225,8 +225,7 @@ def flicker_sequence(camera: PlenopticCamera, rng: np.random.Generator, kind: st
         camera.image_distance_mm(camera.object_distance_mm(dz))   # raises for a depth it cannot image
         scale = camera.object_distance_mm(dz) / camera.focus_distance_mm
         if kind == "paper":
-            H, cx, level = (FLAME_HEIGHT_MEAN_MM[k] * template_scale,
-                            ((k + 0.5) / 4 - 0.5) * w0 * flame_row_share(camera), 1.0)
+            H, cx, level = FLAME_HEIGHT_MEAN_MM[k] * template_scale, ((k + 0.5) / 4 - 0.5) * w0 * 0.9, 1.0
         else:
             H, cx, level = (0.8, 0.5)[k] * h0, 0.0, (1.0, 0.6)[k]
         amp = float(rng.uniform(0.08, 0.12))
