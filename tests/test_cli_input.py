@@ -219,14 +219,16 @@ def test_sequence_refuses_planes_outside_the_cameras_range(tmp_path, capsys, mon
 
 def test_refocus_and_simulate_refuse_planes_no_camera_images(tmp_path, capsys):
     """``refocus --depth 500`` (slope 4.4 on the paper camera) and ``--slope 40`` are refused as reconstruct refuses
-    them (they were refocused, onto nothing); ``simulate --depth -1000`` (the object behind the main lens, 1 m in
+    them (they were refocused, onto nothing), and so is a plane given twice (reconstruct solved two identical
+    planes); ``simulate --depth -1000`` (the object behind the main lens, 1 m in
     front of the focus distance) is refused naming the depth (it stopped in a ZeroDivisionError)."""
     from lf_flame.optics.camera import PAPER_CAMERA, imaging_range_mm
     views = tmp_path / "raw.npy"                                       # the paper camera's raw image
     np.save(views, np.ones(PAPER_CAMERA.sensor_shape, np.float32))
     lo, hi = imaging_range_mm(PAPER_CAMERA)
     for planes, shown in ((["--depth", "500", "--depth", "0"], f"planes at +500 mm lie outside what this camera can "
-                           f"refocus ({lo:+.3g} .. {hi:+.3g} mm"), (["--slope", "40"], "planes at slopes +40 lie outside")):
+                           f"refocus ({lo:+.3g} .. {hi:+.3g} mm"), (["--slope", "40"], "planes at slopes +40 lie outside"),
+                          (["--depth", "5", "--depth", "0", "--depth", "5"], "planes at +5 mm are given more than once")):
         assert main(["refocus", str(views), *planes, "--out", str(tmp_path / "r.npz")]) == 2
         line = _one_error_line(capsys.readouterr().err)
         assert shown in line, line

@@ -511,7 +511,9 @@ def test_profiles_measure_the_flames_of_decoded_views(tmp_path, capsys, monkeypa
     assert run("profiles", tmp_path / "sc.npz", "--camera", EXAMPLE, "--calibration", tmp_path / "cal.json",
                "--out", tmp_path / "raw") == 0
     df = pd.read_csv(tmp_path / "raw.csv")
-    assert len(df) == 3 and (df.height_err_mm.abs() < 0.1).all(), df
+    assert len(df) == 3 and (df.height_err_mm < 0.1).all(), df
+    # |measured - true|, as the simulated camera's route writes it (it was signed here)
+    np.testing.assert_allclose(df.height_err_mm, (df.height_mm - df.height_mm_true).abs(), atol=1e-3)   # as written
     assert run("decode", tmp_path / "sc.npz", "--calibration", tmp_path / "cal.json", "--out", tmp_path / "v.h5") == 0
     assert run("profiles", tmp_path / "v.h5", "--camera", EXAMPLE, *[x for d in df.depth_mm for x in ("--depth", d)],
                "--out", tmp_path / "views") == 0
@@ -663,3 +665,30 @@ def test_a_hexagonal_colour_capture_gets_no_false_depths_from_its_mosaic(tmp_pat
     true = sorted(o["depth_offset_mm"] for o in json.loads(str(np.load(tmp_path / "sc.npz")["objects"])))
     found = np.sort(load_reconstruction(tmp_path / "rec.h5").depths_mm)
     assert len(found) == 2 and np.all(np.abs(found - true) < 2.0), (found, true)
+
+
+def test_a_stopped_down_cameras_depths_are_found_without_its_rim_views():
+    """The example camera at f/13 (its aperture image 8.0 of its 10.57 px lenslet images): its decoded rim views are
+    lit in part, their light nearer the aperture's centre than their place, and their parallax short; the depth search
+    leaves them out (:meth:`LightField.lit_views`). Two flames found within 0.03 lenslets per view of their slopes
+    (0.009-0.010 here; with every view of the inscribed circle 0.059-0.065, the depths 2.5 mm short of 21 mm)."""
+    from lf_flame.cli.volume import found_planes
+    from lf_flame.real.calibration import calibrate
+    from lf_flame.real.lightfield import decode_capture
+    from lf_flame.refocus.shift_and_sum import aperture_mask
+    from lf_flame.simulate.scenes_depth import camera_depth_scene
+    import tomllib
+    sheet = tomllib.loads(Path(EXAMPLE).read_text())
+    cam = camera_from_datasheet({**sheet, "main_lens": {**sheet["main_lens"], "f_number": 13.0}})
+    white = tracer.render(cam, scenes.white_scene(cam), 16, 0)
+    scene = camera_depth_scene(cam, np.random.default_rng(1))
+    raw = tracer.render(cam, scene, 32, 1)
+    lf = decode_capture(raw, cam, calibrate(white), images=(white, None))
+    lit = lf.lit_views()
+    assert lit.sum() < aperture_mask(lf.views.shape[0], "circular").sum()
+    found = found_planes(lf)[2]
+    truth = sorted(o["depth_offset_mm"] for o in scene.objects)
+    assert len(found.depths_mm) == len(truth) == 2
+    err = [lf.camera.slope_for_depth(d) - lf.camera.slope_for_depth(t) for d, t in zip(sorted(found.depths_mm), truth)]
+    assert np.abs(err).max() <= 0.03, err
+    assert np.array_equal(found.views_mask, lit)

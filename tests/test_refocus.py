@@ -290,3 +290,20 @@ def test_bench_refocus_quick(tmp_path):
     assert agree.loc["fourier vs shift-sum bilinear, integer slopes", "rmse_interior"] < 1e-3
     slopes = pd.read_csv(tmp_path / "slopes_depths.csv")
     assert slopes.error_fourier.abs().max() <= 0.05
+
+
+def test_lit_views_are_the_inscribed_circle_where_the_aperture_fills_the_lenslet_images():
+    """The paper camera's aperture image fills its lenslet images: the views a depth search takes are the inscribed
+    circle's (its partly lit views 71 % or more inside); stopped down to f/8 (its aperture image 0.7 of a lenslet
+    image) the rim's views go, and an interpolated sample's wider footprint keeps none that a pixel loses."""
+    import dataclasses
+    from lf_flame.refocus.shift_and_sum import lit_views
+    circle = aperture_mask(PAPER_CAMERA.pixels_per_lenslet, "circular")
+    assert np.array_equal(lit_views(PAPER_CAMERA), circle)
+    stopped = dataclasses.replace(PAPER_CAMERA, aperture_mm=0.7 * PAPER_CAMERA.aperture_diameter_mm)
+    lit, wide = lit_views(stopped), lit_views(stopped, tent=1.0)
+    assert np.all(lit <= circle) and np.all(wide <= lit) and lit.sum() < circle.sum()
+    u = np.arange(15) - 7.0
+    assert np.all(np.hypot(u[:, None], u[None, :])[lit] <= 0.7 * 7.5 + 0.5)
+    with pytest.raises(ValueError, match="share"):
+        lit_views(PAPER_CAMERA, share=0.0)

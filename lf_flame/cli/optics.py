@@ -79,26 +79,27 @@ def cmd_simulate(a):
 
 
 def views_and_camera(a):
-    """The views of a command's input and their camera (:func:`._io.light_field`); decoded views
-    without ``--camera`` come with None (slopes only, no depths)."""
+    """The views of a command's input, their camera (:func:`._io.light_field`) and the views a depth search
+    refocuses (:meth:`lf_flame.real.lightfield.LightField.lit_views`); decoded views without ``--camera`` come
+    with None for both (slopes only, no depths)."""
     src = str(a.raw)
     if src.endswith(".h5") and ".h5:" not in src and not getattr(a, "camera", None):
         from ..real.views_file import load_views
-        return load_views(src)[0], None
+        return load_views(src)[0], None, None
     lf = light_field(a)
-    return lf.views, lf.camera
+    return lf.views, lf.camera, lf.lit_views()
 
 
 def cmd_refocus(a):
     from ..refocus.shift_and_sum import aperture_mask, refocus_views
     if a.slope and a.depth:
         raise ValueError("give the planes as --slope (lenslets per view) or as --depth (mm), not both")
-    views, cam = views_and_camera(a)
+    views, cam, lit = views_and_camera(a)
     if not (a.slope or a.depth):         # the depths found in the views, as reconstruct finds them
         if cam is None:
             raise ValueError(f"give the planes (--slope), or the camera of {a.raw} (--camera cam.toml) to find them")
         from .volume import search_planes
-        a.depth = search_planes(views, cam, a.search_range)[0]
+        a.depth = search_planes(views, cam, a.search_range, lit)[0]
     if a.depth:
         if cam is None:
             raise ValueError(f"--depth needs the camera of {a.raw}: give --camera cam.toml (or use --slope)")
@@ -172,7 +173,7 @@ def cmd_slopes(a):
     import pandas as pd
     from ..learn.evaluation import plot_slope_curves
     from ..refocus.shift_and_sum import aperture_mask, find_sharpest_slope
-    views, cam = views_and_camera(a)
+    views, cam, lit = views_and_camera(a)
     lo, hi = a.lo, a.hi
     if lo is None or hi is None:
         from ..optics.camera import MAX_SEARCH_SLOPE, imaging_range_mm
@@ -184,9 +185,10 @@ def cmd_slopes(a):
     if a.roi:
         objects = [dict(name=f"roi{i}", roi=tuple(r)) for i, r in enumerate(a.roi)]
     else:
-        objects = (_raw_objects(a.raw) or (_emission_regions(views, cam) if cam is not None else None)
+        objects = (_raw_objects(a.raw) or (_emission_regions(views, cam, lit) if cam is not None else None)
                    or [dict(name="image", roi=(0, views.shape[2], 0, views.shape[3]))])
-    mask = aperture_mask(views.shape[0], a.aperture)
+    # the circular aperture: the views inside the main lens's aperture image where the camera is known
+    mask = lit if a.aperture == "circular" and lit is not None else aperture_mask(views.shape[0], a.aperture)
     # the grid's steps move the outermost view as on the paper's 15 views (0.05 and 0.005 lenslets per view)
     scale = 14.0 / max(views.shape[0] - 1, 1)
     t = time.perf_counter()
@@ -215,11 +217,12 @@ def cmd_slopes(a):
     print(f"-> {out}.slopes.csv, {out}.slopes.png")
 
 
-def _emission_regions(views, cam):
-    """The flames the depth search finds (:func:`lf_flame.tomo.depth.find_depths`, ``reconstruct``'s search): one
-    object per found depth, the bounding box of the lenslets that voted for it as ``roi`` (lenslets)."""
+def _emission_regions(views, cam, views_mask=None):
+    """The flames the depth search finds (:func:`lf_flame.tomo.depth.find_depths`, ``reconstruct``'s search, over
+    ``views_mask``'s views): one object per found depth, the bounding box of the lenslets that voted for it as
+    ``roi`` (lenslets)."""
     from ..tomo.depth import find_depths
-    found = find_depths(views, cam)
+    found = find_depths(views, cam, views_mask=views_mask)
     objects = []
     for k, m in enumerate(found.masks):
         rows, cols = np.nonzero(m)

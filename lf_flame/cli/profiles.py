@@ -177,7 +177,8 @@ def profiles_table(a):
         The flames' objects (the truth) when the input stores them.
     table : pandas.DataFrame
         One row per plane: ``plane``, ``route``, ``depth_mm``, ``slope``, the measurement's
-        summary (mm), and with the truth ``height_mm_true``, ``height_err_mm`` ...; ``failure``.
+        summary (mm), and with the truth ``height_mm_true``, ``height_err_mm`` (|measured - true|, mm) ...;
+        ``failure``.
     """
     import pandas as pd
     from ..measure.diagnostics import EmptyPlaneError, flame_truth, measure_flame
@@ -209,7 +210,8 @@ def profiles_table(a):
         if objects and "height_mm" in df:    # decoded views: the flames' heights beside, their columns not assumed
             df.insert(df.columns.get_loc("height_mm") + 1, "height_mm_true",
                       [float(o.get("height_mm", np.nan)) for o in objects])
-            df.insert(df.columns.get_loc("height_mm_true") + 1, "height_err_mm", df.height_mm - df.height_mm_true)
+            # |measured - true|, as score_stacks gives it on the simulated camera's route
+            df.insert(df.columns.get_loc("height_mm_true") + 1, "height_err_mm", (df.height_mm - df.height_mm_true).abs())
     df.insert(3, "slope", slopes)
     return cam, stack, depths, ms, objects, df
 

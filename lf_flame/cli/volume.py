@@ -44,7 +44,7 @@ def planes_from_args(a, cam, objects=None):
         if not (objects and all("depth_offset_mm" in o for o in objects)):
             raise ValueError(f"--depths scene: {a.raw} stores no objects with depths (only what 'lf-flame simulate' "
                              "writes, .npz or .png, does)")
-        depths = [float(o["depth_offset_mm"]) for o in objects]
+        depths = list(dict.fromkeys(float(o["depth_offset_mm"]) for o in objects))   # flames on one plane: once
     elif spec == "paper":
         depths = list(PAPER_DEPTHS_MM)
     elif spec in ("", "auto"):
@@ -67,15 +67,16 @@ def found_planes(lf, views=None, search_range=None):
     (each found depth, its uncertainty, peak width, plane and region) and the
     :class:`~lf_flame.tomo.depth.FoundDepths` itself (its masks: the lenslets that voted for each depth).
     ``views``: other views of ``lf.camera`` to search (a channel sum)."""
-    return search_planes(lf.views if views is None else views, lf.camera, search_range)
+    return search_planes(lf.views if views is None else views, lf.camera, search_range, lf.lit_views())
 
 
-def search_planes(views, camera, search_range=None):
+def search_planes(views, camera, search_range=None, views_mask=None):
     """:func:`found_planes` of views (N, N, R, C) of ``camera``, searched over its imaging range clipped to
-    ``search_range`` (:func:`lf_flame.optics.camera.search_range_mm`)."""
+    ``search_range`` (:func:`lf_flame.optics.camera.search_range_mm`), over ``views_mask``'s views (None: those
+    inside the aperture's image, :func:`~lf_flame.tomo.depth.find_depths`)."""
     from ..optics.camera import search_range_mm
     from ..tomo.depth import find_depths
-    found = find_depths(views, camera, depth_range_mm=search_range_mm(camera, search_range))
+    found = find_depths(views, camera, depth_range_mm=search_range_mm(camera, search_range), views_mask=views_mask)
     if not len(found.planes_mm):
         raise ValueError("--depths auto found no emission in the views; give the planes (--depth or --depths)")
     record = found_record(found)

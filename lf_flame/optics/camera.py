@@ -554,7 +554,7 @@ def search_range_mm(camera: PlenopticCamera, depth_range_mm=None) -> tuple[float
 
 
 def check_imaging_range(camera: PlenopticCamera, depths_mm) -> None:
-    """Refuse planes the camera cannot refocus: depths outside :func:`imaging_range_mm`.
+    """Refuse planes the camera cannot refocus: depths outside :func:`imaging_range_mm`; and a plane given twice.
 
     Parameters
     ----------
@@ -565,8 +565,14 @@ def check_imaging_range(camera: PlenopticCamera, depths_mm) -> None:
     Raises
     ------
     ValueError
-        Naming the depths outside the range and the range.
+        Naming the depths outside the range and the range, or the depth given twice (solved as two identical
+        planes, whose emission the data cannot share out).
     """
+    seen = [float(d) for d in depths_mm]
+    twice = sorted({d for d in seen if seen.count(d) > 1})
+    if twice:
+        raise ValueError(f"planes at {', '.join(f'{d:+g}' for d in twice)} mm are given more than once: give each "
+                         "plane once")
     lo, hi = imaging_range_mm(camera)
     far = [float(d) for d in depths_mm if not lo <= d <= hi]
     if far:

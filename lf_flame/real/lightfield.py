@@ -168,6 +168,13 @@ class LightField:
             return self.defects
         return self.defects | (own if np.ndim(own) else self.views >= own)
 
+    def lit_views(self) -> np.ndarray:
+        """The views a depth search refocuses, (N, N) bool: those inside the main lens's aperture image
+        (:func:`lf_flame.refocus.shift_and_sum.lit_views`; decoded views' samples interpolated between pixels,
+        ``k x k`` of them summed per sample, a colour capture's its nearest pixels)."""
+        from ..refocus.shift_and_sum import lit_views
+        return lit_views(self.camera, tent=0.0 if self.interpolation is None else 1.0 / self.interpolation[1])
+
     def depth_range_mm(self, depth_range_mm=None) -> tuple[float, float]:
         """Depths to search, mm from the focus distance (:func:`lf_flame.optics.camera.search_range_mm`)."""
         return search_range_mm(self.camera, depth_range_mm)

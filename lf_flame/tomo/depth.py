@@ -45,7 +45,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..optics.camera import PlenopticCamera, imaging_range_mm
-from ..refocus.shift_and_sum import FourierSlice, _check_finite, aperture_mask
+from ..refocus.shift_and_sum import FourierSlice, _check_finite, aperture_mask, lit_views
 
 #: Coarse slope step (lenslets per view step) on 15 views: about 0.33 mm of depth at the paper camera's focal
 #: plane; on ``N`` views ``SLOPE_STEP * 14 / (N - 1)``, so that the outermost view moves as far per step.
@@ -154,6 +154,9 @@ class FoundDepths:
         energy) and ``region``. Empty from :func:`find_depths`.
     depth_range_mm : (float, float)
         The depths searched (mm from the focal plane), low < high.
+    views_mask : ndarray of shape (N, N), bool, or None
+        The views the search refocused (:func:`find_depths`' ``views_mask``), which a search of the
+        residual takes too (:func:`lf_flame.tomo.peel.missed_depths`); None: the inscribed circle's.
     """
 
     depths_mm: np.ndarray
@@ -171,6 +174,7 @@ class FoundDepths:
     time_s: float = float("nan")
     possible: list = field(default_factory=list, repr=False)
     depth_range_mm: tuple = (float("nan"), float("nan"))
+    views_mask: np.ndarray | None = field(default=None, repr=False)
 
 
 def _grid_depths(camera: PlenopticCamera, slopes) -> np.ndarray:
@@ -294,7 +298,8 @@ def _half_width(curve, i):
 def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_step: float | None = None,
                 threshold: float = 0.12, sigma: float = 1.5, min_pixels: int = 6, peak_fraction: float = 0.1,
                 vote_floor: float = 0.02,
-                min_separation_mm: float | None = None, merge_mm: float | None = None) -> FoundDepths:
+                min_separation_mm: float | None = None, merge_mm: float | None = None,
+                views_mask=None) -> FoundDepths:
     """The depths that hold emission, per lateral region, several per region where flames stand one behind another.
 
     Parameters
@@ -326,6 +331,10 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
     merge_mm : float or None
         Found depths closer than this share one plane (mm), >= 0; None: :data:`MERGE_MM` times
         :func:`depth_tolerance_scale`.
+    views_mask : ndarray of shape (N, N), bool, or None
+        The views refocused; None: those whose pixels lie inside the main lens's aperture image
+        (:func:`lf_flame.refocus.shift_and_sum.lit_views`; decoded views take theirs with ``interpolated``: a
+        partly lit view's parallax is smaller than its place says, and pulls the depths toward the focal plane).
 
     Returns
     -------
@@ -366,7 +375,13 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
         v = v - np.median(v, axis=(2, 3), keepdims=True)         # views, then makes no edge of its own
 
     # focus energy per pixel and slope (band-limited refocusing; step 2, whose contrast step 1 may need)
-    ten, lap = _focus_energy(v, slopes, sigma, laplacian=True)
+    if views_mask is None:
+        views_mask = lit_views(camera)
+    views_mask = np.asarray(views_mask, bool)
+    if views_mask.shape != v.shape[:2] or not views_mask.any():
+        raise ValueError(f"views_mask must be a boolean (N, N) = {v.shape[:2]} array with a view. Received: "
+                         f"{views_mask.shape}")
+    ten, lap = _focus_energy(v, slopes, sigma, laplacian=True, mask=views_mask)
     best = np.argmax(ten, axis=0)
     contrast = ten.max(axis=0) - np.median(ten, axis=0)
     if bright:
@@ -422,15 +437,16 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
                        weight=np.array([r["weight"] for r in rows]), region=np.array([r["region"] for r in rows], int),
                        masks=np.array([r["mask"] for r in rows], bool).reshape(len(rows), R, C), labels=labels,
                        planes_mm=planes, plane_of=plane_of, curves=[r["curve"] for r in rows], grid_slopes=slopes,
-                       time_s=time.perf_counter() - t0, depth_range_mm=(lo, hi))
+                       time_s=time.perf_counter() - t0, depth_range_mm=(lo, hi), views_mask=views_mask)
 
 
-def _focus_energy(views, slopes, sigma, laplacian=False):
-    """The views refocused band-limited at ``slopes`` (:class:`FourierSlice`, circular aperture); per slope and
-    lenslet the Tenengrad energy (squared Sobel gradient), and with ``laplacian`` the squared Laplacian, each
-    smoothed over ``sigma`` lenslets: (S, R, C) float64 arrays."""
+def _focus_energy(views, slopes, sigma, laplacian=False, mask=None):
+    """The views refocused band-limited at ``slopes`` (:class:`FourierSlice`, over ``mask``'s views; None: the
+    inscribed circle's); per slope and lenslet the Tenengrad energy (squared Sobel gradient), and with ``laplacian``
+    the squared Laplacian, each smoothed over ``sigma`` lenslets: (S, R, C) float64 arrays."""
     from ._depth_kernels import focus_measures
-    mask = aperture_mask(views.shape[0], "circular")
+    if mask is None:
+        mask = aperture_mask(views.shape[0], "circular")
     stack = FourierSlice(views, float(np.max(np.abs(slopes))) + 1e-9, mask).stack(slopes).astype(np.float64)
     ten = np.empty_like(stack)
     lap = np.empty_like(stack) if laplacian else np.empty((0, 0, 0))

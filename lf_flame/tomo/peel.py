@@ -122,7 +122,7 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
         return None
     min_separation_mm, merge_mm = depth_tolerances(camera, n, min_separation_mm, merge_mm)
     slopes = found.grid_slopes
-    ten = _focus_energy(r, slopes, sigma)
+    ten = _focus_energy(r, slopes, sigma, mask=found.views_mask)                # the views the votes searched
     depth_of = _grid_depths(camera, slopes)      # NaN where the grid runs past what the camera images
     ok = np.flatnonzero(np.isfinite(depth_of))
     dz_ds = abs(depth_of[ok[-1]] - depth_of[ok[0]]) / max(abs(slopes[ok[-1]] - slopes[ok[0]]), 1e-12)
@@ -163,7 +163,7 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
                        masks=np.concatenate([found.masks, np.array([q["mask"] for q in rows])])[order],
                        labels=found.labels, planes_mm=planes, plane_of=plane_of,
                        curves=[curves[k] for k in order], grid_slopes=slopes, time_s=found.time_s,
-                       depth_range_mm=found.depth_range_mm)
+                       depth_range_mm=found.depth_range_mm, views_mask=found.views_mask)
 
 
 def peel_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamera, solve, rounds: int = PEEL_ROUNDS,
