@@ -567,6 +567,10 @@ def test_a_simulated_recording_of_another_camera_is_decoded_at_its_flames_depths
     assert "black level" not in printed.err
     found = sorted(pd.read_csv(tmp_path / "found" / "frames.csv").depth_mm.unique())
     assert found == pytest.approx(sorted(fl["depth_offset_mm"] for fl in flames), abs=1.0), found
+    # the same frames without their camera file: the paper's camera was taken, and the refusal says so
+    assert main(["sequence", str(tmp_path / "folder"), "--calibration", str(tmp_path / "cal.json"), "--fps", "100",
+                 "--quiet", "--out", str(tmp_path / "nocam")]) == 2
+    assert "no camera file given, and the recording stores none" in capsys.readouterr().err
     # the frames with an offset of 3 % of their peak left in (no dark frame), decoded with the white image: the
     # first frame's unlit pixels say so
     (tmp_path / "offset").mkdir()

@@ -142,7 +142,18 @@ def cmd_sequence(a):
             from ..real.calibration import GridCalibration
             from ..real.images import calibration_image_path
             calibration = GridCalibration.load(a.calibration)
-            cal, cam, k = calibration.to_dict(), *decoded_views_camera(cam, calibration, colour is not None)
+            assumed = " (no camera file given, and the recording stores none: the paper's camera was taken; give " \
+                "the frames' --camera cam.toml)" if not (a.data_config or a.camera or "camera" in attrs) else ""
+            if assumed and tuple(calibration.sensor_shape) != tuple(cam.sensor_shape):
+                raise ValueError(f"the calibration's images are {calibration.sensor_shape[0]} x "
+                                 f"{calibration.sensor_shape[1]} px, the camera's sensor {cam.sensor_shape[0]} x "
+                                 f"{cam.sensor_shape[1]} px{assumed}")
+            try:
+                cal, cam, k = calibration.to_dict(), *decoded_views_camera(cam, calibration, colour is not None)
+            except ValueError as e:
+                if not assumed:
+                    raise
+                raise ValueError(f"{e}{assumed}") from None
             # as decode: the calibration's white image and dark frame unless others are given
             white = None if a.no_white else calibration_image_path(calibration.white, "white", a.white)
             dark = calibration_image_path(calibration.dark, "dark", a.dark)

@@ -78,7 +78,10 @@ def search_planes(views, camera, search_range=None, views_mask=None):
     from ..tomo.depth import find_depths
     found = find_depths(views, camera, depth_range_mm=search_range_mm(camera, search_range), views_mask=views_mask)
     if not len(found.planes_mm):
-        raise ValueError("--depths auto found no emission in the views; give the planes (--depth or --depths)")
+        lo, hi = found.depth_range_mm
+        raise ValueError(f"--depths auto found no emission in the views focused within {lo:+.1f} .. {hi:+.1f} mm "
+                         "(light whose sharpest focus lies nearer or farther is not taken, nor a dark light field); "
+                         "give the planes (--depth or --depths) or --search-range")
     record = found_record(found)
     lo, hi = found.depth_range_mm
     print(f"found {len(record)} depths (searched {lo:+.1f} .. {hi:+.1f} mm; --search-range to narrow) in "

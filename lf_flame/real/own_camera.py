@@ -162,7 +162,8 @@ def check_calibration(camera: PlenopticCamera, calibration: GridCalibration) -> 
     off = abs(calibration.pitch_px / camera.grid_pitch - 1)
     msg = (f"the calibrated lenslet images are {calibration.pitch_px:.3f} px apart, the camera's optics give "
            f"{camera.grid_pitch:.3f} px (pitch (1 + g/d) / pixel, {100 * off:.2f} % off): check the camera file's "
-           "distances and pixel size against this set-up")
+           "distances and pixel size against this set-up, and that the calibration's white image is of this set-up "
+           "(another camera's calibration decodes every lenslet image off its place)")
     if off > PITCH_TOLERANCE:
         raise ValueError(msg + f" ({100 * PITCH_TOLERANCE:g} % tolerated)")
     if off > PITCH_WARN:
