@@ -421,11 +421,15 @@ def test_simulate_refocus_and_slopes_take_a_camera_file(route, tmp_path, capsys)
     found where no region is given (each flame's depth within 0.6 mm)."""
     cam, _, _, d = route
     out = tmp_path / "flame.npz"
+    capsys.readouterr()
     assert cli.main(["simulate", "--scene", "flame", "--camera", EXAMPLE, "--rays-per-pixel", "2", "--out",
                      str(out)]) == 0
     with np.load(out) as z:
         assert z["raw"].shape == cam.sensor_shape
         objects = json.loads(str(z["objects"]))
+    # the depths they were carried to, printed (a user compares what reconstruct finds with them)
+    assert "(4 flames at " + ", ".join(f"{o['depth_offset_mm']:+.2f}" for o in objects) + " mm)" in \
+        capsys.readouterr().out
     # the paper's four flames carried to this camera's depths (as far apart in parallax) and inside its field, where
     # the paper's 8-21 mm flames stood past the edges of its 7 mm field
     from lf_flame.simulate.scenes_depth import carried_depths

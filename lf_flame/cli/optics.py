@@ -71,7 +71,8 @@ def cmd_simulate(a):
             extra["views"] = raw_to_views(raw, cam.pixels_per_lenslet)
         np.savez_compressed(out, raw=raw, **meta, **extra)
     name = f"furnace at {a.temperature:g} K" if a.scene == "furnace" else sc.name    # a blackbody filling the field
-    if a.scene in ("depth", "colour-depth"):        # drawn for this camera: how many (a small field holds fewer)
+    # drawn or carried to this camera's depths: how many (a small field holds fewer) and where
+    if a.scene in ("depth", "colour-depth", "flame", "colour-flame"):
         depths = [float(o["depth_offset_mm"]) for o in sc.objects]
         name += (f" ({len(depths)} flame{'s' * (len(depths) != 1)} at "
                  + ", ".join(f"{d:+.2f}" for d in depths) + " mm)")
