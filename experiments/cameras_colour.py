@@ -286,7 +286,7 @@ def main(argv=None):
                 lf = read_light_field(v, cam)
                 Tt, vt, body, Tb = truth_temperature(clean, lf, depths, cal, model)
                 if i == 0:         # the first scene's planes beside their truth: the figure of the docs
-                    from lf_flame.cli.temperature import temperature_figure
+                    from lf_flame.cli.temperature_planes import temperature_figure
                     from lf_flame.measure.figures import save_figure
                     save_figure(temperature_figure(T, depths, valid, lf.camera,
                                                    truth_k=np.where(vt, Tt, np.nan)), out / f"{name}.png")

@@ -60,7 +60,7 @@ def test_refocus_writes_a_figure_in_mm_not_a_strip_of_lenslets(small_camera, tmp
 
 
 def test_temperature_figure_has_mm_a_kelvin_bar_a_masked_legend_and_the_truth(small_camera):
-    from lf_flame.cli.temperature import NO_TEMPERATURE, temperature_figure
+    from lf_flame.cli.temperature_planes import NO_TEMPERATURE, temperature_figure
     cam = small_camera
     truth = np.full((2, cam.n_rows, cam.n_cols), np.nan)
     truth[:, 10:30, 12:28] = np.linspace(1750.0, 1900.0, 16)

@@ -282,7 +282,7 @@ def test_temperature_refuses_a_monochrome_light_field(files, tmp_path, capsys):
     """A light field without colour channels: a monochrome render (its record), or an image with no
     mosaic (the same colour raw image with its 2 x 2 phases averaged: the record stripped), exit 2
     naming the cause; the colour image itself is not refused by the mosaic check."""
-    from lf_flame.cli.temperature import _refuse_monochrome
+    from lf_flame.cli.temperature_planes import _refuse_monochrome
     d = files
     with np.load(d["flame"]) as z:
         raw = z["raw"]

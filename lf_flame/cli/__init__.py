@@ -5,7 +5,8 @@ commands' arguments (``add_parsers``):
 :mod:`.optics` (simulate, refocus, slopes), :mod:`.real` (calibrate, decode),
 :mod:`.learning` (dataset, train, predict, evaluate, tables), :mod:`.volume` (reconstruct),
 :mod:`.resolution` (the camera's depth-resolution map),
-:mod:`.temperature` (calibrate-temperature, temperature: two-colour pyrometry),
+:mod:`.temperature_calibration` (calibrate-temperature), :mod:`.temperature` and :mod:`.temperature_recording`
+(temperature: two-colour pyrometry of a capture, of a recording; their shared parts in :mod:`.temperature_planes`),
 :mod:`.profiles` and :mod:`.sequence` (recordings over time);
 :mod:`._io` reads and writes their files and holds the arguments they share.
 """
@@ -17,7 +18,7 @@ import sys
 import warnings
 from pathlib import Path
 
-from . import learning, optics, profiles, real, resolution, sequence, temperature, volume
+from . import learning, optics, profiles, real, resolution, sequence, temperature, temperature_calibration, volume
 from ._io import check_outputs
 
 # The commands' modules import only NumPy at the top: each command imports the libraries
@@ -47,7 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="lf-flame", description="Light-field refocusing of burner flames: "
                 "simulate, refocus, build datasets, train and evaluate the paper's model.")
     sub = p.add_subparsers(dest="command", required=True)
-    for stage in (optics, real, volume, profiles, sequence, temperature, resolution, learning):
+    for stage in (optics, real, volume, profiles, sequence, temperature_calibration, temperature, resolution, learning):
         stage.add_parsers(sub)
     return p
 

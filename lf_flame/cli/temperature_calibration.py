@@ -1,0 +1,102 @@
+"""The ``calibrate-temperature`` command: the gain ratio of two colour channels from raw images (or decoded views)
+of a blackbody at known temperatures (:mod:`lf_flame.temperature.pyrometry`), written as JSON."""
+from __future__ import annotations
+
+from ._io import RAW_FORMATS, _load_raw
+from .temperature_planes import _sensor, _sensor_args
+
+
+def _channels(text: str):
+    ch = tuple(c.strip().upper() for c in str(text).split(","))
+    from ..optics.colour import CHANNELS
+    if len(ch) != 2 or any(c not in CHANNELS for c in ch) or ch[0] == ch[1]:
+        raise ValueError(f"--channels takes two different channels of {', '.join(CHANNELS)} as A,B. Received: {text!r}")
+    return ch
+
+
+def cmd_calibrate_temperature(a):
+    """``calibrate-temperature BB... --temperature T... --out bb.json``."""
+    from ..temperature.pyrometry import blackbody_ratio, fit_calibration, write_calibration
+    from ..optics.camera import PAPER_CAMERA
+    temps = list(a.temperature or [])
+    if len(temps) != len(a.images):
+        raise ValueError(f"one --temperature per blackbody image is needed: {len(a.images)} images, {len(temps)} "
+                         "temperatures")
+    channels = _channels(a.channels)
+    ratios, sensor0 = [], None
+    for path, t in zip(a.images, temps):
+        raw, cam = (None, None) if str(path).endswith(".h5") else _load_raw(path)
+        sensor, where = _sensor(path, a)
+        if sensor0 is not None and (sensor.name, sensor.pattern, sensor.phase) != (
+                sensor0.name, sensor0.pattern, sensor0.phase):
+            raise ValueError(f"{path} is from sensor {sensor.name!r} {sensor.pattern} phase {sensor.phase}, the first "
+                             f"image from {sensor0.name!r} {sensor0.pattern} phase {sensor0.phase}: one camera per "
+                             "calibration")
+        sensor0 = sensor
+        if str(path).endswith(".h5"):                                 # a colour capture decoded with its channels
+            from ..real.views_file import load_channels, load_lattice, load_views
+            from ..temperature.pyrometry import views_blackbody_ratio
+            v, chan = load_lattice(path)[0], load_channels(path)      # a hexagonal grid's channels: on its lattice
+            if v is None:
+                v = load_views(path)[0]
+            if chan is None:
+                raise ValueError(f"{path}: decoded views without their colour channels ('lf-flame decode --camera "
+                                 "cam.toml' keeps them apart)")
+            r = views_blackbody_ratio(v, chan, channels)
+        else:
+            if cam is not None and not cam.perfect_grid:
+                raise ValueError(f"{path} is a raw image of a camera whose lenslet grid is not a perfect one (rotated, "
+                                 "hexagonal, or lenslet images no whole number of pixels apart): decode it first "
+                                 "('lf-flame decode IMAGE --calibration cal.json --camera cam.toml --out VIEWS.h5') "
+                                 "and give the VIEWS.h5")
+            r = blackbody_ratio(raw, sensor, (cam or PAPER_CAMERA).pixels_per_lenslet, channels)
+        ratios.append(r)
+        print(f"{path}: {t:g} K, {channels[0]}/{channels[1]} = {r:.5f} (sensor {sensor.name}, {sensor.pattern} "
+              f"phase {sensor.phase}: {where})")
+    try:
+        cal = fit_calibration(sensor0, temps, ratios, channels)
+    except ValueError as err:           # a colour filter array read at the wrong phase: say which phase fits
+        raise ValueError(f"{err}{_fitting_phases(a.images, temps, sensor0, channels)}") from None
+    out = write_calibration(a.out, cal)
+    print(f"gain ratio {cal.gain_ratio:.5f}; fit residuals " + ", ".join(f"{x:+.2f}" for x in cal.fit_residuals_k)
+          + f" K -> {out}")
+
+
+def _fitting_phases(images, temps, sensor, channels) -> str:
+    """For raw blackbody images refused by :func:`~lf_flame.temperature.pyrometry.fit_calibration`: the other CFA
+    phases of the same pattern under which they fit, with their largest residual (K), as a sentence ('' for
+    decoded views, whose channels were fixed when decoded, or where none fits)."""
+    import dataclasses
+
+    from ..optics.camera import PAPER_CAMERA
+    from ..temperature.pyrometry import blackbody_ratio, fit_calibration
+    if any(str(p).endswith(".h5") for p in images):
+        return ""
+    raws = [_load_raw(p) for p in images]
+    fits = []
+    for phase in ((0, 0), (0, 1), (1, 0), (1, 1)):
+        if phase == tuple(sensor.phase):
+            continue
+        other = dataclasses.replace(sensor, phase=phase)
+        try:
+            cal = fit_calibration(other, temps, [blackbody_ratio(raw, other, (cam or PAPER_CAMERA).pixels_per_lenslet,
+                                                                 channels) for raw, cam in raws], channels)
+        except ValueError:
+            continue
+        fits.append(f"{phase} (residuals within {max(abs(x) for x in cal.fit_residuals_k):.1f} K)")
+    return f". These images fit at phase {' and '.join(fits)}" if fits else ""
+
+
+def add_parsers(sub) -> None:
+    """Add ``calibrate-temperature`` to ``sub``, the sub-parsers of :func:`lf_flame.cli.build_parser`."""
+    s = sub.add_parser("calibrate-temperature", help="two-colour temperature calibration (the channels' gain "
+                       "ratio) from raw images of a blackbody (furnace) at known temperatures -> JSON")
+    s.add_argument("images", nargs="+", help="raw colour images of a blackbody filling the field: " + RAW_FORMATS
+                   + "; a camera whose lenslet grid is not perfect (rotated, hexagonal, a pitch of no whole number of "
+                   "pixels): its images decoded with their channels apart ('lf-flame decode --camera cam.toml')")
+    s.add_argument("--temperature", type=float, action="append", help="each image's temperature, K, in the images' "
+                   "order (repeatable; one per image)")
+    s.add_argument("--channels", default="R,G", help="numerator and denominator channels of the ratio")
+    _sensor_args(s, False)
+    s.add_argument("--out", required=True, help="calibration JSON (read by 'lf-flame temperature')")
+    s.set_defaults(func=cmd_calibrate_temperature)

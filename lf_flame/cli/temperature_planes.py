@@ -1,0 +1,245 @@
+"""What the temperature commands share: each plane's temperature of one colour light field
+(:mod:`lf_flame.temperature.channels` and :mod:`lf_flame.temperature.pyrometry`), its figure and file record,
+the image's colour sensor, and the refusal of a light field without colour channels.
+
+The colour sensor of an image (sensitivities, CFA pattern and phase) is, in order: the
+``--sensor``/``--cfa``/``--cfa-phase`` options, the ``sensor`` record stored beside the raw
+image (``.npz`` key or PNG text ``lf_flame.sensor``), the calibration's (``temperature``
+only, said so), else colour-science's Nikon 5100 behind an RGGB CFA of phase (0, 0).
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ._io import _load_raw, _raw_meta
+
+
+def _sensor(path, a, cal=None):
+    """The colour sensor of the image at ``path`` and a phrase saying where it came from."""
+    from ..optics.colour import DEFAULT_SENSITIVITIES, library_sensor
+    meta = _raw_meta(path)
+    if str(path).endswith(".h5") and Path(path).is_file():          # decoded views: the sensor decode stored
+        import h5py
+        with h5py.File(path, "r") as f:
+            meta = {"sensor": str(f.attrs["sensor"])} if "sensor" in f.attrs else {}
+    rec = json.loads(meta["sensor"]) if "sensor" in meta else {}
+    given = {k: v for k, v in (("name", a.sensor), ("pattern", a.cfa),
+                               ("phase", None if a.cfa_phase is None else tuple(a.cfa_phase))) if v is not None}
+    if rec:
+        where = f"stored in {path}"
+    elif cal is not None:
+        rec = dict(name=cal.sensor_name, pattern=cal.pattern, phase=tuple(cal.phase))
+        where = f"{path} records none: the calibration's"
+    else:
+        rec = dict(name=DEFAULT_SENSITIVITIES, pattern="RGGB", phase=(0, 0))
+        where = f"{path} records none: the default"
+    if given:
+        where = "given" + ("" if len(given) == 3 else f" ({', '.join(given)}; the rest {where})")
+    rec = {**rec, **given}
+    return library_sensor(rec["name"], rec["pattern"], tuple(rec["phase"])), where
+
+
+#: Relative spread of a raw image's four 2 x 2 phase means (over its lit pixels) below which it holds no colour
+#: filter mosaic: a monochrome sensor's phases differ by noise alone; a Bayer mosaic of flame light by tens of %.
+MOSAIC_SPREAD = 0.01
+
+
+def _refuse_monochrome(path):
+    """Refuse a light field without colour channels: one ``lf-flame simulate`` rendered monochrome
+    (its record holds a camera and no sensor), or an image whose four 2 x 2 pixel phases have the
+    same mean over its lit pixels (within :data:`MOSAIC_SPREAD`): no mosaic to take a ratio of."""
+    meta = _raw_meta(path)
+    if "camera" in meta and "sensor" not in meta:
+        raise ValueError(f"{path} is a monochrome light field (rendered without a colour sensor): two-colour "
+                         "pyrometry needs a colour (Bayer) capture")
+    _refuse_no_mosaic(_load_raw(path)[0], path)
+
+
+def _refuse_no_mosaic(raw, path):
+    """Refuse a raw image (named ``path``) whose four 2 x 2 pixel phases have the same mean over its lit pixels
+    (within :data:`MOSAIC_SPREAD`): a monochrome sensor's."""
+    lit = raw > 0.1 * float(raw.max()) if raw.max() > 0 else np.zeros(raw.shape, bool)
+    means = []
+    for i in (0, 1):
+        for j in (0, 1):
+            m = lit[i::2, j::2]
+            means.append(float(raw[i::2, j::2][m].mean()) if m.any() else np.nan)
+    means = np.asarray(means)
+    if np.all(np.isfinite(means)) and np.ptp(means) <= MOSAIC_SPREAD * means.mean():
+        raise ValueError(f"{path} holds no colour filter mosaic (its four 2 x 2 pixel phases have the same mean, "
+                         f"within {100 * MOSAIC_SPREAD:g} %): a monochrome light field has no two colour channels "
+                         "to take a ratio of")
+
+
+#: What the temperature figure's grey area is (its legend entry).
+NO_TEMPERATURE = "no temperature: dim, or a ratio outside the calibration"
+
+
+def temperature_figure(temperature_k, depths_mm, valid, camera=None, truth_k=None):
+    """``temperature``'s figure: each plane's temperature map in object-space mm, one colour bar in K.
+
+    Pixels without a temperature (NaN) are grey, named by a legend entry (:data:`NO_TEMPERATURE`).
+    With a truth, its maps form a second row on the same colour scale.
+
+    Parameters
+    ----------
+    temperature_k : ndarray of shape (P, rows, cols)
+        Temperature (K), NaN where none was estimated.
+    depths_mm : sequence of P float
+        The planes' depths (mm from the focal plane).
+    valid : ndarray of bool, shape (P, rows, cols)
+        Where a temperature was estimated (counted in the titles).
+    camera : PlenopticCamera or None
+        The planes' camera: axes in mm (:func:`lf_flame.measure.figures.plane_extent_mm`); None: lenslets.
+    truth_k : ndarray of shape (P, rows, cols) or None
+        The true temperature (K) on the same planes, NaN where the scene has none.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Axes: the panels row by row (estimate, then truth), then the colour bar's.
+    """
+    from ..measure.figures import plane_extent_mm, planes_figure, signed
+    t = np.asarray(temperature_k, float)
+    rows = [t] if truth_k is None else [t, np.asarray(truth_k, float)]
+    finite = np.concatenate([r[np.isfinite(r)] for r in rows])
+    lo, hi = np.percentile(finite, [1, 99]) if finite.size else (1500.0, 2500.0)
+    extents = None if camera is None else [plane_extent_mm(camera, d) for d in depths_mm]
+    titles = [[f"estimate {signed(d)} mm\n{int(np.sum(v))} px with T" for d, v in zip(depths_mm, valid)],
+              [f"truth {signed(d)} mm" for d in depths_mm]][:len(rows)]
+    return planes_figure(rows, extents, titles, "temperature (K)", vmin=float(lo), vmax=float(max(hi, lo + 1)),
+                         bad_label=NO_TEMPERATURE)
+
+
+def _level_record(saturation, lf) -> str | float:
+    """What ``--saturation`` the file records: the level used (found in a raw image where 'auto'), or what a decoded
+    capture's clipped samples came from."""
+    if lf.decoded:
+        return "decoded: the views' clipped samples"
+    level = lf.saturation if saturation == "auto" else saturation
+    return "none" if level is None else float(level)
+
+
+def _plane_temperatures(a, lf, depths, found, cal, sensor, cache=None) -> dict:
+    """Each plane's temperature of one colour light field ``lf`` on ``depths`` (``found``: the
+    :class:`~lf_flame.tomo.depth.FoundDepths` they came from, or None) by ``a.route``: the channels' emission
+    (:func:`lf_flame.temperature.channels.channel_emission`) and their ratio through ``cal``
+    (:func:`lf_flame.temperature.pyrometry.temperature_planes`). ``cache``: a dict that keeps what the next light field
+    of the same camera and planes (a recording's frames) shares: the route's operator, a raw mosaic's channel map and
+    the found planes' support.
+
+    Returns
+    -------
+    dict
+        ``temp`` (P, R, C) K, NaN where none; ``valid``, ``dim`` (P, R, C) bool; ``n_masked``, ``n_dim`` (P,);
+        ``emission`` (2, P, R, C); ``chosen`` (the route's settings); ``slopes``, ``blind`` (P,); ``sample`` (P, 2) mm.
+    """
+    from ..measure.diagnostics import lenslet_size_mm
+    from ..optics.colour import CHANNELS
+    from ..temperature.pyrometry import bright_pixels, temperature_planes
+    from ..temperature.channels import (DECODED_KNOBS, DECODED_OFFSET_KNOBS, DECODED_RATIO_FILTER, channel_emission,
+                                        route_operator)
+    from ..temperature.mosaic import cfa_blind, channel_views
+    from ..tomo.decoded import fit_data
+    cam, views = lf.camera, lf.views
+    n = cam.pixels_per_lenslet
+    cache = {} if cache is None else cache
+    if not lf.decoded and "chan" not in cache:
+        cache["chan"] = channel_views((views.shape[2] * n, views.shape[3] * n), sensor, n)
+    chan = lf.channels if lf.decoded else cache["chan"]
+    ch = tuple(CHANNELS.index(c) for c in cal.channels)
+    hexagonal = lf if lf.lattice_views is not None and lf.channels is not None else None
+    chosen, knobs, ratio_filter = {}, None, None
+    slopes = [cam.slope_for_depth(d) for d in depths]
+    if "op" not in cache:
+        cache["op"] = route_operator(cam, depths, a.route, hexagonal, lf.sample_offsets if hexagonal is None else None)
+    op = cache["op"]
+    if getattr(op, "offset_bins", None):                # each sample at its own pixel: recorded with the route
+        chosen["sub_views"] = op.offset_bins
+    if not lf.decoded:                                  # the level given, and the image's defective pixels
+        given = lf if a.saturation == "auto" else dataclasses.replace(lf, saturation=a.saturation)
+        data, sat = views, given.fit_mask()
+    elif op is None:                                    # refocus-cfa: the decoded views as they are
+        data, sat = views, None
+    elif hexagonal is not None:                         # the lattice's views (axial), its channels with them
+        from ..tomo.lattice import lattice_problem, to_axial
+        data, sat = lattice_problem(lf, op)
+        chan = np.where(op.inside, to_axial(chan)[0], -1).astype(np.int8)
+    else:                                               # the operator's data: views times its white views
+        data, sat = fit_data(lf, op)
+    if lf.decoded and a.route == "admm-cfa-matched":    # a decoded capture's knobs, not its noise's
+        knobs, ratio_filter = DECODED_OFFSET_KNOBS if op.offset_bins else DECODED_KNOBS, DECODED_RATIO_FILTER
+        chosen["regime"] = "decoded"
+    support = None
+    if found is not None and op is not None:
+        # found planes near each other held to their own regions where they meet, as reconstruct holds them (a
+        # hexagonal grid's taken from the decoded square grid to its lattice)
+        if "support" not in cache:
+            from ..tomo.found_planes import found_support
+            support = found_support(found, cam, op.subsamples)
+            cache["support"] = op.from_square(support) if support is not None and hexagonal is not None else support
+        support = cache["support"]
+        chosen["support"] = "none" if support is None else "near planes"
+    emission = channel_emission(a.route, data, chan, ch, op=op, slopes=slopes, saturation=sat, info=chosen,
+                                knobs=knobs, ratio_filter=ratio_filter, support=support)
+    if hexagonal is not None:                           # the lattice's planes on the decoded square grid
+        emission = tuple(op.to_square(e, cam.n_rows, cam.n_cols) for e in emission)
+        chosen["lattice"] = "hexagonal"
+    temp, valid, n_masked = temperature_planes(emission[0], emission[1], cal, sensor, a.alpha, a.min_fraction)
+    dim = ~bright_pixels(emission[0] + emission[1], a.min_fraction)
+    return dict(temp=temp, valid=valid, n_masked=n_masked, dim=dim, n_dim=dim.reshape(len(dim), -1).sum(axis=1),
+                emission=emission, chosen=chosen, slopes=slopes, blind=cfa_blind(slopes, n),
+                sample=np.array([[lenslet_size_mm(cam, d)] * 2 for d in depths]))
+
+
+def _auto_depths(a, lf):
+    """``--depths auto``: reconstruct's planes of the colour light field ``lf`` (its channels levelled, the depths
+    found, the residual searched, refined): (depths, found, the record's extra attributes)."""
+    from ..temperature.mosaic import monochrome_light_field
+    from .volume import found_planes, found_record, possible_warning, solve_found
+    mono = monochrome_light_field(lf)
+    _, _, found = found_planes(mono, search_range=a.search_range)
+    found, _, _ = solve_found(mono, found)
+    extra = dict(depths_from="auto (as reconstruct: the channels levelled, depths found, the residual searched, "
+                             "refined)", found_depths=found_record(found), possible_depths=possible_warning(found))
+    return [float(d) for d in found.planes_mm], found, extra
+
+
+def _plane_lines(a, depths, r) -> list:
+    """The printout's line per plane: its pixels with a temperature, their median and p10-p90, and the pixels left
+    without one (:func:`_plane_temperatures`' ``r``)."""
+    lines = []
+    for k, d in enumerate(depths):
+        v = r["temp"][k][r["valid"][k]]
+        stats = (f"median {np.median(v):.0f} K, p10-p90 {np.percentile(v, 10):.0f}-{np.percentile(v, 90):.0f} K"
+                 if v.size else "no temperature")
+        lines.append(f"plane {k} ({d:+.2f} mm): {int(r['valid'][k].sum())} px with a temperature, {stats}; "
+                     f"{int(r['n_masked'][k])} bright px masked (ratio out of the table), {int(r['n_dim'][k])} px "
+                     f"below {a.min_fraction:g} of the peak"
+                     + (f"; WARNING: slope {r['slopes'][k]:+.3f} near an odd integer, half its lenslets have no red "
+                        "sample in any view (cfa_blind): its temperature is interpolation there" if r["blind"][k]
+                        else ""))
+    return lines
+
+
+def _record(a, cal, sensor, where, chosen) -> dict:
+    """What a temperature file records of its calibration, sensor and route (HDF5 attributes)."""
+    return dict(calibration=json.dumps(dict(path=str(a.calibration),
+                                            **{k: getattr(cal, k) for k in cal.__dataclass_fields__})),
+                sensor=json.dumps(dict(sensor.record(), where=where)),
+                route=a.route, route_settings=json.dumps(chosen), alpha=float(a.alpha),
+                min_fraction=float(a.min_fraction))
+
+
+def _sensor_args(s, calibration_default):
+    s.add_argument("--sensor", help="camera sensitivities (a name of colour-science's MSDS_CAMERA_SENSITIVITIES, "
+                   "e.g. 'Nikon 5100 (NPL)'); default: the image's stored sensor record"
+                   + (", else the calibration's" if calibration_default else "") + ", else Nikon 5100 (NPL)")
+    s.add_argument("--cfa", choices=["RGGB", "BGGR", "GRBG", "GBRG"], help="colour filter array (default: as "
+                   "--sensor)")
+    s.add_argument("--cfa-phase", type=int, nargs=2, metavar=("ROW", "COL"),
+                   help="tile row and column (0 or 1) of pixel (0, 0) (default: as --sensor, else 0 0)")
