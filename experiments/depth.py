@@ -97,7 +97,8 @@ SCORE_VERSION = "side-by-side"
 #: whose height above the residual's floor holds ``REFINED_SHARE`` (``REFINED_QUIET_PROMINENCE``); "-possible": the
 #: rows record the depths that search saw and did not take (``FoundDepths.possible``; the route's planes unchanged).
 #: "-camera-range": the depths searched are the camera's imaging range (``imaging_range_mm``), not -15 .. +25 mm.
-ROUTE_VERSION = "near-peel-prominence-refine-unmerged-search-own-planes-quiet-excess-possible-camera-range"
+#: "-warm": a quiet light field's refinement solves start from the planes of the step before (``refine_planes``).
+ROUTE_VERSION = "near-peel-prominence-refine-unmerged-search-own-planes-quiet-excess-possible-camera-range-warm"
 
 
 def add_noise(raw, snr_db, seed):

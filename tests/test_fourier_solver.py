@@ -350,7 +350,8 @@ def test_the_coarse_start_solves_the_lenslet_grid_first(camera, op, planted):
 def test_given_start_planes_take_the_coarse_starts_place(camera, op, planted):
     """Planes given on the lenslet grid (a learned reconstructor's) start the fine grid's fills: the truth binned
     leaves the first fill far closer than the zero start, on either grid, without the coarse solve; through
-    ``reconstruct`` the record says so; a start of another shape or with NaN is refused."""
+    ``reconstruct`` the record says so; planes on the fine grid start it with their detail within a lenslet; a
+    start of another shape or with NaN is refused."""
     x, _ = planted
     fine = ExactOperator(camera, DEPTHS, subsamples=2)
     xf = np.repeat(np.repeat(x, 2, axis=1), 2, axis=2)
@@ -365,6 +366,12 @@ def test_given_start_planes_take_the_coarse_starts_place(camera, op, planted):
                                                              start="zero", **knobs)[0], x).max()
     rec = reconstruct(views, fine, "admm", iters=1, start_planes=x)
     assert rec.settings["start"] == "given" and rec.settings["fills_run"] == 1
+    # on the planes' grid (a solve's at nearby depths): detail within a lenslet that the binned start cannot hold
+    ripple = xf * (1.0 + 0.5 * (np.indices(xf.shape[1:]).sum(axis=0) % 2))
+    v2 = fine.matvec(ripple.ravel()).reshape(fine.dimsd)
+    on_grid = rel(fourier.solve_admm(v2, fine, fit, start_planes=ripple, **knobs)[0], ripple).max()
+    binned = ripple.reshape(len(x), x.shape[1], 2, x.shape[2], 2).mean(axis=(2, 4))
+    assert on_grid < 0.5 * rel(fourier.solve_admm(v2, fine, fit, start_planes=binned, **knobs)[0], ripple).max()
     for bad in (x[:, :-1], np.where(x > 0.5 * x.max(), np.nan, x)):
         with pytest.raises(ValueError, match="start_planes"):
             fourier.solve_admm(views, fine, fit, start_planes=bad, **knobs)

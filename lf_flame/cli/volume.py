@@ -137,8 +137,8 @@ def solve_found(lf, found, **kw):
     from ..tomo.refine import peel_and_refine
     from ..tomo.solvers import fitted_pixels
 
-    def solve(f):
-        return run_reconstruction(lf, [float(d) for d in f.planes_mm], found_depths=f, **kw)
+    def solve(f, start=None):
+        return run_reconstruction(lf, [float(d) for d in f.planes_mm], found_depths=f, start=start, **kw)
 
     op, rec = solve(found)
     data, fit = fit_data(_fitted_light_field(lf, kw.get("saturation", "file")), op)
@@ -159,7 +159,7 @@ def solve_found(lf, found, **kw):
 
 def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None, saturation="file",
                        rays_per_pixel=None, progress=False, subsamples=None, found_depths=None, support=False,
-                       model_dir=None):
+                       model_dir=None, start=None):
     """Build the operator of the light field's camera at ``depths``
     (:func:`lf_flame.tomo.exact.emission_operator`: exact unless ``rays_per_pixel`` is given; decoded views':
     :class:`lf_flame.tomo.lattice.LatticeOperator`, with decoding's interpolation) and
@@ -173,7 +173,8 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
     differ from its own and none were given (:func:`lf_flame.tomo.found_planes.found_planes_knobs`); ``support``: every
     plane held to its regions, with :data:`~lf_flame.tomo.found_planes.SUPPORT_KNOBS`. ``solver`` "learned": the
     reconstructor saved in ``model_dir`` (:func:`lf_flame.learn.reconstructor.reconstruction`, lenslet grid;
-    None: its default folder)."""
+    None: its default folder). ``start``: a :class:`~lf_flame.tomo.solvers.Reconstruction` on as many planes a little
+    apart in depth, which admm starts from (``reconstruct``'s ``start_planes``), or None."""
     from ..tomo.decoded import fit_data
     from ..tomo.defaults import EXACT_SOLVER
     from ..tomo.exact import ExactOperator, emission_operator
@@ -220,6 +221,8 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
         mask = found_support(found_depths, lf.camera, s, support=support)
         if mask is not None:
             knobs["support"] = mask
+    if start is not None and admm and start.planes.shape == tuple(op.dims):
+        knobs["start_planes"] = start.planes
     rec = reconstruct(data, op, solver, iters, damp=damp, tv=tv, saturation=fit, progress=progress, **knobs)
     if found_depths is not None and admm:
         rec.settings["support"] = "regions" if support else ("near planes" if "support" in knobs else "none")

@@ -208,15 +208,17 @@ def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturat
         raise ValueError("no emission found in the views: lower threshold or check the light field")
     y = np.asarray(views, np.float64)
 
-    def solved(found):
+    def solved(found, start=None):
         sub = subsamples if subsamples is not None else (
             admm_subsamples(len(found.planes_mm)) if solver == "admm" else 1)
         op = emission_operator(camera, [float(d) for d in found.planes_mm], subsamples=sub)
         s = getattr(op, "subsamples", 1)
         sup = found_support(found, camera, s, support=support, near_parallax=near_parallax,
                             dilation=dilation) if solver == "admm" else None
-        knobs = found_planes_knobs(views, saturation, s) if solve is None and solver == "admm" else solve
-        return op, reconstruct(y, op, solver, saturation=saturation, support=sup, **(knobs or {}))
+        knobs = dict((found_planes_knobs(views, saturation, s) if solve is None and solver == "admm" else solve) or {})
+        if start is not None and solver == "admm" and start.planes.shape == tuple(op.dims):
+            knobs["start_planes"] = start.planes
+        return op, reconstruct(y, op, solver, saturation=saturation, support=sup, **knobs)
 
     op, rec = solved(found)
     fit = fitted_pixels(y, saturation)

@@ -185,10 +185,11 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         :func:`lf_flame.tomo.solvers.reconstruct` passes). None: the quiet ones.
     callback : callable or None
         ``callback(j, x)`` after fill ``j`` (1-based) with the planes (flat).
-    start_planes : ndarray of shape (P, rows / s, cols / s) or None
+    start_planes : ndarray of shape (P, rows / s, cols / s) or ``op.dims``, or None
         Planes on the lenslet grid to start from (a learned reconstructor's,
-        :func:`lf_flame.learn.reconstructor.reconstruction`): they take the coarse start's place
-        (``start`` is then not used), on any grid.
+        :func:`lf_flame.learn.reconstructor.reconstruction`), or on the planes' grid (a solve's at
+        nearby depths, :func:`lf_flame.tomo.refine.refine_planes`): they take the coarse start's
+        place (``start`` is then not used), on any grid.
     state : dict or None
         A recording's solve carried from frame to frame (the EM fills continued across
         frames, as an online EM does: Cappé & Moulines, J. R. Stat. Soc. B 71 (2009)). Empty:
@@ -243,9 +244,9 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         start = "zero"                                               # not used: the state is the start
     elif start_planes is not None:                                   # the given planes take the coarse solve's place
         xc = np.asarray(start_planes, op._real)
-        if xc.shape != (P // op.subsamples ** 2, gr, gc) or not np.all(np.isfinite(xc)):
+        if xc.shape not in ((P // op.subsamples ** 2, gr, gc), tuple(op.dims)) or not np.all(np.isfinite(xc)):
             raise ValueError(f"start_planes must be finite planes of shape {(P // op.subsamples ** 2, gr, gc)} (the "
-                             f"lenslet grid). Received: {xc.shape}")
+                             f"lenslet grid) or {tuple(op.dims)} (the planes' grid). Received: {xc.shape}")
         start = "coarse"
     elif start == "coarse" and op.subsamples == 1:
         raise ValueError("the coarse start solves on the lenslet grid first: it needs a finer grid (subsamples > 1)")
@@ -277,7 +278,8 @@ def solve_admm(views, op, fit, *, fills: int = ADMM_FILLS, inner: int = ADMM_INN
         den = backprojection_weight(op, w2 > 0)
         s[:, :gr, :gc] = np.where(den > 0, np.maximum(num, 0) / np.where(den > 0, den, 1), 0)
     elif start == "coarse":
-        s[:, :gr, :gc] = np.repeat(xc, sub ** 2, axis=0)           # phase k s^2 + a s + b of plane k
+        s[:, :gr, :gc] = op.to_phases(xc) if xc.shape == tuple(op.dims) else \
+            np.repeat(xc, sub ** 2, axis=0)                          # phase k s^2 + a s + b of plane k
     if start != "zero":
         if support is not None:
             s[:, :gr, :gc] *= support

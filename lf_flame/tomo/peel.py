@@ -183,7 +183,9 @@ def peel_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamera,
     camera : PlenopticCamera
         The views' camera.
     solve : callable
-        ``solve(found) -> (op, rec)``: the planes of ``found`` solved as ``rec`` was.
+        ``solve(found, start=None) -> (op, rec)``: the planes of ``found`` solved as ``rec`` was; ``start``, where
+        given, a :class:`~lf_flame.tomo.solvers.Reconstruction` on as many planes a little apart in depth, which
+        admm starts from (``reconstruct``'s ``start_planes``; :func:`~lf_flame.tomo.refine.refine_planes`).
     rounds : int
         >= 0.
     residual : callable or None

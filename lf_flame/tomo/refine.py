@@ -17,6 +17,14 @@ fainter flame behind them that the first search of the residual missed stands ou
 :func:`peel_and_refine`, the route of :func:`lf_flame.tomo.found_planes.find_planes` and
 ``lf-flame reconstruct``, searches those regions once more (:data:`REFINED_PROMINENCE`,
 :data:`REFINED_SHARE`) and refines again with what it finds.
+
+In a quiet light field (:func:`~lf_flame.tomo.noise_knobs.noise_regime`) each step's solve starts from the planes
+of the step before (``warm``), a step away in depth, in place of its coarse solve on the lenslet grid. On 32
+validation column scenes (``column_scene``, seeds 3950000-3950031, 100 rays per pixel, noise-free; a ``/tmp`` probe,
+the route timed warm and cold in turn): route median 3.00 -> 2.89 s and 3.04 -> 2.71 s (two halves of 16 scenes),
+depth error p90 0.063 -> 0.064 and 0.035 -> 0.035 mm, emission error p90 4.3 -> 3.8 % and 2.7 -> 2.7 %. A noisy
+one's solves start cold: warm at 14 dB (16 of those scenes) the depth error p90 was 0.086 -> 0.179 mm (the
+few fills that regularise a noisy solve start from the old depths' fit).
 """
 from __future__ import annotations
 
@@ -109,7 +117,7 @@ def slope_jacobian(op, planes, fit, which=None) -> np.ndarray:
 
 
 def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamera, solve,
-                  steps: int = REFINE_STEPS, residual=None):
+                  steps: int = REFINE_STEPS, residual=None, warm: bool = False):
     """Refine the planes that hold flames one behind another (depths found in a region that holds
     several) by Gauss-Newton on their slopes against the solve's residual (the module's notes), each
     within :data:`REFINE_REACH` times its found uncertainty of where it was found (a reach past the depths
@@ -123,6 +131,9 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
         As :func:`~lf_flame.tomo.peel.peel_planes`.
     steps : int
         Gauss-Newton steps, >= 0 (:data:`REFINE_STEPS`).
+    warm : bool
+        Each step's solve starts from the planes before it (``solve(found, start=rec)``: no coarse solve), not from
+        its own coarse start: :func:`peel_and_refine` asks it for a quiet light field (the module's notes).
 
     Returns
     -------
@@ -174,7 +185,7 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
         shift = (planes - found.planes_mm)[found.plane_of]
         trial = dataclasses.replace(found, planes_mm=planes, depths_mm=found.depths_mm + shift,
                                     slopes=np.array([camera.slope_for_depth(d) for d in found.depths_mm + shift]))
-        op2, rec2 = solve(trial)
+        op2, rec2 = solve(trial, start=rec) if warm else solve(trial)
         r2 = residual(op2, rec2)
         c2 = float(np.vdot(r2, r2))
         if not c2 < cost:
@@ -255,15 +266,15 @@ def peel_and_refine(found: FoundDepths, op, rec, data, fit, camera: PlenopticCam
     ValueError
         ``rounds`` or ``steps`` not an integer >= 0.
     """
+    from .noise_knobs import noise_regime, relative_noise
     from .solvers import Residuals
     residual = Residuals(data, fit)
+    quiet = noise_regime(relative_noise(data, fit)) == "quiet"
     found, op, rec = peel_planes(found, op, rec, data, fit, camera, solve, rounds, residual, smooth)
-    found, op, rec = refine_planes(found, op, rec, data, fit, camera, solve, steps, residual)
+    found, op, rec = refine_planes(found, op, rec, data, fit, camera, solve, steps, residual, warm=quiet)
     several = refined_regions(found)
     if not (rounds and steps and len(several)) or rec.solver == "learned":
         return found, op, rec
-    from .noise_knobs import noise_regime, relative_noise
-    quiet = noise_regime(relative_noise(data, fit)) == "quiet"
     possible = None if quiet else []
     more = missed_depths(residual(op, rec), camera, found, regions=several, share=REFINED_SHARE,
                          prominence=REFINED_QUIET_PROMINENCE if quiet else REFINED_PROMINENCE,
@@ -271,5 +282,5 @@ def peel_and_refine(found: FoundDepths, op, rec, data, fit, camera: PlenopticCam
                          possible_prominence=POSSIBLE_PROMINENCE, smooth=smooth)
     if more is not None:
         op, rec = solve(more)
-        found, op, rec = refine_planes(more, op, rec, data, fit, camera, solve, steps, residual)
+        found, op, rec = refine_planes(more, op, rec, data, fit, camera, solve, steps, residual, warm=quiet)
     return (dataclasses.replace(found, possible=possible) if possible else found), op, rec

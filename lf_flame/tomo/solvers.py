@@ -279,9 +279,10 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         and the same dict with each next one; ``settings["start"]`` is then ``"continued"``
         from the second frame on.
 
-    start_planes : ndarray of shape (P, rows, cols) on the lenslet grid, or None
-        admm only: planes to start from in place of the coarse start (a learned reconstructor's),
-        ``settings["start"]`` ``"given"`` (:func:`lf_flame.tomo.fourier.solve_admm`).
+    start_planes : ndarray of shape (P, rows, cols) on the lenslet grid or ``op.dims``, or None
+        admm only: planes to start from in place of the coarse start (a learned reconstructor's, or
+        a solve's at nearby depths), ``settings["start"]`` ``"given"``
+        (:func:`lf_flame.tomo.fourier.solve_admm`).
 
     Returns
     -------
