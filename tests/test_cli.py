@@ -190,6 +190,9 @@ def test_reconstruct_refuses_other_files_naming_what_it_reads(small_flame, capsy
     formats it reads named (not NumPy's allow_pickle message or a KeyError)."""
     stack = tmp_path / "stack.npz"
     assert main(["refocus", str(small_flame / "flame.npz"), "--slope", "0", "--out", str(stack)]) == 0
+    capsys.readouterr()
+    assert main(["refocus", str(small_flame / "flame.npz"), "--depth", "0", "--out", str(tmp_path / "d0.npz")]) == 0
+    assert "at slopes +0 in" in capsys.readouterr().out             # the focal plane's slope, not "-0"
     text = tmp_path / "notes.txt"
     text.write_text("not an image")
     fake_npy = tmp_path / "fake.npy"

@@ -287,10 +287,15 @@ def test_cli_reconstruct_finds_the_planes_by_default(cam, planted, tmp_path, cap
     np.savez(raw, raw=views_to_raw(views), camera=cam.to_json())
     out = tmp_path / "auto.h5"
     assert main(["reconstruct", str(raw), "--out", str(out)]) == 0          # no planes given: --depths auto
-    assert "found 2 depths" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "found 2 depths" in printed
     true = sorted(o["depth_offset_mm"] for o in scene.objects)
     with h5py.File(out) as f:
         assert f.attrs["depths_from"] == "auto" and f.attrs["solver"] == "admm"
+        # the time printed and recorded is the route's (the search and every solve), not its last solve's alone
+        route_s = float(f.attrs["route_time_s"])
+        assert route_s > f.attrs["time_s"], (route_s, f.attrs["time_s"])
+        assert f"in {route_s:.2f} s (its last solve {f.attrs['time_s']:.2f} s)" in printed
         found = json.loads(f.attrs["found_depths"])
         np.testing.assert_allclose(sorted(r["depth_mm"] for r in found), true, atol=0.3)
         assert all(r["uncertainty_mm"] > 0 for r in found)
@@ -298,7 +303,7 @@ def test_cli_reconstruct_finds_the_planes_by_default(cam, planted, tmp_path, cap
     # a search narrowed to the nearer flame's depths (--search-range) finds it alone, and says where it searched
     lo, hi = true[0] - 2.0, (true[0] + true[1]) / 2
     assert main(["reconstruct", str(raw), "--search-range", str(lo), str(hi), "--no-figure", "--out", str(out)]) == 0
-    assert f"found 1 depths (searched {lo:+.1f} .. {hi:+.1f} mm" in capsys.readouterr().out
+    assert f"found 1 depth (searched {lo:+.1f} .. {hi:+.1f} mm" in capsys.readouterr().out
     with h5py.File(out) as f:
         np.testing.assert_allclose(f["depths_mm"][...], true[:1], atol=0.3)
     assert main(["reconstruct", str(raw), "--search-range", "400", "500", "--out", str(out)]) == 2

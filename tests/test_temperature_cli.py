@@ -472,6 +472,12 @@ def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, 
     assert np.array_equal(chan, cfa_channels(cal.sensor_shape, "RGGB", (0, 0))[q[..., 0], q[..., 1]])
     run("temperature", f"{d}/bb1800.h5", "--camera", cam_file, "--calibration", f"{d}/bb.json", "--depth", 0,
         "--alpha", 0, "--out", f"{d}/t.h5")
+    assert "furnace image" not in capsys.readouterr().err
+    # soot's emissivity exponent (the default) on a blackbody: a note, for the raw image and the views decoded from it
+    from lf_flame.cli.temperature_planes import furnace_note
+    assert furnace_note(f"{d}/bb1800.h5", 1.39) and furnace_note(f"{d}/bb1800.npz", 1.39)
+    assert "give --alpha 0" in capsys.readouterr().err
+    assert not furnace_note(f"{d}/white.npz", 1.39) and not furnace_note(f"{d}/bb1800.h5", 0.0)
     with h5py.File(f"{d}/t.h5") as f:
         t = f["temperature_k"][0][f["valid"][0]]
         settings = json.loads(f.attrs["route_settings"])

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ._io import AUTO_LEVEL, RAW_FORMATS, _level_or_none, add_figure_arg, add_search_arg, fraction
-from .temperature_planes import (_auto_depths, _level_record, _plane_lines,
+from .temperature_planes import (_auto_depths, _level_record, _plane_lines, furnace_note,
                                  _plane_temperatures, _record, _refuse_monochrome, _sensor, _sensor_args,
                                  temperature_figure)
 
@@ -31,6 +31,8 @@ def cmd_temperature(a):
     recording = recording_source(src)
     if recording is None and not (src.endswith(".h5") and ".h5:" not in src):
         _refuse_monochrome(src)
+    if recording is None:
+        furnace_note(src, a.alpha)
     cal = load_calibration(a.calibration)
     sensor, where = _sensor(src, a, cal)
     cal.check_sensor(sensor)
