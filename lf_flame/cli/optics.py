@@ -118,8 +118,8 @@ def cmd_refocus(a):
     t = time.perf_counter()
     stack = refocus_views(views, slopes, aperture_mask(n, a.aperture), method=a.method,
                           interpolation=a.interpolation)
-    print(f"refocused {len(slopes)} planes ({a.method}) at slopes " + ", ".join(f"{round(s, 9) + 0.0:+.4g}" for s in slopes)
-          + f" in {1e3 * (time.perf_counter() - t):.2f} ms")                  # + 0.0: no "-0" at the focal plane
+    shown = ", ".join(f"{round(s, 9) + 0.0:+.4g}" for s in slopes)          # + 0.0: no "-0" at the focal plane
+    print(f"refocused {len(slopes)} planes ({a.method}) at slopes {shown} in {1e3 * (time.perf_counter() - t):.2f} ms")
     extra = {} if a.depth is None else {"depths_mm": np.asarray(a.depth)}
     if Path(a.out).suffix.lower() in FIGURE_SUFFIXES:
         from ..measure.figures import save_figure

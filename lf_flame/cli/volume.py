@@ -85,8 +85,8 @@ def search_planes(views, camera, search_range=None, views_mask=None):
                          "give the planes (--depth or --depths) or --search-range")
     record = found_record(found)
     lo, hi = found.depth_range_mm
-    print(f"found {len(record)} depth{'s' * (len(record) != 1)} (searched {lo:+.1f} .. {hi:+.1f} mm; --search-range to narrow) in "
-          f"{found.time_s:.2f} s: " + ", ".join(
+    print(f"found {len(record)} depth{'s' * (len(record) != 1)} (searched {lo:+.1f} .. {hi:+.1f} mm; --search-range "
+          f"to narrow) in {found.time_s:.2f} s: " + ", ".join(
         f"{r['depth_mm']:+.2f} +- {r['uncertainty_mm']:.2f} mm" for r in record)
         + f" -> {len(found.planes_mm)} planes")
     return [float(d) for d in found.planes_mm], record, found
@@ -412,7 +412,7 @@ def cmd_reconstruct(a):
     extra["clipped_share"] = overexposure_warning(fitted.over_exposure())
     extra["edge_share"] = edge_warning(rec, op)
     extra["misfit"] = misfit_warning(lf, op, rec, kw["saturation"], lattice)
-    extra["route_time_s"] = route_s = time.perf_counter() - t_route     # the depth search and every solve
+    extra["route_time_s"] = route_s = time.perf_counter() - t_route     # the depth search (if any), every solve
     out = Path(a.out)
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), **extra)
     sub, truth, fig = getattr(op, "subsamples", 1), None, _figure_path(a)
