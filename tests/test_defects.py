@@ -318,7 +318,7 @@ def test_a_colour_images_clipped_channel_is_found_in_its_gray_image(cam, capture
     from lf_flame.cli import main
     from lf_flame.real.clipping import auto_saturation, clipping_pile
     from lf_flame.real.images import load_image
-    from lf_flame.recordings.sources import _scaled
+    from lf_flame.real.images import frame_units as _scaled
     _, raw, _, _ = capture
     rgb = np.stack([_counts(raw, g / raw.max()) for g in (2.0, 0.8, 0.3)], axis=-1)
     red = rgb[..., 0] == 4095

@@ -583,6 +583,14 @@ def test_an_integer_tiff_capture_with_a_dark_frame_is_decoded_on_the_fly_as_deco
     assert lf.views.max() > 0.5 and np.allclose(lf.views, views, atol=1e-6)
     assert cli.main(["reconstruct", str(tmp_path / "raw.tif"), "--camera", str(EXAMPLE), "--calibration",
                      str(tmp_path / "cal.json"), "--depth", "0", "--out", str(tmp_path / "rec.h5")]) == 0
+    # the same counts as frame 1 of a recording (RECORDING.h5:INDEX, scaled to [0, 1] as its frames are): the white
+    # and dark images read in its frames' units, the same views (unscaled they were 1/65535 of them)
+    import h5py
+    import tifffile
+    with h5py.File(tmp_path / "frames.h5", "w") as f:
+        f["frames"] = np.stack([tifffile.imread(tmp_path / "dark.tif"), tifffile.imread(tmp_path / "raw.tif")])
+    frame = read_light_field(f"{tmp_path / 'frames.h5'}:1", EXAMPLE, tmp_path / "cal.json", raw_reader=_raw_reader)
+    np.testing.assert_allclose(frame.views, views, atol=1e-5)
 
 
 def test_a_microscopes_imaging_range_holds_its_focus():

@@ -255,6 +255,20 @@ def _write_h5(path, frames, **attrs):
         f.attrs.update(attrs)
 
 
+def test_one_frame_of_a_recording_is_read_as_a_capture(tmp_path, capsys):
+    """``RECORDING.h5:INDEX``: a recording's frame in its frames' units, with the camera it records, where a command
+    reads a raw capture (with a calibration too, decoded then); an index past its frames refused, naming the range."""
+    from lf_flame.cli import main
+    from lf_flame.cli._io import _load_raw
+    frames = (np.random.default_rng(2).random((3,) + PAPER_CAMERA.sensor_shape) * 65535).astype(np.uint16)
+    _write_h5(tmp_path / "rec.h5", frames, camera=PAPER_CAMERA.to_json(), fps=100.0)
+    raw, cam = _load_raw(f"{tmp_path / 'rec.h5'}:1")
+    assert cam == PAPER_CAMERA and raw.dtype == np.float32
+    np.testing.assert_allclose(raw, frames[1] / 65535.0, rtol=1e-6)
+    assert main(["slopes", f"{tmp_path / 'rec.h5'}:3", "--out", str(tmp_path / "s.csv")]) == 2
+    assert "a recording of 3 frames takes a frame index 0 .. 2" in capsys.readouterr().err
+
+
 def test_recordings_on_file_and_in_a_folder_match_the_simulation(small_seq, serial_table, tmp_path):
     """The HDF5 stack of ``write_frames`` and the same frames as 16-bit PNG files give the
     same table; a frame of NaN stops the run with its index and leaves no summary."""

@@ -14,7 +14,7 @@ import numpy as np
 #: What the commands read as a raw image (``--help`` and the refusals name it).
 RAW_FORMATS = (".npz from 'lf-flame simulate' (key 'raw'), .npy, a PNG or TIFF image (integers scaled to [0, 1]; "
                "'simulate --out RAW.png' stores its camera and objects in the PNG, other images and .npy get the "
-               "paper's camera), or DATASET.h5:INDEX")
+               "paper's camera), DATASET.h5:INDEX, or RECORDING.h5:INDEX (one frame of a recording)")
 #: What ``simulate`` stores beside the raw image (JSON strings): arrays of its .npz, text of its PNG (``lf_flame.KEY``);
 #: ``sensor`` (a colour image's sensitivities' name, CFA pattern and phase) is read by the temperature commands.
 META_KEYS = ("camera", "objects", "scene", "sensor")
@@ -38,6 +38,35 @@ def _read_image(p: Path) -> np.ndarray:
     return to_gray(util.img_as_float64(a))
 
 
+def _recording_frame(path, index):
+    """Frame ``index`` of a recording's HDF5 stack (its dataset ``frames``: ``lf-flame simulate-sequence``'s, a
+    camera's), in its frames' units (:class:`~lf_flame.recordings.sources.H5Source`), and the camera it records
+    (or None); None where the file holds no ``frames`` (a dataset of light fields).
+
+    Raises
+    ------
+    ValueError
+        An index that is not a whole number within the recording's frames.
+    """
+    import h5py
+    p = Path(path)
+    if not p.is_file():
+        return None
+    from ..config import reading
+    with reading(p, "HDF5 file"), h5py.File(p, "r") as f:
+        if "frames" not in f or f["frames"].ndim != 3:
+            return None
+        n, cam_json = int(f["frames"].shape[0]), f.attrs.get("camera")
+    if not (str(index).strip().isdigit() and int(index) < n):
+        raise ValueError(f"{p}:{index}: a recording of {n} frames takes a frame index 0 .. {n - 1}")
+    from ..recordings.sources import H5Source
+    cam = None
+    if cam_json is not None:
+        from ..optics.camera import PlenopticCamera
+        cam = PlenopticCamera.from_dict(json.loads(cam_json))
+    return H5Source(str(p)).raw(int(index)), cam
+
+
 def _load_raw(path):
     """A raw image (rows, cols) and its camera (or None): see :data:`RAW_FORMATS`.
 
@@ -52,8 +81,11 @@ def _load_raw(path):
     from ..config import reading
     s = str(path)
     if ".h5:" in s:
-        from ..learn.dataset import LightFieldDataset
         f, i = s.rsplit(":", 1)
+        frame = _recording_frame(f, i)
+        if frame is not None:
+            return frame
+        from ..learn.dataset import LightFieldDataset
         with reading(f, "dataset (HDF5)"):
             ds = LightFieldDataset(f)
             return ds.raw(int(i)), ds.camera

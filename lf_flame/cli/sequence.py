@@ -160,7 +160,7 @@ def cmd_sequence(a):
         if a.depth or a.slope:
             depths = [float(v) for v in a.depth] if a.depth else [cam.depth_for_slope(s) for s in a.slope]
         else:                            # the depths found in the first frame, as reconstruct finds a capture's
-            from ..recordings.sources import decoding_images
+            from ..real.images import decoding_images
             depths, found = first_frame_depths(source, real, calibration, colour, a.search_range,
                                                decoding_images(white, dark) if calibration else None)
             if a.route == "reconstruct-admm":

@@ -63,7 +63,7 @@ def temperature_recording(a, source, attrs, cal, sensor, where):
     if a.grid_calibration:
         from ..real.calibration import GridCalibration
         from ..real.images import calibration_image_path
-        from ..recordings.sources import decoding_images
+        from ..real.images import decoding_images
         grid = GridCalibration.load(a.grid_calibration)
         images = decoding_images(calibration_image_path(grid.white, "white"),     # in the frames' units
                                  calibration_image_path(grid.dark, "dark"))

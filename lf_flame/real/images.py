@@ -25,7 +25,7 @@ def load_image(path) -> np.ndarray:
 
 def read_image(path) -> np.ndarray:
     """The array an image file holds, in its own dtype (as :func:`load_image` reads it, before the gray mean and
-    float64): a recording's frames scale it by its type's range (:func:`lf_flame.recordings.sources.frame_image`).
+    float64): a recording's frames scale it by its type's range (:func:`frame_image`).
 
     Raises
     ------
@@ -55,6 +55,28 @@ def read_image(path) -> np.ndarray:
         except Exception as e:  # the readers raise many kinds
             raise ValueError(f"{p} is not a readable image: {e}") from None
     return a
+
+
+def frame_units(a: np.ndarray) -> np.ndarray:
+    """A recording's frame (or an image read as one) as float32 (H, W): integers scaled by their type's range, colour
+    averaged to gray (:func:`to_gray`, its clipped pixels kept clipped)."""
+    a = np.asarray(a)
+    scale = 1.0 / np.iinfo(a.dtype).max if np.issubdtype(a.dtype, np.integer) else 1.0
+    return np.asarray(to_gray(a), np.float32) * np.float32(scale)
+
+
+def frame_image(path) -> np.ndarray:
+    """An image file (:func:`read_image`: .npy, .npz, PNG, TIFF) in a recording's frames' units (:func:`frame_units`).
+    A recording's white image and dark frame are read so, as its frames are: decoding divides by the white image,
+    whose units must be the frames' (a 12-bit TIFF's counts against PNG frames scaled to [0, 1] left every sample
+    1/4095 of its light)."""
+    return frame_units(read_image(path))
+
+
+def decoding_images(white, dark) -> tuple:
+    """A recording's white image and dark frame (paths or None) read in its frames' units (:func:`frame_image`), as
+    :func:`lf_flame.real.lightfield.decode_capture` takes them: (white, dark), each (H, W) float64 or None."""
+    return tuple(None if p is None else frame_image(p).astype(np.float64) for p in (white, dark))
 
 
 def to_gray(a: np.ndarray) -> np.ndarray:

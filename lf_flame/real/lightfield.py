@@ -376,11 +376,16 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
         cam = PAPER_CAMERA
     if cal is None:
         return from_raw(raw, cam, src, camera_file=cam_file, meta=meta, sensor=capture_sensor(camera, meta, src)[0])
-    if p.suffix.lower() not in (".npz", ".npy"):    # an image file: in the units of the calibration's white and dark
+    images = None
+    if ".h5:" in src:          # a frame of an HDF5 stack (FILE.h5:INDEX): the white and dark in its frames' units
+        from .images import calibration_image_path, decoding_images
+        images = decoding_images(calibration_image_path(cal.white, "white"), calibration_image_path(cal.dark, "dark"))
+    elif p.suffix.lower() not in (".npz", ".npy"):    # an image file: in the units of the calibration's white and dark
         from .images import load_image
         raw = load_image(p)
     try:
-        return _decode_here(raw, src, cam, cal, views, cam_file, bin_views, capture_sensor(camera, meta)[0])
+        return _decode_here(raw, src, cam, cal, views, cam_file, bin_views, capture_sensor(camera, meta)[0],
+                            images=images)
     except ValueError as e:
         if assumed:                      # say which camera was taken, the likeliest cause
             raise ValueError(f"{e} (no camera file given, and {src} stores none: the paper's camera was taken; "
@@ -407,7 +412,7 @@ def decode_capture(raw, camera: PlenopticCamera, calibration, sensor=None, sourc
         Names the capture in messages.
     images : (white, dark) or None
         The white image and dark frame (rows, cols) in the raw's units (a recording's frames':
-        :func:`lf_flame.recordings.sources.frame_image`), either None (no white normalisation, no dark
+        :func:`lf_flame.real.images.frame_image`), either None (no white normalisation, no dark
         subtracted); None: the calibration's, read from their files
         (:func:`lf_flame.real.images.calibration_image`).
 

@@ -308,7 +308,7 @@ class SequenceJob:
         images (or None) and the colour ``sensor`` (or None)."""
         if "cal" not in self._cache:
             from ..real.calibration import GridCalibration
-            from .sources import decoding_images
+            from ..real.images import decoding_images
             white, dark = decoding_images(self.white, self.dark)                  # in the frames' units
             self._cache.update(cal=GridCalibration.from_dict(self.calibration), white=white, dark=dark,
                                sensor=self._sensor())

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..optics.camera import PlenopticCamera
+from ..real.images import frame_image, frame_units as _scaled
 from ..simulate.scenes_time import FlameSequence
 
 #: Image files a folder of frames may hold (read in name order).
@@ -202,30 +203,6 @@ def _imagej_rate(meta: dict) -> dict:
     if not interval or unit not in _TIME_UNITS:
         return {}
     return {"fps": 1.0 / (float(interval) * _TIME_UNITS[unit])}
-
-
-def frame_image(path) -> np.ndarray:
-    """An image file (:func:`lf_flame.real.images.read_image`: .npy, .npz, PNG, TIFF) in a recording's frames' units:
-    float32 (H, W), integers scaled by their type's range. A recording's white image and dark frame are read so, as
-    its frames are: decoding divides by the white image, whose units must be the frames' (a 12-bit TIFF's counts
-    against PNG frames scaled to [0, 1] left every sample 1/4095 of its light)."""
-    from ..real.images import read_image
-    return _scaled(read_image(path))
-
-
-def decoding_images(white, dark) -> tuple:
-    """A recording's white image and dark frame (paths or None) read in its frames' units (:func:`frame_image`), as
-    :func:`lf_flame.real.lightfield.decode_capture` takes them: (white, dark), each (H, W) float64 or None."""
-    return tuple(None if p is None else frame_image(p).astype(np.float64) for p in (white, dark))
-
-
-def _scaled(a: np.ndarray) -> np.ndarray:
-    """A frame as float32 (H, W): integers scaled by their type's range, colour averaged to gray
-    (:func:`lf_flame.real.images.to_gray`, its clipped pixels kept clipped)."""
-    from ..real.images import to_gray
-    a = np.asarray(a)
-    scale = 1.0 / np.iinfo(a.dtype).max if np.issubdtype(a.dtype, np.integer) else 1.0
-    return np.asarray(to_gray(a), np.float32) * np.float32(scale)
 
 
 def open_source(path, camera: PlenopticCamera | None = None):
