@@ -107,6 +107,21 @@ def test_a_volume_of_decoded_views_models_decodings_interpolation(route):
         assert f["planes"].shape[0] == 18 and np.all(f["planes"][...] >= 0)
 
 
+def test_a_volume_of_a_simulated_capture_decoded_on_the_fly_is_scored_against_its_scene(route, capsys):
+    """A capture 'lf-flame simulate' drew for another camera (its scene stored), decoded on the fly: --volume
+    prints its 3-D error against the scene's truth carried into the decoded frame, as the paper camera's does."""
+    cam, scene, raw, d = route
+    assert cli.main(["simulate", "--camera", EXAMPLE, "--scene", "volume", "--rays-per-pixel", "4", "--out",
+                     str(d / "sheath.npz")]) == 0
+    capsys.readouterr()
+    assert cli.main(["reconstruct", str(d / "sheath.npz"), "--camera", EXAMPLE, "--calibration", str(d / "cal.json"),
+                     "--volume", "--from", "-4", "--to", "4", "--step", "2", "--no-figure",
+                     "--out", str(d / "sheath.h5")]) == 0
+    out = capsys.readouterr().out
+    assert "against the scene's truth: 3-D relative error" in out, out
+    assert 0 < float(out.split("3-D relative error ")[1].split()[0]) < 1.0
+
+
 def test_binned_views_are_the_views_of_larger_pixels(route):
     """Views decoded 2 x 2 pixels per sample are the views of the decoded camera with 2-pixel views: one view step
     is two pixels' angle (slopes double), and its exact operator recovers the planes from them, where the same

@@ -361,8 +361,7 @@ def lattice_solve(lf, op, rec, found=None, support: bool = False):
 
 def cmd_reconstruct(a):
     from ..tomo.files import iterations_note, plot_reconstruction, save_reconstruction
-    from ..tomo.decoded import decoded_truth
-    from ..tomo.truth import scene_truth, truth_depths
+    from ..tomo.truth import truth_depths
     from ..refocus.shift_and_sum import aperture_mask, focal_stack
     if getattr(a, "volume", False):
         return volume_reconstruct(a)
@@ -421,8 +420,7 @@ def cmd_reconstruct(a):
                                 aperture_mask(cam.pixels_per_lenslet, "circular"))
         refocused = np.repeat(np.repeat(refocused, sub, axis=1), sub, axis=2)      # on the planes' grid
         scene = _raw_scene(a.raw, lf.capture_camera if lf.decoded else cam)      # decoded: the camera it was drawn for
-        truth = None if scene is None else (decoded_truth(scene, op, lf.frame.rotation_deg, lf.frame.centre_lenslets)
-                                            if lf.decoded else scene_truth(scene, op))
+        truth = _scene_truth(a.raw, lf, op)
         plot_reconstruction(fig, rec, refocused, truth, truth_depths_mm=None if scene is None else
                             truth_depths(scene, rec.depths_mm))
     res = f"{extra['misfit']['relative_residual']:.4f}"     # of the planes written (a solver's last is older)
@@ -433,6 +431,19 @@ def cmd_reconstruct(a):
           f"(its last solve {rec.time_s:.2f} s);"
           f" relative residual {res} -> {out}" + ("" if fig is None else f", {fig}")
           + ("" if truth is None else " (with the scene's truth)"))
+
+
+def _scene_truth(raw, lf, op):
+    """The emission on ``op``'s planes of the scene ``lf-flame simulate`` rendered into ``raw`` (None: no scene
+    stored): for decoded views, drawn for the camera it was rendered by and carried into the decoded frame
+    (:func:`lf_flame.tomo.decoded.decoded_truth`), else :func:`lf_flame.tomo.truth.scene_truth`."""
+    from ..tomo.decoded import decoded_truth
+    from ..tomo.truth import scene_truth
+    scene = _raw_scene(raw, lf.capture_camera if lf.decoded else lf.camera)
+    if scene is None:
+        return None
+    return decoded_truth(scene, op, lf.frame.rotation_deg, lf.frame.centre_lenslets) if lf.decoded else \
+        scene_truth(scene, op)
 
 
 def _figure_path(a):
@@ -448,7 +459,6 @@ def volume_reconstruct(a):
     scene is known)."""
     from ..refocus.shift_and_sum import aperture_mask, focal_stack
     from ..tomo.files import plot_reconstruction, save_reconstruction
-    from ..tomo.truth import scene_truth
     from ..tomo.volume import solve_volume
     other = [f"--{k.replace('_', '-')}" for k in ("depth", "depths", "slope", "solver", "iters", "subsamples",
                                                   "rays_per_pixel")
@@ -480,8 +490,7 @@ def volume_reconstruct(a):
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), volume=True,
                         depth_resolution=table.to_dict("list"), edge_share=edge, misfit=misfit,
                         operator="exact" if lf.interpolation is None else "exact, with decoding's interpolation")
-    scene = None if lf.decoded else _raw_scene(a.raw, cam)
-    truth = None if scene is None else scene_truth(scene, op)
+    truth = _scene_truth(a.raw, lf, op)
     fig = _figure_path(a)
     if fig is not None:
         refocused = focal_stack(views, [cam.slope_for_depth(d) for d in rec.depths_mm],
