@@ -124,7 +124,9 @@ def test_the_edge_warning_names_the_planes_cut_and_says_when_the_light_beyond_wa
     assert len(edge) == 6 and edge[5] == 0.0 and min(edge[:5]) > 0.3
     out, err = capsys.readouterr()
     assert "warning: the emission reaches the field's edge" in err and "+0.00 mm" in err and "and 1 more" in err
-    assert "+5.00 mm" not in err and not out
+    assert "+5.00 mm" not in err and not out and "spread light there" not in err
+    edge_warning(rec, None, stack=True)                                  # a dense stack without a prior: or spread light
+    assert "on planes far from the flame, the solve spread light there" in capsys.readouterr().err
     edge_warning(rec, None, modelled=True)
     out, err = capsys.readouterr()
     assert "modelled its light from beyond the field" in out and not err

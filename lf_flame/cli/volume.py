@@ -274,11 +274,12 @@ def decoded_note(lf, rec, lattice=None) -> str:
     return f"{n} of {total} samples ({100 * n / total:.0f} %) left out of the fit ({why})"
 
 
-def edge_warning(rec, op, modelled: bool = False):
+def edge_warning(rec, op, modelled: bool = False, stack: bool = False):
     """Each plane's share of its emission within :data:`~lf_flame.tomo.solvers.EDGE_BAND_LENSLETS` of the field's
     edge (:func:`~lf_flame.tomo.solvers.edge_shares`), for the file; where a plane's exceeds
     :data:`~lf_flame.tomo.solvers.EDGE_SHARE_WARN`, one warning (stderr) naming those planes, or with ``modelled``
-    (the axisymmetric prior's light from beyond the field) a note that it was modelled."""
+    (the axisymmetric prior's light from beyond the field) a note that it was modelled. ``stack``: a dense stack's
+    planes, on which the warning also names light the solve spread over planes far from any flame."""
     from ..tomo.solvers import EDGE_BAND_LENSLETS, EDGE_SHARE_WARN, edge_shares
     edge = [float(v) for v in edge_shares(rec.planes, getattr(op, "subsamples", 1))]
     cut = [(d, e) for d, e in zip(rec.depths_mm, edge) if e > EDGE_SHARE_WARN]
@@ -291,7 +292,9 @@ def edge_warning(rec, op, modelled: bool = False):
                   "field's part")
         else:
             print(f"warning: {lead}: the flame is cut by the field of view, and the light that falls outside the "
-                  "views is not recovered", file=sys.stderr)
+                  "views is not recovered" + ("; or, on planes far from the flame, the solve spread light there"
+                                              if stack else ""),
+                  file=sys.stderr)
     return edge
 
 
@@ -485,7 +488,7 @@ def volume_reconstruct(a):
     table = res.to_frame()
     arrays = {} if axi is None else dict(emission_r_y=axi.emission, radii_mm=axi.radii_mm, heights_mm=axi.heights_mm)
     out = Path(a.out)
-    edge = edge_warning(rec, op, modelled=axi is not None and axi.beyond_field)
+    edge = edge_warning(rec, op, modelled=axi is not None and axi.beyond_field, stack=axi is None)
     misfit = misfit_warning(lf, op, rec, level)
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), volume=True,
                         depth_resolution=table.to_dict("list"), edge_share=edge, misfit=misfit,
