@@ -255,6 +255,18 @@ def _write_h5(path, frames, **attrs):
         f.attrs.update(attrs)
 
 
+def test_simulated_frames_that_clip_are_noted(tmp_path):
+    """simulate-sequence's note: the frames with pixels at full scale (65535) counted, none: no note."""
+    from lf_flame.cli.sequence import clipped_frames_note
+    frames = np.zeros((4, 6, 5), np.uint16)
+    _write_h5(tmp_path / "dim.h5", frames)
+    assert clipped_frames_note(tmp_path / "dim.h5") is None
+    frames[1, :2, :2] = 65535
+    frames[3, 0, 0] = 65535
+    _write_h5(tmp_path / "clip.h5", frames)
+    assert "2 of 4 frames clip the sensor (1-4 pixels at full scale)" in clipped_frames_note(tmp_path / "clip.h5")
+
+
 def test_one_frame_of_a_recording_is_read_as_a_capture(tmp_path, capsys):
     """``RECORDING.h5:INDEX``: a recording's frame in its frames' units, with the camera it records, where a command
     reads a raw capture (with a calibration too, decoded then); an index past its frames refused, naming the range."""

@@ -90,6 +90,24 @@ def cmd_simulate_sequence(a):
     print(f"{seq.n_frames} frames at {seq.fps:g} frames/s, flames at "
           + ", ".join(f"{f.depth_offset_mm:+g} mm {f.freq_hz:g} Hz{t}" for f, t in zip(seq.flames, temps))
           + f" -> {path}")
+    note = clipped_frames_note(path)
+    if note:
+        print(note)
+
+
+def clipped_frames_note(path):
+    """A note on the frames of a recording ``simulate-sequence`` wrote (``frames``, uint16) that clip the sensor (a
+    pixel at full scale, 65535: where flames one behind another add up), or None where none does."""
+    import h5py
+    with h5py.File(path, "r") as f:
+        d = f["frames"]
+        full = np.iinfo(d.dtype).max
+        counts = [int(np.count_nonzero(d[i] == full)) for i in range(d.shape[0])]
+    clipped = [c for c in counts if c]
+    if not clipped:
+        return None
+    return (f"note: {len(clipped)} of {len(counts)} frames clip the sensor ({min(clipped)}-{max(clipped)} pixels at "
+            "full scale): 'lf-flame sequence' leaves their samples out of the fit, and warns where they are many")
 
 
 def cmd_sequence(a):
