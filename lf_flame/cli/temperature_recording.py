@@ -62,8 +62,7 @@ def temperature_recording(a, source, attrs, cal, sensor, where):
     grid = images = None
     if a.grid_calibration:
         from ..real.calibration import GridCalibration
-        from ..real.images import calibration_image_path
-        from ..real.images import decoding_images
+        from ..real.images import calibration_image_path, decoding_images
         grid = GridCalibration.load(a.grid_calibration)
         images = decoding_images(calibration_image_path(grid.white, "white"),     # in the frames' units
                                  calibration_image_path(grid.dark, "dark"))

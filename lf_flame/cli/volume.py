@@ -422,8 +422,7 @@ def cmd_reconstruct(a):
         refocused = focal_stack(views, [cam.slope_for_depth(d) for d in depths],
                                 aperture_mask(cam.pixels_per_lenslet, "circular"))
         refocused = np.repeat(np.repeat(refocused, sub, axis=1), sub, axis=2)      # on the planes' grid
-        scene = _raw_scene(a.raw, lf.capture_camera if lf.decoded else cam)      # decoded: the camera it was drawn for
-        truth = _scene_truth(a.raw, lf, op)
+        scene, truth = _scene_truth(a.raw, lf, op)
         plot_reconstruction(fig, rec, refocused, truth, truth_depths_mm=None if scene is None else
                             truth_depths(scene, rec.depths_mm))
     res = f"{extra['misfit']['relative_residual']:.4f}"     # of the planes written (a solver's last is older)
@@ -437,16 +436,17 @@ def cmd_reconstruct(a):
 
 
 def _scene_truth(raw, lf, op):
-    """The emission on ``op``'s planes of the scene ``lf-flame simulate`` rendered into ``raw`` (None: no scene
-    stored): for decoded views, drawn for the camera it was rendered by and carried into the decoded frame
-    (:func:`lf_flame.tomo.decoded.decoded_truth`), else :func:`lf_flame.tomo.truth.scene_truth`."""
+    """The scene ``lf-flame simulate`` rendered into ``raw``, rebuilt for the camera it was drawn for, and its
+    emission on ``op``'s planes: for decoded views carried into the decoded frame
+    (:func:`lf_flame.tomo.decoded.decoded_truth`), else :func:`lf_flame.tomo.truth.scene_truth`; (None, None) where no
+    scene is stored."""
     from ..tomo.decoded import decoded_truth
     from ..tomo.truth import scene_truth
     scene = _raw_scene(raw, lf.capture_camera if lf.decoded else lf.camera)
     if scene is None:
-        return None
-    return decoded_truth(scene, op, lf.frame.rotation_deg, lf.frame.centre_lenslets) if lf.decoded else \
-        scene_truth(scene, op)
+        return None, None
+    return scene, (decoded_truth(scene, op, lf.frame.rotation_deg, lf.frame.centre_lenslets) if lf.decoded else
+                   scene_truth(scene, op))
 
 
 def _figure_path(a):
@@ -493,7 +493,7 @@ def volume_reconstruct(a):
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), volume=True,
                         depth_resolution=table.to_dict("list"), edge_share=edge, misfit=misfit,
                         operator="exact" if lf.interpolation is None else "exact, with decoding's interpolation")
-    truth = _scene_truth(a.raw, lf, op)
+    _, truth = _scene_truth(a.raw, lf, op)
     fig = _figure_path(a)
     if fig is not None:
         refocused = focal_stack(views, [cam.slope_for_depth(d) for d in rec.depths_mm],
