@@ -193,7 +193,7 @@ def offsets_figure(scene_npz: Path, views: Path, cam: Path, depths, path: Path):
     of the docs, and each plane's relative error in its titles."""
     import matplotlib.pyplot as plt
 
-    from lf_flame.cli.volume import run_reconstruction
+    from lf_flame.cli.planes import run_reconstruction
     from lf_flame.measure.figures import save_figure
     from lf_flame.real.lightfield import read_light_field
     from lf_flame.temperature.mosaic import monochrome_light_field

@@ -110,6 +110,7 @@ def phase_times(argv: list) -> dict:
     import io
     t0 = time.perf_counter()
     import lf_flame.cli as cli
+    import lf_flame.cli.planes as planes
     import lf_flame.cli.volume as vol
     import lf_flame.tomo.files as files
     import numba.core.dispatcher as dispatcher
@@ -117,7 +118,7 @@ def phase_times(argv: list) -> dict:
     clock = Clock()
     clock.wrap(dispatcher.Dispatcher, "_compile_for_args", "numba_cache_s")        # numba's cache loads
     for module, name, step in ((vol, "reconstruct_input", "read_and_decode_s"), (vol, "found_planes", "depths_s"),
-                               (vol, "run_reconstruction", "first_solve_s"), (vol, "solve_found", "solves_s"),
+                               (planes, "run_reconstruction", "first_solve_s"), (vol, "solve_found", "solves_s"),
                                (files, "save_reconstruction", "hdf5_s"), (files, "plot_reconstruction", "figure_s")):
         clock.wrap(module, name, step)
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):

@@ -575,13 +575,13 @@ def test_a_noisy_light_fields_faint_flame_short_of_the_prominence_is_reported(ca
     # a recording's planes, found in its first frame as reconstruct finds them, warn of it too
     import dataclasses
 
-    import lf_flame.cli.volume as volume
+    import lf_flame.cli.planes as planes
     from lf_flame.cli.sequence import first_frame_depths
 
     class Frames:
         def frames(self, start, stop):
             yield views_to_raw(views)
-    monkeypatch.setattr(volume, "solve_found", lambda lf, f: (dataclasses.replace(f, possible=[p]), None, None))
+    monkeypatch.setattr(planes, "solve_found", lambda lf, f: (dataclasses.replace(f, possible=[p]), None, None))
     planes, _ = first_frame_depths(Frames(), cam)
     err = capsys.readouterr().err
     assert f"a flame may stand at {p['depth_mm']:+.2f} mm" in err and f"--depth {planes[0]:.2f}" in err, err

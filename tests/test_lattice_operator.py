@@ -146,7 +146,7 @@ def test_a_hexagonal_cameras_flames_are_solved_on_its_own_lattice(capture):
     against admm on the views resampled onto the square grid: every flame nearer its truth, on average the more
     so with decoding's interpolation in the lattice's operator (here 11.2 / 14.4 % on the square grid; on the
     lattice 6.6 / 13.4 % without the interpolation, 6.8 / 11.7 % with it)."""
-    from lf_flame.cli.volume import run_reconstruction
+    from lf_flame.cli.planes import run_reconstruction
     scene, lf = capture[1:3]
     depths = sorted({round(o["depth_offset_mm"], 3) for o in scene.objects})
     op, rec = run_reconstruction(lf, depths)
@@ -187,7 +187,7 @@ def test_decoded_square_views_are_solved_with_their_interpolation():
     """The example camera (square grid, 10.57 px pitch: the samples' phases spread between pixels): admm with
     decoding's interpolation in the operator against the square camera's exact operator, at the flames'
     depths: nearer the truth on average by a fifth or more (here 4.8 / 8.5 % -> 3.8 / 4.3 %)."""
-    from lf_flame.cli.volume import run_reconstruction
+    from lf_flame.cli.planes import run_reconstruction
     cam = _camera("square")
     white = tracer.render(cam, scenes.white_scene(cam), 16, 0)
     scene = camera_depth_scene(cam, np.random.default_rng(SEED))

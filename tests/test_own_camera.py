@@ -126,7 +126,7 @@ def test_binned_views_are_the_views_of_larger_pixels(route):
     """Views decoded 2 x 2 pixels per sample are the views of the decoded camera with 2-pixel views: one view step
     is two pixels' angle (slopes double), and its exact operator recovers the planes from them, where the same
     views taken for 1-pixel views do not."""
-    from lf_flame.cli.volume import run_reconstruction
+    from lf_flame.cli.planes import run_reconstruction
     from lf_flame.real.lightfield import from_decoded
     cam, scene, raw, d = route
     cal = GridCalibration.load(d / "cal.json")
@@ -699,7 +699,7 @@ def test_a_stopped_down_cameras_depths_are_found_without_its_rim_views():
     lit in part, their light nearer the aperture's centre than their place, and their parallax short; the depth search
     leaves them out (:meth:`LightField.lit_views`). Two flames found within 0.03 lenslets per view of their slopes
     (0.009-0.010 here; with every view of the inscribed circle 0.059-0.065, the depths 2.5 mm short of 21 mm)."""
-    from lf_flame.cli.volume import found_planes
+    from lf_flame.cli.planes import found_planes
     from lf_flame.real.calibration import calibrate
     from lf_flame.real.lightfield import decode_capture
     from lf_flame.refocus.shift_and_sum import aperture_mask

@@ -198,9 +198,9 @@ def test_a_perfect_grids_colour_recording_is_levelled_as_reconstruct_levels_a_ca
     with h5py.File(rec, "w") as f:
         f["frames"] = np.stack([raw, 0.9 * raw, raw]).astype(np.float32)
         f.attrs.update(fps=100.0, camera=json.dumps(CAM.to_dict()), sensor=json.dumps(sensor))
-    import lf_flame.cli.volume as volume
-    searched, found_planes = [], volume.found_planes
-    monkeypatch.setattr(volume, "found_planes", lambda lf, **k: searched.append(lf) or found_planes(lf, **k))
+    import lf_flame.cli.planes as planes
+    searched, found_planes = [], planes.found_planes
+    monkeypatch.setattr(planes, "found_planes", lambda lf, **k: searched.append(lf) or found_planes(lf, **k))
     capsys.readouterr()
     assert main(["sequence", str(rec), "--route", "reconstruct-admm", "--quiet", "--out", str(out)]) == 0
     assert "levelled into one light field" in capsys.readouterr().out

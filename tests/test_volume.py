@@ -31,7 +31,7 @@ def test_the_volumes_resolution_note_names_features_finer_than_the_planes_sample
     """A feature finer than the planes' samples is not mapped (NaN): the note says so, not 'nan mm apart'."""
     import pandas as pd
 
-    from lf_flame.cli.volume import resolution_note
+    from lf_flame.cli.fit_notes import resolution_note
     table = pd.DataFrame({"feature_mm": [0.33, 1.3, 6.6], "spacing_interp_mm_10": [np.nan, 4.51, np.inf]})
     note = resolution_note(table, 10.0, 30.0)
     assert note.endswith("0.33 mm features finer than the planes' samples, 1.3 mm features 4.5 mm apart, "
@@ -114,7 +114,7 @@ def test_the_tv_and_l1_weights_follow_the_noise(volume_raw):
 
 
 def test_the_edge_warning_names_the_planes_cut_and_says_when_the_light_beyond_was_modelled(capsys):
-    from lf_flame.cli.volume import edge_warning
+    from lf_flame.cli.fit_notes import edge_warning
     from lf_flame.tomo.solvers import Reconstruction
     planes = np.zeros((6, 20, 20))
     planes[:, 8:12, 8:12] = 1.0                                            # inside the field on every plane

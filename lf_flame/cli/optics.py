@@ -99,7 +99,7 @@ def cmd_refocus(a):
     if not (a.slope or a.depth):         # the depths found in the views, as reconstruct finds them
         if cam is None:
             raise ValueError(f"give the planes (--slope), or the camera of {a.raw} (--camera cam.toml) to find them")
-        from .volume import search_planes
+        from .planes import search_planes
         a.depth = search_planes(views, cam, a.search_range, lit)[0]
     if a.depth:
         if cam is None:

@@ -29,7 +29,7 @@ def _profiles_input(a):
     from ..real.lightfield import from_raw
     from ..refocus.shift_and_sum import aperture_mask, refocus
     from ..simulate.scenes import PAPER_DEPTHS_MM
-    from .volume import found_planes
+    from .planes import found_planes
     s = str(a.raw)
     if _decoded(a):
         return _decoded_profiles_input(a)
@@ -111,7 +111,7 @@ def _decoded_profiles_input(a):
     from ..optics.camera import check_imaging_range
     from ..refocus.shift_and_sum import aperture_mask, refocus_views
     from ._io import light_field
-    from .volume import found_planes
+    from .planes import found_planes
     lf = light_field(a)
     cam = lf.camera
     objects = None if str(a.raw).endswith(".h5") else _raw_objects(a.raw)
@@ -136,13 +136,14 @@ def solved_planes(lf, depths, solver, search_range=None):
     """Each plane's emission as ``lf-flame reconstruct`` solves it, averaged to the lenslets
     (:func:`lf_flame.tomo.truth.bin_planes`): ``(depths, stack)``, stack (P, rows, cols).
 
-    ``depths`` (mm from the focal plane) given: solved on them (:func:`lf_flame.cli.volume.run_reconstruction`).
+    ``depths`` (mm from the focal plane) given: solved on them (:func:`lf_flame.cli.planes.run_reconstruction`).
     None or empty: found as ``reconstruct --depths auto`` finds them, within ``search_range`` (mm): the votes, then
     the residual's search and the refinement, near planes held to their regions
-    (:func:`lf_flame.cli.volume.solve_found`); the votes' depths alone leave those out. A hexagonal grid's admm
-    planes are solved once more on its lattice (:func:`lf_flame.cli.volume.lattice_solve`)."""
+    (:func:`lf_flame.cli.planes.solve_found`); the votes' depths alone leave those out. A hexagonal grid's admm
+    planes are solved once more on its lattice (:func:`lf_flame.cli.planes.lattice_solve`)."""
     from ..tomo.truth import bin_planes
-    from .volume import found_planes, lattice_solve, left_out_notes, run_reconstruction, solve_found
+    from .planes import found_planes, lattice_solve, run_reconstruction, solve_found
+    from .fit_notes import left_out_notes
     found = None
     if depths:
         op, rec = run_reconstruction(lf, depths, solver)

@@ -48,15 +48,15 @@ def decoded_views_camera(camera, calibration, colour: bool = False):
 def first_frame_depths(source, camera, calibration=None, sensor=None, search_range=None, images=None):
     """The planes of a recording without given ones: those ``reconstruct --depths auto`` finds in its first frame
     (depths found, the residual searched, the depths of flames one behind another refined:
-    :func:`lf_flame.cli.volume.found_planes`, :func:`~lf_flame.cli.volume.solve_found`), the frame decoded with
+    :func:`lf_flame.cli.planes.found_planes`, :func:`~lf_flame.cli.planes.solve_found`), the frame decoded with
     ``calibration`` where given (``camera`` the real one, ``sensor`` a colour camera's), searched over
     ``search_range`` (``--search-range``; None: what the camera can refocus), with the white image and dark frame
     ``images`` (:func:`~lf_flame.real.lightfield.decode_capture`'s). A depth the residual's
-    search saw and did not take is warned of (:func:`~lf_flame.cli.volume.possible_warning`). Returns the depths
+    search saw and did not take is warned of (:func:`~lf_flame.cli.planes.possible_warning`). Returns the depths
     (mm) and the :class:`~lf_flame.tomo.depth.FoundDepths` they are."""
     from ..real.lightfield import decode_capture, from_raw
     from ..temperature.mosaic import monochrome_light_field
-    from .volume import found_planes, possible_warning, solve_found
+    from .planes import found_planes, possible_warning, solve_found
     raw = np.asarray(next(iter(source.frames(0, 1))), np.float64)
     # a colour capture's channels levelled into one light field
     lf = monochrome_light_field(from_raw(raw, camera, "the first frame", sensor=sensor) if calibration is None else

@@ -25,7 +25,7 @@ def cmd_temperature(a):
     from ..config import provenance
     from ..measure.figures import save_figure
     from ..temperature.pyrometry import load_calibration
-    from .volume import reconstruct_input
+    from .planes import reconstruct_input
     src = str(a.raw)
     from .temperature_recording import recording_source, temperature_recording
     recording = recording_source(src)

@@ -221,7 +221,7 @@ def _auto_depths(a, lf):
     """``--depths auto``: reconstruct's planes of the colour light field ``lf`` (its channels levelled, the depths
     found, the residual searched, refined): (depths, found, the record's extra attributes)."""
     from ..temperature.mosaic import monochrome_light_field
-    from .volume import found_planes, found_record, possible_warning, solve_found
+    from .planes import found_planes, found_record, possible_warning, solve_found
     mono = monochrome_light_field(lf)
     _, _, found = found_planes(mono, search_range=a.search_range)
     found, _, _ = solve_found(mono, found)

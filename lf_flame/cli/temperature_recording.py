@@ -48,7 +48,7 @@ def temperature_recording(a, source, attrs, cal, sensor, where):
     from ..real.lightfield import decode_capture, from_raw
     from ..recordings.flicker import peaks, spectra
     from ..recordings.sources import source_frame_rate
-    from .volume import planes_from_args
+    from .planes import planes_from_args
     src, t0 = str(a.raw), time.perf_counter()
     if "sequence" in attrs and "sensor" not in attrs:
         raise ValueError(f"{src} is a monochrome recording (rendered without a colour sensor): two-colour pyrometry "

@@ -1,0 +1,125 @@
+"""What a solve leaves out and what to make of it, one line each: the samples left out of the fit (clipped,
+defective, dark), the emission at the field's edge, the misfit, the black level, a stack's depth resolution.
+"""
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+
+from .planes import _fitted_light_field
+
+
+def saturation_note(rec, lf=None) -> str:
+    """What the fit left out: the count of saturated pixels (``reconstruct``'s settings; of the light field ``lf``
+    where its defective pixels' samples make the fit's mask, :func:`defects_note` counting those)."""
+    level, n = rec.settings.get("saturation"), rec.settings.get("n_saturated", 0)
+    if lf is not None and lf.defects is not None:
+        level = lf.saturation
+        n = 0 if level is None else int(np.count_nonzero(lf.views >= level))
+    if level is None:
+        return "saturation: none given, every pixel fitted" + ("" if lf is None or lf.defects is None else
+                                                              " but the defective ones")
+    if rec.solver == "adjoint":   # no fit: the adjoint carries every pixel back as it is
+        return f"{n} saturated pixels (at or above {level:g}), used as they are by the adjoint"
+    return f"{n} saturated pixels (at or above {level:g}) left out of the fit"
+
+
+def left_out_notes(lf, rec, lattice=None) -> list:
+    """What the fit of the light field ``lf`` left out, one line each: its saturated pixels (:func:`saturation_note`),
+    or a decoded capture's samples (:func:`decoded_note`), and its defective pixels where it has some."""
+    from .real import defects_note
+    notes = [decoded_note(lf, rec, lattice) if lf.decoded or lf.leave_out is not None else saturation_note(rec, lf)]
+    return notes + ([defects_note(lf.defective_pixels)] if lf.defective_pixels else [])
+
+
+def resolution_note(table, condition: float, span_mm: float) -> str:
+    """The stack's depth resolution in one line: per feature size (``table``: :meth:`DepthResolution.to_frame
+    <lf_flame.tomo.resolution.DepthResolution.to_frame>`) the spacing resolved at ``condition``, "> span" where
+    none in the stack is, and where the feature is finer than the planes' samples (not mapped), that."""
+    apart = ["finer than the planes' samples" if np.isnan(s) else f"> {span_mm:g} mm apart" if np.isinf(s) else
+             f"{s:.2g} mm apart" for s in table[f"spacing_interp_mm_{condition:g}"]]
+    return (f"depth resolution of this stack for the data alone (condition <= {condition:g}; the prior adds what the "
+            "data lack): " + ", ".join(f"{f:g} mm features {s}" for f, s in zip(table.feature_mm, apart)))
+
+
+def decoded_note(lf, rec, lattice=None) -> str:
+    """What the fit of decoded views (or of a raw colour mosaic, levelled) left out: the count and share of the
+    samples (of the hexagonal lattice's views where ``lattice``, a :class:`~lf_flame.tomo.lattice.LatticeSolve`,
+    solved them) and why."""
+    rec = rec if lattice is None else lattice.rec   # on the lattice: its axial cells that hold a lenslet
+    n, total = int(rec.settings.get("n_saturated", 0)), int(rec.settings.get("n_samples", lf.views.size))
+    why = ("clipped, or dark: outside the aperture's image" if lf.decoded else "clipped") + (
+        "; a colour camera's blue samples, which the levelled light field leaves out" if "monochrome" in lf.meta else "")
+    return f"{n} of {total} samples ({100 * n / total:.0f} %) left out of the fit ({why})"
+
+
+def edge_warning(rec, op, modelled: bool = False, stack: bool = False):
+    """Each plane's share of its emission within :data:`~lf_flame.tomo.solvers.EDGE_BAND_LENSLETS` of the field's
+    edge (:func:`~lf_flame.tomo.solvers.edge_shares`), for the file; where a plane's exceeds
+    :data:`~lf_flame.tomo.solvers.EDGE_SHARE_WARN`, one warning (stderr) naming those planes, or with ``modelled``
+    (the axisymmetric prior's light from beyond the field) a note that it was modelled. ``stack``: a dense stack's
+    planes, on which the warning also names light the solve spread over planes far from any flame."""
+    from ..tomo.solvers import EDGE_BAND_LENSLETS, EDGE_SHARE_WARN, edge_shares
+    edge = [float(v) for v in edge_shares(rec.planes, getattr(op, "subsamples", 1))]
+    cut = [(d, e) for d, e in zip(rec.depths_mm, edge) if e > EDGE_SHARE_WARN]
+    if cut:
+        which = ", ".join(f"{d:+.2f} mm ({100 * e:.1f} %)" for d, e in cut[:4]) + (
+            f" and {len(cut) - 4} more" if len(cut) > 4 else "")
+        lead = f"the emission reaches the field's edge (share within {EDGE_BAND_LENSLETS} lenslets of it: {which})"
+        if modelled:
+            print(f"{lead}: the axisymmetric prior modelled its light from beyond the field; the volume holds the "
+                  "field's part")
+        else:
+            print(f"warning: {lead}: the flame is cut by the field of view, and the light that falls outside the "
+                  "views is not recovered" + ("; or, on planes far from the flame, the solve spread light there"
+                                              if stack else ""),
+                  file=sys.stderr)
+    return edge
+
+
+def misfit_warning(lf, op, rec, saturation="file", lattice=None):
+    """The solve's misfit on the light field's data as it was fitted (:func:`lf_flame.tomo.solvers.data_misfit`;
+    a :class:`~lf_flame.tomo.lattice.LatticeSolve` on its lattice's), for the file; where it is high
+    (:func:`~lf_flame.tomo.solvers.misfit_is_high`), one warning (stderr) saying what it means, and where admm
+    ran every fill of its cap, that more fills may explain more."""
+    from ..tomo.decoded import fit_data
+    from ..tomo.solvers import data_misfit, misfit_is_high
+    if lattice is not None:
+        m = data_misfit(lattice.data, lattice.op, lattice.rec.planes, lattice.leave_out)
+    else:
+        data, fit = fit_data(_fitted_light_field(lf, saturation), op)
+        m = data_misfit(data, op, rec.planes, fit)
+    if misfit_is_high(m):
+        capped = rec.solver == "admm" and int(rec.settings.get("fills_run", 0)) >= int(rec.settings["iters"])
+        print(f"warning: the planes leave {100 * m['misfit']:.0f} % of the light field unexplained beyond its noise "
+              f"(relative residual {m['relative_residual']:.3f}, of which noise {m['noise_share']:.3f}): light "
+              "from flames off these planes or beyond the field, or a camera file that is not this camera's"
+              + ("; a colour capture levelled into one light field keeps its flames' colour variation (their red "
+                 "samples differ from green's), part of this" if "monochrome" in lf.meta else "")
+              + (f"; admm stopped at its fills' cap ({int(rec.settings['iters'])}) without settling: more fills "
+                 "(--iters) may explain more" if capped else "") + black_level_note(lf, op), file=sys.stderr)
+    return m
+
+
+def black_level_note(lf, op) -> str:
+    """Where the samples no light reaches (outside the aperture's image: the operator's white views dark) read more
+    than :data:`~lf_flame.real.black_level.BLACK_LEVEL_SHARE` of the light field's peak (their median), the misfit
+    warning's hint: a black level (the sensor's offset) or stray light not subtracted, which no plane of emission
+    explains. "" otherwise, for decoded views (their dark samples are left out, and decoding reads the capture's own
+    unlit pixels: :func:`lf_flame.cli._io.black_level_warning`) and for operators without kernels."""
+    if lf.decoded or not hasattr(op, "kernels"):
+        return ""
+    from ..real.black_level import BLACK_LEVEL_SHARE
+    from ..tomo.decoded import white_views
+    white = white_views(op)
+    unlit = white <= 1e-6 * white.max()
+    views = np.asarray(lf.views)
+    peak = float(np.percentile(views, 99.9))
+    if np.count_nonzero(unlit) < 100 or not peak > 0:
+        return ""
+    level = float(np.median(views[unlit]))
+    if level <= BLACK_LEVEL_SHARE * peak:
+        return ""
+    return (f"; the samples no light reaches (outside the aperture's image) read {level:.3g}, {100 * level / peak:.1f} "
+            "% of the light field's peak: a black level or stray light not subtracted (subtract the dark frame)")
