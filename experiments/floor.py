@@ -33,6 +33,7 @@ import json
 import os
 import subprocess
 import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -277,7 +278,7 @@ def write_md(out: Path, meta) -> None:
         md += ["", f"{r['pairs']} child processes per version, {r['repeats']} timed calls per route in each "
                f"({r['wall_s']:.0f} s). Floor medians: {floors}."
                + ("" if not r["compare"] else " `before`: the checkout given by `--compare`"
-                  + (f" (commit {r['compare_commit'][:80]})" if r.get("compare_commit") else "") + ", its children "
+                  + (f" (commit {textwrap.shorten(r['compare_commit'], 80, placeholder=' …')})" if r.get("compare_commit") else "") + ", its children "
                   "alternating with this one's; `x_faster`: before's median over after's, `x_faster_pairs` the "
                   "same per pair of children (the machine's drift between them)."), "",
                pd.DataFrame(r["table"]).to_markdown(index=False, floatfmt=".3g")]

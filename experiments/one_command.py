@@ -25,6 +25,7 @@ import os
 import shutil
 import subprocess
 import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -201,7 +202,7 @@ def main(argv=None) -> int:
 def write_md(out: Path, meta: dict, tab, phases) -> None:
     from lf_flame.config import atomic_write_text
     before = "" if not meta["compare"] else (
-        f" `before`: the checkout given by `--compare` (commit {(meta['compare_commit'] or '?')[:80]}), its "
+        f" `before`: the checkout given by `--compare` (commit {textwrap.shorten(meta['compare_commit'] or '?', 80, placeholder=' …')}), its "
         "children alternating with this one's; `x_faster`: before's median over after's, `x_faster_pairs` the same "
         "per pair of runs (the machine's drift between them).")
     lines = ["# A user's capture to its planes in one command", "",

@@ -89,7 +89,7 @@ def build_scene(kind: str, cam, seed: int):
 
 def planes_of(kind: str, scene) -> list:
     """Depths (mm) of the reconstruction planes: the flames' own, or 5 planes through a volume
-    (2.5 mm apart through the 10 mm volume: none on a layer)."""
+    (evenly from its first layer to its last, 2.4 mm apart: none on a layer)."""
     if kind == "volume":
         d = [L.depth_offset_mm for L in scene.layers]
         return list(np.linspace(min(d), max(d), 5))

@@ -7,10 +7,13 @@
   docs/hooks.py copies them into the site at the same path);
 - the README is a short front door: at most 250 lines, a `lf-flame ...` command in a code block
   within its first 80 lines;
-- no work-item numbers ("issue 35", "#56") in the README or the docs.
+- no work-item numbers ("issue 35", "#56") in the README or the docs;
+- every package name (``lf_flame.a.b.NAME``) and experiment script (``experiments/....py``) that the README,
+  the docs or a results page names exists: a page written before code moved points the reader nowhere.
 """
 from __future__ import annotations
 
+import importlib
 import re
 from pathlib import Path
 
@@ -29,6 +32,8 @@ IMG_TAG = re.compile(r"<img\s[^>]*?src=[\"']([^\"']+)[\"']", re.IGNORECASE)
 CODE_SPAN = re.compile(r"`[^`\n]*`")
 SCHEME = re.compile(r"^[A-Za-z][A-Za-z0-9+.-]*:")
 WORK_ITEM = re.compile(r"\bissues?\s*#?\s*\d+|(?<![\w&/#])#\d+\b", re.IGNORECASE)
+PACKAGE_NAME = re.compile(r"\b(lf_flame(?:\.[A-Za-z_]\w*)+)")
+SCRIPT = re.compile(r"\b(experiments/[\w/]+\.py)\b")
 
 
 def markdown_files() -> list[Path]:
@@ -121,6 +126,39 @@ def test_no_work_item_numbers(md):
     assert not hits, "work-item numbers (name the feature instead):\n" + "\n".join(hits)
 
 
+def resolves(name: str) -> bool:
+    """Whether a dotted name is a module of the package or an attribute of one (imported as its readers would)."""
+    parts = name.split(".")
+    for k in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:k]))
+        except ImportError:
+            continue
+        for attr in parts[k:]:
+            if not hasattr(obj, attr):
+                return False
+            obj = getattr(obj, attr)
+        return True
+    return False
+
+
+def named_code(paths):
+    """(where, package name or script path) of every ``lf_flame...`` name and ``experiments/...py`` path in
+    ``paths``, code spans and blocks included."""
+    for md in paths:
+        page = md.relative_to(ROOT) if md.is_relative_to(ROOT) else md
+        for i, line in enumerate(md.read_text(encoding="utf-8").split("\n"), 1):
+            for m in list(PACKAGE_NAME.finditer(line)) + list(SCRIPT.finditer(line)):
+                yield f"{page}:{i}", m.group(1)
+
+
+def test_every_named_module_function_and_script_exists():
+    pages = markdown_files() + sorted((ROOT / "results").rglob("*.md"))
+    missing = [f"{where}: {name}" for where, name in named_code(pages)
+               if not ((ROOT / name).is_file() if name.startswith("experiments/") else resolves(name))]
+    assert not missing, "names of code that does not exist (moved or renamed?):\n" + "\n".join(missing)
+
+
 def test_the_checks_catch_what_they_should(tmp_path):
     """The parsers find links, images, nav pages and work items, and skip code."""
     md = tmp_path / "page.md"
@@ -132,3 +170,9 @@ def test_the_checks_catch_what_they_should(tmp_path):
                      "  - api/x.md\nplugins:\n  - search\n") == ["index.md", "guide/one.md", "api/x.md"]
     assert WORK_ITEM.search("see issue 35") and WORK_ITEM.search("Issue #7") and WORK_ITEM.search("as in #56")
     assert not WORK_ITEM.search("| # | case |") and not WORK_ITEM.search("[x](a.md#56-b)") and not WORK_ITEM.search("&#8212;")
+    md.write_text("`lf_flame.tomo.found_planes.find_planes` and `lf_flame.tomo.depth.find_planes` in "
+                  "`python experiments/depth.py` beside experiments/flame_tail.py.\n", encoding="utf-8")
+    assert [n for _, n in named_code([md])] == ["lf_flame.tomo.found_planes.find_planes", "lf_flame.tomo.depth.find_planes",
+                                                "experiments/depth.py", "experiments/flame_tail.py"]
+    assert resolves("lf_flame.tomo.found_planes.find_planes") and resolves("lf_flame.tomo.found_planes")
+    assert not resolves("lf_flame.tomo.depth.find_planes") and not resolves("lf_flame.diagnostics.EMISSION_MEASURE")
