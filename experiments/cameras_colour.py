@@ -2,10 +2,10 @@
 random depths, from its raw captures, against the truth in its decoded frame; and each flame's
 emission as ``reconstruct`` gives it.
 
-The camera is ``examples/own_camera.toml`` (10.57 px lenslet images, rotated 0.4°, offset; or another
-datasheet file, ``--camera``) with an RGGB colour filter array in its ``[sensor]`` table; ``--grid
-hex`` gives it a hexagonal lenslet grid (a Lytro-like camera: its channels are decoded and solved on
-the grid's own lattice). Every step is an ``lf-flame`` command run in-process
+The camera is ``examples/colour_camera.toml``: ``examples/own_camera.toml`` (10.57 px lenslet images, rotated
+0.4°, offset) with an RGGB colour filter array in its ``[sensor]`` table (or another datasheet file, ``--camera``,
+given that CFA where it names none); ``--grid hex`` gives it a hexagonal lenslet grid (a Lytro-like camera:
+its channels are decoded and solved on the grid's own lattice). Every step is an ``lf-flame`` command run in-process
 (:func:`lf_flame.cli.main`): ``simulate --scene white`` -> ``calibrate``; blackbodies at
 :data:`FIT_K` (``simulate --scene furnace``) -> ``decode --camera`` (each view sample from its
 nearest pixel, channels apart) -> ``calibrate-temperature``; per scene ``simulate --scene
@@ -83,11 +83,14 @@ def run(*argv) -> str:
 
 
 def camera_file(cache: Path, grid: str = "square", sheet: Path | None = None) -> Path:
-    """The example camera (or the datasheet file ``sheet``) with an RGGB CFA and a ``grid`` (square or hex) lenslet
-    layout, written to ``cache``."""
-    text = Path(sheet or ROOT / "examples" / "own_camera.toml").read_text()
+    """The example colour camera (``examples/colour_camera.toml``: the example camera with an RGGB CFA), or the
+    datasheet file ``sheet`` with an RGGB CFA where it names none, with a ``grid`` (square or hex) lenslet layout,
+    written to ``cache``."""
+    text = Path(sheet or ROOT / "examples" / "colour_camera.toml").read_text()
+    if "cfa" not in text:
+        text += 'cfa = "RGGB"\n'
     p = cache / "camera.toml"
-    p.write_text(text.replace('layout = "square"', f'layout = "{grid}"') + 'cfa = "RGGB"\n')
+    p.write_text(text.replace('layout = "square"', f'layout = "{grid}"'))
     return p
 
 
@@ -230,7 +233,7 @@ def main(argv=None):
     ap.add_argument("--cache", help="renders (default data/cameras_colour, data/cameras_colour_hex)")
     ap.add_argument("--grid", choices=("square", "hex"), default="square", help="the lenslet grid's layout")
     ap.add_argument("--route", help="temperature's --route (default: its default)")
-    ap.add_argument("--camera", help="another datasheet camera file (default: examples/own_camera.toml)")
+    ap.add_argument("--camera", help="another datasheet camera file (default: examples/colour_camera.toml)")
     ap.add_argument("--scenes", type=int, default=6)
     ap.add_argument("--rays", type=int, default=RAYS, help="rays per pixel of the scenes' renders")
     ap.add_argument("--white-rays", type=int, default=WHITE_RAYS, help="rays per pixel of the white image")

@@ -11,15 +11,25 @@ import pytest
 
 from lf_flame import cli
 from lf_flame.optics.camera import PAPER_CAMERA
-from lf_flame.optics.camera_file import camera_from_datasheet, load_camera_file
+from lf_flame.optics.camera_file import camera_from_datasheet, load_camera_file, load_colour_sensor
 from lf_flame.real.view_grid import max_views
 from lf_flame.simulate.scenes_depth import DEPTH_RANGE_MM, HEIGHT_RANGE_MM, camera_depth_ranges, camera_depth_scene
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "own_camera.toml"
+COLOUR_EXAMPLE = EXAMPLE.with_name("colour_camera.toml")
 #: 300 µm lenslets of 18.6 mm, 400 mm behind a 200 mm lens, 6.45 µm pixels: 48 views, 19 x 26 lenslets.
 DEEP = {"main_lens": {"focal_length_mm": 200.0, "mla_distance_mm": 400.0},
         "microlens_array": {"pitch_um": 300.0, "focal_length_mm": 18.6},
         "sensor": {"pixel_size_um": 6.45, "rows": 960, "cols": 1280}}
+
+
+def test_the_shipped_colour_camera_is_the_example_camera_with_an_rggb_cfa():
+    """The temperature guide's colour camera file: the example camera's optics, its sensor an RGGB mosaic
+    (the example camera itself monochrome)."""
+    assert load_camera_file(COLOUR_EXAMPLE).to_dict() == load_camera_file(EXAMPLE).to_dict()
+    sensor = load_colour_sensor(COLOUR_EXAMPLE)
+    assert sensor.pattern == "RGGB" and tuple(sensor.phase) == (0, 0)
+    assert load_colour_sensor(EXAMPLE) is None
 
 
 def test_random_depth_ranges_are_the_papers_on_its_camera():
