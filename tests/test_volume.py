@@ -130,3 +130,34 @@ def test_the_edge_warning_names_the_planes_cut_and_says_when_the_light_beyond_wa
     edge_warning(rec, None, modelled=True)
     out, err = capsys.readouterr()
     assert "modelled its light from beyond the field" in out and not err
+
+
+def test_a_volume_moved_sideways_is_drawn_whole_and_cut_by_the_fields_edge(volume_raw, tmp_path, capsys):
+    """simulate --scene volume --x: the axis moves right by x (the central view's light centroid with it), the object
+    records it, and the sheath is drawn past the field's edge (its layers wider than the 1.2-field default); the
+    command prints the share of its light outside the field (the centred sheath's: none)."""
+    from lf_flame.cli._io import _raw_scene
+    from lf_flame.refocus.shift_and_sum import raw_to_views
+    from lf_flame.simulate.scenes import light_outside_field
+    (tmp_path / "cam.toml").write_text(CAMERA_TOML)
+    moved = tmp_path / "moved.npz"
+    capsys.readouterr()
+    assert main(["simulate", "--scene", "volume", "--nominal", "--data-config", str(tmp_path / "cam.toml"),
+                 "--x", "2.0", "--rays-per-pixel", "16", "--out", str(moved)]) == 0
+    printed = capsys.readouterr().out
+    cam = PlenopticCamera(n_rows=41, n_cols=41)
+    centroids = []
+    for path in (volume_raw, moved):
+        raw = np.load(path)["raw"]
+        view = raw_to_views(raw, cam.pixels_per_lenslet)[cam.pixels_per_lenslet // 2, cam.pixels_per_lenslet // 2]
+        centroids.append(float((view.sum(axis=0) * np.arange(view.shape[1])).sum() / view.sum()))
+    mm_per_lenslet = cam.field_of_view_mm(0.0)[1] / cam.n_cols
+    shift_mm = (centroids[1] - centroids[0]) * mm_per_lenslet
+    assert 1.0 < shift_mm < 2.2, shift_mm                          # cut by the edge: the light seen moves less
+    scene = _raw_scene(moved, cam)
+    assert scene.objects[0]["centre_x_mm"] == 2.0
+    share = light_outside_field(scene, cam)
+    assert 0.1 < share < 0.5 and f"{100 * share:.1f} % of its light lies outside the field of view" in printed
+    assert light_outside_field(_raw_scene(volume_raw, cam), cam) < 0.001
+    width = cam.field_of_view_mm(scene.layers[0].depth_offset_mm)[1]
+    assert scene.layers[0].size_mm[1] > 1.2 * width + 0.1              # drawn past the default margin

@@ -340,7 +340,8 @@ def colour_scene(record: dict, camera):
 
 def simulated_scene(record: dict, camera):
     """The scene of ``lf-flame simulate`` from its record (``kind``, ``seed``, ``nominal``; a
-    point: ``depth_mm``, ``y_mm``, ``x_mm``; a volume: ``depth_mm``, its axis's depth; ``depth``:
+    point: ``depth_mm``, ``y_mm``, ``x_mm``; a volume: ``depth_mm`` and ``x_mm``, its axis's depth and lateral
+    place (drawn whole where it reaches past the field's edge); ``depth``:
     :func:`lf_flame.simulate.scenes_depth.camera_depth_scene`; ``white``: a flat field; a colour
     scene: :func:`colour_scene`'s, its layers' radiance the green channel's), the one it renders and
     stores beside the raw image."""
@@ -356,10 +357,12 @@ def simulated_scene(record: dict, camera):
         return camera_depth_scene(camera, np.random.default_rng(record["seed"]))
     if record["kind"] == "volume":
         from ..simulate.scenes_volume import volume_flame_scene
-        dz = record.get("depth_mm") or 0.0
+        dz, x = record.get("depth_mm") or 0.0, record.get("x_mm") or 0.0
+        diameter = min(10.0, 0.85 * camera.field_of_view_mm(dz)[1])
+        narrowest = camera.field_of_view_mm(dz - diameter / 2)[1]          # the nearest layer's field
         return volume_flame_scene(camera, None if record["nominal"] else np.random.default_rng(record["seed"]),
-                                  centre_depth_mm=dz, n_layers=VOLUME_LAYERS,
-                                  diameter_mm=min(10.0, 0.85 * camera.field_of_view_mm(dz)[1]))
+                                  centre_depth_mm=dz, n_layers=VOLUME_LAYERS, diameter_mm=diameter, centre_x_mm=x,
+                                  field_margin=max(1.2, 2 * (abs(x) + 0.9 * diameter) / narrowest))
     from ..simulate.scenes_depth import paper_layout
     layout = paper_layout(camera)
     if record["kind"] == "shapes":

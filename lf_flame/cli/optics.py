@@ -76,7 +76,12 @@ def cmd_simulate(a):
         depths = [float(o["depth_offset_mm"]) for o in sc.objects]
         name += (f" ({len(depths)} flame{'s' * (len(depths) != 1)} at "
                  + ", ".join(f"{d:+.2f}" for d in depths) + " mm)")
-    print(f"rendered {name} {raw.shape} at {a.rays_per_pixel} rays/pixel in {dt:.2f} s -> {out}")
+    cut = ""
+    if a.scene not in ("white", "furnace"):                   # those fill the field and more, by design
+        from ..simulate.scenes import light_outside_field
+        share = light_outside_field(sc, cam)
+        cut = f"; {100 * share:.1f} % of its light lies outside the field of view" if share >= 0.001 else ""
+    print(f"rendered {name} {raw.shape} at {a.rays_per_pixel} rays/pixel in {dt:.2f} s -> {out}{cut}")
 
 
 def views_and_camera(a):
@@ -266,8 +271,9 @@ def add_parsers(sub) -> None:
                         "flames; both at the paper's depths " + ", ".join(f"{d:+g}" for d in PAPER_DEPTHS_MM) +
                         " mm (on another camera carried to its depths as far apart in parallax, and the flames "
                         "scaled to its field); point: one point of light (--depth, --y, --x); volume: a volumetric laminar flame "
-                        "(a luminous sheath 10 mm across, at most 85 %% of the field, about a vertical axis through "
-                        "--depth, default 0, in 32 layers; 'reconstruct --volume'); depth: 2-4 flames at random "
+                        "(a luminous sheath 10 mm across, at most 85 %% of the field, about a vertical axis at --depth "
+                        "and --x, default 0 and 0, in 32 layers; moved sideways, it is cut by the field's edge where "
+                        "it reaches past it; 'reconstruct --volume'); depth: 2-4 flames at random "
                         "depths, sizes and places (--seed), scaled to the camera (its depth of field and lenslet "
                         "footprint; fewer, down to one, where a small field has no room for them: the printout "
                         "says how many and where); white: a flat field, the white image that 'lf-flame calibrate' takes; seen "
@@ -291,9 +297,10 @@ def add_parsers(sub) -> None:
     s.add_argument("--bit-depth", type=_bit_depth, help="quantise the raw image to this many bits, 1-32 (default: "
                    "not quantised)")
     s.add_argument("--temperature", type=float, help="furnace scene: the blackbody's temperature (K)")
-    s.add_argument("--depth", type=float, default=0.0, help="point scene: depth offset (mm)")
+    s.add_argument("--depth", type=float, default=0.0, help="point and volume scenes: depth offset (mm)")
     s.add_argument("--y", type=float, default=0.0, help="point scene: height (mm)")
-    s.add_argument("--x", type=float, default=0.0, help="point scene: lateral position (mm)")
+    s.add_argument("--x", type=float, default=0.0, help="point and volume scenes: lateral position (mm, x "
+                   "right; a volume's axis)")
     s.set_defaults(func=cmd_simulate)
 
     s = sub.add_parser("refocus", help="refocus a raw image (or decoded views) at one or more slopes")

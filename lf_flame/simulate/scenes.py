@@ -111,6 +111,23 @@ class Scene:
     objects: tuple[dict, ...] = field(default_factory=tuple)
 
 
+def light_outside_field(scene: Scene, camera: PlenopticCamera) -> float:
+    """The share of a scene's emitted light (its layers' radiance summed over their texels) that lies outside the
+    camera's field of view at each layer's depth (:meth:`~lf_flame.optics.camera.PlenopticCamera.field_of_view_mm`,
+    centred on the axis): how far a flame is cut by the field's edge. 0 for a scene without light."""
+    total = outside = 0.0
+    for layer in scene.layers:
+        rad = np.asarray(layer.radiance, np.float64)
+        (h, w), (cy, cx) = layer.size_mm, layer.centre_mm
+        fh, fw = camera.field_of_view_mm(layer.depth_offset_mm)
+        y = cy + (0.5 - (np.arange(rad.shape[0]) + 0.5) / rad.shape[0]) * h      # texel centres, y up
+        x = cx + ((np.arange(rad.shape[1]) + 0.5) / rad.shape[1] - 0.5) * w
+        inside = (np.abs(y)[:, None] <= fh / 2) & (np.abs(x)[None, :] <= fw / 2)
+        total += float(rad.sum())
+        outside += float(rad[~inside].sum())
+    return outside / total if total > 0 else 0.0
+
+
 # ---------------------------------------------------------------------------------
 def _layer_grid(camera: PlenopticCamera, dz: float, texels_per_lenslet: float, margin: float):
     """Texture grid covering the field at depth ``dz`` (mm), enlarged by ``margin``."""

@@ -73,7 +73,8 @@ def _axisymmetric_layers(camera, rng, centre_depth_mm, centre_x_mm, diameter_mm,
 
 def volume_flame_scene(camera: PlenopticCamera, rng: np.random.Generator | None = None, *,
                        centre_depth_mm: float = 0.0, diameter_mm: float = 10.0, height_mm: float | None = None,
-                       n_layers: int = 24, texels_per_lenslet: float = 3.0) -> Scene:
+                       n_layers: int = 24, texels_per_lenslet: float = 3.0, centre_x_mm: float = 0.0,
+                       field_margin: float = 1.2) -> Scene:
     """An axisymmetric emitting volume (a laminar diffusion flame) sampled as thin layers.
 
     Emission density ``e(r, y) = env(eta) exp(-(r - R(eta))^2 / (2 s^2))``: a luminous
@@ -84,25 +85,33 @@ def volume_flame_scene(camera: PlenopticCamera, rng: np.random.Generator | None 
     equal parts, at the slab's middle, with radiance ``e`` times the slab thickness (its
     emission integrated through the slab), scaled so the brightest line of sight
     carries 0.9 (no saturation). ``rng``, if given, jitters the height by ±10 %.
+    ``centre_x_mm`` moves the axis sideways (mm, x right; a flame cut by the field's edge where it
+    reaches past it, its whole width drawn with ``field_margin``: each layer's extent as a multiple of
+    the field of view at its depth, about ``2 (|centre_x_mm| + 0.9 diameter_mm) / width``; the default
+    1.2 clips a flame that reaches farther).
 
     Returns
     -------
     Scene
         ``n_layers`` layers nearest first; one object ``name="volume"`` with the centre
-        depth, diameter, height, base, ``layer_depths_mm``, ``layer_thickness_mm`` and the
-        ``peak_emission`` (per mm of depth) of the scaled density.
+        depth and lateral position, diameter, height, base, ``layer_depths_mm``, ``layer_thickness_mm``
+        and the ``peak_emission`` (per mm of depth) of the scaled density.
 
     Raises
     ------
     ValueError
-        Fewer than 2 layers, a non-positive diameter, a slab the camera cannot image.
+        Fewer than 2 layers, a non-positive diameter, a non-finite axis, a slab the camera cannot image.
     """
-    layers, H, base_y, dzs, thick, peak = _axisymmetric_layers(camera, rng, centre_depth_mm, 0.0, diameter_mm,
-                                                               height_mm, 0.0, n_layers, texels_per_lenslet)
+    if not (math.isfinite(centre_depth_mm) and math.isfinite(centre_x_mm)):
+        raise ValueError(f"the axis must be finite. Received: depth {centre_depth_mm!r}, x {centre_x_mm!r}")
+    layers, H, base_y, dzs, thick, peak = _axisymmetric_layers(camera, rng, centre_depth_mm, centre_x_mm, diameter_mm,
+                                                               height_mm, 0.0, n_layers, texels_per_lenslet,
+                                                               field_margin)
     obj = dict(name="volume", depth_offset_mm=float(centre_depth_mm), diameter_mm=float(diameter_mm), height_mm=H,
-               base_y_mm=base_y, centre_x_mm=0.0, layer_depths_mm=[float(v) for v in dzs], layer_thickness_mm=thick,
-               peak_emission=peak, roi=_roi(camera, centre_depth_mm, base_y, base_y + H, -diameter_mm / 2,
-                                             diameter_mm / 2))
+               base_y_mm=base_y, centre_x_mm=float(centre_x_mm), layer_depths_mm=[float(v) for v in dzs],
+               layer_thickness_mm=thick, peak_emission=peak,
+               roi=_roi(camera, centre_depth_mm, base_y, base_y + H, centre_x_mm - diameter_mm / 2,
+                        centre_x_mm + diameter_mm / 2))
     return Scene("volume", layers, FLAME_EFFECTS, (obj,))
 
 
