@@ -283,7 +283,7 @@ def test_one_frame_of_a_recording_is_read_as_a_capture(tmp_path, capsys):
 
 def test_recordings_on_file_and_in_a_folder_match_the_simulation(small_seq, serial_table, tmp_path):
     """The HDF5 stack of ``write_frames`` and the same frames as 16-bit PNG files give the
-    same table; a frame of NaN stops the run with its index and leaves no summary."""
+    same table; a frame with NaN or inf gets failed rows (the run goes on), a recording of nothing else stops."""
     from skimage import io
     h5 = write_frames(tmp_path / "rec.h5", SimulatedSource(small_seq, PAPER_CAMERA, 4), progress=False)
     src, attrs = open_source(h5)
@@ -318,12 +318,20 @@ def test_recordings_on_file_and_in_a_folder_match_the_simulation(small_seq, seri
 
     bad = frames.astype(np.float32) / 65535
     bad[5] = np.nan
+    bad[6, 100:110, 200:205] = np.inf                    # a few corrupt pixels
     _write_h5(tmp_path / "nan.h5", bad, fps=100.0)
     src3, _ = open_source(tmp_path / "nan.h5")
-    with pytest.raises(ValueError, match="frame 5: frame holds NaN") as err:
-        run(_job(small_seq, chunk=4, source=src3), tmp_path / "nan", progress=False)
-    assert isinstance(err.value.__cause__, ValueError)   # the traceback into the frame's code is kept
-    assert not (tmp_path / "nan" / "summary.json").exists()
+    s = run(_job(small_seq, chunk=4, source=src3), tmp_path / "nan", progress=False)
+    got = pd.read_csv(tmp_path / "nan" / "frames.csv")
+    broken = got.frame.isin([5, 6])
+    assert (got.failure[broken] == "frame holds NaN or inf").all() and got.height_mm[broken].isna().all()
+    assert got.failure[~broken].isna().all() and got.height_mm[~broken].notna().all()   # the rest measured
+    assert s["failed_frames"] == {k: 2 for k in range(len(small_seq.flames))}
+    _write_h5(tmp_path / "all_nan.h5", np.full_like(bad, np.nan), fps=100.0)
+    with pytest.raises(ValueError, match="every frame of the recording holds NaN or inf"):
+        run(_job(small_seq, chunk=4, source=open_source(tmp_path / "all_nan.h5")[0]), tmp_path / "all_nan",
+            progress=False)
+    assert not (tmp_path / "all_nan" / "summary.json").exists()
 
 
 def test_a_chunk_reads_its_hdf5_frames_in_one_open(small_seq, tmp_path, monkeypatch):
@@ -456,6 +464,8 @@ def test_cli_simulates_and_measures_a_recording(tmp_path, capsys):
                  *(a for f in freqs for a in ("--freq", str(f))), "--rays-per-pixel", "1", "--out", str(rec),
                  "--quiet"]) == 0
     assert main(["sequence", str(rec), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    # each plane's emission by default, as profiles and reconstruct give it (shift-and-sum on --route shift-sum)
+    assert json.loads((tmp_path / "out" / "summary.json").read_text())["settings"]["route"] == "reconstruct-admm"
     pk = pd.read_csv(tmp_path / "out" / "peaks.csv").query("signal == 'height_mm'").sort_values("plane")
     assert np.all(np.abs(pk.dominant_hz.to_numpy() - freqs) <= pk.bin_hz.to_numpy()), pk
     assert (tmp_path / "out" / "sequence.png").stat().st_size > 10_000
@@ -481,6 +491,28 @@ def test_cli_simulates_and_measures_a_recording(tmp_path, capsys):
         assert f"chunk (frames per task) must be a whole number >= 1. Received: {chunk}" in capsys.readouterr().err
 
 
+def test_a_frame_over_exposed_against_the_rest_keeps_its_row_and_leaves_the_spectra():
+    """One flash in a recording (56 % of its lit pixels clipped, the others none) measured 3 mm where the flame
+    stands 20 mm tall: in the spectrum it would put the peak elsewhere; it takes the plane's mean there, its row
+    stays. A recording whose every frame clips alike keeps them all, and a frame just over the warning beside
+    frames clipping nearly as much is not singled out."""
+    from lf_flame.recordings.runner import over_exposed_frames, recording_spectra
+    t = np.arange(50) / 100.0
+    height = 20.0 + 2.0 * np.sin(2 * np.pi * 6.0 * t)
+    share = np.zeros(50)
+    height[20], share[20] = 2.9, 0.56
+    frames = pd.DataFrame(dict(frame=np.arange(50), plane=0, depth_mm=100.0, height_mm=height,
+                               integrated_intensity=np.ones(50), clipped_share=share))
+    spec, over = recording_spectra(frames, 100.0)
+    assert over == [20] and frames.height_mm[20] == 2.9
+    pk = peaks(spec).query("signal == 'height_mm'")
+    assert pk.dominant_hz.iloc[0] == 6.0, pk
+    assert peaks(spectra(frames, 100.0)).query("signal == 'height_mm'").dominant_hz.iloc[0] != 6.0   # the flash's
+    assert over_exposed_frames(frames.assign(clipped_share=0.3)) == []
+    assert over_exposed_frames(frames.assign(clipped_share=np.where(np.arange(50) == 7, 0.09, 0.06))) == []
+    assert over_exposed_frames(frames.drop(columns="clipped_share")) == []
+
+
 def test_cli_passes_the_reconstruction_settings(tmp_path, capsys):
     """``sequence --route reconstruct-*`` takes ``--iters --tv --saturation --operator-rays``:
     they are the run's settings, and its summary counts the saturated frames."""
@@ -491,7 +523,8 @@ def test_cli_passes_the_reconstruction_settings(tmp_path, capsys):
                  "--saturation", "0.5", "--operator-rays", "1", "--out", str(tmp_path / "out"), "--quiet"]) == 0
     s = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert s["settings"]["reconstruction"] == dict(solver="pd-tv", iters=1, tv=0.05, saturation=0.5, operator_rays=1)
-    assert s["n_saturated"]["frames"] == 2 and "frames with samples left out of the fit" in capsys.readouterr().out
+    assert s["n_saturated"]["frames"] == 2
+    assert "2 of 2 frames clip the sensor, their clipped pixels left out of the fit" in capsys.readouterr().out
     assert main(["sequence", str(rec), "--route", "reconstruct-pd-tv", "--iters", "2", "--tv", "0.05",
                  "--saturation", "0.5", "--operator-rays", "1", "--out", str(tmp_path / "out"), "--quiet"]) == 2
     assert "other settings" in capsys.readouterr().err

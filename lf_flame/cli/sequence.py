@@ -202,12 +202,17 @@ def cmd_sequence(a):
         if n:
             print(f"plane {k}: {n} of {s['n_frames']} frames could not be measured (the plane's mean in its spectrum)")
     if "n_saturated" in s:
-        print(f"{s['n_saturated']['frames']} frames with samples left out of the fit (at most "
-              f"{s['n_saturated']['max_per_frame']} in a frame: clipped; of decoded frames also dark ones and a "
-              "colour camera's blue ones)")
         from .real import overexposure_warning
         over = s["over_exposed"]
+        if over["clipped_frames"]:
+            print(f"{over['clipped_frames']} of {s['n_frames']} frames clip the sensor, their clipped pixels left out "
+                  f"of the fit (up to {100 * over['max_share']:.2g} % of a frame's lit pixels; frames.csv: "
+                  "clipped_share)")
         overexposure_warning(over["max_share"], f"in {over['frames']} of {s['n_frames']} frames up to ")
+        if over["left_out_of_spectra"]:
+            shown = ", ".join(map(str, over["left_out_of_spectra"][:10]))
+            print(f"frames over-exposed against the rest ({shown}{', ...' if len(over['left_out_of_spectra']) > 10 else ''}"
+                  "): their heights and intensities are in frames.csv, and the spectra take each plane's mean there")
     print(f"{s['n_frames']} frames ({s['chunks_processed']} chunks processed, {s['frames_per_s']:.1f} frames/s) "
           f"-> {a.out}/frames.csv, spectra.csv, peaks.csv, sequence.png, summary.json")
 
@@ -258,9 +263,11 @@ def add_parsers(sub) -> None:
                    "simulated recording's flames' depths, else the depths found in the first frame, as 'reconstruct' "
                    "finds a capture's")
     s.add_argument("--slope", type=float, action="append", help="plane slope, lenslets per view (repeatable)")
-    s.add_argument("--route", choices=["shift-sum", *(f"reconstruct-{k}" for k in SOLVERS)], default="shift-sum",
-                   help="planes by shift-and-sum, or each plane's emission (as lf-flame reconstruct; its settings: "
-                        "--iters, --tv, --saturation, --operator-rays)")
+    s.add_argument("--route", choices=["shift-sum", *(f"reconstruct-{k}" for k in SOLVERS)],
+                   default="reconstruct-admm",
+                   help="each plane's emission (as lf-flame reconstruct, admm by default; its settings: --iters, "
+                        "--tv, --saturation, --operator-rays), or the planes refocused by shift-and-sum (faster; "
+                        "a plane's flame blurred by its neighbours' light: heights and flicker less sure)")
     s.add_argument("--iters", type=positive_int, help="reconstruct-*: iterations, >= 1 (default: the solver's, as "
                    "lf-flame reconstruct's --iters)")
     s.add_argument("--tv", type=float, default=None,

@@ -234,7 +234,7 @@ class SequenceJob:
         same in every frame, and repaired in each)."""
         from ..refocus.shift_and_sum import raw_to_views
         if not np.all(np.isfinite(raw)):
-            raise ValueError("frame holds NaN or inf")
+            raise ValueError(NONFINITE_FRAME)
         if self.calibration is None:
             from ..real.defects import capture_defects, grid_offsets
             if raw.shape != tuple(self.camera.sensor_shape):
@@ -496,13 +496,21 @@ def process_chunk(c: int, job: SequenceJob) -> dict:
     pixels left out of the fit, and ``clipped_share``, its clipped pixels' share of the lit ones) and the seconds
     spent reading (or rendering), refocusing and measuring.
 
+    A frame that holds NaN or inf (a corrupt read, a dropped packet) gets a row per plane with
+    :data:`NONFINITE_FRAME` as its failure, and the frames after it go on (an admm chunk's next frame
+    continues the solve before it).
+
     Raises
     ------
     ValueError
-        A frame that cannot be processed (NaN or inf, another sensor size), naming the
-        frame; the original error is its cause.
+        A frame that cannot be processed otherwise (another sensor size, a calibration that does not
+        fit it), naming the frame; the original error is its cause.
     """
     return _process_frames(job, c * job.chunk, min((c + 1) * job.chunk, job.source.n_frames))
+
+
+#: The failure of every plane of a frame that holds NaN or inf (:func:`process_chunk`).
+NONFINITE_FRAME = "frame holds NaN or inf"
 
 
 def _process_frames(job: SequenceJob, start: int, stop: int) -> dict:
@@ -518,6 +526,10 @@ def _process_frames(job: SequenceJob, start: int, stop: int) -> dict:
         raw = next(raws)
         t1 = time.perf_counter()
         t["read_s"] += t1 - t0
+        if not np.all(np.isfinite(raw)):
+            rows += [dict(frame=i, time_s=i / job.fps, plane=k, depth_mm=d, failure=NONFINITE_FRAME)
+                     for k, d in enumerate(job.depths_mm)]
+            continue
         try:
             views, clipped = job.frame(raw)
             stack, n_sat = job.planes_and_saturated(views, state, clipped)

@@ -16,12 +16,57 @@ import numpy as np
 import pandas as pd
 
 from ..config import atomic_write_text, provenance
-from .job import SequenceJob, _warm_up, process_chunk
+from .job import NONFINITE_FRAME, SequenceJob, _warm_up, process_chunk
 from .plot import plot_sequence
-from .flicker import peaks, spectra
+from .flicker import SIGNALS, peaks, spectra
+
+
+#: A frame whose clipped pixels are more than :data:`~lf_flame.real.clipping.CLIPPED_WARN` of its lit ones and more than
+#: this many times the recording's median share is over-exposed against the others (a flash, a reflection, an exposure
+#: step): its measurements stay in frames.csv but its spectrum takes the plane's mean there, as for a frame that could
+#: not be measured (:func:`over_exposed_frames`). A recording whose every frame clips alike keeps them all.
+OVER_EXPOSED_RATIO = 2.0
 
 
 # ---------------------------------------------------------------------------------
+def over_exposed_frames(frames: pd.DataFrame) -> list:
+    """The frames over-exposed against the rest of their recording (:data:`OVER_EXPOSED_RATIO`).
+
+    Parameters
+    ----------
+    frames : DataFrame
+        The frames table (columns ``frame`` and, on ``reconstruct-*`` routes, ``clipped_share``: the clipped pixels'
+        share of the lit ones per frame).
+
+    Returns
+    -------
+    list of int
+        The frames, ascending; none without a ``clipped_share`` column.
+    """
+    from ..real.clipping import CLIPPED_WARN
+    if "clipped_share" not in frames:
+        return []
+    share = frames.groupby("frame").clipped_share.first().fillna(0.0)
+    typical = float(share.median())
+    return [int(f) for f, v in share.items() if v > CLIPPED_WARN and v > OVER_EXPOSED_RATIO * typical]
+
+
+def recording_spectra(frames: pd.DataFrame, fps: float, nperseg: int | None = None):
+    """Each plane's spectra (:func:`~lf_flame.recordings.flicker.spectra`) with the frames over-exposed against the
+    rest (:func:`over_exposed_frames`) taking the plane's mean, as a frame that could not be measured does.
+
+    Returns
+    -------
+    spectra : DataFrame
+    over_exposed : list of int
+        The frames left out.
+    """
+    over = over_exposed_frames(frames)
+    measured = frames.copy()
+    measured.loc[measured.frame.isin(over), list(SIGNALS)] = np.nan
+    return spectra(measured, fps, nperseg), over
+
+
 def _write_csv(path: Path, df: pd.DataFrame) -> None:
     atomic_write_text(path, df.to_csv(index=False, float_format="%.6g"))
 
@@ -97,14 +142,16 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
         the plane's mean; also ``n_failed`` in peaks.csv); on ``reconstruct-*`` routes
         ``n_saturated``, the frames with saturated pixels left out of the fit and the most
         in one frame, and ``over_exposed``, the frames whose clipped pixels are more than
-        :data:`~lf_flame.real.clipping.CLIPPED_WARN` of the lit ones and the largest share
-        (per frame: frames.csv).
+        :data:`~lf_flame.real.clipping.CLIPPED_WARN` of the lit ones, the largest share, the frames that clip
+        at all and those over-exposed against the rest (:func:`over_exposed_frames`: their values in the spectra
+        are the plane's mean; also ``n_over_exposed`` in peaks.csv) (per frame: frames.csv).
 
     Raises
     ------
     ValueError
         ``out`` holds a run with other settings; a recording of fewer than 2 frames (no
-        spectrum); ``nperseg`` below 2; a frame that cannot be processed (NaN, wrong size);
+        spectrum); ``nperseg`` below 2; a frame that cannot be processed (wrong size; a frame with NaN or
+        inf is a failed row, :func:`~lf_flame.recordings.job.process_chunk`, unless every frame is);
         a chunk table that does not hold its frames exactly once.
     """
     out = Path(out)
@@ -160,13 +207,16 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
     counts = frames.groupby("frame").size()
     if len(counts) != job.source.n_frames or (counts != len(job.depths_mm)).any():
         raise ValueError(f"{parts} does not hold every frame exactly once; delete it and run again")
+    if (frames.failure == NONFINITE_FRAME).all():
+        raise ValueError(f"every frame of the recording holds NaN or inf: nothing to measure ({parts})")
     if truth is not None:
         frames["height_mm_true"] = np.asarray(truth, float)[frames.frame.to_numpy(), frames.plane.to_numpy()]
         frames["height_err_mm"] = frames.height_mm - frames.height_mm_true
-    spec = spectra(frames, job.fps, nperseg)
+    spec, over = recording_spectra(frames, job.fps, nperseg)
     pk = peaks(spec, job.truth_freqs_hz)
     failed = frames.failure.notna().groupby(frames.plane).sum()
     pk["n_failed"] = pk.plane.map(failed).astype(int)
+    pk["n_over_exposed"] = len(over)
     _write_csv(out / "frames.csv", frames)
     _write_csv(out / "spectra.csv", spec)
     _write_csv(out / "peaks.csv", pk)
@@ -184,6 +234,8 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
         summary["n_saturated"] = dict(frames=int((per_frame.n_saturated > 0).sum()),
                                       max_per_frame=int(per_frame.n_saturated.max()))
         summary["over_exposed"] = dict(frames=int((per_frame.clipped_share > CLIPPED_WARN).sum()),
-                                       max_share=float(per_frame.clipped_share.max()))
+                                       max_share=float(per_frame.clipped_share.max()),
+                                       clipped_frames=int((per_frame.clipped_share > 0).sum()),
+                                       left_out_of_spectra=over)
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=1, default=float))
     return summary
