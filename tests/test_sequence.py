@@ -463,7 +463,11 @@ def test_cli_simulates_and_measures_a_recording(tmp_path, capsys):
     assert main(["simulate-sequence", "--simulate", "paper", "--fps", "100", "--duration", "0.5",
                  *(a for f in freqs for a in ("--freq", str(f))), "--rays-per-pixel", "1", "--out", str(rec),
                  "--quiet"]) == 0
+    capsys.readouterr()
     assert main(["sequence", str(rec), "--out", str(tmp_path / "out"), "--quiet"]) == 0
+    # the planes said, not taken quietly from the simulation's record
+    assert "planes at the simulated recording's flames' depths (plane 0 the farthest): +20.00, +10.00, +0.00, " \
+           "-10.00 mm" in capsys.readouterr().out
     # each plane's emission by default, as profiles and reconstruct give it (shift-and-sum on --route shift-sum)
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["settings"]["route"] == "reconstruct-admm"
     pk = pd.read_csv(tmp_path / "out" / "peaks.csv").query("signal == 'height_mm'").sort_values("plane")

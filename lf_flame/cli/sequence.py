@@ -133,6 +133,9 @@ def cmd_sequence(a):
     if a.depth and a.slope:
         raise ValueError("give the planes as --depth or as --slope, not both")
     knobs = dict(iters=a.iters, tv=a.tv, saturation=a.saturation, operator_rays=a.operator_rays)
+    if seq is not None and not (a.depth or a.slope):
+        print("planes at the simulated recording's flames' depths (plane 0 the farthest): "
+              + ", ".join(f"{f.depth_offset_mm:+.2f}" for f in seq.flames) + " mm (--depth to choose others)")
     if not (a.calibration or cam.perfect_grid):
         raise ValueError("the frames are a camera's whose lenslet grid is not a perfect one (rotated, hexagonal, or "
                          "lenslet images no whole number of pixels apart): give its white image's --calibration "
