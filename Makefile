@@ -147,7 +147,7 @@ sequence: $(STAMP) ## flame recordings: per-plane flicker spectra, serial and Da
 	$(VENV)/bin/python experiments/sequence.py --out $(TRADEOFF_OUT) --stage stream
 
 # a new user's first light field through the command line (the README quick start's simulate, then profiles per route)
-new-user: $(STAMP) ## the quick start's simulate and profiles commands, each route's heights -> results/new_user.{csv,md}
+new-user: $(STAMP) ## the README's quick start, each command timed, each profiles route's heights -> results/new_user.{csv,md}
 	$(VENV)/bin/python experiments/new_user.py --out $(TRADEOFF_OUT)
 
 reconstruct: $(STAMP) ## 3-D emission reconstruction, every solver against refocusing -> results/reconstruct.{csv,md,json,png}
