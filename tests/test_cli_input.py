@@ -374,3 +374,25 @@ def test_reading_names_the_damaged_file(tmp_path):
         with reading(tmp_path / "gone.npz"):
             np.load(tmp_path / "gone.npz")
     assert issubclass(DamagedFileError, ValueError)
+
+
+def test_a_camera_given_that_differs_from_the_files_record_is_warned_of(tmp_path, capsys):
+    """A simulated capture (and recording) records its camera; a camera file given that differs (here its focus
+    distance 5 mm off: the lenslet images' spacing moves by 0.02 %, invisible in the image, every depth moves) is used,
+    with a warning naming the fields; the same camera given again, none."""
+    import warnings as w
+    from lf_flame.optics.camera import PlenopticCamera
+    (tmp_path / "cam.toml").write_text("[camera]\nn_rows = 30\nn_cols = 30\n")
+    focus = PlenopticCamera().focus_distance_mm
+    (tmp_path / "off.toml").write_text(f"[camera]\nn_rows = 30\nn_cols = 30\nfocus_distance_mm = {focus + 5}\n")
+    raw = tmp_path / "p.npz"
+    assert main(["simulate", "--scene", "point", "--data-config", str(tmp_path / "cam.toml"), "--rays-per-pixel", "1",
+                 "--out", str(raw)]) == 0
+    with pytest.warns(UserWarning, match=r"records the camera it was rendered with, and the camera given differs "
+                                         r"\(focus_distance_mm " + f"{focus + 5}"):
+        assert main(["refocus", str(raw), "--camera", str(tmp_path / "off.toml"), "--slope", "0",
+                     "--out", str(tmp_path / "r.npz")]) == 0
+    with w.catch_warnings():
+        w.simplefilter("error", UserWarning)
+        assert main(["refocus", str(raw), "--camera", str(tmp_path / "cam.toml"), "--slope", "0",
+                     "--out", str(tmp_path / "r2.npz")]) == 0

@@ -124,9 +124,14 @@ def cmd_sequence(a):
         fps = seq.fps
     else:
         source, attrs = open_source(a.input)
-        if "camera" in attrs and not (a.data_config or a.camera):
+        if "camera" in attrs:
             from ..optics.camera import PlenopticCamera
-            cam = PlenopticCamera.from_dict(json.loads(attrs["camera"]))
+            stored = PlenopticCamera.from_dict(json.loads(attrs["camera"]))
+            if a.data_config or a.camera:
+                from ..real.lightfield import stored_camera_warning
+                stored_camera_warning(cam, stored, str(a.input))
+            else:
+                cam = stored
         fps = source_frame_rate(source, attrs, a.fps)
         if "sequence" in attrs:
             seq = FlameSequence.from_dict(json.loads(attrs["sequence"]))
