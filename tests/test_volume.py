@@ -130,6 +130,12 @@ def test_the_edge_warning_names_the_planes_cut_and_says_when_the_light_beyond_wa
     edge_warning(rec, None, modelled=True)
     out, err = capsys.readouterr()
     assert "modelled its light from beyond the field" in out and not err
+    # a plane far from the flame with a few stray samples at the border: most of its little light, not warned of
+    faint = np.zeros((2, 20, 20))
+    faint[0, 6:14, 6:14] = 1.0
+    faint[1, 0, 5] = 0.5                                                  # 0.8 % of the bright plane's light
+    edge = edge_warning(Reconstruction(faint, (0.0, 1.0), ((0.1, 0.1),) * 2, "admm"), None)
+    assert edge[1] == 1.0 and not capsys.readouterr().err
 
 
 def test_a_volume_moved_sideways_is_drawn_whole_and_cut_by_the_fields_edge(volume_raw, tmp_path, capsys):

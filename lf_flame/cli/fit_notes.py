@@ -57,12 +57,16 @@ def decoded_note(lf, rec, lattice=None) -> str:
 def edge_warning(rec, op, modelled: bool = False, stack: bool = False):
     """Each plane's share of its emission within :data:`~lf_flame.tomo.solvers.EDGE_BAND_LENSLETS` of the field's
     edge (:func:`~lf_flame.tomo.solvers.edge_shares`), for the file; where a plane's exceeds
-    :data:`~lf_flame.tomo.solvers.EDGE_SHARE_WARN`, one warning (stderr) naming those planes, or with ``modelled``
+    :data:`~lf_flame.tomo.solvers.EDGE_SHARE_WARN` (planes holding less than
+    :data:`~lf_flame.tomo.solvers.EDGE_PLANE_FLOOR` of the brightest plane's light left out: a few stray samples
+    there are most of such a plane's light), one warning (stderr) naming those planes, or with ``modelled``
     (the axisymmetric prior's light from beyond the field) a note that it was modelled. ``stack``: a dense stack's
     planes, on which the warning also names light the solve spread over planes far from any flame."""
-    from ..tomo.solvers import EDGE_BAND_LENSLETS, EDGE_SHARE_WARN, edge_shares
+    from ..tomo.solvers import EDGE_BAND_LENSLETS, EDGE_PLANE_FLOOR, EDGE_SHARE_WARN, edge_shares
     edge = [float(v) for v in edge_shares(rec.planes, getattr(op, "subsamples", 1))]
-    cut = [(d, e) for d, e in zip(rec.depths_mm, edge) if e > EDGE_SHARE_WARN]
+    light = np.clip(np.asarray(rec.planes, np.float64), 0, None).sum(axis=(1, 2))
+    lit = light >= EDGE_PLANE_FLOOR * light.max() if light.max() > 0 else np.zeros(len(light), bool)
+    cut = [(d, e) for d, e, keep in zip(rec.depths_mm, edge, lit) if e > EDGE_SHARE_WARN and keep]
     if cut:
         which = ", ".join(f"{d:+.2f} mm ({100 * e:.1f} %)" for d, e in cut[:4]) + (
             f" and {len(cut) - 4} more" if len(cut) > 4 else "")
