@@ -84,6 +84,31 @@ def test_a_colour_filter_array_read_at_the_wrong_phase_is_refused(files, capsys,
     assert not (files["dir"] / "wrong.json").exists()
 
 
+def test_a_clipped_or_mislabelled_blackbody_is_named(files, tmp_path, capsys):
+    """Blackbody images with clipped pixels are refused (a clipped channel's mean reads low: the gain ratio with it);
+    a temperature given wrong that still rises with the images leaves residuals of tens of K: a warning (the images'
+    own temperatures leave none); a raw image without a stored camera that is not the paper camera's lenslet images
+    is refused naming the decoding it needs."""
+    with np.load(files["bb"][2]) as z:
+        raw, meta = z["raw"], {k: z[k] for k in ("camera", "sensor")}
+    np.savez(tmp_path / "clipped.npz", raw=np.minimum(raw * 1.5, 1.0).astype(np.float32), **meta)
+    temps = [x for t in (1600, 2000, 2400) for x in ("--temperature", str(t))]
+    capsys.readouterr()
+    assert main(["calibrate-temperature", *files["bb"][:2], str(tmp_path / "clipped.npz"), *temps,
+                 "--out", str(tmp_path / "c.json")]) == 2
+    assert "of its lit samples are clipped" in capsys.readouterr().err and not (tmp_path / "c.json").exists()
+    assert main(["calibrate-temperature", *files["bb"], *temps, "--out", str(tmp_path / "ok.json")]) == 0
+    assert "warning" not in capsys.readouterr().err
+    wrong = [x for t in (1600, 1800, 2400) for x in ("--temperature", str(t))]
+    assert main(["calibrate-temperature", *files["bb"], *wrong, "--out", str(tmp_path / "w.json")]) == 0
+    err = capsys.readouterr().err
+    assert "warning: the fit leaves a residual of" in err and "1600, 1800, 2400 K" in err, err
+    np.save(tmp_path / "cropped.npy", raw[:310, :310])
+    assert main(["calibrate-temperature", str(tmp_path / "cropped.npy"), str(tmp_path / "cropped.npy"),
+                 "--temperature", "1600", "--temperature", "2400", "--out", str(tmp_path / "n.json")]) == 2
+    assert "stores no camera: it was taken as the paper camera's raw image" in capsys.readouterr().err
+
+
 def test_blackbody_temperatures_given_in_another_order_are_named(files, capsys):
     """The blackbodies' temperatures given in reverse order: the ratio rises with the temperatures given, and the
     refusal names the temperatures as given beside the colour filter array."""
@@ -517,6 +542,12 @@ def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, 
     assert main(["temperature", f"{d}/mono.h5", "--camera", str(cam_file), "--calibration", f"{d}/bb.json",
                  "--depth", "0", "--out", f"{d}/t2.h5"]) == 2
     assert "without their colour channels" in capsys.readouterr().err
+    # a monochrome capture with no record of its sensor decoded with the colour camera file: refused (decoded, every
+    # temperature would read one ratio); the simulated one records that it is monochrome, and is decoded so
+    np.save(f"{d}/mono.npy", np.load(f"{d}/mono.npz")["raw"])
+    assert main(["decode", f"{d}/mono.npy", "--calibration", f"{d}/cal.json", "--camera", str(cam_file),
+                 "--out", f"{d}/mono_as_colour.h5"]) == 2
+    assert "holds no colour filter mosaic" in capsys.readouterr().err and not (tmp_path / "mono_as_colour.h5").exists()
 
 
 def test_a_colour_captures_emission_is_solved_at_each_samples_own_pixel(tmp_path, colour_capture):

@@ -57,6 +57,10 @@ def cmd_decode(a):
     sensor, where = colour_sensor(a.camera, a.raw)
     from ..real.images import _image
     _image(str(a.raw), raw)         # NaN or inf named before the clipping level is looked for in them
+    if sensor is not None:          # a monochrome capture decoded as a colour one would read one flat temperature
+        from ..temperature.mosaic import refuse_no_mosaic
+        refuse_no_mosaic(raw, a.raw, f"the camera names a colour sensor ({where}); decode a monochrome capture with a "
+                                     "camera file whose [sensor] names no cfa")
     t = time.perf_counter()
     # a hexagonal grid keeps its lattice's views (and a colour capture's channels there) beside the square grid's
     level = _saturation_level(a.saturation, raw)

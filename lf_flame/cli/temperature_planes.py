@@ -44,20 +44,17 @@ def _sensor(path, a, cal=None):
     return library_sensor(rec["name"], rec["pattern"], tuple(rec["phase"])), where
 
 
-#: Relative spread of a raw image's four 2 x 2 phase means (over its lit pixels) below which it holds no colour
-#: filter mosaic: a monochrome sensor's phases differ by noise alone; a Bayer mosaic of flame light by tens of %.
-MOSAIC_SPREAD = 0.01
-
-
 def _refuse_monochrome(path):
     """Refuse a light field without colour channels: one ``lf-flame simulate`` rendered monochrome
     (its record holds a camera and no sensor), or an image whose four 2 x 2 pixel phases have the
-    same mean over its lit pixels (within :data:`MOSAIC_SPREAD`): no mosaic to take a ratio of."""
+    same mean over its lit pixels (:func:`lf_flame.temperature.mosaic.refuse_no_mosaic`): no mosaic to take a ratio
+    of."""
     meta = _raw_meta(path)
     if "camera" in meta and "sensor" not in meta:
         raise ValueError(f"{path} is a monochrome light field (rendered without a colour sensor): two-colour "
                          "pyrometry needs a colour (Bayer) capture")
-    _refuse_no_mosaic(_load_raw(path)[0], path)
+    from ..temperature.mosaic import refuse_no_mosaic
+    refuse_no_mosaic(_load_raw(path)[0], path)
 
 
 def furnace_note(path, alpha: float):
@@ -78,22 +75,6 @@ def furnace_note(path, alpha: float):
     print(f"note: {path} is a furnace image (a blackbody): its emissivity is flat in wavelength, so give --alpha 0; "
           f"--alpha {alpha:g} (soot's exponent, the default) reads a blackbody 9-10 % low", file=sys.stderr)
     return True
-
-
-def _refuse_no_mosaic(raw, path):
-    """Refuse a raw image (named ``path``) whose four 2 x 2 pixel phases have the same mean over its lit pixels
-    (within :data:`MOSAIC_SPREAD`): a monochrome sensor's."""
-    lit = raw > 0.1 * float(raw.max()) if raw.max() > 0 else np.zeros(raw.shape, bool)
-    means = []
-    for i in (0, 1):
-        for j in (0, 1):
-            m = lit[i::2, j::2]
-            means.append(float(raw[i::2, j::2][m].mean()) if m.any() else np.nan)
-    means = np.asarray(means)
-    if np.all(np.isfinite(means)) and np.ptp(means) <= MOSAIC_SPREAD * means.mean():
-        raise ValueError(f"{path} holds no colour filter mosaic (its four 2 x 2 pixel phases have the same mean, "
-                         f"within {100 * MOSAIC_SPREAD:g} %): a monochrome light field has no two colour channels "
-                         "to take a ratio of")
 
 
 #: What the temperature figure's grey area is (its legend entry).

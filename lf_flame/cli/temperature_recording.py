@@ -8,7 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .temperature_planes import _auto_depths, _level_record, _plane_temperatures, _record, _refuse_no_mosaic
+from ..temperature.mosaic import refuse_no_mosaic
+from .temperature_planes import _auto_depths, _level_record, _plane_temperatures, _record
 
 
 def recording_source(src):
@@ -78,7 +79,7 @@ def temperature_recording(a, source, attrs, cal, sensor, where):
         except ValueError as e:
             raise ValueError(str(e).replace("--calibration", "--grid-calibration")) from None
         if depths is None:                                  # the planes: given, or found in the first frame
-            _refuse_no_mosaic(raw, name)
+            refuse_no_mosaic(raw, name)
             stored = json.loads(attrs["sequence"]).get("flames") if "sequence" in attrs else None  # a simulated one
             depths = planes_from_args(a, lf.camera, stored)
             if depths == "auto":

@@ -20,6 +20,43 @@ from ..optics.colour import ColourSensor
 from ..refocus.shift_and_sum import raw_to_views
 
 
+#: Relative spread of a raw image's four 2 x 2 phase means (over its lit pixels) below which it holds no colour
+#: filter mosaic: a monochrome sensor's phases differ by noise alone; a Bayer mosaic of flame light by tens of %.
+MOSAIC_SPREAD = 0.01
+
+
+def refuse_no_mosaic(raw, source: str, hint: str = "a monochrome light field has no two colour channels to take a "
+                                                   "ratio of") -> None:
+    """Refuse a raw image whose four 2 x 2 pixel phases have the same mean over its lit pixels (those above 0.1 of
+    its maximum; within :data:`MOSAIC_SPREAD`): a monochrome sensor's, read as a colour one.
+
+    Parameters
+    ----------
+    raw : ndarray of shape (rows, cols)
+        Pixels, any units.
+    source : str
+        Its name in the message.
+    hint : str
+        What the refusal means for the command (the message's end).
+
+    Raises
+    ------
+    ValueError
+        No mosaic, naming ``source``.
+    """
+    raw = np.asarray(raw, np.float64)
+    lit = raw > 0.1 * float(raw.max()) if raw.max() > 0 else np.zeros(raw.shape, bool)
+    means = []
+    for i in (0, 1):
+        for j in (0, 1):
+            m = lit[i::2, j::2]
+            means.append(float(raw[i::2, j::2][m].mean()) if m.any() else np.nan)
+    means = np.asarray(means)
+    if np.all(np.isfinite(means)) and np.ptp(means) <= MOSAIC_SPREAD * means.mean():
+        raise ValueError(f"{source} holds no colour filter mosaic (its four 2 x 2 pixel phases have the same mean, "
+                         f"within {100 * MOSAIC_SPREAD:g} %): {hint}")
+
+
 def channel_views(shape, sensor: ColourSensor, pixels_per_lenslet: int) -> np.ndarray:
     """Channel index (0 R, 1 G, 2 B) of each view sample of a raw image of ``shape``.
 
