@@ -300,6 +300,7 @@ def main(argv=None):
                 blur_err = np.abs(Tb[k] - Tt[k])[sel & np.isfinite(Tb[k])]
                 rows.append(dict(seed=seed, noise=noise, plane=k, depth_mm=d, flames=len(objects),
                                  n_truth=int(vt[k].sum()), n_reported=int(sel.sum()),
+                                 n_without_truth=int((valid[k] & ~vt[k]).sum()), n_valid=int(valid[k].sum()),
                                  median_k=float(np.median(err)) if err.size else np.nan,
                                  p90_k=float(np.percentile(err, 90)) if err.size else np.nan,
                                  worst_k=float(err.max()) if err.size else np.nan,
@@ -319,9 +320,11 @@ def main(argv=None):
                                             signed_median_range=("signed_median_k",
                                                                  lambda v: f"{v.min():+.0f} .. {v.max():+.0f}"),
                                             share_reported=("n_reported", "sum"), truth=("n_truth", "sum"),
+                                            share_without_truth=("n_without_truth", "sum"), valid=("n_valid", "sum"),
                                             temperature_wall_s=("temperature_wall_s", "median"))
     g["share_reported"] = g.share_reported / g.truth
-    g = g.drop(columns="truth").reset_index()
+    g["share_without_truth"] = g.share_without_truth / g.valid
+    g = g.drop(columns=["truth", "valid"]).reset_index()
     g["bar"] = [f"p90 <= {BAR_P90_K:g} K: {'met' if v <= BAR_P90_K else 'not met'}" if n == "clean" else
                 f"p90 <= {2 * BAR_P90_K:g} K: {'met' if v <= 2 * BAR_P90_K else 'not met'}"
                 for n, v in zip(g.noise, g.p90_worst_plane)]
@@ -353,7 +356,10 @@ def main(argv=None):
           "depths; noise-free and at 14 dB. Scored per plane against the truth on the decoded planes (each "
           "channel's emission in the decoded frame, R over G through the same calibration): |T - T_true| over the "
           "pixels that both report (`body_p90`: those where the truth's light is above "
-          f"{BODY_FRACTION:g} of its plane's peak; `signed_median`: the estimate less the truth). A yardstick beside "
+          f"{BODY_FRACTION:g} of its plane's peak; `signed_median`: the estimate less the truth; "
+          "`share_reported`: the truth's pixels that the route reports; `share_without_truth`: the route's pixels "
+          "where the truth has no temperature, not scored: another plane's flame read on this one, at temperatures "
+          "of its own). A yardstick beside "
           f"the route: `blur_p90`, the truth's two channels each blurred by a Gaussian of {BLUR_LENSLETS:g} lenslet, "
           "scored the same way: what resolving each channel no finer than that on the decoded planes' lenslet grid "
           "costs these flames.", "",
