@@ -11,8 +11,19 @@ import json
 import os
 import subprocess
 import sys
+import textwrap
 import time
 from collections import defaultdict
+
+
+def compared_commit(checkout) -> str | None:
+    """The commit a ``--compare`` checkout is at: its short hash and subject, the subject shortened to 80 characters
+    at a word (a cut name would read as another); None without a checkout."""
+    if checkout is None:
+        return None
+    line = subprocess.run(["git", "-C", str(checkout), "log", "-1", "--format=%h %s"], capture_output=True,
+                          text=True).stdout.strip()
+    return textwrap.shorten(line, 80, placeholder=" …") or None
 
 
 class Clock:

@@ -31,9 +31,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
 import sys
-import textwrap
 import time
 from pathlib import Path
 
@@ -41,7 +39,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from alternating import Clock, alternate  # noqa: E402
+from alternating import Clock, alternate, compared_commit  # noqa: E402
 
 CACHE = ROOT / "data" / "fourier_solver"
 KINDS = ("paper", "varied", "overlap")
@@ -245,8 +243,7 @@ def main(argv=None) -> int:
                                x_faster_pairs=[f"{lo:.2f}-{hi:.2f}" for lo, hi in spread.loc[after.index].values]
                                ).reset_index().drop(columns="version")
         atomic_write_text(a.out / "floor.csv", df.to_csv(index=False, float_format="%.6g"))
-        compared = None if a.compare is None else subprocess.run(
-            ["git", "-C", str(a.compare), "log", "-1", "--format=%h %s"], capture_output=True, text=True).stdout.strip()
+        compared = compared_commit(a.compare)
         meta.update(routes=dict(pairs=a.pairs, repeats=a.repeats, compare=None if a.compare is None else str(a.compare),
                                 compare_commit=compared or None,
                                 floor_s={f"{v}, {t} thread{'s' if t > 1 else ''}": float(t_s)
@@ -278,7 +275,7 @@ def write_md(out: Path, meta) -> None:
         md += ["", f"{r['pairs']} child processes per version, {r['repeats']} timed calls per route in each "
                f"({r['wall_s']:.0f} s). Floor medians: {floors}."
                + ("" if not r["compare"] else " `before`: the checkout given by `--compare`"
-                  + (f" (commit {textwrap.shorten(r['compare_commit'], 80, placeholder=' …')})" if r.get("compare_commit") else "") + ", its children "
+                  + (f" (commit {r['compare_commit']})" if r.get("compare_commit") else "") + ", its children "
                   "alternating with this one's; `x_faster`: before's median over after's, `x_faster_pairs` the "
                   "same per pair of children (the machine's drift between them)."), "",
                pd.DataFrame(r["table"]).to_markdown(index=False, floatfmt=".3g")]

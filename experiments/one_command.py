@@ -25,12 +25,11 @@ import os
 import shutil
 import subprocess
 import sys
-import textwrap
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from alternating import Clock, alternate  # noqa: E402
+from alternating import Clock, alternate, compared_commit  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SENSOR = (1080, 1080)
@@ -182,8 +181,7 @@ def main(argv=None) -> int:
                                  else "" for v, ver in zip(tab.variant, tab.version)]
     phases = pd.DataFrame([{k: v for k, v in r.items() if k not in ("kind", "pair")} for r in rows
                            if r["kind"] == "phases"]).set_index("version").T
-    compared = None if a.compare is None else subprocess.run(
-        ["git", "-C", str(a.compare), "log", "-1", "--format=%h %s"], capture_output=True, text=True).stdout.strip()
+    compared = compared_commit(a.compare)
     meta = dict(command="lf-flame " + " ".join(Path(c).name if str(a.work) in c else c for c in cmd) + " --out OUT",
                 sensor=SENSOR, seed=SEED, pairs=a.pairs,
                 recording=(f"a recording of the same camera (simulate-sequence --simulate overlap: two flames, "
@@ -202,7 +200,7 @@ def main(argv=None) -> int:
 def write_md(out: Path, meta: dict, tab, phases) -> None:
     from lf_flame.config import atomic_write_text
     before = "" if not meta["compare"] else (
-        f" `before`: the checkout given by `--compare` (commit {textwrap.shorten(meta['compare_commit'] or '?', 80, placeholder=' …')}), its "
+        f" `before`: the checkout given by `--compare` (commit {meta['compare_commit'] or '?'}), its "
         "children alternating with this one's; `x_faster`: before's median over after's, `x_faster_pairs` the same "
         "per pair of runs (the machine's drift between them).")
     lines = ["# A user's capture to its planes in one command", "",

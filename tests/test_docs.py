@@ -172,7 +172,8 @@ def test_the_checks_catch_what_they_should(tmp_path):
     assert not WORK_ITEM.search("| # | case |") and not WORK_ITEM.search("[x](a.md#56-b)") and not WORK_ITEM.search("&#8212;")
     md.write_text("`lf_flame.tomo.found_planes.find_planes` and `lf_flame.tomo.depth.find_planes` in "
                   "`python experiments/depth.py` beside experiments/flame_tail.py.\n", encoding="utf-8")
-    assert [n for _, n in named_code([md])] == ["lf_flame.tomo.found_planes.find_planes", "lf_flame.tomo.depth.find_planes",
-                                                "experiments/depth.py", "experiments/flame_tail.py"]
+    assert [n for _, n in named_code([md])] == ["lf_flame.tomo.found_planes.find_planes",
+                                                "lf_flame.tomo.depth.find_planes", "experiments/depth.py",
+                                                "experiments/flame_tail.py"]
     assert resolves("lf_flame.tomo.found_planes.find_planes") and resolves("lf_flame.tomo.found_planes")
     assert not resolves("lf_flame.tomo.depth.find_planes") and not resolves("lf_flame.diagnostics.EMISSION_MEASURE")

@@ -218,9 +218,10 @@ def cmd_sequence(a):
                   "clipped_share)")
         overexposure_warning(over["max_share"], f"in {over['frames']} of {s['n_frames']} frames up to ")
         if over["left_out_of_spectra"]:
-            shown = ", ".join(map(str, over["left_out_of_spectra"][:10]))
-            print(f"frames over-exposed against the rest ({shown}{', ...' if len(over['left_out_of_spectra']) > 10 else ''}"
-                  "): their heights and intensities are in frames.csv, and the spectra take each plane's mean there")
+            left = over["left_out_of_spectra"]
+            shown = ", ".join(map(str, left[:10])) + (", ..." if len(left) > 10 else "")
+            print(f"frames over-exposed against the rest ({shown}): their heights and intensities are in frames.csv, "
+                  "and the spectra take each plane's mean there")
     print(f"{s['n_frames']} frames ({s['chunks_processed']} chunks processed, {s['frames_per_s']:.1f} frames/s) "
           f"-> {a.out}/frames.csv, spectra.csv, peaks.csv, sequence.png, summary.json")
 

@@ -33,9 +33,9 @@ RESIDUAL_WARN_K = 20.0
 def _clipped_blackbody(share: float, path) -> None:
     """Refuse a blackbody image with more than :data:`BLACKBODY_CLIPPED_MAX` of its lit samples clipped."""
     if share > BLACKBODY_CLIPPED_MAX:
-        raise ValueError(f"{path}: {100 * share:.2g} % of its lit samples are clipped: a clipped channel's mean reads "
-                         "low and the gain ratio with it (every temperature then off by up to hundreds of K); image the "
-                         "blackbody with a shorter exposure")
+        raise ValueError(f"{path}: {100 * share:.2g} % of its lit samples are clipped: a clipped channel's mean "
+                         "reads low and the gain ratio with it (every temperature then off by up to hundreds of K); "
+                         "image the blackbody with a shorter exposure")
 
 
 def cmd_calibrate_temperature(a):
@@ -97,8 +97,8 @@ def cmd_calibrate_temperature(a):
           + f" K -> {out}")
     worst = max(abs(x) for x in cal.fit_residuals_k)
     if worst > RESIDUAL_WARN_K:
-        print(f"warning: the fit leaves a residual of {worst:.0f} K: one blackbody's --temperature may be wrong, or its "
-              "image not a blackbody's filling the field (the temperatures given in the images' order: "
+        print(f"warning: the fit leaves a residual of {worst:.0f} K: one blackbody's --temperature may be wrong, or "
+              "its image not a blackbody's filling the field (the temperatures given in the images' order: "
               + ", ".join(f"{t:g}" for t in temps) + " K)", file=sys.stderr)
 
 
