@@ -461,7 +461,8 @@ def capture_sensor(camera, meta, source: str = "the image") -> tuple:
     """A raw capture's colour sensor and where it came from: the camera file's ``[sensor] cfa``, else the record
     ``lf-flame simulate`` stored beside the image (``meta["sensor"]``); ``(None, "")`` for a monochrome one, and for
     an image ``lf-flame simulate`` or ``simulate-sequence`` rendered without colour (its record names a ``scene`` or
-    a ``sequence`` and no ``sensor``: a monochrome scene's render, whatever CFA the camera file names).
+    a ``sequence`` and no ``sensor``: a monochrome scene's render, whatever CFA the camera file names). A camera
+    file's CFA that differs from the one the image records is warned of (the camera file's is used).
 
     Parameters
     ----------
@@ -484,6 +485,12 @@ def capture_sensor(camera, meta, source: str = "the image") -> tuple:
     if camera is not None and not isinstance(camera, PlenopticCamera):
         sensor = load_colour_sensor(camera)
         if sensor is not None:
+            stored = json.loads(meta["sensor"]) if meta.get("sensor") else None
+            if stored and (stored["pattern"], tuple(stored["phase"])) != (sensor.pattern, tuple(sensor.phase)):
+                import warnings
+                warnings.warn(f"{source} records its colour filter array as {stored['pattern']} phase "
+                              f"{tuple(stored['phase'])}, the camera file {camera} names {sensor.pattern} phase "
+                              f"{tuple(sensor.phase)}: the camera file's is used", stacklevel=2)
             return sensor, f"{camera} [sensor]"
     rec = meta.get("sensor")
     if not rec:
