@@ -148,6 +148,10 @@ def test_wrong_calibration_refused(tmp_path):
         P.load_calibration(path, library_sensor("Sigma SDMerill (NPL)"))
     with pytest.raises(ValueError, match="phase"):
         P.load_calibration(path, library_sensor(phase=(1, 1)))
+    # the same layout spelt another way (RGGB from its tile's second column is GRBG): the same sensor
+    assert P.load_calibration(path, library_sensor(pattern="GRBG", phase=(0, 1))).pattern == "RGGB"
+    with pytest.raises(ValueError, match="phase"):
+        P.load_calibration(path, library_sensor(pattern="GRBG", phase=(0, 0)))
     # channels whose ratio does not change with T: no unique temperature
     grey = ColourSensor(nikon.name, "RGGB", (0, 0), nikon.wavelengths_nm, nikon.sensitivities[:, [1, 1, 2]])
     with pytest.raises(ValueError, match="not strictly monotonic"):
