@@ -443,3 +443,25 @@ def test_planes_of_emission_are_measured_with_their_own_edges():
                 errs[route].append(abs(m.height_mm - t["height_mm"]))
     assert max(errs["truth"]) < 0.15
     assert np.mean(errs["truth"]) < 0.5 * np.mean(errs["shift-sum"])
+
+
+def test_profiles_measures_each_flame_found_apart_on_one_plane(tmp_path):
+    """Two flames side by side at 0 and +0.05 mm (their depths found and merged onto one plane, each in its own
+    columns): profiles gives each its row, measured in its own columns (it measured the plane's sharpest region
+    alone, and the 13 mm flame had no row); the other planes keep one row each."""
+    import pandas as pd
+
+    from lf_flame.cli import main
+    from lf_flame.optics.camera import PAPER_CAMERA
+    from lf_flame.simulate import tracer
+    from lf_flame.simulate.scenes import flame_scene
+    scene = flame_scene(PAPER_CAMERA, np.random.default_rng(0), regime="paper", depths_mm=(20.0, 10.0, 0.05, 0.0))
+    np.savez(tmp_path / "two.npz", raw=tracer.render(PAPER_CAMERA, scene, 4, 0), camera=PAPER_CAMERA.to_json())
+    assert main(["profiles", str(tmp_path / "two.npz"), "--no-figure", "--out", str(tmp_path / "p")]) == 0
+    df = pd.read_csv(tmp_path / "p.csv")
+    shared = df[df.depth_mm.abs() < 1.0].sort_values("centroid_x_mm")
+    assert len(df) == 4 and sorted(shared.flame) == [0, 1], df
+    near = sorted(scene.objects[2:], key=lambda o: o["centre_x_mm"])
+    for (_, row), o in zip(shared.iterrows(), near):
+        assert abs(row.height_mm - o["height_mm"]) < 0.3 and abs(row.centroid_x_mm - o["centre_x_mm"]) < 0.3, df
+    assert (df[df.depth_mm.abs() >= 1.0].flame == 0).all()

@@ -24,7 +24,8 @@ PROFILES_ROUTE = "reconstruct-admm"
 
 
 def _profiles_input(a):
-    """Camera, 4-plane stack, depths, slopes and flame objects (or None) for ``profiles``."""
+    """Camera, 4-plane stack, depths, slopes, flame objects (or None) and the found depths (a
+    :class:`~lf_flame.tomo.depth.FoundDepths` where the planes were found, else None) for ``profiles``."""
     from ..optics.camera import PAPER_CAMERA
     from ..real.lightfield import from_raw
     from ..refocus.shift_and_sum import aperture_mask, refocus
@@ -59,10 +60,11 @@ def _profiles_input(a):
         slopes = [cam.slope_for_depth(d) for d in depths] if depths else None
     route = parse_route(a.route)
     search = getattr(a, "search_range", None)
+    found = None
     if route.tomographic:
-        depths, stack = solved_planes(from_raw(raw, cam, str(a.raw)), depths, route.solver, search)
+        depths, stack, found = solved_planes(from_raw(raw, cam, str(a.raw)), depths, route.solver, search)
     elif not depths:
-        depths = found_planes(from_raw(raw, cam, str(a.raw)), search_range=search)[0]
+        depths, _, found = found_planes(from_raw(raw, cam, str(a.raw)), search_range=search)
     if a.slope:
         slopes = a.slope
     elif slopes is None:                          # the planes found
@@ -81,7 +83,7 @@ def _profiles_input(a):
         stack = run(raw.astype(np.float32)[None, ..., None])
     elif not route.tomographic:
         stack = refocus(raw, slopes, n, aperture_mask(n, "circular"), **route.options)
-    return cam, np.asarray(stack), depths, list(slopes), objects
+    return cam, np.asarray(stack), depths, list(slopes), objects, found
 
 
 def _decoded(a) -> bool:
@@ -122,14 +124,15 @@ def _decoded_profiles_input(a):
     if depths:
         check_imaging_range(cam, depths)
     search = getattr(a, "search_range", None)
+    found = None
     if route.tomographic:
-        depths, stack = solved_planes(lf, depths, route.solver, search)
-    else:
-        depths = depths or found_planes(lf, search_range=search)[0]
+        depths, stack, found = solved_planes(lf, depths, route.solver, search)
+    elif not depths:
+        depths, _, found = found_planes(lf, search_range=search)
     slopes = [cam.slope_for_depth(d) for d in depths]
     if not route.tomographic:
         stack = refocus_views(lf.views, slopes, aperture_mask(cam.pixels_per_lenslet, "circular"), **route.options)
-    return cam, np.asarray(stack), depths, slopes, objects
+    return cam, np.asarray(stack), depths, slopes, objects, found
 
 
 def solved_planes(lf, depths, solver, search_range=None):
@@ -140,7 +143,8 @@ def solved_planes(lf, depths, solver, search_range=None):
     None or empty: found as ``reconstruct --depths auto`` finds them, within ``search_range`` (mm): the votes, then
     the residual's search and the refinement, near planes held to their regions
     (:func:`lf_flame.cli.planes.solve_found`); the votes' depths alone leave those out. A hexagonal grid's admm
-    planes are solved once more on its lattice (:func:`lf_flame.cli.planes.lattice_solve`)."""
+    planes are solved once more on its lattice (:func:`lf_flame.cli.planes.lattice_solve`). Returns
+    ``(depths, stack, found)``, ``found`` the :class:`~lf_flame.tomo.depth.FoundDepths` (None for given depths)."""
     from ..tomo.truth import bin_planes
     from .planes import found_planes, lattice_solve, run_reconstruction, solve_found
     from .fit_notes import left_out_notes
@@ -152,7 +156,23 @@ def solved_planes(lf, depths, solver, search_range=None):
         depths = [float(d) for d in found.planes_mm]
     rec, lattice = lattice_solve(lf, op, rec, found)
     print("\n".join(left_out_notes(lf, rec, lattice)))
-    return list(depths), bin_planes(rec.planes, getattr(op, "subsamples", 1))
+    return list(depths), bin_planes(rec.planes, getattr(op, "subsamples", 1)), found
+
+
+def flame_bands(found, plane: int, n_cols: int) -> list:
+    """The column bands ``[c0, c1)`` (lenslets) of the separate flames found on one plane: where depths found in two
+    or more regions (:class:`~lf_flame.tomo.depth.FoundDepths`' ``region`` and ``labels``) share the plane (their
+    depths merged onto it, ``plane_of``) and the regions' columns do not overlap, each region's band reaches halfway
+    to its neighbour's; else ``[None]``, the whole plane (one flame, or flames one behind another)."""
+    if found is None:
+        return [None]
+    labs = sorted({int(found.region[j]) for j in np.flatnonzero(np.asarray(found.plane_of) == plane)})
+    spans = sorted((int(c[0]), int(c[-1]) + 1) for c in
+                   (np.flatnonzero((found.labels == lab).any(axis=0)) for lab in labs) if len(c))
+    if len(spans) < 2 or any(b[0] < a[1] for a, b in zip(spans, spans[1:])):
+        return [None]
+    edges = [0] + [(a[1] + b[0]) // 2 for a, b in zip(spans, spans[1:])] + [int(n_cols)]
+    return list(zip(edges[:-1], edges[1:]))
 
 
 def profiles_table(a):
@@ -177,16 +197,17 @@ def profiles_table(a):
     objects : list of P dict or None
         The flames' objects (the truth) when the input stores them.
     table : pandas.DataFrame
-        One row per plane: ``plane``, ``route``, ``depth_mm``, ``slope``, the measurement's
-        summary (mm), and with the truth ``height_mm_true``, ``height_err_mm`` (|measured - true|, mm) ...;
-        ``failure``.
+        One row per plane and flame: ``plane``, ``flame`` (0, 1 ... where flames found apart share a plane,
+        :func:`flame_bands`; ``measurements`` holds each plane's brightest), ``route``, ``depth_mm``, ``slope``, the
+        measurement's summary (mm), and with the truth ``height_mm_true``, ``height_err_mm`` (|measured - true|,
+        mm) ...; ``failure``.
     """
     import pandas as pd
     from ..measure.diagnostics import EmptyPlaneError, flame_truth, measure_flame
     from ..routes import measure_settings
     from ..measure.scoring import score_stacks
     kw = measure_settings(a.route)
-    cam, stack, depths, slopes, objects = _profiles_input(a)
+    cam, stack, depths, slopes, objects, found = _profiles_input(a)
     if objects and not _decoded(a):
         sample = int(str(a.raw).rsplit(":", 1)[1]) if ".h5:" in str(a.raw) else 0
         df = score_stacks(stack[None], cam, [objects], samples=[sample], measure=kw, route=a.route)
@@ -200,20 +221,22 @@ def profiles_table(a):
     else:
         ms, rows = [], []
         for k, (plane, d) in enumerate(zip(stack, depths)):
-            try:
-                m = measure_flame(plane, cam, d, **kw)
-                rows.append(dict(plane=k, route=a.route, depth_mm=d, **m.summary(), failure=""))
-            except EmptyPlaneError as e:
-                m = None
-                rows.append(dict(plane=k, route=a.route, depth_mm=d, failure=str(e)))
-            ms.append(m)
+            kept = []
+            for i, band in enumerate(flame_bands(found, k, cam.n_cols)):
+                try:
+                    m = measure_flame(plane, cam, d, columns=band, **kw)
+                    rows.append(dict(plane=k, flame=i, route=a.route, depth_mm=d, **m.summary(), failure=""))
+                    kept.append(m)
+                except EmptyPlaneError as e:
+                    rows.append(dict(plane=k, flame=i, route=a.route, depth_mm=d, failure=str(e)))
+            ms.append(max(kept, key=lambda m: m.integrated_intensity) if kept else None)
         df = pd.DataFrame(rows)
         if objects and "height_mm" in df:    # decoded views: the flames' heights beside, their columns not assumed
             df.insert(df.columns.get_loc("height_mm") + 1, "height_mm_true",
                       [float(o.get("height_mm", np.nan)) for o in objects])
             # |measured - true|, as score_stacks gives it on the simulated camera's route
             df.insert(df.columns.get_loc("height_mm_true") + 1, "height_err_mm", (df.height_mm - df.height_mm_true).abs())
-    df.insert(3, "slope", slopes)
+    df.insert(3 + ("flame" in df), "slope", [slopes[k] for k in df.plane])
     return cam, stack, depths, ms, objects, df
 
 
@@ -239,8 +262,9 @@ def cmd_profiles(a):
     if a.figure:
         from ..measure.figures import plot_profiles
         plot_profiles(f"{out}.png", cam, stack, depths, ms, objects, a.route, value_label(a.route))
-    cols = [c for c in ("depth_mm", "height_mm", "height_mm_true", "height_err_mm", "max_width_mm",
-                        "centroid_x_mm", "integrated_intensity", "flags", "failure") if c in df]
+    several = "flame" in df and bool((df.flame > 0).any())          # flames found apart on one plane: say which
+    cols = [c for c in ("depth_mm", *(("flame",) if several else ()), "height_mm", "height_mm_true", "height_err_mm",
+                        "max_width_mm", "centroid_x_mm", "integrated_intensity", "flags", "failure") if c in df]
     print(df[cols].to_string(index=False, float_format=lambda v: f"{v:.3f}"))
     print(f"-> {out}.csv, {out}.axial.csv" + (f", {out}.png" if a.figure else ""))
 
