@@ -365,14 +365,16 @@ def test_a_camera_file_names_its_colour_filter_array(tmp_path):
     # a capture recording another CFA than the camera file names: the file's is used, with a warning naming both
     import warnings as w
     from lf_flame.real.lightfield import capture_sensor
-    record = {"sensor": json.dumps(dict(name="Nikon 5100", pattern="GRBG", phase=[0, 0]))}
-    with pytest.warns(UserWarning, match=r"records its colour filter array as GRBG phase \(0, 0\), the camera "
+    record = {"sensor": json.dumps(dict(name="Nikon 5100", pattern="RGGB", phase=[0, 0]))}
+    with pytest.warns(UserWarning, match=r"records its colour filter array as RGGB phase \(0, 0\), the camera "
                                          r"file .* names BGGR phase \(1, 0\)"):
         assert capture_sensor(str(colour), record)[0].pattern == "BGGR"
-    with w.catch_warnings():
+    with w.catch_warnings():                 # the same layout, as spelt or otherwise (BGGR from its second row: GRBG)
         w.simplefilter("error", UserWarning)
-        same = {"sensor": json.dumps(dict(name="x", pattern="BGGR", phase=[1, 0]))}
-        assert capture_sensor(str(colour), same)[0].pattern == "BGGR" and capture_sensor(str(colour), {})[0]
+        for pattern, phase in (("BGGR", [1, 0]), ("GRBG", [0, 0])):
+            same = {"sensor": json.dumps(dict(name="x", pattern=pattern, phase=phase))}
+            assert capture_sensor(str(colour), same)[0].pattern == "BGGR"
+        assert capture_sensor(str(colour), {})[0]
 
 
 def test_simulate_renders_colour_scenes_of_any_camera_file(tmp_path, capsys):

@@ -131,6 +131,12 @@ def cfa_channels(shape, pattern: str = "RGGB", phase=(0, 0)) -> np.ndarray:
     return tile[i[:, None], j[None, :]]
 
 
+def same_cfa_layout(pattern_a: str, phase_a, pattern_b: str, phase_b) -> bool:
+    """Whether two colour filter arrays put the same channels on a sensor's pixels, however spelt (RGGB at
+    phase (0, 1) is GRBG at (0, 0)): their channels on the first 2 x 2 pixels (:func:`cfa_channels`) agree."""
+    return bool(np.array_equal(cfa_channels((2, 2), pattern_a, phase_a), cfa_channels((2, 2), pattern_b, phase_b)))
+
+
 def library_sensor(name: str = DEFAULT_SENSITIVITIES, pattern: str = "RGGB", phase=(0, 0),
                    gains=(1.0, 1.0, 1.0)) -> ColourSensor:
     """A :class:`ColourSensor` with measured camera sensitivities from colour-science.

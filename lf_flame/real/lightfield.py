@@ -462,7 +462,8 @@ def capture_sensor(camera, meta, source: str = "the image") -> tuple:
     ``lf-flame simulate`` stored beside the image (``meta["sensor"]``); ``(None, "")`` for a monochrome one, and for
     an image ``lf-flame simulate`` or ``simulate-sequence`` rendered without colour (its record names a ``scene`` or
     a ``sequence`` and no ``sensor``: a monochrome scene's render, whatever CFA the camera file names). A camera
-    file's CFA that differs from the one the image records is warned of (the camera file's is used).
+    file's CFA that lays other channels on the pixels than the one the image records is warned of (the camera
+    file's is used; :func:`lf_flame.optics.colour.same_cfa_layout`).
 
     Parameters
     ----------
@@ -485,8 +486,9 @@ def capture_sensor(camera, meta, source: str = "the image") -> tuple:
     if camera is not None and not isinstance(camera, PlenopticCamera):
         sensor = load_colour_sensor(camera)
         if sensor is not None:
+            from ..optics.colour import same_cfa_layout
             stored = json.loads(meta["sensor"]) if meta.get("sensor") else None
-            if stored and (stored["pattern"], tuple(stored["phase"])) != (sensor.pattern, tuple(sensor.phase)):
+            if stored and not same_cfa_layout(stored["pattern"], stored["phase"], sensor.pattern, sensor.phase):
                 import warnings
                 warnings.warn(f"{source} records its colour filter array as {stored['pattern']} phase "
                               f"{tuple(stored['phase'])}, the camera file {camera} names {sensor.pattern} phase "

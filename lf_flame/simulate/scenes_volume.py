@@ -102,17 +102,11 @@ def volume_flame_scene(camera: PlenopticCamera, rng: np.random.Generator | None 
     ValueError
         Fewer than 2 layers, a non-positive diameter, a non-finite axis, a slab the camera cannot image.
     """
-    if not (math.isfinite(centre_depth_mm) and math.isfinite(centre_x_mm)):
-        raise ValueError(f"the axis must be finite. Received: depth {centre_depth_mm!r}, x {centre_x_mm!r}")
-    layers, H, base_y, dzs, thick, peak = _axisymmetric_layers(camera, rng, centre_depth_mm, centre_x_mm, diameter_mm,
-                                                               height_mm, 0.0, n_layers, texels_per_lenslet,
-                                                               field_margin)
-    obj = dict(name="volume", depth_offset_mm=float(centre_depth_mm), diameter_mm=float(diameter_mm), height_mm=H,
-               base_y_mm=base_y, centre_x_mm=float(centre_x_mm), layer_depths_mm=[float(v) for v in dzs],
-               layer_thickness_mm=thick, peak_emission=peak,
-               roi=_roi(camera, centre_depth_mm, base_y, base_y + H, centre_x_mm - diameter_mm / 2,
-                        centre_x_mm + diameter_mm / 2))
-    return Scene("volume", layers, FLAME_EFFECTS, (obj,))
+    sc = axisymmetric_flame_scene(camera, rng, centre_depth_mm=centre_depth_mm, centre_x_mm=centre_x_mm,
+                                  diameter_mm=diameter_mm, height_mm=height_mm, core=0.0, n_layers=n_layers,
+                                  texels_per_lenslet=texels_per_lenslet, field_margin=field_margin)
+    obj = {k: v for k, v in sc.objects[0].items() if k != "core"}      # the sheath alone
+    return Scene("volume", sc.layers, sc.effects, (obj,))
 
 
 def axisymmetric_flame_scene(camera: PlenopticCamera, rng: np.random.Generator | None = None, *,

@@ -63,11 +63,10 @@ class TemperatureCalibration:
         """Raise ValueError unless ``sensor`` is the camera (sensitivities, CFA, phase) of this calibration: its
         sensitivities and the channels its CFA puts on the sensor's first 2 x 2 pixels (a pattern and a phase that lay
         them out alike, RGGB at phase (0, 1) and GRBG at (0, 0), are the same sensor)."""
-        from ..optics.colour import cfa_channels
+        from ..optics.colour import same_cfa_layout
         mine = (self.sensor_name, self.pattern, tuple(self.phase))
         theirs = (sensor.name, sensor.pattern, tuple(sensor.phase))
-        same_layout = np.array_equal(cfa_channels((2, 2), mine[1], mine[2]), cfa_channels((2, 2), theirs[1], theirs[2]))
-        if mine[0] != theirs[0] or not same_layout:
+        if mine[0] != theirs[0] or not same_cfa_layout(*mine[1:], *theirs[1:]):
             raise ValueError(f"this temperature calibration was made for sensor {mine[0]!r}, CFA {mine[1]} phase "
                              f"{mine[2]}; the images are from sensor {theirs[0]!r}, CFA {theirs[1]} phase {theirs[2]}: "
                              "calibrate this camera with its own blackbody images")
