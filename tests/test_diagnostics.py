@@ -338,6 +338,30 @@ def test_profiles_measures_every_route_on_the_lenslet_grid(route, small_flame_np
     assert (df.height_err_mm.abs() < 0.6).all(), df[["depth_mm", "height_mm", "height_mm_true"]]
 
 
+def test_profiles_planes_given_keep_their_depths_and_take_the_truth_of_the_flame_there(small_flame_npz):
+    """Planes given by --depth on a simulated flame file are measured at those depths: each takes the truth of the
+    flame standing at its depth (within the camera's merge tolerance, 1 mm), none where no flame stands; three planes
+    for four flames are measured too. (They were measured as the scene's own planes, labelled and scored as its
+    flames by their order: a plane at -5 mm as the -10 mm flame.)"""
+    import argparse
+    import json
+
+    from lf_flame.cli.profiles import profiles_table
+    from lf_flame.measure.figures import profiles_figure
+    given = [20.3, 10.0, -5.0]
+    a = argparse.Namespace(raw=str(small_flame_npz), route="shift-sum", slope=None, camera=None, model_dir=None,
+                           depth=given)
+    cam, stack, depths, ms, objects, df = profiles_table(a)
+    assert depths == given and list(df.depth_mm) == given and len(stack) == 3
+    assert [None if o is None else o["depth_offset_mm"] for o in objects] == [20.0, 10.0, None]
+    heights = {o["depth_offset_mm"]: o["height_mm"] for o in json.loads(str(np.load(small_flame_npz)["objects"]))}
+    assert df.height_mm_true.iloc[:2].tolist() == [heights[20.0], heights[10.0]] and np.isnan(df.height_mm_true[2])
+    assert df.slope.values == pytest.approx([cam.slope_for_depth(d) for d in given], rel=1e-6)
+    fig = profiles_figure(cam, stack, depths, ms, objects, "shift-sum")
+    titles = [ax.get_title() for ax in fig.axes[:3]]
+    assert ["(true" in t for t in titles] == [True, True, False], titles
+
+
 def test_profiles_figure_explains_its_lines_and_units(small_flame_npz):
     """The planes in mm with one colour bar; a legend names the outline and the measured and
     true edges; the profiles' axes carry units and a legend (planes by colour, heights by style)."""

@@ -194,8 +194,9 @@ def profiles_table(a):
         The planes' depths (mm from the focal plane).
     measurements : list of P FlameMeasurement or None
         None where no flame was found.
-    objects : list of P dict or None
-        The flames' objects (the truth) when the input stores them.
+    objects : list of P (dict or None) or None
+        When the input stores its flames (the truth): the flame standing at each plane's depth, None where none does
+        (:func:`plane_flames`).
     table : pandas.DataFrame
         One row per plane and flame: ``plane``, ``flame`` (0, 1 ... where flames found apart share a plane,
         :func:`flame_bands`; ``measurements`` holds each plane's brightest), ``route``, ``depth_mm``, ``slope``, the
@@ -208,7 +209,8 @@ def profiles_table(a):
     from ..measure.scoring import score_stacks
     kw = measure_settings(a.route)
     cam, stack, depths, slopes, objects, found = _profiles_input(a)
-    if objects and not _decoded(a):
+    truth = plane_flames(cam, depths, objects)
+    if objects and not _decoded(a) and truth == list(objects):      # the scene's own planes, in its order
         sample = int(str(a.raw).rsplit(":", 1)[1]) if ".h5:" in str(a.raw) else 0
         df = score_stacks(stack[None], cam, [objects], samples=[sample], measure=kw, route=a.route)
         df.insert(0, "plane", range(len(df)))
@@ -231,13 +233,45 @@ def profiles_table(a):
                     rows.append(dict(plane=k, flame=i, route=a.route, depth_mm=d, failure=str(e)))
             ms.append(max(kept, key=lambda m: m.integrated_intensity) if kept else None)
         df = pd.DataFrame(rows)
-        if objects and "height_mm" in df:    # decoded views: the flames' heights beside, their columns not assumed
+        if any(o is not None for o in truth) and "height_mm" in df:   # the heights of the flames at the planes' depths
             df.insert(df.columns.get_loc("height_mm") + 1, "height_mm_true",
-                      [float(o.get("height_mm", np.nan)) for o in objects])
+                      [np.nan if truth[k] is None else float(truth[k]["height_mm"]) for k in df.plane])
             # |measured - true|, as score_stacks gives it on the simulated camera's route
             df.insert(df.columns.get_loc("height_mm_true") + 1, "height_err_mm", (df.height_mm - df.height_mm_true).abs())
     df.insert(3 + ("flame" in df), "slope", [slopes[k] for k in df.plane])
-    return cam, stack, depths, ms, objects, df
+    return cam, stack, depths, ms, truth if objects else None, df
+
+
+def plane_flames(cam, depths, objects) -> list:
+    """The flame (its object) standing at each plane's depth, or None: each flame goes to the plane nearest its depth
+    within the camera's merge tolerance (:func:`lf_flame.tomo.depth.depth_tolerances`, 1 mm on the paper's camera),
+    nearest pairs first, one plane per flame.
+
+    Parameters
+    ----------
+    cam : PlenopticCamera
+    depths : sequence of P float
+        The planes' depths (mm from the focal plane).
+    objects : sequence of dict or None
+        The scene's flames (``depth_offset_mm``, ``height_mm`` ...).
+
+    Returns
+    -------
+    list of P dict or None
+    """
+    from ..tomo.depth import depth_tolerances
+    out = [None] * len(depths)
+    if not objects:
+        return out
+    tol = depth_tolerances(cam, cam.pixels_per_lenslet)[1]
+    pairs = sorted((abs(float(o["depth_offset_mm"]) - d), k, i) for k, d in enumerate(depths)
+                   for i, o in enumerate(objects))
+    used = set()
+    for gap, k, i in pairs:
+        if gap <= tol and out[k] is None and i not in used:
+            out[k] = objects[i]
+            used.add(i)
+    return out
 
 
 def value_label(route) -> str:

@@ -298,8 +298,8 @@ def profiles_figure(cam, stack, depths, ms, objects, route, value_label: str = "
         Depth (mm) of each plane.
     ms : sequence of P FlameMeasurement or None
         The measurements (None: no flame found).
-    objects : sequence of P flame objects or None
-        The truth, drawn when given.
+    objects : sequence of P flame objects (or None) or None
+        The truth of each plane (the flame at its depth), drawn where given.
     route : str
         Named in the axial profiles' title.
     value_label : str
@@ -333,7 +333,7 @@ def profiles_figure(cam, stack, depths, ms, objects, route, value_label: str = "
             untrusted |= not m.trusted
         else:
             title += "\nno flame found"
-        if objects:
+        if objects and objects[k] is not None:
             t = flame_truth(objects[k])
             for yy in (t["base_y_mm"], t["tip_y_mm"]):
                 ax.axhline(yy, color="c", lw=0.8)
@@ -346,7 +346,7 @@ def profiles_figure(cam, stack, depths, ms, objects, route, value_label: str = "
              Line2D([], [], color="0.3", ls="--", lw=0.9, label="measured base and tip")]
     if untrusted:
         lines.append(Line2D([], [], color="0.3", ls=":", lw=0.9, label="measured base and tip, untrusted"))
-    if objects:
+    if objects and any(o is not None for o in objects):
         lines.append(Line2D([], [], color="c", lw=0.9, label="true base and tip"))
     fig.legend(handles=lines, loc="upper center", ncol=len(lines), fontsize=8, frameon=False)
     W, H = fig.get_size_inches()                       # the profiles in the room left under the planes
