@@ -407,6 +407,24 @@ def test_contour_ratio_averages_along_the_sheath_and_keeps_its_profile_across():
         contour_ratio(a, b[:, 1:], 2.0)
 
 
+def test_ratio_filters_give_no_ratio_where_neither_channel_holds_emission():
+    """Pixels where both channels' emission is 0 (admm's non-negative planes hold such holes) have no ratio: the
+    filters' smoothed sum spreads light into them, and each filter returns both channels 0 there, not a share of
+    0.5 (ratio 1: one temperature of the calibration's, 2,600 K on a user's colour camera, at every such pixel a
+    low --min-fraction reached). Their neighbours keep their filtered ratio."""
+    from lf_flame.temperature.ratio import contour_ratio, filter_ratio, guided_ratio
+    y, x = np.mgrid[0:40, 0:40]
+    b = np.exp(-(((x - 20) / 8.0) ** 2 + ((y - 20) / 11.0) ** 2))[None]
+    a = 1.3 * b
+    hole = (np.abs(y - 20) <= 1) & (np.abs(x - 14) <= 1)
+    a, b = np.where(hole, 0.0, a), np.where(hole, 0.0, b)
+    for fa, fb in (guided_ratio(a, b, 1, 0.1, min_fraction=0.01), contour_ratio(a, b, 2.0, min_fraction=0.01),
+                   filter_ratio(a, b, 1, 0.1, contour=2.0)):
+        assert (fa[0][hole] == 0).all() and (fb[0][hole] == 0).all()
+        near = ~hole & (a[0] + b[0] > 0.05)
+        np.testing.assert_allclose(fa[0][near] / fb[0][near], 1.3, rtol=1e-9)
+
+
 def test_cfa_blind_marks_the_slopes_where_half_the_lenslets_have_no_red_sample():
     """At an odd-integer slope (odd pixels per lenslet) the points on every other lenslet row
     have no red sample in any view; elsewhere every row has one. ``cfa_blind`` flags exactly

@@ -94,6 +94,14 @@ def _sum_and_share(a, b, guide_sigma, min_fraction):
     return a, b, s, m, frac
 
 
+def _split(s, frac, a, b):
+    """The smoothed sum ``s`` split by ``a``'s share ``frac`` into the two channels, both 0 where neither channel
+    holds emission (``a + b <= 0``): the sum's smoothing spreads light there, but no ratio was measured (a share of
+    0.5 would read ratio 1, one temperature of the calibration's, wherever the mask reaches such pixels)."""
+    s = np.where(a + b > 0, s, 0.0)
+    return s * frac, s * (1.0 - frac)
+
+
 def contour_direction(plane: np.ndarray, orient_sigma: float = 1.0, tensor_sigma: float = 1.5):
     """The direction along the brightness contours at each pixel of one plane.
 
@@ -158,7 +166,7 @@ def contour_ratio(a: np.ndarray, b: np.ndarray, length: float, guide_sigma: floa
     Returns
     -------
     (a, b) : two ndarrays of shape (P, rows, cols), with ``a / b`` the averaged ratio and
-    ``a + b`` the smoothed sum (clipped at 0).
+    ``a + b`` the smoothed sum (clipped at 0; 0 where neither channel holds emission).
 
     Raises
     ------
@@ -186,7 +194,7 @@ def contour_ratio(a: np.ndarray, b: np.ndarray, length: float, guide_sigma: floa
             nb += w * map_coordinates(bk, at, order=1, mode="constant")
         ok = out[k] & (na > 0) & (nb > 0)
         frac[k] = np.where(ok, na / np.where(ok, na + nb, 1.0), frac[k])
-    return s * frac, s * (1.0 - frac)
+    return _split(s, frac, a, b)
 
 
 def guided_ratio(a: np.ndarray, b: np.ndarray, radius: int, eps: float, guide_sigma: float = 0.5,
@@ -218,7 +226,7 @@ def guided_ratio(a: np.ndarray, b: np.ndarray, radius: int, eps: float, guide_si
     Returns
     -------
     (a, b) : two ndarrays of shape (P, rows, cols), with ``a / b`` the filtered ratio and
-    ``a + b`` the smoothed sum (clipped at 0).
+    ``a + b`` the smoothed sum (clipped at 0; 0 where neither channel holds emission).
 
     Raises
     ------
@@ -235,7 +243,7 @@ def guided_ratio(a: np.ndarray, b: np.ndarray, radius: int, eps: float, guide_si
             lr = np.where(m[k], np.log(a[k] / b[k]), 0.0)
         g = np.where(m[k], guide[k] - guide[k][m[k]].max(), 0.0)
         frac[k] = np.where(m[k], 1.0 / (1.0 + np.exp(-guided_filter(lr, g, m[k], radius, eps))), frac[k])
-    return s * frac, s * (1.0 - frac)
+    return _split(s, frac, a, b)
 
 
 def filter_ratio(a: np.ndarray, b: np.ndarray, radius: int, eps: float, contour: float = 0.0):
