@@ -234,6 +234,26 @@ def test_depth_tolerances_carry_the_paper_cameras_parallax(camera_file):
     assert (depth_tolerance_scale(other, other.pixels_per_lenslet) < 0.05) == ("napari" in camera_file)
 
 
+def test_a_camera_focused_metres_away_searches_its_depths(tmp_path, capsys):
+    """A camera focused 10 m away (a furnace's): one coarse slope step beyond its focal plane focuses past infinity,
+    and the depth search's scale is taken a step toward the camera; reconstruct finds its depths and solves them
+    (it stopped with "focuses at or beyond infinity" before any search, --search-range or not)."""
+    from lf_flame.cli import main
+    toml = tmp_path / "far.toml"
+    toml.write_text("[main_lens]\nfocal_length_mm = 100.0\nf_number = 20.0\nfocus_distance_mm = 10000\n"
+                    "[microlens_array]\npitch_um = 150.0\nfocal_length_mm = 3.0\n"
+                    "[sensor]\npixel_size_um = 15.4455\nrows = 200\ncols = 200\n")
+    far = load_camera_file(toml)
+    with pytest.raises(ValueError, match="infinity"):
+        far.depth_for_slope(0.04)                       # the step beyond its focal plane
+    assert 0 < depth_scale(far, far.pixels_per_lenslet) < np.inf
+    raw = tmp_path / "far.npz"
+    assert main(["simulate", "--scene", "flame", "--camera", str(toml), "--rays-per-pixel", "2", "--out",
+                 str(raw)]) == 0
+    assert main(["reconstruct", str(raw), "--no-figure", "--out", str(tmp_path / "far.h5")]) == 0
+    assert "found 1 depth" in capsys.readouterr().out
+
+
 def test_a_flame_past_the_searched_depths_is_found_at_their_end_not_beyond(cam, planted):
     """The search grid runs a step past the searched depths' ends; a flame beyond them peaks there and is found at
     the range's end (the residual's search and the refinement alike), never past it: a plane outside the searched

@@ -84,10 +84,33 @@ def depth_scale(camera: PlenopticCamera, n_views: int) -> float:
     from ..optics.camera import PAPER_CAMERA
 
     def dz_ds(cam, n):
-        step = SLOPE_STEP * 14.0 / max(n - 1, 1)
-        return abs(cam.depth_for_slope(step) - cam.depth_for_slope(0.0)) / step
+        return depth_per_slope(cam, SLOPE_STEP * 14.0 / max(n - 1, 1))
     n_paper = PAPER_CAMERA.pixels_per_lenslet
     return dz_ds(camera, n_views) / dz_ds(PAPER_CAMERA, n_paper) * (n_paper - 1) / max(n_views - 1, 1)
+
+
+def depth_per_slope(camera: PlenopticCamera, step: float) -> float:
+    """Millimetres of depth per unit of slope (lenslets per view step) at ``camera``'s focal plane: the depth that
+    one slope ``step`` moves the focus, over ``step``.
+
+    The step is taken toward the camera where one step the other way focuses at or beyond infinity (a camera
+    focused metres away).
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+    step : float
+        Slope step, lenslets per view step (> 0).
+
+    Returns
+    -------
+    float
+        mm per unit slope (> 0).
+    """
+    try:
+        return abs(camera.depth_for_slope(step) - camera.depth_for_slope(0.0)) / step
+    except ValueError:
+        return abs(camera.depth_for_slope(-step) - camera.depth_for_slope(0.0)) / step
 
 
 def depth_tolerance_scale(camera: PlenopticCamera, n_views: int) -> float:
@@ -394,7 +417,7 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
 
     # 3. depths per region; a peak fitted past the range's end (the grid runs a step beyond it) at that end
     imaged = (s_lo, s_hi)
-    dz_ds = abs(camera.depth_for_slope(slope_step) - camera.depth_for_slope(0.0)) / slope_step   # mm per slope
+    dz_ds = depth_per_slope(camera, slope_step)
     sep_bins = max(1, int(round(min_separation_mm / (dz_ds * slope_step))))
     rows = []
     for lab in range(1, labels.max() + 1):
