@@ -285,6 +285,10 @@ def test_refusals(cam, planted):
         find_depths(views, cam, threshold=1.5)
     with pytest.raises(ValueError, match="PlenopticCamera"):
         find_depths(views, "paper")
+    for n in (1, 2):        # one view holds no parallax; a decoded --views 1 capture had 'found' two depths
+        few = PlenopticCamera(n_rows=12, n_cols=12, pixels_per_lenslet=n)
+        with pytest.raises(ValueError, match="at least 3 views per axis.*--depth"):
+            find_depths(np.ones((n, n, 12, 12)), few)
     with pytest.raises(ValueError, match="n_flames"):
         random_depth_scene(cam, np.random.default_rng(0), n_flames=5)
     with pytest.raises(ValueError, match="separation_mm"):

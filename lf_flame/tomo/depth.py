@@ -50,6 +50,9 @@ from ..refocus.shift_and_sum import FourierSlice, _check_finite, aperture_mask, 
 #: Coarse slope step (lenslets per view step) on 15 views: about 0.33 mm of depth at the paper camera's focal
 #: plane; on ``N`` views ``SLOPE_STEP * 14 / (N - 1)``, so that the outermost view moves as far per step.
 SLOPE_STEP = 0.04
+#: Views per axis a depth search needs: fewer hold no parallax to tell depths apart (one view none, two the
+#: focus curves of a single shift).
+MIN_VIEWS = 3
 #: Found depths closer than this (mm on the paper's camera: :func:`depth_scale` on another) are solved as one plane:
 #: 1.69 lenslets of parallax across the paper camera's aperture at its focal plane.
 MERGE_MM = 1.0
@@ -366,12 +369,17 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
     Raises
     ------
     ValueError
-        Views of another shape than the camera's, not finite, or without light; a camera
+        Views of another shape than the camera's, fewer than :data:`MIN_VIEWS` per axis, not finite, or without
+        light; a camera
         that is not a :class:`PlenopticCamera`; a depth range the camera cannot image; a
         knob out of its range.
     """
     t0 = time.perf_counter()
     v = _check_views(views, camera)
+    if v.shape[0] < MIN_VIEWS:
+        raise ValueError(f"finding depths needs at least {MIN_VIEWS} views per axis; the light field has {v.shape[0]} "
+                         f"x {v.shape[1]}, too few for parallax to tell depths apart: give the planes (--depth mm, or "
+                         "--slope)")
     if slope_step is None:
         slope_step = SLOPE_STEP * 14.0 / max(v.shape[0] - 1, 1)
     min_separation_mm, merge_mm = depth_tolerances(camera, v.shape[0], min_separation_mm, merge_mm)
