@@ -23,7 +23,7 @@ from lf_flame.cli import main
 from lf_flame.simulate.scenes_time import flicker_sequence
 from lf_flame.recordings.sources import SimulatedSource, frame_rate, open_source, write_frames
 from lf_flame.recordings import job as job_module
-from lf_flame.recordings.flicker import peaks, spectra
+from lf_flame.recordings.flicker import peaks, spectra, unresolved_note
 from lf_flame.recordings.job import process_chunk, simulated_job
 from lf_flame.recordings.runner import run
 
@@ -51,6 +51,23 @@ def test_each_plane_flickers_at_its_own_flames_frequency(tmp_path, noise):
     frames = pd.read_csv(tmp_path / "frames.csv")
     assert frames.height_err_mm.abs().quantile(0.9) < 0.5
     assert json.loads((tmp_path / "summary.json").read_text())["n_frames"] == 100
+
+
+def test_a_record_shorter_than_two_periods_does_not_resolve_its_flicker():
+    """A 10 Hz flicker over 20 frames at 500 frames/s (0.04 s, 25 Hz bins) peaks in the spectrum's first bin: not
+    resolved, not 'within one bin' of its 10 Hz, and the note says what record resolves it; over 1 s at 100 frames/s
+    the same flicker is resolved at 10 Hz. (The short record's every plane read 25 Hz, within one bin of 5-20 Hz.)"""
+    def table(fps, n):
+        t = np.arange(n) / fps
+        return pd.DataFrame(dict(frame=np.arange(n), plane=0, depth_mm=0.0, height_mm=10 + np.sin(2 * np.pi * 10 * t),
+                                 integrated_intensity=1.0 + 0.1 * np.sin(2 * np.pi * 10 * t)))
+    short = peaks(spectra(table(500.0, 20), 500.0), [10.0])
+    assert (short.dominant_hz == 25).all() and not short.resolved.any() and not short.within_one_bin.any()
+    note = unresolved_note(short)
+    assert "2 of 2 dominant frequencies are not resolved" in note and "0.04 s" in note and "2/f s" in note
+    long = peaks(spectra(table(100.0, 100), 100.0), [10.0])
+    assert (long.dominant_hz == 10).all() and long.resolved.all() and long.within_one_bin.all()
+    assert (long.periods == 10).all() and unresolved_note(long) is None
 
 
 def test_frequencies_are_distinct_and_clear_of_harmonics():

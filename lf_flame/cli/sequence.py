@@ -204,8 +204,12 @@ def cmd_sequence(a):
     s = run(job, a.out, scheduler=a.scheduler, workers=a.workers, nperseg=a.nperseg, truth=truth,
             progress=not a.quiet)
     import pandas as pd
+    from ..recordings.flicker import unresolved_note
     pk = pd.read_csv(f"{a.out}/peaks.csv")
     print(pk.to_string(index=False, float_format=lambda v: f"{v:.3g}"))
+    note = unresolved_note(pk)
+    if note:
+        print(note)
     for k, n in s["failed_frames"].items():
         if n:
             print(f"plane {k}: {n} of {s['n_frames']} frames could not be measured (the plane's mean in its spectrum)")

@@ -47,7 +47,7 @@ def temperature_recording(a, source, attrs, cal, sensor, where):
     from ..config import atomic_write_text, provenance, removed_on_error
     from ..optics.camera import PAPER_CAMERA, PlenopticCamera
     from ..real.lightfield import decode_capture, from_raw
-    from ..recordings.flicker import peaks, spectra
+    from ..recordings.flicker import peaks, spectra, unresolved_note
     from ..recordings.sources import source_frame_rate
     from .planes import planes_from_args
     src, t0 = str(a.raw), time.perf_counter()
@@ -119,8 +119,11 @@ def temperature_recording(a, source, attrs, cal, sensor, where):
         save_figure(recording_figure(df), fig)
     if len(temps) > 1:
         pk = peaks(spectra(df, fps, signals=("median_k",)))
-        print(pk[["plane", "depth_mm", "bin_hz", "dominant_hz", "amplitude"]].to_string(
+        print(pk[["plane", "depth_mm", "bin_hz", "dominant_hz", "amplitude", "resolved"]].to_string(
             index=False, float_format=lambda v: f"{v:.3g}"))
+        note = unresolved_note(pk)
+        if note:
+            print(note)
     med = df.groupby("plane").median_k
     for k, d in enumerate(depths):
         print(f"plane {k} ({d:+.2f} mm): median temperature over the frames {med.median()[k]:.0f} K "

@@ -8,6 +8,10 @@ import pandas as pd
 
 #: Per-plane signals whose spectra are computed (columns of the frames table).
 SIGNALS = ("height_mm", "integrated_intensity")
+#: A dominant frequency is resolved when at least this many of its periods fit the spectrum's segment (the record,
+#: or Welch's segment): below, it lies in the spectrum's first bin, where any slower change of the signal lands too
+#: (a record of 20 frames at 500 frames/s read flames flickering at 5-20 Hz as 25 Hz, its first bin).
+MIN_PERIODS = 2
 
 
 # ---------------------------------------------------------------------------------
@@ -50,11 +54,27 @@ def spectra(frames: pd.DataFrame, fps: float, nperseg: int | None = None, signal
     return pd.concat(out, ignore_index=True)
 
 
+def unresolved_note(pk: pd.DataFrame) -> str | None:
+    """A line for the user where a dominant frequency is not resolved (:func:`peaks`' ``resolved``), else None: the
+    planes and signals, their frequency, and the record's length that would resolve it."""
+    bad = pk[~pk.resolved.astype(bool)]
+    if bad.empty:
+        return None
+    seg = 1.0 / float(bad.bin_hz.iloc[0])
+    planes = ", ".join(str(int(k)) for k in sorted(set(bad.plane)))
+    hz = ", ".join(f"{v:.3g}" for v in sorted(set(bad.dominant_hz)))
+    return (f"warning: {len(bad)} of {len(pk)} dominant frequencies are not resolved (planes {planes}, at {hz} Hz): "
+            f"fewer than {MIN_PERIODS} of their periods fit the spectrum's {seg:.3g} s segment, where any slower "
+            f"change lands too; a flicker of f Hz needs {MIN_PERIODS}/f s of recording or more (peaks.csv: resolved)")
+
+
 def peaks(spec: pd.DataFrame, truth_freqs_hz=None) -> pd.DataFrame:
     """Dominant frequency of each plane and signal (the largest power above 0 Hz), its
-    amplitude ``sqrt(2 P)``, and where the true frequencies are known (one per plane, plane
-    ``k`` holding flame ``k``): the true frequency, the error in bins, and how far (dB) the
-    other flames' frequencies lie below the plane's own on its spectrum (the worst of them).
+    amplitude ``sqrt(2 P)``, its periods in the spectrum's segment (``periods``: the frequency over
+    the bin) and whether it is resolved (``resolved``: at least :data:`MIN_PERIODS` of them), and
+    where the true frequencies are known (one per plane, plane ``k`` holding flame ``k``): the true
+    frequency, the error in bins, whether a resolved peak lies within one bin of it, and how far (dB)
+    the other flames' frequencies lie below the plane's own on its spectrum (the worst of them).
 
     Raises
     ------
@@ -69,7 +89,8 @@ def peaks(spec: pd.DataFrame, truth_freqs_hz=None) -> pd.DataFrame:
             raise ValueError(f"plane {k}'s spectrum has {len(f)} bin: it needs at least 2 frames")
         j = 1 + int(np.argmax(p[1:]))
         df = f[1] - f[0]
-        row = dict(plane=k, depth_mm=d, signal=s, bin_hz=df, dominant_hz=f[j], amplitude=math.sqrt(2 * p[j]))
+        row = dict(plane=k, depth_mm=d, signal=s, bin_hz=df, dominant_hz=f[j], amplitude=math.sqrt(2 * p[j]),
+                   periods=f[j] / df, resolved=bool(f[j] / df >= MIN_PERIODS))
         if truth_freqs_hz is not None:
             for hz in truth_freqs_hz:
                 if not (-df <= hz <= f[-1] + df):
@@ -80,7 +101,8 @@ def peaks(spec: pd.DataFrame, truth_freqs_hz=None) -> pd.DataFrame:
                 return float(p[np.abs(f - hz) <= df].max())
             own = truth_freqs_hz[k]
             others = [v for i, v in enumerate(truth_freqs_hz) if i != k]
-            row.update(true_hz=own, error_bins=abs(f[j] - own) / df, within_one_bin=abs(f[j] - own) <= df)
+            row.update(true_hz=own, error_bins=abs(f[j] - own) / df,
+                       within_one_bin=row["resolved"] and abs(f[j] - own) <= df)
             if others:
                 below = [10 * math.log10(max(power_at(own), 1e-300) / max(power_at(v), 1e-300)) for v in others]
                 row.update(others_below_db=min(below), worst_other_hz=others[int(np.argmin(below))])
