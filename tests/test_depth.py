@@ -254,6 +254,20 @@ def test_a_camera_focused_metres_away_searches_its_depths(tmp_path, capsys):
     assert "found 1 depth" in capsys.readouterr().out
 
 
+def test_planes_given_closer_than_the_merge_depth_are_warned_of(capsys):
+    """Planes given 0.001 mm apart (a flame's emission split 50/50 between them, without a word) are warned of,
+    naming both and the camera's merge depth; planes 1 mm or more apart on the paper's camera are not; a plane
+    given twice is still refused."""
+    from lf_flame.cli.planes import check_planes
+    check_planes(PAPER_CAMERA, [16.46, 8.15, 8.151, 0.0])
+    out = capsys.readouterr().out
+    assert "+8.15 and +8.151 mm lie closer than 1 mm" in out and "split" in out
+    check_planes(PAPER_CAMERA, [20.0, 10.0, 1.0, 0.0, -10.0])
+    assert capsys.readouterr().out == ""
+    with pytest.raises(ValueError, match="more than once"):
+        check_planes(PAPER_CAMERA, [10.0, 10.0])
+
+
 def test_a_flame_past_the_searched_depths_is_found_at_their_end_not_beyond(cam, planted):
     """The search grid runs a step past the searched depths' ends; a flame beyond them peaks there and is found at
     the range's end (the residual's search and the refinement alike), never past it: a plane outside the searched

@@ -50,9 +50,26 @@ def planes_from_args(a, cam, objects=None):
             raise ValueError(f"--depths takes auto, scene, paper or depths in mm separated by commas. Received: "
                              f"{a.depths!r}") from None
     if depths != "auto":
-        from ..optics.camera import check_imaging_range
-        check_imaging_range(cam, depths)
+        check_planes(cam, depths)
     return depths
+
+
+def check_planes(cam, depths) -> None:
+    """Planes given to a command: refused outside what ``cam`` refocuses or given twice
+    (:func:`lf_flame.optics.camera.check_imaging_range`); a warning printed where two lie closer than the depth at
+    which found depths merge into one plane (:func:`lf_flame.tomo.depth.depth_tolerances`: under 1.7 lenslets of
+    parallax across the aperture, 1 mm on the paper's camera), whose emission the data barely share out."""
+    from ..optics.camera import check_imaging_range
+    from ..tomo.depth import depth_tolerances
+    check_imaging_range(cam, depths)
+    merge = depth_tolerances(cam, cam.pixels_per_lenslet)[1]
+    d = sorted(float(v) for v in depths)
+    close = [(x, y) for x, y in zip(d, d[1:]) if y - x < merge]
+    if close:
+        pairs = ", ".join(f"{x:+.4g} and {y:+.4g}" for x, y in close)
+        print(f"warning: planes at {pairs} mm lie closer than {merge:.3g} mm, the depth at which this camera's found "
+              "depths merge into one plane: the data barely tell them apart, and a flame's emission splits between "
+              "them (give one plane there)")
 
 
 def found_planes(lf, views=None, search_range=None):

@@ -110,10 +110,9 @@ def _decoded_profiles_input(a):
     """:func:`_profiles_input` of decoded views (``VIEWS.h5``, or a raw capture with ``--calibration``):
     the planes of the decoded views' camera (:func:`lf_flame.cli._io.light_field`), solved as ``reconstruct``
     solves them (a hexagonal grid's admm planes once more on its lattice) or refocused."""
-    from ..optics.camera import check_imaging_range
     from ..refocus.shift_and_sum import aperture_mask, refocus_views
     from ._io import light_field
-    from .planes import found_planes
+    from .planes import check_planes, found_planes
     lf = light_field(a)
     cam = lf.camera
     objects = None if str(a.raw).endswith(".h5") else _raw_objects(a.raw)
@@ -122,7 +121,7 @@ def _decoded_profiles_input(a):
     if route.kind in ("stored", "learned"):
         raise ValueError(f"--route {a.route} takes the paper camera's raw images or dataset samples, not decoded views")
     if depths:
-        check_imaging_range(cam, depths)
+        check_planes(cam, depths)
     search = getattr(a, "search_range", None)
     found = None
     if route.tomographic:

@@ -194,8 +194,8 @@ def cmd_sequence(a):
                 from ..tomo.found_planes import found_support
                 knobs["support"] = found_support(found, cam)
         slopes = list(a.slope) if a.slope else [cam.slope_for_depth(d) for d in depths]
-        from ..optics.camera import check_imaging_range
-        check_imaging_range(cam, depths)
+        from .planes import check_planes
+        check_planes(cam, depths)
         job = SequenceJob(source, cam, fps, tuple(depths), tuple(slopes), (None,) * len(depths), a.route,
                           cal, white, dark, chunk=a.chunk, bin_views=k, sensor=sensor, **knobs)
     if seq is None:                      # real frames: a black level left in, read in the first frame
