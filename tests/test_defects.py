@@ -243,7 +243,7 @@ def test_an_over_exposed_capture_is_named_by_a_warning(cam, capture, tmp_path, c
         with h5py.File(tmp_path / "c.h5") as f:
             share = float(f.attrs["clipped_share"])
         assert ("of the lit pixels are clipped" in err) == (name == "over") == (share > CLIPPED_WARN)
-        assert name != "over" or f"warning: {100 * share:.2g} % of the lit pixels" in err
+        assert name != "over" or f"warning: {100 * share:.3g} % of the lit pixels" in err
 
 
 def test_a_recordings_over_exposed_frames_are_counted_and_named(cam, capture, tmp_path, capsys):
@@ -267,7 +267,7 @@ def test_a_recordings_over_exposed_frames_are_counted_and_named(cam, capture, tm
     assert share[0] < CLIPPED_WARN < share[1]
     over = json.loads((tmp_path / "out" / "summary.json").read_text())["over_exposed"]
     assert (over["frames"], over["clipped_frames"], over["max_share"]) == (1, 1, pytest.approx(share[1]))
-    assert f"warning: in 1 of 2 frames up to {100 * share[1]:.2g} % of the lit pixels" in capsys.readouterr().err
+    assert f"warning: in 1 of 2 frames up to {100 * share[1]:.3g} % of the lit pixels" in capsys.readouterr().err
 
 
 def test_a_decoded_captures_over_exposure_is_measured_on_its_raw_pixels(tmp_path, capsys):
@@ -293,8 +293,8 @@ def test_a_decoded_captures_over_exposure_is_measured_on_its_raw_pixels(tmp_path
                  "--out", str(tmp_path / "v.h5")]) == 0
     share = clipped_share(counts.astype(float), 4095)
     printed = capsys.readouterr()
-    assert f"{100 * share:.2g} % of the lit pixels clipped" in printed.out
-    assert f"warning: {100 * share:.2g} % of the lit pixels are clipped" in printed.err
+    assert f"{100 * share:.3g} % of the lit pixels clipped" in printed.out
+    assert f"warning: {100 * share:.3g} % of the lit pixels are clipped" in printed.err
     with h5py.File(tmp_path / "v.h5") as f:
         assert f.attrs["clipped_share"] == pytest.approx(share) and 0.08 < share < 0.5
         views_share = f["clipped"][...].sum() / np.count_nonzero(f["clipped"][...] | (f["views"][...] >= 0.05))
@@ -303,10 +303,13 @@ def test_a_decoded_captures_over_exposure_is_measured_on_its_raw_pixels(tmp_path
         out = tmp_path / f"r_{source.split('.')[0]}.h5"
         assert main(["reconstruct", str(tmp_path / source), "--camera", cam, "--calibration", str(tmp_path / "cal.json"),
                      "--out", str(out)]) == 0
-        assert f"warning: {100 * share:.2g} % of the lit pixels are clipped" in capsys.readouterr().err
+        assert f"warning: {100 * share:.3g} % of the lit pixels are clipped" in capsys.readouterr().err
         with h5py.File(out) as f:
             assert float(f.attrs["clipped_share"]) == pytest.approx(share)
     assert views_share > 1.2 * share                          # what the views' own mask would have said
+    from lf_flame.cli.real import overexposure_warning
+    overexposure_warning(1.0)                                 # every lit pixel clipped: '100 %', not '1e+02 %'
+    assert "warning: 100 % of the lit pixels are clipped" in capsys.readouterr().err
 
 
 def test_a_colour_images_clipped_channel_is_found_in_its_gray_image(cam, capture, tmp_path, capsys):

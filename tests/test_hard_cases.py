@@ -94,6 +94,9 @@ def test_slope_search_on_a_black_light_field():
     # by definition): the search returns a finite slope and a flat curve, no NaN
     s = find_sharpest_slope(np.zeros((5, 5, 20, 20), np.float32), (4, 16, 4, 16), lo=-1, hi=1)
     assert np.isfinite(s.slope) and np.all(s.scores == 0.0)
+    for lo, hi in ((1, -1), (0.2, 0.2)):        # the ends swapped or equal: what the grid needs, said
+        with pytest.raises(ValueError, match="finite ends lo < hi"):
+            find_sharpest_slope(np.zeros((5, 5, 20, 20), np.float32), (4, 16, 4, 16), lo=lo, hi=hi)
     zero = np.zeros((8, 8))
     assert normalized_variance(zero) == tenengrad(zero) == variance_of_laplacian(zero) == 0.0
 

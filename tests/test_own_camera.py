@@ -229,6 +229,7 @@ def test_the_paper_camera_ships_as_a_camera_file():
     (dict(main_lens__focus_distance_mm=90.0), "inside the focal length"),
     (dict(microlens_array__pitch_um=0.15), "fewer than 2 pixels"),
     (dict(main_lens__f_number=200.0), "fewer than 2 views"),
+    (dict(main_lens__f_number=None, sensor__pixel_size_um=76.125), r"\(10 mm, matched to the lenslets"),
     (dict(microlens_array__layout="triangle"), "layout"),
     (dict(microlens_array__spacing=1.0), "unknown keys"),
     (dict(sensor__rows=None), "missing rows"),

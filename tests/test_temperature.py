@@ -425,6 +425,16 @@ def test_ratio_filters_give_no_ratio_where_neither_channel_holds_emission():
         np.testing.assert_allclose(fa[0][near] / fb[0][near], 1.3, rtol=1e-9)
 
 
+def test_a_channel_without_light_is_named():
+    """A colour capture whose red (or green) pixels hold nothing is refused naming that channel, before any solve."""
+    from lf_flame.temperature.channels import channel_emission
+    chan = np.indices((3, 3, 4, 4)).sum(axis=0) % 2            # two channels, R (0) and G (1), interleaved
+    for dark, name in ((0, "R"), (1, "G")):
+        views = np.where(chan == dark, 0.0, 0.5)
+        with pytest.raises(ValueError, match=f"the {name} channel has no sample with signal"):
+            channel_emission("admm-cfa", views, chan, (0, 1), op=object())
+
+
 def test_cfa_blind_marks_the_slopes_where_half_the_lenslets_have_no_red_sample():
     """At an odd-integer slope (odd pixels per lenslet) the points on every other lenslet row
     have no red sample in any view; elsewhere every row has one. ``cfa_blind`` flags exactly

@@ -260,7 +260,7 @@ def black_level_warning(unlit: float | None) -> None:
     from ..real.black_level import BLACK_LEVEL_SHARE
     if unlit is not None and unlit > BLACK_LEVEL_SHARE:
         print(f"warning: the capture's pixels that no light reaches (where the white image is dark, between the "
-              f"lenslet images) read {100 * unlit:.2g} % of its bright pixels: a black level (the sensor's offset) "
+              f"lenslet images) read {100 * unlit:.3g} % of its bright pixels: a black level (the sensor's offset) "
               "or stray light left in, which no plane of emission explains and which bends the dim samples' "
               "division by the white image; calibrate with the dark frame (lf-flame calibrate --dark) or decode "
               "with it (--dark)", file=sys.stderr)

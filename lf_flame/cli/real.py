@@ -88,7 +88,7 @@ def cmd_decode(a):
                white_normalised=white is not None, **extra)
     note = "no clipping level" if level is None else (
         f"{int(clipped.sum())} samples from pixels at or above {level:g}{' or defective' if n_bad else ''}; "
-        f"{100 * share:.2g} % of the lit pixels clipped")
+        f"{100 * share:.3g} % of the lit pixels clipped")
     if n_bad:
         note = f"{note}; {defects_note(n_bad)}"
     binned = f", {k} x {k} pixels each" if k > 1 else ""
@@ -111,7 +111,7 @@ def overexposure_warning(share: float, where: str = "") -> float:
     (a recording's frames). Returns ``share``."""
     from ..real.clipping import CLIPPED_WARN
     if share > CLIPPED_WARN:
-        print(f"warning: {where}{100 * share:.2g} % of the lit pixels are clipped: the brightest emission is "
+        print(f"warning: {where}{100 * share:.3g} % of the lit pixels are clipped: the brightest emission is "
               "over-exposed and its planes hold only a lower bound there (on the paper camera's scenes 10-27 % "
               "clipped left the flames' emission 9-30 % off, against 2-6 % below clipping: results/clipping.md); "
               "lower the exposure",

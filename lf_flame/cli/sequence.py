@@ -218,7 +218,7 @@ def cmd_sequence(a):
         over = s["over_exposed"]
         if over["clipped_frames"]:
             print(f"{over['clipped_frames']} of {s['n_frames']} frames clip the sensor, their clipped pixels left out "
-                  f"of the fit (up to {100 * over['max_share']:.2g} % of a frame's lit pixels; frames.csv: "
+                  f"of the fit (up to {100 * over['max_share']:.3g} % of a frame's lit pixels; frames.csv: "
                   "clipped_share)")
         overexposure_warning(over["max_share"], f"in {over['frames']} of {s['n_frames']} frames up to ")
         if over["left_out_of_spectra"]:

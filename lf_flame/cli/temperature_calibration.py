@@ -33,7 +33,7 @@ RESIDUAL_WARN_K = 20.0
 def _clipped_blackbody(share: float, path) -> None:
     """Refuse a blackbody image with more than :data:`BLACKBODY_CLIPPED_MAX` of its lit samples clipped."""
     if share > BLACKBODY_CLIPPED_MAX:
-        raise ValueError(f"{path}: {100 * share:.2g} % of its lit samples are clipped: a clipped channel's mean "
+        raise ValueError(f"{path}: {100 * share:.3g} % of its lit samples are clipped: a clipped channel's mean "
                          "reads low and the gain ratio with it (every temperature then off by up to hundreds of K); "
                          "image the blackbody with a shorter exposure")
 

@@ -214,8 +214,9 @@ def camera_from_datasheet(sheet: dict, where: str = "camera file") -> PlenopticC
         D = D_f
     image_px = (d * pitch / g if D is None else D) * g / d / s      # the aperture's image under a lenslet, px
     if image_px < 2:
-        raise ValueError(f"{where}: the main lens's aperture ({D} mm) images onto {image_px:.2f} px under each lenslet:"
-                         " fewer than 2 views across it")
+        given = "matched to the lenslets' f-number, no f_number or aperture_mm given" if D is None else "given"
+        raise ValueError(f"{where}: the main lens's aperture ({d * pitch / g if D is None else D:.3g} mm, {given}) "
+                         f"images onto {image_px:.2f} px under each lenslet: fewer than 2 views across it")
     if image_px > p * (1 + AGREEMENT):
         warnings.warn(f"{where}: the main lens (aperture {D:.3f} mm, image {image_px:.2f} px wide under a lenslet) is "
                       f"faster than the lenslets (images {p:.2f} px apart): neighbouring lenslet images overlap "

@@ -475,7 +475,8 @@ def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", me
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}. Received: {method!r}")
     if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo and coarse_step > 0 and fine_step > 0):
-        raise ValueError(f"bad slope grid lo={lo}, hi={hi}, coarse_step={coarse_step}, fine_step={fine_step}")
+        raise ValueError(f"a slope grid needs finite ends lo < hi and steps > 0 (lenslets per view step). Received "
+                         f"lo={lo}, hi={hi}, coarse_step={coarse_step}, fine_step={fine_step}")
     r0, r1, c0, c1 = (int(v) for v in roi)
     if r1 - r0 < 3 or c1 - c0 < 3:
         raise ValueError(f"region of interest {roi} is smaller than 3x3 lenslets")

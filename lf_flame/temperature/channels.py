@@ -35,6 +35,7 @@ import dataclasses
 
 import numpy as np
 
+from ..optics.colour import CHANNELS
 from ..refocus.shift_and_sum import aperture_mask, focal_stack
 from ..tomo.noise_knobs import relative_noise
 from ..tomo.solvers import reconstruct
@@ -336,6 +337,10 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
     ok = (np.ones(views.shape, bool) if saturation is None else ~np.asarray(saturation, bool)
           if np.ndim(saturation) else views < saturation)
     fits = [(chan == c) & ok for c in channels]
+    for c, f in zip(channels, fits):
+        if not (f.any() and views[f].max() > 0):
+            raise ValueError(f"the {CHANNELS[c]} channel has no sample with signal to fit (its pixels dark, clipped "
+                             "or absent from the capture): two-colour pyrometry needs light in both channels")
     if route == "admm-cfa-matched":
         sigma = 0.0 if sigma is None else sigma
         if ratio_filter is None or knobs is None:
