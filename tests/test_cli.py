@@ -96,6 +96,24 @@ def test_reconstruct_prints_the_saturated_pixels_it_leaves_out(small_flame, caps
         assert json.loads(f.attrs["settings"])["n_saturated"] == int(((lf.views >= level) | lf.defects).sum())
 
 
+def test_simulate_warns_of_objects_the_camera_cannot_show(tmp_path, capsys):
+    """A point 40 mm behind the paper camera's focal plane (it refocuses -23 .. +26.8 mm) is rendered with a warning
+    naming the range; a render with no light on the sensor is warned of (it was written without a word); a point at
+    the focal plane is not."""
+    from lf_flame.cli.optics import _render_warnings
+    from lf_flame.optics.camera import PAPER_CAMERA
+    from lf_flame.simulate.scenes import point_scene
+    assert main(["simulate", "--scene", "point", "--depth", "40", "--rays-per-pixel", "1", "--out",
+                 str(tmp_path / "far.npz")]) == 0
+    out = capsys.readouterr().out
+    assert "warning: objects at +40 mm lie outside what this camera refocuses (-23" in out
+    assert "holds no light" not in out
+    _render_warnings(PAPER_CAMERA, point_scene(PAPER_CAMERA, 0.0), np.zeros((4, 4)))
+    assert capsys.readouterr().out == "warning: the render holds no light: the scene's rays miss the sensor\n"
+    _render_warnings(PAPER_CAMERA, point_scene(PAPER_CAMERA, 0.0), np.ones((4, 4)))
+    assert capsys.readouterr().out == ""
+
+
 def test_simulates_png_reads_back_with_its_camera_and_reconstructs(small_flame, capsys):
     """`simulate --out x.png` then `reconstruct x.png`: the PNG carries the camera and the
     scene (the truth column), its values are the raw image's to 16 bits."""
@@ -190,6 +208,7 @@ def test_reconstruct_refuses_other_files_naming_what_it_reads(small_flame, capsy
     formats it reads named (not NumPy's allow_pickle message or a KeyError)."""
     stack = tmp_path / "stack.npz"
     assert main(["refocus", str(small_flame / "flame.npz"), "--slope", "0", "--out", str(stack)]) == 0
+    assert np.load(stack)["depths_mm"].tolist() == [0.0]         # planes given by slope: their depths recorded
     capsys.readouterr()
     assert main(["refocus", str(small_flame / "flame.npz"), "--depth", "0", "--out", str(tmp_path / "d0.npz")]) == 0
     assert "at slopes +0 in" in capsys.readouterr().out             # the focal plane's slope, not "-0"
@@ -201,7 +220,7 @@ def test_reconstruct_refuses_other_files_naming_what_it_reads(small_flame, capsy
     with h5py.File(h5, "w") as f:
         f["frames"] = np.zeros((2, 4, 4))
     capsys.readouterr()
-    for path, problem in ((stack, "holds no raw image (its arrays: stack, slopes)"),
+    for path, problem in ((stack, "holds no raw image (its arrays: stack, slopes, depths_mm)"),
                           (text, "cannot read"), (fake_npy, "is not a NumPy array file"),
                           (h5, "is not a file of decoded views")):
         assert main(["reconstruct", str(path), "--out", str(tmp_path / "r.h5")]) == 2

@@ -82,6 +82,23 @@ def cmd_simulate(a):
         share = light_outside_field(sc, cam)
         cut = f"; {100 * share:.1f} % of its light lies outside the field of view" if share >= 0.001 else ""
     print(f"rendered {name} {raw.shape} at {a.rays_per_pixel} rays/pixel in {dt:.2f} s -> {out}{cut}")
+    if a.scene not in ("white", "furnace"):
+        _render_warnings(cam, sc, raw)
+
+
+def _render_warnings(cam, sc, raw) -> None:
+    """``simulate``'s warnings of a scene the camera cannot show: objects at depths it does not refocus
+    (:func:`lf_flame.optics.camera.imaging_range_mm`), a render with no light on the sensor."""
+    from ..optics.camera import imaging_range_mm
+    lo, hi = imaging_range_mm(cam)
+    far = sorted({float(o["depth_offset_mm"]) for o in sc.objects if "depth_offset_mm" in o
+                  and not lo <= float(o["depth_offset_mm"]) <= hi})
+    if far:
+        print(f"warning: objects at {', '.join(f'{d:+.4g}' for d in far)} mm lie outside what this camera refocuses "
+              f"({lo:+.4g} .. {hi:+.4g} mm from its focus distance): their light spreads over the sensor, and no "
+              "command brings them into focus")
+    if not np.any(np.asarray(raw) > 0):
+        print("warning: the render holds no light: the scene's rays miss the sensor")
 
 
 def views_and_camera(a):
@@ -125,7 +142,13 @@ def cmd_refocus(a):
                           interpolation=a.interpolation)
     shown = ", ".join(f"{round(s, 9) + 0.0:+.4g}" for s in slopes)          # + 0.0: no "-0" at the focal plane
     print(f"refocused {len(slopes)} planes ({a.method}) at slopes {shown} in {1e3 * (time.perf_counter() - t):.2f} ms")
-    extra = {} if a.depth is None else {"depths_mm": np.asarray(a.depth)}
+    depths = a.depth
+    if depths is None and cam is not None:        # planes given by slope: their depths where the camera refocuses
+        try:
+            depths = [cam.depth_for_slope(v) for v in slopes]
+        except ValueError:                        # a slope focusing at or beyond infinity: no depth to record
+            depths = None
+    extra = {} if depths is None else {"depths_mm": np.asarray(depths, float)}
     if Path(a.out).suffix.lower() in FIGURE_SUFFIXES:
         from ..measure.figures import save_figure
         print(f"-> {save_figure(refocus_figure(stack, slopes, cam, method=a.method), a.out)}")
@@ -316,7 +339,8 @@ def add_parsers(sub) -> None:
                    help="shift-sum only: bilinear, or whole-lenslet shifts")
     s.add_argument("--aperture", choices=["square", "circular"], default="circular",
                    help="views summed: all, or those inside the main lens's circular aperture")
-    s.add_argument("--out", required=True, help=".npz (the planes as 'stack', with 'slopes' and 'depths_mm'), or "
+    s.add_argument("--out", required=True, help=".npz (the planes as 'stack', with 'slopes' and, where the camera "
+                   "is known, 'depths_mm'), or "
                    ".png/.pdf/.svg: a figure of the planes in object-space mm at their depths, one colour bar")
     add_search_arg(s)
     s.set_defaults(func=cmd_refocus)
