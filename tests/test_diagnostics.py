@@ -362,6 +362,19 @@ def test_profiles_planes_given_keep_their_depths_and_take_the_truth_of_the_flame
     assert ["(true" in t for t in titles] == [True, True, False], titles
 
 
+def test_profiles_figure_of_planes_without_a_flame_draws_without_warnings():
+    """Planes where no flame was found (a tiny camera's, a dark capture's): the figure says so on each plane and
+    draws no empty legend (matplotlib warned "No artists with labels found")."""
+    import warnings
+
+    from lf_flame.measure.figures import profiles_figure
+    cam = PlenopticCamera(n_rows=20, n_cols=10)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fig = profiles_figure(cam, np.zeros((2, 20, 10)), [5.0, -5.0], [None, None], None, "shift-sum")
+    assert all("no flame found" in ax.get_title() for ax in fig.axes[:2])
+
+
 def test_profiles_figure_explains_its_lines_and_units(small_flame_npz):
     """The planes in mm with one colour bar; a legend names the outline and the measured and
     true edges; the profiles' axes carry units and a legend (planes by colour, heights by style)."""

@@ -366,7 +366,8 @@ def profiles_figure(cam, stack, depths, ms, objects, route, value_label: str = "
                 axr.plot(r.x_mm, r.intensity, color=f"C{k}", ls=styles[j % 3], lw=0.9)
     axa.set(xlabel="height above the measured base (mm)", ylabel=value_label,
             title=f"axial profiles on the centreline ({route})")
-    axa.legend(fontsize=7, title="plane", title_fontsize=7)
+    if any(m is not None for m in ms):           # no flame found on any plane: no profile to name
+        axa.legend(fontsize=7, title="plane", title_fontsize=7)
     if axr is not None:
         axr.set(xlabel="offset from the centreline (mm)", ylabel=value_label,
                 title="radial profiles across the flame")
