@@ -2,6 +2,7 @@
 the responses are the exact operator's spectra, the pairs' condition numbers are their
 normal blocks', the map behaves as parallax says, the paper's rule of thumb, the command on
 two cameras and its refusals."""
+import dataclasses
 import json
 from pathlib import Path
 
@@ -228,3 +229,16 @@ def test_the_command_maps_a_datasheet_camera(tmp_path, capsys):
     assert "21 planes every 1 mm" in text
     camera = json.loads(out.with_name("own.md").read_text().split("Camera: `")[1].split("`")[0])
     assert camera["pixels_per_lenslet"] == 10 and camera["grid_rotation_deg"] == 0
+
+
+def test_feature_sizes_wider_than_the_field_are_noted():
+    """A camera of 3 x 3 lenslets (a field of 0.39 mm at its focal plane on the paper camera's optics) gets a note
+    naming every default feature size whose period exceeds its field; the paper camera's 0.33 mm features fit its
+    field along either axis and get none."""
+    from lf_flame.cli.resolution import wider_than_field
+    tiny = dataclasses.replace(PAPER_CAMERA, n_rows=3, n_cols=3)
+    note = wider_than_field(tiny, (0.33, 6.6), "rows")
+    assert note.startswith("note: features of 0.33, 6.6 mm have a period longer than the field along the rows")
+    assert "3 lenslets" in note
+    assert wider_than_field(PAPER_CAMERA, (0.33,), "rows") is None
+    assert wider_than_field(PAPER_CAMERA, (0.33,), "diagonal") is None

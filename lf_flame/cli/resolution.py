@@ -8,6 +8,20 @@ from pathlib import Path
 from ..tomo.resolution import AXES, CONDITIONS
 
 
+def wider_than_field(camera, feature_mm, axis: str) -> str | None:
+    """A note naming the feature sizes whose period (twice the size) is longer than ``camera``'s field at its
+    focal plane along the map's frequency (``axis``: rows, y; columns, x; diagonal, the shorter side), or None."""
+    from ..measure.diagnostics import lenslet_size_mm
+    n = {"rows": camera.n_rows, "columns": camera.n_cols}.get(axis, min(camera.n_rows, camera.n_cols))
+    field = n * lenslet_size_mm(camera, 0.0)
+    wide = [f for f in feature_mm if 2 * f > field]
+    if not wide:
+        return None
+    return (f"note: features of {', '.join(f'{f:g}' for f in wide)} mm have a period longer than the field along the "
+            f"{axis} ({field:.3g} mm at the focal plane, {n} lenslets): their rows say what the optics resolve, "
+            "not what this field can hold")
+
+
 def cmd_resolution(a):
     """Print the smallest resolvable plane spacing against feature size for the paper's camera
     or the camera file of ``--camera`` (its datasheet tables or a ``[camera]`` table,
@@ -37,6 +51,9 @@ def cmd_resolution(a):
             f"no prior (optimistic).")
     print(head)
     print(res.markdown())
+    wide = wider_than_field(views, a.feature, a.axis)
+    if wide:
+        print(wide)
     print(f"kernels {res.setup_s:.1f} s, map {res.map_s:.1f} s, wall {wall:.1f} s")
     if a.out:
         out = Path(a.out)
@@ -44,7 +61,7 @@ def cmd_resolution(a):
         settings = dict(camera=a.camera or "paper", near_mm=a.near, far_mm=a.far, spacing_mm=a.spacing,
                         feature_mm=list(a.feature), conditions=list(a.condition), axis=a.axis)
         atomic_write_text(out.with_name(out.name + ".md"),
-                          f"# Depth resolution\n\n{head}\n\n{res.markdown()}\n"
+                          f"# Depth resolution\n\n{head}\n\n{res.markdown()}\n" + (f"\n{wide}\n\n" if wide else "") +
                           f"Command: `lf-flame resolution` {to_json(settings)}\n\nCamera: `{to_json(views)}`\n\n"
                           f"Wall time {wall:.1f} s (kernels {res.setup_s:.1f} s, map {res.map_s:.1f} s).\n\n"
                           f"Provenance: `{to_json(provenance())}`\n")
