@@ -396,3 +396,14 @@ def test_a_camera_given_that_differs_from_the_files_record_is_warned_of(tmp_path
         w.simplefilter("error", UserWarning)
         assert main(["refocus", str(raw), "--camera", str(tmp_path / "cam.toml"), "--slope", "0",
                      "--out", str(tmp_path / "r2.npz")]) == 0
+
+
+def test_a_crop_of_a_perfect_grids_sensor_names_the_calibration_that_decodes_it():
+    """An image a row short of a perfect grid's sensor is refused naming both sizes and how a crop is read (decoded
+    with the white-image calibration of the same crop), as docs/own_camera.md says."""
+    from lf_flame.optics.camera import PAPER_CAMERA
+    from lf_flame.real.lightfield import from_raw
+    rows, cols = PAPER_CAMERA.sensor_shape
+    with pytest.raises(ValueError, match=rf"shape \({rows - 1}, {cols}\) is not this camera's {rows} x {cols} px raw "
+                                         r"image \(a crop of the sensor is decoded with the white-image calibration"):
+        from_raw(np.zeros((rows - 1, cols), np.float32), PAPER_CAMERA, "crop.npy")

@@ -214,7 +214,8 @@ def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation
                          "the image must be decoded: give its white-image calibration (--calibration cal.json)")
     if raw.ndim != 2 or tuple(raw.shape) != tuple(camera.sensor_shape):
         raise ValueError(f"{source}: an image of shape {raw.shape} is not this camera's "
-                         f"{camera.sensor_shape[0]} x {camera.sensor_shape[1]} px raw image")
+                         f"{camera.sensor_shape[0]} x {camera.sensor_shape[1]} px raw image (a crop of the sensor is "
+                         "decoded with the white-image calibration of the same crop: --calibration cal.json)")
     if not np.all(np.isfinite(raw)):
         raise ValueError(f"{source}: the raw image contains NaN or infinite values")
     if isinstance(saturation, str) and saturation != "auto":
