@@ -956,3 +956,36 @@ def test_a_quiet_light_fields_refinement_starts_from_the_planes_before_it(cam, b
     found_n, _, rec_n = find_planes(noisy, cam)
     assert noise_regime(rec_n.settings["noise"]) == "noisy" and rec_n.settings["start"] != "given", rec_n.settings
     assert not np.allclose(found_n.planes_mm, find_depths(noisy, cam).planes_mm)            # a step was taken
+
+
+def test_a_plane_that_solves_to_nothing_is_dropped_with_its_depths(cam, planted):
+    """A found plane whose emission is 0 everywhere (a depth voted for where the planes explain nothing: a capture
+    decoded with one view more than its 9.999 px lenslet images hold whole found -60.01 mm, at its search's near end)
+    is dropped with its depths, the rest solved again from their planes; where no plane (or every plane) is empty,
+    nothing changes and nothing is solved again."""
+    import dataclasses
+
+    from lf_flame.tomo.refine import without_empty_planes
+    from lf_flame.tomo.solvers import Reconstruction
+    scene, views = planted
+    found = find_depths(views, cam)
+    P = len(found.planes_mm)
+    assert P >= 2 and len(found.depths_mm) == P
+    planes = np.ones((P, 4, 4))
+    planes[0] = 0.0
+    rec = Reconstruction(planes=planes, depths_mm=tuple(found.planes_mm), sample_mm=((1.0, 1.0),) * P, solver="admm")
+    calls = []
+
+    def solve(f, start=None):
+        calls.append((f, start))
+        return "op", dataclasses.replace(start, depths_mm=tuple(f.planes_mm))
+
+    kept, op, out = without_empty_planes(found, "old op", rec, solve)
+    assert list(kept.planes_mm) == list(found.planes_mm[1:]) and op == "op" and len(calls) == 1
+    assert list(kept.depths_mm) == [d for d, p in zip(found.depths_mm, found.plane_of) if p != 0]
+    assert list(kept.plane_of) == [p - 1 for p in found.plane_of if p != 0]
+    assert len(kept.curves) == len(kept.masks) == len(kept.region) == len(kept.depths_mm)
+    assert np.array_equal(calls[0][1].planes, planes[1:])           # started from the planes kept
+    for full in (np.ones((P, 4, 4)), np.zeros((P, 4, 4))):
+        same = without_empty_planes(found, "old op", dataclasses.replace(rec, planes=full), solve)
+        assert same[0] is found and same[1] == "old op" and len(calls) == 1

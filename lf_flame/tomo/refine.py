@@ -274,7 +274,7 @@ def peel_and_refine(found: FoundDepths, op, rec, data, fit, camera: PlenopticCam
     found, op, rec = refine_planes(found, op, rec, data, fit, camera, solve, steps, residual, warm=quiet)
     several = refined_regions(found)
     if not (rounds and steps and len(several)) or rec.solver == "learned":
-        return found, op, rec
+        return without_empty_planes(found, op, rec, solve)
     possible = None if quiet else []
     more = missed_depths(residual(op, rec), camera, found, regions=several, share=REFINED_SHARE,
                          prominence=REFINED_QUIET_PROMINENCE if quiet else REFINED_PROMINENCE,
@@ -283,4 +283,35 @@ def peel_and_refine(found: FoundDepths, op, rec, data, fit, camera: PlenopticCam
     if more is not None:
         op, rec = solve(more)
         found, op, rec = refine_planes(more, op, rec, data, fit, camera, solve, steps, residual, warm=quiet)
-    return (dataclasses.replace(found, possible=possible) if possible else found), op, rec
+    return without_empty_planes(dataclasses.replace(found, possible=possible) if possible else found, op, rec, solve)
+
+
+def without_empty_planes(found: FoundDepths, op, rec, solve):
+    """The found planes less those that solve to no emission at all (every sample 0), with their depths, the rest
+    solved again (``solve(found, start=rec)``, started from their planes); as they are where no plane is empty, or
+    every one is. A depth voted for where the planes explain nothing (a capture decoded with one view more than
+    its lenslet images hold whole, 9.999 px apart: -60 mm, at the search's near end, solved to zero) is no flame.
+
+    Parameters
+    ----------
+    found, op, rec, solve
+        As :func:`peel_and_refine`'s.
+
+    Returns
+    -------
+    found, op, rec
+    """
+    empty = [k for k in range(len(found.planes_mm)) if not np.any(rec.planes[k] > 0)]
+    if not empty or len(empty) == len(found.planes_mm):
+        return found, op, rec
+    planes = np.setdiff1d(np.arange(len(found.planes_mm)), empty)
+    keep = np.isin(found.plane_of, planes)
+    new_index = np.full(len(found.planes_mm), -1)
+    new_index[planes] = np.arange(len(planes))
+    kept = dataclasses.replace(found, depths_mm=found.depths_mm[keep], slopes=found.slopes[keep],
+                               uncertainty_mm=found.uncertainty_mm[keep], width_mm=found.width_mm[keep],
+                               weight=found.weight[keep], region=found.region[keep], masks=found.masks[keep],
+                               curves=[c for c, k in zip(found.curves, keep) if k], planes_mm=found.planes_mm[planes],
+                               plane_of=new_index[found.plane_of[keep]])
+    op, rec = solve(kept, start=dataclasses.replace(rec, planes=rec.planes[planes]))
+    return kept, op, rec
