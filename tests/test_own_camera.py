@@ -217,6 +217,17 @@ def test_camera_file_gives_the_datasheets_camera():
     assert same == cam
 
 
+def test_a_camera_files_views_are_those_decoding_takes():
+    """Lenslet images 9.999 px apart hold 10 views for decoding (a pitch within 0.02 px below a whole number) and so
+    for the camera file's camera (it took floor(9.999) = 9, where decoding made 10 x 10 views of the same capture);
+    9.97 px: 9 for both."""
+    from lf_flame.real.view_grid import views_for_pitch
+    for pitch_px, n in ((9.999, 10), (9.97, 9)):
+        cam = camera_from_datasheet(_sheet(sensor__pixel_size_um=1000 * 0.150 * (1 + 3.0 / 200.0) / pitch_px))
+        assert cam.grid_pitch_px == pytest.approx(pitch_px)
+        assert cam.pixels_per_lenslet == views_for_pitch(cam.grid_pitch_px) == n
+
+
 def test_the_paper_camera_ships_as_a_camera_file():
     """examples/paper_camera.toml (the datasheet form) is the camera every command takes without --camera."""
     assert load_camera_file(ROOT / "examples" / "paper_camera.toml") == PAPER_CAMERA

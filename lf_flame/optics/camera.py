@@ -41,6 +41,16 @@ GRID_LAYOUTS = ("square", "hex")
 #: Largest grid rotation (degrees) per layout: beyond it the same lattice is described
 #: by a smaller angle (a square lattice repeats every 90°, a hexagonal one every 60°).
 MAX_GRID_ROTATION_DEG = {"square": 45.0, "hex": 30.0}
+#: A pitch this close below a whole number of pixels holds that number of views: a calibration
+#: measures the pitch within a few hundredths of a percent (14.9997 px for 15).
+PITCH_SNAP_PX = 0.02
+
+
+def views_for_pitch(pitch_px: float) -> int:
+    """Views per axis a lenslet image ``pitch_px`` pixels wide holds, one pixel apart: ``floor(pitch_px +
+    PITCH_SNAP_PX)``, the count decoding takes (:func:`lf_flame.real.view_grid.max_views`) and a camera file's
+    ``pixels_per_lenslet`` (:func:`lf_flame.optics.camera_file.camera_from_datasheet`)."""
+    return int(math.floor(pitch_px + PITCH_SNAP_PX))
 
 #: Largest tolerated relative error ``tan θ / θ - 1`` of the paraxial approximation at
 #: the steepest ray (5 %, reached at 0.375 rad); beyond it the camera warns.
@@ -179,7 +189,7 @@ class PlenopticCamera:
             return
         if not isinstance(p, (int, float)) or not math.isfinite(p) or p < 2:
             raise ValueError(f"camera grid_pitch_px must be a finite number >= 2 (pixels). Received: {p!r}")
-        if self.pixels_per_lenslet > p:
+        if self.pixels_per_lenslet > views_for_pitch(p):
             raise ValueError(f"camera pixels_per_lenslet={self.pixels_per_lenslet} views do not fit under a "
                              f"lenslet image of grid_pitch_px={p} pixels")
         limit = MAX_GRID_ROTATION_DEG[self.grid_layout]

@@ -46,7 +46,7 @@ import tomllib
 import warnings
 from pathlib import Path
 
-from .camera import GRID_LAYOUTS, PlenopticCamera
+from .camera import GRID_LAYOUTS, PITCH_SNAP_PX, PlenopticCamera, views_for_pitch
 
 #: The keys of each table of a camera file: (required, optional).
 DATASHEET_KEYS = {
@@ -57,9 +57,6 @@ DATASHEET_KEYS = {
 #: Relative disagreement tolerated between two values of the same quantity given twice
 #: (f-number and aperture, focus distance and MLA distance): datasheets round to 3 digits.
 AGREEMENT = 2e-3
-#: A pitch this close below a whole number of pixels holds that number of views: a calibration
-#: measures the pitch within a few hundredths of a percent (14.9997 px for 15).
-PITCH_SNAP_PX = 0.02
 
 
 def _number(where, key, v, *, integer=False, positive=True):
@@ -115,7 +112,8 @@ def camera_from_datasheet(sheet: dict, where: str = "camera file") -> PlenopticC
     PlenopticCamera
         A non-perfect grid: ``grid_pitch_px = pitch (1 + g/d) / pixel`` (the lenslet images'
         spacing: they are centred on the chief rays through the main lens's centre),
-        ``pixels_per_lenslet = floor(grid_pitch_px)`` (views per axis decoded), the given
+        ``pixels_per_lenslet`` the views per axis decoding takes
+        (:func:`~lf_flame.optics.camera.views_for_pitch`), the given
         layout, rotation and offset, ``sensor_rows x sensor_cols`` pixels, the sensor at the
         lenslets' focus (``g`` = their focal length), ``d = 1 / (1/F - 1/z_f)``.
 
@@ -223,7 +221,7 @@ def camera_from_datasheet(sheet: dict, where: str = "camera file") -> PlenopticC
                       f"(crosstalk, not modelled by the exact operator); stop it down to f/{F * g / (d * pitch):.2f}",
                       UserWarning, stacklevel=2)
     base = dict(main_focal_mm=F, focus_distance_mm=z_f, mla_pitch_mm=pitch, mla_focal_mm=g,
-                pixels_per_lenslet=int(math.floor(p)), aperture_mm=D, grid_pitch_px=p, grid_rotation_deg=rot,
+                pixels_per_lenslet=views_for_pitch(p), aperture_mm=D, grid_pitch_px=p, grid_rotation_deg=rot,
                 grid_offset_px=off, grid_layout=layout, sensor_rows=H, sensor_cols=W)
     try:
         return _fit_grid(base, rows, cols)

@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from ..optics.camera import views_for_pitch
 from .calibration import GridCalibration
 from .lattice import _H
 
@@ -172,7 +173,7 @@ def on_square_grid(a: np.ndarray, calibration: GridCalibration) -> np.ndarray:
 
 def max_views(calibration) -> int:
     """Views per axis a lenslet image holds: ``floor(pitch_px + PITCH_SNAP_PX)``
-    (:data:`lf_flame.optics.camera_file.PITCH_SNAP_PX`).
+    (:func:`lf_flame.optics.camera.views_for_pitch`).
 
     Parameters
     ----------
@@ -186,10 +187,6 @@ def max_views(calibration) -> int:
     return views_for_pitch(calibration.pitch_px)
 
 
-def views_for_pitch(pitch_px: float) -> int:
-    """Views per axis a lenslet image ``pitch_px`` pixels wide holds (:func:`max_views`)."""
-    from ..optics.camera_file import PITCH_SNAP_PX
-    return int(math.floor(pitch_px + PITCH_SNAP_PX))
 
 
 def _view_count(calibration: GridCalibration, n_views, bin_views=1) -> int:
