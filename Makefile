@@ -21,7 +21,7 @@ HELDOUT_paper := 20
 HELDOUT_quick := 4
 HELDOUT_SEED := 770077
 
-.PHONY: train-reconstructor cameras defects clipping floor one-command thread-wait temperature temperature-volume temperature-sequence help install docs dataset bench-sim bench-refocus real-data real-found train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi volume-edge volume-search sequence new-user heights test clean-quick
+.PHONY: train-reconstructor cameras defects clipping floor one-command thread-wait temperature temperature-volume temperature-sequence help install docs dataset bench-sim bench-refocus real-data real-found train-shapes train-flame tables tradeoff reconstruct resolution depth volume volume-nonaxi volume-edge volume-search sequence new-user guide-temperature heights test clean-quick
 .DEFAULT_GOAL := help
 
 help: ## list the targets
@@ -149,6 +149,9 @@ sequence: $(STAMP) ## flame recordings: per-plane flicker spectra, serial and Da
 # a new user's first light field through the command line (the README quick start's simulate, then profiles per route)
 new-user: $(STAMP) ## the README's quick start, each command timed, each profiles route's heights -> results/new_user.{csv,md}
 	$(VENV)/bin/python experiments/new_user.py --out $(TRADEOFF_OUT)
+
+guide-temperature: $(STAMP) ## the temperature guide's colour recording, each command timed, each plane against its flame's sheath -> results/guide_temperature.{csv,md}
+	$(VENV)/bin/python experiments/guide_temperature.py --out $(TRADEOFF_OUT)
 
 reconstruct: $(STAMP) ## 3-D emission reconstruction, every solver against refocusing -> results/reconstruct.{csv,md,json,png}
 	$(VENV)/bin/python experiments/reconstruct.py --out $(TRADEOFF_OUT) $(RECON_ARGS_$(PRESET))
