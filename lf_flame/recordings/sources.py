@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -122,7 +123,8 @@ class H5Source:
 
 @dataclass(frozen=True)
 class FolderSource:
-    """Frames as image files of a folder (:data:`FRAME_SUFFIXES`), in name order."""
+    """Frames as image files of a folder (:data:`FRAME_SUFFIXES`), in the order of their names' numbers
+    (:func:`frame_order`)."""
 
     files: tuple
 
@@ -205,6 +207,12 @@ def _imagej_rate(meta: dict) -> dict:
     return {"fps": 1.0 / (float(interval) * _TIME_UNITS[unit])}
 
 
+def frame_order(name: str) -> list:
+    """The sort key of a frame's file name: its runs of digits as numbers, the rest as text (case folded), so that
+    ``frame_2.png`` comes before ``frame_10.png`` whether or not the numbers are padded with zeros."""
+    return [(0, int(t), "") if t.isdigit() else (1, 0, t.lower()) for t in re.split(r"(\d+)", name) if t]
+
+
 def open_source(path, camera: PlenopticCamera | None = None):
     """The frame source of ``path``: an HDF5 stack (its dataset ``frames``, (T, H, W)), a
     multi-page TIFF (.tif, .tiff: its pages, :class:`TiffStackSource`) or a folder of image files.
@@ -223,7 +231,8 @@ def open_source(path, camera: PlenopticCamera | None = None):
     """
     p = Path(path)
     if p.is_dir():
-        files = tuple(str(f) for f in sorted(p.iterdir()) if f.suffix.lower() in FRAME_SUFFIXES)
+        files = tuple(str(f) for f in sorted(p.iterdir(), key=lambda f: frame_order(f.name))
+                      if f.suffix.lower() in FRAME_SUFFIXES)
         if not files:
             raise ValueError(f"folder {p} holds no frames ({', '.join(FRAME_SUFFIXES)} files)")
         return FolderSource(files), {}
