@@ -163,6 +163,24 @@ def test_wrong_calibration_refused(tmp_path):
         P.load_calibration(tmp_path / "other.json")
 
 
+def test_blackbodies_the_pyrometer_cannot_check_are_refused():
+    """Blackbodies outside the 1000-3200 K the lookup reads are refused naming the range (they gave residuals of
+    NaN, written into the calibration's JSON, and a wrong gain ratio without a word); one image given for two
+    temperatures (a ratio that does not move) is refused as such, where the direction check had said it 'rises'."""
+    nikon = library_sensor()
+
+    def ratios(temps):
+        return [1.1 * float(P.model_ratio(nikon, t, alpha=0.0)) for t in temps]
+    for temps in ((4500.0, 9000.0), (600.0, 1600.0)):
+        with pytest.raises(ValueError, match="outside the 1000-3200 K this pyrometer reads"):
+            P.fit_calibration(nikon, temps, ratios(temps))
+    same = ratios([1600.0]) * 2
+    with pytest.raises(ValueError, match="barely moves.*the same image given for two temperatures"):
+        P.fit_calibration(nikon, [1600.0, 2400.0], same)
+    cal = P.fit_calibration(nikon, [1600.0, 2400.0], ratios([1600.0, 2400.0]))
+    assert cal.gain_ratio == pytest.approx(1.1) and max(map(abs, cal.fit_residuals_k)) < 1e-6
+
+
 def test_temperature_recovered_on_a_planted_plane():
     """A hot rectangle (1900 K) beside a cooler one (1750 K) on the focal plane, in colour,
     reconstructed per channel from its own pixels (CFA mask) by admm: both temperatures back

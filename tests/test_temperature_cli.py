@@ -57,7 +57,7 @@ def files(tmp_path_factory):
     return dict(dir=d, bb=bb, flame=flame, cal=cal, sensor=sensor)
 
 
-def test_calibrate_temperature_finds_the_gain_ratio(files):
+def test_calibrate_temperature_finds_the_gain_ratio(files, capsys):
     d = json.loads(open(files["cal"]).read())
     assert d["gain_ratio"] == pytest.approx(GAINS[0] / GAINS[1], rel=1e-3)
     assert d["channels"] == ["R", "G"] and d["sensor_name"] == files["sensor"].name
@@ -65,6 +65,10 @@ def test_calibrate_temperature_finds_the_gain_ratio(files):
     # one temperature per image
     assert main(["calibrate-temperature", *files["bb"], "--temperature", "1600", "--out",
                  str(files["dir"] / "x.json")]) == 2
+    capsys.readouterr()        # one blackbody: fitted, and the check it cannot make said
+    assert main(["calibrate-temperature", files["bb"][0], "--temperature", "1600", "--out",
+                 str(files["dir"] / "one.json")]) == 0
+    assert "note: blackbodies at one temperature (1600 K)" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("phase", [(1, 1), (0, 1), (1, 0)])

@@ -95,6 +95,10 @@ def cmd_calibrate_temperature(a):
     out = write_calibration(a.out, cal)
     print(f"gain ratio {cal.gain_ratio:.5f}; fit residuals " + ", ".join(f"{x:+.2f}" for x in cal.fit_residuals_k)
           + f" K -> {out}")
+    if len(set(temps)) < 2:
+        print(f"note: blackbodies at one temperature ({temps[0]:g} K) fit the gain ratio, but cannot check that the "
+              "ratio moves with temperature as the sensor's does (its colour filter array's pattern and phase, the "
+              "temperatures' order): give two or more temperatures for that check")
     worst = max(abs(x) for x in cal.fit_residuals_k)
     if worst > RESIDUAL_WARN_K:
         print(f"warning: the fit leaves a residual of {worst:.0f} K: one blackbody's --temperature may be wrong, or "

@@ -214,13 +214,15 @@ def _auto_depths(a, lf):
 def _plane_lines(a, depths, r) -> list:
     """The printout's line per plane: its pixels with a temperature, their median and p10-p90, and the pixels left
     without one (:func:`_plane_temperatures`' ``r``)."""
+    from ..temperature.pyrometry import T_RANGE_K
     lines = []
     for k, d in enumerate(depths):
         v = r["temp"][k][r["valid"][k]]
         stats = (f"median {np.median(v):.0f} K, p10-p90 {np.percentile(v, 10):.0f}-{np.percentile(v, 90):.0f} K"
                  if v.size else "no temperature")
         lines.append(f"plane {k} ({d:+.2f} mm): {int(r['valid'][k].sum())} px with a temperature, {stats}; "
-                     f"{int(r['n_masked'][k])} bright px masked (ratio out of the table), {int(r['n_dim'][k])} px "
+                     f"{int(r['n_masked'][k])} bright px masked (ratio outside the table's {T_RANGE_K[0]:g}-{T_RANGE_K[1]:g} K), "
+                     f"{int(r['n_dim'][k])} px "
                      f"below {a.min_fraction:g} of the peak"
                      + (f"; WARNING: slope {r['slopes'][k]:+.3f} near an odd integer, half its lenslets have no red "
                         "sample in any view (cfa_blind): its temperature is interpolation there" if r["blind"][k]

@@ -27,6 +27,9 @@ from ..optics.colour import ALPHA_SOOT, CHANNELS, ColourSensor, band_integrals
 #: temperatures (K) the lookup covers, and its step
 T_RANGE_K = (1000.0, 3200.0)
 T_STEP_K = 1.0
+#: Blackbodies at two or more temperatures whose measured log ratio changes by less than this share of the model's
+#: change are refused (:func:`fit_calibration`): one image given for two temperatures.
+FLAT_RATIO = 0.1
 #: pixels below this fraction of their plane's peak emission get no temperature
 MIN_FRACTION = 0.1
 C2_M_K = 1.438777e-2   # second radiation constant, m K (CODATA 2018)
@@ -205,7 +208,9 @@ def fit_calibration(sensor: ColourSensor, temperatures_k, ratios, channels=("R",
     Raises
     ------
     ValueError
-        Fewer than one image, lengths that differ, non-positive ratios or temperatures; images at
+        Fewer than one image, lengths that differ, non-positive ratios or temperatures, temperatures outside
+        :data:`T_RANGE_K`; images at two or more temperatures whose ratio barely moves (under :data:`FLAT_RATIO` of
+        the model's change: one image given twice); images at
         two or more temperatures whose ratio moves with temperature against the model's (whatever
         the channels' gains, a blackbody's ratio of a longer- over a shorter-wavelength band falls
         as it heats): the temperatures given in another order than the images, or the samples of those
@@ -218,9 +223,18 @@ def fit_calibration(sensor: ColourSensor, temperatures_k, ratios, channels=("R",
         raise ValueError(f"one ratio per temperature is needed. Received: {t.shape} and {r.shape}")
     if np.any(~np.isfinite(r)) or np.any(r <= 0) or np.any(t <= 0):
         raise ValueError("ratios and temperatures must be finite and > 0")
+    out = [v for v in t if not T_RANGE_K[0] <= v <= T_RANGE_K[1]]
+    if out:
+        raise ValueError(f"blackbodies at {', '.join(f'{v:g} K' for v in out)} lie outside the {T_RANGE_K[0]:g}-"
+                         f"{T_RANGE_K[1]:g} K this pyrometer reads (T_RANGE_K): their fit could not be checked against "
+                         "the temperatures given; calibrate with blackbodies inside it")
     model = model_ratio(sensor, t, channels, alpha=0.0)
     if np.ptp(t) > 0:                   # the log ratio's slope in T, measured against the model's: the same sign
         slope, want = (np.polyfit(t, np.log(v), 1)[0] for v in (r, model))
+        if abs(slope) < FLAT_RATIO * abs(want):
+            raise ValueError(f"the measured {channels[0]}/{channels[1]} ratio barely moves across the blackbodies' "
+                             f"temperatures ({', '.join(f'{v:g} K' for v in t)}: {100 * abs(slope / want):.2g} % of "
+                             f"the change sensor {sensor.name!r} gives): the same image given for two temperatures?")
         if slope * want < 0:
             raise ValueError(f"the measured {channels[0]}/{channels[1]} ratio {'rises' if slope > 0 else 'falls'} with "
                              f"the blackbody's temperature where sensor {sensor.name!r}'s "
