@@ -632,3 +632,32 @@ def test_a_raw_colour_capture_decoded_on_the_fly_keeps_its_channels_apart(tmp_pa
     note = next(line for line in capsys.readouterr().out.splitlines() if "left out of the fit (clipped" in line)
     n, total = (int(v) for v in note.split(" samples")[0].split(" of "))
     assert total == decoded.views.size and 0.25 < n / total < 0.6 and "blue samples" in note
+
+
+def test_a_raw_images_sensor_is_the_one_its_camera_file_decodes_it_with(files, tmp_path):
+    """temperature reads a raw image through its camera file's colour filter array (as decoding does), so a camera
+    file naming GRBG against an RGGB calibration is refused (the frame was decoded as GRBG while the pyrometer took
+    the calibration's RGGB: 2,717 K for 1,863 K); a recording's frame (RECORDING.h5:INDEX) reports the sensor its
+    recording stores (it said it records none)."""
+    import argparse
+    from pathlib import Path
+
+    from lf_flame.cli.temperature_planes import _sensor
+    from lf_flame.temperature.pyrometry import load_calibration
+    root = Path(__file__).resolve().parents[1]
+    grbg = tmp_path / "grbg.toml"
+    grbg.write_text((root / "examples" / "colour_camera.toml").read_text().replace('cfa = "RGGB"', 'cfa = "GRBG"'))
+    a = argparse.Namespace(camera=str(grbg), sensor=None, cfa=None, cfa_phase=None)
+    cal = load_calibration(files["cal"])
+    sensor, where = _sensor(files["flame"], a, cal)
+    assert sensor.pattern == "GRBG" and where == f"{grbg} [sensor]"
+    with pytest.raises(ValueError, match="made for sensor .* CFA RGGB .* the images are from .* CFA GRBG"):
+        cal.check_sensor(sensor)
+    a.camera = None
+    assert _sensor(files["flame"], a, cal)[1] == f"stored in {files['flame']}"      # without one: the image's record
+    rec = tmp_path / "rec.h5"
+    with h5py.File(rec, "w") as f:
+        f["frames"] = np.zeros((2, 4, 4), np.float32)
+        f.attrs["sensor"] = json.dumps(files["sensor"].record())
+    sensor, where = _sensor(f"{rec}:1", a, cal)
+    assert where == f"stored in {rec}:1" and sensor.pattern == files["sensor"].pattern

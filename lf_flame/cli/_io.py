@@ -122,10 +122,20 @@ def _load_raw(path):
 
 def _raw_meta(path) -> dict:
     """What ``simulate`` stored beside a raw image (:data:`META_KEYS` -> JSON string): the
-    arrays of its .npz or the text of its PNG; empty for any other file."""
+    arrays of its .npz or the text of its PNG; for a frame of a recording (``RECORDING.h5:INDEX``) the
+    recording's camera, sensor and sequence (``simulate-sequence``'s attributes); empty for any other file."""
+    from ..config import reading
+    if ".h5:" in str(path):
+        import h5py
+        f = Path(str(path).rsplit(":", 1)[0])
+        if not f.is_file():
+            return {}
+        with reading(f, "HDF5 file"), h5py.File(f, "r") as h:
+            if "frames" not in h:                       # a dataset of light fields
+                return {}
+            return {k: str(h.attrs[k]) for k in ("camera", "sensor", "sequence") if k in h.attrs}
     p = Path(str(path))
     suffix = p.suffix.lower()
-    from ..config import reading
     if suffix == ".npz" and p.is_file():
         with reading(p, ".npz file"), np.load(p) as z:
             return {k: str(z[k]) for k in META_KEYS if k in z}

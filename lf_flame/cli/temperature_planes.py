@@ -20,22 +20,30 @@ from ._io import _load_raw, _raw_meta
 
 
 def _sensor(path, a, cal=None):
-    """The colour sensor of the image at ``path`` and a phrase saying where it came from."""
+    """The colour sensor of the image at ``path`` and a phrase saying where it came from: ``--sensor``, ``--cfa`` and
+    ``--cfa-phase`` where given, else decoded views' stored sensor, a raw image's camera file's ``[sensor]`` (the CFA
+    its decoding takes: :func:`lf_flame.real.lightfield.capture_sensor`) or stored record, the calibration's, the
+    default."""
     from ..optics.colour import DEFAULT_SENSITIVITIES, library_sensor
     meta = _raw_meta(path)
-    if str(path).endswith(".h5") and Path(path).is_file():          # decoded views: the sensor decode stored
+    decoded = str(path).endswith(".h5") and Path(path).is_file()
+    if decoded:                                                     # decoded views: the sensor decode stored
         import h5py
         with h5py.File(path, "r") as f:
             meta = {"sensor": str(f.attrs["sensor"])} if "sensor" in f.attrs else {}
     rec = json.loads(meta["sensor"]) if "sensor" in meta else {}
+    where = f"stored in {path}"
+    if not decoded and getattr(a, "camera", None):                  # a raw image decoded with its camera file
+        from ..optics.camera_file import load_colour_sensor
+        own = load_colour_sensor(a.camera)
+        if own is not None:
+            rec, where = dict(name=own.name, pattern=own.pattern, phase=tuple(own.phase)), f"{a.camera} [sensor]"
     given = {k: v for k, v in (("name", a.sensor), ("pattern", a.cfa),
                                ("phase", None if a.cfa_phase is None else tuple(a.cfa_phase))) if v is not None}
-    if rec:
-        where = f"stored in {path}"
-    elif cal is not None:
+    if not rec and cal is not None:
         rec = dict(name=cal.sensor_name, pattern=cal.pattern, phase=tuple(cal.phase))
         where = f"{path} records none: the calibration's"
-    else:
+    elif not rec:
         rec = dict(name=DEFAULT_SENSITIVITIES, pattern="RGGB", phase=(0, 0))
         where = f"{path} records none: the default"
     if given:
