@@ -82,6 +82,30 @@ def edge_warning(rec, op, modelled: bool = False, stack: bool = False):
     return edge
 
 
+#: A dense stack's first or last plane holding at least this share of its brightest plane's light: the flame reaches
+#: past the stack's end (:func:`stack_end_warning`). Volumes inside their stacks put 0 there with the axisymmetric
+#: prior and 0.21-0.29 of the brightest without one (the volume guide's scenes, a new user's walk-through); a flame
+#: 10 mm across whose axis stood 2 mm inside the stack's end put 0.98 (axisymmetric) and 1.0 (none).
+STACK_END_WARN = 0.5
+
+
+def stack_end_warning(rec) -> dict:
+    """A dense stack's end planes' light over its brightest plane's (``{"near": ..., "far": ...}``, for the file);
+    where one is at least :data:`STACK_END_WARN`, one warning (stderr): the flame reaches past that end, and the
+    stack should run further."""
+    light = np.clip(np.asarray(rec.planes, np.float64), 0, None).sum(axis=(1, 2))
+    top = light.max()
+    share = {"near": float(light[0] / top) if top > 0 else 0.0, "far": float(light[-1] / top) if top > 0 else 0.0}
+    ends = [(name, d, flag, share[name]) for name, d, flag in (("near", rec.depths_mm[0], "--from"),
+                                                             ("far", rec.depths_mm[-1], "--to"))
+            if share[name] >= STACK_END_WARN]
+    for name, d, flag, v in ends:
+        print(f"warning: the stack's {name} end ({d:+g} mm) holds {100 * v:.0f} % of its brightest plane's light: "
+              f"the flame reaches past it, and its light beyond is not recovered (the volume and any axis found are "
+              f"off); run the stack further ({flag})", file=sys.stderr)
+    return share
+
+
 def misfit_warning(lf, op, rec, saturation="file", lattice=None):
     """The solve's misfit on the light field's data as it was fitted (:func:`lf_flame.tomo.solvers.data_misfit`;
     a :class:`~lf_flame.tomo.lattice.LatticeSolve` on its lattice's), for the file; where it is high

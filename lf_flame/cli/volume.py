@@ -12,7 +12,7 @@ import numpy as np
 
 from ._io import (AUTO_LEVEL, RAW_FORMATS, _level_or_none, _raw_scene, add_camera_args, add_figure_arg,
                   add_search_arg, positive_int)
-from .fit_notes import edge_warning, left_out_notes, misfit_warning, resolution_note
+from .fit_notes import edge_warning, left_out_notes, misfit_warning, resolution_note, stack_end_warning
 from .planes import (_fitted_light_field, found_planes, found_record, lattice_solve, possible_warning,
                      reconstruct_input, run_reconstruction, solve_found)
 from ..simulate.scenes import PAPER_DEPTHS_MM
@@ -148,9 +148,10 @@ def volume_reconstruct(a):
     arrays = {} if axi is None else dict(emission_r_y=axi.emission, radii_mm=axi.radii_mm, heights_mm=axi.heights_mm)
     out = Path(a.out)
     edge = edge_warning(rec, op, modelled=axi is not None and axi.beyond_field, stack=axi is None)
+    ends = stack_end_warning(rec)
     misfit = misfit_warning(lf, op, rec, level)
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), volume=True,
-                        depth_resolution=table.to_dict("list"), edge_share=edge, misfit=misfit,
+                        depth_resolution=table.to_dict("list"), edge_share=edge, stack_end_share=ends, misfit=misfit,
                         operator="exact" if lf.interpolation is None else "exact, with decoding's interpolation")
     _, truth = _scene_truth(a.raw, lf, op)
     fig = _figure_path(a)
