@@ -324,7 +324,8 @@ def test_a_fixed_recording_is_run_again_in_the_folder_of_its_failed_run(tmp_path
         runner.run(job(), out, progress=False)
     assert calls == [0, 1]
     assert f"{rec} changed since the run in {out}" in capsys.readouterr().out
-    with pytest.raises(ValueError, match="holds a run with other settings"):
+    with pytest.raises(ValueError, match=r"holds a run with other settings \(job.json: depths_mm \[0.0\] there, "
+                                         r"\[5.0\] now, slopes "):       # which setting differs, named
         runner.run(job(depth=5.0), out, progress=False)
 
 

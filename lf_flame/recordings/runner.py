@@ -113,7 +113,16 @@ def _start_over_or_refuse(out: Path, old: str, new: str) -> None:
     if not parts and not (out / "summary.json").exists():
         print(f"{out} holds an unfinished run of other settings with no chunk done: starting over")
         return
-    raise ValueError(f"{out} holds a run with other settings (job.json); give another --out or delete it")
+    differ = sorted(k for k in set(old_id) | set(new_id) if old_id.get(k) != new_id.get(k))
+    shown = ", ".join(f"{k} {_short(old_id.get(k))} there, {_short(new_id.get(k))} now" for k in differ[:3])
+    raise ValueError(f"{out} holds a run with other settings (job.json{': ' + shown if shown else ''}"
+                     f"{f' and {len(differ) - 3} more' if len(differ) > 3 else ''}); give another --out or delete it")
+
+
+def _short(v, n: int = 40) -> str:
+    """A setting's value for a message: its JSON, cut to ``n`` characters."""
+    text = json.dumps(v, default=str)
+    return text if len(text) <= n else text[:n - 3] + "..."
 
 
 def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | None = None, nperseg=None,
