@@ -528,6 +528,12 @@ def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, 
         assert settings["regime"] == "decoded" and settings["knobs"] == DECODED_KNOBS
     assert t.size > 0.5 * cal.n_rows * cal.n_cols
     assert abs(np.median(t) - 1800) < 15 and np.percentile(np.abs(t - 1800), 90) < 30
+    if layout == "hex":     # refocus-cfa refused on the lattice before any depth search, not after it
+        capsys.readouterr()
+        assert main(["temperature", f"{d}/bb1800.h5", "--camera", str(cam_file), "--calibration", f"{d}/bb.json",
+                     "--route", "refocus-cfa", "--out", f"{d}/t_ref.h5"]) == 2
+        printed = capsys.readouterr()
+        assert "refocus-cfa refocuses a square grid's views" in printed.err and "found" not in printed.out
     # the raw capture with the grid's calibration: decoded here as decode decodes it, the same temperatures
     run("temperature", f"{d}/bb1800.npz", "--camera", cam_file, "--calibration", f"{d}/bb.json", "--grid-calibration",
         f"{d}/cal.json", "--depth", 0, "--alpha", 0, "--out", f"{d}/t_raw.h5")

@@ -55,6 +55,9 @@ def cmd_temperature(a):
         raise ValueError(f"{src}: decoded views without their colour channels (a monochrome capture, or a colour one "
                          "decoded without its camera file): 'lf-flame decode RAW --camera cam.toml' keeps them apart "
                          "where the file's [sensor] names its cfa")
+    if a.route == "refocus-cfa" and lf.lattice_views is not None:       # before the depth search
+        from ..temperature.channels import HEX_REFOCUS_REFUSED
+        raise ValueError(HEX_REFOCUS_REFUSED)
     extra, found = {}, None
     if depths == "auto":                                # reconstruct's planes: the levelled channels' found route
         depths, found, extra = _auto_depths(a, lf)

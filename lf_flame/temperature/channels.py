@@ -215,6 +215,12 @@ def cfa_noise(views: np.ndarray, chan: np.ndarray, channels) -> float:
     return max(relative_noise(channel_subviews(views, chan, c)) for c in channels)
 
 
+#: Why ``refocus-cfa`` is refused on a hexagonal grid (:func:`route_operator`, and ``lf-flame temperature`` before its
+#: depth search).
+HEX_REFOCUS_REFUSED = ("refocus-cfa refocuses a square grid's views; a hexagonal grid's colour channels are solved on "
+                       "its lattice: choose an admm route")
+
+
 def route_operator(camera, depths_mm, route: str, hexagonal=None, sample_offsets=None):
     """The planes' operator a route of :data:`CFA_ROUTES` solves on: None for ``refocus-cfa``; the
     :data:`MATCHED_SUBSAMPLES` grid for ``admm-cfa-matched``; the lenslet grid otherwise (float32).
@@ -234,8 +240,7 @@ def route_operator(camera, depths_mm, route: str, hexagonal=None, sample_offsets
     subsamples = MATCHED_SUBSAMPLES if route == "admm-cfa-matched" else 1
     if hexagonal is not None:
         if route == "refocus-cfa":
-            raise ValueError("refocus-cfa refocuses a square grid's views; a hexagonal grid's colour channels are "
-                             "solved on its lattice: choose an admm route")
+            raise ValueError(HEX_REFOCUS_REFUSED)
         from ..tomo.lattice import hexagonal_operator
         if sample_offsets is not None:
             raise ValueError("a hexagonal grid's colour channels are solved on its whole lattice views (the samples' "
