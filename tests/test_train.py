@@ -361,3 +361,41 @@ def test_the_checkpoint_kept_is_the_best_epoch(flame_h5, tmp_path):
     val = np.sort(ds.splits["val"])
     kept = np.mean([ssim_per_plane(g, p) for g, p in zip(ds.gt(val), predict_features(dec, info["feature_cache"], val))])
     assert kept == pytest.approx(h.val_ssim.iloc[best], abs=1e-9) and kept > h.val_ssim.iloc[0] + 1e-7
+
+
+def test_a_models_scores_stay_its_own_when_another_run_overwrites_the_feature_cache(flame_h5, tmp_path, capsys):
+    """Two models trained on one dataset with random-init backbones of other seeds share the feature cache's name: the
+    second run rewrites it. The first model's evaluate then scores the second backbone's features through its own
+    decoder (SSIM 0.88 -> 0.50 in a new user's run) unless it checks the cache; it does, and computes the test split's
+    features with its own saved backbone, so its table stays what it was (to the cache's float16 rounding). The cache's
+    path is recorded absolute (evaluate from another folder read a path relative to where train ran)."""
+    data = tmp_path / "flame.h5"
+    shutil.copy(flame_h5, data)
+    exp7 = _experiment(tmp_path / "e7.toml", epochs=1, refine=1)
+    exp8 = tmp_path / "e8.toml"
+    exp8.write_text(Path(exp7).read_text().replace("seed = 7", "seed = 8"))
+    for exp, out in ((exp7, "m7"), (str(exp8), "m8")):
+        assert main(["train", "--dataset", str(data), "--experiment-config", exp, "--out", str(tmp_path / out),
+                     "--quiet"]) == 0
+        if out == "m7":
+            assert main(["evaluate", "--dataset", str(data), "--model-dir", str(tmp_path / "m7"),
+                         "--results", str(tmp_path / "before")]) == 0
+    assert Path(json.loads((tmp_path / "m7" / "train_info.json").read_text())["feature_cache"]).is_absolute()
+    capsys.readouterr()
+    assert main(["evaluate", "--dataset", str(data), "--model-dir", str(tmp_path / "m7"),
+                 "--results", str(tmp_path / "after")]) == 0
+    assert "seed 8 there, 7 wanted" in capsys.readouterr().out
+    before, after = (pd.read_csv(tmp_path / r / "metrics_flame.csv") for r in ("before", "after"))
+    assert np.abs(before.ssim - after.ssim).max() < 2e-3, (before.ssim.describe(), after.ssim.describe())
+
+
+def test_tables_leave_out_the_time_of_a_feature_cache_deleted_since(tmp_path, capsys):
+    """tables reads the backbone features' time from their cache; a cache deleted since (it is rebuilt by make) leaves
+    that time out with a note, where h5py's 'unable to open file' stopped the tables."""
+    model = tmp_path / "models" / "paper" / "flame"
+    model.mkdir(parents=True)
+    (model / "train_info.json").write_text(json.dumps(dict(feature_cache=str(tmp_path / "gone.h5"), epochs_run=1,
+                                                           training_wall_time_s=1.0)))
+    assert main(["tables", "--results", str(tmp_path / "res"), "--data-dir", str(tmp_path / "data"),
+                 "--model-dir", str(tmp_path / "models")]) == 0
+    assert f"note: {tmp_path / 'gone.h5'} is gone" in capsys.readouterr().out

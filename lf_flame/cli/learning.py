@@ -115,8 +115,12 @@ def cmd_tables(a):
             info = Path(a.model_dir) / regime / scene / "train_info.json"
             if info.exists():
                 i = json.loads(info.read_text())
-                with h5py.File(i["feature_cache"], "r") as f:  # when they were computed, maybe by an earlier run
-                    times[f"backbone features {regime} {scene}"] = float(f.attrs["wall_time_s"])
+                try:       # when they were computed, maybe by an earlier run; a cache deleted since: no time
+                    with h5py.File(i["feature_cache"], "r") as f:
+                        times[f"backbone features {regime} {scene}"] = float(f.attrs["wall_time_s"])
+                except OSError:
+                    print(f"note: {i['feature_cache']} is gone: the backbone features' time of {regime} {scene} "
+                          "is left out")
                 times[f"training {regime} {scene} (start + {i['epochs_run']} epochs)"] = i["training_wall_time_s"]
             tv = Path(a.model_dir) / regime / scene / "time_v.txt"
             if tv.exists():

@@ -70,6 +70,15 @@ def route_predictions(baselines: dict, features: np.ndarray, decoder) -> dict:
 HELDOUT2 = "held-out 2"
 
 
+def _backbone_features(full_model, raw, indices, batch: int = 4) -> np.ndarray:
+    """The backbone features of the raw images ``raw(idx)`` (a function of a list of indices -> (k, H, W)) through
+    a saved full model's frozen feature extractor, ``batch`` at a time: (len(indices), h, w, 2048)."""
+    fx = full_model.get_layer("feature_extractor")
+    idx = list(indices)
+    return np.concatenate([np.asarray(fx.predict_on_batch(np.asarray(raw(idx[s:s + batch]))[..., None]))
+                           for s in range(0, len(idx), batch)])
+
+
 def evaluate(dataset_path, model_dir, results_dir, n_heldout: int = 0, heldout_seed: int | None = None) -> pd.DataFrame:
     """Score the network and its yardsticks per plane on the test split and on a second
     held-out set.
@@ -97,6 +106,7 @@ def evaluate(dataset_path, model_dir, results_dir, n_heldout: int = 0, heldout_s
         ``n_heldout`` without a ``heldout_seed`` (or with the dataset's own seed).
     """
     from .baselines import load_baselines
+    from .features import cache_mismatch
     from .model_files import load_decoder, load_full_model
 
     ds = LightFieldDataset(dataset_path)
@@ -107,9 +117,16 @@ def evaluate(dataset_path, model_dir, results_dir, n_heldout: int = 0, heldout_s
                          "was trained on")
     baselines = load_baselines(model_dir)
     test = np.sort(ds.splits["test"])
-    import h5py
-    with h5py.File(info["feature_cache"], "r") as f:
-        preds = route_predictions(baselines, f["features"][test], dec)
+    why = cache_mismatch(info["feature_cache"], ds.digest, info["train_config"]["seed"], info["backbone_weights"],
+                         ds.n, info.get("backend"))
+    if why is None:
+        import h5py
+        with h5py.File(info["feature_cache"], "r") as f:
+            feats = f["features"][test]
+    else:       # another dataset, or a cache another run overwrote: this dataset through the model's own backbone
+        print(f"{why}: the test split's features computed with the backbone saved in {model_dir}")
+        feats = _backbone_features(load_full_model(model_dir)[0], ds.raw, test)
+    preds = route_predictions(baselines, feats, dec)
     gt_test = ds.gt(test)
     rows = []
     for route in ROUTES:
@@ -117,10 +134,9 @@ def evaluate(dataset_path, model_dir, results_dir, n_heldout: int = 0, heldout_s
     if n_heldout:
         if heldout_seed is None:
             raise ValueError("a second held-out set needs its own seed (heldout_seed)")
-        fx = load_full_model(model_dir)[0].get_layer("feature_extractor")
         raws, gts = zip(*(ds.heldout_sample(j, heldout_seed) for j in range(n_heldout)))
-        feats = np.concatenate([np.asarray(fx.predict_on_batch(np.stack(raws[s:s + 4])[..., None]))
-                                for s in range(0, n_heldout, 4)])
+        feats = _backbone_features(load_full_model(model_dir)[0], lambda idx: np.stack([raws[i] for i in idx]),
+                                   np.arange(n_heldout))
         held = route_predictions(baselines, feats, dec)
         for route in ROUTES:
             rows += score(np.stack(gts), held[route], route=route, split=HELDOUT2, sample=np.arange(n_heldout))

@@ -31,14 +31,35 @@ def feature_cache_path(dataset_path, cfg: ModelConfig, weights_label: str) -> Pa
     return p.with_name(f"{p.stem}.features_{cfg.input_rows}x{cfg.input_cols}_{tag}.h5")
 
 
+def cache_mismatch(path, digest: str, seed: int, label: str, n: int, backend: str | None = None) -> str | None:
+    """Why the feature cache at ``path`` is not the features of a dataset (``digest``, ``n`` samples) through a
+    backbone (weights ``label``, drawn with ``seed``; a random draw also by the Keras ``backend`` that drew it), or
+    None where it is. A random-init backbone's draw differs by seed and by backend; pretrained weights by neither
+    (the seed is checked as recorded all the same)."""
+    try:
+        with h5py.File(path, "r") as f:
+            got = dict(digest=f.attrs.get("dataset_digest"), seed=int(f.attrs.get("seed", -1)),
+                       weights=f.attrs.get("weights"), n=f["features"].shape[0], backend=f.attrs.get("backend"))
+    except (OSError, KeyError):
+        return f"feature cache {path} is missing or unreadable"
+    want = dict(digest=digest, seed=int(seed), weights=label, n=int(n),
+                backend=backend if "random" in str(label) else got["backend"])
+    differ = [k for k in want if got[k] != want[k]]
+    if not differ:
+        return None
+    return (f"feature cache {path} holds other features (" + ", ".join(
+        f"{k} {str(got[k])[:12]} there, {str(want[k])[:12]} wanted" for k in differ) + ")")
+
+
 def compute_features(ds: LightFieldDataset, cfg: ModelConfig, weights_spec: str, batch: int = 4,
                      progress: bool = True, seed: int = 0) -> tuple[Path, str]:
     """Compute (or reuse) the frozen backbone features of every sample of ``ds``.
 
     A cache is reused only if it was computed from this very dataset (the same
     :attr:`~lf_flame.learn.dataset.LightFieldDataset.digest`), with the same backbone weights,
-    input size and seed; otherwise it is computed again, with a message, and replaces the
-    old file only once complete.
+    input size and seed (a random-init backbone's also by the same Keras backend: :func:`cache_mismatch`);
+    otherwise it is computed again, with a message naming what differs, and replaces the old file only
+    once complete.
 
     Parameters
     ----------
@@ -62,16 +83,10 @@ def compute_features(ds: LightFieldDataset, cfg: ModelConfig, weights_spec: str,
     weights, label = resolve_weights(weights_spec)  # may build (and fail to load) a model
     path = feature_cache_path(ds.path, cfg, label)
     if path.exists():
-        try:
-            with h5py.File(path, "r") as f:
-                got = (f.attrs.get("dataset_digest"), int(f.attrs.get("seed", -1)), f.attrs.get("weights"),
-                       f["features"].shape[0])
-        except (OSError, KeyError):
-            got = ("unreadable",)
-        if got == (ds.digest, seed, label, ds.n):
+        why = cache_mismatch(path, ds.digest, seed, label, ds.n, keras.backend.backend())
+        if why is None:
             return path, label
-        print(f"feature cache {path} was computed from another dataset or backbone "
-              f"(digest {str(got[0])[:12]} != {ds.digest[:12]}); computing it again")
+        print(f"{why}: computing it again")
     # seeded right before the build, as model_files.save_random_backbone does: the same random draw
     keras.utils.set_random_seed(seed)
     fx = build_feature_extractor(ds.camera.sensor_shape, cfg, weights)
@@ -87,7 +102,8 @@ def compute_features(ds: LightFieldDataset, cfg: ModelConfig, weights_spec: str,
                 raise FloatingPointError("backbone features are not finite in float16")
             d[s:s + len(idx)] = feats.astype(np.float16)
         f.attrs.update(dataset=str(ds.path), dataset_camera=ds.attrs["camera"], dataset_digest=ds.digest,
-                       weights=label, seed=seed, model_config=to_json(cfg), wall_time_s=time.perf_counter() - t0)
+                       weights=label, seed=seed, backend=keras.backend.backend(), model_config=to_json(cfg),
+                       wall_time_s=time.perf_counter() - t0)
     os.replace(tmp, path)
     return path, label
 

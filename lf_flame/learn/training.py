@@ -260,6 +260,7 @@ def train(dataset_path, out_dir, model_cfg: ModelConfig, train_cfg: TrainConfig,
                 best_val_ssim=float(h["val_ssim"].max()), start_val_ssim=float(h["val_ssim"].iloc[0]),
                 best_val_loss=float(h["val_loss"].min()), training_wall_time_s=float(h["wall_time_s"].iloc[-1]),
                 start=start, baselines=baselines,
-                feature_cache=str(feats_path), feature_wall_time_s=t_feat, provenance=provenance())
+                feature_cache=str(Path(feats_path).resolve()), backend=keras.backend.backend(),
+                feature_wall_time_s=t_feat, provenance=provenance())
     atomic_write_text(out / "train_info.json", json.dumps(info, indent=2))
     return info
