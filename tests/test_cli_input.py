@@ -408,3 +408,25 @@ def test_a_crop_of_a_perfect_grids_sensor_names_the_calibration_that_decodes_it(
     with pytest.raises(ValueError, match=rf"shape \({rows - 1}, {cols}\) is not this camera's {rows} x {cols} px raw "
                                          r"image \(a crop of the sensor is decoded with the white-image calibration"):
         from_raw(np.zeros((rows - 1, cols), np.float32), PAPER_CAMERA, "crop.npy")
+
+
+def test_dataset_refuses_the_slopes_of_another_camera(tmp_path, capsys):
+    """slopes.json records the camera its slopes were found on, and dataset refuses it for another camera, naming the
+    fields that differ (a new user's camera focused 26 mm further took the quick camera's slopes, 2.275 for 3.05, and
+    rendered ground truth refocused off the objects' planes: SSIM 0.76-0.87 against the right one). The quick
+    pipeline's test takes its own camera's slopes through the same check."""
+    import dataclasses
+    from pathlib import Path
+
+    from lf_flame.config import load_data_config
+    root = Path(__file__).resolve().parents[1]
+    cfg = str(root / "data_gen" / "quick.toml")
+    cam, _ = load_data_config(cfg)
+    other = dataclasses.replace(cam, focus_distance_mm=cam.focus_distance_mm + 26.0)
+    bad = tmp_path / "slopes.json"
+    bad.write_text(json.dumps(dict(slopes=[3.05, 1.61, 0.0, -1.72], camera=json.loads(other.to_json()))))
+    assert main(["dataset", "--data-config", cfg, "--scene", "flame", "--slopes", str(bad), "--out",
+                 str(tmp_path / "d.h5"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "holds the slopes of another camera" in err and "focus_distance_mm" in err
+    assert not (tmp_path / "d.h5").exists()

@@ -21,7 +21,16 @@ def cmd_dataset(a):
     cam, cfg = load_data_config(a.data_config)
     if a.regime:
         cfg = dataclasses.replace(cfg, regime=a.regime)
-    slopes = json.loads(Path(a.slopes).read_text())["slopes"]
+    record = json.loads(Path(a.slopes).read_text())
+    slopes = record["slopes"]
+    if "camera" in record:               # the slopes of the camera they were found on (older files record none)
+        from ..optics.camera import PlenopticCamera
+        from ..real.lightfield import camera_differences
+        diff = camera_differences(PlenopticCamera.from_dict(record["camera"]), cam)
+        if diff:
+            raise ValueError(f"{a.slopes} holds the slopes of another camera than {a.data_config}'s ("
+                             + "; ".join(diff[:3]) + "): its ground truth would be refocused off the objects' "
+                             f"planes; find this camera's with 'lf-flame slopes --data-config {a.data_config}'")
     shard = None
     if a.shard:
         try:

@@ -271,7 +271,8 @@ def _calibrate_slopes(a):
     slopes, searches, objects = calibrate_slopes(cam, cfg.calibration_rays_per_pixel)
     df = write_slopes(cam, slopes, searches, objects, a.results)
     print(df.to_string(index=False))
-    atomic_write_text(a.out, json.dumps({"slopes": slopes, "wall_time_s": time.perf_counter() - t}))
+    atomic_write_text(a.out, json.dumps({"slopes": slopes, "wall_time_s": time.perf_counter() - t,
+                                         "camera": json.loads(cam.to_json())}))
 
 
 def _bit_depth(text: str) -> int:
