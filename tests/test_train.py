@@ -301,7 +301,7 @@ def test_paper_recipe_stays_reproducible_and_fails(flame_h5, tmp_path):
                  "--quiet"]) == 0
     info = json.loads((out / "train_info.json").read_text())
     assert info["train_config"]["recipe"] == "paper" and info["model_config"]["dropout_at"] == "pixels"
-    assert set(info["start"]) == {"recipe", "dataset_digest", "wall_time_s"}
+    assert set(info["start"]) == {"recipe", "dataset_digest", "run", "wall_time_s"}
     assert _epochs(out) == [0, 1]
     import keras
     last = keras.models.load_model(out / "decoder_last.keras")
@@ -399,3 +399,22 @@ def test_tables_leave_out_the_time_of_a_feature_cache_deleted_since(tmp_path, ca
     assert main(["tables", "--results", str(tmp_path / "res"), "--data-dir", str(tmp_path / "data"),
                  "--model-dir", str(tmp_path / "models")]) == 0
     assert f"note: {tmp_path / 'gone.h5'} is gone" in capsys.readouterr().out
+
+
+def test_a_model_folder_of_other_settings_trains_from_the_start(flame_h5, tmp_path, capsys):
+    """train into a folder that holds a run: more epochs resume it; another learning rate (or recipe, seed, input
+    size) starts again, naming what differs. It had resumed the old run and recorded the new settings beside it (a
+    new user's closed-form start labelled 'recipe paper', lr 0.01; a 32 x 32 input resumed on 64 x 32 features)."""
+    exp1 = _experiment(tmp_path / "e1.toml", epochs=1, refine=1)
+    exp2 = _experiment(tmp_path / "e2.toml", epochs=2, refine=1)
+    lr = tmp_path / "lr.toml"
+    lr.write_text(Path(exp2).read_text().replace("learning_rate = 1e-4", "learning_rate = 1e-2"))
+    out = str(tmp_path / "m")
+    for exp in (exp1, exp2):
+        assert main(["train", "--dataset", str(flame_h5), "--experiment-config", exp, "--out", out, "--quiet"]) == 0
+    assert "resuming from epoch 2" in capsys.readouterr().out           # only how long it goes on changed
+    assert main(["train", "--dataset", str(flame_h5), "--experiment-config", str(lr), "--out", out, "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert "holds a run of other settings (learning_rate 0.0001 there, 0.01 now): training from the start" in printed
+    assert "resuming" not in printed
+    assert json.loads((tmp_path / "m" / "start.json").read_text())["run"]["learning_rate"] == 0.01

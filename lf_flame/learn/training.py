@@ -125,19 +125,40 @@ class _ResumableEarlyStopping(keras.callbacks.EarlyStopping):
             self.wait = _epochs_since_best(self.past)
 
 
-def _resume_state(out: Path, dataset_digest: str):
+#: The settings that make a training run what it is (:func:`run_settings`): a run started with others is not
+#: resumed. ``max_epochs``, ``time_budget_s`` and ``patience`` only say how long it goes on, and may change.
+RUN_TRAIN_KEYS = ("recipe", "refine_iterations", "batch_size", "learning_rate", "seed", "train_layers")
+
+
+def run_settings(model_cfg: ModelConfig, train_cfg: TrainConfig) -> dict:
+    """The settings recorded in ``start.json`` that a resumed run must share: the model's (input size, backbone
+    weights) and :data:`RUN_TRAIN_KEYS` of the training's, as JSON values."""
+    return json.loads(json.dumps(dict(model=json.loads(to_json(model_cfg)),
+                                      **{k: getattr(train_cfg, k) for k in RUN_TRAIN_KEYS})))
+
+
+def _resume_state(out: Path, dataset_digest: str, run: dict | None = None):
     """(initial_epoch, wall time already trained, past val SSIMs) from a previous run in ``out``.
 
     The history is cut back to the epoch that the last complete checkpoint holds, so an
     epoch logged by a run killed before its checkpoint was written is trained again. A run
-    started on another dataset (``start.json``'s digest differs) is not resumed: training
-    starts again, with a message.
+    started on another dataset (``start.json``'s digest differs) or with other settings (``run``,
+    :func:`run_settings`, where ``start.json`` records them) is not resumed: training starts again, with a
+    message naming what differs.
     """
     state_path, hist_path, start_path = out / "train_state.json", out / "history.csv", out / "start.json"
-    if start_path.exists() and json.loads(start_path.read_text()).get("dataset_digest") != dataset_digest:
-        print(f"{out} holds a run on another dataset: training from the start")
+    old = json.loads(start_path.read_text()) if start_path.exists() else None
+    why = None
+    if old is not None and old.get("dataset_digest") != dataset_digest:
+        why = "a run on another dataset"
+    elif old is not None and run is not None and "run" in old and old["run"] != run:
+        differ = [k for k in sorted(set(old["run"]) | set(run)) if old["run"].get(k) != run.get(k)]
+        why = "a run of other settings (" + ", ".join(
+            f"{k} {json.dumps(old['run'].get(k))} there, {json.dumps(run.get(k))} now" for k in differ) + ")"
+    if why:
+        print(f"{out} holds {why}: training from the start")
         for p in (state_path, start_path):
-            p.unlink()
+            p.unlink(missing_ok=True)
     if not (state_path.exists() and (out / "decoder_last.keras").exists() and hist_path.exists()):
         for p in (hist_path, state_path):
             p.unlink(missing_ok=True)
@@ -159,7 +180,7 @@ def _start(ds, feats_path, model_cfg: ModelConfig, train_cfg: TrainConfig, label
     with h5py.File(feats_path, "r") as f:
         fshape = f["features"].shape[1:]
     decoder = build_decoder(fshape, ds.camera.n_rows, ds.camera.n_cols, model_cfg)
-    start = dict(recipe=train_cfg.recipe, dataset_digest=ds.digest)
+    start = dict(recipe=train_cfg.recipe, dataset_digest=ds.digest, run=run_settings(model_cfg, train_cfg))
     if train_cfg.recipe == "closed-form":
         from .baselines import LinearDecoder
         gap = LinearDecoder.load(out / BASELINE_FILES["linear decoder (GAP-pooled)"])
@@ -221,7 +242,7 @@ def train(dataset_path, out_dir, model_cfg: ModelConfig, train_cfg: TrainConfig,
     baselines = fit_baselines(feats_path, ds, out)
     keras.utils.set_random_seed(train_cfg.seed)
     hist_path, last_path, best_path = out / "history.csv", out / "decoder_last.keras", out / "decoder_best.weights.h5"
-    initial_epoch, offset, past = _resume_state(out, ds.digest)
+    initial_epoch, offset, past = _resume_state(out, ds.digest, run_settings(model_cfg, train_cfg))
     bs = train_cfg.batch_size
     val_data = FeatureBatches(feats_path, ds, ds.splits["val"], bs, False, train_cfg.seed)
     if initial_epoch:
@@ -231,7 +252,7 @@ def train(dataset_path, out_dir, model_cfg: ModelConfig, train_cfg: TrainConfig,
     else:
         train_eval = FeatureBatches(feats_path, ds, ds.splits["train"], bs, False, train_cfg.seed)
         start, decoder = _start(ds, feats_path, model_cfg, train_cfg, label, train_eval, val_data, out)
-        initial_epoch, offset, past = _resume_state(out, ds.digest)
+        initial_epoch, offset, past = _resume_state(out, ds.digest, run_settings(model_cfg, train_cfg))
     # epoch 0 of the history is the start; training epoch k (1 .. max_epochs) shuffles with (seed, k - 1)
     train_data = FeatureBatches(feats_path, ds, ds.splits["train"], bs, True, train_cfg.seed, initial_epoch - 1)
     scene = ds.scene
