@@ -149,6 +149,11 @@ def test_predict_rejects_mismatched_input(flame_h5, trained, tmp_path, capsys):
     assert main(["predict", f"{flame_h5}:0", "--model-dir", str(tmp_path / "nothing"), "--out",
                  str(tmp_path / "p.npz")]) == 2
     assert "not found" in capsys.readouterr().err
+    for index in ("999", "abc"):        # a sample past the dataset's end (an IndexError's traceback), or no number
+        assert main(["predict", f"{flame_h5}:{index}", "--model-dir", str(out), "--out", str(tmp_path / "p.npz")]) == 2
+        assert f"{flame_h5}:{index}: a dataset of" in capsys.readouterr().err
+    assert main(["predict", f"{flame_h5}:0", "--model-dir", str(out), "--out", str(tmp_path / "p.txt")]) == 0
+    assert f"-> {tmp_path / 'p.txt.npz'}" in capsys.readouterr().out and (tmp_path / "p.txt.npz").exists()
 
 
 FIT = """

@@ -88,6 +88,8 @@ def _load_raw(path):
         from ..learn.dataset import LightFieldDataset
         with reading(f, "dataset (HDF5)"):
             ds = LightFieldDataset(f)
+            if not (i.strip().isdigit() and int(i) < ds.n):
+                raise ValueError(f"{s}: a dataset of {ds.n} samples takes a sample index 0 .. {ds.n - 1}")
             return ds.raw(int(i)), ds.camera
     p = Path(s)
     if not p.is_file():
@@ -295,6 +297,8 @@ def _write_stack(path, stack, **extra):
     if out.suffix == ".png":
         _save_image(out, np.concatenate(list(stack), axis=1))
     else:
+        if out.suffix != ".npz":             # NumPy adds it: say where the file is
+            out = out.with_name(out.name + ".npz")
         np.savez_compressed(out, stack=stack, **extra)
     print(f"-> {out}")
 
