@@ -62,6 +62,14 @@ def test_corrupt_and_mismatched_files(tmp_path):
     trunc.write_bytes(p.read_bytes()[:5000])
     with pytest.raises(ValueError, match="corrupt"):
         D.LightFieldDataset(trunc)
+    import h5py
+    import shutil
+    noattr = tmp_path / "noattr.h5"          # its camera attribute deleted: named, not a KeyError in train
+    shutil.copy(p, noattr)
+    with h5py.File(noattr, "r+") as f:
+        del f.attrs["camera"]
+    with pytest.raises(ValueError, match=r"lacks its attributes \['camera'\]"):
+        D.LightFieldDataset(noattr)
 
 
 def test_partial_with_other_settings_refused(tmp_path, monkeypatch):

@@ -265,8 +265,8 @@ def check_dataset(path, camera: PlenopticCamera | None = None) -> dict:
     Raises
     ------
     ValueError
-        Missing, truncated or corrupt file, missing arrays, unfinished samples, or a
-        camera different from ``camera``.
+        Missing, truncated or corrupt file, missing arrays or attributes (:data:`IDENTITY_ATTRS`), unfinished
+        samples, or a camera different from ``camera``.
     """
     path = Path(path)
     if not path.is_file():
@@ -280,6 +280,10 @@ def check_dataset(path, camera: PlenopticCamera | None = None) -> dict:
             if not np.all(f["done"][:] == 1):
                 raise ValueError(f"dataset {path} has unfinished samples")
             attrs = {k: f.attrs[k] for k in f.attrs}
+            lacking = [k for k in IDENTITY_ATTRS if k not in attrs]
+            if lacking:
+                raise ValueError(f"dataset {path} lacks its attributes {lacking}: written by something other than "
+                                 "'lf-flame dataset', or edited since")
             n = f["raw"].shape[0]
             if f["gt"].shape[0] != n:
                 raise ValueError(f"dataset {path}: {n} raw images but {f['gt'].shape[0]} ground truths")
