@@ -178,6 +178,8 @@ def test_an_interrupted_write_leaves_no_temporary_file(tmp_path, monkeypatch):
      "number from 0 to 1"),
     (["temperature", "x.npz", "--calibration", "bb.json", "--min-fraction", "nan", "--out", "t.h5"],
      "--min-fraction", "number from 0 to 1"),
+    (["evaluate", "--dataset", "d.h5", "--model-dir", "m", "--results", "r", "--heldout", "-3", "--heldout-seed", "5"],
+     "--heldout", "whole number >= 0"),
 ])
 def test_options_out_of_range_are_refused_by_their_own_name(argv, option, text, capsys):
     """Refused while the arguments are parsed (exit 2, before any file is read), the message

@@ -168,6 +168,24 @@ def positive_int(text: str) -> int:
     return n
 
 
+def count(text: str) -> int:
+    """An argparse ``type``: a whole number >= 0 (``evaluate --heldout``).
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        Anything else; argparse names the option and exits with status 2.
+    """
+    import argparse
+    try:
+        n = int(text)
+    except ValueError:
+        n = -1
+    if n < 0:
+        raise argparse.ArgumentTypeError(f"takes a whole number >= 0. Received: {text!r}")
+    return n
+
+
 def fraction(text: str) -> float:
     """An argparse ``type``: a number from 0 to 1 (``--min-fraction``).
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..routes import LEARNED_ROUTES
-from ._io import RAW_FORMATS, _load_raw, _write_stack, positive_int
+from ._io import RAW_FORMATS, _load_raw, _write_stack, count, positive_int
 
 
 def cmd_dataset(a):
@@ -177,7 +177,7 @@ def add_parsers(sub) -> None:
     s.add_argument("--dataset", required=True, help="dataset HDF5 written by 'lf-flame dataset'")
     s.add_argument("--model-dir", required=True, help="folder written by 'lf-flame train'")
     s.add_argument("--results", required=True, help="folder for the table (CSV) and figure")
-    s.add_argument("--heldout", type=int, default=0,
+    s.add_argument("--heldout", type=count, default=0,
                    help="also score a second held-out set of this many samples, drawn with --heldout-seed")
     s.add_argument("--heldout-seed", type=int, default=None,
                    help="seed of the second held-out set: needed with --heldout, not the dataset's seed")
