@@ -150,8 +150,8 @@ def _raw_meta(path) -> dict:
 
 
 # ---- the options' checks, made before any work ---------------------------------------
-def positive_int(text: str) -> int:
-    """An argparse ``type``: a whole number >= 1 (``--workers``, ``--iters``).
+def _whole_number(text: str, least: int) -> int:
+    """``text`` as a whole number >= ``least``, for an argparse ``type``.
 
     Raises
     ------
@@ -162,28 +162,20 @@ def positive_int(text: str) -> int:
     try:
         n = int(text)
     except ValueError:
-        n = 0
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"takes a whole number >= 1. Received: {text!r}")
+        n = least - 1
+    if n < least:
+        raise argparse.ArgumentTypeError(f"takes a whole number >= {least}. Received: {text!r}")
     return n
+
+
+def positive_int(text: str) -> int:
+    """An argparse ``type``: a whole number >= 1 (``--workers``, ``--iters``; :func:`_whole_number`)."""
+    return _whole_number(text, 1)
 
 
 def count(text: str) -> int:
-    """An argparse ``type``: a whole number >= 0 (``evaluate --heldout``).
-
-    Raises
-    ------
-    argparse.ArgumentTypeError
-        Anything else; argparse names the option and exits with status 2.
-    """
-    import argparse
-    try:
-        n = int(text)
-    except ValueError:
-        n = -1
-    if n < 0:
-        raise argparse.ArgumentTypeError(f"takes a whole number >= 0. Received: {text!r}")
-    return n
+    """An argparse ``type``: a whole number >= 0 (``evaluate --heldout``; :func:`_whole_number`)."""
+    return _whole_number(text, 0)
 
 
 def fraction(text: str) -> float:

@@ -95,14 +95,13 @@ def stack_end_warning(rec) -> dict:
     stack should run further."""
     light = np.clip(np.asarray(rec.planes, np.float64), 0, None).sum(axis=(1, 2))
     top = light.max()
-    share = {"near": float(light[0] / top) if top > 0 else 0.0, "far": float(light[-1] / top) if top > 0 else 0.0}
-    ends = [(name, d, flag, share[name]) for name, d, flag in (("near", rec.depths_mm[0], "--from"),
-                                                             ("far", rec.depths_mm[-1], "--to"))
-            if share[name] >= STACK_END_WARN]
-    for name, d, flag, v in ends:
-        print(f"warning: the stack's {name} end ({d:+g} mm) holds {100 * v:.0f} % of its brightest plane's light: "
-              f"the flame reaches past it, and its light beyond is not recovered (the volume and any axis found are "
-              f"off); run the stack further ({flag})", file=sys.stderr)
+    share = {}
+    for name, k, flag in (("near", 0, "--from"), ("far", -1, "--to")):
+        share[name] = float(light[k] / top) if top > 0 else 0.0
+        if share[name] >= STACK_END_WARN:
+            print(f"warning: the stack's {name} end ({rec.depths_mm[k]:+g} mm) holds {100 * share[name]:.0f} % of its "
+                  "brightest plane's light: the flame reaches past it, and its light beyond is not recovered (the "
+                  f"volume and any axis found are off); run the stack further ({flag})", file=sys.stderr)
     return share
 
 
