@@ -401,9 +401,20 @@ def test_tables_leave_out_the_time_of_a_feature_cache_deleted_since(tmp_path, ca
     model.mkdir(parents=True)
     (model / "train_info.json").write_text(json.dumps(dict(feature_cache=str(tmp_path / "gone.h5"), epochs_run=1,
                                                            training_wall_time_s=1.0)))
+    (tmp_path / "res" / "paper").mkdir(parents=True)
+    (tmp_path / "res" / "paper" / "table_flame.md").write_text("| plane | SSIM |\n|---|---|\n| 1 | 0.9 |\n")
     assert main(["tables", "--results", str(tmp_path / "res"), "--data-dir", str(tmp_path / "data"),
                  "--model-dir", str(tmp_path / "models")]) == 0
     assert f"note: {tmp_path / 'gone.h5'} is gone" in capsys.readouterr().out
+
+
+def test_tables_with_no_table_to_collect_are_refused(tmp_path, capsys):
+    """tables with no evaluated table (evaluate not run, or the wrong --results) is refused naming the files it
+    looked for, where it exited 0 with a page of headings only, as if the reproduction had finished."""
+    assert main(["tables", "--results", str(tmp_path / "res"), "--data-dir", str(tmp_path / "data"),
+                 "--model-dir", str(tmp_path / "models")]) == 2
+    assert "no table to collect" in capsys.readouterr().err
+    assert not (tmp_path / "res" / "tables.md").exists()
 
 
 def test_a_model_folder_of_other_settings_trains_from_the_start(flame_h5, tmp_path, capsys):

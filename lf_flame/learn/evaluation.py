@@ -328,16 +328,25 @@ def read_gnu_time(path) -> dict:
 
 def write_tables(results_dir, stage_times: dict | None = None, make_targets: dict | None = None) -> str:
     """Collect both tables, slopes, stage wall times and, per make target, wall time and
-    peak memory (:func:`read_gnu_time`) into ``tables.md``; return its text."""
+    peak memory (:func:`read_gnu_time`) into ``tables.md``; return its text.
+
+    Raises
+    ------
+    FileNotFoundError
+        When ``results_dir`` holds no evaluated table (``REGIME/table_SCENE.md``): an empty page
+        would look like a finished reproduction.
+    """
     from ..simulate.scenes import REGIMES
     results_dir = Path(results_dir)
     parts = ["# Results", ""]
-    for regime in REGIMES:
-        for scene in ("shapes", "flame"):
-            p = results_dir / regime / f"table_{scene}.md"
-            if p.exists():
-                parts += [p.read_text(), f"![{scene}]({regime}/fig_{scene}.png)",
-                          f"![{scene} learning]({regime}/learning_{scene}.png)", ""]
+    tables = [(regime, scene) for regime in REGIMES for scene in ("shapes", "flame")
+              if (results_dir / regime / f"table_{scene}.md").exists()]
+    if not tables:
+        raise FileNotFoundError(f"no table to collect: none of {results_dir}/{{{','.join(REGIMES)}}}/"
+                                "table_{shapes,flame}.md exists (written by 'lf-flame evaluate')")
+    for regime, scene in tables:
+        parts += [(results_dir / regime / f"table_{scene}.md").read_text(), f"![{scene}]({regime}/fig_{scene}.png)",
+                  f"![{scene} learning]({regime}/learning_{scene}.png)", ""]
     sp = results_dir / "slopes.csv"
     if sp.exists():
         parts += ["### Sharpest slopes (slope search on the nominal scene)", "",
