@@ -48,6 +48,8 @@ def test_killed_run_resumes_to_identical_file(tmp_path, monkeypatch):
     D.generate(target, CAM, CFG, "flame", SLOPES, progress=False)
     with h5py.File(full, "r") as a, h5py.File(target, "r") as b:
         assert np.array_equal(a["raw"][:], b["raw"][:]) and np.array_equal(a["gt"][:], b["gt"][:])
+        # the time of every run, the killed one's two samples too (the stage times of 'tables' read it)
+        assert b.attrs["wall_time_s"] > b.attrs["wall_time_s_last_run"] > 0
 
 
 def test_corrupt_and_mismatched_files(tmp_path):
@@ -81,14 +83,23 @@ def test_partial_with_other_settings_refused(tmp_path, monkeypatch):
         D.generate(target, CAM, CFG, "shapes", [0.0, 0.0, 0.0, 0.0], progress=False)
 
 
-def test_existing_file_kept_until_new_settings_are_done(tmp_path, monkeypatch):
+def test_existing_file_kept_until_new_settings_are_done(tmp_path, monkeypatch, capsys):
+    """A finished dataset asked for with other settings is rebuilt beside it, saying what differs (it had been
+    replaced with its path printed only), and kept until the new one is done."""
     p = D.generate(tmp_path / "flame.h5", CAM, CFG, "flame", SLOPES, progress=False)
     before = p.read_bytes()
     assert D.generate(p, CAM, CFG, "flame", SLOPES, progress=False) == p and p.read_bytes() == before
+    assert capsys.readouterr().out == ""
     monkeypatch.setattr(D, "make_sample", lambda *a, **k: (_ for _ in ()).throw(KeyboardInterrupt()))
     with pytest.raises(KeyboardInterrupt):
         D.generate(p, CAM, CFG, "flame", [0.0, 0.0, 0.0, 0.0], progress=False)
     assert p.read_bytes() == before  # the finished file is untouched by the interrupted rebuild
+    assert "made with other settings (slopes: [" in capsys.readouterr().out
+    (tmp_path / "flame.h5.partial").unlink()
+    with pytest.raises(KeyboardInterrupt):
+        D.generate(p, CAM, DatasetConfig(n_samples={"shapes": 6, "flame": 4}, rays_per_pixel=1, seed=4), "flame",
+                   SLOPES, progress=False)
+    assert "dataset_config.seed: 3 -> 4" in capsys.readouterr().out
 
 
 def test_shards_merge_into_the_unsharded_file(tmp_path, monkeypatch):

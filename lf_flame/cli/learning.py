@@ -120,7 +120,8 @@ def cmd_tables(a):
             d = Path(a.data_dir) / regime / f"{scene}.h5"
             if d.exists():
                 with h5py.File(d, "r") as f:
-                    times[f"dataset {regime} {scene}"] = float(f.attrs.get("wall_time_s_last_run", float("nan")))
+                    times[f"dataset {regime} {scene}"] = float(       # every run's (older files: the last run's)
+                        f.attrs.get("wall_time_s", f.attrs.get("wall_time_s_last_run", float("nan"))))
             info = Path(a.model_dir) / regime / scene / "train_info.json"
             if info.exists():
                 i = json.loads(info.read_text())

@@ -82,6 +82,25 @@ def _expected_attrs(camera, cfg, scene, slopes):
             "slopes": json.dumps([float(s) for s in slopes]), "depths_mm": json.dumps(list(PAPER_DEPTHS_MM))}
 
 
+def _differences(attrs: dict, expected: dict) -> list[str]:
+    """What differs between a dataset's attributes and the wanted ones, as 'key: there -> wanted' (a JSON
+    attribute by its fields)."""
+    out = []
+    for k, v in expected.items():
+        old = attrs.get(k)
+        if old == v:
+            continue
+        try:
+            a, b = json.loads(old), json.loads(v)
+        except (TypeError, ValueError):
+            a = b = None
+        if isinstance(a, dict) and isinstance(b, dict):
+            out += [f"{k}.{f}: {a.get(f)} -> {b.get(f)}" for f in sorted(set(a) | set(b)) if a.get(f) != b.get(f)]
+        else:
+            out.append(f"{k}: {old} -> {v}")
+    return out
+
+
 #: Attributes that, with the stored arrays, make a dataset's identity (:func:`content_digest`).
 IDENTITY_ATTRS = ("camera", "dataset_config", "scene", "slopes", "depths_mm")
 
@@ -199,10 +218,13 @@ def generate(path, camera: PlenopticCamera, cfg: DatasetConfig, scene: str, slop
     expected = _expected_attrs(camera, cfg, scene, slopes)
     if path.exists():
         attrs = check_dataset(path)
-        if all(attrs.get(k) == v for k, v in expected.items()):
+        differ = _differences(attrs, expected)
+        if not differ:
             os.utime(path)  # up to date: tell make so
             return path
         # other settings: build the new file beside it; the old one is replaced only when done
+        print(f"{path} was made with other settings ({'; '.join(differ[:4])}): a new dataset is rendered beside "
+              "it and replaces it when finished")
     final = path if shard is None else shard_path(path, shard)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = final.with_name(final.name + ".partial")
@@ -239,9 +261,15 @@ def generate(path, camera: PlenopticCamera, cfg: DatasetConfig, scene: str, slop
             todo = np.flatnonzero((f["done"][:] == 0) & mine)
             total = int(mine.sum())
         label = f"{scene} dataset" + ("" if shard is None else f" shard {shard[0]}/{shard[1]}")
+        before = float(f.attrs.get("wall_time_s", 0.0))      # earlier runs' time, killed ones included
+
+        def store(i, sample):
+            _store(f, i, sample)
+            f.attrs["wall_time_s"] = before + time.perf_counter() - t0
+
         if scheduler is None and workers is None:
             for i in tqdm(todo, desc=label, disable=not progress, initial=total - len(todo), total=total):
-                _store(f, int(i), make_sample(camera, cfg, scene, int(i), slopes))
+                store(int(i), make_sample(camera, cfg, scene, int(i), slopes))
         else:   # rendered on Dask workers, written here as each arrives (any order; same bytes)
             from ..parallel import dask_client, map_unordered
             # task keys carry the settings: on a shared scheduler, a concurrent run with other
@@ -251,10 +279,11 @@ def generate(path, camera: PlenopticCamera, cfg: DatasetConfig, scene: str, slop
                 for i, sample in map_unordered(client, _sample_at, [int(i) for i in todo], camera, cfg, scene,
                                                list(slopes), name=f"{label.replace(' ', '-')}-{tag}",
                                                progress=progress, total=len(todo)):
-                    _store(f, i, sample)
+                    store(i, sample)
         f.attrs["provenance"] = json.dumps(provenance())
         f.attrs["digest"] = content_digest(f)
         f.attrs["wall_time_s_last_run"] = time.perf_counter() - t0
+        f.attrs["wall_time_s"] = before + time.perf_counter() - t0
     os.replace(tmp, final)
     return final
 
