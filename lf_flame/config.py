@@ -57,6 +57,8 @@ class DatasetConfig:
     def __post_init__(self):
         if any(int(v) < 3 for v in self.n_samples.values()):
             raise ValueError(f"each scene needs >= 3 samples for a 3-way split. Received: {self.n_samples}")
+        if len(self.split) != 3:
+            raise ValueError(f"split takes three fractions (train, validation, test). Received: {self.split}")
         if abs(sum(self.split) - 1) > 1e-9 or min(self.split) <= 0:
             raise ValueError(f"split fractions must be positive and sum to 1. Received: {self.split}")
         if self.regime not in REGIMES:
@@ -110,6 +112,14 @@ class TrainConfig:
     def __post_init__(self):
         if self.recipe not in ("closed-form", "paper"):
             raise ValueError(f"recipe must be 'closed-form' or 'paper'. Received: recipe={self.recipe!r}")
+        for name, least in (("time_budget_s", "> 0"), ("max_epochs", ">= 0 (0: the closed-form start only)")):
+            bad = {k: v for k, v in getattr(self, name).items() if not (v > 0 or (v == 0 and name == "max_epochs"))}
+            if bad:                                                               # NaN too
+                raise ValueError(f"{name} must be {least} for each scene. Received: {name}={bad}")
+        if not (self.learning_rate > 0 and self.batch_size >= 1 and self.patience >= 0):
+            raise ValueError("learning_rate must be > 0, batch_size >= 1 and patience >= 0. Received: "
+                             f"learning_rate={self.learning_rate}, batch_size={self.batch_size}, "
+                             f"patience={self.patience}")
         if not self.train_layers or not set(self.train_layers) <= {"dense", "refocused"}:
             raise ValueError("train_layers must be a non-empty subset of ('dense', 'refocused'). "
                              f"Received: train_layers={self.train_layers!r}")

@@ -434,3 +434,19 @@ def test_a_model_folder_of_other_settings_trains_from_the_start(flame_h5, tmp_pa
     assert "holds a run of other settings (learning_rate 0.0001 there, 0.01 now): training from the start" in printed
     assert "resuming" not in printed
     assert json.loads((tmp_path / "m" / "start.json").read_text())["run"]["learning_rate"] == 0.01
+
+
+def test_settings_out_of_range_are_refused_naming_them(tmp_path, capsys):
+    """A two-way split (it had given a 1-sample test split), a negative time budget and a learning rate of 0 (both
+    accepted) are refused naming the setting; 0 epochs (the closed-form start only) is still taken."""
+    from lf_flame.config import DatasetConfig, TrainConfig
+    with pytest.raises(ValueError, match=r"split takes three fractions .* Received: \(0.8, 0.2\)"):
+        DatasetConfig(n_samples={"flame": 10}, split=(0.8, 0.2))
+    with pytest.raises(ValueError, match=r"learning_rate must be > 0"):
+        TrainConfig(learning_rate=0.0)
+    with pytest.raises(ValueError, match=r"max_epochs must be >= 0"):
+        TrainConfig(max_epochs={"flame": -1})
+    assert TrainConfig(max_epochs={"flame": 0}).max_epochs == {"flame": 0}     # the closed-form start only
+    assert main(["train", "--dataset", str(tmp_path / "d.h5"), "--experiment-config", "experiments/quick.toml",
+                 "--out", str(tmp_path / "m"), "--time-budget-s", "-5"]) == 2
+    assert "time_budget_s must be > 0 for each scene" in capsys.readouterr().err
