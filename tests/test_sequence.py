@@ -402,6 +402,29 @@ def test_unmeasurable_frames_are_counted(small_seq, tmp_path):
     assert pd.read_csv(tmp_path / "out" / "peaks.csv").n_failed.tolist() == [2, 2, 2, 2]   # 2 planes x 2 signals
 
 
+def test_a_black_or_dimmed_frame_is_solved_from_scratch_not_continued(small_seq, tmp_path):
+    """admm continues the previous frame's solve with two fills; a frame unlike it (black, or dimmed to 0.1) is
+    solved from scratch: the black frame's planes are empty, as solved alone, and the dimmed frame's intensities
+    are the lone solve's. Continued, the black frame had kept the previous frame's flames (heights 5-19 mm, no
+    failure) and the dimmed frame six times its light on one plane."""
+    frames = np.stack(list(SimulatedSource(small_seq, PAPER_CAMERA, 4).frames(0, 6)))
+    frames[3] = 0.0
+    frames[5] *= 0.1
+    _write_h5(tmp_path / "odd.h5", frames, fps=100.0)
+    src, _ = open_source(tmp_path / "odd.h5")
+    rows = {}
+    for chunk in (6, 1):                                       # continued within the chunk; every frame alone
+        job = simulated_job(small_seq, PAPER_CAMERA, src, route="reconstruct-admm", chunk=chunk)[0]
+        rows[chunk] = pd.concat([pd.DataFrame(process_chunk(c, job)["rows"]) for c in range(job.n_chunks)])
+        rows[chunk] = rows[chunk].set_index(["frame", "plane"]).sort_index()
+    cont, alone = rows[6], rows[1]
+    assert cont.loc[3].failure.str.contains("empty").all(), cont.loc[3]
+    dim = alone.loc[5].integrated_intensity.notna()
+    assert dim.any()
+    np.testing.assert_allclose(cont.loc[5].integrated_intensity[dim], alone.loc[5].integrated_intensity[dim],
+                               rtol=1e-6)
+
+
 def test_reconstruction_settings_reach_the_solver_and_the_run_identity(small_seq, tmp_path):
     """``iters``, ``tv``, ``saturation`` and ``operator_rays`` are the solver's: the job's
     planes are those of ``reconstruct`` with the same settings; each is in the identity

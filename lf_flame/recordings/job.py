@@ -383,20 +383,28 @@ class SequenceJob:
         ``state`` (admm): the solve carried from the previous frame of the chunk
         (:func:`lf_flame.tomo.fourier.solve_admm`): empty for a chunk's first frame (solved
         from scratch), then at most ``stream_fills`` fills per frame
-        (:data:`~lf_flame.tomo.defaults.ADMM_STREAM_FILLS`). ``clipped``: a real frame's samples from
-        clipped pixels (:meth:`frame`)."""
+        (:data:`~lf_flame.tomo.defaults.ADMM_STREAM_FILLS`); a frame whose total light differs from the
+        previous frame's by more than :data:`~lf_flame.tomo.defaults.ADMM_STREAM_LIGHT` is solved from scratch.
+        ``clipped``: a real frame's samples from clipped pixels (:meth:`frame`)."""
         if self.solver is None:
             from ..refocus.shift_and_sum import aperture_mask, focal_stack
             n = views.shape[0]
             return focal_stack(self._square(views), self.slopes, aperture_mask(n, "circular")), None
         from ..tomo.solvers import reconstruct
+        from ..tomo.defaults import ADMM_STREAM_LIGHT
         r = self.reconstruction()
-        iters = min(r["iters"], r["stream_fills"]) if state else r["iters"]
         data, leave = self.fit_data(views, clipped)
+        light = float(np.sum(data, dtype=np.float64))
+        prev = state.get("light", 0.0) if state else 0.0
+        if state and not (prev > 0 and prev / ADMM_STREAM_LIGHT <= light <= prev * ADMM_STREAM_LIGHT):
+            state.clear()                   # unlike the previous frame: its solve is no start for this one
+        iters = min(r["iters"], r["stream_fills"]) if state else r["iters"]
         rec = reconstruct(data, self.operator(), r["solver"], iters, tv=r["tv"], lam=r.get("lam"), l1=r.get("l1"),
                           start=r.get("start"), tol=r.get("tol"), saturation=leave,
                           state=state if r["solver"] == "admm" else None,
                           **({} if self.support is None else dict(support=self._support())))
+        if state is not None and r["solver"] == "admm":
+            state["light"] = light
         planes = self.operator().to_square(rec.planes, self.camera.n_rows, self.camera.n_cols) if self.hexagonal \
             else rec.planes
         return planes, int(rec.settings["n_saturated"])    # a hexagonal lattice's: of its cells with a lenslet
