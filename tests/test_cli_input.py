@@ -112,6 +112,36 @@ def test_an_output_that_cannot_be_written_is_refused_before_the_work(tmp_path, c
         locked.chmod(stat.S_IRWXU)
 
 
+def test_an_output_that_would_overwrite_an_input_is_refused_before_the_work(tmp_path, capsys, monkeypatch):
+    """--out naming the command's input (a capture, a recording, a white image, a blackbody image), or an HDF5
+    output named .png whose figure would be written over it, is refused before the work: each had replaced the
+    input (or the temperatures, with the figure). A prefix (profiles) and refocus's PNG are outputs as asked."""
+    ran = []
+    for mod, name in ((cli.temperature, "cmd_temperature"), (cli.real, "cmd_decode"), (cli.real, "cmd_calibrate"),
+                      (cli.temperature_calibration, "cmd_calibrate_temperature"), (cli.profiles, "cmd_profiles"),
+                      (cli.optics, "cmd_refocus"), (cli.volume, "cmd_reconstruct")):
+        monkeypatch.setattr(mod, name, lambda a: ran.append(a))
+    for f in ("cap.h5", "raw.tif", "white.npz", "bb1.h5", "bb2.h5", "cap.png"):
+        (tmp_path / f).write_bytes(b"x")
+    t = lambda f: str(tmp_path / f)                                               # noqa: E731
+    for argv, culprit in ((["temperature", t("cap.h5"), "--calibration", "bb.json", "--out", t("cap.h5")], "cap.h5"),
+                          (["temperature", t("cap.h5") + ":3", "--calibration", "bb.json", "--out", t("cap.h5")],
+                           "cap.h5"),
+                          (["decode", t("raw.tif"), "--calibration", "c.json", "--out", t("raw.tif")], "raw.tif"),
+                          (["calibrate", t("white.npz"), "--out", t("white.npz")], "white.npz"),
+                          (["calibrate-temperature", t("bb1.h5"), t("bb2.h5"), "--temperature", "1600",
+                            "--temperature", "2400", "--out", t("bb2.h5")], "bb2.h5"),
+                          (["reconstruct", t("cap.png"), "--out", t("cap.h5")], "cap.png")):  # its figure: cap.png
+        assert main(argv) == 2, argv
+        assert f"would overwrite the input {tmp_path / culprit}" in _one_error_line(capsys.readouterr().err)
+    assert main(["temperature", t("cap.h5"), "--calibration", "bb.json", "--out", t("y.png")]) == 2
+    assert "name the HDF5 file" in capsys.readouterr().err
+    assert ran == []
+    assert main(["profiles", t("cap.h5"), "--out", t("prof.png")]) == 0               # PREFIX.png.csv ...
+    assert main(["refocus", t("cap.h5"), "--slope", "0", "--out", t("planes.png")]) == 0
+    assert len(ran) == 2
+
+
 def test_ctrl_c_ends_with_one_line_and_130(capsys, monkeypatch):
     def interrupted(a):
         raise KeyboardInterrupt

@@ -230,12 +230,49 @@ def check_output(path) -> None:
         raise ValueError(f"cannot write {p}: the folder {q} is not writable")
 
 
+def _input_paths(a) -> list[Path]:
+    """The files and folders that a command's other options name and that exist (``FILE.h5:INDEX`` as ``FILE.h5``)."""
+    import re
+    out = []
+    for k, v in vars(a).items():
+        if k in OUTPUT_OPTIONS:
+            continue
+        for x in v if isinstance(v, (list, tuple)) else [v]:
+            if isinstance(x, (str, Path)) and str(x):
+                q = Path(re.sub(r":\d+$", "", str(x)))
+                if q.exists():
+                    out.append(q)
+    return out
+
+
+def _same(p: Path, q: Path) -> bool:
+    import os
+    return os.path.samefile(p, q) if p.exists() and q.exists() else p.absolute() == q.absolute()
+
+
 def check_outputs(a) -> None:
-    """:func:`check_output` on each of a command's outputs (:data:`OUTPUT_OPTIONS` in ``a``)."""
+    """:func:`check_output` on each of a command's outputs (:data:`OUTPUT_OPTIONS` in ``a``), and refuse an output
+    that is one of its inputs, or where its figure would be written (``--out X.png`` of a command that writes the
+    figure beside its HDF5 as ``X.png``), where the input or the result would be overwritten.
+
+    Raises
+    ------
+    ValueError
+        As :func:`check_output`; an output that names an input, or an HDF5 output named ``.png``.
+    """
+    figure = getattr(a, "figure", False) and not getattr(a, "out_is_prefix", False)
+    inputs = _input_paths(a)
     for k in OUTPUT_OPTIONS:
         v = getattr(a, k, None)
         if isinstance(v, (str, Path)) and str(v):
             check_output(v)
+            o = Path(v)
+            if figure and o.suffix.lower() == ".png":
+                raise ValueError(f"--{k.replace('_', '-')} {o}: name the HDF5 file (e.g. {o.with_suffix('.h5')}); "
+                                 "the figure is written beside it as .png")
+            for q in inputs:
+                if _same(o, q) or (figure and _same(o.with_suffix(".png"), q)):
+                    raise ValueError(f"--{k.replace('_', '-')} {o} would overwrite the input {q}: write elsewhere")
 
 
 def add_search_arg(s):

@@ -328,6 +328,7 @@ def add_parsers(sub) -> None:
     add_camera_args(s)
     s.add_argument("--out", required=True, help="PREFIX: writes PREFIX.csv (one row per plane), PREFIX.axial.csv "
                                                "and PREFIX.png")
+    s.set_defaults(out_is_prefix=True)
     add_figure_arg(s, "each plane with its height, widths and profiles marked")
     add_search_arg(s)
     s.set_defaults(func=cmd_profiles)
