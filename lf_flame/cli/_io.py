@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -36,6 +37,32 @@ def _read_image(p: Path) -> np.ndarray:
         raise ValueError(f"{p} is not a readable image: {e}") from None
     from ..real.images import to_gray
     return to_gray(util.img_as_float64(a))
+
+
+def refuse_rgb(path) -> None:
+    """Refuse an image (or a folder's first image, a multi-page TIFF's pages) of three or four colour channels where
+    a colour filter array's raw mosaic is needed (temperature, its calibration, a colour capture's decoding): read as
+    one, a demosaiced RGB image is averaged to gray and its 2 x 2 phases taken for the CFA's, which gave
+    temperatures 600-750 K too hot without a word.
+
+    Raises
+    ------
+    ValueError
+        Naming the file and its shape.
+    """
+    p = Path(re.sub(r":\d+$", "", str(path)))
+    files = sorted(f for f in p.iterdir() if f.suffix.lower() in IMAGE_SUFFIXES)[:1] if p.is_dir() else \
+        [p] if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file() else []
+    from skimage import io
+    for f in files:
+        try:
+            shape = io.imread(f).shape
+        except Exception:      # the image readers raise many kinds; the reader proper names the damage
+            continue
+        if len(shape) >= 3 and shape[-1] in (3, 4) and min(shape[-3:-1]) > 4:
+            raise ValueError(f"{f} holds {shape[-1]} colour channels per pixel (shape {shape}): a demosaiced RGB "
+                             "image, not the sensor's raw mosaic. Two-colour pyrometry needs the raw colour filter "
+                             "array image (each pixel one channel): save the camera's raw (Bayer) frames")
 
 
 def _recording_frame(path, index):
@@ -232,7 +259,6 @@ def check_output(path) -> None:
 
 def _input_paths(a) -> list[Path]:
     """The files and folders that a command's other options name and that exist (``FILE.h5:INDEX`` as ``FILE.h5``)."""
-    import re
     out = []
     for k, v in vars(a).items():
         if k in OUTPUT_OPTIONS:

@@ -59,6 +59,8 @@ def cmd_decode(a):
     _image(str(a.raw), raw)         # NaN or inf named before the clipping level is looked for in them
     if sensor is not None:          # a monochrome capture decoded as a colour one would read one flat temperature
         from ..temperature.mosaic import refuse_no_mosaic
+        from ._io import refuse_rgb
+        refuse_rgb(a.raw)
         refuse_no_mosaic(raw, a.raw, f"the camera names a colour sensor ({where}); decode a monochrome capture with a "
                                      "camera file whose [sensor] names no cfa")
     t = time.perf_counter()

@@ -6,7 +6,7 @@ import sys
 
 import numpy as np
 
-from ._io import RAW_FORMATS, _load_raw
+from ._io import RAW_FORMATS, _load_raw, refuse_rgb
 from .temperature_planes import _sensor, _sensor_args
 
 
@@ -49,6 +49,7 @@ def cmd_calibrate_temperature(a):
     channels = _channels(a.channels)
     ratios, sensor0 = [], None
     for path, t in zip(a.images, temps):
+        refuse_rgb(path)
         raw, cam = (None, None) if str(path).endswith(".h5") else _load_raw(path)
         sensor, where = _sensor(path, a)
         if sensor0 is not None and (sensor.name, sensor.pattern, sensor.phase) != (

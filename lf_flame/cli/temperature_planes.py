@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import _load_raw, _raw_meta
+from ._io import _load_raw, _raw_meta, refuse_rgb
 
 
 def _sensor(path, a, cal=None):
@@ -57,6 +57,7 @@ def _refuse_monochrome(path):
     (its record holds a camera and no sensor), or an image whose four 2 x 2 pixel phases have the
     same mean over its lit pixels (:func:`lf_flame.temperature.mosaic.refuse_no_mosaic`): no mosaic to take a ratio
     of."""
+    refuse_rgb(path)
     meta = _raw_meta(path)
     if "camera" in meta and "sensor" not in meta:
         raise ValueError(f"{path} is a monochrome light field (rendered without a colour sensor): two-colour "

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..temperature.mosaic import refuse_no_mosaic
+from ._io import refuse_rgb
 from .temperature_planes import _auto_depths, _level_record, _plane_temperatures, _record
 
 
@@ -51,6 +52,7 @@ def temperature_recording(a, source, attrs, cal, sensor, where):
     from ..recordings.sources import source_frame_rate
     from .planes import planes_from_args
     src, t0 = str(a.raw), time.perf_counter()
+    refuse_rgb(src)
     if "sequence" in attrs and "sensor" not in attrs:
         raise ValueError(f"{src} is a monochrome recording (rendered without a colour sensor): two-colour pyrometry "
                          "needs a colour (Bayer) recording")
