@@ -324,14 +324,18 @@ def test_temperature_refuses_a_monochrome_light_field(files, tmp_path, capsys):
     grey = grey[:R, :C]
     np.save(tmp_path / "grey.npy", grey)
     np.savez(tmp_path / "mono.npz", raw=grey, camera=json.dumps(CAM.to_dict()))
-    # the camera's demosaiced RGB output (here each pixel's 2 x 2 block's channels, 16-bit): averaged to gray, its
-    # phases had been read as the CFA's (600-750 K too hot on a user's camera); refused, and as a blackbody too
+    # an RGB image whose average keeps the mosaic (as a demosaiced output's did, 16-bit): averaged to gray, its phases
+    # had been read as the CFA's (600-750 K too hot on a user's camera); refused, and as a blackbody too
     from skimage import io
-    rgb = np.stack([even[i::2, j::2].repeat(2, 0).repeat(2, 1)[:R, :C] for i, j in ((0, 0), (0, 1), (1, 1))], -1)
+    rgb = raw[..., None] * np.array([1.0, 0.8, 0.6])
     io.imsave(tmp_path / "rgb.tif", (65535 * rgb / rgb.max()).astype(np.uint16), check_contrast=False)
+    cam = tmp_path / "cam.toml"                                        # the image's camera, as a user gives it
+    cam.write_text("[camera]\n" + "".join(f"{k} = {json.dumps(v)}\n" for k, v in CAM.to_dict().items()
+                                          if v is not None))
     for path, why in ((tmp_path / "grey.npy", "no colour filter mosaic"), (tmp_path / "mono.npz", "monochrome"),
                       (tmp_path / "rgb.tif", "holds 3 colour channels per pixel")):
-        assert main(["temperature", str(path), "--calibration", str(d["cal"]), "--out", str(tmp_path / "t.h5")]) == 2
+        assert main(["temperature", str(path), "--calibration", str(d["cal"]), "--camera", str(cam),
+                     "--out", str(tmp_path / "t.h5")]) == 2
         assert why in capsys.readouterr().err
     assert not (tmp_path / "t.h5").exists()
     assert main(["calibrate-temperature", str(tmp_path / "rgb.tif"), "--temperature", "2000", "--out",
