@@ -229,6 +229,18 @@ def test_options_in_range_parse():
     assert (a.workers, a.iters) == (2, 1)
 
 
+def test_a_depth_list_that_starts_below_zero_is_taken(monkeypatch):
+    """``--depths -39.48,0`` as the docs write it (argparse had taken the list for an option: 'expected one
+    argument'); a lone negative number and the '=' form as before."""
+    seen = []
+    monkeypatch.setattr(cli.volume, "cmd_reconstruct", lambda a: seen.append((a.depths, a.search_range)))
+    monkeypatch.setattr(cli.temperature, "cmd_temperature", lambda a: seen.append(a.depths))
+    assert main(["reconstruct", "x.npz", "--depths", "-39.48,0", "--search-range", "-5", "20", "--out", "r.h5"]) == 0
+    assert main(["temperature", "x.npz", "--calibration", "c.json", "--depths", "-3, -1.5,2", "--out", "t.h5"]) == 0
+    assert main(["reconstruct", "x.npz", "--depths=-1,2", "--out", "r.h5"]) == 0
+    assert seen == [("-39.48,0", [-5.0, 20.0]), "-3, -1.5,2", ("-1,2", None)]
+
+
 def test_sequence_refuses_planes_outside_the_cameras_range(tmp_path, capsys, monkeypatch):
     """``sequence --depth 500`` (or a slope of 5) is refused as reconstruct refuses it, naming
     the camera's imaging range, before any frame is processed."""

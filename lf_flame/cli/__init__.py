@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import gc
+import re
 import sys
 import warnings
 from pathlib import Path
@@ -73,6 +74,18 @@ def _message(e: BaseException) -> str:
     return text or {MemoryError: "out of memory"}.get(type(e), type(e).__name__)
 
 
+def _negative_lists(argv: list) -> list:
+    """``--depths -39.5,0`` as ``--depths=-39.5,0``: argparse takes a value that starts with '-' and is not one
+    number for an option ("expected one argument")."""
+    out = []
+    for tok in argv:
+        if out and out[-1].startswith("--") and "=" not in out[-1] and re.fullmatch(r"-[\d.]+(,\s*[-+]?[\d.]+)+", tok):
+            out[-1] = f"{out[-1]}={tok}"
+        else:
+            out.append(tok)
+    return out
+
+
 def main(argv=None) -> int:
     """Run one ``lf-flame`` command and return its exit status (:data:`EXIT_OK` ...).
 
@@ -82,7 +95,7 @@ def main(argv=None) -> int:
     Ctrl-C :data:`EXIT_INTERRUPTED`, each with one line on stderr; the writers leave no
     half-written output (temporary file, then renamed).
     """
-    a = build_parser().parse_args(argv)
+    a = build_parser().parse_args(_negative_lists(sys.argv[1:] if argv is None else list(argv)))
     default_format = warnings.formatwarning
     warnings.formatwarning = _format_warning
     try:
