@@ -125,6 +125,21 @@ def test_blackbody_temperatures_given_in_another_order_are_named(files, capsys):
     assert "the temperatures given are not the images'" in err and "2400 K, 2000 K, 1600 K" in err, err
 
 
+def test_temperature_on_planes_where_no_flame_stands_is_warned_of(files, capsys):
+    """Planes given where no flame stands (the flame is at 0 mm): the misfit of reconstruct's levelled light field
+    on them is warned of and recorded, as reconstruct warns; it had printed their temperatures without a word. On
+    the flame's own plane, no warning."""
+    out = str(files["dir"] / "off.h5")
+    capsys.readouterr()
+    for depth, warned in (("6", True), ("0", False)):
+        assert main(["temperature", files["flame"], "--calibration", files["cal"], "--depths", depth, "--no-figure",
+                     "--out", out]) == 0
+        err = capsys.readouterr().err
+        assert ("of the light field unexplained" in err) == warned, err
+        with h5py.File(out, "r") as f:
+            assert (json.loads(f.attrs["misfit"])["misfit"] > 0.1) == warned
+
+
 def test_temperature_round_trip(files, capsys):
     out = files["dir"] / "T.h5"
     assert main(["temperature", files["flame"], "--calibration", files["cal"], "--depths", "0", "--out",

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ._io import AUTO_LEVEL, RAW_FORMATS, _level_or_none, add_figure_arg, add_search_arg, fraction
-from .temperature_planes import (_auto_depths, _level_record, _plane_lines, furnace_note,
+from .temperature_planes import (_auto_depths, fit_warnings, _level_record, _plane_lines, furnace_note,
                                  _plane_temperatures, _record, _refuse_monochrome, _sensor, _sensor_args,
                                  temperature_figure)
 
@@ -61,6 +61,8 @@ def cmd_temperature(a):
     extra, found = {}, None
     if depths == "auto":                                # reconstruct's planes: the levelled channels' found route
         depths, found, extra = _auto_depths(a, lf)
+    elif a.route != "refocus-cfa":                      # planes given: are they where the flames are?
+        extra = fit_warnings(a, lf, depths)
     r = _plane_temperatures(a, lf, depths, found, cal, sensor)
     cam, temp, valid = lf.camera, r["temp"], r["valid"]
     wall = time.perf_counter() - t0

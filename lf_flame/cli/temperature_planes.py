@@ -209,15 +209,33 @@ def _plane_temperatures(a, lf, depths, found, cal, sensor, cache=None) -> dict:
 
 def _auto_depths(a, lf):
     """``--depths auto``: reconstruct's planes of the colour light field ``lf`` (its channels levelled, the depths
-    found, the residual searched, refined): (depths, found, the record's extra attributes)."""
+    found, the residual searched, refined): (depths, found, the record's extra attributes, with
+    :func:`fit_warnings`')."""
     from ..temperature.mosaic import monochrome_light_field
     from .planes import found_planes, found_record, possible_warning, solve_found
     mono = monochrome_light_field(lf)
     _, _, found = found_planes(mono, search_range=a.search_range)
-    found, _, _ = solve_found(mono, found)
+    found, op, rec = solve_found(mono, found)
     extra = dict(depths_from="auto (as reconstruct: the channels levelled, depths found, the residual searched, "
                              "refined)", found_depths=found_record(found), possible_depths=possible_warning(found))
+    extra.update(fit_warnings(a, lf, found.planes_mm, (op, rec), found))
     return [float(d) for d in found.planes_mm], found, extra
+
+
+def fit_warnings(a, lf, depths, solved=None, found=None) -> dict:
+    """``reconstruct``'s warnings on the colour light field ``lf``'s planes: its channels levelled into one light
+    field and solved there (or ``solved``, the ``(op, rec)`` of that solve), the share of each plane's emission at
+    the field's edge and the misfit (:func:`lf_flame.cli.fit_notes.edge_warning`,
+    :func:`~lf_flame.cli.fit_notes.misfit_warning`): planes where no flame stands, a flame missed or cut by the
+    field, which the temperatures alone do not show. Returns the record's ``edge_share`` and ``misfit``."""
+    from ..temperature.mosaic import monochrome_light_field
+    from .fit_notes import edge_warning, misfit_warning
+    from .planes import _fitted_light_field, lattice_solve, run_reconstruction
+    mono = monochrome_light_field(lf)
+    level = "file" if a.saturation == "auto" else a.saturation         # the light field's own, or the level given
+    op, rec = solved if solved is not None else run_reconstruction(mono, [float(d) for d in depths], saturation=level)
+    rec, lattice = lattice_solve(_fitted_light_field(mono, level), op, rec, found)
+    return dict(edge_share=edge_warning(rec, op), misfit=misfit_warning(mono, op, rec, level, lattice))
 
 
 def _plane_lines(a, depths, r) -> list:

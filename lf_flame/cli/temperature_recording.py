@@ -10,7 +10,7 @@ import numpy as np
 
 from ..temperature.mosaic import refuse_no_mosaic
 from ._io import refuse_rgb
-from .temperature_planes import _auto_depths, _level_record, _plane_temperatures, _record
+from .temperature_planes import _auto_depths, _level_record, _plane_temperatures, _record, fit_warnings
 
 
 def recording_source(src):
@@ -86,6 +86,8 @@ def temperature_recording(a, source, attrs, cal, sensor, where):
             depths = planes_from_args(a, lf.camera, stored)
             if depths == "auto":
                 depths, found, extra = _auto_depths(a, lf)
+            elif a.route != "refocus-cfa":              # planes given: are they where the first frame's flames are?
+                extra = fit_warnings(a, lf, depths)
         r = _plane_temperatures(a, lf, depths, found, cal, sensor, cache)
         temps.append(r["temp"].astype(np.float32))
         valids.append(r["valid"])
