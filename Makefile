@@ -163,7 +163,7 @@ reconstruct: $(STAMP) ## 3-D emission reconstruction, every solver against refoc
 # cached in data/fourier_solver). CAMERA=cam.toml trains for that camera -> models/reconstructor/cam,
 # results/learned_cam/ (lf-flame reconstruct --solver learned --model models/reconstructor/cam)
 train-reconstructor: $(STAMP) ## train the learned reconstructor of each plane's emission and score it -> models/reconstructor/paper, results/learned.{csv,md,json}, its rows in results/tradeoff.md
-	$(VENV)/bin/python experiments/learned.py $(if $(CAMERA),--camera $(CAMERA) --models models/reconstructor/$(basename $(notdir $(CAMERA))) --out results/learned_$(basename $(notdir $(CAMERA))),--out $(TRADEOFF_OUT) $(if $(filter quick,$(PRESET)),--quick --models models/reconstructor/quick,))
+	$(VENV)/bin/python experiments/learned.py $(if $(CAMERA),--camera $(CAMERA) $(if $(CALIBRATION),--calibration $(CALIBRATION)) --models models/reconstructor/$(basename $(notdir $(CAMERA))) --out results/learned_$(basename $(notdir $(CAMERA))),--out $(TRADEOFF_OUT) $(if $(filter quick,$(PRESET)),--quick --models models/reconstructor/quick,))
 	if [ -z "$(CAMERA)" ] && [ -f $(TRADEOFF_OUT)/tradeoff.csv ]; then \
 		$(VENV)/bin/python experiments/tradeoff.py --reconstruction-only --out $(TRADEOFF_OUT); fi
 

@@ -24,8 +24,9 @@ Writes ``learned.csv`` (one row per route, render, noise and plane), ``learned.m
 shared 2-core machine: compare rows of one run.
 
 Usage: ``python experiments/learned.py --out results [--scenes 240] [--tests 3] [--epochs 30] [--camera FILE
---models DIR]`` (``--quick``: a tiny run for the tests; ``--camera``: train for another camera, scored on its
-random-depth scenes).
+[--calibration cal.json] --models DIR]`` (``--quick``: a tiny run for the tests; ``--camera``: train for another
+camera, scored on its random-depth scenes; a real lenslet grid's with ``--calibration``: for its decoded views'
+camera).
 """
 from __future__ import annotations
 
@@ -49,6 +50,8 @@ from lf_flame.config import atomic_write_text, provenance  # noqa: E402
 from lf_flame.learn import reconstructor as L  # noqa: E402
 from lf_flame.optics.camera import PAPER_CAMERA  # noqa: E402
 from lf_flame.optics.camera_file import load_camera_file  # noqa: E402
+from lf_flame.real.calibration import GridCalibration  # noqa: E402
+from lf_flame.real.own_camera import decoded_views_camera  # noqa: E402
 from lf_flame.refocus.shift_and_sum import aperture_mask, focal_stack  # noqa: E402
 from lf_flame.routes import measure_settings  # noqa: E402
 from lf_flame.simulate.scenes_depth import camera_depth_scene  # noqa: E402
@@ -157,6 +160,10 @@ def main(argv=None):
     ap.add_argument("--camera", type=Path, default=None,
                     help="a camera file (lf_flame.optics.camera_file) to train for; default the paper's camera. "
                          "Its scored renders are the random-depth family alone (the paper's scenes are its camera's)")
+    ap.add_argument("--calibration", type=Path, default=None,
+                    help="with --camera of a lenslet grid that is not perfect (rotated, offset, a pitch of no whole "
+                         "number of pixels, hexagonal: every real one): its white-image calibration ('lf-flame "
+                         "calibrate'); the network is trained for the views that decoding with it gives")
     ap.add_argument("--models", type=Path, default=Path("models/reconstructor/paper"))
     ap.add_argument("--cache", type=Path, default=Path("data/learned"))
     ap.add_argument("--render-cache", type=Path, default=Path("data/fourier_solver"))
@@ -173,6 +180,15 @@ def main(argv=None):
     if a.quick:
         a.scenes, a.val_scenes, a.epochs, a.tests, a.rays, a.repeats = 2, 1, 1, 1, 16, 2
     cam = PAPER_CAMERA if a.camera is None else load_camera_file(a.camera)
+    if not cam.perfect_grid:        # a real grid: the network sees its decoded views, whose camera the calibration's
+        if a.calibration is None:
+            ap.error(f"{a.camera} describes a lenslet grid that is not perfect: give its white-image calibration "
+                     "(--calibration cal.json, or CALIBRATION=cal.json to make): the network is trained for the "
+                     "views decoding gives")
+        cam = decoded_views_camera(cam, GridCalibration.load(a.calibration))[0]
+    elif a.calibration is not None:
+        ap.error(f"--calibration is for a camera whose lenslet grid is not perfect; "
+                 f"{a.camera or 'the paper camera'} is decoded without one")
     cfg = L.ReconstructorConfig(epochs=a.epochs, base_channels=a.base_channels)
     t_start = time.perf_counter()
     if a.stage in ("all", "data", "train"):

@@ -34,17 +34,6 @@ def _camera(a):
     return PAPER_CAMERA
 
 
-def decoded_views_camera(camera, calibration, colour: bool = False):
-    """Real frames of ``camera`` decoded with ``calibration``: the decoded views' camera
-    (:func:`lf_flame.real.own_camera.views_camera`) and the pixels binned per view sample
-    (:func:`lf_flame.real.view_grid.auto_bin`; a ``colour`` camera's: 1), as ``lf-flame decode`` decodes by
-    default."""
-    from ..real.view_grid import auto_bin, views_shape
-    from ..real.own_camera import views_camera
-    k = 1 if colour else auto_bin(calibration)
-    return views_camera(camera, calibration, views_shape(calibration, None, k), k), k
-
-
 def first_frame_depths(source, camera, calibration=None, sensor=None, search_range=None, images=None):
     """The planes of a recording without given ones: those ``reconstruct --depths auto`` finds in its first frame
     (depths found, the residual searched, the depths of flames one behind another refined:
@@ -174,6 +163,7 @@ def cmd_sequence(a):
                 raise ValueError(f"the calibration's images are {calibration.sensor_shape[0]} x "
                                  f"{calibration.sensor_shape[1]} px, the camera's sensor {cam.sensor_shape[0]} x "
                                  f"{cam.sensor_shape[1]} px{assumed}")
+            from ..real.own_camera import decoded_views_camera
             try:
                 cal, cam, k = calibration.to_dict(), *decoded_views_camera(cam, calibration, colour is not None)
             except ValueError as e:

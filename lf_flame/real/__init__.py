@@ -36,7 +36,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
                     "repair_pixels", "capture_defects"],
         "views_file": ["save_views", "load_views", "load_clipped", "load_channels", "load_lattice"],
         "own_camera": ["PITCH_WARN", "PITCH_TOLERANCE", "DecodedFrame", "decoded_frame", "views_camera",
-                       "nominal_views_camera"],
+                       "nominal_views_camera", "decoded_views_camera"],
         "lightfield": ["LightField", "from_raw",
                        "decode_capture",
                        "from_decoded", "read_light_field", "same_grid", "capture_sensor"],

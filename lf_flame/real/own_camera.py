@@ -133,6 +133,35 @@ def views_camera(camera: PlenopticCamera, calibration: GridCalibration, views_sh
     return replace(decoded_camera(camera, shape[0] * k, shape[2], shape[3]), pixels_per_lenslet=shape[0])
 
 
+def decoded_views_camera(camera: PlenopticCamera, calibration: GridCalibration,
+                         colour: bool = False) -> tuple[PlenopticCamera, int]:
+    """The camera of the views that ``lf-flame decode`` decodes ``camera``'s captures to with ``calibration`` by
+    default, before any is decoded (a recording's frames, a learned reconstructor trained for those views).
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+        The real camera (:func:`lf_flame.optics.camera_file.load_camera_file`).
+    calibration : GridCalibration
+    colour : bool
+        A colour camera's captures: no pixels binned (each sample keeps its own channel).
+
+    Returns
+    -------
+    (PlenopticCamera, int)
+        :func:`views_camera` of the views' shape (:func:`lf_flame.real.view_grid.views_shape`), and the pixels
+        binned per view sample and axis (:func:`lf_flame.real.view_grid.auto_bin`; 1 for ``colour``).
+
+    Raises
+    ------
+    ValueError
+        As :func:`views_camera`.
+    """
+    from .view_grid import auto_bin, views_shape
+    k = 1 if colour else auto_bin(calibration)
+    return views_camera(camera, calibration, views_shape(calibration, None, k), k), k
+
+
 def check_calibration(camera: PlenopticCamera, calibration: GridCalibration) -> None:
     """Refuse a white-image calibration of another set-up than ``camera``'s (:func:`views_camera`'s checks of the
     sensor, the grid's layout and its pitch).
