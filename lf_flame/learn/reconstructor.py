@@ -327,8 +327,8 @@ class LearnedReconstructor:
         """
         if op.camera.to_dict() != self.camera.to_dict():
             raise ValueError("the reconstructor was trained for another camera than the operator's: train one for "
-                             "this camera (make train-reconstructor CAMERA=camera-file, with CALIBRATION=cal.json where "
-                             "its lenslet grid is not perfect)")
+                             "this camera (make train-reconstructor CAMERA=camera-file, with CALIBRATION=cal.json "
+                             "where its lenslet grid is not perfect)")
         views = np.asarray(views)
         if not np.all(np.isfinite(views)):
             raise ValueError("the views hold NaN or infinite values")
