@@ -229,6 +229,18 @@ def test_options_in_range_parse():
     assert (a.workers, a.iters) == (2, 1)
 
 
+def test_solver_options_the_solver_does_not_use_are_refused(capsys):
+    """reconstruct's --iters, --damp, --tv and --saturation refused where its solver does not use them, naming them
+    and the solver: they had been taken (and printed: 'adjoint, 50 iterations') without changing a pixel."""
+    for argv, text in ((["--solver", "adjoint", "--iters", "50"], "--iters is not used by the adjoint solver"),
+                       (["--damp", "5"], "--damp is not used by the admm solver (it takes --iters, --tv)"),
+                       (["--solver", "rl", "--tv", "3"], "--tv is not used by the rl solver"),
+                       (["--solver", "learned", "--iters", "5", "--saturation", "none"],
+                        "--iters and --saturation are not used by the learned solver (it takes none of them)")):
+        assert main(["reconstruct", "x.npz", *argv, "--out", "r.h5"]) == 2, argv
+        assert text in capsys.readouterr().err, argv
+
+
 def test_a_depth_list_that_starts_below_zero_is_taken(monkeypatch):
     """``--depths -39.48,0`` as the docs write it (argparse had taken the list for an option: 'expected one
     argument'); a lone negative number and the '=' form as before."""

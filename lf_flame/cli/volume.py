@@ -21,6 +21,34 @@ from ..tomo.defaults import (ADMM_KNOBS, ADMM_QUIET, ADMM_SUBSAMPLES, ADMM_TV, D
                               VOLUME_MAX_PLANES, VOLUME_PRIOR, VOLUME_PRIORS, VOLUME_STEP_MM, VOLUME_TV)
 
 
+#: The solver options each solver of ``reconstruct`` uses (``--iters``, ``--damp``, ``--tv``; ``--saturation`` the
+#: learned route does not, its network taking every pixel as it is).
+SOLVER_OPTIONS = {"adjoint": (), "lsqr": ("iters", "damp", "saturation"), "fista": ("iters", "saturation"),
+                  "pd-tv": ("iters", "tv", "saturation"), "rl": ("iters", "saturation"),
+                  "admm": ("iters", "tv", "saturation"), "learned": ()}
+
+
+def refuse_unused(a) -> None:
+    """Refuse ``reconstruct``'s solver options that its solver (``--solver``, or the default: admm, pd-tv on a traced
+    operator) does not use (:data:`SOLVER_OPTIONS`): they had been taken and printed without changing a pixel
+    (``--solver adjoint --iters 50``, ``--damp 5`` with admm, ``--tv 3`` with rl).
+
+    Raises
+    ------
+    ValueError
+        Naming the options and the solver.
+    """
+    solver = a.solver or ("pd-tv" if a.rays_per_pixel else "admm")
+    given = {"iters": a.iters is not None, "damp": bool(a.damp), "tv": a.tv is not None,
+             "saturation": getattr(a, "saturation", "auto") != "auto"}
+    unused = [f"--{k}" for k, g in given.items() if g and k not in SOLVER_OPTIONS[solver]]
+    if unused:
+        uses = ", ".join(f"--{k}" for k in SOLVER_OPTIONS[solver] if k != "saturation") or "none of them"
+        raise ValueError(f"{' and '.join(unused)} {'is' if len(unused) == 1 else 'are'} not used by the {solver} "
+                         f"solver (it takes {uses}): drop {'it' if len(unused) == 1 else 'them'}, or choose a solver "
+                         "that uses it (--solver)")
+
+
 def cmd_reconstruct(a):
     from ..tomo.files import iterations_note, plot_reconstruction, save_reconstruction
     from ..tomo.truth import truth_depths
@@ -30,6 +58,7 @@ def cmd_reconstruct(a):
     given = [f"--{k}" for k, n in (("from", "near"), ("to", "far"), ("step", "step"), ("l1", "l1")) if getattr(a, n, None) is not None]
     if given:
         raise ValueError(" and ".join(given) + " go with --volume")
+    refuse_unused(a)
     lf, depths, objects = reconstruct_input(a)
     t_route = time.perf_counter()
     cam, views = lf.camera, lf.views
