@@ -3,6 +3,7 @@ import json
 
 import h5py
 import numpy as np
+import pandas as pd
 import pytest
 
 from lf_flame.cli import main
@@ -487,6 +488,24 @@ def test_simulate_sequence_renders_a_colour_recording_that_temperature_and_seque
                  "--no-figure", "--out", str(out)]) == 0
     with h5py.File(out) as f:
         assert np.allclose(f["depths_mm"][...], [fl.depth_offset_mm for fl in seq.flames])
+    # a frame with a NaN pixel and a black one: rows with their failure, the other frames' temperatures as before
+    # (the whole command had stopped on the first such frame, with nothing written)
+    bad = tmp_path / "bad.h5"
+    with h5py.File(rec) as f, h5py.File(bad, "w") as g:
+        fr = f["frames"][...].astype(np.float32) / 65535
+        fr[1, 5, 5], fr[2] = np.nan, 0.0
+        g["frames"] = fr
+        g.attrs.update(dict(f.attrs))
+    capsys.readouterr()
+    assert main(["temperature", str(bad), "--calibration", cal, "--route", "admm-cfa", "--depth", "0",
+                 "--no-figure", "--out", str(tmp_path / "bad_T.h5")]) == 0
+    assert "2 of 4 frames have no temperature" in capsys.readouterr().err
+    df = pd.read_csv(tmp_path / "bad_T.csv", keep_default_na=False)
+    assert (df.failure != "").tolist() == [False, True, True, False]
+    with h5py.File(tmp_path / "bad_T.h5") as f:
+        tb = f["temperature_k"][...]
+    assert np.isnan(tb[1:3]).all()
+    np.testing.assert_allclose(tb[[0, 3]], t[[0, 3]], rtol=1e-3, atol=1.0)
     capsys.readouterr()
     assert main(["sequence", str(rec), "--quiet", "--out", str(tmp_path / "seq")]) == 0
     assert "levelled into one light field" in capsys.readouterr().out

@@ -4,6 +4,7 @@ statistics and a figure of each plane's median over time."""
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -70,7 +71,7 @@ def temperature_recording(a, source, attrs, cal, sensor, where):
         images = decoding_images(calibration_image_path(grid.white, "white"),     # in the frames' units
                                  calibration_image_path(grid.dark, "dark"))
     fps = source_frame_rate(source, attrs, a.fps)
-    depths, found, extra, cache, rows, temps, valids = None, None, {}, {}, [], [], []
+    depths, found, extra, cache, rows, temps, valids, failures = None, None, {}, {}, [], [], [], []
     for i, raw in enumerate(tqdm(source.frames(0, source.n_frames), total=source.n_frames, desc="temperature",
                                  unit="frame", disable=None)):
         raw = np.asarray(raw, np.float64)
@@ -78,8 +79,17 @@ def temperature_recording(a, source, attrs, cal, sensor, where):
         try:
             lf = (from_raw(raw, cam, name, camera_file=cam_file, sensor=sensor) if grid is None else
                   decode_capture(raw, cam, grid, sensor, name, images))
+            if temps:                                       # the planes are set: a frame that fails is one row
+                r = _plane_temperatures(a, lf, depths, found, cal, sensor, cache)
         except ValueError as e:
-            raise ValueError(str(e).replace("--calibration", "--grid-calibration")) from None
+            if not temps:
+                raise ValueError(str(e).replace("--calibration", "--grid-calibration")) from None
+            failures.append(f"frame {i}: {e}")                # NaN or inf, no light: no temperature, the rest go on
+            temps.append(np.full_like(temps[0], np.nan))
+            valids.append(np.zeros_like(valids[0]))
+            rows += [dict(frame=i, time_s=i / fps, plane=k, depth_mm=d, n_px=0, median_k=np.nan, p10_k=np.nan,
+                          p90_k=np.nan, failure=str(e)) for k, d in enumerate(depths)]
+            continue
         if depths is None:                                  # the planes: given, or found in the first frame
             refuse_no_mosaic(raw, name)
             stored = json.loads(attrs["sequence"]).get("flames") if "sequence" in attrs else None  # a simulated one
@@ -88,14 +98,18 @@ def temperature_recording(a, source, attrs, cal, sensor, where):
                 depths, found, extra = _auto_depths(a, lf)
             elif a.route != "refocus-cfa":              # planes given: are they where the first frame's flames are?
                 extra = fit_warnings(a, lf, depths)
-        r = _plane_temperatures(a, lf, depths, found, cal, sensor, cache)
+        if not temps:
+            r = _plane_temperatures(a, lf, depths, found, cal, sensor, cache)
         temps.append(r["temp"].astype(np.float32))
         valids.append(r["valid"])
         for k, d in enumerate(depths):
             v = r["temp"][k][r["valid"][k]]
             q = np.percentile(v, [10, 50, 90]) if v.size else (np.nan,) * 3
             rows.append(dict(frame=i, time_s=i / fps, plane=k, depth_mm=d, n_px=int(v.size), median_k=float(q[1]),
-                             p10_k=float(q[0]), p90_k=float(q[2])))
+                             p10_k=float(q[0]), p90_k=float(q[2]), failure=""))
+    if failures:
+        print(f"warning: {len(failures)} of {len(temps)} frames have no temperature (the failure column of the CSV): "
+              + "; ".join(failures[:3]) + (" ..." if len(failures) > 3 else ""), file=sys.stderr)
     df = pd.DataFrame(rows)
     wall = time.perf_counter() - t0
     out = Path(a.out)
