@@ -390,6 +390,17 @@ def test_a_chunk_reads_its_hdf5_frames_in_one_open(small_seq, tmp_path, monkeypa
     assert len(opens) == 1
 
 
+def test_a_recording_whose_first_frame_is_dark_names_it_and_the_way_out(small_seq, tmp_path, capsys):
+    """The planes of a recording without given ones are found in its first frame: a dark first frame is refused naming
+    that frame and --depth, where 'views hold no light: there is nothing to find' named neither."""
+    frames = np.stack(list(SimulatedSource(small_seq, PAPER_CAMERA, 1).frames(0, 3)))
+    frames[0] = 0.0
+    _write_h5(tmp_path / "dark0.h5", frames, fps=100.0)
+    assert main(["sequence", str(tmp_path / "dark0.h5"), "--quiet", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "first frame, where its planes are found" in err and "--depth" in err, err
+
+
 def test_unmeasurable_frames_are_counted(small_seq, tmp_path):
     """Frames without light (here 2 of 8) cannot be measured on any plane: their count per
     plane is in the summary and peaks.csv (their values in the spectrum are the mean)."""

@@ -51,8 +51,12 @@ def first_frame_depths(source, camera, calibration=None, sensor=None, search_ran
     lf = monochrome_light_field(from_raw(raw, camera, "the first frame", sensor=sensor) if calibration is None else
                                 decode_capture(raw, camera, calibration, sensor, "the first frame", images))
     print("the recording's planes, as reconstruct finds a capture's, in its first frame:")
-    _, _, found = found_planes(lf, search_range=search_range)
-    found, _, _ = solve_found(lf, found)
+    try:
+        _, _, found = found_planes(lf, search_range=search_range)
+        found, _, _ = solve_found(lf, found)
+    except ValueError as e:       # a dark or broken first frame: say where the planes were looked for, and the way out
+        raise ValueError(f"the recording's first frame, where its planes are found: {e}; give the planes (--depth MM, "
+                         "repeatable) or start the recording at a frame with the flames in it") from None
     possible_warning(found)                            # a depth seen, not taken: the --depth planes to give
     return [float(d) for d in found.planes_mm], found
 
