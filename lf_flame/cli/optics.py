@@ -137,11 +137,15 @@ def cmd_refocus(a):
             raise ValueError(f"planes at slopes {', '.join(f'{s:+g}' for s in far)} lie outside what a camera can "
                              f"refocus (|slope| <= {MAX_SEARCH_SLOPE:g} lenslets per view)")
     n = views.shape[0]
-    t = time.perf_counter()
-    stack = refocus_views(views, slopes, aperture_mask(n, a.aperture), method=a.method,
-                          interpolation=a.interpolation)
+    times = []
+    for _ in range(2):    # the first call loads the kernels (Numba's cache) and plans: the second is the refocusing's
+        t = time.perf_counter()
+        stack = refocus_views(views, slopes, aperture_mask(n, a.aperture), method=a.method,
+                              interpolation=a.interpolation)
+        times.append(1e3 * (time.perf_counter() - t))
     shown = ", ".join(f"{round(s, 9) + 0.0:+.4g}" for s in slopes)          # + 0.0: no "-0" at the focal plane
-    print(f"refocused {len(slopes)} planes ({a.method}) at slopes {shown} in {1e3 * (time.perf_counter() - t):.2f} ms")
+    print(f"refocused {len(slopes)} planes ({a.method}) at slopes {shown} in {times[1]:.2f} ms (a second call; the "
+          f"first, with the kernels' start-up, {times[0]:.0f} ms)")
     depths = a.depth
     if depths is None and cam is not None:        # planes given by slope: their depths where the camera refocuses
         try:
