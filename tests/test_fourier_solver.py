@@ -288,6 +288,22 @@ def test_saturated_pixels_are_left_out(op, planted):
     assert rel(kept.planes, x).max() < rel(fitted_as_is.planes, x).max()
 
 
+@pytest.mark.parametrize("solver", ["admm", "pd-tv"])
+def test_the_planes_scale_with_the_data_in_the_units_of_its_clipping_level(op, planted, solver):
+    """The same light field in counts (x 1000, the sensor clipping at 1000) or at 1e-3 gives the same planes in its
+    units: the weights (tv, and admm's noise regimes) are applied where the level is 1. As absolute weights they had
+    made the planes of data x 1e-3 differ by 40 % from those of the data (a user's CLI run, TV 0.1)."""
+    x, views = planted
+    noisy = np.clip(views + np.random.default_rng(2).normal(0, 0.02 * views.max(), views.shape), 0, None)
+    level = float(np.quantile(noisy, 0.999))
+    data = np.minimum(noisy, level) / level                  # the sensor's units: clipping at 1
+    ref = reconstruct(data, op, solver, 3, tv=0.1, saturation=1.0)
+    for c in (1e3, 1e-3):
+        scaled = reconstruct(data * c, op, solver, 3, tv=0.1, saturation=c)
+        assert rel(scaled.planes / c, ref.planes).max() < 1e-4, (c, rel(scaled.planes / c, ref.planes))
+        assert scaled.settings["saturation"] == c and scaled.settings["n_saturated"] == ref.settings["n_saturated"]
+
+
 def test_refusals(camera, op, planted):
     _, views = planted
     with pytest.raises(ValueError, match="ExactOperator"):

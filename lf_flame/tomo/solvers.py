@@ -258,7 +258,10 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         no single level). A pixel at or above the level holds only a lower bound of its
         light: the iterative solvers leave it out of the fit (weight 0 in ``||W (A x - y)||``;
         Richardson-Lucy: ratio left out). None: every pixel is fitted. The count is
-        ``settings["n_saturated"]``; ``settings["saturation"]`` is ``"mask"`` for a mask.
+        ``settings["n_saturated"]``; ``settings["saturation"]`` is ``"mask"`` for a mask. A level
+        is also the views' unit: they are solved divided by it (the weights ``tv`` and ``damp`` and
+        admm's noise regimes are chosen where the sensor clips at 1), so that the planes scale with
+        the data (counts of a 12- or 16-bit sensor, or [0, 1], give the same planes in their units).
     progress : bool
         A tqdm bar over the iterations.
     callback : callable or None
@@ -304,13 +307,18 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
     iters_given, tv_given = iters is not None, tv is not None
     solver, iters, tv, y = _checked_inputs(views, op, solver, iters, damp, tv, saturation)
     t0 = time.perf_counter()
+    given_level = saturation
+    unit = float(saturation) if np.ndim(saturation) == 0 and saturation is not None else 1.0
+    if unit != 1.0:     # the weights (tv, damp) and noise regimes are in units where the sensor clips at 1: solved there
+        y, saturation = y / np.asarray(unit, y.dtype), 1.0
+        start_planes = None if start_planes is None else np.asarray(start_planes) / unit
     p = _fitted_problem(op, y, saturation)
     if p.n_sat == p.y.size:
         raise ValueError(f"every one of the views' {p.y.size} samples is left out of the fit (clipped, or in a saturation "
                          "mask): there is nothing to solve")
     n_left, n_samples = left_out_samples(op, p.fit)
     settings = dict(iters=iters, rays_per_pixel=op.rays_per_pixel, seed=op.seed,
-                    saturation="mask" if np.ndim(saturation) > 0 else saturation, n_saturated=n_left,
+                    saturation="mask" if np.ndim(given_level) > 0 else given_level, n_saturated=n_left,
                     n_samples=n_samples)
     if getattr(op, "offset_bins", None):                              # each sample at its own pixel
         settings["sub_views"] = op.offset_bins
@@ -339,7 +347,7 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
     else:  # rl
         x, residuals = _solve_rl(p, step, iters)
     step.bar.close()
-    return _reconstruction(op, x, solver, settings, residuals, t0)
+    return _reconstruction(op, x if unit == 1.0 else np.asarray(x) * unit, solver, settings, residuals, t0)
 
 
 def _checked_inputs(views, op, solver, iters, damp, tv, saturation):
