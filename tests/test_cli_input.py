@@ -136,6 +136,9 @@ def test_an_output_that_would_overwrite_an_input_is_refused_before_the_work(tmp_
         assert f"would overwrite the input {tmp_path / culprit}" in _one_error_line(capsys.readouterr().err)
     assert main(["temperature", t("cap.h5"), "--calibration", "bb.json", "--out", t("y.png")]) == 2
     assert "name the HDF5 file" in capsys.readouterr().err
+    (tmp_path / "adir").mkdir()                     # a file output that is a folder: refused before the work (it had
+    assert main(["reconstruct", t("cap.h5"), "--out", t("adir")]) == 2          # failed after it, on 'adir.part')
+    assert "is a folder: name the file" in capsys.readouterr().err
     assert ran == []
     assert main(["profiles", t("cap.h5"), "--out", t("prof.png")]) == 0               # PREFIX.png.csv ...
     assert main(["refocus", t("cap.h5"), "--slope", "0", "--out", t("planes.png")]) == 0
@@ -210,6 +213,9 @@ def test_an_interrupted_write_leaves_no_temporary_file(tmp_path, monkeypatch):
      "--min-fraction", "number from 0 to 1"),
     (["evaluate", "--dataset", "d.h5", "--model-dir", "m", "--results", "r", "--heldout", "-3", "--heldout-seed", "5"],
      "--heldout", "whole number >= 0"),
+    (["reconstruct", "x.npz", "--saturation", "nan", "--out", "r.h5"], "--saturation", "positive level"),
+    (["temperature", "x.npz", "--calibration", "bb.json", "--saturation", "-1", "--out", "t.h5"], "--saturation",
+     "positive level"),
 ])
 def test_options_out_of_range_are_refused_by_their_own_name(argv, option, text, capsys):
     """Refused while the arguments are parsed (exit 2, before any file is read), the message

@@ -273,6 +273,9 @@ def test_cli_refocus_and_slopes(tmp_path, small_camera, capsys):
     assert abs(df.slope[0] - s) <= 0.05 and abs(df.depth_mm[0] - 10.0) < 1.0
     assert (tmp_path / "p.slopes.png").stat().st_size > 0
     assert "p.slopes.csv" in capsys.readouterr().out
+    # a search beyond what a camera refocuses is refused before it starts (-100 ... 100 had taken 24 GB and been killed)
+    assert main(["slopes", str(tmp_path / "p.npz"), "--lo", "-100", "--hi", "100"]) == 2
+    assert "--lo -100, --hi 100: slopes beyond 3 lenslets per view" in capsys.readouterr().err
 
 
 def test_bench_refocus_quick(tmp_path):

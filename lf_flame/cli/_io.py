@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import re
 import sys
 from pathlib import Path
@@ -284,7 +285,8 @@ def check_outputs(a) -> None:
     Raises
     ------
     ValueError
-        As :func:`check_output`; an output that names an input, or an HDF5 output named ``.png``.
+        As :func:`check_output`; an output that names an input, an HDF5 output named ``.png``, a file output that
+        is an existing folder (it had failed only after the work, naming its temporary file).
     """
     figure = getattr(a, "figure", False) and not getattr(a, "out_is_prefix", False)
     inputs = _input_paths(a)
@@ -293,6 +295,9 @@ def check_outputs(a) -> None:
         if isinstance(v, (str, Path)) and str(v):
             check_output(v)
             o = Path(v)
+            if k == "out" and o.is_dir() and not (getattr(a, "out_is_folder", False) or
+                                                  getattr(a, "out_is_prefix", False)):
+                raise ValueError(f"--out {o} is a folder: name the file to write (in it, or beside it)")
             if figure and o.suffix.lower() == ".png":
                 raise ValueError(f"--{k.replace('_', '-')} {o}: name the HDF5 file (e.g. {o.with_suffix('.h5')}); "
                                  "the figure is written beside it as .png")
@@ -505,9 +510,18 @@ def add_figure_arg(s, what: str) -> None:
 
 
 def _level_or_none(text: str):
-    """A sensor level for ``--saturation``, None for 'none', or 'auto' (found in the image)."""
+    """A sensor level for ``--saturation`` (a positive finite number), None for 'none', or 'auto' (found in the
+    image); anything else refused (argparse names the option: 'nan' had been taken, every pixel fitted)."""
     t = text.strip().lower()
-    return None if t == "none" else "auto" if t == "auto" else float(text)
+    if t in ("none", "auto"):
+        return None if t == "none" else "auto"
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"takes a positive level, 'auto' or 'none'. Received: {text!r}")
+    return v
 
 
 #: What ``--saturation auto`` does (the help of the commands reading raw images).

@@ -160,6 +160,7 @@ def add_parsers(sub) -> None:
     s.add_argument("--dataset", required=True, help="dataset HDF5 written by 'lf-flame dataset'")
     s.add_argument("--experiment-config", required=True, help="experiment config TOML (model and training)")
     s.add_argument("--out", required=True, help="model folder")
+    s.set_defaults(out_is_folder=True)
     s.add_argument("--input-size", help="ROWSxCOLS: backbone input size instead of the config's")
     s.add_argument("--time-budget-s", type=float, help="training time budget (s) instead of the config's")
     s.add_argument("--quiet", action="store_true", help="no progress bar")

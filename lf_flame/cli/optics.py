@@ -207,9 +207,13 @@ def cmd_slopes(a):
     from ..learn.evaluation import plot_slope_curves
     from ..refocus.shift_and_sum import aperture_mask, find_sharpest_slope
     views, cam, lit = views_and_camera(a)
+    from ..optics.camera import MAX_SEARCH_SLOPE, imaging_range_mm
     lo, hi = a.lo, a.hi
+    far = [f"--{k} {v:g}" for k, v in (("lo", lo), ("hi", hi)) if v is not None and not abs(v) <= MAX_SEARCH_SLOPE]
+    if far:       # a wider grid had held every refocused plane at once: 24 GB for -100 ... 100, killed
+        raise ValueError(f"{', '.join(far)}: slopes beyond {MAX_SEARCH_SLOPE:g} lenslets per view lie outside what a "
+                         "camera can refocus (refocus and reconstruct refuse them too)")
     if lo is None or hi is None:
-        from ..optics.camera import MAX_SEARCH_SLOPE, imaging_range_mm
         if cam is None:
             s_lo, s_hi = -MAX_SEARCH_SLOPE, MAX_SEARCH_SLOPE
         else:

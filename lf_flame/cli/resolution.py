@@ -88,4 +88,5 @@ def add_parsers(sub) -> None:
                    "camera's 0.33-6.6 mm, 2.5 to 50 of its lenslets at the focal plane, in this camera's lenslets)")
     s.add_argument("--axis", choices=list(AXES), default="rows", help="direction of the lateral frequency")
     s.add_argument("--out", help="PREFIX: also write PREFIX.csv, PREFIX.md and PREFIX.png (default: print only)")
+    s.set_defaults(out_is_prefix=True)
     s.set_defaults(func=cmd_resolution)

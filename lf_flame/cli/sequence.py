@@ -298,5 +298,6 @@ def add_parsers(sub) -> None:
                    "processes, >= 1 (default: serial, Numba's threads)")
     s.add_argument("--scheduler", help="an existing Dask cluster: address (tcp://...) or scheduler file")
     s.add_argument("--out", required=True, help="output folder (resumed when it holds the same run)")
+    s.set_defaults(out_is_folder=True)
     add_search_arg(s)
     s.set_defaults(func=cmd_sequence)
