@@ -9,6 +9,7 @@ import contextlib
 import dataclasses
 import datetime
 import json
+import numbers
 import os
 import platform
 import subprocess
@@ -55,6 +56,10 @@ class DatasetConfig:
     regime: str = "varied"
 
     def __post_init__(self):
+        if not (isinstance(self.n_samples, dict)
+                and all(isinstance(v, numbers.Integral) for v in self.n_samples.values())):
+            raise ValueError("n_samples must be a table of whole numbers per scene (n_samples = { shapes = 1600, "
+                             f"flame = 200 }}). Received: {self.n_samples!r}")
         if any(int(v) < 3 for v in self.n_samples.values()):
             raise ValueError(f"each scene needs >= 3 samples for a 3-way split. Received: {self.n_samples}")
         if len(self.split) != 3:
@@ -126,12 +131,22 @@ class TrainConfig:
 
 
 def _build(cls, d: dict, where: str):
-    names = {f.name for f in dataclasses.fields(cls)}
+    """``cls(**d)`` from a config table, its refusals as ValueErrors naming ``where`` (a key unknown or missing, a
+    value of the wrong type: another kind of config file given, or an edit)."""
+    fields = dataclasses.fields(cls)
+    names = {f.name for f in fields}
     unknown = set(d) - names
     if unknown:
         raise ValueError(f"{where}: unknown keys {sorted(unknown)} (allowed: {sorted(names)})")
+    missing = [f.name for f in fields if f.name not in d and f.default is dataclasses.MISSING
+               and f.default_factory is dataclasses.MISSING]
+    if missing:
+        raise ValueError(f"{where}: missing {missing} (another kind of config file?)")
     d = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
-    return cls(**d)
+    try:
+        return cls(**d)
+    except (TypeError, AttributeError) as e:     # a value of the wrong type, met by the checks
+        raise ValueError(f"{where}: a value of the wrong type ({e})") from None
 
 
 def load_toml(path) -> dict:

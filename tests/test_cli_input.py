@@ -214,6 +214,10 @@ def test_an_interrupted_write_leaves_no_temporary_file(tmp_path, monkeypatch):
     (["evaluate", "--dataset", "d.h5", "--model-dir", "m", "--results", "r", "--heldout", "-3", "--heldout-seed", "5"],
      "--heldout", "whole number >= 0"),
     (["reconstruct", "x.npz", "--saturation", "nan", "--out", "r.h5"], "--saturation", "positive level"),
+    (["simulate", "--scene", "point", "--x", "inf", "--out", "p.npz"], "--x", "finite number"),
+    (["sequence", "x.h5", "--depth", "nan", "--out", "o"], "--depth", "finite number"),
+    (["temperature", "x.npz", "--calibration", "bb.json", "--alpha", "nan", "--out", "t.h5"], "--alpha",
+     "finite number"),
     (["temperature", "x.npz", "--calibration", "bb.json", "--saturation", "-1", "--out", "t.h5"], "--saturation",
      "positive level"),
 ])

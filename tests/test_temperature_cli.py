@@ -307,6 +307,13 @@ def test_wrong_calibration_refused(files, capsys):
     bad.write_text(json.dumps(d))
     assert main(["temperature", files["flame"], "--calibration", str(bad), "--depths", "0", "--out", out]) == 2
     assert "two different" in capsys.readouterr().err
+    # a gain ratio edited into a string, or zero: named (a string had ended in a TypeError traceback)
+    for gain in ("1.0", 0.0):
+        d = json.loads(open(files["cal"]).read())
+        d["gain_ratio"] = gain
+        bad.write_text(json.dumps(d))
+        assert main(["temperature", files["flame"], "--calibration", str(bad), "--depths", "0", "--out", out]) == 2
+        assert "malformed temperature calibration (gain_ratio must be a positive number" in capsys.readouterr().err
     assert not (files["dir"] / "never.h5").exists()
 
 

@@ -450,3 +450,19 @@ def test_settings_out_of_range_are_refused_naming_them(tmp_path, capsys):
     assert main(["train", "--dataset", str(tmp_path / "d.h5"), "--experiment-config", "experiments/quick.toml",
                  "--out", str(tmp_path / "m"), "--time-budget-s", "-5"]) == 2
     assert "time_budget_s must be > 0 for each scene" in capsys.readouterr().err
+
+
+def test_config_and_slopes_files_of_the_wrong_kind_are_refused_naming_them(tmp_path, capsys):
+    """An experiment config given as a data config, n_samples that is not a table of counts, and a JSON without
+    slopes given to dataset: refused in one line naming the file (they had ended in TypeError, AttributeError and
+    KeyError tracebacks)."""
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[dataset]\nn_samples = "many"\n')
+    slopes = tmp_path / "s.json"
+    slopes.write_text('{"a": 1}')
+    for cfg, sl, text in (("experiments/quick.toml", str(slopes), "[dataset]: missing ['n_samples']"),
+                          (str(bad), str(slopes), "n_samples must be a table of whole numbers"),
+                          ("data_gen/quick.toml", str(slopes), "is not a slopes file")):
+        assert main(["dataset", "--data-config", cfg, "--scene", "flame", "--slopes", sl,
+                     "--out", str(tmp_path / "d.h5")]) == 2
+        assert text in capsys.readouterr().err

@@ -206,6 +206,25 @@ def count(text: str) -> int:
     return _whole_number(text, 0)
 
 
+def finite(text: str) -> float:
+    """An argparse ``type``: a finite number (every number option: NaN and inf had reached the work, where they
+    stopped on messages that named no option, 'cannot convert float infinity to integer', or were taken).
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        NaN, inf or not a number; argparse names the option and exits with status 2.
+    """
+    import argparse
+    try:
+        v = float(text)
+    except ValueError:
+        v = float("nan")
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"takes a finite number. Received: {text!r}")
+    return v
+
+
 def fraction(text: str) -> float:
     """An argparse ``type``: a number from 0 to 1 (``--min-fraction``).
 
@@ -308,7 +327,7 @@ def check_outputs(a) -> None:
 
 def add_search_arg(s):
     """``--search-range``: the depths the search for the planes covers (``--depths auto``)."""
-    s.add_argument("--search-range", nargs=2, type=float, metavar=("NEAR", "FAR"),
+    s.add_argument("--search-range", nargs=2, type=finite, metavar=("NEAR", "FAR"),
                    help="depths (mm from the focus distance, > 0 farther) the search for the planes covers, clipped "
                         "to what the camera can refocus (default: all of that, printed): where the flames are known "
                         "to lie, a narrower search is faster and takes no light outside it for a flame")

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..routes import LEARNED_ROUTES
-from ._io import RAW_FORMATS, _load_raw, _write_stack, count, positive_int
+from ._io import finite, RAW_FORMATS, _load_raw, _write_stack, count, positive_int
 
 
 def cmd_dataset(a):
@@ -21,8 +21,12 @@ def cmd_dataset(a):
     cam, cfg = load_data_config(a.data_config)
     if a.regime:
         cfg = dataclasses.replace(cfg, regime=a.regime)
-    record = json.loads(Path(a.slopes).read_text())
-    slopes = record["slopes"]
+    try:
+        record = json.loads(Path(a.slopes).read_text())
+        slopes = record["slopes"]
+    except (ValueError, KeyError, TypeError):
+        raise ValueError(f"{a.slopes} is not a slopes file of 'lf-flame slopes --data-config' (JSON with the "
+                         "'slopes' of the data config's four depths)") from None
     if "camera" in record:               # the slopes of the camera they were found on (older files record none)
         from ..optics.camera import PlenopticCamera
         from ..real.lightfield import camera_differences
@@ -162,7 +166,7 @@ def add_parsers(sub) -> None:
     s.add_argument("--out", required=True, help="model folder")
     s.set_defaults(out_is_folder=True)
     s.add_argument("--input-size", help="ROWSxCOLS: backbone input size instead of the config's")
-    s.add_argument("--time-budget-s", type=float, help="training time budget (s) instead of the config's")
+    s.add_argument("--time-budget-s", type=finite, help="training time budget (s) instead of the config's")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=cmd_train)
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import (COLOUR_SCENES, RAW_FORMATS, _raw_objects, _save_image, _write_stack, add_camera_args,
+from ._io import (finite, COLOUR_SCENES, RAW_FORMATS, _raw_objects, _save_image, _write_stack, add_camera_args,
                   add_search_arg, camera_config, colour_scene, light_field, render_sensor, simulated_scene)
 from ..simulate.scenes import PAPER_DEPTHS_MM
 
@@ -328,17 +328,17 @@ def add_parsers(sub) -> None:
     s.add_argument("--crosstalk", action="store_true", help="add crosstalk through neighbouring lenslets")
     s.add_argument("--bit-depth", type=_bit_depth, help="quantise the raw image to this many bits, 1-32 (default: "
                    "not quantised)")
-    s.add_argument("--temperature", type=float, help="furnace scene: the blackbody's temperature (K)")
-    s.add_argument("--depth", type=float, default=0.0, help="point and volume scenes: depth offset (mm)")
-    s.add_argument("--y", type=float, default=0.0, help="point scene: height (mm)")
-    s.add_argument("--x", type=float, default=0.0, help="point and volume scenes: lateral position (mm, x "
+    s.add_argument("--temperature", type=finite, help="furnace scene: the blackbody's temperature (K)")
+    s.add_argument("--depth", type=finite, default=0.0, help="point and volume scenes: depth offset (mm)")
+    s.add_argument("--y", type=finite, default=0.0, help="point scene: height (mm)")
+    s.add_argument("--x", type=finite, default=0.0, help="point and volume scenes: lateral position (mm, x "
                    "right; a volume's axis)")
     s.set_defaults(func=cmd_simulate)
 
     s = sub.add_parser("refocus", help="refocus a raw image (or decoded views) at one or more slopes")
     s.add_argument("raw", help=RAW_FORMATS + ", or VIEWS.h5 from decode")
-    s.add_argument("--slope", type=float, action="append", help="lenslets per view (repeatable)")
-    s.add_argument("--depth", type=float, action="append", help="instead of --slope: plane depth, mm from the "
+    s.add_argument("--slope", type=finite, action="append", help="lenslets per view (repeatable)")
+    s.add_argument("--depth", type=finite, action="append", help="instead of --slope: plane depth, mm from the "
                    "camera's focus distance (> 0 farther; repeatable); neither: the depths found in the views, as "
                    "'reconstruct' finds them")
     add_camera_args(s)
@@ -364,9 +364,9 @@ def add_parsers(sub) -> None:
     s.add_argument("--metric", choices=["tenengrad", "laplacian", "normvar"], default="tenengrad",
                    help="sharpness of a refocused region")
     s.add_argument("--method", choices=["fourier", "shift-sum"], default="fourier", help="refocusing of the search")
-    s.add_argument("--lo", type=float, help="lowest slope searched, lenslets per view (default: the camera's "
+    s.add_argument("--lo", type=finite, help="lowest slope searched, lenslets per view (default: the camera's "
                    "imaging range, |slope| <= 3 and object distances beyond 1.05 focal lengths)")
-    s.add_argument("--hi", type=float, help="highest slope searched, lenslets per view (default: as --lo)")
+    s.add_argument("--hi", type=finite, help="highest slope searched, lenslets per view (default: as --lo)")
     add_camera_args(s)
     s.add_argument("--aperture", choices=["square", "circular"], default="circular",
                    help="views summed: all, or those inside the main lens's circular aperture")

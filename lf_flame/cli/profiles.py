@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import RAW_FORMATS, _load_raw, _raw_objects, add_camera_args, add_figure_arg, add_search_arg
+from ._io import finite, RAW_FORMATS, _load_raw, _raw_objects, add_camera_args, add_figure_arg, add_search_arg
 from ..routes import parse_route
 from .learning import _learned_runner
 from ..routes import LEARNED_ROUTES
@@ -318,10 +318,10 @@ def add_parsers(sub) -> None:
                    "shift-sum-nearest, fourier: refocused planes (faster; reconstruct-adjoint is plain refocusing "
                    "too); ground-truth: a dataset's stored planes; learned routes need --model-dir")
     s.add_argument("--model-dir", help="folder written by 'lf-flame train' (learned routes)")
-    s.add_argument("--slope", type=float, action="append",
+    s.add_argument("--slope", type=finite, action="append",
                    help="refocusing routes: one per plane (repeatable); default: the dataset's, else the analytic "
                    "slopes of the depths")
-    s.add_argument("--depth", type=float, action="append",
+    s.add_argument("--depth", type=finite, action="append",
                    help="a plane's depth, mm from the focus distance (repeatable; default: the flames' when RAW "
                         "stores them, a dataset sample's the paper's four, else the depths found in the views, as "
                         "'reconstruct --depths auto' finds them)")

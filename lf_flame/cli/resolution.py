@@ -6,6 +6,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 from ..tomo.resolution import AXES, CONDITIONS
+from ._io import finite
 
 
 def wider_than_field(camera, feature_mm, axis: str) -> str | None:
@@ -76,15 +77,15 @@ def add_parsers(sub) -> None:
                        "operator's per-frequency normal matrices of a dense stack)")
     s.add_argument("--camera", help="camera file: the datasheet tables of docs/own_camera.md, or a [camera] table "
                    "(default: the paper's camera)")
-    s.add_argument("--near", type=float, help="nearest plane of the stack, mm from the focal plane (> 0 farther; "
+    s.add_argument("--near", type=finite, help="nearest plane of the stack, mm from the focal plane (> 0 farther; "
                    "default: the paper camera's -15 mm carried to this camera at equal parallax across the aperture, "
                    "within what it refocuses)")
-    s.add_argument("--far", type=float, help="farthest plane, mm (default: the paper camera's +25 mm, carried so)")
-    s.add_argument("--spacing", type=float, help="the stack's plane spacing, mm (default: 80 steps from --near to "
+    s.add_argument("--far", type=finite, help="farthest plane, mm (default: the paper camera's +25 mm, carried so)")
+    s.add_argument("--spacing", type=finite, help="the stack's plane spacing, mm (default: 80 steps from --near to "
                    "--far; 0.5 mm on the paper's camera)")
-    s.add_argument("--condition", type=float, nargs="+", default=list(CONDITIONS),
+    s.add_argument("--condition", type=finite, nargs="+", default=list(CONDITIONS),
                    help="condition numbers of the two planes' normal block (>= 1)")
-    s.add_argument("--feature", type=float, nargs="+", help="feature sizes, half a period, mm (default: the paper "
+    s.add_argument("--feature", type=finite, nargs="+", help="feature sizes, half a period, mm (default: the paper "
                    "camera's 0.33-6.6 mm, 2.5 to 50 of its lenslets at the focal plane, in this camera's lenslets)")
     s.add_argument("--axis", choices=list(AXES), default="rows", help="direction of the lateral frequency")
     s.add_argument("--out", help="PREFIX: also write PREFIX.csv, PREFIX.md and PREFIX.png (default: print only)")

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 from ..tomo.defaults import ADMM_QUIET, ADMM_TV, DEFAULT_TV, SOLVERS
-from ._io import AUTO_LEVEL, _level_or_none, add_search_arg, positive_int
+from ._io import finite, AUTO_LEVEL, _level_or_none, add_search_arg, positive_int
 
 #: Sensor noise of ``--noise``: full well (e-), read noise (e-), bits (a 12-bit high-speed camera).
 NOISE = (10_000.0, 5.0, 12)
@@ -231,10 +231,10 @@ def _sequence_scene_args(s, simulate_only=False):
         s.add_argument("--simulate", choices=["paper", "overlap"], default="paper",
                        help="paper: four flames at the paper's depths; overlap: two flames 20 mm apart, one "
                             "behind the other (another camera: the depths of the same parallax)")
-    s.add_argument("--fps", type=float, help=("frame rate, frames/s (a recording: default its file's; " if
+    s.add_argument("--fps", type=finite, help=("frame rate, frames/s (a recording: default its file's; " if
                                               simulate_only else "frame rate, frames/s (") + "simulated: 500)")
-    s.add_argument("--duration", type=float, default=1.0, help=pre + "length, s")
-    s.add_argument("--freq", type=float, action="append", help=pre + "each flame's flicker frequency, Hz, farthest "
+    s.add_argument("--duration", type=finite, default=1.0, help=pre + "length, s")
+    s.add_argument("--freq", type=finite, action="append", help=pre + "each flame's flicker frequency, Hz, farthest "
                    "first (repeatable; default drawn from 5-20 Hz)")
     s.add_argument("--noise", action="store_true", help=pre + "shot and read noise, 12 bits")
     s.add_argument("--seed", type=int, default=0, help=pre + "seed of the frequencies, phases and jitter")
@@ -266,10 +266,10 @@ def add_parsers(sub) -> None:
     s.add_argument("--simulate", choices=["paper", "overlap"], help="instead of INPUT: a simulated recording, "
                    "rendered frame by frame in the workers")
     _sequence_scene_args(s, simulate_only=True)
-    s.add_argument("--depth", type=float, action="append", help="plane depth offset, mm (repeatable); default: a "
+    s.add_argument("--depth", type=finite, action="append", help="plane depth offset, mm (repeatable); default: a "
                    "simulated recording's flames' depths, else the depths found in the first frame, as 'reconstruct' "
                    "finds a capture's")
-    s.add_argument("--slope", type=float, action="append", help="plane slope, lenslets per view (repeatable)")
+    s.add_argument("--slope", type=finite, action="append", help="plane slope, lenslets per view (repeatable)")
     s.add_argument("--route", choices=["shift-sum", *(f"reconstruct-{k}" for k in SOLVERS)],
                    default="reconstruct-admm",
                    help="each plane's emission (as lf-flame reconstruct, admm by default; its settings: --iters, "
@@ -277,7 +277,7 @@ def add_parsers(sub) -> None:
                         "a plane's flame blurred by its neighbours' light: heights and flicker less sure)")
     s.add_argument("--iters", type=positive_int, help="reconstruct-*: iterations, >= 1 (default: the solver's, as "
                    "lf-flame reconstruct's --iters)")
-    s.add_argument("--tv", type=float, default=None,
+    s.add_argument("--tv", type=finite, default=None,
                    help=f"reconstruct-pd-tv / -admm: TV weight (default: pd-tv {DEFAULT_TV}; admm by each frame's "
                         f"noise: {ADMM_QUIET['tv']} on quiet data, {ADMM_TV} on noisy)")
     s.add_argument("--saturation", type=_level_or_none, default="auto",

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import AUTO_LEVEL, RAW_FORMATS, _level_or_none, add_figure_arg, add_search_arg, fraction
+from ._io import finite, AUTO_LEVEL, RAW_FORMATS, _level_or_none, add_figure_arg, add_search_arg, fraction
 from .temperature_planes import (_auto_depths, fit_warnings, _level_record, _plane_lines, furnace_note,
                                  _plane_temperatures, _record, _refuse_monochrome, _sensor, _sensor_args,
                                  temperature_figure)
@@ -116,13 +116,13 @@ def add_parsers(sub) -> None:
     s.add_argument("--grid-calibration", help="the white-image calibration JSON of 'lf-flame calibrate' (--calibration "
                    "is the blackbody's here): a raw capture is decoded with it, its channels apart, as 'lf-flame "
                    "decode --camera' decodes it")
-    s.add_argument("--depth", type=float, action="append", help="plane depth (mm from the focal plane; repeatable). "
+    s.add_argument("--depth", type=finite, action="append", help="plane depth (mm from the focal plane; repeatable). "
                    "Default: --depths auto")
     s.add_argument("--depths", default=None, help="'auto' (default): the planes 'lf-flame reconstruct' finds in the "
                    "capture (its red and green samples levelled into one light field, depths found, the solve's "
                    "residual searched, flames one behind another refined); 'scene', 'paper', or depths in mm "
                    "separated by commas (as 'lf-flame reconstruct')")
-    s.add_argument("--slope", type=float, action="append", help="plane slope instead of a depth (repeatable)")
+    s.add_argument("--slope", type=finite, action="append", help="plane slope instead of a depth (repeatable)")
     s.add_argument("--route", choices=["admm-cfa-matched", "admm-cfa", "admm-cfa-smooth", "refocus-cfa"],
                    default="admm-cfa-matched",
                    help="each channel's emission: the exact operator's admm on its own pixels (the CFA as a "
@@ -133,7 +133,7 @@ def add_parsers(sub) -> None:
                         "square grid's only) (results/temperature.md)")
     s.add_argument("--min-fraction", type=fraction, default=0.1, help="pixels whose two channels' emission is below "
                    "this fraction (0 to 1) of their plane's peak get no temperature (counted as dim)")
-    s.add_argument("--alpha", type=float, default=1.39, help="emissivity exponent of the source, eps ~ lambda^-alpha "
+    s.add_argument("--alpha", type=finite, default=1.39, help="emissivity exponent of the source, eps ~ lambda^-alpha "
                    "(soot: 1.39, Hottel & Broughton; 0: a blackbody)")
     s.add_argument("--saturation", type=_level_or_none, default="auto", help="the sensor's clipping level of a raw "
                    "image: pixels at or above it are left out of the fit ('none': fit every pixel; default "
@@ -143,7 +143,7 @@ def add_parsers(sub) -> None:
                    "depths_mm, counts, provenance; the figure goes beside it as .png. A recording's: temperature_k and "
                    "valid (frame, plane, row, col), depths_mm, times_s, and T.csv (per frame and plane: median, p10, "
                    "p90 K)")
-    s.add_argument("--fps", type=float, help="a recording's frame rate, frames/s (default: its file's)")
+    s.add_argument("--fps", type=finite, help="a recording's frame rate, frames/s (default: its file's)")
     add_figure_arg(s, "each plane's temperature map in mm, one colour bar in K")
     add_search_arg(s)
     s.set_defaults(func=cmd_temperature)

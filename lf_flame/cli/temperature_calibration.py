@@ -6,7 +6,7 @@ import sys
 
 import numpy as np
 
-from ._io import RAW_FORMATS, _load_raw, refuse_rgb
+from ._io import finite, RAW_FORMATS, _load_raw, refuse_rgb
 from .temperature_planes import _sensor, _sensor_args
 
 
@@ -139,7 +139,7 @@ def add_parsers(sub) -> None:
     s.add_argument("images", nargs="+", help="raw colour images of a blackbody filling the field: " + RAW_FORMATS
                    + "; a camera whose lenslet grid is not perfect (rotated, hexagonal, a pitch of no whole number of "
                    "pixels): its images decoded with their channels apart ('lf-flame decode --camera cam.toml')")
-    s.add_argument("--temperature", type=float, action="append", help="each image's temperature, K, in the images' "
+    s.add_argument("--temperature", type=finite, action="append", help="each image's temperature, K, in the images' "
                    "order (repeatable; one per image)")
     s.add_argument("--channels", default="R,G", help="numerator and denominator channels of the ratio")
     _sensor_args(s, False)

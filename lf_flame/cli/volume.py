@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import (AUTO_LEVEL, RAW_FORMATS, _level_or_none, _raw_scene, add_camera_args, add_figure_arg,
+from ._io import (finite, AUTO_LEVEL, RAW_FORMATS, _level_or_none, _raw_scene, add_camera_args, add_figure_arg,
                   add_search_arg, positive_int)
 from .fit_notes import edge_warning, left_out_notes, misfit_warning, resolution_note, stack_end_warning
 from .planes import (_fitted_light_field, found_planes, found_record, lattice_solve, possible_warning,
@@ -229,7 +229,7 @@ def add_parsers(sub) -> None:
     s = sub.add_parser("reconstruct", help="each plane's emission from one light field (3-D reconstruction with "
                        "the simulator as the forward operator) -> HDF5 and a figure")
     s.add_argument("raw", help=RAW_FORMATS + ", or views .h5 from 'lf-flame decode'")
-    s.add_argument("--depth", type=float, action="append",
+    s.add_argument("--depth", type=finite, action="append",
                    help="plane depth (mm from the focal plane; repeatable). Default: --depths auto")
     s.add_argument("--depths", default=None,
                    help="the planes: 'auto' (the default when neither --depth nor --slope is given) finds the depths "
@@ -239,7 +239,7 @@ def add_parsers(sub) -> None:
                         "'scene': the depths of the objects that 'lf-flame simulate' stored (.npz or .png); 'paper': "
                         "the paper's four planes, " + ", ".join(f"{d:+g}" for d in PAPER_DEPTHS_MM) + " mm; or "
                         "depths in mm separated by commas")
-    s.add_argument("--slope", type=float, action="append", help="plane slope instead of a depth (repeatable)")
+    s.add_argument("--slope", type=finite, action="append", help="plane slope instead of a depth (repeatable)")
     s.add_argument("--solver", choices=list(SOLVERS) + ["learned"],
                    help=f"the default is the one chosen on validation renders: {EXACT_SOLVER} on the exact operator, "
                         f"{DEFAULT_SOLVER} on a traced one (--rays-per-pixel); adjoint: plain refocusing through "
@@ -251,8 +251,8 @@ def add_parsers(sub) -> None:
     s.add_argument("--iters", type=positive_int, help="iterations, >= 1 (default: the solver's, chosen on validation "
                    "renders: " + ", ".join(f"{k} {v}" for k, v in DEFAULT_ITERS.items() if k not in ("adjoint", "admm"))
                    + "; " + ADMM_FILLS_HELP + "; adjoint: none)")
-    s.add_argument("--damp", type=float, default=0.0, help="LSQR damping (Tikhonov)")
-    s.add_argument("--tv", type=float, default=None, help=f"TV weight of pd-tv (default: {DEFAULT_TV}) or of admm "
+    s.add_argument("--damp", type=finite, default=0.0, help="LSQR damping (Tikhonov)")
+    s.add_argument("--tv", type=finite, default=None, help=f"TV weight of pd-tv (default: {DEFAULT_TV}) or of admm "
                    f"(default by the light field's noise and the grid: on {ADMM_SUBSAMPLES} x {ADMM_SUBSAMPLES} samples "
                    f"per lenslet {ADMM_KNOBS[ADMM_SUBSAMPLES, 'quiet']['tv']} on quiet data, "
                    f"{ADMM_KNOBS[ADMM_SUBSAMPLES, 'noisy']['tv']} on noisy; on the lenslet grid "
@@ -278,9 +278,9 @@ def add_parsers(sub) -> None:
                    help="a volume: a dense stack every --step mm from --from to --to (mm from the focal plane) on the "
                         "exact operator's lenslet grid, with a prior (--prior), and the depth resolution the stack "
                         "carries for the data alone (lf_flame.tomo.volume)")
-    s.add_argument("--from", dest="near", type=float, help="--volume: the nearest plane (mm)")
-    s.add_argument("--to", dest="far", type=float, help="--volume: the farthest plane (mm)")
-    s.add_argument("--step", type=float, default=None, help=f"--volume: plane spacing (mm; at most "
+    s.add_argument("--from", dest="near", type=finite, help="--volume: the nearest plane (mm)")
+    s.add_argument("--to", dest="far", type=finite, help="--volume: the farthest plane (mm)")
+    s.add_argument("--step", type=finite, default=None, help=f"--volume: plane spacing (mm; at most "
                    f"{VOLUME_MAX_PLANES} planes; default {VOLUME_STEP_MM:g}: finer than a flame, whatever the camera)")
     s.add_argument("--prior", choices=list(VOLUME_PRIORS), default=VOLUME_PRIOR,
                    help=f"--volume: none (admm by the data's noise), tv (admm with TV per plane, weight --tv, "
@@ -288,7 +288,7 @@ def add_parsers(sub) -> None:
                         f"with an l1 weight, --l1, default {VOLUME_L1['quiet']:g} of the weight that zeroes every "
                         f"plane), axisymmetric (a laminar flame's e(r, y) about a vertical axis found from the data: "
                         f"for laminar flames)")
-    s.add_argument("--l1", type=float, default=None, help="--volume --prior sparse: the l1 weight in [0, 1)")
+    s.add_argument("--l1", type=finite, default=None, help="--volume --prior sparse: the l1 weight in [0, 1)")
     s.add_argument("--out", required=True, help="volume.h5 (planes, depths, mm per sample, settings, residuals); "
                                                "the figure goes beside it as .png")
     add_figure_arg(s, "each plane beside its refocused plane and, for a simulated scene, the truth")

@@ -420,6 +420,15 @@ def load_calibration(path, sensor: ColourSensor | None = None) -> TemperatureCal
         cal = TemperatureCalibration(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
     except TypeError as e:
         raise ValueError(f"{path}: malformed temperature calibration ({e})") from None
+    try:
+        numbers = [float(cal.gain_ratio), *map(float, cal.fit_temperatures_k), *map(float, cal.fit_residuals_k)]
+        ok = all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                 for v in (cal.gain_ratio, *cal.fit_temperatures_k, *cal.fit_residuals_k))
+    except (TypeError, ValueError):
+        ok = False
+    if not (ok and all(math.isfinite(v) for v in numbers) and cal.gain_ratio > 0):
+        raise ValueError(f"{path}: malformed temperature calibration (gain_ratio must be a positive number, the fit's "
+                         f"temperatures and residuals numbers; edited since?). Received: gain_ratio={cal.gain_ratio!r}")
     _channel_index(cal.channels)
     if sensor is not None:
         lookup_table(cal, sensor)
