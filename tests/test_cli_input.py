@@ -145,6 +145,16 @@ def test_an_output_that_would_overwrite_an_input_is_refused_before_the_work(tmp_
     assert len(ran) == 2
 
 
+def test_a_recording_too_large_for_the_disk_is_refused_before_it_is_rendered(tmp_path, capsys):
+    """simulate-sequence --fps 1e9 (a billion 16-bit frames) is refused naming the size and the disk's free space
+    before a frame is rendered (it had written 1.25 GB in 20 s and gone on); --duration 0 by its name."""
+    assert main(["simulate-sequence", "--fps", "1e9", "--duration", "1", "--out", str(tmp_path / "r.h5")]) == 2
+    assert "GB free: a lower --fps or a shorter --duration" in capsys.readouterr().err
+    assert main(["simulate-sequence", "--duration", "0", "--out", str(tmp_path / "r.h5")]) == 2
+    assert "--duration must be positive" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
+
+
 def test_ctrl_c_ends_with_one_line_and_130(capsys, monkeypatch):
     def interrupted(a):
         raise KeyboardInterrupt

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 from ..tomo.defaults import ADMM_QUIET, ADMM_TV, DEFAULT_TV, SOLVERS
@@ -21,6 +22,25 @@ def _sequence_of(a, cam):
         raise ValueError(f"--fps must be positive and finite (frames/s). Received: {a.fps:g}")
     return flicker_sequence(cam, np.random.default_rng(a.seed), a.simulate, fps=fps,
                             duration_s=a.duration, freqs_hz=a.freq, noise=NOISE if a.noise else None)
+
+
+def _check_recording_size(a, cam) -> None:
+    """Refuse a recording to render whose frames (16-bit, ``--fps`` x ``--duration`` of them) would not fit on the
+    disk that holds ``--out``, before any is rendered: --fps 1e9 had written 1.25 GB in 20 s, on to a full disk."""
+    import shutil
+    fps = 500.0 if a.fps is None else a.fps
+    if not a.duration > 0:
+        raise ValueError(f"--duration must be positive (s). Received: {a.duration:g}")
+    n = fps * a.duration
+    need = n * cam.sensor_shape[0] * cam.sensor_shape[1] * 2
+    q = Path(a.out).absolute().parent
+    while not q.exists() and q != q.parent:
+        q = q.parent
+    free = shutil.disk_usage(q).free
+    if need > free:
+        raise ValueError(f"{n:.3g} frames ({fps:g} frames/s for {a.duration:g} s) of {cam.sensor_shape[0]} x "
+                         f"{cam.sensor_shape[1]} px take up to {need / 1e9:.3g} GB; {q} has {free / 1e9:.3g} GB free: a "
+                         "lower --fps or a shorter --duration")
 
 
 def _camera(a):
@@ -65,6 +85,7 @@ def cmd_simulate_sequence(a):
     from ..recordings.sources import SimulatedSource, write_frames
     from ..simulate.scenes_temperature import FLICKER_K
     cam = _camera(a)
+    _check_recording_size(a, cam)
     seq = _sequence_of(a, cam)
     camera_file = getattr(a, "camera", None) or getattr(a, "data_config", None)
     from ..optics.camera_file import load_colour_sensor
