@@ -255,6 +255,23 @@ def test_slope_search_finds_each_plane(depths):
         assert res.scores.max() > 1.2 * np.median(res.scores)  # a peaked curve
 
 
+def test_slope_search_refuses_what_has_no_focus_and_stays_on_its_grid():
+    """Views with no light or a constant image, and a region off the views' grid, are refused (each had returned a
+    confident slope, -3.05 for zeros: outside the -3 ... 3 searched); a flame at the grid's end is found on it."""
+    n, R, C = 15, 20, 12
+    for views, roi, text in ((np.zeros((n, n, R, C)), (0, R, 0, C), "no focus to find"),
+                             (np.full((n, n, R, C), 0.3), (0, R, 0, C), "no focus to find"),
+                             (np.random.default_rng(0).random((n, n, R, C)), (100, 110, 0, 10), "outside the views")):
+        with pytest.raises(ValueError, match=text):
+            find_sharpest_slope(views, roi)
+    cam = PAPER_CAMERA
+    sc = scenes.point_scene(cam, -10.0, size_mm=0.5)
+    views = raw_to_views(simulate.render(cam, sc, 4, 0), cam.pixels_per_lenslet)
+    lo = cam.slope_for_depth(-10.0) + 0.02                     # the flame's slope just below the grid's end
+    res = find_sharpest_slope(views, sc.objects[0]["roi"], lo=lo, hi=lo + 1.0)
+    assert res.slopes.min() >= lo - 1e-9 and res.slope == pytest.approx(lo, abs=0.006)
+
+
 def test_cli_refocus_and_slopes(tmp_path, small_camera, capsys):
     import pandas as pd
     from lf_flame.cli import main

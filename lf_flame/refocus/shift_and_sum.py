@@ -437,6 +437,13 @@ class SlopeSearch:
     scores: np.ndarray
 
 
+#: A region whose sharpness (:data:`SHARPNESS`) stays below this share of its mean light squared (normvar: of its
+#: mean light) at every slope has no focus to find (:func:`find_sharpest_slope`): a constant image's tenengrad peaks
+#: at about 4e-8 of it (Fourier round-off); the paper's flames and shapes (4 rays per pixel) peak at 0.30-1.45 and
+#: stay above 1.4e-3 at every slope.
+FLAT_SHARPNESS = 1e-6
+
+
 def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", method: str = "fourier",
                         lo: float = -3.0, hi: float = 3.0, coarse_step: float = 0.05, fine_step: float = 0.005,
                         mask=None) -> SlopeSearch:
@@ -468,7 +475,8 @@ def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", me
     Raises
     ------
     ValueError
-        Unknown metric or method, an empty ROI, a bad grid, or NaN/inf in the views.
+        Unknown metric or method, an empty ROI or one outside the views' grid, a bad grid, NaN/inf in the
+        views, or a region as sharp at every slope (no light or no structure: no focus to find).
     """
     if metric not in SHARPNESS:
         raise ValueError(f"metric must be one of {sorted(SHARPNESS)}. Received: metric={metric!r}")
@@ -484,6 +492,8 @@ def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", me
     views = np.asarray(views)
     _check_finite("views", views)
     n, _, R, C = views.shape
+    if not (0 <= r0 and r1 <= R and 0 <= c0 and c1 <= C):
+        raise ValueError(f"region of interest {tuple(roi)} lies outside the views' grid of {R} x {C} lenslets")
     max_slope = max(abs(lo), abs(hi)) + coarse_step
     if method == "fourier":
         pad = _margin(max_slope, n)
@@ -500,8 +510,14 @@ def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", me
 
     coarse = np.arange(lo, hi + coarse_step / 2, coarse_step)
     sc = scores(coarse)
+    # the metrics go as the light's square (normvar: as the light): a constant image's are round-off, 1e-7 of that
+    level = float(np.mean(np.abs(views[..., roi[0]:roi[1], roi[2]:roi[3]])))
+    if not (np.all(np.isfinite(sc)) and sc.max() > FLAT_SHARPNESS * (level if metric == "normvar" else level ** 2)):
+        raise ValueError(f"the region {tuple(roi)} is as sharp at every slope (no light, or no structure in it): "
+                         "it has no focus to find")
     best = coarse[int(np.argmax(sc))]
     fine = np.arange(best - coarse_step, best + coarse_step + fine_step / 2, fine_step)
+    fine = fine[(fine >= lo - fine_step / 2) & (fine <= hi + fine_step / 2)]      # the grid asked for, not beyond
     sf = scores(fine)
     slopes = np.concatenate([coarse, fine])
     allsc = np.concatenate([sc, sf])
