@@ -137,8 +137,19 @@ def test_temperature_on_planes_where_no_flame_stands_is_warned_of(files, capsys)
                      "--out", out]) == 0
         err = capsys.readouterr().err
         assert ("of the light field unexplained" in err) == warned, err
+        assert "clipped" not in err
         with h5py.File(out, "r") as f:
             assert (json.loads(f.attrs["misfit"])["misfit"] > 0.1) == warned
+    # over-exposed: its clipped pixels are noted, even under reconstruct's warning level (a ratio's channels clip apart)
+    with np.load(files["flame"]) as z:
+        raw = z["raw"]
+    bright = _save(files["dir"] / "bright.npz", np.minimum(raw * 1.27, 1.0),           # 5 % of its lit pixels
+                   library_sensor(gains=GAINS))
+    assert main(["temperature", bright, "--calibration", files["cal"], "--depths", "0", "--no-figure", "--out",
+                 out]) == 0
+    assert "note: 5.2 % of the lit pixels are clipped" in capsys.readouterr().err
+    with h5py.File(out, "r") as f:
+        assert 0 < json.loads(f.attrs["clipped_share"])
 
 
 def test_temperature_round_trip(files, capsys):
