@@ -155,6 +155,15 @@ def test_a_recording_too_large_for_the_disk_is_refused_before_it_is_rendered(tmp
     assert not list(tmp_path.iterdir())
 
 
+def test_a_random_depth_scene_on_a_camera_too_small_for_it_is_refused_in_words(tmp_path, capsys):
+    """simulate --scene depth on a 6 x 6-lenslet camera: its field cannot hold a flame of the smallest width; said so,
+    where numpy's 'high - low < 0' had been the message."""
+    cam = tmp_path / "tiny.toml"
+    cam.write_text("[camera]\nn_rows = 6\nn_cols = 6\n")
+    assert main(["simulate", "--camera", str(cam), "--scene", "depth", "--out", str(tmp_path / "t.npz")]) == 2
+    assert "is too narrow for a flame of its smallest half-width" in capsys.readouterr().err
+
+
 def test_ctrl_c_ends_with_one_line_and_130(capsys, monkeypatch):
     def interrupted(a):
         raise KeyboardInterrupt

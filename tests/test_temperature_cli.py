@@ -301,6 +301,18 @@ def test_a_colour_recording_gets_each_frames_temperature_as_one_capture_would(fi
     assert "monochrome recording" in capsys.readouterr().err
 
 
+def test_an_image_that_is_not_a_blackbody_is_refused_as_one(files, tmp_path, capsys):
+    """A flame image, or a constant one, given to calibrate-temperature as a blackbody: refused (its channels' ratio
+    not the same over the field; no mosaic), where each had been taken and fitted a gain ratio (0.71 and 0.46, the
+    temperatures of flames then 700 K low)."""
+    np.save(tmp_path / "const.npy", np.full(CAM.sensor_shape, 0.3, np.float32))
+    for image, text in ((files["flame"], "not a blackbody filling the field evenly"),
+                        (str(tmp_path / "const.npy"), "no colour filter mosaic")):
+        assert main(["calibrate-temperature", image, "--temperature", "1600", "--out", str(tmp_path / "x.json")]) == 2
+        assert text in capsys.readouterr().err
+    assert not (tmp_path / "x.json").exists()
+
+
 def test_wrong_calibration_refused(files, capsys):
     out = str(files["dir"] / "never.h5")
     sigma = library_sensor("Sigma SDMerill (NPL)")

@@ -28,6 +28,11 @@ BLACKBODY_CLIPPED_MAX = 0.01
 #: A fit leaving a residual beyond this (K) is warned of: a blackbody's --temperature wrong (1,800 K given for a
 #: 2,000 K image left +130 K; the fit of correct images leaves a few K at most), or its image not a blackbody's.
 RESIDUAL_WARN_K = 20.0
+#: A blackbody image whose two channels' ratio over the field's centre (a fifth of each axis) or its outer part (nine
+#: tenths) differs from the ratio over its central half by more than this share is refused: a blackbody's ratio is the
+#: same everywhere (the furnaces of a new user's three cameras, simulated: within 0.2 %), a flame's is not (2-9 % on
+#: the same cameras; a flame image given as a one-temperature blackbody had been taken, its gain ratio 0.71).
+BLACKBODY_SPREAD = 0.02
 
 
 def _clipped_blackbody(share: float, path) -> None:
@@ -69,7 +74,7 @@ def cmd_calibrate_temperature(a):
                                  "cam.toml' keeps them apart)")
             if hit is not None:
                 _clipped_blackbody(float(hit.sum()) / max(int(np.count_nonzero(v > 0)), 1), path)
-            r = views_blackbody_ratio(v, chan, channels)
+            r = _even_ratio(path, lambda cf: views_blackbody_ratio(v, chan, channels, centre_fraction=cf), channels)
         else:
             if cam is not None and not cam.perfect_grid:
                 raise ValueError(f"{path} is a raw image of a camera whose lenslet grid is not a perfect one (rotated, "
@@ -78,14 +83,19 @@ def cmd_calibrate_temperature(a):
                                  "and give the VIEWS.h5")
             from ..real.clipping import auto_saturation, clipped_share
             _clipped_blackbody(clipped_share(raw, auto_saturation(raw)), path)
+            from ..temperature.mosaic import refuse_no_mosaic
+            refuse_no_mosaic(raw, path, "a blackbody image of a colour camera has one")
+            n = (cam or PAPER_CAMERA).pixels_per_lenslet
             try:
-                r = blackbody_ratio(raw, sensor, (cam or PAPER_CAMERA).pixels_per_lenslet, channels)
+                blackbody_ratio(raw, sensor, n, channels)
             except ValueError as e:
                 if cam is not None:
                     raise
                 raise ValueError(f"{e} ({path} stores no camera: it was taken as the paper camera's raw image; a raw "
                                  "image of your own camera is decoded first: 'lf-flame decode IMAGE --calibration "
                                  "cal.json --camera cam.toml --out VIEWS.h5', and the VIEWS.h5 given)") from None
+            r = _even_ratio(path, lambda cf: blackbody_ratio(raw, sensor, n, channels, centre_fraction=cf),
+                            channels)
         ratios.append(r)
         print(f"{path}: {t:g} K, {channels[0]}/{channels[1]} = {r:.5f} (sensor {sensor.name}, {sensor.pattern} "
               f"phase {sensor.phase}: {where})")
@@ -105,6 +115,18 @@ def cmd_calibrate_temperature(a):
         print(f"warning: the fit leaves a residual of {worst:.0f} K: one blackbody's --temperature may be wrong, or "
               "its image not a blackbody's filling the field (the temperatures given in the images' order: "
               + ", ".join(f"{t:g}" for t in temps) + " K)", file=sys.stderr)
+
+
+def _even_ratio(path, ratio, channels) -> float:
+    """A blackbody image's channel ratio over the central half of its field (``ratio(centre_fraction)``), refused
+    where the ratio over the centre or the outer part differs from it by more than :data:`BLACKBODY_SPREAD`."""
+    r = ratio(0.5)
+    spread = max(abs(ratio(cf) / r - 1) for cf in (0.2, 0.9))
+    if spread > BLACKBODY_SPREAD:
+        raise ValueError(f"{path}: its {channels[0]}/{channels[1]} ratio differs by {100 * spread:.1f} % between the "
+                         f"field's centre, its central half and its outer part (a blackbody's is the same everywhere, "
+                         f"{100 * BLACKBODY_SPREAD:g} % tolerated): not a blackbody filling the field evenly")
+    return r
 
 
 def _fitting_phases(images, temps, sensor, channels) -> str:

@@ -110,6 +110,10 @@ def random_depth_scene(camera: PlenopticCamera, rng: np.random.Generator, *, n_f
             h_top = min(h_hi, 0.85 * fh)
             H = float(math.exp(rng.uniform(math.log(min(h_lo, 0.5 * h_top)), math.log(h_top))))
             hw = max(float(rng.uniform(0.07, 0.12)) * H, min_half_width_mm)
+            if hw > 0.45 * fw:       # numpy's 'high - low < 0' had said so
+                raise ValueError(f"the camera's field, {fw:.3g} mm wide at {dz:+.3g} mm ({camera.n_cols} lenslets), "
+                                 f"is too narrow for a flame of its smallest half-width ({min_half_width_mm:g} mm): "
+                                 "this scene needs more lenslets")
             base = float(rng.uniform(-0.45 * fh, 0.45 * fh - H))
             cx = float(rng.uniform(-0.45 * fw + hw, 0.45 * fw - hw))
             level = float(rng.uniform(0.5, 1.0))
