@@ -221,8 +221,8 @@ def test_bad_input():
         measure_flame(plane, CAM, 0.0)
     with pytest.raises(EmptyPlaneError):
         measure_flame(plane, CAM, 0.0)
-    plane[50, 30] = 1.0  # one bright lenslet is not a flame
-    with pytest.raises(EmptyPlaneError, match="region"):
+    plane[50, 30] = 1.0  # one bright lenslet is not a flame: the plane holds light, too little to be one
+    with pytest.raises(EmptyPlaneError, match="region of 10 lenslets or more .* holds light, but is empty of flames"):
         measure_flame(plane, CAM, 0.0)
     with pytest.raises(EmptyPlaneError, match="no light"):
         measure_flame(plane, CAM, 0.0, columns=(0, 10))

@@ -429,8 +429,9 @@ def measure_flame(plane, camera: PlenopticCamera, depth_offset_mm: float, *, col
     regions = [r for r in measure.regionprops(labels, intensity_image=np.dstack([filters.sobel(img), img]))
                if r.area >= MIN_AREA_LENSLETS]
     if not regions:
-        raise EmptyPlaneError(f"plane is empty: no region of {MIN_AREA_LENSLETS} lenslets or more above "
-                         f"{segment_fraction:.0%} of the peak {peak:.4g} in columns [{c0}, {c1})")
+        raise EmptyPlaneError(f"no region of {MIN_AREA_LENSLETS} lenslets or more above {segment_fraction:.0%} of "
+                              f"the peak {peak:.4g} in columns [{c0}, {c1}): the plane holds light, but is empty of "
+                              "flames that large (a smaller one is not measured)")
     mask = labels == max(regions, key=lambda r: r.intensity_mean[0] / r.intensity_mean[1]).label
 
     rows_idx = np.arange(img.shape[0])
