@@ -164,6 +164,17 @@ def test_a_random_depth_scene_on_a_camera_too_small_for_it_is_refused_in_words(t
     assert "is too narrow for a flame of its smallest half-width" in capsys.readouterr().err
 
 
+def test_simulate_says_where_its_npz_is(tmp_path, capsys):
+    """simulate --out p.txt writes p.txt.npz (NumPy's name) and says so, where it had printed p.txt; nothing
+    temporary is left."""
+    cam = tmp_path / "small.toml"
+    cam.write_text("[camera]\nn_rows = 12\nn_cols = 12\n")
+    assert main(["simulate", "--camera", str(cam), "--scene", "point", "--rays-per-pixel", "1",
+                 "--out", str(tmp_path / "p.txt")]) == 0
+    assert f"-> {tmp_path / 'p.txt.npz'}" in capsys.readouterr().out
+    assert sorted(f.name for f in tmp_path.iterdir()) == ["p.txt.npz", "small.toml"]
+
+
 def test_ctrl_c_ends_with_one_line_and_130(capsys, monkeypatch):
     def interrupted(a):
         raise KeyboardInterrupt

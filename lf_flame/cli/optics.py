@@ -11,8 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import (finite, COLOUR_SCENES, RAW_FORMATS, _raw_objects, _save_image, _write_stack, add_camera_args,
-                  add_search_arg, camera_config, colour_scene, light_field, render_sensor, simulated_scene)
+from ._io import (COLOUR_SCENES, RAW_FORMATS, _raw_objects, _save_image, _write_stack, add_camera_args,
+                  add_search_arg, camera_config, colour_scene, finite, light_field, render_sensor, save_npz,
+                  simulated_scene)
 from ..simulate.scenes import PAPER_DEPTHS_MM
 
 
@@ -69,7 +70,7 @@ def cmd_simulate(a):
         if a.views:
             from ..refocus.shift_and_sum import raw_to_views
             extra["views"] = raw_to_views(raw, cam.pixels_per_lenslet)
-        np.savez_compressed(out, raw=raw, **meta, **extra)
+        out = save_npz(out, raw=raw, **meta, **extra)
     name = f"furnace at {a.temperature:g} K" if a.scene == "furnace" else sc.name    # a blackbody filling the field
     # drawn or carried to this camera's depths: how many (a small field holds fewer) and where
     if a.scene in ("depth", "colour-depth", "flame", "colour-flame"):

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 from ..tomo.defaults import ADMM_QUIET, ADMM_TV, DEFAULT_TV, SOLVERS
-from ._io import finite, AUTO_LEVEL, _level_or_none, add_search_arg, positive_int
+from ._io import AUTO_LEVEL, _level_or_none, add_search_arg, positive_int, finite
 
 #: Sensor noise of ``--noise``: full well (e-), read noise (e-), bits (a 12-bit high-speed camera).
 NOISE = (10_000.0, 5.0, 12)
@@ -39,8 +39,8 @@ def _check_recording_size(a, cam) -> None:
     free = shutil.disk_usage(q).free
     if need > free:
         raise ValueError(f"{n:.3g} frames ({fps:g} frames/s for {a.duration:g} s) of {cam.sensor_shape[0]} x "
-                         f"{cam.sensor_shape[1]} px take up to {need / 1e9:.3g} GB; {q} has {free / 1e9:.3g} GB free: a "
-                         "lower --fps or a shorter --duration")
+                         f"{cam.sensor_shape[1]} px take up to {need / 1e9:.3g} GB; {q} has {free / 1e9:.3g} GB "
+                         "free: a lower --fps or a shorter --duration")
 
 
 def _camera(a):

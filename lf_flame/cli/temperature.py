@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import finite, AUTO_LEVEL, RAW_FORMATS, _level_or_none, add_figure_arg, add_search_arg, fraction
+from ._io import AUTO_LEVEL, RAW_FORMATS, _level_or_none, add_figure_arg, add_search_arg, fraction, finite
 from .temperature_planes import (_auto_depths, fit_warnings, _level_record, _plane_lines, furnace_note,
                                  _plane_temperatures, _record, _refuse_monochrome, _sensor, _sensor_args,
                                  temperature_figure)

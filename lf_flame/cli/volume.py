@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import (finite, AUTO_LEVEL, RAW_FORMATS, _level_or_none, _raw_scene, add_camera_args, add_figure_arg,
+from ._io import (AUTO_LEVEL, finite, RAW_FORMATS, _level_or_none, _raw_scene, add_camera_args, add_figure_arg,
                   add_search_arg, positive_int)
 from .fit_notes import edge_warning, left_out_notes, misfit_warning, resolution_note, stack_end_warning
 from .planes import (_fitted_light_field, found_planes, found_record, lattice_solve, possible_warning,
