@@ -483,6 +483,14 @@ def test_bad_recordings_are_refused(tmp_path, small_seq):
     (tmp_path / "empty").mkdir()
     with pytest.raises(ValueError, match="holds no frames"):
         open_source(tmp_path / "empty")
+    # one light field given as a recording (it had been 'not a readable HDF5 file: truncated or damaged'), and a
+    # recording's frame index (sequence measures every frame)
+    np.save(tmp_path / "one.npy", np.zeros((30, 30)))
+    with pytest.raises(ValueError, match="one light field, not a recording"):
+        open_source(tmp_path / "one.npy")
+    _write_h5(tmp_path / "rec.h5", np.zeros((2, 30, 30)), fps=10.0)
+    with pytest.raises(ValueError, match="give the file, not FILE:INDEX"):
+        open_source(f"{tmp_path / 'rec.h5'}:1")
     job = _job(small_seq, chunk=4)
     for chunk in (0, -4, 2.5):
         with pytest.raises(ValueError, match=f"chunk .* must be a whole number >= 1. Received: {chunk}"):

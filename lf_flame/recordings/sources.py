@@ -237,7 +237,13 @@ def open_source(path, camera: PlenopticCamera | None = None):
             raise ValueError(f"folder {p} holds no frames ({', '.join(FRAME_SUFFIXES)} files)")
         return FolderSource(files), {}
     if not p.is_file():
-        raise ValueError(f"recording not found: {p}")
+        indexed = re.search(r":\d+$", str(p))
+        hint = " (a recording's frames are all measured: give the file, not FILE:INDEX)" if indexed else ""
+        raise ValueError(f"recording not found: {p}{hint}")
+    if p.suffix.lower() in (".npy", ".npz", ".png"):      # one light field, not a recording
+        raise ValueError(f"{p} is one light field, not a recording: a recording is an HDF5 file with a 'frames' stack "
+                         "(T, H, W), a multi-page TIFF or a folder of frames; one capture goes to 'lf-flame "
+                         "reconstruct' or 'profiles'")
     if p.suffix.lower() in (".tif", ".tiff"):
         import tifffile
         try:
