@@ -72,6 +72,20 @@ def test_calibrate_temperature_finds_the_gain_ratio(files, capsys):
     assert "note: blackbodies at one temperature (1600 K)" in capsys.readouterr().out
 
 
+def test_temperatures_beyond_the_blackbodies_are_said_to_be_extrapolated(files, capsys):
+    """The flames (1750 and 1900 K) read with a calibration of blackbodies at 2000 and 2400 K: the share of each
+    plane's temperatures beyond that range is printed as extrapolated (they had been printed as any others); with
+    the 1600-2400 K calibration, none."""
+    hot = str(files["dir"] / "hot.json")
+    assert main(["calibrate-temperature", *files["bb"][1:], "--temperature", "2000", "--temperature", "2400", "--out",
+                 hot]) == 0
+    for cal, said in ((hot, True), (files["cal"], False)):
+        capsys.readouterr()
+        assert main(["temperature", files["flame"], "--calibration", cal, "--depths", "0", "--no-figure", "--out",
+                     str(files["dir"] / "ex.h5")]) == 0
+        assert ("beyond the blackbodies' 2000-2400 K: extrapolated" in capsys.readouterr().out) == said
+
+
 @pytest.mark.parametrize("phase", [(1, 1), (0, 1), (1, 0)])
 def test_a_colour_filter_array_read_at_the_wrong_phase_is_refused(files, capsys, phase):
     """Read at another phase the RGGB mosaic's red samples are blue's or green's, its green samples red's and blue's:

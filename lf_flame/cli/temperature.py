@@ -96,7 +96,7 @@ def cmd_temperature(a):
     fig = out.with_suffix(".png") if a.figure else None
     if fig is not None:
         save_figure(temperature_figure(temp, depths, valid, cam), fig)
-    print("\n".join(_plane_lines(a, depths, r)))
+    print("\n".join(_plane_lines(a, depths, r, cal)))
     print(f"temperature of {len(depths)} planes ({a.route} {r['chosen']}) in {wall:.1f} s -> {out}"
           + (f", {fig}" if fig else ""))
 

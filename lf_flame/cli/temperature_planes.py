@@ -248,15 +248,22 @@ def fit_warnings(a, lf, depths, solved=None, found=None) -> dict:
                 clipped_share=clipped)
 
 
-def _plane_lines(a, depths, r) -> list:
+def _plane_lines(a, depths, r, cal=None) -> list:
     """The printout's line per plane: its pixels with a temperature, their median and p10-p90, and the pixels left
-    without one (:func:`_plane_temperatures`' ``r``)."""
+    without one (:func:`_plane_temperatures`' ``r``); with the calibration ``cal`` (of two temperatures or more), the
+    share of the temperatures beyond its blackbodies' range (the sensor's model carries the ratio there, unchecked)."""
     from ..temperature.pyrometry import T_RANGE_K
+    fit = sorted(set(cal.fit_temperatures_k)) if cal is not None else []
     lines = []
     for k, d in enumerate(depths):
         v = r["temp"][k][r["valid"][k]]
         stats = (f"median {np.median(v):.0f} K, p10-p90 {np.percentile(v, 10):.0f}-{np.percentile(v, 90):.0f} K"
                  if v.size else "no temperature")
+        if v.size and len(fit) > 1:
+            out = float(np.mean((v < fit[0]) | (v > fit[-1])))
+            if out > 0:
+                stats += (f" ({100 * out:.2g} % beyond the blackbodies' {fit[0]:g}-{fit[-1]:g} K: extrapolated by the "
+                          "sensor's model)")
         lines.append(f"plane {k} ({d:+.2f} mm): {int(r['valid'][k].sum())} px with a temperature, {stats}; "
                      f"{int(r['n_masked'][k])} bright px masked (ratio outside the table's {T_RANGE_K[0]:g}-{T_RANGE_K[1]:g} K), "
                      f"{int(r['n_dim'][k])} px "
