@@ -419,6 +419,28 @@ cols = 120
 """
 
 
+def test_blackbody_images_that_store_no_camera_take_the_camera_file(tmp_path, capsys):
+    """calibrate-temperature --camera cam.toml: raw blackbody images that store no camera (.npy, a TIFF from the
+    camera) of a perfect-grid camera are calibrated with that file's grid and CFA, as temperature takes it; without
+    it they are the paper camera's and refused (calibrate-temperature had no --camera)."""
+    cam = tmp_path / "cam.toml"
+    cam.write_text(COLOUR_FILE + 'cfa = "GRBG"\n')
+    npys = []
+    for t in (1600, 2400):
+        assert main(["simulate", "--camera", str(cam), "--scene", "furnace", "--temperature", str(t),
+                     "--rays-per-pixel", "2", "--out", str(tmp_path / f"bb{t}.npz")]) == 0
+        npys.append(str(tmp_path / f"bb{t}.npy"))
+        np.save(npys[-1], np.load(tmp_path / f"bb{t}.npz")["raw"])
+    temps = ["--temperature", "1600", "--temperature", "2400"]
+    assert main(["calibrate-temperature", *npys, *temps, "--out", str(tmp_path / "x.json")]) == 2
+    capsys.readouterr()
+    assert main(["calibrate-temperature", *npys, *temps, "--camera", str(cam), "--out", str(tmp_path / "a.json")]) == 0
+    assert main(["calibrate-temperature", *[n.replace(".npy", ".npz") for n in npys], *temps,
+                 "--out", str(tmp_path / "b.json")]) == 0
+    a, b = (json.loads((tmp_path / f"{k}.json").read_text()) for k in "ab")
+    assert a["pattern"] == "GRBG" and a["gain_ratio"] == pytest.approx(b["gain_ratio"], rel=1e-9)
+
+
 def test_a_camera_file_names_its_colour_filter_array(tmp_path):
     """[sensor] cfa, cfa_phase and sensitivities make the file's colour sensor; a file without them is monochrome;
     bad values are refused naming the key. Whole-pixel lenslet images tiling the sensor are a perfect grid (no

@@ -53,9 +53,14 @@ def cmd_calibrate_temperature(a):
                          "temperatures")
     channels = _channels(a.channels)
     ratios, sensor0 = [], None
+    own = None
+    if a.camera:                                  # the images' camera (a perfect grid's raw images need no decoding)
+        from ..optics.camera_file import load_camera_file
+        own = load_camera_file(a.camera)
     for path, t in zip(a.images, temps):
         refuse_rgb(path)
         raw, cam = (None, None) if str(path).endswith(".h5") else _load_raw(path)
+        cam = own or cam
         sensor, where = _sensor(path, a)
         if sensor0 is not None and (sensor.name, sensor.pattern, sensor.phase) != (
                 sensor0.name, sensor0.pattern, sensor0.phase):
@@ -102,7 +107,7 @@ def cmd_calibrate_temperature(a):
     try:
         cal = fit_calibration(sensor0, temps, ratios, channels)
     except ValueError as err:           # a colour filter array read at the wrong phase: say which phase fits
-        raise ValueError(f"{err}{_fitting_phases(a.images, temps, sensor0, channels)}") from None
+        raise ValueError(f"{err}{_fitting_phases(a.images, temps, sensor0, channels, own)}") from None
     out = write_calibration(a.out, cal)
     print(f"gain ratio {cal.gain_ratio:.5f}; fit residuals " + ", ".join(f"{x:+.2f}" for x in cal.fit_residuals_k)
           + f" K -> {out}")
@@ -129,7 +134,7 @@ def _even_ratio(path, ratio, channels) -> float:
     return r
 
 
-def _fitting_phases(images, temps, sensor, channels) -> str:
+def _fitting_phases(images, temps, sensor, channels, camera=None) -> str:
     """For raw blackbody images refused by :func:`~lf_flame.temperature.pyrometry.fit_calibration`: the other CFA
     phases of the same pattern under which they fit, with their largest residual (K), as a sentence ('' for
     decoded views, whose channels were fixed when decoded, or where none fits)."""
@@ -139,7 +144,7 @@ def _fitting_phases(images, temps, sensor, channels) -> str:
     from ..temperature.pyrometry import blackbody_ratio, fit_calibration
     if any(str(p).endswith(".h5") for p in images):
         return ""
-    raws = [_load_raw(p) for p in images]
+    raws = [(raw, camera or cam) for raw, cam in (_load_raw(p) for p in images)]
     fits = []
     for phase in ((0, 0), (0, 1), (1, 0), (1, 1)):
         if phase == tuple(sensor.phase):
@@ -164,6 +169,8 @@ def add_parsers(sub) -> None:
     s.add_argument("--temperature", type=finite, action="append", help="each image's temperature, K, in the images' "
                    "order (repeatable; one per image)")
     s.add_argument("--channels", default="R,G", help="numerator and denominator channels of the ratio")
+    s.add_argument("--camera", help="camera file (docs/own_camera.md) of raw images that store none: its grid and "
+                   "its [sensor] cfa")
     _sensor_args(s, False)
     s.add_argument("--out", required=True, help="calibration JSON (read by 'lf-flame temperature')")
     s.set_defaults(func=cmd_calibrate_temperature)
