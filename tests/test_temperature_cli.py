@@ -441,6 +441,22 @@ def test_blackbody_images_that_store_no_camera_take_the_camera_file(tmp_path, ca
     assert a["pattern"] == "GRBG" and a["gain_ratio"] == pytest.approx(b["gain_ratio"], rel=1e-9)
 
 
+def test_planes_of_a_real_grids_capture_are_not_flagged_cfa_blind():
+    """The rule of CFA-blind planes (slopes near an odd integer) holds where the CFA's phase alternates with the
+    lenslets, a perfect grid of odd N; a capture of a real grid (the example camera: 10.57 px, rotated) shifts it
+    irregularly, and its planes at slopes 0.83 and 1.04 had been flagged though every lenslet saw red."""
+    import types
+    from pathlib import Path
+    from lf_flame.cli.temperature_planes import _blind
+    from lf_flame.optics.camera_file import load_camera_file
+    real = load_camera_file(str(Path(__file__).resolve().parents[1] / "examples" / "own_camera.toml"))
+    slopes = [0.0, 0.83, 1.04]
+    for lf, want in ((types.SimpleNamespace(decoded=True, capture_camera=real), [False] * 3),
+                     (types.SimpleNamespace(decoded=False, capture_camera=None), [False, True, True]),
+                     (types.SimpleNamespace(decoded=True, capture_camera=CAM), [False, True, True])):
+        assert list(_blind(lf, slopes, 9)) == want            # 9 views, as the user's camera decodes to
+
+
 def test_a_camera_file_names_its_colour_filter_array(tmp_path):
     """[sensor] cfa, cfa_phase and sensitivities make the file's colour sensor; a file without them is monochrome;
     bad values are refused naming the key. Whole-pixel lenslet images tiling the sensor are a perfect grid (no

@@ -154,7 +154,7 @@ def _plane_temperatures(a, lf, depths, found, cal, sensor, cache=None) -> dict:
     from ..temperature.pyrometry import bright_pixels, temperature_planes
     from ..temperature.channels import (DECODED_KNOBS, DECODED_OFFSET_KNOBS, DECODED_RATIO_FILTER, channel_emission,
                                         route_operator)
-    from ..temperature.mosaic import cfa_blind, channel_views
+    from ..temperature.mosaic import channel_views
     from ..tomo.decoded import fit_data
     cam, views = lf.camera, lf.views
     n = cam.pixels_per_lenslet
@@ -203,8 +203,20 @@ def _plane_temperatures(a, lf, depths, found, cal, sensor, cache=None) -> dict:
     temp, valid, n_masked = temperature_planes(emission[0], emission[1], cal, sensor, a.alpha, a.min_fraction)
     dim = ~bright_pixels(emission[0] + emission[1], a.min_fraction)
     return dict(temp=temp, valid=valid, n_masked=n_masked, dim=dim, n_dim=dim.reshape(len(dim), -1).sum(axis=1),
-                emission=emission, chosen=chosen, slopes=slopes, blind=cfa_blind(slopes, n),
+                emission=emission, chosen=chosen, slopes=slopes, blind=_blind(lf, slopes, n),
                 sample=np.array([[lenslet_size_mm(cam, d)] * 2 for d in depths]))
+
+
+def _blind(lf, slopes, n) -> np.ndarray:
+    """:func:`lf_flame.temperature.mosaic.cfa_blind` of the planes, where the capture's CFA phase alternates with its
+    lenslets as that rule has it (a perfect grid of N pixels per lenslet); a capture of a real grid (a pitch of no
+    whole number of pixels, rotated, hexagonal) shifts the phase from lenslet to lenslet otherwise, and no plane is
+    blind: a user's decoded planes at slopes 0.83 and 1.04 had been warned of, each of its lenslets holding 13 red
+    samples or more."""
+    from ..temperature.mosaic import cfa_blind
+    if lf.decoded and not lf.capture_camera.perfect_grid:
+        return np.zeros(len(slopes), bool)
+    return cfa_blind(slopes, n)
 
 
 def _auto_depths(a, lf):
