@@ -97,6 +97,22 @@ def test_a_capture_of_another_grid_is_refused(grids, calibrations, calibrated, s
         assert abs(float(got[2]) / cam.grid_pitch_px - 1) < 0.03, str(err.value)    # a bin at the fundamentals
 
 
+@pytest.mark.parametrize("layout", ["hex", "square"])
+def test_a_calibration_whose_grid_lies_off_the_lenslet_images_is_refused(grids, calibrations, layout):
+    """The grid's origin moved by half a pitch (a hand edit, or a lenslet array that moved since calibration): the
+    white image's brightest view is no longer the central one, and decoding refuses it. The grid check (pitch and
+    layout) cannot see it, and such views had been 55 % off, six planes found for four flames. The calibration's own
+    white image passes, its brightest view central."""
+    import dataclasses
+    cam, white, raw = grids(layout)
+    cal = calibrations(layout)
+    assert np.abs(np.array(np.unravel_index(decode.white_samples(cal, white).mean(axis=(2, 3)).argmax(),
+                                            (10, 10))) - 4.5).max() <= 1.5
+    moved = dataclasses.replace(cal, origin_px=(cal.origin_px[0] + cal.pitch_px / 2, cal.origin_px[1]))
+    with pytest.raises(ValueError, match="lenslet grid lies off the lenslet images"):
+        decode.decode(raw, moved, white)
+
+
 def test_a_dark_image_cannot_be_checked_and_passes(calibrations):
     cal = calibrations("hex")
     check_grid(np.zeros(cal.sensor_shape), cal)
