@@ -302,6 +302,8 @@ def test_the_planes_scale_with_the_data_in_the_units_of_its_clipping_level(op, p
         scaled = reconstruct(data * c, op, solver, 3, tv=0.1, saturation=c)
         assert rel(scaled.planes / c, ref.planes).max() < 1e-4, (c, rel(scaled.planes / c, ref.planes))
         assert scaled.settings["saturation"] == c and scaled.settings["n_saturated"] == ref.settings["n_saturated"]
+    with pytest.warns(UserWarning, match=r"are at or above the saturation level 1 and left out"):
+        reconstruct(data * 1e3, op, solver, 1)              # counts fitted with the default level: said
 
 
 def test_refusals(camera, op, planted):
