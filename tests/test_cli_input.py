@@ -139,6 +139,9 @@ def test_an_output_that_would_overwrite_an_input_is_refused_before_the_work(tmp_
     (tmp_path / "adir").mkdir()                     # a file output that is a folder: refused before the work (it had
     assert main(["reconstruct", t("cap.h5"), "--out", t("adir")]) == 2          # failed after it, on 'adir.part')
     assert "is a folder: name the file" in capsys.readouterr().err
+    (tmp_path / "fig.png").mkdir()                  # its figure's place a folder: refused before (it had written
+    assert main(["reconstruct", t("cap.h5"), "--out", t("fig.h5")]) == 2         # fig.h5, then failed, exit 2)
+    assert "the figure" in capsys.readouterr().err and not (tmp_path / "fig.h5").exists()
     assert ran == []
     assert main(["profiles", t("cap.h5"), "--out", t("prof.png")]) == 0               # PREFIX.png.csv ...
     assert main(["refocus", t("cap.h5"), "--slope", "0", "--out", t("planes.png")]) == 0

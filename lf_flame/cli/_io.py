@@ -320,6 +320,9 @@ def check_outputs(a) -> None:
             if figure and o.suffix.lower() == ".png":
                 raise ValueError(f"--{k.replace('_', '-')} {o}: name the HDF5 file (e.g. {o.with_suffix('.h5')}); "
                                  "the figure is written beside it as .png")
+            if figure and o.with_suffix(".png").is_dir():
+                raise ValueError(f"the figure {o.with_suffix('.png')} cannot be written: a folder stands there "
+                                 "(--no-figure skips it)")
             for q in inputs:
                 if _same(o, q) or (figure and _same(o.with_suffix(".png"), q)):
                     raise ValueError(f"--{k.replace('_', '-')} {o} would overwrite the input {q}: write elsewhere")

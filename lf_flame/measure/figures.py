@@ -266,12 +266,21 @@ def save_figure(fig, path, dpi: int = 110) -> Path:
     Returns
     -------
     Path
+
+    Raises
+    ------
+    IsADirectoryError
+        A folder at ``path`` (before drawing; nothing temporary is left by a failed write).
     """
+    from ..config import removed_on_error
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    if path.is_dir():       # the rename would fail after the drawing, naming the temporary file
+        raise IsADirectoryError(f"cannot write the figure {path}: a folder stands there")
     tmp = path.with_name(f"{path.stem}.partial{path.suffix}")
-    fig.savefig(tmp, dpi=dpi)
-    tmp.replace(path)
+    with removed_on_error(tmp):
+        fig.savefig(tmp, dpi=dpi)
+        tmp.replace(path)
     return path
 
 
