@@ -278,7 +278,8 @@ def check_output(path) -> None:
 
 
 def _input_paths(a) -> list[Path]:
-    """The files and folders that a command's other options name and that exist (``FILE.h5:INDEX`` as ``FILE.h5``)."""
+    """The files that a command's other options name and that exist (``FILE.h5:INDEX`` as ``FILE.h5``); folders are
+    not (a model folder and a results folder may be one)."""
     out = []
     for k, v in vars(a).items():
         if k in OUTPUT_OPTIONS:
@@ -286,7 +287,7 @@ def _input_paths(a) -> list[Path]:
         for x in v if isinstance(v, (list, tuple)) else [v]:
             if isinstance(x, (str, Path)) and str(x):
                 q = Path(re.sub(r":\d+$", "", str(x)))
-                if q.exists():
+                if q.is_file():
                     out.append(q)
     return out
 
