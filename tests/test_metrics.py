@@ -28,6 +28,11 @@ def test_shape_mismatch_and_nan():
         ssim_per_plane(np.zeros((1, 8, 8)), np.zeros((1, 8, 9)))
     with pytest.raises(ValueError, match="NaN"):
         psnr_per_plane(np.zeros((1, 8, 8)), np.full((1, 8, 8), np.nan))
+    # one 2-D image (it had been scored row by row: 32 values) and integer images (uint8 against a data range of 1)
+    with pytest.raises(ValueError, match=r"stack of planes \(P, rows, cols\); one image is x\[None\]"):
+        ssim_per_plane(np.zeros((32, 32)), np.zeros((32, 32)))
+    with pytest.raises(ValueError, match="holds integers"):
+        psnr_per_plane(np.zeros((1, 8, 8), np.uint8), np.ones((1, 8, 8), np.uint8))
 
 
 def test_own_error_is_one_renders_error_from_two():

@@ -20,7 +20,16 @@ def _checked_pair(first, second, names=("reference", "prediction"), what="images
 
 
 def _per_plane(metric, ref, pred) -> np.ndarray:
-    """Apply ``metric(ref_plane, pred_plane)`` to each plane after checking the inputs."""
+    """Apply ``metric(ref_plane, pred_plane)`` to each plane after checking the inputs: stacks (P, rows, cols) of
+    floats (one 2-D image had been scored row by row; a uint8 image against the data range 1, -9.5 dB for two
+    near-identical ones)."""
+    for name, x in (("reference", ref), ("prediction", pred)):
+        x = np.asarray(x)
+        if x.ndim != 3:
+            raise ValueError(f"{name} must be a stack of planes (P, rows, cols); one image is x[None]. Received "
+                             f"shape {x.shape}")
+        if np.issubdtype(x.dtype, np.integer):
+            raise ValueError(f"{name} holds integers ({x.dtype}): scale the planes to [0, 1] (the metrics' data range)")
     ref, pred = _checked_pair(ref, pred)
     return np.array([metric(r, p) for r, p in zip(ref, pred)])
 
@@ -35,6 +44,11 @@ def ssim_per_plane(ref, pred) -> np.ndarray:
     Returns
     -------
     ndarray of shape (P,)
+
+    Raises
+    ------
+    ValueError
+        Stacks of other shapes than (P, rows, cols) or unlike each other, integer images, NaN or inf.
     """
     return _per_plane(lambda r, p: structural_similarity(r, p, data_range=1.0), ref, pred)
 
