@@ -272,15 +272,17 @@ def save_figure(fig, path, dpi: int = 110) -> Path:
     IsADirectoryError
         A folder at ``path`` (before drawing; nothing temporary is left by a failed write).
     """
-    from ..config import removed_on_error
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.is_dir():       # the rename would fail after the drawing, naming the temporary file
         raise IsADirectoryError(f"cannot write the figure {path}: a folder stands there")
     tmp = path.with_name(f"{path.stem}.partial{path.suffix}")
-    with removed_on_error(tmp):
+    try:
         fig.savefig(tmp, dpi=dpi)
         tmp.replace(path)
+    except BaseException:   # a full disk, Ctrl-C: nothing temporary left
+        tmp.unlink(missing_ok=True)
+        raise
     return path
 
 
