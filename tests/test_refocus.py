@@ -290,6 +290,10 @@ def test_cli_refocus_and_slopes(tmp_path, small_camera, capsys):
     assert abs(df.slope[0] - s) <= 0.05 and abs(df.depth_mm[0] - 10.0) < 1.0
     assert (tmp_path / "p.slopes.png").stat().st_size > 0
     assert "p.slopes.csv" in capsys.readouterr().out
+    # a prefix ending in / is a folder: the files go in it, named after the raw image (it had written ./sl.slopes.csv)
+    assert main(["slopes", str(tmp_path / "p.npz"), "--roi", "10", "31", "10", "31", "--lo", "-2", "--hi", "2",
+                 "--out-prefix", str(tmp_path / "sl") + "/"]) == 0
+    assert (tmp_path / "sl" / "p.slopes.csv").is_file() and (tmp_path / "sl" / "p.slopes.png").is_file()
     # a search beyond what a camera refocuses is refused before it starts (-100 ... 100 had taken 24 GB and been killed)
     assert main(["slopes", str(tmp_path / "p.npz"), "--lo", "-100", "--hi", "100"]) == 2
     assert "--lo -100, --hi 100: slopes beyond 3 lenslets per view" in capsys.readouterr().err

@@ -248,9 +248,13 @@ def cmd_slopes(a):
     df = pd.DataFrame(rows)
     print(df.to_string(index=False))
     print(f"searched {len(objects)} regions ({a.method}, {a.metric}) in {time.perf_counter() - t:.2f} s")
-    out = Path(a.out_prefix or Path(a.raw.split(".h5:")[0]).with_suffix(""))
+    stem = Path(a.raw.split(".h5:")[0]).with_suffix("")
+    out = Path(a.out_prefix or stem)
+    if a.out_prefix and (a.out_prefix.endswith(("/", "\\")) or out.is_dir()):   # a folder: the files go in it
+        out = out / stem.name
     out.parent.mkdir(parents=True, exist_ok=True)
-    df.to_csv(f"{out}.slopes.csv", index=False)
+    from ..config import atomic_write_text
+    atomic_write_text(f"{out}.slopes.csv", df.to_csv(index=False))
     plot_slope_curves([o["name"] for o in objects], searches, f"{out}.slopes.png", a.metric)
     print(f"-> {out}.slopes.csv, {out}.slopes.png")
 
@@ -371,7 +375,8 @@ def add_parsers(sub) -> None:
     add_camera_args(s)
     s.add_argument("--aperture", choices=["square", "circular"], default="circular",
                    help="views summed: all, or those inside the main lens's circular aperture")
-    s.add_argument("--out-prefix", help="write PREFIX.slopes.csv and PREFIX.slopes.png (default: beside RAW)")
+    s.add_argument("--out-prefix", help="write PREFIX.slopes.csv and PREFIX.slopes.png (default: beside RAW; a "
+                                        "folder, or a path ending in /: in it, named after RAW)")
     s.add_argument("--data-config", help="calibration mode: data config TOML")
     s.add_argument("--out", help="calibration mode: JSON of the slopes used for ground truth")
     s.add_argument("--results", help="calibration mode: folder for slopes.csv and slopes.png")
