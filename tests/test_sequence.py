@@ -261,6 +261,12 @@ def test_a_restart_skips_the_chunks_done(small_seq, serial_table, tmp_path):
     s = run(job, tmp_path, progress=False)
     assert s["chunks_processed"] == 1
     assert (tmp_path / "frames.csv").read_bytes() == serial_table
+    # a chunk file truncated since it was written is done again (it had stopped the resume: 'does not hold every
+    # frame exactly once; delete it and run again')
+    f = tmp_path / "parts" / "chunk-00002.csv"
+    f.write_bytes(f.read_bytes()[: len(f.read_bytes()) // 2])
+    assert run(job, tmp_path, progress=False)["chunks_processed"] == 1
+    assert (tmp_path / "frames.csv").read_bytes() == serial_table
     other = _job(flicker_sequence(PAPER_CAMERA, np.random.default_rng(6), "overlap", fps=100, duration_s=0.4), chunk=4)
     with pytest.raises(ValueError, match="other settings"):
         run(other, tmp_path, progress=False)

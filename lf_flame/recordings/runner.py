@@ -176,15 +176,33 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
         _start_over_or_refuse(out, jf.read_text(), ident)
     (out / "summary.json").unlink(missing_ok=True)   # not finished until written again
     atomic_write_text(jf, ident)
+    def frames_of(c):
+        return list(range(c * job.chunk, min((c + 1) * job.chunk, job.source.n_frames)))
+
+    def whole(df, c):
+        return sorted(df.frame.unique()) == frames_of(c) and len(df) == len(frames_of(c)) * len(job.depths_mm)
+
+    damaged = []
+    for c in range(job.n_chunks):           # a chunk file damaged since it was written: done again, not refused
+        f = parts / f"chunk-{c:05d}.csv"
+        if f.exists():
+            try:
+                ok = whole(pd.read_csv(f, keep_default_na=False, na_values=[""]), c)
+            except (ValueError, KeyError, pd.errors.ParserError):
+                ok = False
+            if not ok:
+                f.unlink()
+                damaged.append(c)
+    if damaged:
+        print(f"{len(damaged)} chunk file(s) of {parts} damaged since written (chunk {damaged[0]} ...): done again")
     todo = [c for c in range(job.n_chunks) if not (parts / f"chunk-{c:05d}.csv").exists()]
     t0 = time.perf_counter()
     busy = dict(read_s=0.0, refocus_s=0.0, measure_s=0.0)
 
     def keep(c, res):
         df = pd.DataFrame(res["rows"])
-        want = list(range(c * job.chunk, min((c + 1) * job.chunk, job.source.n_frames)))
-        if sorted(df.frame.unique()) != want or len(df) != len(want) * len(job.depths_mm):
-            raise ValueError(f"chunk {c} returned frames {sorted(df.frame.unique())}, expected {want}")
+        if not whole(df, c):
+            raise ValueError(f"chunk {c} returned frames {sorted(df.frame.unique())}, expected {frames_of(c)}")
         _write_csv(parts / f"chunk-{c:05d}.csv", df)
         for k in busy:
             busy[k] += res[k]
