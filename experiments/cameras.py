@@ -174,7 +174,7 @@ def run_camera(name, sheet, cache: Path, seeds, rays: int) -> tuple[list, list, 
                 run("refocus", views, "--camera", cam_file, "--calibration", d / "calibration.json", "--depth",
                     f"{o['depth_offset_mm']:.3f}", "--out", d / "refocus.npz")
                 run("slopes", views, "--camera", cam_file, "--calibration", d / "calibration.json",
-                    "--out", d / "slopes.csv")
+                    "--out-prefix", d / "slopes")
                 run("profiles", views, "--camera", cam_file, "--calibration", d / "calibration.json",
                     *[x for o in scene.objects for x in ("--depth", f"{o['depth_offset_mm']:.3f}")],
                     "--out", d / "profiles")

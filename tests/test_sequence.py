@@ -300,7 +300,7 @@ def test_one_frame_of_a_recording_is_read_as_a_capture(tmp_path, capsys):
     raw, cam = _load_raw(f"{tmp_path / 'rec.h5'}:1")
     assert cam == PAPER_CAMERA and raw.dtype == np.float32
     np.testing.assert_allclose(raw, frames[1] / 65535.0, rtol=1e-6)
-    assert main(["slopes", f"{tmp_path / 'rec.h5'}:3", "--out", str(tmp_path / "s.csv")]) == 2
+    assert main(["slopes", f"{tmp_path / 'rec.h5'}:3", "--out-prefix", str(tmp_path / "s")]) == 2
     assert "a recording of 3 frames takes a frame index 0 .. 2" in capsys.readouterr().err
 
 

@@ -204,6 +204,10 @@ def refocus_figure(stack, slopes, camera=None, *, method: str = ""):
 def cmd_slopes(a):
     if a.raw is None:
         return _calibrate_slopes(a)
+    given = [f"--{k.replace('_', '-')}" for k in ("out", "data_config", "results") if getattr(a, k, None)]
+    if given:       # they had been ignored without a word: the files went beside RAW
+        raise ValueError(f"{' and '.join(given)} belong to the calibration mode (no RAW); a light field's curves go "
+                         "to --out-prefix PREFIX (default: beside RAW)")
     import pandas as pd
     from ..learn.evaluation import plot_slope_curves
     from ..refocus.shift_and_sum import aperture_mask, find_sharpest_slope

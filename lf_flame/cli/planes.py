@@ -130,7 +130,8 @@ def _fitted_light_field(lf, saturation):
     if saturation in ("file", "auto"):
         return lf
     if lf.white_normalised and saturation is not None:
-        raise ValueError("decoded views carry their clipped samples ('lf-flame decode --saturation'): "
+        raise ValueError("decoded views (decoded by 'lf-flame decode', or from a raw capture here with --calibration) "
+                         "carry their clipped samples (the decoding's --saturation): "
                          "--saturation takes only 'none' for them (fit every sample)")
     return dataclasses.replace(lf, leave_out=None, lattice_leave_out=None, saturation=saturation)
 

@@ -247,7 +247,7 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
         if not z_lo <= start_z_mm <= z_hi:
             raise ValueError(f"the axis is searched about {start_z_mm:+.2f} mm (the flame found with the most votes), "
                              f"outside the stack's {z_lo:+g} to {z_hi:+g} mm: widen the stack about it (the command's "
-                             "--from, --to), or give the axis's depth (axis_z_mm)")
+                             "--from, --to), or give the axis's depth (solve_axisymmetric's axis_z_mm, in Python)")
         lo, hi = max(start_z_mm - search_half_width_mm, z_lo), min(start_z_mm + search_half_width_mm, z_hi)
         scan = np.linspace(lo, hi, max(int(round((hi - lo) / SEARCH_SCAN_MM)), 1) + 1)
         k = int(np.argmin([trial(z) for z in scan]))
