@@ -180,7 +180,8 @@ def test_the_command_maps_another_cameras_geometry(tmp_path, capsys):
     out = tmp_path / "res" / "other"
     assert main(["resolution", "--camera", str(cam), "--out", str(out)]) == 0
     text = capsys.readouterr().out
-    assert f"every {spacing:g} mm from {near:+g} to {far:+g} mm" in text and f"camera of {cam}" in text
+    last = near + spacing * int(np.floor((far - near) / spacing + 1e-9))      # the last plane, at or below far
+    assert f"every {spacing:g} mm from {near:+g} to {last:+g} mm" in text and f"camera of {cam}" in text
     df = pd.read_csv(out.with_name("other.csv"))
     assert list(df.feature_mm) == list(features)
     assert main(["resolution", "--camera", str(cam), "--feature", *map(str, FEATURES), "--out", str(out)]) == 0
@@ -222,11 +223,11 @@ def test_the_command_maps_a_datasheet_camera(tmp_path, capsys):
     lenslets), not refused for its grid nor replaced by the paper's camera."""
     cam = Path(__file__).resolve().parents[1] / "examples" / "own_camera.toml"
     out = tmp_path / "own"
-    assert main(["resolution", "--camera", str(cam), "--near", "-10", "--far", "10", "--spacing", "1",
+    assert main(["resolution", "--camera", str(cam), "--near", "-10", "--far", "10.5", "--spacing", "1",
                  "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert f"camera of {cam} (its decoded views: 10 x 10 views of 48 x 31 lenslets" in text
-    assert "21 planes every 1 mm" in text
+    assert "21 planes every 1 mm from -10 to +10 mm" in text        # its last plane, not --far (it had said +10.5)
     camera = json.loads(out.with_name("own.md").read_text().split("Camera: `")[1].split("`")[0])
     assert camera["pixels_per_lenslet"] == 10 and camera["grid_rotation_deg"] == 0
 

@@ -46,8 +46,9 @@ def cmd_resolution(a):
     if views is not camera:
         where += (f" (its decoded views: {views.pixels_per_lenslet} x {views.pixels_per_lenslet} views of "
                   f"{views.n_rows} x {views.n_cols} lenslets at the optics' pitch, no calibration)")
-    head = (f"Depth resolution of {where}: {res.depths_mm.size} planes every {a.spacing:g} mm from {a.near:+g} to "
-            f"{a.far:+g} mm, frequency along the {a.axis}; for each plane spacing, the condition number of the two "
+    head = (f"Depth resolution of {where}: {res.depths_mm.size} planes every {a.spacing:g} mm from "
+            f"{res.depths_mm[0]:+g} to {res.depths_mm[-1]:+g} mm, frequency along the {a.axis}; for each plane "
+            "spacing, the condition number of the two "
             f"planes' normal block, median (worst) over positions across the stack. Data alone: no border, "
             f"no prior (optimistic).")
     print(head)
@@ -81,8 +82,8 @@ def add_parsers(sub) -> None:
                    "default: the paper camera's -15 mm carried to this camera at equal parallax across the aperture, "
                    "within what it refocuses)")
     s.add_argument("--far", type=finite, help="farthest plane, mm (default: the paper camera's +25 mm, carried so)")
-    s.add_argument("--spacing", type=finite, help="the stack's plane spacing, mm (default: 80 steps from --near to "
-                   "--far; 0.5 mm on the paper's camera)")
+    s.add_argument("--spacing", type=finite, help="the stack's plane spacing, mm (default: about 80 steps from --near "
+                   "to --far, rounded to two digits, the last plane at or below --far; 0.5 mm on the paper's camera)")
     s.add_argument("--condition", type=finite, nargs="+", default=list(CONDITIONS),
                    help="condition numbers of the two planes' normal block (>= 1)")
     s.add_argument("--feature", type=finite, nargs="+", help="feature sizes, half a period, mm (default: the paper "
