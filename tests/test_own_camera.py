@@ -105,6 +105,10 @@ def test_a_volume_of_decoded_views_models_decodings_interpolation(route):
     with h5py.File(out) as f:
         assert f.attrs["operator"] == "exact, with decoding's interpolation"
         assert f["planes"].shape[0] == 18 and np.all(f["planes"][...] >= 0)
+        # the decoded frame its positions are in, as the planes route records it (a volume had recorded none)
+        with h5py.File(d / "vol.h5") as g:
+            assert json.loads(f.attrs["frame"]) == json.loads(g.attrs["frame"])
+            assert f.attrs["own_camera"] == g.attrs["own_camera"]
 
 
 def test_a_volume_of_a_simulated_capture_decoded_on_the_fly_is_scored_against_its_scene(route, capsys):

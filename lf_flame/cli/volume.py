@@ -75,10 +75,7 @@ def cmd_reconstruct(a):
     if lf.decoded:
         operator = "exact" if lf.interpolation is None else "exact, with decoding's interpolation" + (
             ", on the hexagonal lattice" if lf.lattice_views is not None else "")
-        extra.update(own_camera=lf.capture_camera.to_json(), frame=lf.frame.to_dict(), operator=operator,
-                     n_clipped=0 if lf.leave_out is None else int(lf.leave_out.sum()))
-        if lf.camera_file:
-            extra["camera_file"] = lf.camera_file
+        extra.update(decoded_record(lf), operator=operator)
     kw = dict(solver=a.solver, iters=a.iters, damp=a.damp, tv=a.tv, saturation=getattr(a, "saturation", "file"),
               rays_per_pixel=a.rays_per_pixel, progress=True, subsamples=getattr(a, "subsamples", None),
               model_dir=getattr(a, "model", None))
@@ -137,6 +134,17 @@ def _scene_truth(raw, lf, op):
                    scene_truth(scene, op))
 
 
+def decoded_record(lf) -> dict:
+    """What a file of decoded views' planes records of the real camera: its camera, the decoded frame (the planes'
+    rotation and offset in the real object space: positions are in that frame), the clipped samples and the camera
+    file; {} for a light field that is not decoded."""
+    if not lf.decoded:
+        return {}
+    out = dict(own_camera=lf.capture_camera.to_json(), frame=lf.frame.to_dict(),
+               n_clipped=0 if lf.leave_out is None else int(lf.leave_out.sum()))
+    return {**out, "camera_file": lf.camera_file} if lf.camera_file else out
+
+
 def _outside_stack_note(scene, depths_mm, step: float) -> str:
     """Where the scene's light lies beyond the stack (more than half a step past its ends), the share of it, for the
     score's line: the truth puts that light on the end planes (:func:`lf_flame.tomo.truth.depth_shares`), so the score
@@ -193,7 +201,8 @@ def volume_reconstruct(a):
     misfit = misfit_warning(lf, op, rec, level)
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), volume=True,
                         depth_resolution=table.to_dict("list"), edge_share=edge, stack_end_share=ends, misfit=misfit,
-                        operator="exact" if lf.interpolation is None else "exact, with decoding's interpolation")
+                        operator="exact" if lf.interpolation is None else "exact, with decoding's interpolation",
+                        **decoded_record(lf))
     scene, truth = _scene_truth(a.raw, lf, op)
     fig = _figure_path(a)
     if fig is not None:
