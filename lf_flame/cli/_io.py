@@ -215,7 +215,6 @@ def finite(text: str) -> float:
     argparse.ArgumentTypeError
         NaN, inf or not a number; argparse names the option and exits with status 2.
     """
-    import argparse
     try:
         v = float(text)
     except ValueError:
@@ -383,35 +382,35 @@ def _save_image(path, img, metadata=None, bits: int = 8):
     """An image in [0, 1] as a gray PNG of ``bits`` (8 or 16) bits: clipped, rounded to the
     nearest level; ``metadata`` (str -> str) goes in its text chunks. Written to a temporary
     file, then renamed."""
-    import os
     from PIL import Image, PngImagePlugin
-    from ..config import removed_on_error
     top = (1 << bits) - 1
     q = np.round(np.clip(np.asarray(img, np.float64), 0, 1) * top).astype(np.uint16 if bits > 8 else np.uint8)
     info = PngImagePlugin.PngInfo()
     for k, v in (metadata or {}).items():
         info.add_text(k, v)
     path = Path(path)
-    tmp = path.with_name(path.name + ".partial")
-    with removed_on_error(tmp):
-        Image.fromarray(q).save(tmp, format="PNG", pnginfo=info)
-        os.replace(tmp, path)
+    _written(path, path.with_name(path.name + ".partial"), lambda t: Image.fromarray(q).save(t, format="PNG",
+                                                                                              pnginfo=info))
 
 
 def save_npz(path, **arrays) -> Path:
     """``arrays`` in a compressed .npz at ``path`` (".npz" added where it lacks it, as NumPy adds it), written to a
     temporary file, then renamed; returns the path written (the one to print: 'simulate --out p.txt' had printed
     p.txt for p.txt.npz)."""
-    import os
-    from ..config import removed_on_error
     out = Path(path)
     if out.suffix != ".npz":
         out = out.with_name(out.name + ".npz")
-    tmp = out.with_name(out.name + ".partial.npz")
-    with removed_on_error(tmp):
-        np.savez_compressed(tmp, **arrays)
-        os.replace(tmp, out)
+    _written(out, out.with_name(out.name + ".partial.npz"), lambda t: np.savez_compressed(t, **arrays))
     return out
+
+
+def _written(path: Path, tmp: Path, write) -> None:
+    """``write(tmp)``, then ``tmp`` renamed onto ``path``; ``tmp`` removed if either fails (nothing half-written)."""
+    import os
+    from ..config import removed_on_error
+    with removed_on_error(tmp):
+        write(tmp)
+        os.replace(tmp, path)
 
 
 def _write_stack(path, stack, **extra):

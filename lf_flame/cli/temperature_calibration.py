@@ -6,7 +6,7 @@ import sys
 
 import numpy as np
 
-from ._io import RAW_FORMATS, _load_raw, refuse_rgb, finite
+from ._io import RAW_FORMATS, _load_raw, finite, refuse_rgb
 from .temperature_planes import _sensor, _sensor_args
 
 
