@@ -79,7 +79,8 @@ def cmd_calibrate_temperature(a):
                                  "cam.toml' keeps them apart)")
             if hit is not None:
                 _clipped_blackbody(float(hit.sum()) / max(int(np.count_nonzero(v > 0)), 1), path)
-            r = _even_ratio(path, lambda cf: views_blackbody_ratio(v, chan, channels, centre_fraction=cf), channels)
+            r = views_blackbody_ratio(v, chan, channels)
+            _check_even(path, r, lambda cf: views_blackbody_ratio(v, chan, channels, centre_fraction=cf), channels)
         else:
             if cam is not None and not cam.perfect_grid:
                 raise ValueError(f"{path} is a raw image of a camera whose lenslet grid is not a perfect one (rotated, "
@@ -92,15 +93,14 @@ def cmd_calibrate_temperature(a):
             refuse_no_mosaic(raw, path, "a blackbody image of a colour camera has one")
             n = (cam or PAPER_CAMERA).pixels_per_lenslet
             try:
-                blackbody_ratio(raw, sensor, n, channels)
+                r = blackbody_ratio(raw, sensor, n, channels)
             except ValueError as e:
                 if cam is not None:
                     raise
                 raise ValueError(f"{e} ({path} stores no camera: it was taken as the paper camera's raw image; a raw "
                                  "image of your own camera is decoded first: 'lf-flame decode IMAGE --calibration "
                                  "cal.json --camera cam.toml --out VIEWS.h5', and the VIEWS.h5 given)") from None
-            r = _even_ratio(path, lambda cf: blackbody_ratio(raw, sensor, n, channels, centre_fraction=cf),
-                            channels)
+            _check_even(path, r, lambda cf: blackbody_ratio(raw, sensor, n, channels, centre_fraction=cf), channels)
         ratios.append(r)
         print(f"{path}: {t:g} K, {channels[0]}/{channels[1]} = {r:.5f} (sensor {sensor.name}, {sensor.pattern} "
               f"phase {sensor.phase}: {where})")
@@ -122,16 +122,14 @@ def cmd_calibrate_temperature(a):
               + ", ".join(f"{t:g}" for t in temps) + " K)", file=sys.stderr)
 
 
-def _even_ratio(path, ratio, channels) -> float:
-    """A blackbody image's channel ratio over the central half of its field (``ratio(centre_fraction)``), refused
-    where the ratio over the centre or the outer part differs from it by more than :data:`BLACKBODY_SPREAD`."""
-    r = ratio(0.5)
+def _check_even(path, r, ratio, channels) -> None:
+    """Refuse a blackbody image whose channel ratio over the field's centre or outer part (``ratio(centre_fraction)``)
+    differs from ``r``, its ratio over the central half, by more than :data:`BLACKBODY_SPREAD`."""
     spread = max(abs(ratio(cf) / r - 1) for cf in (0.2, 0.9))
     if spread > BLACKBODY_SPREAD:
         raise ValueError(f"{path}: its {channels[0]}/{channels[1]} ratio differs by {100 * spread:.1f} % between the "
                          f"field's centre, its central half and its outer part (a blackbody's is the same everywhere, "
                          f"{100 * BLACKBODY_SPREAD:g} % tolerated): not a blackbody filling the field evenly")
-    return r
 
 
 def _fitting_phases(images, temps, sensor, channels, camera=None) -> str:

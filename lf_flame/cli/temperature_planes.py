@@ -242,15 +242,15 @@ def fit_warnings(a, lf, depths, solved=None, found=None) -> dict:
     field, which the temperatures alone do not show; and the share of its lit pixels that clip
     (:func:`lf_flame.cli.real.overexposure_warning`, a note below its level). Returns the record's ``edge_share``,
     ``misfit`` and ``clipped_share``."""
+    from ..real.clipping import CLIPPED_WARN
     from ..temperature.mosaic import monochrome_light_field
     from .fit_notes import edge_warning, misfit_warning
-    from ..real.clipping import CLIPPED_WARN
     from .planes import _fitted_light_field, lattice_solve, run_reconstruction
+    from .real import overexposure_warning
     mono = monochrome_light_field(lf)
     level = "file" if a.saturation == "auto" else a.saturation         # the light field's own, or the level given
     op, rec = solved if solved is not None else run_reconstruction(mono, [float(d) for d in depths], saturation=level)
     rec, lattice = lattice_solve(_fitted_light_field(mono, level), op, rec, found)
-    from .real import overexposure_warning
     clipped = overexposure_warning(lf.over_exposure())
     if 0 < clipped <= CLIPPED_WARN:     # under reconstruct's warning, yet a ratio's two channels clip apart
         print(f"note: {100 * clipped:.2g} % of the lit pixels are clipped and left out of the fit: the brightest "
