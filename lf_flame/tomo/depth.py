@@ -50,6 +50,9 @@ from ..refocus.shift_and_sum import FourierSlice, _check_finite, aperture_mask, 
 #: Coarse slope step (lenslets per view step) on 15 views: about 0.33 mm of depth at the paper camera's focal
 #: plane; on ``N`` views ``SLOPE_STEP * 14 / (N - 1)``, so that the outermost view moves as far per step.
 SLOPE_STEP = 0.04
+#: Vote bins per coarse slope step (:func:`_vote_bins`; the votes' histogram is smoothed over one vote bin): on the
+#: coarse grid alone flames two steps apart in slope had one peak (docs/decisions.md, "Votes at half a slope step").
+VOTE_SUBBINS = 2
 #: Views per axis a depth search needs: fewer hold no parallax to tell depths apart (one view none, two the
 #: focus curves of a single shift).
 MIN_VIEWS = 3
@@ -414,6 +417,7 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
                          f"{views_mask.shape}")
     ten, lap = _focus_energy(v, slopes, sigma, laplacian=True, mask=views_mask)
     best = np.argmax(ten, axis=0)
+    vote = _vote_bins(ten, best, VOTE_SUBBINS)
     contrast = ten.max(axis=0) - np.median(ten, axis=0)
     if bright:
         detail = ndimage.gaussian_filter(contrast, 1.0)
@@ -428,6 +432,7 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
     dz_ds = depth_per_slope(camera, slope_step)
     sep_bins = max(1, int(round(min_separation_mm / (dz_ds * slope_step))))
     rows = []
+    F = VOTE_SUBBINS
     for lab in range(1, labels.max() + 1):
         reg = labels == lab
         if not reg.any():
@@ -435,18 +440,19 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
         # one vote per lenslet whose focus stands out (contrast above vote_floor of the region's 99th percentile):
         # a dim flame in front of a bright one gets as many votes as lenslets it is sharp in
         sure = reg & (contrast >= vote_floor * np.percentile(contrast[reg], 99))
-        hist = np.bincount(best[sure], minlength=len(slopes)).astype(np.float64)
+        hist = np.bincount(vote[sure], minlength=F * (len(slopes) - 1) + 1).astype(np.float64)
         hist = ndimage.gaussian_filter1d(hist, 1.0, mode="constant")
-        peaks = find_peaks(np.concatenate([[0.0], hist, [0.0]]), sep_bins, peak_fraction * hist.max())
+        peaks = find_peaks(np.concatenate([[0.0], hist, [0.0]]), F * sep_bins, peak_fraction * hist.max())
         peaks = peaks - 1
         total = hist.sum()
         if not len(peaks):
             continue
-        owner = np.abs(peaks[:, None] - np.arange(len(slopes))[None, :]).argmin(axis=0)   # nearest peak per bin
-        for q, p in enumerate(peaks):
-            voters = sure & (owner[best] == q) & (np.abs(best - p) <= sep_bins)
+        owner = np.abs(peaks[:, None] - np.arange(len(hist))[None, :]).argmin(axis=0)   # nearest peak per bin
+        for q, pf in enumerate(peaks):
+            voters = sure & (owner[vote] == q) & (np.abs(vote - pf) <= F * sep_bins + F // 2)
             if voters.sum() < min_pixels:
                 continue
+            p = int(round(pf / F))
             c_ten = ten[:, voters].sum(axis=1)
             c_lap = lap[:, voters].sum(axis=1)
             i = _local_max(c_ten, p, 2)
@@ -458,7 +464,7 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
             d_ten, d_lap = camera.depth_for_slope(s_ten), camera.depth_for_slope(s_lap)
             width = 2 * _half_width(c_ten, i) * slope_step * dz_ds
             rows.append(dict(depth=d_ten, slope=s_ten, unc=max(0.5 * abs(d_ten - d_lap), 0.1 * 0.5 * width),
-                             width=width, weight=float(hist[p] / total), region=lab, mask=voters, curve=c_ten))
+                             width=width, weight=float(hist[pf] / total), region=lab, mask=voters, curve=c_ten))
     rows.sort(key=lambda r: r["depth"])
     depths = np.array([r["depth"] for r in rows])
     planes, plane_of = merge_depths(depths, np.array([r["weight"] for r in rows]), merge_mm)
@@ -469,6 +475,23 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
                        masks=np.array([r["mask"] for r in rows], bool).reshape(len(rows), R, C), labels=labels,
                        planes_mm=planes, plane_of=plane_of, curves=[r["curve"] for r in rows], grid_slopes=slopes,
                        time_s=time.perf_counter() - t0, depth_range_mm=(lo, hi), views_mask=views_mask)
+
+
+def _vote_bins(ten, best, subbins):
+    """Each lenslet's vote: its focus curve's peak (``best``, the grid index of ``ten``'s largest energy) refined
+    by a parabola through it and its neighbours, on a grid ``subbins`` times finer than the slopes': (R, C) int,
+    0 .. ``subbins (S - 1)``. The coarse grid's bins alone cannot part two flames whose slopes lie within about two
+    steps (their votes' histogram, smoothed over a bin, has one peak)."""
+    if subbins == 1:
+        return best
+    S = ten.shape[0]
+    b = np.clip(best, 1, S - 2)[None]
+    y0, y1, y2 = (np.take_along_axis(ten, b + k, 0)[0] for k in (-1, 0, 1))
+    den = y0 - 2 * y1 + y2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        delta = np.where(den < 0, 0.5 * (y0 - y2) / den, 0.0)
+    delta = np.where((best > 0) & (best < S - 1), np.clip(delta, -0.5, 0.5), 0.0)
+    return np.rint((best + delta) * subbins).astype(np.intp)
 
 
 def _focus_energy(views, slopes, sigma, laplacian=False, mask=None):
