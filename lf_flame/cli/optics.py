@@ -89,7 +89,8 @@ def cmd_simulate(a):
 
 def _render_warnings(cam, sc, raw) -> None:
     """``simulate``'s warnings of a scene the camera cannot show: objects at depths it does not refocus
-    (:func:`lf_flame.optics.camera.imaging_range_mm`), a render with no light on the sensor."""
+    (:func:`lf_flame.optics.camera.imaging_range_mm`), a render with no light on the sensor; and a note of the
+    pixels that clip the sensor (at the simulator's level, 1)."""
     from ..optics.camera import imaging_range_mm
     lo, hi = imaging_range_mm(cam)
     far = sorted({float(o["depth_offset_mm"]) for o in sc.objects if "depth_offset_mm" in o
@@ -100,6 +101,10 @@ def _render_warnings(cam, sc, raw) -> None:
               "command brings them into focus")
     if not np.any(np.asarray(raw) > 0):
         print("warning: the render holds no light: the scene's rays miss the sensor")
+    n = int(np.count_nonzero(np.asarray(raw) >= 1.0))
+    if n:
+        print(f"note: {n} pixels ({100 * n / np.asarray(raw).size:.2g} %) clip the sensor (at 1): reconstruct, "
+              "profiles and temperature leave their samples out of the fit")
 
 
 def views_and_camera(a):
