@@ -823,3 +823,18 @@ def test_a_recordings_found_planes_near_each_other_keep_their_own_flames(tmp_pat
     for bad in (dict(support=np.ones((2, 3, 3), bool)), dict(route="shift-sum")):     # another grid; no admm
         with pytest.raises(ValueError, match="support holds admm's planes"):
             dataclasses.replace(job, **bad)
+
+
+def test_a_frame_of_a_simulated_recording_takes_depths_scene(tmp_path, capsys):
+    """``reconstruct REC.h5:INDEX --depths scene``: the planes of the recording's flames (simulate-sequence stores
+    them); it was refused as storing no objects with depths."""
+    rec = tmp_path / "rec.h5"
+    assert main(["simulate-sequence", "--simulate", "overlap", "--fps", "100", "--duration", "0.02",
+                 "--rays-per-pixel", "1", "--out", str(rec), "--quiet"]) == 0
+    with h5py.File(rec) as f:
+        flames = json.loads(f.attrs["sequence"])["flames"]
+    capsys.readouterr()
+    assert main(["reconstruct", f"{rec}:1", "--depths", "scene", "--no-figure", "--out", str(tmp_path / "r.h5")]) == 0
+    with h5py.File(tmp_path / "r.h5") as f:
+        got = sorted(f["depths_mm"][()])
+    np.testing.assert_allclose(got, sorted(dict.fromkeys(fl["depth_offset_mm"] for fl in flames)), atol=1e-9)

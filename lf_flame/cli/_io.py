@@ -430,6 +430,13 @@ def _raw_objects(path):
     return json.loads(meta["objects"]) if "objects" in meta else None
 
 
+def _recording_flames(path):
+    """The flames (``depth_offset_mm``, ``height_mm`` ...; no ``roi``) of the simulated recording that a frame
+    ``RECORDING.h5:INDEX`` comes from (``simulate-sequence``'s ``sequence``), or None."""
+    meta = _raw_meta(path) if ".h5:" in str(path) else {}
+    return json.loads(meta["sequence"]).get("flames") if "sequence" in meta else None
+
+
 #: ``lf-flame simulate``'s scenes seen by a colour (Bayer) sensor (:func:`colour_scene`).
 COLOUR_SCENES = ("colour-flame", "colour-depth", "furnace")
 

@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 
-from ._io import _raw_objects, light_field
+from ._io import _raw_objects, _recording_flames, light_field
 
 
 def reconstruct_input(a, colour: bool = False):
@@ -18,7 +18,8 @@ def reconstruct_input(a, colour: bool = False):
     (``colour``: a colour capture's channels kept, :func:`._io.light_field`)."""
     lf = light_field(a, colour=colour)
     stored = _raw_objects(a.raw)          # what 'lf-flame simulate' stored beside a raw image, decoded here or not
-    return lf, planes_from_args(a, lf.camera, stored), None if lf.decoded else stored
+    flames = stored if stored is not None else _recording_flames(a.raw)      # or a simulated recording's frame
+    return lf, planes_from_args(a, lf.camera, flames), None if lf.decoded else stored
 
 
 def planes_from_args(a, cam, objects=None):
@@ -37,7 +38,7 @@ def planes_from_args(a, cam, objects=None):
     elif spec == "scene":
         if not (objects and all("depth_offset_mm" in o for o in objects)):
             raise ValueError(f"--depths scene: {a.raw} stores no objects with depths (only what 'lf-flame simulate' "
-                             "writes, .npz or .png, does)")
+                             "writes, .npz or .png, and a frame of a 'simulate-sequence' recording do)")
         depths = list(dict.fromkeys(float(o["depth_offset_mm"]) for o in objects))   # flames on one plane: once
     elif spec == "paper":
         depths = list(PAPER_DEPTHS_MM)
