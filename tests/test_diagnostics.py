@@ -277,6 +277,8 @@ def test_cli_profiles_writes_csv_and_figure(tmp_path, capsys):
     src = tmp_path / "flame.npz"
     np.savez(src, raw=raw, camera=CAM.to_json(), objects=json.dumps(sc.objects, default=float))
     assert main(["profiles", str(src), "--route", "fourier", "--out", str(tmp_path / "p")]) == 0
+    assert "planes at the depths of the flames the file stores (+20.00, +10.00, +0.00, -10.00 mm: the scene's " \
+           "truth, not found" in capsys.readouterr().out                    # said, not taken quietly
     df = pd.read_csv(tmp_path / "p.csv")
     assert list(df.depth_mm) == list(depths) and list(df.plane) == [0, 1, 2, 3]
     assert df.slope.values == pytest.approx([CAM.slope_for_depth(d) for d in depths], rel=1e-4)
@@ -291,6 +293,7 @@ def test_cli_profiles_writes_csv_and_figure(tmp_path, capsys):
     np.savez(tmp_path / "bare.npz", raw=simulate.render(CAM, other, 8, seed=1), camera=CAM.to_json())
     assert main(["profiles", str(tmp_path / "bare.npz"), "--route", "fourier", "--no-figure", "--out",
                  str(tmp_path / "b")]) == 0
+    assert "the scene's truth" not in capsys.readouterr().out
     assert not (tmp_path / "b.png").exists() and (tmp_path / "b.axial.csv").exists()    # --no-figure: the CSVs only
     true = sorted(o["depth_offset_mm"] for o in other.objects)
     found = pd.read_csv(tmp_path / "b.csv")

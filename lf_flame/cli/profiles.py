@@ -52,6 +52,9 @@ def _profiles_input(a):
         raise ValueError(f"{a.raw} does not hold a flame scene (its objects have no flame heights)")
     given = _given_depths(a)
     depths = given or _object_depths(objects)
+    if depths and not given:
+        print("planes at the depths of the flames the file stores (" + ", ".join(f"{d:+.2f}" for d in depths)
+              + " mm: the scene's truth, not found; --depth to give others)")
     if not depths and a.slope:
         depths = [cam.depth_for_slope(v) for v in a.slope]
     elif not depths and slopes is not None:       # a dataset sample: the paper's planes
