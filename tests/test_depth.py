@@ -807,6 +807,34 @@ def test_refined_depths_of_flames_one_behind_another(cam, behind):
     assert f2.depths_mm.shape == found.depths_mm.shape and f2.planes_mm.shape == found.planes_mm.shape
 
 
+
+def test_a_warm_refinement_step_that_does_not_lower_the_residual_is_solved_cold(cam, behind):
+    """A quiet light field's refinement solves each step from the planes before it; where that warm solve does not
+    lower the residual (a plane moved millimetres keeps its old depth's fit through the few fills: a colour
+    camera's flame found in the residual 3.9 mm off stayed there), the step is solved cold before the refinement
+    stops. Here every warm solve is made useless (empty planes): the depths still refine as cold solves refine them."""
+    import dataclasses
+
+    from lf_flame.tomo.refine import refine_planes
+    from lf_flame.tomo.solvers import fitted_pixels, reconstruct
+    scene, views = behind
+    found, op, rec = find_planes(views, cam, refine_steps=0)
+    y = np.asarray(views, np.float64)
+    fit = fitted_pixels(y, 1.0)
+    calls = []
+
+    def solve(f, start=None):
+        o = emission_operator(cam, [float(d) for d in f.planes_mm], subsamples=op.subsamples)
+        calls.append(start is not None)
+        return o, (dataclasses.replace(start, planes=0 * start.planes) if start is not None else
+                   reconstruct(y, o, "admm"))
+    op, rec = solve(found)
+    cold = refine_planes(found, op, rec, y, fit, cam, solve, steps=2)[0]
+    warm = refine_planes(found, op, rec, y, fit, cam, solve, steps=2, warm=True)[0]
+    moved = np.abs(cold.planes_mm - found.planes_mm).max()
+    assert any(calls) and moved > 0.2, (found.planes_mm, cold.planes_mm)
+    np.testing.assert_allclose(warm.planes_mm, cold.planes_mm, atol=1e-9)
+
 def test_the_refinement_stays_within_the_depths_the_camera_images(cam, behind):
     """A found depth's reach (REFINE_REACH times its uncertainty) that runs past the depths the camera images
     (here nearer than the main lens's focal length, as a far camera's wide uncertainties near its range's end do):

@@ -133,7 +133,9 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
         Gauss-Newton steps, >= 0 (:data:`REFINE_STEPS`).
     warm : bool
         Each step's solve starts from the planes before it (``solve(found, start=rec)``: no coarse solve), not from
-        its own coarse start: :func:`peel_and_refine` asks it for a quiet light field (the module's notes).
+        its own coarse start: :func:`peel_and_refine` asks it for a quiet light field (the module's notes). A step
+        whose warm solve does not lower the residual is solved cold before the refinement stops: a plane moved
+        millimetres kept its old depth's fit through the warm start's few fills.
 
     Returns
     -------
@@ -188,6 +190,10 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
         op2, rec2 = solve(trial, start=rec) if warm else solve(trial)
         r2 = residual(op2, rec2)
         c2 = float(np.vdot(r2, r2))
+        if warm and not c2 < cost:      # a warm start's few fills can keep a plane moved far at its old fit: cold
+            op2, rec2 = solve(trial)
+            r2 = residual(op2, rec2)
+            c2 = float(np.vdot(r2, r2))
         if not c2 < cost:
             break
         found, op, rec, r, cost = trial, op2, rec2, r2, c2
