@@ -283,7 +283,7 @@ def add_parsers(sub) -> None:
     s.add_argument("input", nargs="?", help="HDF5 stack of raw frames (dataset 'frames' (T, H, W); optional "
                    "'times_s'), a multi-page TIFF (a high-speed camera's or ImageJ's stack: one frame per page; the "
                    "frame rate from its ImageJ frame interval, else --fps), or a folder of TIFF/PNG/.npy frames in "
-                   "name order")
+                   "the order of the numbers in their names (frame_2 before frame_10)")
     s.add_argument("--simulate", choices=["paper", "overlap"], help="instead of INPUT: a simulated recording, "
                    "rendered frame by frame in the workers")
     _sequence_scene_args(s, simulate_only=True)

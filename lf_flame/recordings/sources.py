@@ -21,7 +21,7 @@ from ..optics.camera import PlenopticCamera
 from ..real.images import frame_image, frame_units as _scaled
 from ..simulate.scenes_time import FlameSequence
 
-#: Image files a folder of frames may hold (read in name order).
+#: Image files a folder of frames may hold (read in the order of the numbers in their names: frame_2 before frame_10).
 FRAME_SUFFIXES = (".tif", ".tiff", ".png", ".npy")
 
 
