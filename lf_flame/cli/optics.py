@@ -288,6 +288,10 @@ def _calibrate_slopes(a):
     from ..learn.evaluation import write_slopes
     if not (a.data_config and a.out and a.results):
         raise SystemExit("error: give RAW, or --data-config, --out and --results to calibrate the nominal scene")
+    given = [f"--{k}" for k in ("lo", "hi") if getattr(a, k, None) is not None]
+    if given:       # they had been ignored without a word
+        raise ValueError(f"{' and '.join(given)} go with RAW: the calibration searches -3 .. 3 lenslets per view, "
+                         "widened to a lenslet per view beyond the shapes' analytic slopes")
     cam, cfg = load_data_config(a.data_config)
     t = time.perf_counter()
     slopes, searches, objects = calibrate_slopes(cam, cfg.calibration_rays_per_pixel)

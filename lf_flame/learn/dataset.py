@@ -425,15 +425,29 @@ class LightFieldDataset:
 def calibrate_slopes(camera: PlenopticCamera, rays_per_pixel: int = 64, metric: str = "tenengrad"):
     """Search the sharpest slope of each shape in the nominal multi-shape scene (paper Sec. III-A).
 
+    The slopes searched span -3 .. 3 lenslets per view, widened to a lenslet per view beyond the shapes' analytic
+    slopes (a camera of few pixels per lenslet puts the +20 mm shape at 3.8).
+
     Returns
     -------
-    (slopes, searches) : list of 4 floats in the order of :data:`PAPER_DEPTHS_MM`, and
-        the :class:`~lf_flame.refocus.shift_and_sum.SlopeSearch` of each object (metric curves).
+    (slopes, searches, objects) : list of 4 floats in the order of :data:`PAPER_DEPTHS_MM`, the
+        :class:`~lf_flame.refocus.shift_and_sum.SlopeSearch` of each object (metric curves), and the objects.
+
+    Raises
+    ------
+    ValueError
+        A shape whose sharpest slope lies at the search's end (no focus peak within it).
     """
     from ..refocus.shift_and_sum import find_sharpest_slope, raw_to_views
     from ..simulate.scenes import shapes_scene
     sc = shapes_scene(camera, np.random.default_rng(0), vary=False)
     views = raw_to_views(render(camera, sc, rays_per_pixel, seed=0), camera.pixels_per_lenslet)
     mask = aperture_mask(camera.pixels_per_lenslet, GT_MASK)
-    searches = [find_sharpest_slope(views, o["roi"], metric=metric, mask=mask) for o in sc.objects]
+    analytic = [camera.slope_for_depth(float(o["depth_offset_mm"])) for o in sc.objects]
+    lo, hi = min(-3.0, min(analytic) - 1.0), max(3.0, max(analytic) + 1.0)
+    searches = [find_sharpest_slope(views, o["roi"], metric=metric, mask=mask, lo=lo, hi=hi) for o in sc.objects]
+    for o, s in zip(sc.objects, searches):
+        if min(s.slope - lo, hi - s.slope) < 0.05:                  # a coarse step: the curve rises to the end
+            raise ValueError(f"the {o.get('name', 'shape')}'s sharpest slope lies at the search's end ({s.slope:+.3f}"
+                             f" of {lo:+.2f} .. {hi:+.2f} lenslets per view): no focus peak to calibrate")
     return [s.slope for s in searches], searches, sc.objects
