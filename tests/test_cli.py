@@ -110,7 +110,7 @@ def test_simulate_warns_of_objects_the_camera_cannot_show(tmp_path, capsys):
     assert "holds no light" not in out
     _render_warnings(PAPER_CAMERA, point_scene(PAPER_CAMERA, 0.0), np.zeros((4, 4)))
     assert capsys.readouterr().out == "warning: the render holds no light: the scene's rays miss the sensor\n"
-    _render_warnings(PAPER_CAMERA, point_scene(PAPER_CAMERA, 0.0), np.ones((4, 4)))
+    _render_warnings(PAPER_CAMERA, point_scene(PAPER_CAMERA, 0.0), np.full((4, 4), 0.5))
     assert capsys.readouterr().out == ""
 
 
