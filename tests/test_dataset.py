@@ -134,3 +134,33 @@ def test_rendering_on_dask_writes_the_serial_files_arrays(tmp_path):
         for k in ("raw", "gt", "params", "done", "split/train", "split/val", "split/test"):
             assert np.array_equal(f[k][:], g[k][:]), k
         assert f.attrs["digest"] == g.attrs["digest"]
+
+
+def test_a_partial_dataset_another_run_is_writing_is_not_called_corrupt(tmp_path, capsys):
+    """A second ``dataset`` run on the ``--out`` a first one is still rendering into: HDF5 cannot lock the partial
+    file, and the message said it was corrupt and to delete it (the first run's work); it names the other run."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from lf_flame.cli import main
+    from lf_flame.config import load_data_config
+    cfg = str(Path(__file__).resolve().parents[1] / "data_gen" / "quick.toml")
+    cam, _ = load_data_config(cfg)
+    slopes = tmp_path / "slopes.json"
+    slopes.write_text(json.dumps(dict(slopes=[2.275, 1.17, 0.0, -1.245], camera=json.loads(cam.to_json()))))
+    out = tmp_path / "d.h5"
+    partial = tmp_path / "d.h5.partial"
+    h5py.File(partial, "w").close()
+    holder = subprocess.Popen([sys.executable, "-c", f"import h5py, time; f = h5py.File({str(partial)!r}, 'a'); "
+                               "print('open', flush=True); time.sleep(60)"], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "open"
+        assert main(["dataset", "--data-config", cfg, "--scene", "flame", "--slopes", str(slopes), "--out", str(out),
+                     "--quiet"]) == 2
+    finally:
+        holder.kill()
+        holder.wait()
+    err = capsys.readouterr().err
+    assert "being written by another run" in err and "delete it" not in err and partial.exists()

@@ -234,6 +234,9 @@ def generate(path, camera: PlenopticCamera, cfg: DatasetConfig, scene: str, slop
     try:
         f = h5py.File(tmp, "a")
     except OSError as e:
+        if "lock" in str(e).lower():        # HDF5 locks a file open for writing: another run is rendering into it
+            raise ValueError(f"partial dataset {tmp} is being written by another run (HDF5 could not lock it: {e}); "
+                             "wait for that run, or stop it and run this again to resume its work") from None
         raise ValueError(f"partial dataset {tmp} is corrupt ({e}); delete it to start again") from None
     with f:
         if "done" in f:
