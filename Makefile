@@ -26,7 +26,7 @@ HELDOUT_SEED := 770077
 
 help: ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | awk -F':.*## ' '{printf "  %-14s %s\n", $$1, $$2}'
-	@echo "  PRESET=paper|quick (now: $(PRESET))"
+	@echo "  PRESET=paper|quick (now: $(PRESET)); outputs: DATA=, MODELS=, RES= (data/, models/, results/ of the preset)"
 
 $(STAMP): setup.cfg pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -55,7 +55,7 @@ $(DATA)/%.h5: $(DATA)/slopes.json $(DCFG)
 	$(LF) dataset --data-config $(DCFG) --regime $(*D) --scene $(*F) --slopes $< --out $@
 
 ifdef SHARD
-dataset: $(DATA)/slopes.json ## render the datasets of both regimes (resumable; SHARD=i/N renders shard i of N)
+dataset: $(DATA)/slopes.json  # with SHARD=i/N: shard i of N of each dataset
 	$(foreach r,$(REGIMES),$(foreach s,$(SCENES),$(LF) dataset --data-config $(DCFG) --regime $(r) --scene $(s) \
 		--slopes $< --out $(DATA)/$(r)/$(s).h5 --shard $(SHARD) &&)) true
 else
