@@ -77,3 +77,34 @@ def test_a_training_run_is_not_resumed_on_another_dataset(tmp_path, capsys):
     new = D.LightFieldDataset(path).digest
     assert json.loads((out / "start.json").read_text())["dataset_digest"] == new
     assert info["epochs_run"] == 1 and json.loads((out / "baselines.json").read_text())["dataset_digest"] == new
+
+
+def test_a_retrain_with_another_seed_and_input_size_rewrites_the_backbone_and_refits_the_yardsticks(tmp_path,
+                                                                                                    capsys):
+    """train into a folder of a random-init run (seed 7, 64 x 32 input) with seed 8 and a 64 x 64 input: the saved
+    backbone and the yardsticks must be this run's. They were kept (the backbone written only if absent, the
+    yardsticks reused whenever the dataset's digest matched): held-out SSIM 0.03-0.13 where a clean folder gave
+    0.90-0.94, and after an input-size change evaluate's broadcast error on the un-pooled decoder."""
+    from lf_flame.learn.baselines import LinearDecoder, pool_features
+    from lf_flame.learn.features import load_features
+    from lf_flame.learn.model_files import load_full_model
+    path, out = tmp_path / "flame.h5", tmp_path / "model"
+    D.generate(path, CAM, CFG, "flame", SLOPES, progress=False)
+    ds = D.LightFieldDataset(path)
+    tcfg = TrainConfig(max_epochs={"flame": 0}, time_budget_s={"flame": 600}, refine_iterations={"flame": 0})
+    train(path, out, MODEL, tcfg, progress=False)
+    capsys.readouterr()
+    info = train(path, out, dataclasses.replace(MODEL, input_cols=64), dataclasses.replace(tcfg, seed=8),
+                 progress=False)
+    printed = capsys.readouterr().out
+    assert "holds another backbone draw (seed 7 there, 8 now, input_size 64x32 there, 64x64 now)" in printed
+    assert "fitting them again" in printed
+    fx = load_full_model(out)[0].get_layer("feature_extractor")      # the draw that made this run's features
+    with h5py.File(info["feature_cache"]) as f:
+        cached = f["features"][:2].astype(np.float32)
+    got = np.asarray(fx.predict_on_batch(ds.raw([0, 1])[..., None]))
+    assert got.shape == cached.shape and np.abs(got - cached).max() <= 2e-3 * np.abs(cached).max()
+    unpooled = LinearDecoder.load(out / "linear_unpooled.h5")             # fitted on this run's features
+    want = pool_features(load_features(info["feature_cache"], np.sort(ds.splits["train"])), "none").mean(axis=0)
+    assert unpooled.x_mean.shape == want.shape and np.allclose(unpooled.x_mean, want, atol=1e-3)
+    assert json.loads((out / "baselines.json").read_text())["features"]["seed"] == 8

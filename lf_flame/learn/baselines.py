@@ -347,10 +347,24 @@ def load_baselines(model_dir) -> dict:
             for route, name in BASELINE_FILES.items()}
 
 
+def features_key(features_path) -> dict:
+    """What makes a feature cache's features, from its attributes (:func:`lf_flame.learn.features.compute_features`):
+    the dataset's digest, the backbone weights, the input size, the seed and, for a random-init backbone, the Keras
+    backend that drew it. Yardsticks fitted on features of another key are not those of these features."""
+    with h5py.File(features_path, "r") as f:
+        a = dict(f.attrs)
+    size = json.loads(a.get("model_config", "{}"))
+    key = dict(dataset_digest=str(a.get("dataset_digest")), weights=str(a.get("weights")),
+               input_size=f"{size.get('input_rows')}x{size.get('input_cols')}", seed=int(a.get("seed", -1)))
+    if "random" in key["weights"]:
+        key["backend"] = str(a.get("backend"))
+    return key
+
+
 def fit_baselines(features_path, ds, out: Path) -> dict:
     """Fit the mean image and both linear decoders on the training split (λ per plane chosen
     on the validation split) and save them in ``out`` (:data:`BASELINE_FILES`), unless done
-    for this very dataset.
+    for these very features.
 
     Parameters
     ----------
@@ -362,19 +376,26 @@ def fit_baselines(features_path, ds, out: Path) -> dict:
     -------
     dict : route -> validation SSIM per plane (list of 4) and fit time (s).
 
-    ``baselines.json`` holds that dict under ``routes`` and, under ``dataset_digest``, the
-    :func:`lf_flame.learn.dataset.content_digest` of the dataset they were fitted on. Yardsticks
-    saved for another dataset (another digest, or none recorded) are fitted again, with a
-    message.
+    ``baselines.json`` holds that dict under ``routes``, under ``dataset_digest`` the
+    :func:`lf_flame.learn.dataset.content_digest` of the dataset they were fitted on and under ``features`` the
+    :func:`features_key` of the features. Yardsticks saved for another dataset or other features (another
+    digest, backbone, input size or seed; or none recorded) are fitted again, with a message.
     """
     from ..measure.metrics import mean_ssim
     info_path = out / "baselines.json"
+    key = features_key(features_path)
     if info_path.exists() and all((out / f).exists() for f in BASELINE_FILES.values()):
         old = json.loads(info_path.read_text())
-        if old.get("dataset_digest") == ds.digest:
+        if old.get("dataset_digest") != ds.digest:
+            print(f"{out}: the yardsticks were fitted on another dataset than {ds.path} "
+                  f"(digest {str(old.get('dataset_digest'))[:12]} != {ds.digest[:12]}); fitting them again")
+        elif old.get("features") != key:
+            was = old.get("features") or {}
+            differ = [f"{k} {was.get(k)} there, {key[k]} now" for k in key if was.get(k) != key[k]]
+            print(f"{out}: the yardsticks were fitted on other backbone features ({', '.join(differ)}); "
+                  "fitting them again")
+        else:
             return old["routes"]
-        print(f"{out}: the yardsticks were fitted on another dataset than {ds.path} "
-              f"(digest {str(old.get('dataset_digest'))[:12]} != {ds.digest[:12]}); fitting them again")
     tr, va = np.sort(ds.splits["train"]), np.sort(ds.splits["val"])
     gt_tr, gt_va = ds.gt(tr), ds.gt(va)
     info = {}
@@ -392,5 +413,5 @@ def fit_baselines(features_path, ds, out: Path) -> dict:
                                fit_s=time.perf_counter() - t)
         print(f"{dec.route}: validation SSIM {np.round(dec.val_scores, 3).tolist()} "
               f"({info[dec.route]['fit_s']:.0f} s)")
-    atomic_write_text(info_path, json.dumps(dict(dataset_digest=ds.digest, routes=info), indent=2))
+    atomic_write_text(info_path, json.dumps(dict(dataset_digest=ds.digest, features=key, routes=info), indent=2))
     return info

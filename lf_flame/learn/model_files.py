@@ -9,6 +9,7 @@ import json
 import os
 from pathlib import Path
 
+import h5py
 import keras
 
 from ..config import ModelConfig
@@ -76,11 +77,35 @@ def _backbone_file(model_dir) -> Path:
     return p
 
 
+def backbone_key(ds: LightFieldDataset, cfg: ModelConfig, seed: int) -> dict:
+    """What makes a random-init backbone's draw (:func:`save_random_backbone`): the seed, the input size, the
+    sensor's shape and the Keras backend that drew it."""
+    return dict(seed=int(seed), input_size=f"{cfg.input_rows}x{cfg.input_cols}",
+                sensor_shape="x".join(str(v) for v in ds.camera.sensor_shape), backend=keras.backend.backend())
+
+
 def save_random_backbone(ds: LightFieldDataset, cfg: ModelConfig, seed: int, out: Path) -> None:
-    """Save the random-init backbone that made the feature cache (same seed, same draw)."""
+    """Save the random-init backbone that made the feature cache (same seed, same draw).
+
+    The file's attributes record its :func:`backbone_key`; one saved by another run (another seed, input size,
+    sensor or backend, or none recorded) is drawn and written again, with a message: it would not be the backbone
+    of this run's features."""
     path = out / "backbone.weights.h5"
-    if not path.exists():
-        keras.utils.set_random_seed(seed)
-        tmp = out / "partial.backbone.weights.h5"
-        build_feature_extractor(ds.camera.sensor_shape, cfg, None).save_weights(tmp)
-        os.replace(tmp, path)
+    key = backbone_key(ds, cfg, seed)
+    if path.exists():
+        try:
+            with h5py.File(path, "r") as f:
+                old = {k: f.attrs.get(k) for k in key}
+        except OSError:
+            old = {}
+        old = {k: int(v) if k == "seed" and v is not None else v for k, v in old.items()}
+        if old == key:
+            return
+        differ = [f"{k} {old.get(k)} there, {key[k]} now" for k in key if old.get(k) != key[k]]
+        print(f"{path} holds another backbone draw ({', '.join(differ)}): writing this run's")
+    keras.utils.set_random_seed(seed)
+    tmp = out / "partial.backbone.weights.h5"
+    build_feature_extractor(ds.camera.sensor_shape, cfg, None).save_weights(tmp)
+    with h5py.File(tmp, "a") as f:
+        f.attrs.update(key)
+    os.replace(tmp, path)
