@@ -5,6 +5,7 @@ import json
 
 import h5py
 import numpy as np
+import pytest
 
 from lf_flame.learn import dataset as D
 from lf_flame.learn.baselines import MeanImage, fit_baselines
@@ -108,3 +109,36 @@ def test_a_retrain_with_another_seed_and_input_size_rewrites_the_backbone_and_re
     want = pool_features(load_features(info["feature_cache"], np.sort(ds.splits["train"])), "none").mean(axis=0)
     assert unpooled.x_mean.shape == want.shape and np.allclose(unpooled.x_mean, want, atol=1e-3)
     assert json.loads((out / "baselines.json").read_text())["features"]["seed"] == 8
+
+
+def _fake_features(path, ds, seed=7):
+    """A small feature cache of ``ds`` (random (n, 2, 1, 8) features) with the attributes compute_features writes."""
+    with h5py.File(path, "w") as f:
+        f["features"] = np.random.default_rng(seed).normal(size=(ds.n, 2, 1, 8)).astype(np.float16)
+        f.attrs.update(dataset_digest=ds.digest, weights="random-init", seed=seed, backend="tensorflow",
+                       model_config=json.dumps(dict(input_rows=64, input_cols=32)))
+    return path
+
+
+def test_an_interrupted_yardstick_fit_is_not_reused(tmp_path, monkeypatch):
+    """Yardsticks fitted on dataset A, then a fit on dataset B killed after the mean image: baselines.json still
+    recorded A while mean_image.h5 was B's, and a run on A reused that mixed set silently. The record is removed
+    before the files are rewritten (and written last): the next run on A fits them again."""
+    from lf_flame.learn import baselines as B
+    out = tmp_path / "model"
+    a = D.LightFieldDataset(D.generate(tmp_path / "a.h5", CAM, CFG, "flame", SLOPES, progress=False))
+    b = D.LightFieldDataset(D.generate(tmp_path / "b.h5", CAM, dataclasses.replace(CFG, regime="varied"), "flame",
+                                       SLOPES, progress=False))
+    fa, fb = _fake_features(tmp_path / "fa.h5", a), _fake_features(tmp_path / "fb.h5", b)
+    fit_baselines(fa, a, out)
+
+    def killed(*args, **kw):
+        raise KeyboardInterrupt
+    with monkeypatch.context() as m:
+        m.setattr(B.LinearDecoder, "fit", killed)
+        with pytest.raises(KeyboardInterrupt):
+            fit_baselines(fb, b, out)
+    assert not (out / "baselines.json").exists()
+    fit_baselines(fa, a, out)
+    mean = MeanImage.load(out / "mean_image.h5").mean
+    assert np.allclose(mean, a.gt(np.sort(a.splits["train"])).mean(axis=0), atol=1e-6)

@@ -379,7 +379,9 @@ def fit_baselines(features_path, ds, out: Path) -> dict:
     ``baselines.json`` holds that dict under ``routes``, under ``dataset_digest`` the
     :func:`lf_flame.learn.dataset.content_digest` of the dataset they were fitted on and under ``features`` the
     :func:`features_key` of the features. Yardsticks saved for another dataset or other features (another
-    digest, backbone, input size or seed; or none recorded) are fitted again, with a message.
+    digest, backbone, input size or seed; or none recorded) are fitted again, with a message. The record is
+    removed before the files are rewritten and written last, so a fit interrupted half-way leaves no record and
+    is fitted again, never reused as a set of two datasets' yardsticks.
     """
     from ..measure.metrics import mean_ssim
     info_path = out / "baselines.json"
@@ -396,6 +398,7 @@ def fit_baselines(features_path, ds, out: Path) -> dict:
                   "fitting them again")
         else:
             return old["routes"]
+    info_path.unlink(missing_ok=True)       # the files are rewritten one by one: no record until all are
     tr, va = np.sort(ds.splits["train"]), np.sort(ds.splits["val"])
     gt_tr, gt_va = ds.gt(tr), ds.gt(va)
     info = {}
