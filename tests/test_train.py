@@ -466,3 +466,25 @@ def test_config_and_slopes_files_of_the_wrong_kind_are_refused_naming_them(tmp_p
         assert main(["dataset", "--data-config", cfg, "--scene", "flame", "--slopes", sl,
                      "--out", str(tmp_path / "d.h5")]) == 2
         assert text in capsys.readouterr().err
+
+
+def test_an_interrupted_retrain_leaves_no_record_of_the_old_run(flame_h5, trained, tmp_path, capsys, monkeypatch):
+    """A retrain (another learning rate: from the start) killed in its start left the old run's train_info.json
+    beside the new weights, and evaluate reported the old run's epochs and SSIM. The record goes when a run starts
+    rewriting the folder: evaluate then asks for training."""
+    import lf_flame.learn.training as T
+    out = tmp_path / "model"
+    shutil.copytree(trained, out)
+    lr = tmp_path / "lr.toml"
+    lr.write_text(Path(_experiment(lr, epochs=1)).read_text().replace("learning_rate = 1e-4", "learning_rate = 1e-2"))
+
+    def killed(*args, **kw):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(T, "_start", killed)
+    assert main(["train", "--dataset", str(flame_h5), "--experiment-config", str(lr), "--out", str(out),
+                 "--quiet"]) != 0
+    assert "interrupted" in capsys.readouterr().err
+    assert not (out / "train_info.json").exists()
+    capsys.readouterr()
+    assert main(["evaluate", "--dataset", str(flame_h5), "--model-dir", str(out), "--results", str(tmp_path)]) == 2
+    assert "run 'lf-flame train' first" in capsys.readouterr().err

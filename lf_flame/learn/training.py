@@ -220,7 +220,9 @@ def train(dataset_path, out_dir, model_cfg: ModelConfig, train_cfg: TrainConfig,
     ``train_state.json`` (for resume), ``history.csv`` (loss, val_loss, val_psnr_db,
     val_ssim, wall_time_s per epoch; epoch 0 is the start) and, last, ``train_info.json`` (configs, weights used, epochs,
     wall time, provenance). A run started again in the same folder continues from the last
-    complete epoch with the same split, data order and optimizer state.
+    complete epoch with the same split, data order and optimizer state. ``train_info.json`` is removed once the
+    features are computed, before any file of the folder is rewritten: a run stopped before its end leaves none,
+    not the record of an earlier run beside its weights.
 
     Returns
     -------
@@ -236,6 +238,8 @@ def train(dataset_path, out_dir, model_cfg: ModelConfig, train_cfg: TrainConfig,
     ds = LightFieldDataset(dataset_path)
     t_start = time.perf_counter()
     feats_path, label = compute_features(ds, model_cfg, model_cfg.weights, progress=progress, seed=train_cfg.seed)
+    # this run rewrites the folder's files: the record of the last finished run goes until this one has finished
+    (out / "train_info.json").unlink(missing_ok=True)
     if label == "random-init":
         save_random_backbone(ds, model_cfg, train_cfg.seed, out)
     t_feat = time.perf_counter() - t_start
