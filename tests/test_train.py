@@ -488,3 +488,20 @@ def test_an_interrupted_retrain_leaves_no_record_of_the_old_run(flame_h5, traine
     capsys.readouterr()
     assert main(["evaluate", "--dataset", str(flame_h5), "--model-dir", str(out), "--results", str(tmp_path)]) == 2
     assert "run 'lf-flame train' first" in capsys.readouterr().err
+
+
+def test_evaluate_refuses_a_dataset_the_model_was_not_trained_on(flame_h5, trained, tmp_path, capsys):
+    """A shapes model evaluated on flames wrote 'Table II (flame)', and a dataset re-rendered larger at the training
+    one's path leaked training samples into its test split: evaluate checked only the camera. Another scene kind
+    and another content digest are refused, naming them."""
+    out = tmp_path / "model"
+    shutil.copytree(trained, out)  # edited below: a copy of the shared model
+    info = json.loads((out / "train_info.json").read_text())
+    assert info["dataset_digest"] == info["start"]["dataset_digest"]
+    for edit, text in ((dict(scene="shapes"), "holds flame scenes but the model"),
+                       (dict(dataset_digest="0" * 64), "is not the dataset the model")):
+        (out / "train_info.json").write_text(json.dumps(dict(info, **edit)))
+        assert main(["evaluate", "--dataset", str(flame_h5), "--model-dir", str(out),
+                     "--results", str(tmp_path / "res")]) == 2
+        assert text in capsys.readouterr().err
+        assert not (tmp_path / "res").exists()

@@ -102,7 +102,7 @@ def evaluate(dataset_path, model_dir, results_dir, n_heldout: int = 0, heldout_s
     Raises
     ------
     ValueError
-        The dataset was rendered with another camera than the model was trained on, or
+        The dataset is not the one the model was trained on (another camera, scene kind or content digest), or
         ``n_heldout`` without a ``heldout_seed`` (or with the dataset's own seed).
     """
     from .baselines import load_baselines
@@ -115,6 +115,14 @@ def evaluate(dataset_path, model_dir, results_dir, n_heldout: int = 0, heldout_s
     if info["dataset_camera"] != ds.attrs["camera"]:
         raise ValueError(f"{dataset_path} was rendered with another camera than the model in {model_dir} "
                          "was trained on")
+    if info.get("scene", ds.scene) != ds.scene:
+        raise ValueError(f"{dataset_path} holds {ds.scene} scenes but the model in {model_dir} was trained on "
+                         f"{info['scene']} scenes: evaluate it on its own kind of dataset")
+    trained_on = info.get("dataset_digest") or info.get("start", {}).get("dataset_digest")
+    if trained_on is not None and trained_on != ds.digest:
+        raise ValueError(f"{dataset_path} is not the dataset the model in {model_dir} was trained on (digest "
+                         f"{ds.digest[:12]} here, {trained_on[:12]} at training; re-rendered or another): its test "
+                         "split may hold training samples; evaluate on the training dataset, or train on this one")
     baselines = load_baselines(model_dir)
     test = np.sort(ds.splits["test"])
     why = cache_mismatch(info["feature_cache"], ds.digest, info["train_config"]["seed"], info["backbone_weights"],
@@ -123,7 +131,7 @@ def evaluate(dataset_path, model_dir, results_dir, n_heldout: int = 0, heldout_s
         import h5py
         with h5py.File(info["feature_cache"], "r") as f:
             feats = f["features"][test]
-    else:       # another dataset, or a cache another run overwrote: this dataset through the model's own backbone
+    else:       # a cache another run overwrote (or deleted): this dataset through the model's own backbone
         print(f"{why}: the test split's features computed with the backbone saved in {model_dir}")
         feats = _backbone_features(load_full_model(model_dir)[0], ds.raw, test)
     preds = route_predictions(baselines, feats, dec)

@@ -276,7 +276,7 @@ def train(dataset_path, out_dir, model_cfg: ModelConfig, train_cfg: TrainConfig,
         decoder.fit(train_data, validation_data=val_data, epochs=max_epochs + 1, initial_epoch=initial_epoch,
                     callbacks=callbacks, verbose=2 if progress else 0)
     h = pd.read_csv(hist_path)
-    info = dict(dataset=str(dataset_path), scene=scene, backbone_weights=label,
+    info = dict(dataset=str(dataset_path), dataset_digest=ds.digest, scene=scene, backbone_weights=label,
                 model_config=json.loads(to_json(model_cfg)), train_config=json.loads(to_json(train_cfg)),
                 raw_shape=list(ds.camera.sensor_shape), output_shape=[ds.camera.n_rows, ds.camera.n_cols],
                 feature_shape=list(decoder.input_shape[1:]), dataset_camera=ds.attrs["camera"],
