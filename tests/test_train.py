@@ -505,3 +505,27 @@ def test_evaluate_refuses_a_dataset_the_model_was_not_trained_on(flame_h5, train
                      "--results", str(tmp_path / "res")]) == 2
         assert text in capsys.readouterr().err
         assert not (tmp_path / "res").exists()
+
+
+def test_a_network_below_the_mean_image_is_said_to_be(tmp_path, capsys, monkeypatch):
+    """Where the network scores below the mean image (a constant image) on a plane, evaluate's output and table
+    say so in words, naming the plane and the scores; nothing had said it (a table of numbers only)."""
+    from lf_flame.learn import evaluation as E
+    rows = [dict(route=route, split="test", sample=i, depth_mm=dz, ssim=s, psnr_db=q)
+            for i in range(2) for route in E.ROUTES for dz in E.PAPER_DEPTHS_MM
+            for s, q in [(0.5 if route == "network" and dz == 20.0 else 0.9 if route == "network" else 0.6,
+                          35.0 if route == "network" and dz == -10.0 else 40.0 if route == "network" else 38.0)]]
+    table = E.summarise(pd.DataFrame(rows), "flame", "varied")
+    info = dict(backbone_weights="random-init", train_config=dict(recipe="closed-form"), epochs_run=1,
+                paper_epochs=1000, best_epoch=1, start_val_ssim=0.5, best_val_ssim=0.6, training_wall_time_s=1.0,
+                provenance=dict(cpu_count=2))
+    said = ("The network scores below the mean image (a constant image per plane) on the test split at +20 mm "
+            "(SSIM 0.5000 < 0.6000); -10 mm (PSNR (dB) 35.00 < 38.00)")
+    assert said in E.table_markdown(table, "flame", "varied", info)
+    monkeypatch.setattr(E, "evaluate", lambda *args, **kw: table)
+    assert main(["evaluate", "--dataset", "d.h5", "--model-dir", "m", "--results", str(tmp_path)]) == 0
+    assert said in capsys.readouterr().out
+    beaten = E.summarise(pd.DataFrame([dict(r, ssim=0.9, psnr_db=40.0) if r["route"] == "network" else r
+                                       for r in rows]), "flame", "varied")
+    assert E.below_the_mean_image(beaten) == [] and "below the mean image" not in E.table_markdown(
+        beaten, "flame", "varied", info)

@@ -106,9 +106,11 @@ def cmd_predict(a):
 
 
 def cmd_evaluate(a):
-    from ..learn.evaluation import evaluate
-    table = evaluate(a.dataset, a.model_dir, a.results, n_heldout=a.heldout, heldout_seed=a.heldout_seed)
+    from ..learn import evaluation
+    table = evaluation.evaluate(a.dataset, a.model_dir, a.results, n_heldout=a.heldout, heldout_seed=a.heldout_seed)
     print(table.to_string(index=False))
+    for line in evaluation.below_the_mean_image(table):
+        print(line)
 
 
 def cmd_tables(a):

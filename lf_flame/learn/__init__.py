@@ -26,7 +26,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
                  "IDENTITY_ATTRS", "content_digest", "shard_path", "generate", "check_dataset",
                  "LightFieldDataset", "calibrate_slopes"],
         "evaluation": ["PAPER_TABLES", "PAPER_SLOPES", "TABLE_NAMES", "ROUTES", "score", "route_predictions",
-                 "HELDOUT2", "evaluate", "summarise", "table_markdown", "figure",
+                 "HELDOUT2", "evaluate", "summarise", "below_the_mean_image", "table_markdown", "figure",
                  "learning_curves", "write_slopes", "plot_slope_curves", "read_gnu_time",
                  "write_tables"],
         "features": ["feature_cache_path", "compute_features", "FeatureBatches", "predict_features",

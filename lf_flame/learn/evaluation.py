@@ -180,8 +180,31 @@ def summarise(per: pd.DataFrame, scene: str, regime: str) -> pd.DataFrame:
     return table
 
 
+def below_the_mean_image(table: pd.DataFrame) -> list[str]:
+    """One sentence per split of :func:`summarise`'s table naming the planes where the network's mean SSIM or PSNR
+    is below the mean image's (the training split's mean, one constant image per plane): there it does worse than
+    an image that ignores the light field. Empty where it beats it on every plane (or a route is missing)."""
+    out = []
+    for split in table.split.unique():
+        t = table[table.split == split]
+        net, mean = (t[t.route == r].set_index("depth_mm") for r in ("network", "mean image"))
+        worse = []
+        for dz in net.index.intersection(mean.index):
+            what = [f"{unit} {net.loc[dz, col]:.{d}f} < {mean.loc[dz, col]:.{d}f}"
+                    for col, unit, d in (("ssim_mean", "SSIM", 4), ("psnr_db_mean", "PSNR (dB)", 2))
+                    if net.loc[dz, col] < mean.loc[dz, col]]
+            if what:
+                worse.append(f"{dz:+.0f} mm ({', '.join(what)})")
+        if worse:
+            out.append(f"The network scores below the mean image (a constant image per plane) on the {split} split at "
+                       + "; ".join(worse) + ": on " + ("this plane" if len(worse) == 1 else "these planes")
+                       + " it does worse than an image that ignores the light field.")
+    return out
+
+
 def table_markdown(table: pd.DataFrame, scene: str, regime: str, info: dict, heldout_seed: int | None = None) -> str:
-    """Markdown: per split, SSIM and PSNR of every route per plane (mean ± sd), and the paper's."""
+    """Markdown: per split, SSIM and PSNR of every route per plane (mean ± sd), and the paper's; where the network
+    scores below the mean image, a sentence saying so (:func:`below_the_mean_image`)."""
     on_paper = regime == "paper"
     routes = [r for r in ROUTES if r in set(table.route)]
     head = [_SHORT[r] for r in routes] + (["paper"] if on_paper else [])
@@ -208,6 +231,7 @@ def table_markdown(table: pd.DataFrame, scene: str, regime: str, info: dict, hel
               f"(validation SSIM {info['start_val_ssim']:.4f} at the start, {info['best_val_ssim']:.4f} at best); "
               f"training wall time {info['training_wall_time_s']:.0f} s on {info['provenance']['cpu_count']} "
               "CPU cores.", ""]
+    lines += [f"**{line}**\n" for line in below_the_mean_image(table)]
     return "\n".join(lines)
 
 
