@@ -24,6 +24,20 @@ from .optics.camera import PlenopticCamera
 from .simulate.scenes import REGIMES
 
 
+def split_sizes(n: int, fractions) -> tuple[int, int, int]:
+    """The training, validation and test split sizes of ``n`` samples cut by ``fractions``
+    (:func:`lf_flame.learn.dataset.split_indices`): the validation split takes at least 1 and leaves the test split 1
+    or more; the training split may come out empty, which :class:`DatasetConfig` refuses."""
+    n_val = max(1, int(round(fractions[1] * n)))
+    n_train = min(int(round(fractions[0] * n)), n - n_val - 1)
+    return n_train, n_val, n - n_train - n_val
+
+
+def _whole(v, least: int = 0) -> bool:
+    """Whether ``v`` is a whole number (not a bool) >= ``least``."""
+    return isinstance(v, numbers.Integral) and not isinstance(v, bool) and v >= least
+
+
 @dataclass(frozen=True)
 class DatasetConfig:
     """Dataset generation settings.
@@ -64,8 +78,16 @@ class DatasetConfig:
             raise ValueError(f"each scene needs >= 3 samples for a 3-way split. Received: {self.n_samples}")
         if len(self.split) != 3:
             raise ValueError(f"split takes three fractions (train, validation, test). Received: {self.split}")
-        if abs(sum(self.split) - 1) > 1e-9 or min(self.split) <= 0:
-            raise ValueError(f"split fractions must be positive and sum to 1. Received: {self.split}")
+        if not all(isinstance(v, numbers.Real) and v > 0 for v in self.split) or abs(sum(self.split) - 1) > 1e-9:
+            raise ValueError(f"split fractions must be positive and sum to 1. Received: split={self.split}")   # NaN too
+        for scene, n in self.n_samples.items():
+            sizes = split_sizes(int(n), self.split)
+            if min(sizes) < 1:
+                raise ValueError(f"split {list(self.split)} of the {n} {scene} samples leaves an empty split "
+                                 f"(train, validation, test: {', '.join(map(str, sizes))}): each needs >= 1 sample; "
+                                 "more samples or a larger training fraction")
+        if not _whole(self.seed):
+            raise ValueError(f"seed must be a whole number >= 0. Received: seed={self.seed!r}")
         if self.regime not in REGIMES:
             raise ValueError(f"regime must be one of {REGIMES}. Received: regime={self.regime!r}")
 
@@ -85,6 +107,10 @@ class ModelConfig:
     weights: str = "auto"
     dropout: float = 0.3
     dropout_at: str = "gap"
+
+    def __post_init__(self):
+        if not (isinstance(self.dropout, numbers.Real) and 0 <= self.dropout < 1):         # NaN too
+            raise ValueError(f"dropout must be a fraction >= 0 and < 1. Received: dropout={self.dropout!r}")
 
 
 @dataclass(frozen=True)
@@ -125,6 +151,12 @@ class TrainConfig:
             raise ValueError("learning_rate must be > 0, batch_size >= 1 and patience >= 0. Received: "
                              f"learning_rate={self.learning_rate}, batch_size={self.batch_size}, "
                              f"patience={self.patience}")
+        bad = {k: v for k, v in self.refine_iterations.items() if not _whole(v)}
+        if bad:
+            raise ValueError(f"refine_iterations must be a whole number >= 0 for each scene (0: no refinement). "
+                             f"Received: refine_iterations={bad}")
+        if not _whole(self.seed):
+            raise ValueError(f"seed must be a whole number >= 0. Received: seed={self.seed!r}")
         if not self.train_layers or not set(self.train_layers) <= {"dense", "refocused"}:
             raise ValueError("train_layers must be a non-empty subset of ('dense', 'refocused'). "
                              f"Received: train_layers={self.train_layers!r}")

@@ -3,6 +3,7 @@ predict, and a tiny fit on each Keras backend."""
 import importlib.util
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -529,3 +530,33 @@ def test_a_network_below_the_mean_image_is_said_to_be(tmp_path, capsys, monkeypa
                                        for r in rows]), "flame", "varied")
     assert E.below_the_mean_image(beaten) == [] and "below the mean image" not in E.table_markdown(
         beaten, "flame", "varied", info)
+
+
+def test_config_values_that_fail_late_are_refused_at_load_naming_them(tmp_path, capsys):
+    """Values that passed the config checks and failed late, or not at all: a split of 3 samples with an empty
+    training split (dataset wrote it, train crashed leaving NaN files), a NaN fraction (min() with NaN first passed),
+    a negative seed (failed after rendering, leaving a .partial), a dropout of NaN or 1.5 (refused by Keras only after
+    the features were computed) and a negative refine_iterations (taken silently). Refused when the config is read,
+    naming the key; nothing written."""
+    from lf_flame.config import DatasetConfig, ModelConfig, TrainConfig
+    for kw, text in ((dict(n_samples={"flame": 3}, split=(0.1, 0.1, 0.8)), "leaves an empty split (train, validation, "
+                                                                             "test: 0, 1, 2)"),
+                     (dict(n_samples={"flame": 10}, split=(float("nan"), 0.5, 0.5)), "split fractions must be"),
+                     (dict(n_samples={"flame": 10}, seed=-5), "seed must be a whole number >= 0")):
+        with pytest.raises(ValueError, match=re.escape(text)):
+            DatasetConfig(**kw)
+    assert DatasetConfig(n_samples={"flame": 3}).n_samples == {"flame": 3}    # 1 sample in each split
+    for cls, kw, text in ((ModelConfig, dict(dropout=float("nan")), "dropout must be a fraction >= 0 and < 1"),
+                          (ModelConfig, dict(dropout=1.5), "dropout must be a fraction"),
+                          (TrainConfig, dict(refine_iterations={"flame": -3}), "refine_iterations must be a whole"),
+                          (TrainConfig, dict(seed=-5), "seed must be a whole number >= 0")):
+        with pytest.raises(ValueError, match=re.escape(text)):
+            cls(**kw)
+    data = tmp_path / "d.toml"
+    data.write_text((ROOT / "data_gen/quick.toml").read_text().replace("flame = 40", "flame = 3")
+                    .replace("split = [0.8, 0.1, 0.1]", "split = [0.1, 0.1, 0.8]"))
+    (tmp_path / "slopes.json").write_text(json.dumps({"slopes": [2.28, 1.17, 0.0, -1.25]}))
+    assert main(["dataset", "--data-config", str(data), "--scene", "flame", "--slopes", str(tmp_path / "slopes.json"),
+                 "--out", str(tmp_path / "d.h5"), "--quiet"]) == 2
+    assert "leaves an empty split" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d.toml", "slopes.json"]

@@ -32,7 +32,7 @@ import numpy as np
 from tqdm import tqdm
 
 from ..optics.camera import PlenopticCamera
-from ..config import DatasetConfig, provenance, to_json
+from ..config import DatasetConfig, provenance, split_sizes, to_json
 from ..refocus.shift_and_sum import aperture_mask, refocus
 from ..simulate.scenes import PAPER_DEPTHS_MM, SCENES
 from ..simulate.tracer import render
@@ -70,9 +70,7 @@ def make_sample(camera: PlenopticCamera, cfg: DatasetConfig, scene: str, index: 
 def split_indices(n: int, fractions, seed: int) -> dict:
     """Seeded permutation of ``range(n)`` cut into train/val/test by ``fractions``."""
     perm = np.random.default_rng([seed, 0x5B117]).permutation(n)
-    n_train = int(round(fractions[0] * n))
-    n_val = max(1, int(round(fractions[1] * n)))
-    n_train = min(n_train, n - n_val - 1)
+    n_train, n_val, _ = split_sizes(n, fractions)
     return {"train": np.sort(perm[:n_train]), "val": np.sort(perm[n_train:n_train + n_val]),
             "test": np.sort(perm[n_train + n_val:])}
 
