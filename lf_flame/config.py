@@ -306,3 +306,24 @@ def reading(path, what: str = "file"):
         empty = p.is_file() and p.stat().st_size == 0
         why = "the file is empty" if empty else f"it is truncated or damaged ({e})"
         raise DamagedFileError(f"{p} is not a readable {what}: {why}") from None
+
+
+def read_json(path, what: str = "JSON file"):
+    """The JSON content of ``path``; an empty, truncated or damaged file is refused with one message naming it
+    (``json``'s own, "Unterminated string starting at: line 40 column 5 (char 1102)", named no file).
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file (as it is).
+    DamagedFileError
+        ``"PATH is not a readable WHAT: the file is empty"``, or ``"...: it is truncated or damaged (REASON)"``.
+    """
+    path = Path(path)
+    with reading(path, what):
+        text = path.read_text()
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as e:
+        why = "the file is empty" if not text.strip() else f"it is truncated or damaged ({e})"
+        raise DamagedFileError(f"{path} is not a readable {what}: {why}") from None

@@ -142,3 +142,18 @@ def test_an_interrupted_yardstick_fit_is_not_reused(tmp_path, monkeypatch):
     fit_baselines(fa, a, out)
     mean = MeanImage.load(out / "mean_image.h5").mean
     assert np.allclose(mean, a.gt(np.sort(a.splits["train"])).mean(axis=0), atol=1e-6)
+
+
+def test_a_damaged_yardstick_record_is_fitted_again(tmp_path, capsys):
+    """A truncated baselines.json ended training in json's "Unterminated string ..." naming no file: it is said,
+    naming the file, and the yardsticks are fitted again."""
+    out = tmp_path / "model"
+    a = D.LightFieldDataset(D.generate(tmp_path / "a.h5", CAM, CFG, "flame", SLOPES, progress=False))
+    fa = _fake_features(tmp_path / "fa.h5", a)
+    fit_baselines(fa, a, out)
+    record = out / "baselines.json"
+    record.write_text(record.read_text()[:50])
+    capsys.readouterr()
+    fit_baselines(fa, a, out)
+    assert f"{record} is not a readable record of the yardsticks: it is truncated or damaged" in capsys.readouterr().out
+    assert json.loads(record.read_text())["dataset_digest"] == a.digest

@@ -560,3 +560,22 @@ def test_config_values_that_fail_late_are_refused_at_load_naming_them(tmp_path, 
                  "--out", str(tmp_path / "d.h5"), "--quiet"]) == 2
     assert "leaves an empty split" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["d.toml", "slopes.json"]
+
+
+def test_a_truncated_training_record_is_refused_naming_it(trained, flame_h5, tmp_path, capsys):
+    """A train_info.json cut short gave "error: Unterminated string ..." naming no file (evaluate, predict,
+    tables): the message now names the file and says it is truncated or damaged."""
+    out = tmp_path / "models" / "paper" / "flame"
+    shutil.copytree(trained, out)
+    path = out / "train_info.json"
+    path.write_text(path.read_text()[:300])
+    (tmp_path / "res" / "paper").mkdir(parents=True)
+    (tmp_path / "res" / "paper" / "table_flame.md").write_text("| plane | SSIM |\n|---|---|\n| 1 | 0.9 |\n")
+    for argv in (["evaluate", "--dataset", str(flame_h5), "--model-dir", str(out), "--results", str(tmp_path / "r")],
+                 ["predict", f"{flame_h5}:0", "--model-dir", str(out), "--out", str(tmp_path / "p.npz")],
+                 ["tables", "--results", str(tmp_path / "res"), "--data-dir", str(tmp_path / "data"),
+                  "--model-dir", str(tmp_path / "models")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert f"{path} is not a readable record of a training run (train it again): it is truncated or damaged" \
+               in err, err

@@ -115,6 +115,7 @@ def cmd_evaluate(a):
 
 def cmd_tables(a):
     import h5py
+    from ..config import read_json
     from ..learn.evaluation import read_gnu_time, write_tables
     from ..simulate.scenes import REGIMES
     times, targets = {}, {}
@@ -130,7 +131,7 @@ def cmd_tables(a):
                         f.attrs.get("wall_time_s", f.attrs.get("wall_time_s_last_run", float("nan"))))
             info = Path(a.model_dir) / regime / scene / "train_info.json"
             if info.exists():
-                i = json.loads(info.read_text())
+                i = read_json(info, "record of a training run (train it again)")
                 try:       # when they were computed, maybe by an earlier run; a cache deleted since: no time
                     with h5py.File(i["feature_cache"], "r") as f:
                         times[f"backbone features {regime} {scene}"] = float(f.attrs["wall_time_s"])

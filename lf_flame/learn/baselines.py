@@ -30,7 +30,7 @@ import h5py
 import numpy as np
 from scipy.linalg import eigh
 
-from ..config import atomic_write_text
+from ..config import atomic_write_text, read_json
 from .features import load_features
 
 #: Candidate regularisations, relative to the mean eigenvalue of the Gram matrix.
@@ -387,8 +387,14 @@ def fit_baselines(features_path, ds, out: Path) -> dict:
     info_path = out / "baselines.json"
     key = features_key(features_path)
     if info_path.exists() and all((out / f).exists() for f in BASELINE_FILES.values()):
-        old = json.loads(info_path.read_text())
-        if old.get("dataset_digest") != ds.digest:
+        try:
+            old = read_json(info_path, "record of the yardsticks")
+        except ValueError as e:                                    # a damaged record: as if none
+            print(f"{e}: fitting them again")
+            old = None
+        if old is None:
+            pass
+        elif old.get("dataset_digest") != ds.digest:
             print(f"{out}: the yardsticks were fitted on another dataset than {ds.path} "
                   f"(digest {str(old.get('dataset_digest'))[:12]} != {ds.digest[:12]}); fitting them again")
         elif old.get("features") != key:

@@ -5,14 +5,13 @@ Stage: after training (:mod:`lf_flame.learn.training` writes the files), for eva
 """
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 
 import h5py
 import keras
 
-from ..config import ModelConfig
+from ..config import ModelConfig, read_json
 from .dataset import LightFieldDataset
 from .model import build_decoder, build_feature_extractor, resolve_weights
 
@@ -24,13 +23,15 @@ def load_decoder(model_dir):
     ------
     FileNotFoundError
         ``train_info.json`` or the weights file is missing.
+    ValueError
+        ``train_info.json`` is empty, truncated or damaged (:func:`lf_flame.config.read_json`).
     """
     model_dir = Path(model_dir)
     info_path, weights_path = model_dir / "train_info.json", model_dir / "decoder_best.weights.h5"
     for p in (info_path, weights_path):
         if not p.is_file():
             raise FileNotFoundError(f"trained model file not found: {p} (run 'lf-flame train' first)")
-    info = json.loads(info_path.read_text())
+    info = read_json(info_path, "record of a training run (train it again)")
     cfg = ModelConfig(**info["model_config"])
     dec = build_decoder(info["feature_shape"], *info["output_shape"], cfg)
     dec.load_weights(weights_path)

@@ -24,7 +24,7 @@ import pandas as pd
 
 from .baselines import BASELINE_FILES, fit_baselines
 from .closed_form import closed_form_start, freeze_for_probe
-from ..config import ModelConfig, TrainConfig, atomic_write_text, provenance, to_json
+from ..config import ModelConfig, TrainConfig, atomic_write_text, provenance, read_json, to_json
 from .dataset import LightFieldDataset
 from .features import FeatureBatches, compute_features, predict_features
 from ..measure.metrics import psnr_per_plane, ssim_per_plane
@@ -147,7 +147,7 @@ def _resume_state(out: Path, dataset_digest: str, run: dict | None = None):
     message naming what differs.
     """
     state_path, hist_path, start_path = out / "train_state.json", out / "history.csv", out / "start.json"
-    old = json.loads(start_path.read_text()) if start_path.exists() else None
+    old = read_json(start_path, "record of a training start") if start_path.exists() else None
     why = None
     if old is not None and old.get("dataset_digest") != dataset_digest:
         why = "a run on another dataset"
@@ -163,7 +163,7 @@ def _resume_state(out: Path, dataset_digest: str, run: dict | None = None):
         for p in (hist_path, state_path):
             p.unlink(missing_ok=True)
         return 0, 0.0, []
-    state = json.loads(state_path.read_text())
+    state = read_json(state_path, "resume state")
     h = pd.read_csv(hist_path)
     h = h[h["epoch"] <= state["epoch"]]
     if len(h) != state["epoch"] + 1:
@@ -251,7 +251,7 @@ def train(dataset_path, out_dir, model_cfg: ModelConfig, train_cfg: TrainConfig,
     val_data = FeatureBatches(feats_path, ds, ds.splits["val"], bs, False, train_cfg.seed)
     if initial_epoch:
         decoder = keras.models.load_model(last_path)
-        start = json.loads((out / "start.json").read_text())
+        start = read_json(out / "start.json", "record of a training start")
         print(f"resuming from epoch {initial_epoch} ({offset:.0f} s already trained)")
     else:
         train_eval = FeatureBatches(feats_path, ds, ds.splits["train"], bs, False, train_cfg.seed)
