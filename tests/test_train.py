@@ -579,3 +579,30 @@ def test_a_truncated_training_record_is_refused_naming_it(trained, flame_h5, tmp
         err = capsys.readouterr().err
         assert f"{path} is not a readable record of a training run (train it again): it is truncated or damaged" \
                in err, err
+
+
+def test_tables_carry_each_tables_provenance(tmp_path, capsys):
+    """tables.md names where each table came from (dataset digest and seed, camera, training seed, backbone
+    weights, epochs, the evaluation's commit and versions; from eval_SCENE.json), and says so where the tables were
+    evaluated at different commits or a table has no record: it carried none of it, so a 3-epoch model's table sat
+    beside another run's stage times without a word."""
+    res = tmp_path / "res"
+    cam = json.dumps(dict(n_rows=48, n_cols=24, pixels_per_lenslet=15, focus_distance_mm=326.0))
+    for regime, scene, commit in (("paper", "shapes", "aaaaaaa"), ("paper", "flame", "bbbbbbb"),
+                                  ("varied", "flame", None)):
+        (res / regime).mkdir(parents=True, exist_ok=True)
+        (res / regime / f"table_{scene}.md").write_text("| plane | SSIM |\n|---|---|\n| 1 | 0.9 |\n")
+        if commit:
+            (res / regime / f"eval_{scene}.json").write_text(json.dumps(dict(
+                train_info=dict(dataset=f"d/{scene}.h5", train_config=dict(seed=7), backbone_weights="random-init",
+                                epochs_run=3, training_wall_time_s=8.0),
+                dataset_seed=2025, dataset_attrs=dict(digest="0123456789abcdef", camera=cam,
+                                                      dataset_config=json.dumps(dict(n_samples={scene: 12}))),
+                provenance=dict(git_commit=commit, date="2026-11-29T00:00:00", versions={"lf_flame": "0.1.0"}))))
+    assert main(["tables", "--results", str(res), "--data-dir", str(tmp_path / "data"), "--model-dir",
+                 str(tmp_path / "models")]) == 0
+    text = (res / "tables.md").read_text()
+    assert "### Provenance" in text
+    assert "| paper shapes | `d/shapes.h5` (0123456789ab) | 2025, 12 | 48 x 24 lenslets" in text
+    assert "random-init | 3 (8 s) | aaaaaaa, 2026-11-29" in text
+    assert "evaluated at different commits (aaaaaaa, bbbbbbb)" in text and "beside varied/table_flame.md" in text

@@ -28,7 +28,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "evaluation": ["PAPER_TABLES", "PAPER_SLOPES", "TABLE_NAMES", "ROUTES", "score", "route_predictions",
                  "HELDOUT2", "evaluate", "summarise", "below_the_mean_image", "table_markdown", "figure",
                  "learning_curves", "write_slopes", "plot_slope_curves", "read_gnu_time",
-                 "write_tables"],
+                 "provenance_section", "write_tables"],
         "features": ["feature_cache_path", "compute_features", "FeatureBatches", "predict_features",
                  "layer_outputs", "load_features"],
         "model": ["CAFFE_MEAN", "NOTOP_FILE", "resolve_weights", "build_feature_extractor",

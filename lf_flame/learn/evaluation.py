@@ -13,7 +13,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from ..config import atomic_write_text, provenance  # noqa: E402
+from ..config import atomic_write_text, provenance, read_json  # noqa: E402
 from .dataset import LightFieldDataset  # noqa: E402
 from ..measure.metrics import psnr_per_plane, ssim_per_plane  # noqa: E402
 from ..simulate.scenes import PAPER_DEPTHS_MM, SHAPE_AT_DEPTH  # noqa: E402
@@ -358,9 +358,45 @@ def read_gnu_time(path) -> dict:
     return out
 
 
+def provenance_section(results_dir, tables) -> list[str]:
+    """Markdown lines: where each collected table came from, from its ``REGIME/eval_SCENE.json`` (:func:`evaluate`):
+    the dataset (digest, seed, samples, camera), the training run (seed, backbone weights, epochs, wall time) and
+    the evaluation (commit, date, versions); a note where the tables were evaluated at different commits or a table
+    has no record. ``tables``: the (regime, scene) pairs collected."""
+    rows, commits, missing = [], set(), []
+    for regime, scene in tables:
+        path = Path(results_dir) / regime / f"eval_{scene}.json"
+        if not path.exists():
+            missing.append(f"{regime}/table_{scene}.md")
+            continue
+        e = read_json(path, "record of an evaluation (evaluate again)")
+        info, attrs, prov = e["train_info"], e.get("dataset_attrs", {}), e.get("provenance", {})
+        cam = json.loads(attrs.get("camera", "{}"))
+        n = json.loads(attrs.get("dataset_config", "{}")).get("n_samples", {}).get(scene, "?")
+        v = prov.get("versions", {})
+        commits.add(prov.get("git_commit"))
+        rows.append(f"| {regime} {scene} | `{info.get('dataset')}` ({str(attrs.get('digest', '?'))[:12]}) | "
+                    f"{e.get('dataset_seed')}, {n} | {cam.get('n_rows')} x {cam.get('n_cols')} lenslets, "
+                    f"{cam.get('pixels_per_lenslet')} px, focus {cam.get('focus_distance_mm')} mm | "
+                    f"{info.get('train_config', {}).get('seed')} | {info.get('backbone_weights')} | "
+                    f"{info.get('epochs_run')} ({info.get('training_wall_time_s', float('nan')):.0f} s) | "
+                    f"{prov.get('git_commit')}, {str(prov.get('date', ''))[:10]} | lf_flame {v.get('lf_flame')}, "
+                    f"keras {v.get('keras')}, tensorflow {v.get('tensorflow-cpu')}, numpy {v.get('numpy')} |")
+    lines = ["### Provenance", "", "| table | dataset (digest) | dataset seed, samples | camera | training seed | "
+             "backbone weights | epochs (training wall time) | evaluated at (commit, date) | versions |",
+             "|---|---|---|---|---:|---|---|---|---|"] + rows + [""]
+    if len(commits) > 1:
+        lines += [f"**The tables were evaluated at different commits ({', '.join(sorted(map(str, commits)))}): "
+                  "they may come from different code.**", ""]
+    if missing:
+        lines += [f"**No evaluation record (eval_*.json) beside {', '.join(missing)}: its provenance is "
+                  "unknown.**", ""]
+    return lines
+
+
 def write_tables(results_dir, stage_times: dict | None = None, make_targets: dict | None = None) -> str:
-    """Collect both tables, slopes, stage wall times and, per make target, wall time and
-    peak memory (:func:`read_gnu_time`) into ``tables.md``; return its text.
+    """Collect both tables, their provenance (:func:`provenance_section`), slopes, stage wall times and, per make
+    target, wall time and peak memory (:func:`read_gnu_time`) into ``tables.md``; return its text.
 
     Raises
     ------
@@ -379,6 +415,7 @@ def write_tables(results_dir, stage_times: dict | None = None, make_targets: dic
     for regime, scene in tables:
         parts += [(results_dir / regime / f"table_{scene}.md").read_text(), f"![{scene}]({regime}/fig_{scene}.png)",
                   f"![{scene} learning]({regime}/learning_{scene}.png)", ""]
+    parts += provenance_section(results_dir, tables)
     sp = results_dir / "slopes.csv"
     if sp.exists():
         parts += ["### Sharpest slopes (slope search on the nominal scene)", "",
