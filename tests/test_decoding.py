@@ -256,3 +256,25 @@ def test_clipped_samples_of_a_capture_without_a_clipped_pixel_are_none_in_the_vi
     one[spot] = level
     hit = decode.clipped_samples(one, cal, level, resample=False)
     assert 1 <= hit.sum() <= 12               # the samples within a pixel of it: 2 x 2 views of the lenslets it reaches
+
+
+@pytest.mark.parametrize("layout", ["square", "hex"])
+def test_a_white_image_with_dust_decodes_and_its_dark_lenslets_are_named(grids, calibrations, layout, tmp_path,
+                                                                          capsys):
+    """A dust spot on the white image (a disc dimmed to 0.4 of its light): decoding takes it (the views' means are
+    flat-topped, and on the hexagonal grid the brightest view moved 2.8 views out: refused as a grid off the lenslet
+    images), and calibrate names its dark lenslets, where it said nothing; the clean white image has none."""
+    from lf_flame.cli import main
+    cam, white, raw = grids(layout)
+    cal = calibrations(layout)
+    H, W = white.shape
+    yy, xx = np.mgrid[:H, :W]
+    dusty = white * np.where(np.hypot(yy - 0.4 * H, xx - 0.6 * W) < 0.06 * min(H, W), 0.4, 1.0)
+    views = decode.decode(raw, cal, dusty)
+    assert np.isfinite(views).all()
+    assert not decode.dark_lenslets(decode.white_samples(cal, white)).any()
+    n = int(decode.dark_lenslets(decode.white_samples(cal, dusty)).sum())
+    assert 5 <= n <= 40, n
+    np.save(tmp_path / "dusty.npy", dusty.astype(np.float32))
+    assert main(["calibrate", str(tmp_path / "dusty.npy"), "--layout", layout, "--out", str(tmp_path / "c.json")]) == 0
+    assert "lenslets of the white image" in capsys.readouterr().out

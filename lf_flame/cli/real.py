@@ -35,6 +35,26 @@ def cmd_calibrate(a):
           f"({cal.offset_px[0]:+.2f}, {cal.offset_px[1]:+.2f}) px, {cal.n_rows} x {cal.n_cols} lenslets decoded; "
           f"fit residual {cal.residual_rms_px:.3f} px rms, {cal.residual_max_px:.3f} px max over "
           f"{len(cal.lenslets)} of {cal.n_found} lenslet images; {dt:.2f} s -> {a.out}")
+    _dark_lenslets_note(cal, white, dark, sensor)
+
+
+def _dark_lenslets_note(cal, white, dark, sensor) -> None:
+    """A note naming the white image's dark lenslets (:func:`lf_flame.real.decoding.dark_lenslets`): dust or a defect
+    that decoding's division corrects only in captures that share it."""
+    import numpy as np
+
+    from ..real.decoding import WHITE_DARK_LENSLET, dark_lenslets, white_samples
+    try:
+        dark_at = dark_lenslets(white_samples(cal, white, dark, sensor=sensor))
+    except ValueError:                # a white image decoding refuses: decode says why
+        return
+    if dark_at.any():
+        r, c = np.nonzero(dark_at)
+        print(f"note: {int(dark_at.sum())} lenslets of the white image (rows {r.min()}-{r.max()}, columns "
+              f"{c.min()}-{c.max()} of the decoded grid) hold less than {100 * WHITE_DARK_LENSLET:.0f} % of their "
+              "neighbours' light: dust or a defect. Decoding divides each capture by the white image, which "
+              "corrects them where the captures share it (dust on the sensor or lenslets) and brightens them where "
+              "they do not (dust on the white target, or cleaned since): then clean and take the white image again")
 
 
 def cmd_decode(a):
