@@ -285,6 +285,7 @@ def test_cli_refocus_and_slopes(tmp_path, small_camera, capsys):
                      "--out", str(tmp_path / f"{method}.npz")]) == 0
         stack = np.load(tmp_path / f"{method}.npz")["stack"]
         assert stack.shape == (1, cam.n_rows, cam.n_cols) and np.unravel_index(stack[0].argmax(), stack[0].shape) == (20, 20)
+        assert f"refocused 1 plane ({method})" in capsys.readouterr().out          # "1 planes" before
     assert main(["slopes", str(tmp_path / "p.npz"), "--roi", "10", "31", "10", "31", "--lo", "-2", "--hi", "2"]) == 0
     df = pd.read_csv(tmp_path / "p.slopes.csv")
     assert abs(df.slope[0] - s) <= 0.05 and abs(df.depth_mm[0] - 10.0) < 1.0

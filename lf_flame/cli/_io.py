@@ -424,6 +424,11 @@ def _write_stack(path, stack, **extra):
     print(f"-> {out}")
 
 
+def planes_count(n: int) -> str:
+    """``"1 plane"``, ``"4 planes"``: the commands' counts of planes in words."""
+    return f"{n} plane{'s' * (n != 1)}"
+
+
 def _raw_objects(path):
     """The objects (with ``roi``) that ``lf-flame simulate`` stored beside the raw image, if any."""
     meta = _raw_meta(path)

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from ._io import (COLOUR_SCENES, RAW_FORMATS, _raw_objects, _save_image, _write_stack, add_camera_args,
-                  add_search_arg, camera_config, colour_scene, finite, light_field, render_sensor, save_npz,
-                  simulated_scene)
+                  add_search_arg, camera_config, colour_scene, finite, light_field, planes_count, render_sensor,
+                  save_npz, simulated_scene)
 from ..simulate.scenes import PAPER_DEPTHS_MM
 
 
@@ -150,8 +150,8 @@ def cmd_refocus(a):
                               interpolation=a.interpolation)
         times.append(1e3 * (time.perf_counter() - t))
     shown = ", ".join(f"{round(s, 9) + 0.0:+.4g}" for s in slopes)          # + 0.0: no "-0" at the focal plane
-    print(f"refocused {len(slopes)} planes ({a.method}) at slopes {shown} in {times[1]:.2f} ms (a second call; the "
-          f"first, with the kernels' start-up, {times[0]:.0f} ms)")
+    print(f"refocused {planes_count(len(slopes))} ({a.method}) at slopes {shown} in {times[1]:.2f} ms (a second "
+          f"call; the first, with the kernels' start-up, {times[0]:.0f} ms)")
     depths = a.depth
     if depths is None and cam is not None:        # planes given by slope: their depths where the camera refocuses
         try:

@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 
-from ._io import _raw_objects, _recording_flames, light_field
+from ._io import _raw_objects, _recording_flames, light_field, planes_count
 
 
 def reconstruct_input(a, colour: bool = False):
@@ -99,7 +99,7 @@ def search_planes(views, camera, search_range=None, views_mask=None):
     print(f"found {len(record)} depth{'s' * (len(record) != 1)} (searched {lo:+.1f} .. {hi:+.1f} mm; --search-range "
           f"to narrow) in {found.time_s:.2f} s: " + ", ".join(
         f"{r['depth_mm']:+.2f} +- {r['uncertainty_mm']:.2f} mm" for r in record)
-        + f" -> {len(found.planes_mm)} planes")
+        + f" -> {planes_count(len(found.planes_mm))}")
     return [float(d) for d in found.planes_mm], record, found
 
 
@@ -164,7 +164,7 @@ def solve_found(lf, found, **kw):
         added = found.depths_mm[found.weight == 0]       # no votes: found in the residual
         if len(added):
             print("found in the residual (behind or before other flames): " + ", ".join(
-                f"{d:+.2f} mm" for d in added) + f" -> {len(found.planes_mm)} planes")
+                f"{d:+.2f} mm" for d in added) + f" -> {planes_count(len(found.planes_mm))}")
         print("planes after the residual's search and refinement: " + ", ".join(
             f"{d:+.2f}" for d in found.planes_mm) + " mm")
     return found, op, rec

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import AUTO_LEVEL, RAW_FORMATS, _level_or_none, add_figure_arg, add_search_arg, fraction, finite
+from ._io import (AUTO_LEVEL, RAW_FORMATS, _level_or_none, add_figure_arg, add_search_arg, fraction, finite,
+                  planes_count)
 from .temperature_planes import (_auto_depths, fit_warnings, _level_record, _plane_lines, furnace_note,
                                  _plane_temperatures, _record, _refuse_monochrome, _sensor, _sensor_args,
                                  temperature_figure)
@@ -97,7 +98,7 @@ def cmd_temperature(a):
     if fig is not None:
         save_figure(temperature_figure(temp, depths, valid, cam), fig)
     print("\n".join(_plane_lines(a, depths, r, cal)))
-    print(f"temperature of {len(depths)} planes ({a.route} {r['chosen']}) in {wall:.1f} s -> {out}"
+    print(f"temperature of {planes_count(len(depths))} ({a.route} {r['chosen']}) in {wall:.1f} s -> {out}"
           + (f", {fig}" if fig else ""))
 
 

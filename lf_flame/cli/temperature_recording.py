@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from ..temperature.mosaic import refuse_no_mosaic
-from ._io import refuse_rgb
+from ._io import planes_count, refuse_rgb
 from .temperature_planes import _auto_depths, _level_record, _plane_temperatures, _record, fit_warnings
 
 
@@ -146,7 +146,7 @@ def temperature_recording(a, source, attrs, cal, sensor, where):
     for k, d in enumerate(depths):
         print(f"plane {k} ({d:+.2f} mm): median temperature over the frames {med.median()[k]:.0f} K "
               f"(frames' medians {med.min()[k]:.0f}-{med.max()[k]:.0f} K)")
-    print(f"temperature of {len(depths)} planes in {len(temps)} frames ({a.route}) in {wall:.1f} s "
+    print(f"temperature of {planes_count(len(depths))} in {len(temps)} frames ({a.route}) in {wall:.1f} s "
           f"({len(temps) / wall:.2f} frames/s) -> {out}, {out.with_suffix('.csv')}" + (f", {fig}" if fig else ""))
 
 

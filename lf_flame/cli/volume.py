@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from ._io import (AUTO_LEVEL, finite, RAW_FORMATS, _level_or_none, _raw_scene, add_camera_args, add_figure_arg,
-                  add_search_arg, positive_int)
+                  add_search_arg, planes_count, positive_int)
 from .fit_notes import edge_warning, left_out_notes, misfit_warning, resolution_note, stack_end_warning
 from .planes import (_fitted_light_field, found_planes, found_record, lattice_solve, possible_warning,
                      reconstruct_input, run_reconstruction, solve_found)
@@ -114,7 +114,7 @@ def cmd_reconstruct(a):
     grid = f", {sub} x {sub} samples per lenslet" if sub > 1 else ""
     m = rec.settings.get("sub_views")
     grid += f", each sample at its own pixel ({m} x {m} sub-views per view)" if m else ""
-    print(f"reconstructed {len(depths)} planes ({rec.solver}, {iterations_note(rec)}{grid}) in {route_s:.2f} s "
+    print(f"reconstructed {planes_count(len(depths))} ({rec.solver}, {iterations_note(rec)}{grid}) in {route_s:.2f} s "
           f"(its last solve {rec.time_s:.2f} s);"
           f" relative residual {res} -> {out}" + ("" if fig is None else f", {fig}")
           + ("" if truth is None else " (with the scene's truth)"))
