@@ -391,19 +391,17 @@ def fit_baselines(features_path, ds, out: Path) -> dict:
             old = read_json(info_path, "record of the yardsticks")
         except ValueError as e:                                    # a damaged record: as if none
             print(f"{e}: fitting them again")
-            old = None
-        if old is None:
-            pass
-        elif old.get("dataset_digest") != ds.digest:
-            print(f"{out}: the yardsticks were fitted on another dataset than {ds.path} "
-                  f"(digest {str(old.get('dataset_digest'))[:12]} != {ds.digest[:12]}); fitting them again")
-        elif old.get("features") != key:
-            was = old.get("features") or {}
-            differ = [f"{k} {was.get(k)} there, {key[k]} now" for k in key if was.get(k) != key[k]]
-            print(f"{out}: the yardsticks were fitted on other backbone features ({', '.join(differ)}); "
-                  "fitting them again")
         else:
-            return old["routes"]
+            if old.get("dataset_digest") != ds.digest:
+                print(f"{out}: the yardsticks were fitted on another dataset than {ds.path} "
+                      f"(digest {str(old.get('dataset_digest'))[:12]} != {ds.digest[:12]}); fitting them again")
+            elif old.get("features") != key:
+                was = old.get("features") or {}
+                differ = [f"{k} {was.get(k)} there, {key[k]} now" for k in key if was.get(k) != key[k]]
+                print(f"{out}: the yardsticks were fitted on other backbone features ({', '.join(differ)}); "
+                      "fitting them again")
+            else:
+                return old["routes"]
     info_path.unlink(missing_ok=True)       # the files are rewritten one by one: no record until all are
     tr, va = np.sort(ds.splits["train"]), np.sort(ds.splits["val"])
     gt_tr, gt_va = ds.gt(tr), ds.gt(va)

@@ -482,8 +482,6 @@ def _vote_bins(ten, best, subbins):
     by a parabola through it and its neighbours, on a grid ``subbins`` times finer than the slopes': (R, C) int,
     0 .. ``subbins (S - 1)``. The coarse grid's bins alone cannot part two flames whose slopes lie within about two
     steps (their votes' histogram, smoothed over a bin, has one peak)."""
-    if subbins == 1:
-        return best
     S = ten.shape[0]
     b = np.clip(best, 1, S - 2)[None]
     y0, y1, y2 = (np.take_along_axis(ten, b + k, 0)[0] for k in (-1, 0, 1))
