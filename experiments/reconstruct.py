@@ -68,8 +68,9 @@ RAYS_OP = 4             # rays per pixel of the operator
 CANDIDATES = {"fista": [{}], "lsqr": [dict(damp=0.0)], "rl": [{}], "pd-tv": [dict(tv=0.1), dict(tv=0.3), dict(tv=1.0)]}
 MAX_ITERS = 60
 CHECKPOINTS = (5, 10, 15, 20, 30, 40, 50, 60)
-#: how flames are measured on planes of emission: the candidates tried (``--stage edges``)
-EDGE_CANDIDATES = [dict(segment_fraction=s, edge_fit_range=(lo, hi)) for s, lo, hi in (
+#: how flames are measured on planes of emission: the candidates tried (``--stage edges``), each region picked as
+#: ``EMISSION_MEASURE`` picks it (the one holding the most light)
+EDGE_CANDIDATES = [dict(segment_fraction=s, edge_fit_range=(lo, hi), pick=EMISSION_MEASURE["pick"]) for s, lo, hi in (
     (0.3, 0.2, 0.6), (0.2, 0.1, 0.5), (0.1, 0.1, 0.5), (0.1, 0.1, 0.4), (0.1, 0.05, 0.4), (0.1, 0.05, 0.3),
     (0.05, 0.05, 0.5))]
 #: validation scenes whose true emission the candidates are measured on (no render needed)

@@ -485,6 +485,29 @@ def test_planes_of_emission_are_measured_with_their_own_edges():
     assert np.mean(errs["truth"]) < 0.5 * np.mean(errs["shift-sum"])
 
 
+def test_on_a_plane_of_emission_the_flame_is_the_region_with_the_most_light_not_a_speckled_ghost():
+    """A plane of emission solved from few data (a 6-view camera, a recording on the lenslet grid) holds its flame and,
+    apart from it, another flame's speckled ghost above 5 % of its peak: the emission settings measure the flame (the
+    region holding the most light), where the sharpest region, the refocused planes' rule, is the ghost."""
+    from lf_flame.measure.diagnostics import EMISSION_MEASURE
+    from lf_flame.tomo.operator import EmissionOperator
+    from lf_flame.tomo.truth import scene_truth
+    sc = scenes.flame_scene(CAM, np.random.default_rng(1), template_scale=TEMPLATE_SCALE, regime="paper")
+    sc = dataclasses.replace(sc, layers=sc.layers[2:3], objects=sc.objects[2:3])        # one flame
+    obj, t = sc.objects[0], flame_truth(sc.objects[0])
+    plane = scene_truth(sc, EmissionOperator(CAM, [obj["depth_offset_mm"]], rays_per_pixel=1))[0].astype(float)
+    c = obj["roi"][3] + 3                                                   # beside it: a speckled patch
+    rng = np.random.default_rng(0)
+    plane[20:60, c:c + 8] = rng.uniform(0, 0.4, (40, 8)) * plane.max() * (rng.uniform(size=(40, 8)) < 0.5)
+    assert plane[:, c:].sum() < 0.5 * plane[:, :c].sum()
+    emission = measure_flame(plane, CAM, obj["depth_offset_mm"], **EMISSION_MEASURE)
+    sharpest = measure_flame(plane, CAM, obj["depth_offset_mm"], **dict(EMISSION_MEASURE, pick="sharpest"))
+    assert emission.trusted and abs(emission.height_mm - t["height_mm"]) < 0.15
+    assert not emission.mask[:, c:].any() and not sharpest.mask[:, :c].any()       # the flame; the ghost
+    with pytest.raises(ValueError, match="pick must be one of"):
+        measure_flame(plane, CAM, obj["depth_offset_mm"], pick="largest")
+
+
 def test_profiles_measures_each_flame_found_apart_on_one_plane(tmp_path):
     """Two flames side by side at 0 and +0.05 mm (their depths found and merged onto one plane, each in its own
     columns): profiles gives each its row, measured in its own columns (it measured the plane's sharpest region

@@ -15,7 +15,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
     submodules=["diagnostics", "figures", "metrics", "scoring"],
     submod_attrs={
         "diagnostics": ["SEGMENT_FRACTION", "EDGE_FIT_RANGE", "TAIL_FALL", "PEDESTAL_GAP", "TIP_PEDESTAL_MM",
-                 "FLAGS", "MIN_AREA_LENSLETS", "RADIAL_FRACTIONS", "EMISSION_MEASURE",
+                 "FLAGS", "MIN_AREA_LENSLETS", "RADIAL_FRACTIONS", "EMISSION_MEASURE", "PICKS",
                  "EmptyPlaneError", "lenslet_size_mm",
                  "lenslet_to_object_mm", "RadialProfile", "FlameMeasurement", "measure_flame",
                  "flame_truth"],

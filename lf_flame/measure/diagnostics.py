@@ -23,7 +23,9 @@ it (``docs/diagnostics.md`` has the measured figures):
   the in-focus flame: blur removes gradients, so a blurred neighbour loses even when it
   is brighter (sharpness = mean gradient / mean value, so brightness does not count).
   Where the dim in-focus flame and a brighter blur merge into one region above the
-  threshold, there is nothing to choose and the measurement includes the blur.
+  threshold, there is nothing to choose and the measurement includes the blur. On a
+  plane of *emission* (:data:`EMISSION_MEASURE`) the region holding the most light is
+  the flame: no neighbour's blur lies there, only the solve's artefacts.
 - **Segmentation threshold** at :data:`SEGMENT_FRACTION` (30 %) of the brightest pixel in
   the band, ``measure.label`` + ``measure.regionprops``. Blurred light of neighbours
   adds to the flame's own; a low threshold lets the region merge with a neighbour's blur
@@ -110,7 +112,13 @@ RADIAL_FRACTIONS = (0.25, 0.5, 0.75)
 #: flagged). Chosen by the lowest worst trusted height error over those scenes and the chosen
 #: solver's validation reconstructions (``python experiments/reconstruct.py --stage edges``,
 #: ``results/reconstruct_edges.csv``).
-EMISSION_MEASURE = dict(segment_fraction=0.05, edge_fit_range=(0.05, 0.5))
+#: On such a plane the flame is the region that holds the most light (``pick="brightest"``), not the sharpest: what
+#: other flames leave there is the solve's artefact, and where the data are few (a camera of 6-7 views, a recording
+#: solved on the lenslet grid) it is speckled, so the sharpest region above 5 % was another flame's ghost (a user's
+#: 6-view camera: each plane measured at its neighbour's place, heights 3-4 mm off).
+EMISSION_MEASURE = dict(segment_fraction=0.05, edge_fit_range=(0.05, 0.5), pick="brightest")
+#: How :func:`measure_flame` chooses among a band's regions above the threshold.
+PICKS = ("sharpest", "brightest")
 
 
 class EmptyPlaneError(ValueError):
@@ -367,7 +375,7 @@ def _edge(img, mask, y, start, step, lo, hi, band) -> _Edge:
 
 def measure_flame(plane, camera: PlenopticCamera, depth_offset_mm: float, *, columns=None,
                   segment_fraction: float = SEGMENT_FRACTION, edge_fit_range=EDGE_FIT_RANGE,
-                  radial_heights_mm=None) -> FlameMeasurement:
+                  radial_heights_mm=None, pick: str = "sharpest") -> FlameMeasurement:
     """Segment the in-focus flame of a refocused plane and measure it in object-space mm.
 
     Parameters
@@ -389,6 +397,10 @@ def measure_flame(plane, camera: PlenopticCamera, depth_offset_mm: float, *, col
     radial_heights_mm : sequence of float or None
         Heights above the measured base (mm) of the radial profiles; None: 25, 50 and
         75 % of the measured height. Heights outside the plane are skipped.
+    pick : {"sharpest", "brightest"}
+        Which region above the threshold is the flame: the sharpest (largest mean Sobel gradient over mean value:
+        a refocused plane, where blurred neighbours can be brighter) or the one holding the most light (a plane of
+        emission, :data:`EMISSION_MEASURE`).
 
     Returns
     -------
@@ -417,6 +429,8 @@ def measure_flame(plane, camera: PlenopticCamera, depth_offset_mm: float, *, col
     lo, hi = (float(v) for v in edge_fit_range)
     if not 0.0 < lo < hi <= 1.0:
         raise ValueError(f"edge_fit_range must be (lo, hi) with 0 < lo < hi <= 1. Received: {edge_fit_range!r}")
+    if pick not in PICKS:
+        raise ValueError(f"pick must be one of {PICKS}. Received: {pick!r}")
     s = lenslet_size_mm(camera, depth_offset_mm)
     band = np.zeros_like(img)
     band[:, c0:c1] = img[:, c0:c1]
@@ -432,7 +446,11 @@ def measure_flame(plane, camera: PlenopticCamera, depth_offset_mm: float, *, col
         raise EmptyPlaneError(f"no region of {MIN_AREA_LENSLETS} lenslets or more above {segment_fraction:.0%} of "
                               f"the peak {peak:.4g} in columns [{c0}, {c1}): the plane holds light, but is empty of "
                               "flames that large (a smaller one is not measured)")
-    mask = labels == max(regions, key=lambda r: r.intensity_mean[0] / r.intensity_mean[1]).label
+    if pick == "sharpest":
+        best = max(regions, key=lambda r: r.intensity_mean[0] / r.intensity_mean[1])
+    else:
+        best = max(regions, key=lambda r: r.intensity_mean[1] * r.area)
+    mask = labels == best.label
 
     rows_idx = np.arange(img.shape[0])
     y, _ = lenslet_to_object_mm(camera, rows_idx, 0, depth_offset_mm)
