@@ -236,7 +236,8 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
             knobs["support"] = mask
     if start is not None and admm and start.planes.shape == tuple(op.dims):
         knobs["start_planes"] = start.planes
-    rec = reconstruct(data, op, solver, iters, damp=damp, tv=tv, saturation=fit, progress=progress, **knobs)
+    rec = reconstruct(data, op, solver, iters, damp=damp, tv=tv, saturation=fit, progress=progress, unit=lf.unit,
+                      **knobs)
     if found_depths is not None and admm:
         rec.settings["support"] = "regions" if support else ("near planes" if "support" in knobs else "none")
     return op, rec

@@ -186,10 +186,9 @@ def volume_reconstruct(a):
     if not (lo <= a.near and a.far <= hi):
         raise ValueError(f"--from {a.near:g} --to {a.far:g}: this camera refocuses {lo:+.3g} .. {hi:+.3g} mm from its "
                          "focus distance")
-    level = getattr(a, "saturation", "file")
+    fitted = _fitted_light_field(lf, getattr(a, "saturation", "file"))
     step = VOLUME_STEP_MM if a.step is None else a.step
-    rec, extra = solve_volume(views, cam, a.near, a.far, step, a.prior,
-                              saturation=_fitted_light_field(lf, level).fit_mask(),
+    rec, extra = solve_volume(views, cam, a.near, a.far, step, a.prior, saturation=fitted.fit_mask(), unit=fitted.unit,
                               tv=a.tv, l1=a.l1, progress=True, white_normalised=lf.white_normalised,
                               interpolation=lf.interpolation)
     res, axi, op = extra["resolution"], extra["axisymmetric"], extra["operator"]
@@ -198,7 +197,7 @@ def volume_reconstruct(a):
     out = Path(a.out)
     edge = edge_warning(rec, op, modelled=axi is not None and axi.beyond_field, stack=axi is None)
     ends = stack_end_warning(rec)
-    misfit = misfit_warning(lf, op, rec, level)
+    misfit = misfit_warning(lf, op, rec, getattr(a, "saturation", "file"))
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), volume=True,
                         depth_resolution=table.to_dict("list"), edge_share=edge, stack_end_share=ends, misfit=misfit,
                         operator="exact" if lf.interpolation is None else "exact, with decoding's interpolation",

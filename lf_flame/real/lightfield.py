@@ -93,6 +93,9 @@ class LightField:
         A decoded capture's clipped pixels as a share of its lit ones
         (:func:`lf_flame.real.clipping.clipped_share`, of the raw image at decoding: a decoded sample mixes
         several pixels); None: a raw image's, read off its views and ``saturation`` (:meth:`over_exposure`).
+    level : float or None
+        A decoded capture's clipping level at decoding (its raw image's units, which decoded views keep: the
+        white image divides them by its own light over its 99th percentile); None: not known.
     unlit_level : float or None
         A decoded capture's pixels where its white image is dark, their median over its bright pixels
         (:func:`lf_flame.real.black_level.unlit_level`, at decoding): about 0 unless a black level or stray light
@@ -119,6 +122,7 @@ class LightField:
     defects: np.ndarray | None = None
     clipped_share: float | None = None
     unlit_level: float | None = None
+    level: float | None = None
 
     def __post_init__(self):
         v = self.views
@@ -157,6 +161,14 @@ class LightField:
     def decoded(self) -> bool:
         """Views decoded from a capture (their planes are in :attr:`frame`)."""
         return self.frame is not None
+
+    @property
+    def unit(self) -> float:
+        """The views' unit for the solvers (:func:`lf_flame.tomo.solvers.reconstruct`'s ``unit``): the sensor's
+        clipping level in the views' units (:attr:`saturation`; a decoded capture's :attr:`level`), 1.0 where none
+        is known. A mask of samples to leave out (:meth:`fit_mask`) does not carry it."""
+        level = self.level if self.decoded else self.saturation
+        return float(level) if level is not None else 1.0
 
     def fit_mask(self):
         """``reconstruct``'s ``saturation``: the mask of samples to leave out, else the level; with
@@ -239,7 +251,7 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
                  white_normalised: bool = True, camera_file: str | None = None, channels=None,
                  meta: dict | None = None, bin_views: int = 1, lattice_views=None, lattice_clipped=None,
                  defective_pixels: int = 0, clipped_share: float | None = None,
-                 unlit_level: float | None = None) -> LightField:
+                 unlit_level: float | None = None, level: float | None = None) -> LightField:
     """The light field of views decoded from a capture of ``camera`` with ``calibration``.
 
     Parameters
@@ -265,6 +277,8 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
         The capture's clipped pixels as a share of its lit ones (:class:`LightField`); None: not measured.
     unlit_level : float or None
         What the capture's unlit pixels read (:class:`LightField`); None: not read.
+    level : float or None
+        The capture's clipping level at decoding (:class:`LightField`); None: not known.
 
     Raises
     ------
@@ -292,7 +306,8 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
                       sample_offsets=None if channels is None else sample_offsets(calibration, v.shape[0]),
                       defective_pixels=int(defective_pixels),
                       clipped_share=None if clipped_share is None else float(clipped_share),
-                      unlit_level=None if unlit_level is None else float(unlit_level))
+                      unlit_level=None if unlit_level is None else float(unlit_level),
+                      level=None if level is None else float(level))
 
 
 def read_light_field(path, camera=None, calibration=None, *, views: int | None = None,
@@ -367,8 +382,9 @@ def read_light_field(path, camera=None, calibration=None, *, views: int | None =
             k = int(f.attrs.get("bin_views", 1))
             share = float(f.attrs["clipped_share"]) if "clipped_share" in f.attrs else None
             unlit = float(f.attrs["unlit_level"]) if "unlit_level" in f.attrs else None
+            level = float(f.attrs["saturation"]) if "saturation" in f.attrs else None
         return from_decoded(v, vcal, cam, src, load_clipped(p), white, cam_file, load_channels(p), meta, k,
-                            *load_lattice(p), clipped_share=share, unlit_level=unlit)
+                            *load_lattice(p), clipped_share=share, unlit_level=unlit, level=level)
     raw, stored, meta = (raw_reader or _read_raw)(p)
     stored_camera_warning(cam, stored, src)
     cam = cam or stored
@@ -524,7 +540,7 @@ def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None, sensor=N
                         white is not None, cam_file, channels, meta, bin_views=k,
                         lattice_views=lattice if hexagonal else None, lattice_clipped=hit if hexagonal else None,
                         defective_pixels=int(bad.sum()), clipped_share=clipped_share(raw, level),
-                        unlit_level=unlit_level(raw, white, dark))
+                        unlit_level=unlit_level(raw, white, dark), level=level)
 
 
 def _read_raw(p: Path):

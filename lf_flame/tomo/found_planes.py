@@ -165,7 +165,7 @@ def found_planes_knobs(views, saturation, subsamples: int):
 def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturation=1.0, support: bool = False,
                 near_parallax: float = NEAR_PARALLAX, dilation: int = SUPPORT_DILATION, solve=None,
                 subsamples: int | None = None, peel_rounds: int = PEEL_ROUNDS, refine_steps: int = REFINE_STEPS,
-                **find_kw):
+                unit: float | None = None, **find_kw):
     """Found depths (:func:`~lf_flame.tomo.depth.find_depths`) and the emission on their planes.
 
     The planes' emission is ``reconstruct(views, emission_operator(camera, planes_mm), solver)``
@@ -186,6 +186,7 @@ def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturat
     planes solved again with them (0: never). ``refine_steps``: Gauss-Newton steps on the slopes of the planes
     that hold flames one behind another, each solved again (:func:`~lf_flame.tomo.refine.refine_planes`; 0: none),
     after which their regions are searched once more (:func:`~lf_flame.tomo.refine.peel_and_refine`).
+    ``unit``: the views' unit where ``saturation`` is a mask (:func:`~lf_flame.tomo.solvers.reconstruct`'s).
 
     Returns
     -------
@@ -218,7 +219,7 @@ def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturat
         knobs = dict((found_planes_knobs(views, saturation, s) if solve is None and solver == "admm" else solve) or {})
         if start is not None and solver == "admm" and start.planes.shape == tuple(op.dims):
             knobs["start_planes"] = start.planes
-        return op, reconstruct(y, op, solver, saturation=saturation, support=sup, **knobs)
+        return op, reconstruct(y, op, solver, saturation=saturation, support=sup, unit=unit, **knobs)
 
     op, rec = solved(found)
     fit = fitted_pixels(y, saturation)

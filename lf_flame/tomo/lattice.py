@@ -451,7 +451,7 @@ def solve_on_lattice(lf, rec, op, support=None) -> LatticeSolve:
     knobs = dict(iters=int(st["iters"]), tv=st["tv"], lam=st["lam"], l1=st["l1"], start=st["start"], tol=st["tol"])
     if hop.offset_bins is not None:      # samples off the views' grid: admm's fills and tolerance for them
         knobs.update(iters=None, tol=None)
-    lat = reconstruct(data, hop, "admm", saturation=leave_out,
+    lat = reconstruct(data, hop, "admm", saturation=leave_out, unit=lf.unit,
                       support=None if support is None else hop.from_square(support), **knobs)
     lat.settings.update(lattice="hexagonal", noise=st.get("noise", math.nan))
     planes = hop.to_square(lat.planes, op.dims[1] // s, op.dims[2] // s)

@@ -250,7 +250,8 @@ SATURATED_WARN = 0.5
 def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: int | None = None, *,
                 damp: float = 0.0, tv: float | None = None, lam: float | None = None, saturation=1.0,
                 progress: bool = False, callback=None, support=None, l1: float | None = None, start: str | None = None,
-                tol: float | None = None, state: dict | None = None, start_planes=None) -> Reconstruction:
+                tol: float | None = None, state: dict | None = None, start_planes=None,
+                unit: float | None = None) -> Reconstruction:
     """Recover the emission on the operator's planes from one light field.
 
     Parameters
@@ -299,6 +300,11 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
         is also the views' unit: they are solved divided by it (the weights ``tv`` and ``damp`` and
         admm's noise regimes are chosen where the sensor clips at 1), so that the planes scale with
         the data (counts of a 12- or 16-bit sensor, or [0, 1], give the same planes in their units).
+    unit : float or None
+        The views' unit where ``saturation`` is a mask or None: the sensor's clipping level in the views' units
+        (a capture's in counts with its defective pixels' mask, decoded views of a capture in counts:
+        :attr:`lf_flame.real.lightfield.LightField.unit`); they are solved divided by it, as by a level. None: the
+        level where ``saturation`` is one, else 1 (the views' own units).
     progress : bool
         A tqdm bar over the iterations.
     callback : callable or None
@@ -345,9 +351,13 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
     solver, iters, tv, y = _checked_inputs(views, op, solver, iters, damp, tv, saturation)
     t0 = time.perf_counter()
     given_level = saturation
-    unit = float(saturation) if np.ndim(saturation) == 0 and saturation is not None else 1.0
+    if unit is not None and not (math.isfinite(float(unit)) and unit > 0):
+        raise ValueError(f"unit must be a positive finite level (the sensor's clipping level). Received: {unit!r}")
+    unit = float(saturation) if np.ndim(saturation) == 0 and saturation is not None else (
+        1.0 if unit is None else float(unit))
     if unit != 1.0:     # the weights (tv, damp) and noise regimes are in units where the sensor clips at 1: solved there
-        y, saturation = y / np.asarray(unit, y.dtype), 1.0
+        y = y / np.asarray(unit, y.dtype)
+        saturation = 1.0 if np.ndim(saturation) == 0 and saturation is not None else saturation   # a mask stays
         start_planes = None if start_planes is None else np.asarray(start_planes) / unit
     p = _fitted_problem(op, y, saturation)
     if p.n_sat == p.y.size:

@@ -52,7 +52,7 @@ def volume_depths(near_mm: float, far_mm: float, step_mm: float) -> np.ndarray:
 
 def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, prior: str = VOLUME_PRIOR, *,
                  saturation=1.0, tv: float | None = None, l1: float | None = None, resolution: bool = True,
-                 white_normalised: bool = False, interpolation=None, progress: bool = False):
+                 white_normalised: bool = False, interpolation=None, progress: bool = False, unit: float | None = None):
     """The emission on a dense stack from one light field, with a prior (module docstring).
 
     Parameters
@@ -69,6 +69,8 @@ def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, p
     saturation : float, ndarray of bool of the views' shape, or None
         The clipping level (views' units): pixels at or above it are left out of the fit; a mask
         of the samples to leave out (decoded views' clipped samples); None: all fitted.
+    unit : float or None
+        The views' unit with a mask (:func:`~lf_flame.tomo.solvers.reconstruct`'s ``unit``); None: as there.
     white_normalised : bool
         Views decoded from a capture (divided by the white image): taken as the operator's
         data times its white views, the aperture image's dark rim left out
@@ -154,7 +156,7 @@ def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, p
                 v = check_views(views, op)
                 weight = table[noise_regime(relative_noise(v, fitted(v)))]
             knobs[key] = weight
-        rec = reconstruct(views, op, "admm", saturation=saturation, progress=progress, **knobs)
+        rec = reconstruct(views, op, "admm", saturation=saturation, progress=progress, unit=unit, **knobs)
         rec.settings["prior"] = prior
     rec.settings.update(setup_s=setup_s, near_mm=float(near_mm), far_mm=float(far_mm), step_mm=float(step_mm))
     res = None
