@@ -367,6 +367,44 @@ def test_channel_sum_has_no_cfa_checkerboard():
     assert s.std() / s.mean() < 0.01
 
 
+def test_a_colour_capture_with_one_site_of_a_channel_dead_is_refused_naming_it(files, tmp_path, capsys):
+    """A colour mosaic whose green pixels at one site of the 2 x 2 tile read nothing (the other greens light) had its
+    channels' ratio read as a temperature (about 1,080 K for flames at 1,800-2,050 K, exit 0): refused naming the
+    channel and its sites, as a blackbody and in a recording's frame (that frame's rows failed, the others kept)."""
+    from lf_flame.temperature.mosaic import refuse_dead_site
+    d = files
+    with np.load(d["flame"]) as z:
+        raw = z["raw"].copy()
+    refuse_dead_site(raw, d["sensor"], "flame")                      # a clean capture passes
+    sites = np.argwhere(d["sensor"].channel_map((2, 2)) == 1)        # the green sites
+    i, j = sites[0]
+    dead = raw.copy()
+    dead[i::2, j::2] = 0.0
+    bad = _save(tmp_path / "dead.npz", dead, d["sensor"])
+    assert main(["temperature", bad, "--calibration", d["cal"], "--depths", "0", "--out", str(tmp_path / "T.h5"),
+                 "--no-figure"]) == 2
+    err = capsys.readouterr().err
+    assert "its G pixels disagree" in err and f"0 at tile row {i}, column {j}" in err and not (tmp_path / "T.h5").exists()
+    bb = np.load(d["bb"][0])["raw"].copy()
+    bb[i::2, j::2] *= 0.3
+    args = ["calibrate-temperature", _save(tmp_path / "bb.npz", bb, d["sensor"]), d["bb"][1], d["bb"][2]]
+    assert main(args + ["--temperature", "1600", "--temperature", "2000", "--temperature", "2400",
+                        "--out", str(tmp_path / "bb.json")]) == 2
+    assert "one site of the G channel is dead or dimmed" in capsys.readouterr().err
+    # a recording: the frame with the dead site fails, the others are as without it
+    frames = np.stack([raw, dead, raw])
+    with h5py.File(tmp_path / "rec.h5", "w") as f:
+        f["frames"] = frames
+        f.attrs["fps"] = 10.0
+        f.attrs["camera"] = json.dumps(CAM.to_dict())
+        f.attrs["sensor"] = json.dumps(d["sensor"].record())
+    assert main(["temperature", str(tmp_path / "rec.h5"), "--calibration", d["cal"], "--depths", "0",
+                 "--out", str(tmp_path / "Tr.h5"), "--no-figure"]) == 0
+    rows = pd.read_csv(tmp_path / "Tr.csv")
+    assert rows.failure.notna().tolist() == [False, True, False]
+    assert "its G pixels disagree" in rows.failure[1] and np.isfinite(rows.median_k[[0, 2]]).all()
+
+
 def test_temperature_refuses_a_monochrome_light_field(files, tmp_path, capsys):
     """A light field without colour channels: a monochrome render (its record), or an image with no
     mosaic (the same colour raw image with its 2 x 2 phases averaged: the record stripped), exit 2

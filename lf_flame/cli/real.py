@@ -83,6 +83,8 @@ def cmd_decode(a):
         refuse_rgb(a.raw)
         refuse_no_mosaic(raw, a.raw, f"the camera names a colour sensor ({where}); decode a monochrome capture with a "
                                      "camera file whose [sensor] names no cfa")
+        from ..temperature.mosaic import refuse_dead_site
+        refuse_dead_site(raw, sensor, a.raw)
     t = time.perf_counter()
     # a hexagonal grid keeps its lattice's views (and a colour capture's channels there) beside the square grid's
     level = _saturation_level(a.saturation, raw)

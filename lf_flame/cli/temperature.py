@@ -38,6 +38,10 @@ def cmd_temperature(a):
     sensor, where = _sensor(src, a, cal)
     cal.check_sensor(sensor)
     cal = load_calibration(a.calibration, sensor)      # also refuses a ratio with no unique temperature
+    if recording is None and not (src.endswith(".h5") and ".h5:" not in src):     # a raw mosaic (a recording: per frame)
+        from ..temperature.mosaic import refuse_dead_site
+        from ._io import _load_raw
+        refuse_dead_site(_load_raw(src)[0], sensor, src)
     print(f"sensor {sensor.name}, {sensor.pattern} phase {sensor.phase} ({where}); calibration "
           f"{cal.channels[0]}/{cal.channels[1]}, gain ratio {cal.gain_ratio:.5f}")
     if recording is not None:

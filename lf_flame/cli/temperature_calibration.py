@@ -89,8 +89,9 @@ def cmd_calibrate_temperature(a):
                                  "and give the VIEWS.h5")
             from ..real.clipping import auto_saturation, clipped_share
             _clipped_blackbody(clipped_share(raw, auto_saturation(raw)), path)
-            from ..temperature.mosaic import refuse_no_mosaic
+            from ..temperature.mosaic import refuse_dead_site, refuse_no_mosaic
             refuse_no_mosaic(raw, path, "a blackbody image of a colour camera has one")
+            refuse_dead_site(raw, sensor, path)
             n = (cam or PAPER_CAMERA).pixels_per_lenslet
             try:
                 r = blackbody_ratio(raw, sensor, n, channels)

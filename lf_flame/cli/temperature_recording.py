@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..temperature.mosaic import refuse_no_mosaic
+from ..temperature.mosaic import refuse_dead_site, refuse_no_mosaic
 from ._io import planes_count, refuse_rgb
 from .temperature_planes import _auto_depths, _level_record, _plane_temperatures, _record, fit_warnings
 
@@ -77,6 +77,7 @@ def temperature_recording(a, source, attrs, cal, sensor, where):
         raw = np.asarray(raw, np.float64)
         name = f"{src} frame {i}"
         try:
+            refuse_dead_site(raw, sensor, name)
             lf = (from_raw(raw, cam, name, camera_file=cam_file, sensor=sensor) if grid is None else
                   decode_capture(raw, cam, grid, sensor, name, images))
             if temps:                                       # the planes are set: a frame that fails is one row

@@ -57,6 +57,53 @@ def refuse_no_mosaic(raw, source: str, hint: str = "a monochrome light field has
                          f"within {100 * MOSAIC_SPREAD:g} %): {hint}")
 
 
+#: A colour channel's sites of the 2 x 2 filter tile (an RGGB sensor's two greens) whose means over the lit tiles
+#: differ by more than this factor: one of them is dead, or the tile's phase is not the sensor's. A sensor's two
+#: greens differ by a few per cent; a flame's red and blue pixels (a phase off by one) by several times.
+SITE_RATIO = 2.0
+
+
+def refuse_dead_site(raw, sensor: ColourSensor, source: str) -> None:
+    """Refuse a raw colour mosaic whose sites of one colour disagree: a channel's pixels at one place of the 2 x 2
+    tile dark (or far dimmer) where its pixels at the other read light. Its ratio would be read as a temperature
+    (an RGGB capture whose greens at one site read nothing: about 1,080 K for flames at 1,800-2,050 K).
+
+    Parameters
+    ----------
+    raw : ndarray of shape (rows, cols)
+        Pixels, any units.
+    sensor : ColourSensor
+        Its CFA pattern and phase.
+    source : str
+        Its name in the message.
+
+    Raises
+    ------
+    ValueError
+        Two sites of one channel whose means over the lit tiles (those whose brightest pixel is above 0.1 of the
+        image's maximum) differ by more than :data:`SITE_RATIO`, naming the channel, the sites and their means.
+    """
+    raw = np.asarray(raw, np.float64)
+    r, c = (raw.shape[0] // 2) * 2, (raw.shape[1] // 2) * 2
+    tiles = raw[:r, :c].reshape(r // 2, 2, c // 2, 2)
+    top = float(raw.max())
+    if not top > 0:
+        return
+    lit = tiles.max(axis=(1, 3)) > 0.1 * top
+    chan = sensor.channel_map((2, 2))
+    for ch in np.unique(chan):
+        sites = [(int(i), int(j)) for i, j in zip(*np.nonzero(chan == ch))]
+        if len(sites) < 2:
+            continue
+        means = [float(tiles[:, i, :, j][lit].mean()) for i, j in sites]
+        if max(means) > SITE_RATIO * min(means):
+            name = "RGB"[int(ch)]
+            said = ", ".join(f"{m:.4g} at tile row {i}, column {j}" for (i, j), m in zip(sites, means))
+            raise ValueError(f"{source}: its {name} pixels disagree ({said}, over the lit 2 x 2 tiles): one site of "
+                             f"the {name} channel is dead or dimmed, or the CFA's phase {tuple(sensor.phase)} is not "
+                             "the sensor's; two-colour pyrometry would read that as a temperature")
+
+
 def channel_views(shape, sensor: ColourSensor, pixels_per_lenslet: int) -> np.ndarray:
     """Channel index (0 R, 1 G, 2 B) of each view sample of a raw image of ``shape``.
 
