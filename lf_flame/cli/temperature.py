@@ -38,7 +38,7 @@ def cmd_temperature(a):
     sensor, where = _sensor(src, a, cal)
     cal.check_sensor(sensor)
     cal = load_calibration(a.calibration, sensor)      # also refuses a ratio with no unique temperature
-    if recording is None and not (src.endswith(".h5") and ".h5:" not in src):     # a raw mosaic (a recording: per frame)
+    if recording is None and not (src.endswith(".h5") and ".h5:" not in src):    # a raw mosaic; recordings: per frame
         from ..temperature.mosaic import refuse_dead_site
         from ._io import _load_raw
         refuse_dead_site(_load_raw(src)[0], sensor, src)
