@@ -300,8 +300,10 @@ def test_a_volume_reaching_past_its_stack_is_warned_of(capsys):
     inside the stack's end: 3-D error 0.43 against 0.066 with the stack run further, without a word) is warned of,
     naming that end and --to; end planes at a quarter of the brightest (light a prior-free solve spreads over a stack
     that holds the flame) are not."""
-    from lf_flame.cli.fit_notes import stack_end_warning
+    from lf_flame.cli.fit_notes import resolved_spacing_mm, stack_end_warning
     from lf_flame.tomo.solvers import Reconstruction
+    assert resolved_spacing_mm({"spacing_interp_mm_10": [np.nan, 29.5, np.inf]}, 10.0) == 29.5   # NaN: not mapped
+    assert resolved_spacing_mm({"spacing_interp_mm_10": [np.nan, np.inf]}, 10.0) == np.inf
     light = np.array([0.0, 0.5, 1.0, 0.8, 0.98])
     rec = Reconstruction(planes=light[:, None, None] * np.ones((5, 3, 3)), depths_mm=(-8.0, -4.0, 0.0, 4.0, 8.0),
                          sample_mm=((1.0, 1.0),) * 5, solver="admm")
@@ -310,8 +312,17 @@ def test_a_volume_reaching_past_its_stack_is_warned_of(capsys):
     assert share == pytest.approx({"near": 0.0, "far": 0.98})
     assert "the stack's far end (+8 mm) holds 98 % of its brightest plane's light" in err and "(--to)" in err
     assert "near end" not in err
+    assert stack_end_warning(rec, resolved_mm=2.0) == share and "run the stack further" in capsys.readouterr().err
+    # a camera whose data over the stack resolve no finer than half its span (a user's 16-view camera: 29.5 mm over
+    # 30 mm): its light spreads along any stack, which running it further does not mend; said so
+    for resolved, said in ((12.0, "resolve 12 mm apart at best"), (np.inf, "resolve no spacing within the stack")):
+        assert stack_end_warning(rec, resolved_mm=resolved) == share
+        err = capsys.readouterr().err
+        assert said in err and "spreads along the stack whatever its length" in err and "(--to)" not in err
     rec.planes[[0, -1]] = 0.25
     assert stack_end_warning(rec) == pytest.approx({"near": 0.25, "far": 0.25}) and capsys.readouterr().err == ""
+    assert stack_end_warning(rec, resolved_mm=np.inf) == pytest.approx({"near": 0.25, "far": 0.25})
+    assert capsys.readouterr().err == ""
 
 
 def test_simulate_notes_the_pixels_that_clip_the_sensor(capsys):

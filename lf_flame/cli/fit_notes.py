@@ -3,6 +3,7 @@ defective, dark), the emission at the field's edge, the misfit, the black level,
 """
 from __future__ import annotations
 
+import math
 import sys
 
 import numpy as np
@@ -93,15 +94,34 @@ def edge_warning(rec, op, modelled: bool = False, stack: bool = False):
 STACK_END_WARN = 0.5
 
 
-def stack_end_warning(rec) -> dict:
+def resolved_spacing_mm(table, condition: float) -> float:
+    """The finest plane spacing (mm) that a stack's data resolve for any feature size of its depth-resolution table
+    (:meth:`DepthResolution.to_frame <lf_flame.tomo.resolution.DepthResolution.to_frame>`, at ``condition``); inf
+    where none within the stack is."""
+    s = np.asarray(table[f"spacing_interp_mm_{condition:g}"], np.float64)
+    s = s[~np.isnan(s)]
+    return float(s.min()) if len(s) else math.inf
+
+
+def stack_end_warning(rec, resolved_mm: float | None = None) -> dict:
     """A dense stack's end planes' light over its brightest plane's (``{"near": ..., "far": ...}``, for the file);
     where one is at least :data:`STACK_END_WARN`, one warning (stderr): the flame reaches past that end, and the
-    stack should run further."""
+    stack should run further; or, where the stack's data resolve no spacing finer than half its span
+    (``resolved_mm``, :func:`resolved_spacing_mm`: a camera of little parallax per millimetre), that its light
+    spreads along the stack whatever its length, and what gives the depth there."""
     light = np.clip(np.asarray(rec.planes, np.float64), 0, None).sum(axis=(1, 2))
     top = light.max()
-    share = {}
+    span = float(rec.depths_mm[-1] - rec.depths_mm[0])
+    share = {name: float(light[k] / top) if top > 0 else 0.0 for name, k in (("near", 0), ("far", -1))}
+    if resolved_mm is not None and resolved_mm > 0.5 * span and max(share.values()) >= STACK_END_WARN:
+        said = "no spacing within the stack" if math.isinf(resolved_mm) else f"{resolved_mm:.3g} mm apart at best"
+        print(f"warning: the stack's ends hold {100 * share['near']:.0f} % and {100 * share['far']:.0f} % of its "
+              f"brightest plane's light, and this camera's data over the stack's {span:g} mm resolve {said} (the "
+              "depth resolution below): without a prior the light spreads along the stack whatever its length; the "
+              "axisymmetric prior (--prior axisymmetric) models a flame of revolution, and the found planes "
+              "(reconstruct without --volume) a few flames", file=sys.stderr)
+        return share
     for name, k, flag in (("near", 0, "--from"), ("far", -1, "--to")):
-        share[name] = float(light[k] / top) if top > 0 else 0.0
         if share[name] >= STACK_END_WARN:
             print(f"warning: the stack's {name} end ({rec.depths_mm[k]:+g} mm) holds {100 * share[name]:.0f} % of its "
                   "brightest plane's light: the flame reaches past it, and its light beyond is not recovered (the "

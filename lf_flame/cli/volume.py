@@ -12,7 +12,8 @@ import numpy as np
 
 from ._io import (AUTO_LEVEL, finite, RAW_FORMATS, _level_or_none, _raw_scene, add_camera_args, add_figure_arg,
                   add_search_arg, planes_count, positive_int)
-from .fit_notes import edge_warning, left_out_notes, misfit_warning, resolution_note, stack_end_warning
+from .fit_notes import (edge_warning, left_out_notes, misfit_warning, resolution_note, resolved_spacing_mm,
+                        stack_end_warning)
 from .planes import (_fitted_light_field, found_planes, found_record, lattice_solve, possible_warning,
                      reconstruct_input, run_reconstruction, solve_found)
 from ..simulate.scenes import PAPER_DEPTHS_MM
@@ -196,7 +197,7 @@ def volume_reconstruct(a):
     arrays = {} if axi is None else dict(emission_r_y=axi.emission, radii_mm=axi.radii_mm, heights_mm=axi.heights_mm)
     out = Path(a.out)
     edge = edge_warning(rec, op, modelled=axi is not None and axi.beyond_field, stack=axi is None)
-    ends = stack_end_warning(rec)
+    ends = stack_end_warning(rec, resolved_spacing_mm(table, res.conditions[0]))
     misfit = misfit_warning(lf, op, rec, getattr(a, "saturation", "file"))
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), volume=True,
                         depth_resolution=table.to_dict("list"), edge_share=edge, stack_end_share=ends, misfit=misfit,
