@@ -148,7 +148,7 @@ def test_another_flames_stray_light_along_the_edge_is_not_a_flame_cut_by_it(caps
     (a user's 99 x 98-lenslet capture: 1.2 % of a dim plane's light there, at most 1.7 % of its peak) is not warned of
     as cut; the same share as a body at the edge is."""
     from lf_flame.cli.fit_notes import edge_warning
-    from lf_flame.tomo.solvers import EDGE_BODY, Reconstruction, edge_peaks
+    from lf_flame.tomo.solvers import EDGE_BODY, Reconstruction, edge_shares
     planes = np.zeros((2, 40, 40))
     planes[:, 15:25, 15:25] = 1.0                                          # each plane's flame, inside the field
     planes[0, 38:, 5:35] = 0.02                                            # stray light along the bottom edge
@@ -156,7 +156,7 @@ def test_another_flames_stray_light_along_the_edge_is_not_a_flame_cut_by_it(caps
     rec = Reconstruction(planes, (1.0, 2.0), ((0.1, 0.1),) * 2, "admm")
     edge = edge_warning(rec, None)
     assert edge[0] > 0.01 and edge[1] > 0.01
-    assert list(edge_peaks(planes) >= EDGE_BODY) == [False, True]
+    assert list(edge_shares(planes, peak=True) >= EDGE_BODY) == [False, True]
     err = capsys.readouterr().err
     assert "+2.00 mm" in err and "+1.00 mm" not in err
 

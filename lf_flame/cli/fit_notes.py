@@ -59,18 +59,18 @@ def edge_warning(rec, op, modelled: bool = False, stack: bool = False):
     """Each plane's share of its emission within :data:`~lf_flame.tomo.solvers.EDGE_BAND_LENSLETS` of the field's
     edge (:func:`~lf_flame.tomo.solvers.edge_shares`), for the file; where a plane's exceeds
     :data:`~lf_flame.tomo.solvers.EDGE_SHARE_WARN` and its brightest sample there reaches
-    :data:`~lf_flame.tomo.solvers.EDGE_BODY` of its brightest (:func:`~lf_flame.tomo.solvers.edge_peaks`: its own
+    :data:`~lf_flame.tomo.solvers.EDGE_BODY` of its brightest (:func:`~lf_flame.tomo.solvers.edge_shares`' ``peak``: its own
     flame's body, not another's stray light; planes holding less than
     :data:`~lf_flame.tomo.solvers.EDGE_PLANE_FLOOR` of the brightest plane's light left out: a few stray samples
     there are most of such a plane's light), one warning (stderr) naming those planes, or with ``modelled``
     (the axisymmetric prior's light from beyond the field) a note that it was modelled. ``stack``: a dense stack's
     planes, on which the warning also names light the solve spread over planes far from any flame."""
-    from ..tomo.solvers import EDGE_BAND_LENSLETS, EDGE_BODY, EDGE_PLANE_FLOOR, EDGE_SHARE_WARN, edge_peaks, edge_shares
+    from ..tomo.solvers import EDGE_BAND_LENSLETS, EDGE_BODY, EDGE_PLANE_FLOOR, EDGE_SHARE_WARN, edge_shares
     s = getattr(op, "subsamples", 1)
     edge = [float(v) for v in edge_shares(rec.planes, s)]
     light = np.clip(np.asarray(rec.planes, np.float64), 0, None).sum(axis=(1, 2))
     lit = light >= EDGE_PLANE_FLOOR * light.max() if light.max() > 0 else np.zeros(len(light), bool)
-    lit &= edge_peaks(rec.planes, s) >= EDGE_BODY
+    lit &= edge_shares(rec.planes, s, peak=True) >= EDGE_BODY
     cut = [(d, e) for d, e, keep in zip(rec.depths_mm, edge, lit) if e > EDGE_SHARE_WARN and keep]
     if cut:
         which = ", ".join(f"{d:+.2f} mm ({100 * e:.1f} %)" for d, e in cut[:4]) + (

@@ -62,7 +62,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "scoring": ["score_planes", "score_flames"],
         "solvers": ["SOLVERS", "DEFAULT_ITERS", "DEFAULT_TV", "DEFAULT_SOLVER", "EXACT_SOLVER",
                  "Reconstruction", "lipschitz_bound", "reconstruct", "EDGE_BAND_LENSLETS", "EDGE_SHARE_WARN",
-                 "edge_shares", "EDGE_BODY", "edge_peaks", "MISFIT_WARN", "MISFIT_NOISE", "fitted_residual",
+                 "edge_shares", "EDGE_BODY", "MISFIT_WARN", "MISFIT_NOISE", "fitted_residual",
                  "data_misfit", "misfit_is_high"],
         "truth": ["resample_layer", "scene_truth", "depth_shares", "truth_depths", "bin_planes"],
         "volume": ["volume_depths", "solve_volume"],

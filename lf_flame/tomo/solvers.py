@@ -69,15 +69,17 @@ EDGE_SHARE_WARN = 0.01
 #: (a new user's centred sheath, nothing outside the field: 3.9 % of a plane holding 0.1 % of the brightest's light).
 EDGE_PLANE_FLOOR = 0.01
 #: A plane's brightest sample in that band must reach this share of the plane's brightest for a warning: the flame's
-#: body reaches the edge, not another flame's stray light (:func:`edge_peaks`). A Gaussian flame cut by the edge
+#: body reaches the edge, not another flame's stray light. A Gaussian flame cut by the edge
 #: (a test camera's, 32 rays) reads 1.0 with its centre on the edge and 0.22 with 3.7 % of its light in the band; the
 #: stray light of a flame 20 mm nearer on a dim plane of a user's 99 x 98-lenslet capture (1.2 % of that plane's light
-#: in the band) 0.017, and the quick start's planes 0.003-0.035.
+#: in the band) 0.017, and the quick start's planes 0.003-0.035 (:func:`edge_shares`' ``peak``).
 EDGE_BODY = 0.1
 
 
-def edge_peaks(planes, samples_per_lenslet: int = 1, band_lenslets: int = EDGE_BAND_LENSLETS) -> np.ndarray:
-    """Each plane's brightest sample within ``band_lenslets`` of the grid's border over its brightest sample.
+def edge_shares(planes, samples_per_lenslet: int = 1, band_lenslets: int = EDGE_BAND_LENSLETS,
+                peak: bool = False) -> np.ndarray:
+    """Each plane's share of its emission within ``band_lenslets`` of the grid's border, or (``peak``) its brightest
+    sample there over its brightest sample (:data:`EDGE_BODY`).
 
     Parameters
     ----------
@@ -86,41 +88,24 @@ def edge_peaks(planes, samples_per_lenslet: int = 1, band_lenslets: int = EDGE_B
     samples_per_lenslet : int
         The grid's samples per lenslet and axis (an operator's ``subsamples``).
     band_lenslets : int
+    peak : bool
+        The band's brightest sample over the plane's, in place of its sum over the plane's.
 
     Returns
     -------
     ndarray of shape (P,)
-        In [0, 1]; 0 for an empty plane.
+        ``sum(band) / sum(plane)`` (``max(band) / max(plane)``) of the positive emission, in [0, 1]; 0 for an empty
+        plane.
     """
     x = np.clip(np.asarray(planes, np.float64), 0, None)
     b = int(band_lenslets) * int(samples_per_lenslet)
     band = x.copy()
     band[:, b:x.shape[1] - b, b:x.shape[2] - b] = 0.0
-    top = x.max(axis=(1, 2), initial=0.0)
-    return np.where(top > 0, band.max(axis=(1, 2), initial=0.0) / np.where(top > 0, top, 1.0), 0.0)
-
-
-def edge_shares(planes, samples_per_lenslet: int = 1, band_lenslets: int = EDGE_BAND_LENSLETS) -> np.ndarray:
-    """Each plane's share of its emission within ``band_lenslets`` of the grid's border.
-
-    Parameters
-    ----------
-    planes : ndarray of shape (P, rows, cols)
-        Emission (non-negative parts are counted).
-    samples_per_lenslet : int
-        The grid's samples per lenslet and axis (an operator's ``subsamples``).
-    band_lenslets : int
-
-    Returns
-    -------
-    ndarray of shape (P,)
-        ``sum(band) / sum(plane)`` of the positive emission; 0 for an empty plane.
-    """
-    x = np.clip(np.asarray(planes, np.float64), 0, None)
-    b = int(band_lenslets) * int(samples_per_lenslet)
-    inner = x[:, b:x.shape[1] - b, b:x.shape[2] - b].sum(axis=(1, 2))
-    total = x.sum(axis=(1, 2))
-    return np.where(total > 0, (total - inner) / np.where(total > 0, total, 1.0), 0.0)
+    if peak:
+        part, whole = band.max(axis=(1, 2), initial=0.0), x.max(axis=(1, 2), initial=0.0)
+    else:
+        part, whole = band.sum(axis=(1, 2)), x.sum(axis=(1, 2))
+    return np.where(whole > 0, part / np.where(whole > 0, whole, 1.0), 0.0)
 
 
 #: A solve leaving more than this share of the light field unexplained beyond its noise (:func:`data_misfit`), and
