@@ -272,6 +272,33 @@ def test_slope_search_refuses_what_has_no_focus_and_stays_on_its_grid():
     assert res.slopes.min() >= lo - 1e-9 and res.slope == pytest.approx(lo, abs=0.006)
 
 
+def test_slope_search_refuses_light_no_slope_moves_and_light_in_one_view():
+    """A hot pixel (light in one view alone) has no parallax: refused, where the centre view's had returned +3.0025
+    (fourier: past the +3 searched, its curve flat to 0.24 %) or -3.0 (shift-sum: flat), and an outer view's the
+    slope its interpolation happened to sharpen (-3.0, +2.95). The same pixel over light every view sees alike (no
+    view holds the region's light) is refused as flat: its sharpness varies by 0.2 % (fourier) from -3 to +3. The
+    grid, coarse and fine, stays within lo .. hi (its last coarse step had been 3.0375)."""
+    mask = aperture_mask(9, "circular")
+    grid = dict(lo=-3.0, hi=3.0, coarse_step=0.0875, fine_step=0.00875, mask=mask)
+    for u, v in ((4, 4), (0, 4), (1, 6)):
+        views = np.zeros((9, 9, 40, 30), np.float32)
+        views[u, v, 20, 15] = 0.5
+        for method in ("fourier", "shift-sum"):
+            with pytest.raises(ValueError, match=rf"comes from one view, \({u}, {v}\), alone \(100 % of it\)"):
+                find_sharpest_slope(views, (0, 40, 0, 30), method=method, **grid)
+    views = np.full((9, 9, 40, 30), 0.01, np.float32)
+    views[4, 4, 20, 15] = 0.5
+    for method in ("fourier", "shift-sum"):
+        with pytest.raises(ValueError, match="as sharp at every slope .*no slope moves its light"):
+            find_sharpest_slope(views, (5, 35, 5, 25), method=method, **grid)
+    views = np.zeros((9, 9, 40, 30), np.float32)          # a point at slope +3 (on the grid's end) in every view
+    for u in range(9):
+        for v in range(9):
+            views[u, v, 20 + 3 * (u - 4), 15 + 3 * (v - 4)] = 0.5
+    res = find_sharpest_slope(views, (0, 40, 0, 30), **grid)
+    assert res.slopes.max() <= 3.0 and res.slope == pytest.approx(3.0, abs=0.01)
+
+
 def test_cli_refocus_and_slopes(tmp_path, small_camera, capsys):
     import pandas as pd
     from lf_flame.cli import main

@@ -442,6 +442,16 @@ class SlopeSearch:
 #: at about 4e-8 of it (Fourier round-off); the paper's flames and shapes (4 rays per pixel) peak at 0.30-1.45 and
 #: stay above 1.4e-3 at every slope.
 FLAT_SHARPNESS = 1e-6
+#: A region whose sharpness varies by less than this share of its largest over the slopes searched has no focus to
+#: find (:func:`find_sharpest_slope`): light that no slope moves (a hot pixel in the centre view: 0.24 % with the
+#: Fourier slice's round-off, 0 by shift-and-sum, where its peak had fallen at the grid's end, slope +3.0025 or -3.0).
+#: The paper's shapes (4 rays per pixel) and a small camera's flames vary by 98-99.9 %, views of noise by 89-93 %.
+FLAT_SPREAD = 0.01
+#: A region where one view holds more than this share of the light of the views searched has no parallax to measure
+#: (:func:`find_sharpest_slope`): a hot pixel or a reflection that one view sees, which had a sharpest slope wherever
+#: its interpolation happened to be sharpest (-3.0 or +2.95 for a pixel of an outer view). Lit views each hold about
+#: one share in as many as there are (1/69 of a circular aperture of 9 x 9 views).
+ONE_VIEW_SHARE = 0.5
 
 
 def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", method: str = "fourier",
@@ -476,7 +486,9 @@ def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", me
     ------
     ValueError
         Unknown metric or method, an empty ROI or one outside the views' grid, a bad grid, NaN/inf in the
-        views, or a region as sharp at every slope (no light or no structure: no focus to find).
+        views, a region as sharp at every slope (no light or no structure, or light that no slope moves:
+        :data:`FLAT_SHARPNESS`, :data:`FLAT_SPREAD`), or one whose light one view holds (:data:`ONE_VIEW_SHARE`):
+        no focus to find.
     """
     if metric not in SHARPNESS:
         raise ValueError(f"metric must be one of {sorted(SHARPNESS)}. Received: metric={metric!r}")
@@ -494,6 +506,14 @@ def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", me
     n, _, R, C = views.shape
     if not (0 <= r0 and r1 <= R and 0 <= c0 and c1 <= C):
         raise ValueError(f"region of interest {tuple(roi)} lies outside the views' grid of {R} x {C} lenslets")
+    light = np.abs(views[:, :, r0:r1, c0:c1]).sum(axis=(2, 3), dtype=np.float64)
+    if mask is not None:
+        light = np.where(np.asarray(mask, bool), light, 0.0)
+    if light.sum() > 0 and light.max() > ONE_VIEW_SHARE * light.sum():
+        u, v = np.unravel_index(int(np.argmax(light)), light.shape)
+        raise ValueError(f"the light of the region {tuple(roi)} comes from one view, ({u}, {v}), alone "
+                         f"({100 * light.max() / light.sum():.0f} % of it): a hot pixel or a reflection that one view "
+                         "sees has no parallax, no focus to find (repair the pixel, or search another region: --roi)")
     max_slope = max(abs(lo), abs(hi)) + coarse_step
     if method == "fourier":
         pad = _margin(max_slope, n)
@@ -509,15 +529,22 @@ def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", me
         return np.array([fn(im) for im in stack[:, r0:r1, c0:c1]])
 
     coarse = np.arange(lo, hi + coarse_step / 2, coarse_step)
+    coarse[-1] = min(coarse[-1], hi)          # its last step had passed hi by up to half a step (3.0375 for 3)
     sc = scores(coarse)
     # the metrics go as the light's square (normvar: as the light): a constant image's are round-off, 1e-7 of that
     level = float(np.mean(np.abs(views[..., roi[0]:roi[1], roi[2]:roi[3]])))
     if not (np.all(np.isfinite(sc)) and sc.max() > FLAT_SHARPNESS * (level if metric == "normvar" else level ** 2)):
         raise ValueError(f"the region {tuple(roi)} is as sharp at every slope (no light, or no structure in it): "
                          "it has no focus to find")
+    if sc.max() - sc.min() <= FLAT_SPREAD * sc.max():
+        raise ValueError(f"the region {tuple(roi)} is as sharp at every slope (its sharpness varies by "
+                         f"{100 * (sc.max() - sc.min()) / sc.max():.2g} % from {lo:+.4g} to {hi:+.4g}): no slope moves "
+                         "its light (a hot pixel of the centre view, or light the views all see alike), so it has no "
+                         "focus to find (repair the pixel, or search another region: --roi)")
     best = coarse[int(np.argmax(sc))]
     fine = np.arange(best - coarse_step, best + coarse_step + fine_step / 2, fine_step)
     fine = fine[(fine >= lo - fine_step / 2) & (fine <= hi + fine_step / 2)]      # the grid asked for, not beyond
+    fine = np.clip(fine, lo, hi)                                                  # nor half a fine step past it
     sf = scores(fine)
     slopes = np.concatenate([coarse, fine])
     allsc = np.concatenate([sc, sf])
