@@ -5,7 +5,7 @@ from lf_flame.simulate import scenes
 from lf_flame.simulate import tracer as simulate
 from lf_flame.optics.camera import PAPER_CAMERA
 from lf_flame.refocus import _kernels as _refocus_kernels
-from lf_flame.refocus.shift_and_sum import _EXPONENT_BITS, FourierSlice, _check_finite, aperture_mask, find_sharpest_slope, focal_stack, normalized_variance, raw_to_views, refocus, tenengrad, variance_of_laplacian, views_to_raw
+from lf_flame.refocus.shift_and_sum import _EXPONENT_BITS, FourierSlice, _check_finite, aperture_mask, find_sharpest_slope, focal_stack, normalized_variance, raw_to_views, refocus, refocus_views, tenengrad, variance_of_laplacian, views_to_raw
 
 
 @pytest.fixture
@@ -36,6 +36,30 @@ def test_constant_light_field_stays_constant(slope):
     out = focal_stack(v, [slope])[0]
     covered = out != 0  # a pixel no view reaches (huge slopes) is 0, never NaN
     assert np.all(np.isfinite(out)) and np.allclose(out[covered], 0.3, atol=1e-6)
+
+
+@pytest.mark.parametrize("method", ["fourier", "shift-sum"])
+def test_views_near_float32s_largest_are_refocused_without_overflow(views, method):
+    """Views up to 1e38 (float32, finite) are refocused as the views times 1e38, finite: the Fourier slice's complex64
+    spectrum had overflowed into inf (views of 1e37 here; a small camera's flames times 1e34, written with exit 0)
+    and shift-and-sum's float32 sums had been refused as 'views contain NaN or inf'. Both scale by a power of two
+    (exact) and back. A float64 raw image past float32's largest is refused naming the overflow and the way out,
+    where raw_to_views had returned views of inf."""
+    slopes = [-1.3, 0.0, 0.37]
+    want = refocus_views(views, slopes, method=method).astype(np.float64) * 1e38
+    got = refocus_views(views * np.float32(1e38), slopes, method=method)
+    assert got.dtype == np.float32 and np.all(np.isfinite(got))
+    np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-6 * np.abs(want).max())
+    assert np.array_equal(refocus_views(views * np.float32(2.0 ** 70), slopes, method=method),
+                          refocus_views(views, slopes, method=method) * np.float32(2.0 ** 70))   # exact
+    raw = views_to_raw(views).astype(np.float64) * 1e39
+    with pytest.raises(ValueError, match=r"the raw image overflows float32 \(its values reach 1e\+39.*scale the data "
+                                         "down"):
+        raw_to_views(raw, 5)
+    with pytest.raises(ValueError, match="views contains NaN or inf"):      # NaN is still NaN
+        bad = views.copy()
+        bad[0, 0, 0, 0] = np.nan
+        focal_stack(bad, slopes, check_finite=False)
 
 
 @pytest.mark.parametrize("slope", [-2.0, -1.0, 1.0, 2.0, 0.6, -1.3])

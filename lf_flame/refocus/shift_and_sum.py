@@ -23,6 +23,20 @@ from . import _kernels as _refocus_kernels
 
 _EXPONENT_BITS = {np.dtype(np.float32): (np.uint32, 0x7F800000), np.dtype(np.float64): (np.uint64, 0x7FF0000000000000)}
 
+#: Views whose largest magnitude passes this are refocused by the Fourier slice scaled down by a power of two (exact:
+#: no bit of the result changes) and scaled back: its float32 spectrum sums every sample of the light field, and
+#: views of 1e34 had overflowed it into inf (1e37: NaN), written as the refocused planes.
+FOURIER_SCALE_ABOVE = 2.0 ** 64
+#: The largest float32, in which views and refocused planes are held.
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def _overflow(what: str, peak: float) -> ValueError:
+    """The refusal of values past :data:`FLOAT32_MAX`, naming the way out."""
+    return ValueError(f"{what} overflows float32 (its values reach {peak:.3g}; float32, in which views and refocused "
+                      f"planes are held, ends at {FLOAT32_MAX:.3g}): scale the data down, e.g. divide it by its "
+                      "largest value")
+
 
 def _check_finite(name, a):
     """Raise ValueError if the array ``a`` holds NaN or inf (large float32/float64 arrays:
@@ -57,7 +71,8 @@ def raw_to_views(raw: np.ndarray, pixels_per_lenslet: int) -> np.ndarray:
     Raises
     ------
     ValueError
-        If the raw shape is not a multiple of N, or it holds NaN or inf.
+        If the raw shape is not a multiple of N, it holds NaN or inf, or values past float32's largest (a float64
+        image's: its views would be inf).
     """
     raw = np.asarray(raw)
     n = int(pixels_per_lenslet)
@@ -65,7 +80,14 @@ def raw_to_views(raw: np.ndarray, pixels_per_lenslet: int) -> np.ndarray:
         raise ValueError(f"raw image of shape {raw.shape} is not a grid of {n}x{n}-pixel lenslet images")
     _check_finite("raw image", raw)
     R, C = raw.shape[0] // n, raw.shape[1] // n
-    return np.ascontiguousarray(raw.reshape(R, n, C, n).transpose(1, 3, 0, 2), dtype=np.float32)
+    with np.errstate(over="ignore"):        # a float64 image past float32's largest: refused below
+        views = np.ascontiguousarray(raw.reshape(R, n, C, n).transpose(1, 3, 0, 2), dtype=np.float32)
+    if raw.dtype.kind == "f" and raw.dtype.itemsize > 4:      # finite before the cast: inf after it is an overflow
+        try:
+            _check_finite("views", views)
+        except ValueError:
+            raise _overflow("the raw image", float(np.max(np.abs(raw)))) from None
+    return views
 
 
 def views_to_raw(views: np.ndarray) -> np.ndarray:
@@ -213,6 +235,12 @@ def focal_stack(views: np.ndarray, slopes, mask: np.ndarray | None = None, *, in
     ------
     ValueError
         NaN/inf in views or slopes, a bad shape, or an unknown interpolation.
+
+    Notes
+    -----
+    The sums are float32: views so bright that a sum of them passes float32's largest (1e37 over 81 views) are
+    refocused once more scaled down by a power of two (exact) and the planes scaled back, where they had been
+    refused as views holding NaN or inf.
     """
     views, slopes, mask = _check_stack_args(views, slopes, mask, check_finite)
     if interpolation not in INTERPOLATIONS:
@@ -223,8 +251,19 @@ def focal_stack(views: np.ndarray, slopes, mask: np.ndarray | None = None, *, in
         shifts = np.floor(shifts + 0.5)
     out = np.empty((len(slopes), R, C), np.float32)
     rows_per_task = -(-R // numba.get_num_threads())
-    if not _refocus_kernels.shift_sum_stack(views.reshape(n, n, R * C), R, shifts, shifts, mask, out, rows_per_task):
-        raise ValueError("views contain NaN or inf")
+    if _refocus_kernels.shift_sum_stack(views.reshape(n, n, R * C), R, shifts, shifts, mask, out, rows_per_task):
+        return out
+    if not check_finite:
+        _check_finite("views", views)                   # NaN or inf in the views: said so
+    peak = float(np.max(np.abs(views)))                 # finite views: a sum overflowed float32
+    k = math.frexp(peak)[1]
+    if not _refocus_kernels.shift_sum_stack(np.ldexp(views, -k).reshape(n, n, R * C), R, shifts, shifts, mask, out,
+                                            rows_per_task):
+        raise _overflow("refocusing the views", peak)
+    with np.errstate(over="ignore"):
+        out = np.ldexp(out, k)
+    if not np.all(np.isfinite(out)):
+        raise _overflow("refocusing the views", peak)
     return out
 
 
@@ -297,6 +336,12 @@ class FourierSlice:
     ------
     ValueError
         NaN/inf in views, bad shapes, or ``max_slope`` not positive and finite.
+
+    Notes
+    -----
+    The spectrum is complex64 and sums every sample of the light field: views brighter than
+    :data:`FOURIER_SCALE_ABOVE` are transformed scaled down by a power of two (exact) and each plane is scaled
+    back in :meth:`stack`, which refuses a plane that float32 cannot hold.
     """
 
     KERNEL_WIDTH = 4
@@ -324,8 +369,13 @@ class FourierSlice:
         # slots, the unlit views' among them, are 0) with the angular axes last, then their angular DFT along
         # those contiguous axes
         lu, lv = np.nonzero(mask)
-        spec = scipy.fft.rfftn(views[lu, lv] * weight[lu, lv, None, None], s=(self.R2, self.C2), axes=(1, 2),
-                               workers=-1)
+        lit = views[lu, lv]
+        self.peak = float(np.max(np.abs(lit))) if lit.size else 0.0
+        # very bright views scaled down by a power of two (exact) so that the spectrum's sums stay finite
+        self.exponent = math.frexp(self.peak)[1] if self.peak > FOURIER_SCALE_ABOVE else 0
+        if self.exponent:
+            lit = np.ldexp(lit, -self.exponent)
+        spec = scipy.fft.rfftn(lit * weight[lu, lv, None, None], s=(self.R2, self.C2), axes=(1, 2), workers=-1)
         grid = np.empty((self.R2, spec.shape[2], M, M), np.complex64)
         _refocus_kernels.angular_grid(spec, idx[lu], idx[lv], grid)
         self.spectrum = scipy.fft.fftn(grid, axes=(2, 3), workers=-1, overwrite_x=True)
@@ -355,7 +405,7 @@ class FourierSlice:
         Raises
         ------
         ValueError
-            A slope that is not finite or exceeds ``max_slope``.
+            A slope that is not finite or exceeds ``max_slope``; planes past float32's largest (views near it).
         """
         slopes = np.atleast_1d(np.asarray(slopes, np.float64))
         _check_finite("slopes", slopes)
@@ -372,7 +422,14 @@ class FourierSlice:
             spec *= np.exp(2j * np.pi * self.half * slopes[:, None, None] * (fr[None, :, None] + fc[None, None, :]))
         img = scipy.fft.irfft2(spec, s=(self.R2, self.C2), workers=-1)[:, :R, :C]
         count, reached = _slice_count(self.n, self.shape, (self.R2, self.C2), slopes, self.mask)
-        return np.divide(img, count, out=np.zeros(img.shape), where=reached).astype(np.float32)
+        out = np.divide(img, count, out=np.zeros(img.shape), where=reached)
+        if not self.exponent:
+            return out.astype(np.float32)
+        with np.errstate(over="ignore"):
+            out = np.ldexp(out, self.exponent).astype(np.float32)     # scaled back
+        if not np.all(np.isfinite(out)):
+            raise _overflow("refocusing the views (Fourier slice)", self.peak)
+        return out
 
 
 def refocus(raw: np.ndarray, slopes, pixels_per_lenslet: int, mask=None, *, method: str = "shift-sum",
