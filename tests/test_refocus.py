@@ -43,7 +43,8 @@ def test_views_near_float32s_largest_are_refocused_without_overflow(views, metho
     """Views up to 1e38 (float32, finite) are refocused as the views times 1e38, finite: the Fourier slice's complex64
     spectrum had overflowed into inf (views of 1e37 here; a small camera's flames times 1e34, written with exit 0)
     and shift-and-sum's float32 sums had been refused as 'views contain NaN or inf'. Both scale by a power of two
-    (exact) and back. A float64 raw image past float32's largest is refused naming the overflow and the way out,
+    (exact) and back; the slope search finds the same slope on them (its float32 mean light had overflowed, and the
+    region been refused as having no light). A float64 raw image past float32's largest is refused naming the overflow and the way out,
     where raw_to_views had returned views of inf."""
     slopes = [-1.3, 0.0, 0.37]
     want = refocus_views(views, slopes, method=method).astype(np.float64) * 1e38
@@ -52,6 +53,9 @@ def test_views_near_float32s_largest_are_refocused_without_overflow(views, metho
     np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-6 * np.abs(want).max())
     assert np.array_equal(refocus_views(views * np.float32(2.0 ** 70), slopes, method=method),
                           refocus_views(views, slopes, method=method) * np.float32(2.0 ** 70))   # exact
+    roi, grid = (2, 10, 2, 7), dict(lo=-1.0, hi=1.0, method=method)    # the slope search on them: the same slope
+    assert find_sharpest_slope(views * np.float32(1e37), roi, **grid).slope == find_sharpest_slope(views, roi,
+                                                                                                   **grid).slope
     raw = views_to_raw(views).astype(np.float64) * 1e39
     with pytest.raises(ValueError, match=r"the raw image overflows float32 \(its values reach 1e\+39.*scale the data "
                                          "down"):

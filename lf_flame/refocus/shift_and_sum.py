@@ -589,7 +589,7 @@ def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", me
     coarse[-1] = min(coarse[-1], hi)          # its last step had passed hi by up to half a step (3.0375 for 3)
     sc = scores(coarse)
     # the metrics go as the light's square (normvar: as the light): a constant image's are round-off, 1e-7 of that
-    level = float(np.mean(np.abs(views[..., roi[0]:roi[1], roi[2]:roi[3]])))
+    level = float(np.mean(np.abs(views[..., roi[0]:roi[1], roi[2]:roi[3]]), dtype=np.float64))   # float32 overflows
     if not (np.all(np.isfinite(sc)) and sc.max() > FLAT_SHARPNESS * (level if metric == "normvar" else level ** 2)):
         raise ValueError(f"the region {tuple(roi)} is as sharp at every slope (no light, or no structure in it): "
                          "it has no focus to find")
