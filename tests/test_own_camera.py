@@ -519,6 +519,13 @@ def test_slopes_of_a_simulated_capture_decoded_on_the_fly_search_its_flames_regi
         assert 0 <= r0 < r1 <= 46 and 0 <= c0 < c1 <= 29, roi
     np.testing.assert_allclose(df.depth_mm, [o["depth_offset_mm"] for o in stored], atol=0.5)
     np.testing.assert_allclose(df.true_depth_mm, [o["depth_offset_mm"] for o in stored])
+    # regions that cannot be carried (no camera stored, no depths) give way to those found in the views, with a note
+    from lf_flame.cli.optics import _decoded_objects
+    capsys.readouterr()
+    assert _decoded_objects(stored, None, None, None, (46, 29)) is None
+    assert _decoded_objects([dict(name="x", roi=(0, 5, 0, 5))], PAPER_CAMERA, None, None, (46, 29)) is None
+    out = capsys.readouterr().out
+    assert "the file stores no camera for them" in out and "they have no depths" in out and "found in the views" in out
 
 
 def test_images_smaller_than_the_datasheet_sensor_are_its_centred_crop(route):
