@@ -329,6 +329,20 @@ def test_refusals(camera, op, planted):
         fourier_system.FourierSystem(op, lam=-1.0)
 
 
+@pytest.mark.parametrize("lam", [-1.0, -1e-9, float("nan"), float("inf")])
+def test_a_negative_or_non_finite_lam_is_refused_with_tv_on_or_off(op, planted, lam):
+    """admm's gradient weight below 0 or not finite is refused up front, naming lam, with TV on as off: with TV on a
+    lam of -1 had passed the system's check as lam + rho_tv (0) and was solved as if it were 0 (a small camera's
+    flames: planes all NaN), and NaN or inf had been refused only once the noise was measured, as 'lam=nan' or
+    'lam=inf' plus rho_tv; solve_admm refuses them too."""
+    _, views = planted
+    for tv in (0.1, 0.0):
+        with pytest.raises(ValueError, match="lam, the weight of the planes' gradient .* must be a finite number >= 0"):
+            reconstruct(views, op, "admm", lam=lam, tv=tv)
+        with pytest.raises(ValueError, match="finite number >= 0"):
+            fourier.solve_admm(views, op, np.ones(op.dimsd, bool), lam=lam, tv=tv)
+
+
 def test_the_default_solver_follows_the_operator(camera, op, planted):
     _, views = planted
     assert reconstruct(views, op, iters=1).solver == "admm"

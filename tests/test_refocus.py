@@ -5,7 +5,7 @@ from lf_flame.simulate import scenes
 from lf_flame.simulate import tracer as simulate
 from lf_flame.optics.camera import PAPER_CAMERA
 from lf_flame.refocus import _kernels as _refocus_kernels
-from lf_flame.refocus.shift_and_sum import _EXPONENT_BITS, FourierSlice, _check_finite, aperture_mask, find_sharpest_slope, focal_stack, normalized_variance, raw_to_views, refocus, tenengrad, variance_of_laplacian, views_to_raw
+from lf_flame.refocus.shift_and_sum import _EXPONENT_BITS, FourierSlice, _check_finite, aperture_mask, find_sharpest_slope, focal_stack, normalized_variance, raw_to_views, refocus, refocus_views, tenengrad, variance_of_laplacian, views_to_raw
 
 
 @pytest.fixture
@@ -36,6 +36,34 @@ def test_constant_light_field_stays_constant(slope):
     out = focal_stack(v, [slope])[0]
     covered = out != 0  # a pixel no view reaches (huge slopes) is 0, never NaN
     assert np.all(np.isfinite(out)) and np.allclose(out[covered], 0.3, atol=1e-6)
+
+
+@pytest.mark.parametrize("method", ["fourier", "shift-sum"])
+def test_views_near_float32s_largest_are_refocused_without_overflow(views, method):
+    """Views up to 1e38 (float32, finite) are refocused as the views times 1e38, finite: the Fourier slice's complex64
+    spectrum had overflowed into inf (views of 1e37 here; a small camera's flames times 1e34, written with exit 0)
+    and shift-and-sum's float32 sums had been refused as 'views contain NaN or inf'. Both scale by a power of two
+    (exact) and back; the slope search finds the same slope on them (its float32 mean light had overflowed, and the
+    region been refused as having no light). A float64 raw image past float32's largest is refused naming the overflow and the way out,
+    where raw_to_views had returned views of inf."""
+    slopes = [-1.3, 0.0, 0.37]
+    want = refocus_views(views, slopes, method=method).astype(np.float64) * 1e38
+    got = refocus_views(views * np.float32(1e38), slopes, method=method)
+    assert got.dtype == np.float32 and np.all(np.isfinite(got))
+    np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-6 * np.abs(want).max())
+    assert np.array_equal(refocus_views(views * np.float32(2.0 ** 70), slopes, method=method),
+                          refocus_views(views, slopes, method=method) * np.float32(2.0 ** 70))   # exact
+    roi, grid = (2, 10, 2, 7), dict(lo=-1.0, hi=1.0, method=method)    # the slope search on them: the same slope
+    assert find_sharpest_slope(views * np.float32(1e37), roi, **grid).slope == find_sharpest_slope(views, roi,
+                                                                                                   **grid).slope
+    raw = views_to_raw(views).astype(np.float64) * 1e39
+    with pytest.raises(ValueError, match=r"the raw image overflows float32 \(its values reach 1e\+39.*scale the data "
+                                         "down"):
+        raw_to_views(raw, 5)
+    with pytest.raises(ValueError, match="views contains NaN or inf"):      # NaN is still NaN
+        bad = views.copy()
+        bad[0, 0, 0, 0] = np.nan
+        focal_stack(bad, slopes, check_finite=False)
 
 
 @pytest.mark.parametrize("slope", [-2.0, -1.0, 1.0, 2.0, 0.6, -1.3])
@@ -270,6 +298,33 @@ def test_slope_search_refuses_what_has_no_focus_and_stays_on_its_grid():
     lo = cam.slope_for_depth(-10.0) + 0.02                     # the flame's slope just below the grid's end
     res = find_sharpest_slope(views, sc.objects[0]["roi"], lo=lo, hi=lo + 1.0)
     assert res.slopes.min() >= lo - 1e-9 and res.slope == pytest.approx(lo, abs=0.006)
+
+
+def test_slope_search_refuses_light_no_slope_moves_and_light_in_one_view():
+    """A hot pixel (light in one view alone) has no parallax: refused, where the centre view's had returned +3.0025
+    (fourier: past the +3 searched, its curve flat to 0.24 %) or -3.0 (shift-sum: flat), and an outer view's the
+    slope its interpolation happened to sharpen (-3.0, +2.95). The same pixel over light every view sees alike (no
+    view holds the region's light) is refused as flat: its sharpness varies by 0.2 % (fourier) from -3 to +3. The
+    grid, coarse and fine, stays within lo .. hi (its last coarse step had been 3.0375)."""
+    mask = aperture_mask(9, "circular")
+    grid = dict(lo=-3.0, hi=3.0, coarse_step=0.0875, fine_step=0.00875, mask=mask)
+    for u, v in ((4, 4), (0, 4), (1, 6)):
+        views = np.zeros((9, 9, 40, 30), np.float32)
+        views[u, v, 20, 15] = 0.5
+        for method in ("fourier", "shift-sum"):
+            with pytest.raises(ValueError, match=rf"comes from one view, \({u}, {v}\), alone \(100 % of it\)"):
+                find_sharpest_slope(views, (0, 40, 0, 30), method=method, **grid)
+    views = np.full((9, 9, 40, 30), 0.01, np.float32)
+    views[4, 4, 20, 15] = 0.5
+    for method in ("fourier", "shift-sum"):
+        with pytest.raises(ValueError, match="as sharp at every slope .*no slope moves its light"):
+            find_sharpest_slope(views, (5, 35, 5, 25), method=method, **grid)
+    views = np.zeros((9, 9, 40, 30), np.float32)          # a point at slope +3 (on the grid's end) in every view
+    for u in range(9):
+        for v in range(9):
+            views[u, v, 20 + 3 * (u - 4), 15 + 3 * (v - 4)] = 0.5
+    res = find_sharpest_slope(views, (0, 40, 0, 30), **grid)
+    assert res.slopes.max() <= 3.0 and res.slope == pytest.approx(3.0, abs=0.01)
 
 
 def test_cli_refocus_and_slopes(tmp_path, small_camera, capsys):

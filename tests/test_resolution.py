@@ -140,6 +140,23 @@ def test_a_feature_finer_than_the_sample_is_not_mapped(dense):
     assert "finer than a sample" in res.markdown()
 
 
+def test_a_feature_finer_than_the_mean_sample_says_why_its_modes_are_not_mapped(dense):
+    """A 0.128 mm feature lies between the stack's finest sample (0.125 mm, at -15 mm) and its mean (0.133 mm): its
+    spacings are mapped on the near planes that sample it, while its depth modes, counted at the mean sample, are
+    not. The table says what its "–" means and which planes its spacings come from (it had printed them side by side
+    with no word); a table whose modes are all mapped, or whose unmapped rows are finer than every sample, says
+    nothing more."""
+    res = resolution_from_kernels(dense, (0.05, 0.128, 0.5), (10.0,))
+    assert np.isnan(res.modes[1, 0]) and np.isfinite(res.spacing_median_mm[1, 0]) and res.modes[2, 0] > 0
+    md = res.markdown()
+    assert "| 0.128 | <= 0.5 (<= 0.5); <= 0.5 | – |" in md
+    assert ("–: depth modes not mapped. They are counted on the whole stack at its mean sample (0.133 mm along the "
+            "rows), and features of 0.128 mm are finer than that") in md
+    assert "(0.128 mm: the planes at -15 to -8.5 mm)" in md and "0.05 mm" not in md.split("–: depth modes")[1]
+    assert res.unmapped_modes_note() is not None
+    assert resolution_from_kernels(dense, (0.05, 0.5), (10.0,)).unmapped_modes_note() is None
+
+
 def test_bad_input_is_refused(camera, dense):
     for kw, match in ((dict(spacing_mm=0.0), "spacing"), (dict(spacing_mm=-1.0), "spacing"),
                       (dict(near_mm=5.0, far_mm=5.0), "near"), (dict(near_mm=10.0, far_mm=-10.0), "near"),

@@ -209,6 +209,29 @@ def test_temperature_recovered_on_a_planted_plane():
     assert valid[0].sum() < valid[0].size                       # the dark background is masked
 
 
+def test_temperature_planes_refuse_nan_and_find_no_bright_pixel_on_an_empty_plane():
+    """One NaN pixel in a channel's emission is refused, naming the stack and the plane (it had left its whole plane
+    without a temperature, 0 valid and 0 masked, unreported); a plane with no light has no bright pixel (an all-zero
+    plane's 100 px had all been reported as bright pixels masked), beside a lit plane whose pixels all get one."""
+    model = library_sensor()
+    cal = P.TemperatureCalibration(model.name, "RGGB", (0, 0), ("R", "G"), 1.3, (), ())
+    a = np.random.default_rng(0).uniform(0.5, 1.0, (2, 10, 10))
+    b = a / 1.6
+    t, valid, n_masked = P.temperature_planes(a, b, cal, model)
+    assert valid.all() and np.all(n_masked == 0)
+    for k, bad in ((0, np.nan), (1, np.inf)):
+        hole = a.copy()
+        hole[k, 3, 4] = bad
+        with pytest.raises(ValueError, match=rf"emission_a holds NaN or inf in plane {k} \(1 px\)"):
+            P.temperature_planes(hole, b, cal, model)
+        with pytest.raises(ValueError, match=rf"emission_b holds NaN or inf in plane {k} \(1 px\)"):
+            P.temperature_planes(b, hole, cal, model)
+    a[1], b[1] = 0.0, 0.0
+    t, valid, n_masked = P.temperature_planes(a, b, cal, model)
+    assert list(n_masked) == [0, 0] and valid[0].all() and not valid[1].any() and np.isnan(t[1]).all()
+    assert not P.bright_pixels(a + b)[1].any() and P.bright_pixels(a + b)[0].all()
+
+
 def test_colour_behind_scene():
     """Two flames in the same columns, far first, each its own sheath temperature; channels by band integrals."""
     from lf_flame.simulate.scenes_temperature import BEHIND_PEAK_K, colour_behind_scene

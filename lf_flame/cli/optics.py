@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import time
 from pathlib import Path
 
@@ -108,22 +109,23 @@ def _render_warnings(cam, sc, raw) -> None:
 
 
 def views_and_camera(a):
-    """The views of a command's input, their camera (:func:`._io.light_field`) and the views a depth search
-    refocuses (:meth:`lf_flame.real.lightfield.LightField.lit_views`); decoded views without ``--camera`` come
-    with None for both (slopes only, no depths)."""
+    """The views of a command's input, their camera (:func:`._io.light_field`), the views a depth search
+    refocuses (:meth:`lf_flame.real.lightfield.LightField.lit_views`) and, for decoded views, where their planes
+    lie in the capture's object space (:class:`lf_flame.real.own_camera.DecodedFrame`, else None); decoded views
+    without ``--camera`` come with None for the last three (slopes only, no depths)."""
     src = str(a.raw)
     if src.endswith(".h5") and ".h5:" not in src and not getattr(a, "camera", None):
         from ..real.views_file import load_views
-        return load_views(src)[0], None, None
+        return load_views(src)[0], None, None, None
     lf = light_field(a)
-    return lf.views, lf.camera, lf.lit_views()
+    return lf.views, lf.camera, lf.lit_views(), lf.frame
 
 
 def cmd_refocus(a):
     from ..refocus.shift_and_sum import aperture_mask, refocus_views
     if a.slope and a.depth:
         raise ValueError("give the planes as --slope (lenslets per view) or as --depth (mm), not both")
-    views, cam, lit = views_and_camera(a)
+    views, cam, lit, _ = views_and_camera(a)
     if not (a.slope or a.depth):         # the depths found in the views, as reconstruct finds them
         if cam is None:
             raise ValueError(f"give the planes (--slope), or the camera of {a.raw} (--camera cam.toml) to find them")
@@ -216,7 +218,7 @@ def cmd_slopes(a):
     import pandas as pd
     from ..learn.evaluation import plot_slope_curves
     from ..refocus.shift_and_sum import aperture_mask, find_sharpest_slope
-    views, cam, lit = views_and_camera(a)
+    views, cam, lit, frame = views_and_camera(a)
     from ..optics.camera import MAX_SEARCH_SLOPE, imaging_range_mm
     lo, hi = a.lo, a.hi
     far = [f"--{k} {v:g}" for k, v in (("lo", lo), ("hi", hi)) if v is not None and not abs(v) <= MAX_SEARCH_SLOPE]
@@ -232,7 +234,10 @@ def cmd_slopes(a):
     if a.roi:
         objects = [dict(name=f"roi{i}", roi=tuple(r)) for i, r in enumerate(a.roi)]
     else:
-        objects = (_raw_objects(a.raw) or (_emission_regions(views, cam, lit) if cam is not None else None)
+        stored = _raw_objects(a.raw)
+        if stored and frame is not None:      # a simulated capture decoded here: its regions in the decoded frame
+            stored = _decoded_objects(stored, _raw_camera(a.raw), cam, frame, views.shape[2:])
+        objects = (stored or (_emission_regions(views, cam, lit) if cam is not None else None)
                    or [dict(name="image", roi=(0, views.shape[2], 0, views.shape[3]))])
     # the circular aperture: the views inside the main lens's aperture image where the camera is known
     mask = lit if a.aperture == "circular" and lit is not None else aperture_mask(views.shape[0], a.aperture)
@@ -266,6 +271,47 @@ def cmd_slopes(a):
     atomic_write_text(f"{out}.slopes.csv", df.to_csv(index=False))
     plot_slope_curves([o["name"] for o in objects], searches, f"{out}.slopes.png", a.metric)
     print(f"-> {out}.slopes.csv, {out}.slopes.png")
+
+
+def _raw_camera(path):
+    """The camera that ``lf-flame simulate`` stored beside a raw image (the one its objects' ``roi`` are on)."""
+    from ..optics.camera import PlenopticCamera
+    from ._io import _raw_meta
+    meta = _raw_meta(path)
+    return PlenopticCamera.from_dict(json.loads(meta["camera"])) if "camera" in meta else None
+
+
+def _decoded_objects(objects, stored_cam, cam, frame, shape):
+    """A simulated capture's objects with their regions carried from the simulated camera's lenslet grid
+    (``stored_cam``, where ``simulate`` drew each ``roi``) onto the grid of the views decoded from it (``cam``,
+    ``frame``, ``shape``: :meth:`lf_flame.real.own_camera.DecodedFrame.object_to_lenslet`): each box's corners
+    taken to object space at the object's depth and back, the box around them clipped to the decoded grid. None
+    where they cannot be carried (no stored camera, an object without a depth, a box wholly off the decoded grid):
+    the regions are then those found in the views, said in a note."""
+    why = None
+    if stored_cam is None:
+        why = "the file stores no camera for them"
+    elif not all("depth_offset_mm" in o and "roi" in o for o in objects):
+        why = "they have no depths"
+    out = []
+    for o in objects if why is None else ():
+        z = float(o["depth_offset_mm"])
+        m = stored_cam.mla_distance_mm / stored_cam.object_distance_mm(z) / stored_cam.mla_pitch_mm
+        r0, r1, c0, c1 = (float(v) for v in o["roi"])
+        corners = [frame.object_to_lenslet(cam, shape, (stored_cam.n_rows / 2 - r) / m, (c - stored_cam.n_cols / 2) / m,
+                                           z) for r in (r0, r1) for c in (c0, c1)]
+        rows, cols = [p[0] for p in corners], [p[1] for p in corners]
+        roi = (max(0, int(math.floor(min(rows) + 1e-6))), min(shape[0], int(math.ceil(max(rows) - 1e-6))),
+               max(0, int(math.floor(min(cols) + 1e-6))), min(shape[1], int(math.ceil(max(cols) - 1e-6))))
+        if roi[0] >= roi[1] or roi[2] >= roi[3]:
+            why = f"{o.get('name', 'an object')}'s lies off the decoded views' grid"
+            break
+        out.append({**o, "roi": roi})
+    if why is not None:
+        print(f"note: the regions of the objects the file stores cannot be carried into the decoded views ({why}): "
+              "searching the regions found in the views instead (--roi to give regions)")
+        return None
+    return out
 
 
 def _emission_regions(views, cam, views_mask=None):

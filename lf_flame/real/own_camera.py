@@ -51,6 +51,36 @@ class DecodedFrame:
     def to_dict(self) -> dict:
         return {"rotation_deg": self.rotation_deg, "centre_lenslets": list(self.centre_lenslets)}
 
+    def object_to_lenslet(self, camera: PlenopticCamera, shape, y_mm: float, x_mm: float,
+                          depth_offset_mm: float) -> tuple[float, float]:
+        """Where an object point lies on the decoded planes: the inverse of
+        :func:`lf_flame.tomo.decoded.decoded_plane_truth`'s map from a sample to its object point.
+
+        Parameters
+        ----------
+        camera : PlenopticCamera
+            The decoded views' camera.
+        shape : (int, int)
+            The decoded views' lenslet grid (``views.shape[2:]``).
+        y_mm, x_mm : float
+            The object point (``y`` up, ``x`` right), mm from the optical axis.
+        depth_offset_mm : float
+            Its depth, mm from the focus distance.
+
+        Returns
+        -------
+        (float, float)
+            Lenslet coordinates ``(row, col)`` of the decoded grid, fractional, a lenslet's centre at +0.5 (as
+            :meth:`lf_flame.optics.camera.PlenopticCamera.object_to_lenslet` gives them on a perfect grid).
+        """
+        scale = camera.mla_pitch_mm * camera.object_distance_mm(depth_offset_mm) / camera.mla_distance_mm
+        q_r, q_c = -y_mm / scale, x_mm / scale                      # sensor-frame offsets, pitches
+        t = math.radians(self.rotation_deg)
+        a_r = math.cos(t) * q_r - math.sin(t) * q_c                 # along the grid's rows and columns
+        a_c = math.sin(t) * q_r + math.cos(t) * q_c
+        R, C = shape
+        return a_r - self.centre_lenslets[0] + R / 2, a_c - self.centre_lenslets[1] + C / 2
+
 
 def decoded_frame(calibration: GridCalibration, n_rows: int, n_cols: int) -> DecodedFrame:
     """The decoded grid's rotation and its centre's offset from the optical axis.

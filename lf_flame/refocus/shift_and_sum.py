@@ -23,6 +23,20 @@ from . import _kernels as _refocus_kernels
 
 _EXPONENT_BITS = {np.dtype(np.float32): (np.uint32, 0x7F800000), np.dtype(np.float64): (np.uint64, 0x7FF0000000000000)}
 
+#: Views whose largest magnitude passes this are refocused by the Fourier slice scaled down by a power of two (exact:
+#: no bit of the result changes) and scaled back: its float32 spectrum sums every sample of the light field, and
+#: views of 1e34 had overflowed it into inf (1e37: NaN), written as the refocused planes.
+FOURIER_SCALE_ABOVE = 2.0 ** 64
+#: The largest float32, in which views and refocused planes are held.
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def _overflow(what: str, peak: float) -> ValueError:
+    """The refusal of values past :data:`FLOAT32_MAX`, naming the way out."""
+    return ValueError(f"{what} overflows float32 (its values reach {peak:.3g}; float32, in which views and refocused "
+                      f"planes are held, ends at {FLOAT32_MAX:.3g}): scale the data down, e.g. divide it by its "
+                      "largest value")
+
 
 def _check_finite(name, a):
     """Raise ValueError if the array ``a`` holds NaN or inf (large float32/float64 arrays:
@@ -57,7 +71,8 @@ def raw_to_views(raw: np.ndarray, pixels_per_lenslet: int) -> np.ndarray:
     Raises
     ------
     ValueError
-        If the raw shape is not a multiple of N, or it holds NaN or inf.
+        If the raw shape is not a multiple of N, it holds NaN or inf, or values past float32's largest (a float64
+        image's: its views would be inf).
     """
     raw = np.asarray(raw)
     n = int(pixels_per_lenslet)
@@ -65,7 +80,14 @@ def raw_to_views(raw: np.ndarray, pixels_per_lenslet: int) -> np.ndarray:
         raise ValueError(f"raw image of shape {raw.shape} is not a grid of {n}x{n}-pixel lenslet images")
     _check_finite("raw image", raw)
     R, C = raw.shape[0] // n, raw.shape[1] // n
-    return np.ascontiguousarray(raw.reshape(R, n, C, n).transpose(1, 3, 0, 2), dtype=np.float32)
+    with np.errstate(over="ignore"):        # a float64 image past float32's largest: refused below
+        views = np.ascontiguousarray(raw.reshape(R, n, C, n).transpose(1, 3, 0, 2), dtype=np.float32)
+    if raw.dtype.kind == "f" and raw.dtype.itemsize > 4:      # finite before the cast: inf after it is an overflow
+        try:
+            _check_finite("views", views)
+        except ValueError:
+            raise _overflow("the raw image", float(np.max(np.abs(raw)))) from None
+    return views
 
 
 def views_to_raw(views: np.ndarray) -> np.ndarray:
@@ -213,6 +235,12 @@ def focal_stack(views: np.ndarray, slopes, mask: np.ndarray | None = None, *, in
     ------
     ValueError
         NaN/inf in views or slopes, a bad shape, or an unknown interpolation.
+
+    Notes
+    -----
+    The sums are float32: views so bright that a sum of them passes float32's largest (1e37 over 81 views) are
+    refocused once more scaled down by a power of two (exact) and the planes scaled back, where they had been
+    refused as views holding NaN or inf.
     """
     views, slopes, mask = _check_stack_args(views, slopes, mask, check_finite)
     if interpolation not in INTERPOLATIONS:
@@ -223,8 +251,19 @@ def focal_stack(views: np.ndarray, slopes, mask: np.ndarray | None = None, *, in
         shifts = np.floor(shifts + 0.5)
     out = np.empty((len(slopes), R, C), np.float32)
     rows_per_task = -(-R // numba.get_num_threads())
-    if not _refocus_kernels.shift_sum_stack(views.reshape(n, n, R * C), R, shifts, shifts, mask, out, rows_per_task):
-        raise ValueError("views contain NaN or inf")
+    if _refocus_kernels.shift_sum_stack(views.reshape(n, n, R * C), R, shifts, shifts, mask, out, rows_per_task):
+        return out
+    if not check_finite:
+        _check_finite("views", views)                   # NaN or inf in the views: said so
+    peak = float(np.max(np.abs(views)))                 # finite views: a sum overflowed float32
+    k = math.frexp(peak)[1]
+    if not _refocus_kernels.shift_sum_stack(np.ldexp(views, -k).reshape(n, n, R * C), R, shifts, shifts, mask, out,
+                                            rows_per_task):
+        raise _overflow("refocusing the views", peak)
+    with np.errstate(over="ignore"):
+        out = np.ldexp(out, k)
+    if not np.all(np.isfinite(out)):
+        raise _overflow("refocusing the views", peak)
     return out
 
 
@@ -297,6 +336,12 @@ class FourierSlice:
     ------
     ValueError
         NaN/inf in views, bad shapes, or ``max_slope`` not positive and finite.
+
+    Notes
+    -----
+    The spectrum is complex64 and sums every sample of the light field: views brighter than
+    :data:`FOURIER_SCALE_ABOVE` are transformed scaled down by a power of two (exact) and each plane is scaled
+    back in :meth:`stack`, which refuses a plane that float32 cannot hold.
     """
 
     KERNEL_WIDTH = 4
@@ -324,8 +369,13 @@ class FourierSlice:
         # slots, the unlit views' among them, are 0) with the angular axes last, then their angular DFT along
         # those contiguous axes
         lu, lv = np.nonzero(mask)
-        spec = scipy.fft.rfftn(views[lu, lv] * weight[lu, lv, None, None], s=(self.R2, self.C2), axes=(1, 2),
-                               workers=-1)
+        lit = views[lu, lv]
+        self.peak = float(np.max(np.abs(lit))) if lit.size else 0.0
+        # very bright views scaled down by a power of two (exact) so that the spectrum's sums stay finite
+        self.exponent = math.frexp(self.peak)[1] if self.peak > FOURIER_SCALE_ABOVE else 0
+        if self.exponent:
+            lit = np.ldexp(lit, -self.exponent)
+        spec = scipy.fft.rfftn(lit * weight[lu, lv, None, None], s=(self.R2, self.C2), axes=(1, 2), workers=-1)
         grid = np.empty((self.R2, spec.shape[2], M, M), np.complex64)
         _refocus_kernels.angular_grid(spec, idx[lu], idx[lv], grid)
         self.spectrum = scipy.fft.fftn(grid, axes=(2, 3), workers=-1, overwrite_x=True)
@@ -355,7 +405,7 @@ class FourierSlice:
         Raises
         ------
         ValueError
-            A slope that is not finite or exceeds ``max_slope``.
+            A slope that is not finite or exceeds ``max_slope``; planes past float32's largest (views near it).
         """
         slopes = np.atleast_1d(np.asarray(slopes, np.float64))
         _check_finite("slopes", slopes)
@@ -372,7 +422,14 @@ class FourierSlice:
             spec *= np.exp(2j * np.pi * self.half * slopes[:, None, None] * (fr[None, :, None] + fc[None, None, :]))
         img = scipy.fft.irfft2(spec, s=(self.R2, self.C2), workers=-1)[:, :R, :C]
         count, reached = _slice_count(self.n, self.shape, (self.R2, self.C2), slopes, self.mask)
-        return np.divide(img, count, out=np.zeros(img.shape), where=reached).astype(np.float32)
+        out = np.divide(img, count, out=np.zeros(img.shape), where=reached)
+        if not self.exponent:
+            return out.astype(np.float32)
+        with np.errstate(over="ignore"):
+            out = np.ldexp(out, self.exponent).astype(np.float32)     # scaled back
+        if not np.all(np.isfinite(out)):
+            raise _overflow("refocusing the views (Fourier slice)", self.peak)
+        return out
 
 
 def refocus(raw: np.ndarray, slopes, pixels_per_lenslet: int, mask=None, *, method: str = "shift-sum",
@@ -442,6 +499,16 @@ class SlopeSearch:
 #: at about 4e-8 of it (Fourier round-off); the paper's flames and shapes (4 rays per pixel) peak at 0.30-1.45 and
 #: stay above 1.4e-3 at every slope.
 FLAT_SHARPNESS = 1e-6
+#: A region whose sharpness varies by less than this share of its largest over the slopes searched has no focus to
+#: find (:func:`find_sharpest_slope`): light that no slope moves (a hot pixel in the centre view: 0.24 % with the
+#: Fourier slice's round-off, 0 by shift-and-sum, where its peak had fallen at the grid's end, slope +3.0025 or -3.0).
+#: The paper's shapes (4 rays per pixel) and a small camera's flames vary by 98-99.9 %, views of noise by 89-93 %.
+FLAT_SPREAD = 0.01
+#: A region where one view holds more than this share of the light of the views searched has no parallax to measure
+#: (:func:`find_sharpest_slope`): a hot pixel or a reflection that one view sees, which had a sharpest slope wherever
+#: its interpolation happened to be sharpest (-3.0 or +2.95 for a pixel of an outer view). Lit views each hold about
+#: one share in as many as there are (1/69 of a circular aperture of 9 x 9 views).
+ONE_VIEW_SHARE = 0.5
 
 
 def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", method: str = "fourier",
@@ -476,7 +543,9 @@ def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", me
     ------
     ValueError
         Unknown metric or method, an empty ROI or one outside the views' grid, a bad grid, NaN/inf in the
-        views, or a region as sharp at every slope (no light or no structure: no focus to find).
+        views, a region as sharp at every slope (no light or no structure, or light that no slope moves:
+        :data:`FLAT_SHARPNESS`, :data:`FLAT_SPREAD`), or one whose light one view holds (:data:`ONE_VIEW_SHARE`):
+        no focus to find.
     """
     if metric not in SHARPNESS:
         raise ValueError(f"metric must be one of {sorted(SHARPNESS)}. Received: metric={metric!r}")
@@ -494,6 +563,14 @@ def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", me
     n, _, R, C = views.shape
     if not (0 <= r0 and r1 <= R and 0 <= c0 and c1 <= C):
         raise ValueError(f"region of interest {tuple(roi)} lies outside the views' grid of {R} x {C} lenslets")
+    light = np.abs(views[:, :, r0:r1, c0:c1]).sum(axis=(2, 3), dtype=np.float64)
+    if mask is not None:
+        light = np.where(np.asarray(mask, bool), light, 0.0)
+    if light.sum() > 0 and light.max() > ONE_VIEW_SHARE * light.sum():
+        u, v = np.unravel_index(int(np.argmax(light)), light.shape)
+        raise ValueError(f"the light of the region {tuple(roi)} comes from one view, ({u}, {v}), alone "
+                         f"({100 * light.max() / light.sum():.0f} % of it): a hot pixel or a reflection that one view "
+                         "sees has no parallax, no focus to find (repair the pixel, or search another region: --roi)")
     max_slope = max(abs(lo), abs(hi)) + coarse_step
     if method == "fourier":
         pad = _margin(max_slope, n)
@@ -509,15 +586,22 @@ def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", me
         return np.array([fn(im) for im in stack[:, r0:r1, c0:c1]])
 
     coarse = np.arange(lo, hi + coarse_step / 2, coarse_step)
+    coarse[-1] = min(coarse[-1], hi)          # its last step had passed hi by up to half a step (3.0375 for 3)
     sc = scores(coarse)
     # the metrics go as the light's square (normvar: as the light): a constant image's are round-off, 1e-7 of that
-    level = float(np.mean(np.abs(views[..., roi[0]:roi[1], roi[2]:roi[3]])))
+    level = float(np.mean(np.abs(views[..., roi[0]:roi[1], roi[2]:roi[3]]), dtype=np.float64))   # float32 overflows
     if not (np.all(np.isfinite(sc)) and sc.max() > FLAT_SHARPNESS * (level if metric == "normvar" else level ** 2)):
         raise ValueError(f"the region {tuple(roi)} is as sharp at every slope (no light, or no structure in it): "
                          "it has no focus to find")
+    if sc.max() - sc.min() <= FLAT_SPREAD * sc.max():
+        raise ValueError(f"the region {tuple(roi)} is as sharp at every slope (its sharpness varies by "
+                         f"{100 * (sc.max() - sc.min()) / sc.max():.2g} % from {lo:+.4g} to {hi:+.4g}): no slope moves "
+                         "its light (a hot pixel of the centre view, or light the views all see alike), so it has no "
+                         "focus to find (repair the pixel, or search another region: --roi)")
     best = coarse[int(np.argmax(sc))]
     fine = np.arange(best - coarse_step, best + coarse_step + fine_step / 2, fine_step)
     fine = fine[(fine >= lo - fine_step / 2) & (fine <= hi + fine_step / 2)]      # the grid asked for, not beyond
+    fine = np.clip(fine, lo, hi)                                                  # nor half a fine step past it
     sf = scores(fine)
     slopes = np.concatenate([coarse, fine])
     allsc = np.concatenate([sc, sf])

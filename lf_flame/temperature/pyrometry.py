@@ -309,8 +309,9 @@ def ratio_to_temperature(ratio, cal: TemperatureCalibration, sensor: ColourSenso
 
 
 def bright_pixels(emission, min_fraction: float = MIN_FRACTION) -> np.ndarray:
-    """Pixels of each plane at or above ``min_fraction`` of that plane's peak: those
-    :func:`temperature_planes` gives a temperature when their ratio has one.
+    """Pixels of each plane at or above ``min_fraction`` of that plane's peak, and with light (above 0): those
+    :func:`temperature_planes` gives a temperature when their ratio has one. A plane with no light has none (an
+    all-zero plane's pixels had all been bright, each reported as a bright pixel masked).
 
     Parameters
     ----------
@@ -323,7 +324,7 @@ def bright_pixels(emission, min_fraction: float = MIN_FRACTION) -> np.ndarray:
     ndarray of bool of shape (P, rows, cols)
     """
     tot = np.asarray(emission, float)
-    return tot >= min_fraction * tot.reshape(len(tot), -1).max(axis=1)[:, None, None]
+    return (tot >= min_fraction * tot.reshape(len(tot), -1).max(axis=1)[:, None, None]) & (tot > 0)
 
 
 def temperature_planes(emission_a, emission_b, cal: TemperatureCalibration, sensor: ColourSensor,
@@ -351,12 +352,19 @@ def temperature_planes(emission_a, emission_b, cal: TemperatureCalibration, sens
     Raises
     ------
     ValueError
-        Shapes that differ or are not 3-D, ``min_fraction`` outside [0, 1), and the errors
+        Shapes that differ or are not 3-D, NaN or inf in either stack (named with its planes: one such pixel had
+        left its whole plane without a temperature, unreported), ``min_fraction`` outside [0, 1), and the errors
         of :func:`lookup_table`.
     """
     a, b = np.asarray(emission_a, float), np.asarray(emission_b, float)
     if a.shape != b.shape or a.ndim != 3:
         raise ValueError(f"two (P, rows, cols) emission stacks are needed. Received: {a.shape} and {b.shape}")
+    for name, e in (("emission_a", a), ("emission_b", b)):
+        bad = (~np.isfinite(e)).reshape(len(e), -1).sum(axis=1)
+        if bad.any():
+            where = ", ".join(f"plane {k} ({n} px)" for k, n in enumerate(bad) if n)
+            raise ValueError(f"{name} holds NaN or inf in {where}: a temperature needs both channels' emission "
+                             "finite (a solve that diverged, or views holding NaN: repair them and solve again)")
     if not (0 <= min_fraction < 1):
         raise ValueError(f"min_fraction must be in [0, 1). Received: {min_fraction}")
     bright = bright_pixels(a + b, min_fraction)

@@ -138,5 +138,25 @@ def fourier_system(op, lam: float = ADMM_LAM, rho: float = ADMM_RHO) -> FourierS
 def admm_system(op, lam: float = ADMM_LAM, tv: float = ADMM_TV, rho: float = ADMM_RHO,
                 rho_tv: float = ADMM_RHO_TV) -> FourierSystem:
     """The :class:`FourierSystem` that :func:`~lf_flame.tomo.fourier.solve_admm` uses for these knobs (kept on ``op``):
-    with TV on, its split's penalty ``rho_tv`` joins ``lam`` in the same per-frequency matrix."""
+    with TV on, its split's penalty ``rho_tv`` joins ``lam`` in the same per-frequency matrix.
+
+    Raises
+    ------
+    ValueError
+        ``lam`` negative or not finite, refused before ``rho_tv`` joins it (a negative ``lam`` with TV on had passed
+        :class:`FourierSystem`'s check as ``lam + rho_tv`` and given planes of NaN); :class:`FourierSystem`'s errors.
+    """
+    check_lam(lam)
     return fourier_system(op, lam + (rho_tv if tv > 0 else 0.0), rho)
+
+
+def check_lam(lam) -> None:
+    """Refuse a gradient weight ``lam`` (admm's ``lam ||grad x||^2``) that is negative or not finite."""
+    try:
+        value = float(lam)
+    except (TypeError, ValueError):
+        value = math.nan
+    if isinstance(lam, bool) or not (math.isfinite(value) and value >= 0):
+        raise ValueError(f"lam, the weight of the planes' gradient (admm), must be a finite number >= 0: a negative "
+                         f"weight rewards rough planes and the solve has no bounded answer (give lam=0 for none, or "
+                         f"leave it None to take it from the data's noise). Received: lam={lam!r}")

@@ -374,7 +374,28 @@ class DepthResolution:
                     f"{mm(self.spacing_interp_mm[fi, ci])}" for ci in range(len(self.conditions))]
             row += ["–" if np.isnan(m) else f"{int(m)}" for m in self.modes[fi]]
             lines.append("| " + " | ".join(row) + " |")
-        return "\n".join(lines) + "\n"
+        note = self.unmapped_modes_note()
+        return "\n".join(lines) + "\n" + (f"\n{note}\n" if note else "")
+
+    def unmapped_modes_note(self) -> str | None:
+        """What a "–" in the depth modes' columns means where the row's spacings are mapped, or None where no row
+        has one: the modes are counted on the whole stack at its mean sample, which such a feature is finer than,
+        while its spacings come from the pairs of planes whose own sample holds it (the nearer, finer-sampled
+        planes of a stack whose sample grows with depth: a camera's 1.5 mm feature over -289 .. +1973 mm had
+        printed its spacings beside "–" with no word of why)."""
+        sizes, planes = [], []
+        for fi, s in enumerate(self.feature_mm):
+            if not (np.all(np.isnan(self.modes[fi])) and not np.all(np.isnan(self.spacing_median_mm[fi]))):
+                continue
+            held = self.depths_mm[self.sample_mm <= s]
+            sizes.append(f"{s:g}")
+            planes.append(f"{s:g} mm: the planes at {held.min():+.4g} to {held.max():+.4g} mm")
+        if not sizes:
+            return None
+        return (f"–: depth modes not mapped. They are counted on the whole stack at its mean sample "
+                f"({float(np.mean(self.sample_mm)):.3g} mm along the {self.axis}), and features of {', '.join(sizes)} "
+                "mm are finer than that (half a period under one sample, past the planes' grid); their spacings come "
+                f"from the pairs of planes whose own sample holds them ({'; '.join(planes)})")
 
 
 def _smallest(spacings, cond, c) -> float:

@@ -504,10 +504,13 @@ def _solve_admm(p: _Problem, settings: dict, step: _Steps, iters, tv, *, lam, l1
     from .defaults import COARSE_KNOBS, OFFSET_KNOBS
     from .noise_knobs import admm_knobs, noise_regime
     from .fourier import solve_admm
+    from .fourier_system import check_lam
     op = p.op
     if not isinstance(op, ExactOperator):
         raise ValueError("the admm solver works on the exact operator's per-frequency matrices: give an "
                          "lf_flame.tomo.exact.ExactOperator")
+    if lam is not None:                     # before the noise is measured (a negative lam had given planes of NaN)
+        check_lam(lam)
     if op.offset_bins is not None and iters is None:                  # samples off the views' grid: slower fills
         iters, tol = OFFSET_KNOBS["fills"], OFFSET_KNOBS["tol"] if tol is None else tol
     knobs = admm_knobs(p.y.reshape(op.dimsd), p.fit.reshape(op.dimsd), iters, tv, lam, op.subsamples, l1, start, tol)
