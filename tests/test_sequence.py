@@ -536,6 +536,37 @@ def test_bad_recordings_are_refused(tmp_path, small_seq):
         frame_rate(-5.0, {})
 
 
+def test_frame_times_and_rates_out_of_order_are_refused_by_name(tmp_path, capsys):
+    """A NaN frame time is named as one (it had been 'not strictly increasing (at frame 1)', argmax of an all-False
+    array); a times_s of 10 or 60 entries for 30 frames is refused naming both counts (it had been taken silently);
+    an fps attribute that is no number names the attribute (it had been "could not convert string to float:
+    'fast'"); a camera record that is not JSON names the file and the record (it had been json's bare message)."""
+    from lf_flame.recordings.sources import source_frame_rate
+    times = np.arange(30) / 100.0
+    times[5] = np.nan
+    with pytest.raises(ValueError, match=r"times_s\) hold NaN or inf \(first at frame 5\)"):
+        frame_rate(None, {}, times)
+    for n in (10, 60):
+        path = tmp_path / f"t{n}.h5"
+        _write_h5(path, np.zeros((30, 4, 4), np.uint16))
+        with h5py.File(path, "a") as f:
+            f["times_s"] = np.arange(n) / 100.0
+        src, attrs = open_source(path)
+        with pytest.raises(ValueError, match=f"hold {n} times .* for its 30 frames"):
+            source_frame_rate(src, attrs)
+    with pytest.raises(ValueError, match="fps attribute must be a number .* Received: 'fast'"):
+        frame_rate(None, {"fps": "fast"})
+    _write_h5(tmp_path / "cam.h5", np.zeros((3, 4, 4), np.uint16), fps=100.0, camera="{not json")
+    np.savez(tmp_path / "cam.npz", raw=np.zeros((360, 270)), camera=np.array("{not json"))
+    capsys.readouterr()
+    for argv in (["sequence", str(tmp_path / "cam.h5"), "--quiet", "--out", str(tmp_path / "o")],
+                 ["reconstruct", str(tmp_path / "cam.npz"), "--depth", "0", "--out", str(tmp_path / "r.h5")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "Traceback" not in err and "its 'camera' record is not readable JSON" in err, err
+        assert Path(argv[1]).name in err, err
+
+
 def test_cli_simulates_and_measures_a_recording(tmp_path, capsys):
     """The recording's four flames at 6, 9, 13 and 17 Hz (0.5 s at 100 frames/s, bins of
     2 Hz, the flames 3-4 Hz apart): each plane's measured peak is its own flame's."""

@@ -140,7 +140,8 @@ def cmd_sequence(a):
         source, attrs = open_source(a.input)
         if "camera" in attrs:
             from ..optics.camera import PlenopticCamera
-            stored = PlenopticCamera.from_dict(json.loads(attrs["camera"]))
+            from ..config import stored_json
+            stored = PlenopticCamera.from_dict(stored_json(attrs["camera"], a.input, "camera"))
             if a.data_config or a.camera:
                 from ..real.lightfield import stored_camera_warning
                 stored_camera_warning(cam, stored, str(a.input))
@@ -148,7 +149,8 @@ def cmd_sequence(a):
                 cam = stored
         fps = source_frame_rate(source, attrs, a.fps)
         if "sequence" in attrs:
-            seq = FlameSequence.from_dict(json.loads(attrs["sequence"]))
+            from ..config import stored_json
+            seq = FlameSequence.from_dict(stored_json(attrs["sequence"], a.input, "sequence"))
     if a.depth and a.slope:
         raise ValueError("give the planes as --depth or as --slope, not both")
     knobs = dict(iters=a.iters, tv=a.tv, saturation=a.saturation, operator_rays=a.operator_rays)
