@@ -326,6 +326,23 @@ def small_flame_npz(tmp_path_factory):
     return src
 
 
+def test_profiles_refuses_a_stored_flame_without_its_depth_in_one_line(small_flame_npz, tmp_path, capsys):
+    """An .npz whose objects lack depth_offset_mm on one flame had ended 'profiles' in a KeyError traceback
+    (cli/profiles.py:109): now one line naming the file, the flame and the key."""
+    import json
+    from lf_flame.cli import main
+    with np.load(small_flame_npz) as z:
+        stored = {k: z[k] for k in z.files}
+    objects = json.loads(str(stored["objects"]))
+    del objects[1]["depth_offset_mm"]
+    stored["objects"] = np.array(json.dumps(objects))
+    np.savez(tmp_path / "nodepth.npz", **stored)
+    assert main(["profiles", str(tmp_path / "nodepth.npz"), "--route", "shift-sum", "--out", str(tmp_path / "p"),
+                 "--no-figure"]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "nodepth.npz: its stored flame 1" in err and "depth_offset_mm" in err, err
+
+
 @pytest.mark.parametrize("route", _profiles_routes())
 def test_profiles_measures_every_route_on_the_lenslet_grid(route, small_flame_npz):
     """Every route 'profiles' offers measures the flames (admm's planes, on a 2 x 2 finer grid,

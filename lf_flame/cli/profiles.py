@@ -43,13 +43,11 @@ def _profiles_input(a):
         gt, objects, slopes = ds.gt(int(i)), ds.params(int(i)), ds.slopes
     else:
         raw, cam = _load_raw(a.raw)
-        objects = _raw_objects(a.raw)
+        objects = _flame_objects(a.raw)
     if getattr(a, "camera", None):
         from ..optics.camera_file import load_camera_file
         cam = load_camera_file(a.camera)
     cam = cam or PAPER_CAMERA
-    if objects is not None and not all("height_mm" in o for o in objects):
-        raise ValueError(f"{a.raw} does not hold a flame scene (its objects have no flame heights)")
     given = _given_depths(a)
     depths = given or _object_depths(objects)
     if depths and not given:
@@ -104,6 +102,32 @@ def _given_depths(a):
     return [float(d) for d in a.depth]
 
 
+#: What ``profiles`` reads of each flame a file stores (its objects): a record without one is refused.
+FLAME_KEYS = ("height_mm", "depth_offset_mm")
+
+
+def _flame_objects(path):
+    """The flames ``lf-flame simulate`` stored beside the raw image (:func:`lf_flame.cli._io._raw_objects`), or None.
+
+    Raises
+    ------
+    ValueError
+        Objects that are not flames (no flame heights), or a flame that lacks its depth (``depth_offset_mm``):
+        naming the file, the flame and what it lacks.
+    """
+    objects = _raw_objects(path)
+    if objects is None:
+        return None
+    if not isinstance(objects, list) or not all(isinstance(o, dict) and "height_mm" in o for o in objects):
+        raise ValueError(f"{path} does not hold a flame scene (its objects have no flame heights)")
+    for i, o in enumerate(objects):
+        missing = [k for k in FLAME_KEYS if k not in o]
+        if missing:
+            raise ValueError(f"{path}: its stored flame {i} (record 'objects') lacks {', '.join(missing)}: the file "
+                             "is damaged; simulate it again, or save its raw image alone (.npy) and give --depth")
+    return objects
+
+
 def _object_depths(objects):
     """The flames' depths (mm), or None without flames."""
     return [float(o["depth_offset_mm"]) for o in objects] if objects else None
@@ -118,7 +142,7 @@ def _decoded_profiles_input(a):
     from .planes import check_planes, found_planes
     lf = light_field(a)
     cam = lf.camera
-    objects = None if str(a.raw).endswith(".h5") else _raw_objects(a.raw)
+    objects = None if str(a.raw).endswith(".h5") else _flame_objects(a.raw)
     depths = _given_depths(a) or ([cam.depth_for_slope(v) for v in a.slope] if a.slope else _object_depths(objects))
     route = parse_route(a.route)
     if route.kind in ("stored", "learned"):
