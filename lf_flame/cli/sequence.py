@@ -227,6 +227,11 @@ def cmd_sequence(a):
     note = unresolved_note(pk)
     if note:
         print(note)
+    lost = s.get("unprocessed_frames") or {}
+    for f, why in list(lost.items())[:3]:
+        print(f"frame {f}: {why}")
+    if len(lost) > 3:
+        print(f"... and {len(lost) - 3} more frames not processed (their rows in {a.out}/frames.csv say why)")
     for k, n in s["failed_frames"].items():
         if n:
             print(f"plane {k}: {n} of {s['n_frames']} frames could not be measured (the plane's mean in its spectrum)")
