@@ -551,7 +551,8 @@ def small_recording():
 
 
 def test_one_bad_frame_is_a_failed_row_and_the_recording_goes_on(small_recording, tmp_path, capsys):
-    """A frame whose every pixel clipped (admm: 'every one of the views' 97200 samples is left out of the fit'), a
+    """A frame whose every pixel clipped (admm: 'every one of the views' 97200 samples is left out of the fit'; a
+    uniform frame, it is now named as one, at full scale), a
     frame of another size in a folder of frames, and a black frame on lsqr (its planes NaN: 'plane contains 1200
     NaN or infinite values') had each aborted the whole recording (the folder left with job.json and an empty
     parts/). Each is now a failed row per plane naming why (the black frame's planes empty, unsolved, as admm's
@@ -567,8 +568,8 @@ def test_one_bad_frame_is_a_failed_row_and_the_recording_goes_on(small_recording
     (tmp_path / "folder").mkdir()
     for i, f in enumerate(frames):
         np.save(tmp_path / "folder" / f"frame_{i}.npy", f[:351] if i == 2 else f)
-    cases = (("clipped.h5", "reconstruct-admm", 4,
-              "frame not processed: every one of the views' 97200 samples is left out of the fit"),
+    cases = (("clipped.h5", "reconstruct-admm", 4, "frame not processed: its views carry no structure (each varies "
+              "by 0 of its level across its lenslets, under 0.1; every pixel reads 1 (full scale: over-exposed))"),
              ("black.h5", "reconstruct-lsqr", 6, "plane is empty: no light"),               # as admm's and shift-sum's
              ("folder", "shift-sum", 2, "frame not processed: frame of 351 x 270 pixels; the camera's sensor is "
                                         "360 x 270"))
@@ -590,6 +591,29 @@ def test_one_bad_frame_is_a_failed_row_and_the_recording_goes_on(small_recording
                  "--depth", "2", "--solver", "lsqr", "--out", str(tmp_path / "z.h5")]) == 2
     err = capsys.readouterr().err
     assert "zero.npy holds no light: its 97200 samples fitted are all 0" in err and "Warning" not in err, err
+
+
+def test_a_uniform_glare_frame_is_a_failed_row_not_spectra_input(small_recording, tmp_path):
+    """A frame set to one value throughout (a glare: 0.46 of full scale) had been measured as flames on three of four
+    planes (heights about 5.2 mm flagged merged;cut;no-edge), its intensities in the spectra (plane 2's amplitude 11
+    times the others'). Its views carry no structure (:func:`lf_flame.real.black_level.view_spread` 0, a flame's 1):
+    it is a failed row on every plane naming why, and the spectra are those of the recording with that frame NaN."""
+    seq, frames = small_recording
+    out = {}
+    for name, value in (("glare", 30000 / 65535), ("nan", np.nan)):
+        bad = frames.copy()
+        bad[3] = value
+        _write_h5(tmp_path / f"{name}.h5", bad, fps=100.0)
+        src, _ = open_source(tmp_path / f"{name}.h5")
+        out[name] = run(simulated_job(seq, SMALL_CAMERA, src, chunk=5)[0], tmp_path / name, progress=False)
+    table = pd.read_csv(tmp_path / "glare" / "frames.csv", keep_default_na=False, na_values=[""])
+    failed = table[table.failure.notna()]
+    assert set(failed.frame) == {3} and len(failed) == 4, failed
+    assert failed.failure.str.startswith("frame not processed: its views carry no structure").all(), failed.failure
+    assert list(out["glare"]["unprocessed_frames"]) == ["3"] and out["glare"]["failed_frames"] == dict.fromkeys(
+        range(4), 1)
+    glare, nan = (pd.read_csv(tmp_path / n / "spectra.csv") for n in ("glare", "nan"))
+    pd.testing.assert_frame_equal(glare, nan)
 
 
 def test_frame_times_and_rates_out_of_order_are_refused_by_name(tmp_path, capsys):

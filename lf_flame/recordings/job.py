@@ -517,7 +517,8 @@ def process_chunk(c: int, job: SequenceJob) -> dict:
     A frame that holds NaN or inf (a corrupt read, a dropped packet) gets a row per plane with
     :data:`NONFINITE_FRAME` as its failure, and the frames after it go on (an admm chunk's next frame
     continues the solve before it). A frame that cannot be processed otherwise (another sensor size, every sample
-    clipped, a solve that gave NaN or inf planes: lsqr's of a frame without light) gets a row per plane with
+    clipped, views without structure: a uniform frame, :func:`lf_flame.real.black_level.view_spread`, a solve that
+    gave NaN or inf planes) gets a row per plane with
     :data:`UNPROCESSED_FRAME` and the reason as its failure, and the frames after it go on (an admm chunk's next
     frame solved from scratch); :func:`lf_flame.recordings.runner.run` refuses a recording whose every frame failed.
     """
@@ -533,6 +534,7 @@ UNPROCESSED_FRAME = "frame not processed"
 
 def _process_frames(job: SequenceJob, start: int, stop: int) -> dict:
     from ..measure.diagnostics import EmptyPlaneError, measure_flame
+    from ..real.black_level import FLAT_SPREAD, view_spread
     from ..routes import measure_settings
     kw = measure_settings(job.route)
     t = dict(read_s=0.0, refocus_s=0.0, measure_s=0.0)
@@ -550,6 +552,13 @@ def _process_frames(job: SequenceJob, start: int, stop: int) -> dict:
             continue
         try:
             views, clipped = job.frame(raw)
+            spread = view_spread(job._square(views))
+            if spread is not None and spread < FLAT_SPREAD:
+                lo, hi = float(np.min(raw)), float(np.max(raw))
+                one = "" if lo != hi else f"; every pixel reads {hi:.4g}" + (" (full scale: over-exposed)" * (hi == 1))
+                raise ValueError(f"its views carry no structure (each varies by {spread:.2g} of its level across its "
+                                 f"lenslets, under {FLAT_SPREAD:g}{one}): a uniform frame (a glare, a blank or washed-"
+                                 "out frame) holds no flame to measure")
             stack, n_sat = job.planes_and_saturated(views, state, clipped)
             if not np.all(np.isfinite(stack)):
                 dark = "; the frame holds no light" if not np.any(raw > 0) else ""
