@@ -327,3 +327,29 @@ def read_json(path, what: str = "JSON file"):
     except json.JSONDecodeError as e:
         why = "the file is empty" if not text.strip() else f"it is truncated or damaged ({e})"
         raise DamagedFileError(f"{path} is not a readable {what}: {why}") from None
+
+
+def stored_json(text, where, record: str):
+    """The JSON of a record a file stores (an .npz array's or an HDF5 attribute's text, e.g. ``camera``,
+    ``objects``), refused with a message naming the file and the record where it is not JSON (``json``'s own,
+    "Expecting property name enclosed in double quotes: line 1 column 2 (char 1)", named neither).
+
+    Parameters
+    ----------
+    text : str or bytes
+        The record as stored.
+    where : path-like or str
+        The file that stores it (for the message).
+    record : str
+        The record's name (for the message).
+
+    Raises
+    ------
+    DamagedFileError
+        A ValueError: ``"PATH: its RECORD record is not readable JSON (REASON) ..."``.
+    """
+    try:
+        return json.loads(text.decode() if isinstance(text, bytes) else str(text))
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise DamagedFileError(f"{where}: its {record!r} record is not readable JSON ({e}): the file is damaged; "
+                               f"write it again (or remove the record)") from None

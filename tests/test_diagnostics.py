@@ -326,6 +326,38 @@ def small_flame_npz(tmp_path_factory):
     return src
 
 
+def test_profiles_of_a_uniform_light_field_warn_and_flag_every_plane(tmp_path, capsys):
+    """A light field of one value throughout (0.5) had been measured as a flame 3.7 mm tall at 2 mm without a word
+    or a flag (reconstruct had warned of a black level): profiles now warns that its views carry no structure and
+    flags every plane's measurement no-structure."""
+    from lf_flame.cli import main
+    np.save(tmp_path / "const.npy", np.full((360, 270), 0.5))
+    (tmp_path / "small.toml").write_text("[camera]\npixels_per_lenslet = 9\nn_rows = 40\nn_cols = 30\n")
+    assert main(["profiles", str(tmp_path / "const.npy"), "--camera", str(tmp_path / "small.toml"), "--depth", "0",
+                 "--depth", "2", "--out", str(tmp_path / "p"), "--no-figure"]) == 0
+    err = capsys.readouterr().err
+    assert "const.npy's views carry no structure" in err, err
+    table = pd.read_csv(tmp_path / "p.csv")
+    assert table.height_mm.notna().all() and table["flags"].str.endswith("no-structure").all(), table
+
+
+def test_profiles_refuses_a_stored_flame_without_its_depth_in_one_line(small_flame_npz, tmp_path, capsys):
+    """An .npz whose objects lack depth_offset_mm on one flame had ended 'profiles' in a KeyError traceback
+    (cli/profiles.py:109): now one line naming the file, the flame and the key."""
+    import json
+    from lf_flame.cli import main
+    with np.load(small_flame_npz) as z:
+        stored = {k: z[k] for k in z.files}
+    objects = json.loads(str(stored["objects"]))
+    del objects[1]["depth_offset_mm"]
+    stored["objects"] = np.array(json.dumps(objects))
+    np.savez(tmp_path / "nodepth.npz", **stored)
+    assert main(["profiles", str(tmp_path / "nodepth.npz"), "--route", "shift-sum", "--out", str(tmp_path / "p"),
+                 "--no-figure"]) == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "nodepth.npz: its stored flame 1" in err and "depth_offset_mm" in err, err
+
+
 @pytest.mark.parametrize("route", _profiles_routes())
 def test_profiles_measures_every_route_on_the_lenslet_grid(route, small_flame_npz):
     """Every route 'profiles' offers measures the flames (admm's planes, on a 2 x 2 finer grid,

@@ -410,6 +410,24 @@ def test_cli_refusals(route, tmp_path, capsys):
     assert "contains NaN or inf (1 pixels)" in capsys.readouterr().err and not views.exists()
 
 
+def test_a_views_file_without_its_calibration_is_refused_in_one_line(tmp_path, capsys):
+    """A views file whose calibration attribute was deleted (or damaged) had ended reconstruct and refocus in a
+    KeyError traceback (views_file.py:77): now one line naming the file and what it lacks."""
+    import h5py
+    for name, cal in (("nocal.h5", None), ("badcal.h5", "{not json")):
+        with h5py.File(tmp_path / name, "w") as f:
+            f["views"] = np.ones((3, 3, 20, 20), np.float32)
+            f.attrs["format"] = "lf_flame.decoded_views"
+            if cal is not None:
+                f.attrs["calibration"] = cal
+        for cmd, out in (("reconstruct", "r.h5"), ("refocus", "r.npz")):
+            assert cli.main([cmd, str(tmp_path / name), "--camera", EXAMPLE, "--depth", "0", "--out",
+                             str(tmp_path / out)]) == 2
+            err = capsys.readouterr().err
+            lines = [ln for ln in err.splitlines() if ln.strip()]
+            assert len(lines) == 1 and "Traceback" not in err and name in err and "calibration" in err, err
+
+
 def test_the_commands_show_the_packages_warnings_in_one_line():
     """A warning of lf_flame's own reads ``warning: ...`` on the command line (no file, line and source);
     another package's keeps Python's form."""

@@ -18,7 +18,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from lf_flame.optics.camera import PAPER_CAMERA
+from lf_flame.optics.camera import PAPER_CAMERA, PlenopticCamera
 from lf_flame.cli import main
 from lf_flame.simulate.scenes_time import flicker_sequence
 from lf_flame.recordings.sources import SimulatedSource, frame_rate, open_source, write_frames
@@ -522,8 +522,11 @@ def test_bad_recordings_are_refused(tmp_path, small_seq):
         spectra(f, 100.0, nperseg=1)
     _write_h5(tmp_path / "small.h5", np.zeros((3, 20, 30), np.uint16))
     src, _ = open_source(tmp_path / "small.h5")
-    with pytest.raises(ValueError, match="frame 0: frame of 20 x 30 pixels; the camera's sensor is 2700 x 1350"):
-        process_chunk(0, _job(small_seq, chunk=4, source=src))
+    rows = pd.DataFrame(process_chunk(0, _job(small_seq, chunk=4, source=src))["rows"])   # each frame a failed row
+    assert (rows.failure == "frame not processed: frame of 20 x 30 pixels; the camera's sensor is 2700 x 1350").all()
+    with pytest.raises(ValueError, match=r"no frame of the recording could be processed \(frame 0: frame not "
+                                         "processed: frame of 20 x 30 pixels"):
+        run(_job(small_seq, chunk=4, source=src), tmp_path / "small", progress=False)
     with pytest.raises(ValueError, match="no frame rate"):
         frame_rate(None, {})
     with pytest.raises(ValueError, match="not strictly increasing"):
@@ -534,6 +537,114 @@ def test_bad_recordings_are_refused(tmp_path, small_seq):
         frame_rate(250.0, {"fps": 500.0})
     with pytest.raises(ValueError, match="positive"):
         frame_rate(-5.0, {})
+
+
+SMALL_CAMERA = PlenopticCamera(n_rows=40, n_cols=30, pixels_per_lenslet=9)
+
+
+@pytest.fixture(scope="module")
+def small_recording():
+    """A recording of the paper's four flames on a 40 x 30-lenslet camera: 10 frames at 100 frames/s, 2 rays per
+    pixel (360 x 270 pixels)."""
+    seq = flicker_sequence(SMALL_CAMERA, np.random.default_rng(3), "paper", fps=100, duration_s=0.1)
+    return seq, np.stack(list(SimulatedSource(seq, SMALL_CAMERA, 2).frames(0, seq.n_frames)))
+
+
+def test_one_bad_frame_is_a_failed_row_and_the_recording_goes_on(small_recording, tmp_path, capsys):
+    """A frame whose every pixel clipped (admm: 'every one of the views' 97200 samples is left out of the fit'; a
+    uniform frame, it is now named as one, at full scale), a
+    frame of another size in a folder of frames, and a black frame on lsqr (its planes NaN: 'plane contains 1200
+    NaN or infinite values') had each aborted the whole recording (the folder left with job.json and an empty
+    parts/). Each is now a failed row per plane naming why (the black frame's planes empty, unsolved, as admm's
+    and shift-sum's are), the other frames measured; reconstruct refuses a light field without light before lsqr's
+    NaN planes (it had printed pylops' RuntimeWarnings, then 'planes must be finite')."""
+    seq, frames = small_recording
+    clipped = frames.copy()
+    clipped[4] = 1.0
+    _write_h5(tmp_path / "clipped.h5", clipped, fps=100.0)
+    black = frames.copy()
+    black[6] = 0.0
+    _write_h5(tmp_path / "black.h5", black, fps=100.0)
+    (tmp_path / "folder").mkdir()
+    for i, f in enumerate(frames):
+        np.save(tmp_path / "folder" / f"frame_{i}.npy", f[:351] if i == 2 else f)
+    cases = (("clipped.h5", "reconstruct-admm", 4, "frame not processed: its views carry no structure (each varies "
+              "by 0 of its level across its lenslets, under 0.1; every pixel reads 1 (full scale: over-exposed))"),
+             ("black.h5", "reconstruct-lsqr", 6, "plane is empty: no light"),               # as admm's and shift-sum's
+             ("folder", "shift-sum", 2, "frame not processed: frame of 351 x 270 pixels; the camera's sensor is "
+                                        "360 x 270"))
+    for name, route, bad, why in cases:
+        src, _ = open_source(tmp_path / name)
+        job = simulated_job(seq, SMALL_CAMERA, src, route=route, chunk=5,
+                            **(dict(iters=3) if route.endswith("lsqr") else {}))[0]
+        s = run(job, tmp_path / f"out_{name}", progress=False)
+        table = pd.read_csv(tmp_path / f"out_{name}" / "frames.csv", keep_default_na=False, na_values=[""])
+        failed = table[table.failure.fillna("") != ""]
+        assert set(failed.frame) == {bad} and failed.failure.str.startswith(why).all(), (name, failed.failure)
+        assert list(s["unprocessed_frames"]) == ([str(bad)] if why.startswith("frame not") else []), name
+        assert s["failed_frames"] == dict.fromkeys(range(4), 1)
+        assert table[table.frame != bad].height_mm.notna().mean() > 0.9, name        # the others measured
+    np.save(tmp_path / "zero.npy", np.zeros_like(frames[0]))
+    (tmp_path / "small.toml").write_text("[camera]\npixels_per_lenslet = 9\nn_rows = 40\nn_cols = 30\n")
+    capsys.readouterr()
+    assert main(["reconstruct", str(tmp_path / "zero.npy"), "--camera", str(tmp_path / "small.toml"), "--depth", "0",
+                 "--depth", "2", "--solver", "lsqr", "--out", str(tmp_path / "z.h5")]) == 2
+    err = capsys.readouterr().err
+    assert "zero.npy holds no light: its 97200 samples fitted are all 0" in err and "Warning" not in err, err
+
+
+def test_a_uniform_glare_frame_is_a_failed_row_not_spectra_input(small_recording, tmp_path):
+    """A frame set to one value throughout (a glare: 0.46 of full scale) had been measured as flames on three of four
+    planes (heights about 5.2 mm flagged merged;cut;no-edge), its intensities in the spectra (plane 2's amplitude 11
+    times the others'). Its views carry no structure (:func:`lf_flame.real.black_level.view_spread` 0, a flame's 1):
+    it is a failed row on every plane naming why, and the spectra are those of the recording with that frame NaN."""
+    seq, frames = small_recording
+    out = {}
+    for name, value in (("glare", 30000 / 65535), ("nan", np.nan)):
+        bad = frames.copy()
+        bad[3] = value
+        _write_h5(tmp_path / f"{name}.h5", bad, fps=100.0)
+        src, _ = open_source(tmp_path / f"{name}.h5")
+        out[name] = run(simulated_job(seq, SMALL_CAMERA, src, chunk=5)[0], tmp_path / name, progress=False)
+    table = pd.read_csv(tmp_path / "glare" / "frames.csv", keep_default_na=False, na_values=[""])
+    failed = table[table.failure.notna()]
+    assert set(failed.frame) == {3} and len(failed) == 4, failed
+    assert failed.failure.str.startswith("frame not processed: its views carry no structure").all(), failed.failure
+    assert list(out["glare"]["unprocessed_frames"]) == ["3"] and out["glare"]["failed_frames"] == dict.fromkeys(
+        range(4), 1)
+    glare, nan = (pd.read_csv(tmp_path / n / "spectra.csv") for n in ("glare", "nan"))
+    pd.testing.assert_frame_equal(glare, nan)
+
+
+def test_frame_times_and_rates_out_of_order_are_refused_by_name(tmp_path, capsys):
+    """A NaN frame time is named as one (it had been 'not strictly increasing (at frame 1)', argmax of an all-False
+    array); a times_s of 10 or 60 entries for 30 frames is refused naming both counts (it had been taken silently);
+    an fps attribute that is no number names the attribute (it had been "could not convert string to float:
+    'fast'"); a camera record that is not JSON names the file and the record (it had been json's bare message)."""
+    from lf_flame.recordings.sources import source_frame_rate
+    times = np.arange(30) / 100.0
+    times[5] = np.nan
+    with pytest.raises(ValueError, match=r"times_s\) hold NaN or inf \(first at frame 5\)"):
+        frame_rate(None, {}, times)
+    for n in (10, 60):
+        path = tmp_path / f"t{n}.h5"
+        _write_h5(path, np.zeros((30, 4, 4), np.uint16))
+        with h5py.File(path, "a") as f:
+            f["times_s"] = np.arange(n) / 100.0
+        src, attrs = open_source(path)
+        with pytest.raises(ValueError, match=f"hold {n} times .* for its 30 frames"):
+            source_frame_rate(src, attrs)
+    with pytest.raises(ValueError, match="fps attribute must be a number .* Received: 'fast'"):
+        frame_rate(None, {"fps": "fast"})
+    _write_h5(tmp_path / "cam.h5", np.zeros((3, 4, 4), np.uint16), fps=100.0, camera="{not json")
+    np.savez(tmp_path / "cam.npz", raw=np.zeros((360, 270)), camera=np.array("{not json"))
+    capsys.readouterr()
+    for argv in (["sequence", str(tmp_path / "cam.h5"), "--quiet", "--out", str(tmp_path / "o")],
+                 ["reconstruct", str(tmp_path / "cam.npz"), "--depth", "0", "--out", str(tmp_path / "r.h5")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "Traceback" not in err and "its 'camera' record is not readable JSON" in err, err
+        assert Path(argv[1]).name in err, err
 
 
 def test_cli_simulates_and_measures_a_recording(tmp_path, capsys):

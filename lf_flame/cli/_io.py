@@ -91,7 +91,8 @@ def _recording_frame(path, index):
     cam = None
     if cam_json is not None:
         from ..optics.camera import PlenopticCamera
-        cam = PlenopticCamera.from_dict(json.loads(cam_json))
+        from ..config import stored_json
+        cam = PlenopticCamera.from_dict(stored_json(cam_json, p, "camera"))
     return H5Source(str(p)).raw(int(index)), cam
 
 
@@ -146,7 +147,8 @@ def _load_raw(path):
     cam = None
     if "camera" in meta:
         from ..optics.camera import PlenopticCamera
-        cam = PlenopticCamera.from_dict(json.loads(meta["camera"]))
+        from ..config import stored_json
+        cam = PlenopticCamera.from_dict(stored_json(meta["camera"], p, "camera"))
     return raw, cam
 
 
@@ -432,14 +434,16 @@ def planes_count(n: int) -> str:
 def _raw_objects(path):
     """The objects (with ``roi``) that ``lf-flame simulate`` stored beside the raw image, if any."""
     meta = _raw_meta(path)
-    return json.loads(meta["objects"]) if "objects" in meta else None
+    from ..config import stored_json
+    return stored_json(meta["objects"], path, "objects") if "objects" in meta else None
 
 
 def _recording_flames(path):
     """The flames (``depth_offset_mm``, ``height_mm`` ...; no ``roi``) of the simulated recording that a frame
     ``RECORDING.h5:INDEX`` comes from (``simulate-sequence``'s ``sequence``), or None."""
     meta = _raw_meta(path) if ".h5:" in str(path) else {}
-    return json.loads(meta["sequence"]).get("flames") if "sequence" in meta else None
+    from ..config import stored_json
+    return stored_json(meta["sequence"], path, "sequence").get("flames") if "sequence" in meta else None
 
 
 #: ``lf-flame simulate``'s scenes seen by a colour (Bayer) sensor (:func:`colour_scene`).
@@ -525,7 +529,8 @@ def _raw_scene(path, camera):
     meta = _raw_meta(path)
     if "scene" not in meta or "objects" not in meta:
         return None
-    record, objects = json.loads(meta["scene"]), json.loads(meta["objects"])
+    from ..config import stored_json
+    record, objects = stored_json(meta["scene"], path, "scene"), stored_json(meta["objects"], path, "objects")
     sc = simulated_scene(record, camera)
     return sc if json.loads(json.dumps(sc.objects, default=float)) == objects else None
 

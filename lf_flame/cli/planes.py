@@ -187,7 +187,8 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
     plane held to its regions, with :data:`~lf_flame.tomo.found_planes.SUPPORT_KNOBS`. ``solver`` "learned": the
     reconstructor saved in ``model_dir`` (:func:`lf_flame.learn.reconstructor.reconstruction`, lenslet grid;
     None: its default folder). ``start``: a :class:`~lf_flame.tomo.solvers.Reconstruction` on as many planes a little
-    apart in depth, which admm starts from (``reconstruct``'s ``start_planes``), or None."""
+    apart in depth, which admm starts from (``reconstruct``'s ``start_planes``), or None. A light field without
+    light (no sample fitted above 0: lsqr's planes had been NaN) is refused before the solve (ValueError)."""
     from ..tomo.decoded import fit_data
     from ..tomo.defaults import EXACT_SOLVER
     from ..tomo.exact import ExactOperator, emission_operator
@@ -211,6 +212,11 @@ def run_reconstruction(lf, depths, solver=None, iters=None, *, damp=0.0, tv=None
                                sample_offsets=lf.sample_offsets if lf.lattice_views is None else None)
     lf = _fitted_light_field(lf, saturation)
     data, fit = fit_data(lf, op)
+    fitted = fitted_pixels(data, fit)
+    if fitted.any() and not np.any(data[fitted] > 0):   # lsqr had divided 0 by 0 (NaN planes), the others gave 0
+        raise ValueError(f"{lf.source or 'the light field'} holds no light: its {int(fitted.sum())} samples fitted "
+                         "are all 0 (or below), there is nothing to reconstruct; check that it is the capture meant "
+                         "and its exposure (a dark frame subtracted from itself, a capped lens)")
     if solver == "learned":
         from ..learn.reconstructor import DEFAULT_MODEL_DIR, LearnedReconstructor, reconstruction
         if not isinstance(op, ExactOperator):

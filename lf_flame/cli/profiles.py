@@ -43,13 +43,11 @@ def _profiles_input(a):
         gt, objects, slopes = ds.gt(int(i)), ds.params(int(i)), ds.slopes
     else:
         raw, cam = _load_raw(a.raw)
-        objects = _raw_objects(a.raw)
+        objects = _flame_objects(a.raw)
     if getattr(a, "camera", None):
         from ..optics.camera_file import load_camera_file
         cam = load_camera_file(a.camera)
     cam = cam or PAPER_CAMERA
-    if objects is not None and not all("height_mm" in o for o in objects):
-        raise ValueError(f"{a.raw} does not hold a flame scene (its objects have no flame heights)")
     given = _given_depths(a)
     depths = given or _object_depths(objects)
     if depths and not given:
@@ -64,6 +62,10 @@ def _profiles_input(a):
     route = parse_route(a.route)
     search = getattr(a, "search_range", None)
     found = None
+    flat = None
+    if np.shape(raw) == tuple(cam.sensor_shape) and cam.perfect_grid:
+        from ..refocus.shift_and_sum import raw_to_views
+        flat = structure_warning(raw_to_views(np.asarray(raw, np.float32), cam.pixels_per_lenslet), a.raw)
     if route.tomographic:
         depths, stack, found = solved_planes(from_raw(raw, cam, str(a.raw)), depths, route.solver, search)
     elif not depths:
@@ -86,7 +88,30 @@ def _profiles_input(a):
         stack = run(raw.astype(np.float32)[None, ..., None])
     elif not route.tomographic:
         stack = refocus(raw, slopes, n, aperture_mask(n, "circular"), **route.options)
-    return cam, np.asarray(stack), depths, list(slopes), objects, found
+    return cam, np.asarray(stack), depths, list(slopes), objects, found, flat
+
+
+#: The flag ``profiles`` adds to every plane's measurement of a light field without structure
+#: (:func:`structure_warning`).
+NO_STRUCTURE_FLAG = "no-structure"
+
+
+def structure_warning(views, source) -> bool:
+    """Where a light field's views carry no structure (:func:`lf_flame.real.black_level.view_spread` under
+    :data:`~lf_flame.real.black_level.FLAT_SPREAD`: a uniform light field, a glare, a blank or washed-out capture),
+    one warning (stderr) that what is measured on its planes is no flame, and True (its measurements are flagged
+    :data:`NO_STRUCTURE_FLAG`); else False."""
+    import sys
+    from ..real.black_level import FLAT_SPREAD, view_spread
+    spread = view_spread(views)
+    if spread is None or spread >= FLAT_SPREAD:
+        return False
+    print(f"warning: {source}'s views carry no structure (each varies by {spread:.2g} of its level across its "
+          f"lenslets, under {FLAT_SPREAD:g}): a uniform light field (a glare, a blank or washed-out capture) holds no "
+          f"flame, and what is measured on its planes is none (flagged {NO_STRUCTURE_FLAG}); check the capture and its "
+          "exposure",
+          file=sys.stderr)
+    return True
 
 
 def _decoded(a) -> bool:
@@ -104,6 +129,32 @@ def _given_depths(a):
     return [float(d) for d in a.depth]
 
 
+#: What ``profiles`` reads of each flame a file stores (its objects): a record without one is refused.
+FLAME_KEYS = ("height_mm", "depth_offset_mm")
+
+
+def _flame_objects(path):
+    """The flames ``lf-flame simulate`` stored beside the raw image (:func:`lf_flame.cli._io._raw_objects`), or None.
+
+    Raises
+    ------
+    ValueError
+        Objects that are not flames (no flame heights), or a flame that lacks its depth (``depth_offset_mm``):
+        naming the file, the flame and what it lacks.
+    """
+    objects = _raw_objects(path)
+    if objects is None:
+        return None
+    if not isinstance(objects, list) or not all(isinstance(o, dict) and "height_mm" in o for o in objects):
+        raise ValueError(f"{path} does not hold a flame scene (its objects have no flame heights)")
+    for i, o in enumerate(objects):
+        missing = [k for k in FLAME_KEYS if k not in o]
+        if missing:
+            raise ValueError(f"{path}: its stored flame {i} (record 'objects') lacks {', '.join(missing)}: the file "
+                             "is damaged; simulate it again, or save its raw image alone (.npy) and give --depth")
+    return objects
+
+
 def _object_depths(objects):
     """The flames' depths (mm), or None without flames."""
     return [float(o["depth_offset_mm"]) for o in objects] if objects else None
@@ -118,7 +169,8 @@ def _decoded_profiles_input(a):
     from .planes import check_planes, found_planes
     lf = light_field(a)
     cam = lf.camera
-    objects = None if str(a.raw).endswith(".h5") else _raw_objects(a.raw)
+    flat = structure_warning(lf.views, a.raw)
+    objects = None if str(a.raw).endswith(".h5") else _flame_objects(a.raw)
     depths = _given_depths(a) or ([cam.depth_for_slope(v) for v in a.slope] if a.slope else _object_depths(objects))
     route = parse_route(a.route)
     if route.kind in ("stored", "learned"):
@@ -134,7 +186,7 @@ def _decoded_profiles_input(a):
     slopes = [cam.slope_for_depth(d) for d in depths]
     if not route.tomographic:
         stack = refocus_views(lf.views, slopes, aperture_mask(cam.pixels_per_lenslet, "circular"), **route.options)
-    return cam, np.asarray(stack), depths, slopes, objects, found
+    return cam, np.asarray(stack), depths, slopes, objects, found, flat
 
 
 def solved_planes(lf, depths, solver, search_range=None):
@@ -210,7 +262,7 @@ def profiles_table(a):
     from ..routes import measure_settings
     from ..measure.scoring import score_stacks
     kw = measure_settings(a.route)
-    cam, stack, depths, slopes, objects, found = _profiles_input(a)
+    cam, stack, depths, slopes, objects, found, flat = _profiles_input(a)
     truth = plane_flames(cam, depths, objects)
     if objects and not _decoded(a) and truth == list(objects):      # the scene's own planes, in its order
         sample = int(str(a.raw).rsplit(":", 1)[1]) if ".h5:" in str(a.raw) else 0
@@ -241,6 +293,10 @@ def profiles_table(a):
             # |measured - true|, as score_stacks gives it on the simulated camera's route
             df.insert(df.columns.get_loc("height_mm_true") + 1, "height_err_mm", (df.height_mm - df.height_mm_true).abs())
     df.insert(3 + ("flame" in df), "slope", [slopes[k] for k in df.plane])
+    if flat and "flags" in df:                   # a uniform light field: whatever was measured is no flame
+        measured = df["flags"].notna()
+        df.loc[measured, "flags"] = [";".join([f for f in str(v).split(";") if f] + [NO_STRUCTURE_FLAG])
+                                     for v in df["flags"][measured]]
     return cam, stack, depths, ms, truth if objects else None, df
 
 

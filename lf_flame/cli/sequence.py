@@ -140,7 +140,8 @@ def cmd_sequence(a):
         source, attrs = open_source(a.input)
         if "camera" in attrs:
             from ..optics.camera import PlenopticCamera
-            stored = PlenopticCamera.from_dict(json.loads(attrs["camera"]))
+            from ..config import stored_json
+            stored = PlenopticCamera.from_dict(stored_json(attrs["camera"], a.input, "camera"))
             if a.data_config or a.camera:
                 from ..real.lightfield import stored_camera_warning
                 stored_camera_warning(cam, stored, str(a.input))
@@ -148,7 +149,8 @@ def cmd_sequence(a):
                 cam = stored
         fps = source_frame_rate(source, attrs, a.fps)
         if "sequence" in attrs:
-            seq = FlameSequence.from_dict(json.loads(attrs["sequence"]))
+            from ..config import stored_json
+            seq = FlameSequence.from_dict(stored_json(attrs["sequence"], a.input, "sequence"))
     if a.depth and a.slope:
         raise ValueError("give the planes as --depth or as --slope, not both")
     knobs = dict(iters=a.iters, tv=a.tv, saturation=a.saturation, operator_rays=a.operator_rays)
@@ -225,6 +227,11 @@ def cmd_sequence(a):
     note = unresolved_note(pk)
     if note:
         print(note)
+    lost = s.get("unprocessed_frames") or {}
+    for f, why in list(lost.items())[:3]:
+        print(f"frame {f}: {why}")
+    if len(lost) > 3:
+        print(f"... and {len(lost) - 3} more frames not processed (their rows in {a.out}/frames.csv say why)")
     for k, n in s["failed_frames"].items():
         if n:
             print(f"plane {k}: {n} of {s['n_frames']} frames could not be measured (the plane's mean in its spectrum)")

@@ -504,7 +504,8 @@ def capture_sensor(camera, meta, source: str = "the image") -> tuple:
         sensor = load_colour_sensor(camera)
         if sensor is not None:
             from ..optics.colour import same_cfa_layout
-            stored = json.loads(meta["sensor"]) if meta.get("sensor") else None
+            from ..config import stored_json
+            stored = stored_json(meta["sensor"], source, "sensor") if meta.get("sensor") else None
             if stored and not same_cfa_layout(stored["pattern"], stored["phase"], sensor.pattern, sensor.phase):
                 import warnings
                 warnings.warn(f"{source} records its colour filter array as {stored['pattern']} phase "
@@ -514,7 +515,8 @@ def capture_sensor(camera, meta, source: str = "the image") -> tuple:
     rec = meta.get("sensor")
     if not rec:
         return None, ""
-    r = json.loads(rec)
+    from ..config import stored_json
+    r = stored_json(rec, source, "sensor")
     return library_sensor(r["name"], r["pattern"], tuple(r["phase"])), f"stored in {source}"
 
 
@@ -563,7 +565,8 @@ def _read_raw(p: Path):
         from .images import load_image
         raw = load_image(p)
     if "camera" in meta:
-        stored = PlenopticCamera.from_dict(json.loads(meta["camera"]))
+        from ..config import stored_json
+        stored = PlenopticCamera.from_dict(stored_json(meta["camera"], p, "camera"))
     return np.asarray(raw, np.float64), stored, meta
 
 

@@ -64,7 +64,14 @@ def save_views(path, views: np.ndarray, calibration: GridCalibration, clipped: n
 
 
 def load_views(path) -> tuple[np.ndarray, GridCalibration]:
-    """Read :func:`save_views`' file: views (N, N, R, C) float32 and the calibration."""
+    """Read :func:`save_views`' file: views (N, N, R, C) float32 and the calibration.
+
+    Raises
+    ------
+    ValueError
+        Not a file of decoded views; one without its calibration, or with one that cannot be read (each named
+        with the file).
+    """
     import h5py
     p = Path(path)
     if not p.is_file():
@@ -74,7 +81,16 @@ def load_views(path) -> tuple[np.ndarray, GridCalibration]:
         if f.attrs.get("format") != "lf_flame.decoded_views" or "views" not in f:
             raise ValueError(f"{p} is not a file of decoded views written by 'lf-flame decode'")
         views = f["views"][...]
-        cal = GridCalibration.from_dict(json.loads(f.attrs["calibration"]))
+        if "calibration" not in f.attrs:
+            raise ValueError(f"{p} lacks its lenslet grid's calibration (attribute 'calibration', which "
+                             "'lf-flame decode' writes): decode the capture again")
+        from ..config import stored_json
+        record = stored_json(f.attrs["calibration"], p, "calibration")
+        try:
+            cal = GridCalibration.from_dict(record)
+        except ValueError as e:
+            raise ValueError(f"{p}: its 'calibration' attribute is not a lenslet grid's calibration ({e}): decode "
+                             "the capture again") from None
     if views.ndim != 4 or views.shape[0] != views.shape[1]:
         raise ValueError(f"{p}: views of shape {views.shape}, not (N, N, R, C)")
     return views, cal

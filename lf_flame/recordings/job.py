@@ -385,7 +385,8 @@ class SequenceJob:
         from scratch), then at most ``stream_fills`` fills per frame
         (:data:`~lf_flame.tomo.defaults.ADMM_STREAM_FILLS`); a frame whose total light differs from the
         previous frame's by more than :data:`~lf_flame.tomo.defaults.ADMM_STREAM_LIGHT` is solved from scratch.
-        ``clipped``: a real frame's samples from clipped pixels (:meth:`frame`)."""
+        ``clipped``: a real frame's samples from clipped pixels (:meth:`frame`). A frame without light (no sample
+        fitted above 0) has empty planes, unsolved (lsqr's had been NaN)."""
         if self.solver is None:
             from ..refocus.shift_and_sum import aperture_mask, focal_stack
             n = views.shape[0]
@@ -399,6 +400,15 @@ class SequenceJob:
         if state and not (prev > 0 and prev / ADMM_STREAM_LIGHT <= light <= prev * ADMM_STREAM_LIGHT):
             state.clear()                   # unlike the previous frame: its solve is no start for this one
         iters = min(r["iters"], r["stream_fills"]) if state else r["iters"]
+        from ..tomo.solvers import fitted_pixels
+        fitted = fitted_pixels(data, leave)
+        if fitted.any() and not np.any(data[fitted] > 0):   # no light: no emission (lsqr had divided 0 by 0: NaN)
+            if state is not None:
+                state.clear()
+            planes = np.zeros(tuple(self.operator().dims))
+            if self.hexagonal:
+                planes = self.operator().to_square(planes, self.camera.n_rows, self.camera.n_cols)
+            return planes, int(np.count_nonzero(~fitted))
         rec = reconstruct(data, self.operator(), r["solver"], iters, tv=r["tv"], lam=r.get("lam"), l1=r.get("l1"),
                           start=r.get("start"), tol=r.get("tol"), saturation=leave,
                           state=state if r["solver"] == "admm" else None,
@@ -506,23 +516,25 @@ def process_chunk(c: int, job: SequenceJob) -> dict:
 
     A frame that holds NaN or inf (a corrupt read, a dropped packet) gets a row per plane with
     :data:`NONFINITE_FRAME` as its failure, and the frames after it go on (an admm chunk's next frame
-    continues the solve before it).
-
-    Raises
-    ------
-    ValueError
-        A frame that cannot be processed otherwise (another sensor size, a calibration that does not
-        fit it), naming the frame; the original error is its cause.
+    continues the solve before it). A frame that cannot be processed otherwise (another sensor size, every sample
+    clipped, views without structure: a uniform frame, :func:`lf_flame.real.black_level.view_spread`, a solve that
+    gave NaN or inf planes) gets a row per plane with
+    :data:`UNPROCESSED_FRAME` and the reason as its failure, and the frames after it go on (an admm chunk's next
+    frame solved from scratch); :func:`lf_flame.recordings.runner.run` refuses a recording whose every frame failed.
     """
     return _process_frames(job, c * job.chunk, min((c + 1) * job.chunk, job.source.n_frames))
 
 
 #: The failure of every plane of a frame that holds NaN or inf (:func:`process_chunk`).
 NONFINITE_FRAME = "frame holds NaN or inf"
+#: The start of the failure of every plane of a frame that could not be processed otherwise (another size, every
+#: sample clipped, a solve that gave NaN), followed by the reason (:func:`process_chunk`).
+UNPROCESSED_FRAME = "frame not processed"
 
 
 def _process_frames(job: SequenceJob, start: int, stop: int) -> dict:
     from ..measure.diagnostics import EmptyPlaneError, measure_flame
+    from ..real.black_level import FLAT_SPREAD, view_spread
     from ..routes import measure_settings
     kw = measure_settings(job.route)
     t = dict(read_s=0.0, refocus_s=0.0, measure_s=0.0)
@@ -540,9 +552,22 @@ def _process_frames(job: SequenceJob, start: int, stop: int) -> dict:
             continue
         try:
             views, clipped = job.frame(raw)
+            spread = view_spread(job._square(views))
+            if spread is not None and spread < FLAT_SPREAD:
+                lo, hi = float(np.min(raw)), float(np.max(raw))
+                one = "" if lo != hi else f"; every pixel reads {hi:.4g}" + (" (full scale: over-exposed)" * (hi == 1))
+                raise ValueError(f"its views carry no structure (each varies by {spread:.2g} of its level across its "
+                                 f"lenslets, under {FLAT_SPREAD:g}{one}): a uniform frame (a glare, a blank or washed-"
+                                 "out frame) holds no flame to measure")
             stack, n_sat = job.planes_and_saturated(views, state, clipped)
-        except ValueError as e:
-            raise ValueError(f"frame {i}: {e}") from e
+            if not np.all(np.isfinite(stack)):
+                dark = "; the frame holds no light" if not np.any(raw > 0) else ""
+                raise ValueError(f"the {job.solver or 'refocused'} planes hold NaN or inf{dark}")
+        except ValueError as e:                  # this frame alone: a failed row per plane, the others go on
+            state.clear()                        # admm: the next frame is solved from scratch
+            rows += [dict(frame=i, time_s=i / job.fps, plane=k, depth_mm=d, failure=f"{UNPROCESSED_FRAME}: {e}")
+                     for k, d in enumerate(job.depths_mm)]
+            continue
         t2 = time.perf_counter()
         extra = {} if n_sat is None else dict(n_saturated=n_sat, clipped_share=job.clipped_share(raw))
         for k, (plane, d) in enumerate(zip(stack, job.depths_mm)):

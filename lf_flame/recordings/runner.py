@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from ..config import atomic_write_text, provenance
-from .job import NONFINITE_FRAME, SequenceJob, _warm_up, process_chunk
+from .job import NONFINITE_FRAME, UNPROCESSED_FRAME, SequenceJob, _warm_up, process_chunk
 from .plot import plot_sequence
 from .flicker import SIGNALS, peaks, spectra
 
@@ -49,6 +49,25 @@ def over_exposed_frames(frames: pd.DataFrame) -> list:
     share = frames.groupby("frame").clipped_share.first().fillna(0.0)
     typical = float(share.median())
     return [int(f) for f, v in share.items() if v > CLIPPED_WARN and v > OVER_EXPOSED_RATIO * typical]
+
+
+def frame_failures(frames: pd.DataFrame) -> dict:
+    """The frames that failed as a whole, on every plane (NaN or inf, :data:`~lf_flame.recordings.job.NONFINITE_FRAME`;
+    not processed, :data:`~lf_flame.recordings.job.UNPROCESSED_FRAME`), each with its failure.
+
+    Parameters
+    ----------
+    frames : DataFrame
+        The frames table (columns ``frame``, ``failure``).
+
+    Returns
+    -------
+    dict of int to str
+        Frame -> failure, ascending.
+    """
+    fail = frames.failure.map(lambda v: v if isinstance(v, str) else "")     # all NaN where none failed
+    whole = (fail == NONFINITE_FRAME) | fail.str.startswith(UNPROCESSED_FRAME)
+    return {int(f): str(m) for f, m in frames[whole].groupby("frame").failure.first().sort_index().items()}
 
 
 def recording_spectra(frames: pd.DataFrame, fps: float, nperseg: int | None = None):
@@ -148,7 +167,8 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
         moment the cluster is up (``startup_s``, its start); ``busy_s``, the seconds the
         tasks spent reading (or rendering), refocusing and measuring; ``failed_frames``,
         each plane's frames that could not be measured (their values in its spectrum are
-        the plane's mean; also ``n_failed`` in peaks.csv); on ``reconstruct-*`` routes
+        the plane's mean; also ``n_failed`` in peaks.csv); ``unprocessed_frames``, the frames that failed on every
+        plane with why (:func:`frame_failures`); on ``reconstruct-*`` routes
         ``n_saturated``, the frames with saturated pixels left out of the fit and the most
         in one frame, and ``over_exposed``, the frames whose clipped pixels are more than
         :data:`~lf_flame.real.clipping.CLIPPED_WARN` of the lit ones, the largest share, the frames that clip
@@ -159,8 +179,9 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
     ------
     ValueError
         ``out`` holds a run with other settings; a recording of fewer than 2 frames (no
-        spectrum); ``nperseg`` below 2; a frame that cannot be processed (wrong size; a frame with NaN or
-        inf is a failed row, :func:`~lf_flame.recordings.job.process_chunk`, unless every frame is);
+        spectrum); ``nperseg`` below 2; a recording none of whose frames could be processed (a frame with NaN or
+        inf, of another size, every sample clipped ... is a failed row naming why,
+        :func:`~lf_flame.recordings.job.process_chunk`, unless every frame is: :func:`frame_failures`);
         a chunk table that does not hold its frames exactly once.
     """
     out = Path(out)
@@ -236,6 +257,10 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
         raise ValueError(f"{parts} does not hold every frame exactly once; delete it and run again")
     if (frames.failure == NONFINITE_FRAME).all():
         raise ValueError(f"every frame of the recording holds NaN or inf: nothing to measure ({parts})")
+    lost = frame_failures(frames)
+    if len(lost) == job.source.n_frames:
+        raise ValueError(f"no frame of the recording could be processed (frame 0: {lost[0]}): nothing to measure; "
+                         f"the frames are in {parts}")
     if truth is not None:
         frames["height_mm_true"] = np.asarray(truth, float)[frames.frame.to_numpy(), frames.plane.to_numpy()]
         frames["height_err_mm"] = frames.height_mm - frames.height_mm_true
@@ -254,6 +279,7 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
                    frames_per_s=(len(todo) and sum(min(job.chunk, job.source.n_frames - c * job.chunk)
                                                    for c in todo) / wall),
                    busy_s=busy, failed_frames={int(k): int(v) for k, v in failed.items()},
+                   unprocessed_frames={str(k): v for k, v in lost.items()},
                    provenance=provenance())
     if "n_saturated" in frames:
         from ..real.clipping import CLIPPED_WARN

@@ -329,12 +329,16 @@ def _resumed_frames(tmp: Path, settings: str, shape: tuple):
 
 def source_frame_rate(source, attrs: dict, fps: float | None = None) -> float:
     """The frame rate of a recording opened by :func:`open_source` (:func:`frame_rate`), with an HDF5 stack's frame
-    times (its dataset ``times_s``) where it holds them."""
+    times (its dataset ``times_s``, one per frame: another count is refused naming both) where it holds them."""
     times = None
     if isinstance(source, H5Source):
         import h5py
         with h5py.File(source.path, "r") as f:
             times = f["times_s"][:] if "times_s" in f else None
+        if times is not None and np.shape(times) != (source.n_frames,):
+            raise ValueError(f"{source.path}: its frame times (dataset times_s) hold {np.size(times)} times of shape "
+                             f"{np.shape(times)} for its {source.n_frames} frames: give one time per frame (s), or "
+                             "delete times_s and give --fps")
     return frame_rate(fps, attrs, times)
 
 
@@ -354,17 +358,28 @@ def frame_rate(fps: float | None, attrs: dict, times_s=None) -> float:
     Raises
     ------
     ValueError
-        No frame rate anywhere; a rate not positive and finite; time stamps not strictly
-        increasing or not evenly spaced (within 1 %); a given rate that disagrees (1 %)
-        with the file's.
+        No frame rate anywhere; a rate not positive and finite; an ``fps`` attribute that is not a number; time
+        stamps with NaN or inf, not strictly increasing or not evenly spaced (within 1 %); a given rate that
+        disagrees (1 %) with the file's.
     """
     found = []
     if fps is not None:
         found.append(("--fps", float(fps)))
     if "fps" in attrs:
-        found.append(("the file's fps attribute", float(attrs["fps"])))
+        try:
+            found.append(("the file's fps attribute", float(attrs["fps"])))
+        except (TypeError, ValueError):
+            raise ValueError(f"the file's fps attribute must be a number (frames/s). Received: {attrs['fps']!r}; "
+                             "correct it, or delete it and give --fps") from None
     if times_s is not None and len(times_s) > 1:
-        dt = np.diff(np.asarray(times_s, float))
+        try:
+            t = np.asarray(times_s, float)
+        except (TypeError, ValueError):
+            raise ValueError("the frame times (times_s) must be numbers (s)") from None
+        if not np.all(np.isfinite(t)):
+            raise ValueError(f"the frame times (times_s) hold NaN or inf (first at frame "
+                             f"{int(np.argmax(~np.isfinite(t)))}): correct them, or delete times_s and give --fps")
+        dt = np.diff(t)
         if not np.all(dt > 0):
             raise ValueError(f"frame times are not strictly increasing (at frame {int(np.argmax(dt <= 0)) + 1})")
         if dt.max() - dt.min() > 0.01 * np.median(dt):
