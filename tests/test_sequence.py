@@ -950,3 +950,29 @@ def test_a_frame_of_a_simulated_recording_takes_depths_scene(tmp_path, capsys):
     with h5py.File(tmp_path / "r.h5") as f:
         got = sorted(f["depths_mm"][()])
     np.testing.assert_allclose(got, sorted(dict.fromkeys(fl["depth_offset_mm"] for fl in flames)), atol=1e-9)
+
+
+def test_a_recording_in_counts_with_defective_pixels_gives_its_planes_in_counts(small_recording, tmp_path):
+    """A recording's frames in a 12-bit sensor's counts (floats up to 4095: integer files are read scaled to [0, 1])
+    whose fit is a mask (the sensor's defective pixels, found in the first frame) are solved in units of their
+    clipping level, as its [0, 1] frames are: the same heights, the integrated intensities times 4095 (the mask had
+    dropped the level, and TV was applied in counts)."""
+    seq, frames = small_recording
+    rng = np.random.default_rng(5)
+    noisy = np.clip(frames + rng.normal(0.0, 0.03, frames.shape), 0.0, 1.0)
+    hot = rng.choice(frames[0].size, 20, replace=False)
+    for f in noisy:
+        f.flat[hot] = 1.0                                                # the sensor's hot pixels, every frame
+    counts = np.round(noisy * 4095)
+    _write_h5(tmp_path / "unit.h5", (counts / 4095).astype(np.float32), fps=100.0)
+    _write_h5(tmp_path / "counts.h5", counts.astype(np.float32), fps=100.0)
+    tables = {}
+    for name in ("unit", "counts"):
+        src, _ = open_source(tmp_path / f"{name}.h5")
+        job = simulated_job(seq, SMALL_CAMERA, src, route="reconstruct-admm", chunk=5)[0]
+        run(job, tmp_path / f"out_{name}", progress=False)
+        tables[name] = pd.read_csv(tmp_path / f"out_{name}" / "frames.csv")
+    a, b = tables["unit"], tables["counts"]
+    assert a.failure.isna().mean() > 0.9 and (a.n_saturated > 0).all()              # the hot pixels left out
+    np.testing.assert_allclose(b.integrated_intensity / 4095, a.integrated_intensity, rtol=1e-3)
+    np.testing.assert_allclose(b.height_mm, a.height_mm, atol=1e-3)

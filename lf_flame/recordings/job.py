@@ -324,6 +324,12 @@ class SequenceJob:
         c = self._decoding()
         return unlit_level(raw, c["white"], c["dark"])
 
+    def unit(self, raw: np.ndarray) -> float:
+        """One raw frame's unit for the solvers (:func:`lf_flame.tomo.solvers.reconstruct`'s ``unit``): its clipping
+        level (:meth:`_level`), 1 where it has none; decoded views keep the raw frame's units."""
+        level = self._level(raw)
+        return 1.0 if level is None else float(level)
+
     def _level(self, image) -> float | None:
         """The clipping level of one frame (its raw image or views): ``saturation``, found in the frame where "auto"."""
         if self.saturation != "auto":
@@ -376,7 +382,8 @@ class SequenceJob:
         return self.planes_and_saturated(views)[0]
 
     def planes_and_saturated(self, views: np.ndarray, state: dict | None = None,
-                             clipped: np.ndarray | None = None) -> tuple[np.ndarray, int | None]:
+                             clipped: np.ndarray | None = None,
+                             unit: float | None = None) -> tuple[np.ndarray, int | None]:
         """The focal stack (P, R, C) of one frame by the job's route, and the count of its
         pixels left out of the fit as saturated (``reconstruct-*``; None for shift-and-sum).
 
@@ -385,7 +392,9 @@ class SequenceJob:
         from scratch), then at most ``stream_fills`` fills per frame
         (:data:`~lf_flame.tomo.defaults.ADMM_STREAM_FILLS`); a frame whose total light differs from the
         previous frame's by more than :data:`~lf_flame.tomo.defaults.ADMM_STREAM_LIGHT` is solved from scratch.
-        ``clipped``: a real frame's samples from clipped pixels (:meth:`frame`). A frame without light (no sample
+        ``clipped``: a real frame's samples from clipped pixels (:meth:`frame`); ``unit``: the frame's clipping level
+        (:meth:`unit`), the solvers' unit where the fit is a mask (decoded frames, defective pixels), as
+        :func:`lf_flame.tomo.solvers.reconstruct`'s. A frame without light (no sample
         fitted above 0) has empty planes, unsolved (lsqr's had been NaN)."""
         if self.solver is None:
             from ..refocus.shift_and_sum import aperture_mask, focal_stack
@@ -410,7 +419,7 @@ class SequenceJob:
                 planes = self.operator().to_square(planes, self.camera.n_rows, self.camera.n_cols)
             return planes, int(np.count_nonzero(~fitted))
         rec = reconstruct(data, self.operator(), r["solver"], iters, tv=r["tv"], lam=r.get("lam"), l1=r.get("l1"),
-                          start=r.get("start"), tol=r.get("tol"), saturation=leave,
+                          start=r.get("start"), tol=r.get("tol"), saturation=leave, unit=unit,
                           state=state if r["solver"] == "admm" else None,
                           **({} if self.support is None else dict(support=self._support())))
         if state is not None and r["solver"] == "admm":
@@ -559,7 +568,8 @@ def _process_frames(job: SequenceJob, start: int, stop: int) -> dict:
                 raise ValueError(f"its views carry no structure (each varies by {spread:.2g} of its level across its "
                                  f"lenslets, under {FLAT_SPREAD:g}{one}): a uniform frame (a glare, a blank or washed-"
                                  "out frame) holds no flame to measure")
-            stack, n_sat = job.planes_and_saturated(views, state, clipped)
+            stack, n_sat = job.planes_and_saturated(views, state, clipped,
+                                                    job.unit(raw) if job.solver is not None else None)
             if not np.all(np.isfinite(stack)):
                 dark = "; the frame holds no light" if not np.any(raw > 0) else ""
                 raise ValueError(f"the {job.solver or 'refocused'} planes hold NaN or inf{dark}")
