@@ -150,11 +150,13 @@ def test_score_flames_heights_on_the_planes(cam, planted):
     foot[0][: (rows[0] + rows[-1]) // 2] = False
     df = score_flames(truth, depths, scene, cam, found=list(zip(depths, foot)))
     assert df.height_err_mm.abs().max() < 0.3, df.height_err_mm.values
-    # another flame merged onto flame 0's plane, in its columns above it: measured in its place unless
-    # the route's footprint of that other depth tells them apart
+    # another flame merged onto flame 0's plane, in its columns above it and holding more light (a plane of
+    # emission's flame is the region holding the most): measured in its place unless the route's footprint of that
+    # other depth tells them apart
     merged = truth.copy()
     top = rows[0] - 4
     merged[0, 2:top] = truth[0, rows[0]:rows[0] + top - 2]
+    merged[0, 2:top] *= 2 * truth[0].sum() / merged[0, 2:top].sum()
     other = np.zeros_like(foot[0])
     other[2:top] = merged[0, 2:top] > 0
     both = [(depths[0], truth[0] > 0), (depths[1], foot[1])]

@@ -52,7 +52,7 @@ def cmd_calibrate_temperature(a):
         raise ValueError(f"one --temperature per blackbody image is needed: {len(a.images)} images, {len(temps)} "
                          "temperatures")
     channels = _channels(a.channels)
-    ratios, sensor0 = [], None
+    ratios, sensor0, mosaics = [], None, []
     own = None
     if a.camera:                                  # the images' camera (a perfect grid's raw images need no decoding)
         from ..optics.camera_file import load_camera_file
@@ -89,9 +89,9 @@ def cmd_calibrate_temperature(a):
                                  "and give the VIEWS.h5")
             from ..real.clipping import auto_saturation, clipped_share
             _clipped_blackbody(clipped_share(raw, auto_saturation(raw)), path)
-            from ..temperature.mosaic import refuse_dead_site, refuse_no_mosaic
+            from ..temperature.mosaic import refuse_no_mosaic
             refuse_no_mosaic(raw, path, "a blackbody image of a colour camera has one")
-            refuse_dead_site(raw, sensor, path)
+            mosaics.append((raw, path))
             n = (cam or PAPER_CAMERA).pixels_per_lenslet
             try:
                 r = blackbody_ratio(raw, sensor, n, channels)
@@ -109,6 +109,9 @@ def cmd_calibrate_temperature(a):
         cal = fit_calibration(sensor0, temps, ratios, channels)
     except ValueError as err:           # a colour filter array read at the wrong phase: say which phase fits
         raise ValueError(f"{err}{_fitting_phases(a.images, temps, sensor0, channels, own)}") from None
+    from ..temperature.mosaic import refuse_dead_site
+    for raw, path in mosaics:           # at the phase that fits (a wrong phase is named above): a site dead or dimmed
+        refuse_dead_site(raw, sensor0, path)
     out = write_calibration(a.out, cal)
     print(f"gain ratio {cal.gain_ratio:.5f}; fit residuals " + ", ".join(f"{x:+.2f}" for x in cal.fit_residuals_k)
           + f" K -> {out}")
