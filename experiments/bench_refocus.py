@@ -206,7 +206,7 @@ DEPTH_SETS = [(20.0, 10.0, 0.0, -10.0), (-15.0, -5.0, 5.0, 25.0), (-12.0, -2.0, 
 def slope_search_table(quick: bool) -> pd.DataFrame:
     """Sharpest slope of each shape found by both scoring methods, at the paper's depths and
     others in -15..+25 mm, beside the analytic slope (and the paper's, at its depths)."""
-    from lf_flame.refocus.shift_and_sum import find_sharpest_slope
+    from lf_flame.refocus.slope_search import find_sharpest_slope
     cam = PAPER_CAMERA
     rows = []
     for depths in DEPTH_SETS[:2] if quick else DEPTH_SETS:

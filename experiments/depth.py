@@ -18,7 +18,7 @@ Routes, on the same renders, each scored by :func:`lf_flame.tomo.scoring.score_f
 - ``fixed-paper-planes``: admm on the exact operator of the paper's planes (+20, +10, 0,
   -10 mm; the operator built once, its build not timed); a flame's depth is the plane
   holding most of its emission.
-- ``shift-sum-slope-search``: per flame, :func:`lf_flame.refocus.shift_and_sum.find_sharpest_slope`
+- ``shift-sum-slope-search``: per flame, :func:`lf_flame.refocus.slope_search.find_sharpest_slope`
   on the flame's true box (the object's ``roi``: given, as the slope search is), the
   refocused image at that slope its "emission" (share not defined).
 
@@ -51,7 +51,8 @@ import pandas as pd
 from lf_flame.config import atomic_write_text, provenance
 from lf_flame.measure.metrics import own_error
 from lf_flame.optics.camera import PAPER_CAMERA
-from lf_flame.refocus.shift_and_sum import aperture_mask, find_sharpest_slope, focal_stack, raw_to_views
+from lf_flame.refocus.shift_and_sum import aperture_mask, focal_stack, raw_to_views
+from lf_flame.refocus.slope_search import find_sharpest_slope  # noqa: E402
 from lf_flame.simulate import tracer
 from lf_flame.simulate.scenes import PAPER_DEPTHS_MM
 from lf_flame.simulate.scenes_depth import behind_scene, column_scene, random_depth_scene

@@ -35,6 +35,7 @@ import pandas as pd
 from lf_flame.config import atomic_write_text, provenance, to_json
 from lf_flame.optics.camera import PAPER_CAMERA, PlenopticCamera
 from lf_flame.tomo.quadrature import exact_kernels
+from lf_flame.tomo.conditioning import normal_matrix  # noqa: E402
 from lf_flame.tomo.resolution import (
     CONDITIONS,
     DEFAULT_FAR_MM,
@@ -42,7 +43,6 @@ from lf_flame.tomo.resolution import (
     DEFAULT_SPACING_MM,
     FEATURE_SIZES_MM,
     depth_resolution,
-    normal_matrix,
     plot_depth_resolution,
     resolution_from_kernels,
     stack_depths,

@@ -15,7 +15,7 @@ For each capture, measured in this run:
   stated optics imply (lenslet pitch / pixel size, parsed from the capture's files);
 - :func:`lf_flame.real.decoding.decode` of the light-field frame (dark-subtracted,
   white-normalised) into N × N views, N the pitch rounded down;
-- the slope search (:func:`lf_flame.refocus.shift_and_sum.find_sharpest_slope`, Fourier slice,
+- the slope search (:func:`lf_flame.refocus.slope_search.find_sharpest_slope`, Fourier slice,
   Tenengrad, circular aperture, slopes -2 to 2) on the brightest structure of the
   centre view, and its sharpness curve: the peak over the curve's ends, the full width
   at half maximum (slope units), and whether the peak lies inside the searched range;
@@ -51,9 +51,10 @@ from lf_flame.real import calibration as calibrate
 from lf_flame.real.images import load_image
 from lf_flame.real import decoding as decode
 from lf_flame.config import atomic_write_text, provenance
-from lf_flame.refocus.shift_and_sum import aperture_mask, find_sharpest_slope, refocus_views
+from lf_flame.refocus.shift_and_sum import aperture_mask, refocus_views
 
 #: file names of each capture in napari_lf/examples (light field, white, dark, optics files)
+from lf_flame.refocus.slope_search import find_sharpest_slope  # noqa: E402
 CAPTURES = {
     "antleg": ("antleg/light_field.png", "antleg/radiometry_frame.png", "antleg/dark_frame.tif", ["antleg/README"]),
     "seaurchin": ("seaurchin/light_field.tif", "seaurchin/radiometry_frame.tif", "seaurchin/dark_frame.tif",

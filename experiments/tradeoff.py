@@ -71,7 +71,8 @@ from lf_flame.config import atomic_write_text, load_experiment_config, load_toml
 from lf_flame.learn.dataset import GT_MASK, LightFieldDataset, SCENES, sample_rng  # noqa: E402
 from lf_flame.measure.scoring import error_table, score_stacks  # noqa: E402
 from lf_flame.measure.metrics import psnr_per_plane, ssim_per_plane  # noqa: E402
-from lf_flame.refocus.shift_and_sum import aperture_mask, find_sharpest_slope, raw_to_views, refocus  # noqa: E402
+from lf_flame.refocus.shift_and_sum import aperture_mask, raw_to_views, refocus  # noqa: E402
+from lf_flame.refocus.slope_search import find_sharpest_slope  # noqa: E402
 from lf_flame.simulate.scenes import PAPER_DEPTHS_MM  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]

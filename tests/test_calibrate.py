@@ -13,7 +13,8 @@ from lf_flame.simulate import scenes
 from lf_flame.simulate import tracer as simulate
 from lf_flame.real.calibration import CalibrationError, GridCalibration
 from lf_flame.optics.camera import PlenopticCamera
-from lf_flame.refocus.shift_and_sum import aperture_mask, find_sharpest_slope
+from lf_flame.refocus.shift_and_sum import aperture_mask
+from lf_flame.refocus.slope_search import find_sharpest_slope
 
 
 def _camera(layout="square", rotation=1.3):

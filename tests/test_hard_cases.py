@@ -16,10 +16,11 @@ from lf_flame.learn import dataset as D
 from lf_flame.simulate import tracer as simulate
 from lf_flame.optics.camera import PAPER_CAMERA, PARAXIAL_LIMIT, PlenopticCamera
 from lf_flame.config import DatasetConfig, atomic_write_text
-from lf_flame.refocus.shift_and_sum import FourierSlice, aperture_mask, find_sharpest_slope, focal_stack, normalized_variance, raw_to_views, tenengrad, variance_of_laplacian
+from lf_flame.refocus.shift_and_sum import FourierSlice, aperture_mask, focal_stack, raw_to_views
 
 
 # ---- accumulation -------------------------------------------------------------------
+from lf_flame.refocus.slope_search import find_sharpest_slope, normalized_variance, tenengrad, variance_of_laplacian
 
 def test_1e8_rays_into_one_pixel_lose_no_counts(uniform_scene):
     # a float32 running sum of 0.5s stalls at 2**24 (and would read ~0.08 here); the

@@ -12,7 +12,8 @@ import pytest
 from lf_flame.real import calibration as calibrate
 from lf_flame.real import decoding as decode
 from lf_flame.real.images import load_image
-from lf_flame.refocus.shift_and_sum import aperture_mask, find_sharpest_slope
+from lf_flame.refocus.shift_and_sum import aperture_mask
+from lf_flame.refocus.slope_search import find_sharpest_slope
 
 EXAMPLES = Path(__file__).resolve().parents[1] / ".bench" / "napari-lf" / "napari_lf" / "examples"
 GUV = EXAMPLES / "GUVExperim1"

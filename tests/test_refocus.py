@@ -5,7 +5,8 @@ from lf_flame.simulate import scenes
 from lf_flame.simulate import tracer as simulate
 from lf_flame.optics.camera import PAPER_CAMERA
 from lf_flame.refocus import _kernels as _refocus_kernels
-from lf_flame.refocus.shift_and_sum import _EXPONENT_BITS, FourierSlice, _check_finite, aperture_mask, find_sharpest_slope, focal_stack, normalized_variance, raw_to_views, refocus, refocus_views, tenengrad, variance_of_laplacian, views_to_raw
+from lf_flame.refocus.shift_and_sum import _EXPONENT_BITS, FourierSlice, _check_finite, aperture_mask, focal_stack, raw_to_views, refocus, refocus_views, views_to_raw
+from lf_flame.refocus.slope_search import find_sharpest_slope, normalized_variance, tenengrad, variance_of_laplacian
 
 
 @pytest.fixture

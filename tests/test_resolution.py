@@ -14,12 +14,10 @@ from lf_flame.cli import main
 from lf_flame.optics.camera import PAPER_CAMERA, PlenopticCamera
 from lf_flame.tomo.exact import ExactOperator
 from lf_flame.tomo.quadrature import exact_kernels
+from lf_flame.tomo.conditioning import kernel_response, normal_matrix, pair_conditions
 from lf_flame.tomo.resolution import (
     FEATURE_SIZES_MM,
     depth_resolution,
-    kernel_response,
-    normal_matrix,
-    pair_conditions,
     resolution_from_kernels,
     stack_depths,
 )

@@ -217,7 +217,8 @@ def cmd_slopes(a):
                          "to --out-prefix PREFIX (default: beside RAW)")
     import pandas as pd
     from ..learn.evaluation import plot_slope_curves
-    from ..refocus.shift_and_sum import aperture_mask, find_sharpest_slope
+    from ..refocus.shift_and_sum import aperture_mask
+    from ..refocus.slope_search import find_sharpest_slope
     views, cam, lit, frame = views_and_camera(a)
     from ..optics.camera import MAX_SEARCH_SLOPE, imaging_range_mm
     lo, hi = a.lo, a.hi

@@ -432,14 +432,15 @@ def calibrate_slopes(camera: PlenopticCamera, rays_per_pixel: int = 64, metric: 
     Returns
     -------
     (slopes, searches, objects) : list of 4 floats in the order of :data:`PAPER_DEPTHS_MM`, the
-        :class:`~lf_flame.refocus.shift_and_sum.SlopeSearch` of each object (metric curves), and the objects.
+        :class:`~lf_flame.refocus.slope_search.SlopeSearch` of each object (metric curves), and the objects.
 
     Raises
     ------
     ValueError
         A shape whose sharpest slope lies at the search's end (no focus peak within it).
     """
-    from ..refocus.shift_and_sum import find_sharpest_slope, raw_to_views
+    from ..refocus.shift_and_sum import raw_to_views
+    from ..refocus.slope_search import find_sharpest_slope
     from ..simulate.scenes import shapes_scene
     sc = shapes_scene(camera, np.random.default_rng(0), vary=False)
     views = raw_to_views(render(camera, sc, rays_per_pixel, seed=0), camera.pixels_per_lenslet)

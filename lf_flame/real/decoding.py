@@ -99,7 +99,7 @@ def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | No
         ``views[u, v, r, c]``: view (u, v) of lenslet (r, c), as
         :func:`lf_flame.refocus.shift_and_sum.raw_to_views` (view step one pixel, lenslet step one pitch),
         so that :func:`~lf_flame.refocus.shift_and_sum.focal_stack`, :class:`~lf_flame.refocus.shift_and_sum.FourierSlice`
-        and :func:`~lf_flame.refocus.shift_and_sum.find_sharpest_slope` apply unchanged. With a white
+        and :func:`~lf_flame.refocus.slope_search.find_sharpest_slope` apply unchanged. With a white
         image: radiance relative to the white target's; without: dark-subtracted counts.
 
     Raises
