@@ -30,18 +30,18 @@ def cmd_temperature(a):
     src = str(a.raw)
     from .temperature_recording import recording_source, temperature_recording
     recording = recording_source(src)
+    mosaic = None                                       # a raw mosaic (a recording's frames: each in its turn)
     if recording is None and not (src.endswith(".h5") and ".h5:" not in src):
-        _refuse_monochrome(src)
+        mosaic = _refuse_monochrome(src)
     if recording is None:
         furnace_note(src, a.alpha)
     cal = load_calibration(a.calibration)
     sensor, where = _sensor(src, a, cal)
     cal.check_sensor(sensor)
     cal = load_calibration(a.calibration, sensor)      # also refuses a ratio with no unique temperature
-    if recording is None and not (src.endswith(".h5") and ".h5:" not in src):    # a raw mosaic; recordings: per frame
+    if mosaic is not None:
         from ..temperature.mosaic import refuse_dead_site
-        from ._io import _load_raw
-        refuse_dead_site(_load_raw(src)[0], sensor, src)
+        refuse_dead_site(mosaic, sensor, src)
     print(f"sensor {sensor.name}, {sensor.pattern} phase {sensor.phase} ({where}); calibration "
           f"{cal.channels[0]}/{cal.channels[1]}, gain ratio {cal.gain_ratio:.5f}")
     if recording is not None:

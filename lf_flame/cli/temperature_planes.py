@@ -56,14 +56,16 @@ def _refuse_monochrome(path):
     """Refuse a light field without colour channels: one ``lf-flame simulate`` rendered monochrome
     (its record holds a camera and no sensor), or an image whose four 2 x 2 pixel phases have the
     same mean over its lit pixels (:func:`lf_flame.temperature.mosaic.refuse_no_mosaic`): no mosaic to take a ratio
-    of."""
+    of. Returns the raw image it read (rows, cols)."""
     refuse_rgb(path)
     meta = _raw_meta(path)
     if "camera" in meta and "sensor" not in meta:
         raise ValueError(f"{path} is a monochrome light field (rendered without a colour sensor): two-colour "
                          "pyrometry needs a colour (Bayer) capture")
     from ..temperature.mosaic import refuse_no_mosaic
-    refuse_no_mosaic(_load_raw(path)[0], path)
+    raw = _load_raw(path)[0]
+    refuse_no_mosaic(raw, path)
+    return raw
 
 
 def furnace_note(path, alpha: float):
