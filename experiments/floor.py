@@ -18,7 +18,9 @@ that floor:
 
 ``--compare DIR`` times the routes of another checkout of the package (``PYTHONPATH=DIR``, e.g. a
 ``git worktree`` of the commit before a change) in child processes that alternate with this one's
-(A B A B ...), so that the machine's drift falls on both. ``--stage profile`` splits admm's solve (2 x 2
+(A B A B ...), so that the machine's drift falls on both. The children time the same light fields, which this
+checkout saves first (:data:`INPUTS`), through the package's public names only, so that a much older checkout can
+be compared too; a route that version cannot run is left out of its rows (its ``x_faster`` blank). ``--stage profile`` splits admm's solve (2 x 2
 grid, paper render) and a recording frame into its stages by wrapping the solver's kernels and FFT calls
 (the wrappers' own cost, microseconds per call, goes to "rest").
 
@@ -42,6 +44,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from alternating import Clock, alternate, compared_commit  # noqa: E402
 
 CACHE = ROOT / "data" / "fourier_solver"
+#: The light fields the children time (:func:`write_inputs`).
+INPUTS = CACHE / "floor_inputs.npz"
+#: The exact operator's precision (``fourier_solver.py``'s).
+PRECISION = "float32"
 KINDS = ("paper", "varied", "overlap")
 #: Rays per pixel of the scored renders (``fourier_solver.py``'s default, its cache's).
 RAYS = 400
@@ -107,28 +113,46 @@ def stream_times(job, frames) -> list:
         op.workers = workers
 
 
-def child(repeats: int) -> None:
-    """Time the floor and every route; print one JSON row per timed call."""
+def write_inputs() -> None:
+    """Save the light fields every child times to :data:`INPUTS` (this checkout's renders, read from or added to
+    ``data/fourier_solver``): the paper's, varied and overlap renders, noise-free and at 14 dB, and their planes'
+    depths. A child of another checkout (``--compare``) reads them with NumPy alone, so it needs nothing of this
+    checkout's experiments."""
     import fourier_solver as F
     import reconstruct as R
     from lf_flame.optics.camera import PAPER_CAMERA as cam
+    arrays = {}
+    for kind in KINDS:
+        scene, clean, noisy, _, _ = F.render_set(cam, kind, R.TEST_SEEDS[0], RAYS, CACHE)
+        arrays.update({f"{kind}_noise-free": clean, f"{kind}_14 dB": noisy,
+                       f"{kind}_depths": np.asarray(R.planes_of(kind, scene), float)})
+    tmp = INPUTS.with_name(INPUTS.name + ".part.npz")
+    np.savez(tmp, **arrays)
+    tmp.replace(INPUTS)
+
+
+def child(repeats: int) -> None:
+    """Time the floor and every route on the light fields of :data:`INPUTS`; print one JSON row per timed call.
+    Only the package's public names are used, so that a checkout of another version (``--compare``) times the same
+    calls; a route its version cannot run (the recording's job, whose interface changed) is left out, with a line
+    on standard error."""
+    from lf_flame.optics.camera import PAPER_CAMERA as cam
     from lf_flame.refocus.shift_and_sum import aperture_mask, focal_stack
-    from lf_flame.tomo.exact import ExactOperator
-    from lf_flame.tomo.found_planes import find_planes
-    from lf_flame.tomo.solvers import reconstruct
+    from lf_flame.tomo import ExactOperator, find_planes, reconstruct
 
     def emit(route, scene, noise, times, threads=2):
         for t in times:
             print(json.dumps(dict(route=route, scene=scene, noise=noise, threads=threads, time_s=t)), flush=True)
+    data = np.load(INPUTS)
     for kind in KINDS:
-        scene, clean, noisy, _, _ = F.render_set(cam, kind, R.TEST_SEEDS[0], RAYS, CACHE)
-        depths = R.planes_of(kind, scene)
-        fine = ExactOperator(cam, depths, precision=F.PRECISION, subsamples=2)
-        coarse = ExactOperator(cam, depths, precision=F.PRECISION)
+        clean, depths = data[f"{kind}_noise-free"], [float(d) for d in data[f"{kind}_depths"]]
+        fine = ExactOperator(cam, depths, precision=PRECISION, subsamples=2)
+        coarse = ExactOperator(cam, depths, precision=PRECISION)
         if kind == "paper":
             emit("floor", kind, "-", floor_s(fine, clean, 2, repeats))
             emit("floor", kind, "-", floor_s(fine, clean, 1, repeats), threads=1)
-        for noise, views in (("noise-free", clean), ("14 dB", noisy)):
+        for noise in ("noise-free", "14 dB"):
+            views = data[f"{kind}_{noise}"]
             emit("admm, 2 x 2 grid", kind, noise, timed(lambda: reconstruct(views, fine, "admm"), repeats))
             emit("admm, lenslet grid", kind, noise, timed(lambda: reconstruct(views, coarse, "admm"), repeats))
         if kind == "paper":
@@ -137,8 +161,13 @@ def child(repeats: int) -> None:
             mask = aperture_mask(cam.pixels_per_lenslet, "circular")
             emit("shift-and-sum", kind, "noise-free", timed(lambda: focal_stack(clean, slopes, mask), repeats))
         print(f"  {kind} done", file=sys.stderr, flush=True)
-    job, frames = recording()
-    emit("recording frame", "paper recording", "noise-free", stream_times(job, frames), threads=1)
+    try:
+        job, frames = recording()
+        times = stream_times(job, frames)
+    except (ImportError, AttributeError, TypeError) as e:       # another version's recording interface
+        print(f"  recording frame not timed in this version: {type(e).__name__}: {e}", file=sys.stderr, flush=True)
+    else:
+        emit("recording frame", "paper recording", "noise-free", times, threads=1)
 
 
 def profile(repeats: int) -> list:
@@ -225,6 +254,7 @@ def main(argv=None) -> int:
         return 0
     versions = {"this checkout": None} if a.compare is None else {"before": a.compare.resolve(), "after": None}
     if a.stage in ("all", "routes"):
+        write_inputs()
         pypath = lambda path: os.pathsep.join([str(path)] + [p for p in [os.environ.get("PYTHONPATH")] if p])
         rows = alternate(__file__, ["--out", a.out, "--repeats", a.repeats],
                          {name: {} if path is None else {"PYTHONPATH": pypath(path)}
@@ -233,15 +263,8 @@ def main(argv=None) -> int:
         df = pd.DataFrame(rows)
         fl = df[df.route == "floor"].groupby(["version", "threads"]).time_s.median()
         tab = summary(df[df.route != "floor"], fl.to_dict())
-        if a.compare is not None:   # the ratio of medians, and its spread over the pairs of children
-            key = ["route", "scene", "noise"]
-            before = tab[tab.version == "before"].set_index(key).median_s
-            after = tab[tab.version == "after"].set_index(key)
-            per = df[df.route != "floor"].groupby(key + ["pair", "version"]).time_s.median().unstack("version")
-            spread = (per["before"] / per["after"]).groupby(key).agg(["min", "max"])
-            tab = after.assign(before_median_s=before, x_faster=before / after.median_s,
-                               x_faster_pairs=[f"{lo:.2f}-{hi:.2f}" for lo, hi in spread.loc[after.index].values]
-                               ).reset_index().drop(columns="version")
+        if a.compare is not None:
+            tab = versus(tab, df[df.route != "floor"])
         atomic_write_text(a.out / "floor.csv", df.to_csv(index=False, float_format="%.6g"))
         compared = compared_commit(a.compare)
         meta.update(routes=dict(pairs=a.pairs, repeats=a.repeats, compare=None if a.compare is None else str(a.compare),
@@ -258,6 +281,20 @@ def main(argv=None) -> int:
     atomic_write_text(meta_path, json.dumps(meta, indent=1, default=float))
     write_md(a.out, meta)
     return 0
+
+
+def versus(tab, df):
+    """``after``'s rows of :func:`summary`'s ``tab`` with ``before``'s median beside them, the ratio of the two medians
+    (``x_faster``) and its range over the pairs of children (``x_faster_pairs``, the machine's drift between them):
+    blank (NaN, "–") for a route the ``before`` version could not run."""
+    key = ["route", "scene", "noise"]
+    after = tab[tab.version == "after"].set_index(key)
+    before = tab[tab.version == "before"].set_index(key).median_s.reindex(after.index)
+    per = df.groupby(key + ["pair", "version"]).time_s.median().unstack("version")
+    spread = (per["before"] / per["after"]).groupby(key).agg(["min", "max"]).reindex(after.index)
+    return after.assign(before_median_s=before, x_faster=before / after.median_s,
+                        x_faster_pairs=["–" if np.isnan(lo) else f"{lo:.2f}-{hi:.2f}" for lo, hi in spread.values]
+                        ).reset_index().drop(columns="version")
 
 
 def write_md(out: Path, meta) -> None:

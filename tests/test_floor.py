@@ -51,3 +51,16 @@ def test_the_clock_times_wrapped_calls_by_category_and_gives_them_back(floor):
     assert set(clock.s) == {"small", "large"} and all(v >= 0 for v in clock.s.values())
     setattr(*saved)
     assert owner.f is original
+
+
+def test_a_route_the_compared_version_cannot_run_is_blank_beside_the_others(floor):
+    """``--compare`` against an older checkout: its children time what its package can run; the ratio is per route,
+    per pair of children, and a route it lacks is blank rather than an error."""
+    rows = [dict(version=v, pair=p, route=r, scene="s", noise="n", threads=1, time_s=t)
+            for v, p, r, t in [("before", 0, "admm", 0.4), ("after", 0, "admm", 0.2), ("before", 1, "admm", 0.6),
+                               ("after", 1, "admm", 0.2), ("after", 0, "frame", 0.05), ("after", 1, "frame", 0.07)]]
+    df = pd.DataFrame(rows)
+    tab = floor.versus(floor.summary(df, {("before", 1): 0.1, ("after", 1): 0.1}), df).set_index("route")
+    assert tab.loc["admm", "before_median_s"] == pytest.approx(0.5) and tab.loc["admm", "x_faster"] == pytest.approx(2.5)
+    assert tab.loc["admm", "x_faster_pairs"] == "2.00-3.00"
+    assert np.isnan(tab.loc["frame", "x_faster"]) and tab.loc["frame", "x_faster_pairs"] == "–"
