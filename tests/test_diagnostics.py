@@ -560,3 +560,51 @@ def test_profiles_measures_each_flame_found_apart_on_one_plane(tmp_path):
     for (_, row), o in zip(shared.iterrows(), near):
         assert abs(row.height_mm - o["height_mm"]) < 0.3 and abs(row.centroid_x_mm - o["centre_x_mm"]) < 0.3, df
     assert (df[df.depth_mm.abs() >= 1.0].flame == 0).all()
+
+
+def test_profiles_measures_each_flame_side_by_side_on_a_plane_given_by_depth(tmp_path):
+    """The same two flames side by side at 0 and +0.05 mm, the planes given by --depth (no depth search to tell the
+    flames apart): the plane of emission is split into its flames' column bands, each measured and paired with its
+    own flame's truth by its place across the field (the plane's brightest flame had been its only row, and a
+    truth read by depth alone had given both rows one flame's height)."""
+    import json
+
+    import pandas as pd
+
+    from lf_flame.cli import main
+    from lf_flame.optics.camera import PAPER_CAMERA
+    from lf_flame.simulate import tracer
+    from lf_flame.simulate.scenes import flame_scene
+    scene = flame_scene(PAPER_CAMERA, np.random.default_rng(0), regime="paper", depths_mm=(20.0, 10.0, 0.05, 0.0))
+    np.savez(tmp_path / "two.npz", raw=tracer.render(PAPER_CAMERA, scene, 4, 0), camera=PAPER_CAMERA.to_json(),
+             objects=json.dumps(scene.objects, default=float))
+    argv = ["profiles", str(tmp_path / "two.npz"), "--no-figure", "--out", str(tmp_path / "p")]
+    assert main(argv + ["--depth", "20", "--depth", "10", "--depth", "0.02"]) == 0
+    df = pd.read_csv(tmp_path / "p.csv")
+    shared = df[df.depth_mm.abs() < 1.0].sort_values("centroid_x_mm")
+    assert len(df) == 4 and sorted(shared.flame) == [0, 1], df
+    near = sorted(scene.objects[2:], key=lambda o: o["centre_x_mm"])
+    for (_, row), o in zip(shared.iterrows(), near):
+        assert abs(row.height_mm - o["height_mm"]) < 0.3 and abs(row.centroid_x_mm - o["centre_x_mm"]) < 0.3, df
+        assert row.height_mm_true == pytest.approx(o["height_mm"], abs=0.01), df
+
+
+def test_separate_flame_bands_take_regions_apart_by_columns_that_hold_their_share_of_the_light():
+    """Two blobs side by side: two bands meeting halfway and covering the plane; a faint speck (under the share of
+    the brightest region's light) or a blob above another (overlapping columns): the whole plane."""
+    from lf_flame.measure.diagnostics import SEPARATE_SHARE, separate_flame_bands
+    from lf_flame.optics.camera import PlenopticCamera
+    cam = PlenopticCamera(n_rows=40, n_cols=60)
+    plane = np.zeros((40, 60))
+    plane[10:30, 10:16] = 1.0
+    plane[12:28, 40:45] = 0.6
+    assert separate_flame_bands(plane, cam) == [(0, 28), (28, 60)]
+    faint = plane.copy()
+    faint[12:28, 40:45] = 0.9 * SEPARATE_SHARE * 120 / 80          # its light under the share of the first's
+    assert separate_flame_bands(faint, cam) == [None]
+    stacked = np.zeros((40, 60))
+    stacked[2:15, 10:16], stacked[20:35, 12:18] = 1.0, 0.8
+    assert separate_flame_bands(stacked, cam) == [None]
+    assert separate_flame_bands(np.zeros((40, 60)), cam) == [None]
+    with pytest.raises(ValueError, match="share"):
+        separate_flame_bands(plane, cam, share=0.0)

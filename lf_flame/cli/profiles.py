@@ -253,13 +253,15 @@ def profiles_table(a):
         (:func:`plane_flames`).
     table : pandas.DataFrame
         One row per plane and flame: ``plane``, ``flame`` (0, 1 ... where flames found apart share a plane,
-        :func:`flame_bands`; ``measurements`` holds each plane's brightest), ``route``, ``depth_mm``, ``slope``, the
+        :func:`flame_bands`, or stand apart on a plane of emission given by depth,
+        :func:`lf_flame.measure.diagnostics.separate_flame_bands`; ``measurements`` holds each plane's
+        brightest), ``route``, ``depth_mm``, ``slope``, the
         measurement's summary (mm), and with the truth ``height_mm_true``, ``height_err_mm`` (|measured - true|,
-        mm) ...; ``failure``.
+        mm, each row paired with its own flame: :func:`row_flames`) ...; ``failure``.
     """
     import pandas as pd
-    from ..measure.diagnostics import EmptyPlaneError, flame_truth, measure_flame
-    from ..routes import measure_settings
+    from ..measure.diagnostics import EmptyPlaneError, flame_truth, measure_flame, separate_flame_bands
+    from ..routes import measure_settings, parse_route
     from ..measure.scoring import score_stacks
     kw = measure_settings(a.route)
     cam, stack, depths, slopes, objects, found, flat = _profiles_input(a)
@@ -276,9 +278,12 @@ def profiles_table(a):
                 ms.append(None)
     else:
         ms, rows = [], []
+        apart = parse_route(a.route).emission and found is None      # planes given: their flames told apart here
         for k, (plane, d) in enumerate(zip(stack, depths)):
             kept = []
-            for i, band in enumerate(flame_bands(found, k, cam.n_cols)):
+            bands = separate_flame_bands(plane, cam, segment_fraction=kw["segment_fraction"]) if apart else \
+                flame_bands(found, k, cam.n_cols)
+            for i, band in enumerate(bands):
                 try:
                     m = measure_flame(plane, cam, d, columns=band, **kw)
                     rows.append(dict(plane=k, flame=i, route=a.route, depth_mm=d, **m.summary(), failure=""))
@@ -288,8 +293,9 @@ def profiles_table(a):
             ms.append(max(kept, key=lambda m: m.integrated_intensity) if kept else None)
         df = pd.DataFrame(rows)
         if any(o is not None for o in truth) and "height_mm" in df:   # the heights of the flames at the planes' depths
+            paired = row_flames(cam, depths, objects, truth, df)
             df.insert(df.columns.get_loc("height_mm") + 1, "height_mm_true",
-                      [np.nan if truth[k] is None else float(truth[k]["height_mm"]) for k in df.plane])
+                      [np.nan if o is None else float(o["height_mm"]) for o in paired])
             # |measured - true|, as score_stacks gives it on the simulated camera's route
             df.insert(df.columns.get_loc("height_mm_true") + 1, "height_err_mm", (df.height_mm - df.height_mm_true).abs())
     df.insert(3 + ("flame" in df), "slope", [slopes[k] for k in df.plane])
@@ -329,6 +335,38 @@ def plane_flames(cam, depths, objects) -> list:
         if gap <= tol and out[k] is None and i not in used:
             out[k] = objects[i]
             used.add(i)
+    return out
+
+
+def row_flames(cam, depths, objects, truth, df) -> list:
+    """The flame (its object) each row of ``profiles``' table measured, or None: of the flames standing at the row's
+    plane's depth (within the camera's merge tolerance, as :func:`plane_flames` pairs them), the one nearest the
+    row's centroid across the field (``centroid_x_mm``, where the row measured one; else the plane's flame of
+    :func:`plane_flames`, ``truth``). Two flames side by side on one plane are each paired with their own row.
+
+    Parameters
+    ----------
+    cam : PlenopticCamera
+    depths : sequence of P float
+        The planes' depths (mm from the focal plane).
+    objects : sequence of dict
+        The scene's flames (``depth_offset_mm``, ``height_mm``, ``centre_x_mm`` ...).
+    truth : list of P dict or None
+        :func:`plane_flames` of the same planes.
+    df : pandas.DataFrame
+        The table's rows: ``plane`` and, where measured, ``centroid_x_mm``.
+
+    Returns
+    -------
+    list of dict or None, one per row
+    """
+    from ..tomo.depth import depth_tolerances
+    tol = depth_tolerances(cam, cam.pixels_per_lenslet)[1]
+    out = []
+    for k, x in zip(df.plane, df["centroid_x_mm"] if "centroid_x_mm" in df else [np.nan] * len(df)):
+        near = [o for o in objects if abs(float(o["depth_offset_mm"]) - depths[k]) <= tol and "centre_x_mm" in o]
+        out.append(min(near, key=lambda o: abs(float(o["centre_x_mm"]) - x)) if near and np.isfinite(x)
+                   else truth[k])
     return out
 
 

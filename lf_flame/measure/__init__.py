@@ -18,7 +18,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
                  "FLAGS", "MIN_AREA_LENSLETS", "RADIAL_FRACTIONS", "EMISSION_MEASURE", "PICKS",
                  "EmptyPlaneError", "lenslet_size_mm",
                  "lenslet_to_object_mm", "RadialProfile", "FlameMeasurement", "measure_flame",
-                 "flame_truth"],
+                 "SEPARATE_SHARE", "separate_flame_bands", "flame_truth"],
         "figures": ["signed", "plane_extent_mm", "show_plane", "add_colorbar", "planes_figure", "save_figure",
                     "plot_profiles", "profiles_figure"],
         "metrics": ["ssim_per_plane", "psnr_per_plane", "mean_ssim", "own_error"],

@@ -119,6 +119,9 @@ RADIAL_FRACTIONS = (0.25, 0.5, 0.75)
 EMISSION_MEASURE = dict(segment_fraction=0.05, edge_fit_range=(0.05, 0.5), pick="brightest")
 #: How :func:`measure_flame` chooses among a band's regions above the threshold.
 PICKS = ("sharpest", "brightest")
+#: :func:`separate_flame_bands`: the least light a region of a plane of emission holds to count as a flame of its
+#: own, a fraction of the light of the plane's region holding the most.
+SEPARATE_SHARE = 0.1
 
 
 class EmptyPlaneError(ValueError):
@@ -501,6 +504,65 @@ def measure_flame(plane, camera: PlenopticCamera, depth_offset_mm: float, *, col
         peak_intensity=float(img[mask].max()), threshold=threshold, mask=mask,
         axial_height_mm=y[rows] - base, axial_intensity=axial, radial=tuple(radial), flags=tuple(flags),
         tip_pedestal_mm=tip_edge.pedestal_mm)
+
+
+def separate_flame_bands(plane, camera: PlenopticCamera, *, segment_fraction: float = EMISSION_MEASURE[
+                             "segment_fraction"], share: float = SEPARATE_SHARE) -> list:
+    """The column bands of the flames that stand apart on one plane of emission, read from the plane itself.
+
+    Where a plane's flames were not found apart (planes given by depth, not found by
+    :func:`lf_flame.tomo.depth.find_depths`, whose regions tell them apart), two flames side by side on it are two
+    regions above the segmentation threshold; :func:`measure_flame` on the whole plane measures one of them. Here
+    each region of at least :data:`MIN_AREA_LENSLETS` lenslets above ``segment_fraction`` of the plane's brightest
+    lenslet that holds at least ``share`` of the light of the region holding the most is a flame; where two or more
+    such regions' columns do not overlap, each band reaches halfway to its neighbour's (the bands of
+    ``lf-flame profiles``' found planes, by columns). On a plane of *emission* only: on a refocused plane other
+    flames' defocused light forms such regions too.
+
+    Parameters
+    ----------
+    plane : ndarray of shape (R, C)
+        A plane of emission on the camera's lenslet grid (row 0 the top).
+    camera : PlenopticCamera
+    segment_fraction : float
+        In (0, 1): the threshold, a fraction of the plane's brightest lenslet (:data:`EMISSION_MEASURE`'s).
+    share : float
+        In (0, 1]: the least light a region holds, a fraction of the light of the region holding the most
+        (:data:`SEPARATE_SHARE`).
+
+    Returns
+    -------
+    list of (int, int) or [None]
+        The bands ``[c0, c1)`` (lenslet columns, left to right, covering every column), or ``[None]`` (the whole
+        plane: one flame, flames whose columns overlap, or a plane without light).
+
+    Raises
+    ------
+    ValueError
+        A plane of another shape than the camera's lenslet grid, not finite; ``segment_fraction`` or ``share``
+        outside its range.
+    """
+    img = _check_plane(plane, camera)
+    if not (0.0 < segment_fraction < 1.0 and 0.0 < share <= 1.0):
+        raise ValueError(f"segment_fraction must lie in (0, 1) and share in (0, 1]. Received: {segment_fraction!r}, "
+                         f"{share!r}")
+    peak = float(img.max())
+    if not peak > 0.0:
+        return [None]
+    labels = measure.label(img >= segment_fraction * peak)
+    regions = [r for r in measure.regionprops(labels, intensity_image=img) if r.area >= MIN_AREA_LENSLETS]
+    light = [r.intensity_mean * r.area for r in regions]
+    spans = sorted((r.bbox[1], r.bbox[3]) for r, q in zip(regions, light) if q >= share * max(light, default=0.0))
+    merged = []
+    for c0, c1 in spans:                                   # overlapping columns: one band (one behind another)
+        if merged and c0 < merged[-1][1]:
+            merged[-1] = (merged[-1][0], max(merged[-1][1], c1))
+        else:
+            merged.append((c0, c1))
+    if len(merged) < 2:
+        return [None]
+    edges = [0] + [(a[1] + b[0]) // 2 for a, b in zip(merged, merged[1:])] + [int(camera.n_cols)]
+    return list(zip(edges[:-1], edges[1:]))
 
 
 def flame_truth(obj: dict) -> dict:
