@@ -677,6 +677,30 @@ def test_an_integer_tiff_capture_with_a_dark_frame_is_decoded_on_the_fly_as_deco
     np.testing.assert_allclose(frame.views, views, atol=1e-5)
 
 
+def test_a_decoded_capture_in_counts_is_solved_as_its_views_in_white_units_are(tmp_path):
+    """Monochrome views decoded with a white image are its radiance ratio, whatever units the files hold: the same
+    capture as 12-bit counts in 16-bit TIFFs and as [0, 1] arrays decodes to the same views and, on its true planes,
+    to the same planes and residual. (The counts' clipping level, 4095 + 100, had been the solver's unit for views
+    in white units: the weights swamped the data, 58 % of a user's 16-bit capture unexplained on its true planes.)"""
+    import h5py
+    white, raw, _ = _offset_captures(tmp_path)
+    np.save(tmp_path / "white.npy", white)
+    np.save(tmp_path / "raw.npy", raw)
+    out = {}
+    for name, w, r, dark in (("counts", "white.tif", "raw.tif", ["--dark", str(tmp_path / "dark.tif")]),
+                             ("unit", "white.npy", "raw.npy", [])):
+        assert cli.main(["calibrate", str(tmp_path / w), *dark, "--out", str(tmp_path / f"{name}.json")]) == 0
+        assert cli.main(["decode", str(tmp_path / r), "--calibration", str(tmp_path / f"{name}.json"),
+                         "--out", str(tmp_path / f"{name}_views.h5")]) == 0
+        assert cli.main(["reconstruct", str(tmp_path / f"{name}_views.h5"), "--camera", EXAMPLE,
+                         *[f"--depth={d}" for d in DEPTHS], "--no-figure", "--out", str(tmp_path / f"{name}.h5")]) == 0
+        with h5py.File(tmp_path / f"{name}.h5") as f:
+            out[name] = f["planes"][...], json.loads(f.attrs["misfit"])["relative_residual"]
+    (counts, res_counts), (unit, res_unit) = out["counts"], out["unit"]
+    assert res_counts == pytest.approx(res_unit, abs=0.01) and res_counts < 0.2, (res_counts, res_unit)
+    assert np.linalg.norm(counts - unit) / np.linalg.norm(unit) < 0.05
+
+
 def test_a_microscopes_imaging_range_holds_its_focus():
     """A 60x objective with a 200 mm tube lens as one lens (f = 3.333 mm, the sample 3.389 mm away: within 1.05
     focal lengths): the range searched reaches from halfway to the focal length up to |slope| 3, its focus
@@ -788,3 +812,22 @@ def test_a_stopped_down_cameras_depths_are_found_without_its_rim_views():
     err = [lf.camera.slope_for_depth(d) - lf.camera.slope_for_depth(t) for d, t in zip(sorted(found.depths_mm), truth)]
     assert np.abs(err).max() <= 0.03, err
     assert np.array_equal(found.views_mask, lit)
+
+
+def test_a_capture_in_other_units_than_its_white_image_is_warned_of(tmp_path, capsys):
+    """A [0, 1] capture decoded with a white image in 12-bit counts reads 1/4000 of it: decode and the commands
+    that read its views warn that the two files are likely in different units (its planes had come out 65535 times
+    too small on a user's 16-bit white image, without a word); the same capture in the white image's units does
+    not."""
+    from lf_flame.real.lightfield import read_light_field
+    _, raw, _ = _offset_captures(tmp_path)
+    np.save(tmp_path / "raw.npy", raw)
+    assert cli.main(["calibrate", str(tmp_path / "white.tif"), "--out", str(tmp_path / "cal.json")]) == 0
+    capsys.readouterr()
+    for name in ("raw.tif", "raw.npy"):
+        assert cli.main(["decode", str(tmp_path / name), "--calibration", str(tmp_path / "cal.json"),
+                         "--out", str(tmp_path / f"{name}.h5")]) == 0
+        warned = "are the capture and the white image in the same units" in capsys.readouterr().out
+        assert warned == (name == "raw.npy"), name
+    with pytest.warns(UserWarning, match="same units"):
+        read_light_field(tmp_path / "raw.npy.h5", EXAMPLE)

@@ -976,3 +976,19 @@ def test_a_recording_in_counts_with_defective_pixels_gives_its_planes_in_counts(
     assert a.failure.isna().mean() > 0.9 and (a.n_saturated > 0).all()              # the hot pixels left out
     np.testing.assert_allclose(b.integrated_intensity / 4095, a.integrated_intensity, rtol=1e-3)
     np.testing.assert_allclose(b.height_mm, a.height_mm, atol=1e-3)
+
+
+def test_a_monochrome_recording_decoded_with_its_white_image_is_solved_in_the_white_images_units():
+    """Each frame's unit for the solvers (``SequenceJob.unit``): a monochrome camera's frames decoded with a white
+    image are its radiance ratio (unit 1, as ``LightField.unit``), whatever their clipping level (12-bit counts read
+    scaled to [0, 1] clip at 0.0625: the weights had been 16 times too strong); a colour camera's decoded views and
+    undecoded frames keep their level."""
+    from lf_flame.recordings.job import SequenceJob
+    frame = np.full((40, 40), 0.0625, np.float32)
+    frame[5, 5] = 0.01
+    args = (None, PAPER_CAMERA, 100.0, (0.0,), (0.0,), (None,), "reconstruct-admm")
+    assert SequenceJob(*args, {"pitch_px": 15.0}, "white.npz").unit(frame) == 1.0
+    assert SequenceJob(*args, {"pitch_px": 15.0}, "white.npz", sensor=dict(name="Nikon 5100 (NPL)", pattern="RGGB",
+                                                                              phase=[0, 0])).unit(frame) == 0.0625
+    assert SequenceJob(*args).unit(frame) == 0.0625
+    assert SequenceJob(*args, {"pitch_px": 15.0}, None).unit(frame) == 0.0625        # no white image: counts

@@ -120,6 +120,11 @@ def cmd_decode(a):
           f"{views.shape[3]} lenslets ({note}) in {dt:.2f} s -> {a.out}")
     overexposure_warning(share)
     black_level_warning(unlit)
+    if white is not None and sensor is None:
+        from ..real.decoding import dim_against_white
+        dim = dim_against_white(views)
+        if dim:
+            print(f"warning: {a.raw}: {dim}")
 
 
 def defects_note(n: int) -> str:

@@ -131,6 +131,35 @@ def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | No
     return np.ascontiguousarray(views)
 
 
+#: A monochrome capture whose views decoded with a white image read at most this share of that image's light is
+#: warned of (:func:`dim_against_white`).
+DIM_AGAINST_WHITE = 1e-3
+
+
+def dim_against_white(views) -> str | None:
+    """Where a monochrome capture's views, decoded with a white image (its radiance ratio, :func:`decode`), read at
+    most :data:`DIM_AGAINST_WHITE` of that image's light at their brightest: what to say (the files are likely in
+    different units: a [0, 1] array beside a white image in 16-bit counts reads 1/65535 of it, and its planes come
+    out that many times too small; beside a dark frame in counts it reads nothing at all); else None. A flame that
+    dim against its white target is lost in the sensor's noise anyway.
+
+    Parameters
+    ----------
+    views : ndarray
+        The decoded views (any shape), relative to the white image.
+
+    Returns
+    -------
+    str or None
+    """
+    top = float(np.max(views)) if np.size(views) else 0.0
+    if not top <= DIM_AGAINST_WHITE:
+        return None
+    return (f"its brightest view sample reads {top:.3g} of its white image's light: are the capture and the white "
+            "image in the same units? (an array in [0, 1] beside a white image in 16-bit counts reads 1/65535 of it, "
+            "and its planes come out that much too small): give both as the camera saved them")
+
+
 def white_samples(calibration: GridCalibration, white: np.ndarray, dark: np.ndarray | None = None, *,
                   n_views: int | None = None, bin_views: int = 1, min_white: float = 0.05, sensor=None) -> np.ndarray:
     """The white image as :func:`decode` divides a capture's views by it: the dark frame subtracted, sampled

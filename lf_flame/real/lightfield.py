@@ -20,6 +20,7 @@ camera and mask together in the same way).
 from __future__ import annotations
 
 import json
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -94,8 +95,9 @@ class LightField:
         (:func:`lf_flame.real.clipping.clipped_share`, of the raw image at decoding: a decoded sample mixes
         several pixels); None: a raw image's, read off its views and ``saturation`` (:meth:`over_exposure`).
     level : float or None
-        A decoded capture's clipping level at decoding (its raw image's units, which decoded views keep: the
-        white image divides them by its own light over its 99th percentile); None: not known.
+        A decoded capture's clipping level at decoding, in its raw image's units (which a colour capture's decoded
+        views keep: each channel's white image is divided by its 99th percentile; a monochrome capture's views are
+        relative to the white image, :attr:`unit`); None: not known.
     unlit_level : float or None
         A decoded capture's pixels where its white image is dark, their median over its bright pixels
         (:func:`lf_flame.real.black_level.unlit_level`, at decoding): about 0 unless a black level or stray light
@@ -166,7 +168,14 @@ class LightField:
     def unit(self) -> float:
         """The views' unit for the solvers (:func:`lf_flame.tomo.solvers.reconstruct`'s ``unit``): the sensor's
         clipping level in the views' units (:attr:`saturation`; a decoded capture's :attr:`level`), 1.0 where none
-        is known. A mask of samples to leave out (:meth:`fit_mask`) does not carry it."""
+        is known. A mask of samples to leave out (:meth:`fit_mask`) does not carry it. Monochrome views decoded
+        with a white image are that image's radiance ratio (:func:`lf_flame.real.decoding.decode` divides by the
+        white image as it is), whatever units the raw and white files were in: their unit is 1.0, the white
+        target's (a colour capture's views keep the raw's units: each channel's white is divided by its 99th
+        percentile first; 16-bit captures had been solved with their level, 65535, as the unit of such views, and
+        the weights had swamped the data: 58 % of the light field unexplained on its true planes)."""
+        if self.decoded and self.white_normalised and "sensor" not in self.meta:
+            return 1.0
         level = self.level if self.decoded else self.saturation
         return float(level) if level is not None else 1.0
 
@@ -296,6 +305,11 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
     mapped = v.shape if lattice_views is None else np.shape(lattice_views)
     if channels is not None and np.shape(channels) != mapped:
         raise ValueError(f"{source}: a channel map of shape {np.shape(channels)} for views of shape {mapped}")
+    if white_normalised and channels is None and "sensor" not in (meta or {}):
+        from .decoding import dim_against_white
+        dim = dim_against_white(v)
+        if dim:
+            warnings.warn(f"{source}: {dim}", stacklevel=2)
     return LightField(v, vcam, source, leave_out=clipped, saturation=None, white_normalised=white_normalised,
                       frame=frame, capture_camera=camera, camera_file=camera_file, meta=dict(meta or {}),
                       channels=None if channels is None else np.asarray(channels, np.int8),

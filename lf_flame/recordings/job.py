@@ -326,7 +326,11 @@ class SequenceJob:
 
     def unit(self, raw: np.ndarray) -> float:
         """One raw frame's unit for the solvers (:func:`lf_flame.tomo.solvers.reconstruct`'s ``unit``): its clipping
-        level (:meth:`_level`), 1 where it has none; decoded views keep the raw frame's units."""
+        level (:meth:`_level`), 1 where it has none; a colour camera's decoded views keep the raw frame's units, a
+        monochrome camera's decoded with a white image are relative to it: 1 (as
+        :attr:`lf_flame.real.lightfield.LightField.unit`)."""
+        if self.calibration is not None and self.white is not None and self.sensor is None:
+            return 1.0
         level = self._level(raw)
         return 1.0 if level is None else float(level)
 
