@@ -161,6 +161,16 @@ def misfit_warning(lf, op, rec, saturation="file", lattice=None):
     return m
 
 
+def solve_warnings(lf, op, rec, lattice=None, saturation="file", fitted=None) -> dict:
+    """A solve's warnings, as ``reconstruct`` and ``profiles`` give them: the capture's clipped share
+    (:func:`lf_flame.cli.real.overexposure_warning`, of ``fitted``: the light field as fitted, else ``lf``), emission
+    at the field's edge (:func:`edge_warning`) and the misfit (:func:`misfit_warning`). Returns their records:
+    ``clipped_share``, ``edge_share``, ``misfit``."""
+    from .real import overexposure_warning
+    return dict(clipped_share=overexposure_warning((lf if fitted is None else fitted).over_exposure()),
+                edge_share=edge_warning(rec, op), misfit=misfit_warning(lf, op, rec, saturation, lattice))
+
+
 def black_level_note(lf, op) -> str:
     """Where the samples no light reaches (outside the aperture's image: the operator's white views dark) read more
     than :data:`~lf_flame.real.black_level.BLACK_LEVEL_SHARE` of the light field's peak (their median), the misfit

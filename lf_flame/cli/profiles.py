@@ -201,7 +201,7 @@ def solved_planes(lf, depths, solver, search_range=None):
     ``(depths, stack, found)``, ``found`` the :class:`~lf_flame.tomo.depth.FoundDepths` (None for given depths)."""
     from ..tomo.truth import bin_planes
     from .planes import found_planes, lattice_solve, run_reconstruction, solve_found
-    from .fit_notes import left_out_notes
+    from .fit_notes import left_out_notes, solve_warnings
     found = None
     if depths:
         op, rec = run_reconstruction(lf, depths, solver)
@@ -210,6 +210,7 @@ def solved_planes(lf, depths, solver, search_range=None):
         depths = [float(d) for d in found.planes_mm]
     rec, lattice = lattice_solve(lf, op, rec, found)
     print("\n".join(left_out_notes(lf, rec, lattice)))
+    solve_warnings(lf, op, rec, lattice)        # the planes measured are what reconstruct warns of
     return list(depths), bin_planes(rec.planes, getattr(op, "subsamples", 1)), found
 
 
@@ -339,10 +340,12 @@ def plane_flames(cam, depths, objects) -> list:
 
 
 def row_flames(cam, depths, objects, truth, df) -> list:
-    """The flame (its object) each row of ``profiles``' table measured, or None: of the flames standing at the row's
-    plane's depth (within the camera's merge tolerance, as :func:`plane_flames` pairs them), the one nearest the
-    row's centroid across the field (``centroid_x_mm``, where the row measured one; else the plane's flame of
-    :func:`plane_flames`, ``truth``). Two flames side by side on one plane are each paired with their own row.
+    """The flame (its object) each row of ``profiles``' table measured, or None: the flames standing at a plane's
+    depth (within the camera's merge tolerance, as :func:`plane_flames` pairs them) go to that plane's rows nearest
+    them across the field (``centroid_x_mm``), nearest pairs first, one row per flame; a plane's only row takes its
+    flame of :func:`plane_flames` (``truth``) where it measured none. Two flames side by side on one plane are each
+    paired with their own row, and a row of light that no flame at that depth explains (another flame's, put on a
+    plane it does not stand on) with none.
 
     Parameters
     ----------
@@ -362,11 +365,22 @@ def row_flames(cam, depths, objects, truth, df) -> list:
     """
     from ..tomo.depth import depth_tolerances
     tol = depth_tolerances(cam, cam.pixels_per_lenslet)[1]
-    out = []
-    for k, x in zip(df.plane, df["centroid_x_mm"] if "centroid_x_mm" in df else [np.nan] * len(df)):
+    x = df["centroid_x_mm"].to_numpy(float) if "centroid_x_mm" in df else np.full(len(df), np.nan)
+    planes = df.plane.to_numpy()
+    out = [None] * len(df)
+    for k in np.unique(planes):
+        rows = np.flatnonzero(planes == k)
+        if len(rows) == 1 and not np.isfinite(x[rows[0]]):
+            out[rows[0]] = truth[k]
+            continue
         near = [o for o in objects if abs(float(o["depth_offset_mm"]) - depths[k]) <= tol and "centre_x_mm" in o]
-        out.append(min(near, key=lambda o: abs(float(o["centre_x_mm"]) - x)) if near and np.isfinite(x)
-                   else truth[k])
+        pairs = sorted((abs(float(o["centre_x_mm"]) - x[r]), int(r), i) for r in rows if np.isfinite(x[r])
+                       for i, o in enumerate(near))
+        used = set()
+        for _, r, i in pairs:
+            if out[r] is None and i not in used:
+                out[r] = near[i]
+                used.add(i)
     return out
 
 

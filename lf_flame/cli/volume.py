@@ -13,7 +13,7 @@ import numpy as np
 from ._io import (AUTO_LEVEL, finite, RAW_FORMATS, _level_or_none, _raw_scene, add_camera_args, add_figure_arg,
                   add_search_arg, planes_count, positive_int)
 from .fit_notes import (edge_warning, left_out_notes, misfit_warning, resolution_note, resolved_spacing_mm,
-                        stack_end_warning)
+                        solve_warnings, stack_end_warning)
 from .planes import (_fitted_light_field, found_planes, found_record, lattice_solve, possible_warning,
                      reconstruct_input, run_reconstruction, solve_found)
 from ..simulate.scenes import PAPER_DEPTHS_MM
@@ -96,10 +96,7 @@ def cmd_reconstruct(a):
         print(f"planes within {NEAR_PARALLAX:g} lenslets of parallax of each other are held to the regions their "
               "depths were found in, where they meet (the data barely tell such planes apart)")
     print("\n".join(left_out_notes(fitted, rec, lattice)))
-    from .real import overexposure_warning
-    extra["clipped_share"] = overexposure_warning(fitted.over_exposure())
-    extra["edge_share"] = edge_warning(rec, op)
-    extra["misfit"] = misfit_warning(lf, op, rec, kw["saturation"], lattice)
+    extra.update(solve_warnings(lf, op, rec, lattice, kw["saturation"], fitted))
     extra["route_time_s"] = route_s = time.perf_counter() - t_route     # the depth search (if any), every solve
     out = Path(a.out)
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), **extra)
