@@ -232,6 +232,18 @@ def test_a_camera_files_views_are_those_decoding_takes():
         assert cam.pixels_per_lenslet == views_for_pitch(cam.grid_pitch_px) == n
 
 
+def test_a_pitch_of_whole_pixels_to_the_datasheets_rounding_is_a_perfect_grid():
+    """Lenslet images 10.0000007 px apart (a datasheet's pitch for 10 px given to 8 decimals) tile the sensor in
+    whole pixels: a perfect grid, whose raw images need no decoding (it had been refused as "10.000 px apart: not
+    whole pixels"); 10.001 px drifts by 0.05 px across it and stays a grid to decode."""
+    from lf_flame.optics.camera_file import WHOLE_PITCH_DRIFT_PX
+    size = lambda px: 1000 * 0.150 * (1 + 3.0 / 200.0) / px                    # noqa: E731
+    cam = camera_from_datasheet(_sheet(sensor__pixel_size_um=size(10.0000007)))
+    assert cam.perfect_grid and cam.pixels_per_lenslet == 10 and (cam.n_rows, cam.n_cols) == (52, 34)
+    off = camera_from_datasheet(_sheet(sensor__pixel_size_um=size(10.001)))
+    assert not off.perfect_grid and 0.001 * 520 / 10 > WHOLE_PITCH_DRIFT_PX
+
+
 def test_the_paper_camera_ships_as_a_camera_file():
     """examples/paper_camera.toml (the datasheet form) is the camera every command takes without --camera."""
     assert load_camera_file(ROOT / "examples" / "paper_camera.toml") == PAPER_CAMERA

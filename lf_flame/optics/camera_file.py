@@ -57,6 +57,10 @@ DATASHEET_KEYS = {
 #: Relative disagreement tolerated between two values of the same quantity given twice
 #: (f-number and aperture, focus distance and MLA distance): datasheets round to 3 digits.
 AGREEMENT = 2e-3
+#: Lenslet images whose pitch drifts from a whole number of pixels by at most this much across the sensor
+#: (pixels) are whole: a datasheet's pitch for 13 px given to 8 decimals (13.0000007 px) had been refused as a grid
+#: "13.000 px apart: not whole pixels" that must be decoded.
+WHOLE_PITCH_DRIFT_PX = 0.01
 
 
 def _number(where, key, v, *, integer=False, positive=True):
@@ -71,11 +75,14 @@ def _fit_grid(base: dict, rows, cols):
     """The camera of ``base`` with the given lenslet counts, or else the most lenslets whose
     whole images (centre +- half a pitch along each axis) lie on the sensor."""
     H, W = base["sensor_rows"], base["sensor_cols"]
-    p = base["grid_pitch_px"]
+    p, n = base["grid_pitch_px"], base["pixels_per_lenslet"]
+    whole = abs(p - n) * max(H, W) / p <= WHOLE_PITCH_DRIFT_PX
+    p = n if whole else p                                   # whole pixels to the datasheet's rounding
     hexa = base["grid_layout"] == "hex"
     r = rows if rows is not None else (int((H / p - 1) / (math.sqrt(3) / 2)) + 1 if hexa else int(H // p))
     c = cols if cols is not None else (int((W / p - 0.5) // 1) if hexa else int(W // p))
     free = {k: v for k, v in base.items() if k not in ("sensor_rows", "sensor_cols", "grid_offset_px")}
+    free["grid_pitch_px"] = p
     off = base["grid_offset_px"]
     while r >= 1 and c >= 1:
         with warnings.catch_warnings():                                # a trial: the chosen camera warns
@@ -86,8 +93,8 @@ def _fit_grid(base: dict, rows, cols):
         over_r = rows is None and bool(lo[0] < -H / 2 or hi[0] > H / 2)
         over_c = cols is None and bool(lo[1] < -W / 2 or hi[1] > W / 2)
         if not (over_r or over_c):
-            if (p == base["pixels_per_lenslet"] and base["grid_rotation_deg"] == 0 and not any(off) and not hexa
-                    and (H, W) == (r * p, c * p)):       # whole-pixel images tiling the sensor: a perfect grid
+            if (whole and base["grid_rotation_deg"] == 0 and not any(off) and not hexa
+                    and (H, W) == (r * n, c * n)):       # whole-pixel images tiling the sensor: a perfect grid
                 keep = {k: v for k, v in free.items() if k not in ("grid_pitch_px", "grid_rotation_deg", "grid_layout")}
                 return PlenopticCamera(**keep, n_rows=r, n_cols=c)
             return PlenopticCamera(**base, n_rows=r, n_cols=c)
