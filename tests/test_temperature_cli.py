@@ -278,6 +278,15 @@ def test_a_perfect_grids_colour_recording_is_levelled_as_reconstruct_levels_a_ca
     job = json.loads((out / "job.json").read_text())
     assert job["depths_mm"] == pytest.approx([0.0], abs=0.3)
     assert job["reconstruction"]["admm_noise"] < 0.02        # the mosaic as it is reads as noise: 0.08
+    # each frame's saturated samples are its clipped red and green ones, not its blue ones (left out of every frame)
+    import pandas as pd
+    from lf_flame.real.clipping import found_level
+    from lf_flame.refocus.shift_and_sum import raw_to_views
+    chan = raw_to_views(s.channel_map(raw.shape).astype(np.float32), CAM.pixels_per_lenslet)
+    n_sat = pd.read_csv(out / "frames.csv").groupby("frame").n_saturated.first()
+    for i, frame in enumerate([raw, 0.9 * raw, raw]):
+        v = raw_to_views(frame.astype(np.float32), CAM.pixels_per_lenslet)
+        assert n_sat[i] == np.count_nonzero((v >= found_level(v)) & (chan < 2)), (i, n_sat[i])
 
 
 def test_a_colour_recording_gets_each_frames_temperature_as_one_capture_would(files, capsys):

@@ -259,6 +259,7 @@ class SequenceJob:
             level = self._level(views)
             clipped = None if level is None else views >= level
             views, other, _ = levelled_views(views, self._cache["channels"])
+            self._cache["other_channels"] = other
             for m in (left, clipped):
                 other = other if m is None else other | m
             return views, other
@@ -294,6 +295,7 @@ class SequenceJob:
             return views, clipped
         from ..temperature.mosaic import levelled_views
         views, other, _ = levelled_views(views, channels)
+        self._cache["other_channels"] = other
         return views, other if clipped is None else other | clipped
 
     def _sensor(self):
@@ -421,7 +423,7 @@ class SequenceJob:
             planes = np.zeros(tuple(self.operator().dims))
             if self.hexagonal:
                 planes = self.operator().to_square(planes, self.camera.n_rows, self.camera.n_cols)
-            return planes, int(np.count_nonzero(~fitted))
+            return planes, self._saturated(fitted, int(np.count_nonzero(~fitted)))
         rec = reconstruct(data, self.operator(), r["solver"], iters, tv=r["tv"], lam=r.get("lam"), l1=r.get("l1"),
                           start=r.get("start"), tol=r.get("tol"), saturation=leave, unit=unit,
                           state=state if r["solver"] == "admm" else None,
@@ -430,7 +432,17 @@ class SequenceJob:
             state["light"] = light
         planes = self.operator().to_square(rec.planes, self.camera.n_rows, self.camera.n_cols) if self.hexagonal \
             else rec.planes
-        return planes, int(rec.settings["n_saturated"])    # a hexagonal lattice's: of its cells with a lenslet
+        return planes, self._saturated(fitted, int(rec.settings["n_saturated"]))
+
+    def _saturated(self, fitted: np.ndarray, left_out: int) -> int:
+        """The frame's samples left out of the fit (``left_out``: a hexagonal lattice's of its cells with a lenslet),
+        less a colour frame's other channels' (:func:`lf_flame.temperature.mosaic.levelled_views`: its blue samples,
+        left out of every frame, are no saturated pixels; they had been counted as such, every blue sample in
+        every frame)."""
+        other = self._cache.get("other_channels")
+        if other is None or np.shape(other) != np.shape(fitted):
+            return left_out
+        return int(np.count_nonzero(~fitted & ~other))
 
     def _support(self) -> np.ndarray:
         """``support`` on the operator's planes: a hexagonal grid's taken to its lattice."""
