@@ -632,3 +632,36 @@ def test_profiles_warns_as_reconstruct_does_of_the_planes_it_measures(small_flam
         if misfit is not None:
             assert ("unexplained beyond its noise" in text) == misfit, text
         assert ("of the lit pixels are clipped" in text) == clipped, text
+
+
+def test_profiles_finds_the_planes_of_a_file_that_stores_its_flames_when_asked(small_flame_npz, tmp_path, capsys):
+    """A simulated file's planes are its flames' true depths unless asked otherwise: --depths auto (or a
+    --search-range, which had been ignored in silence there) finds them as reconstruct does, within the range, and
+    still scores the stored flames beside them; --depths scene of a file without flames is refused."""
+    import json
+
+    import pandas as pd
+
+    from lf_flame.cli import main
+    z = np.load(small_flame_npz)
+    true = sorted(float(o["depth_offset_mm"]) for o in json.loads(str(z["objects"])))
+    out = str(tmp_path / "p")
+    assert main(["profiles", str(small_flame_npz), "--no-figure", "--out", out]) == 0
+    assert "the scene's truth, not found" in capsys.readouterr().out
+    assert sorted(pd.read_csv(out + ".csv").depth_mm) == pytest.approx(true)
+    assert main(["profiles", str(small_flame_npz), "--depths", "auto", "--no-figure", "--out", out]) == 0
+    assert "the scene's truth" not in capsys.readouterr().out
+    found = pd.read_csv(out + ".csv")
+    assert sorted(found.depth_mm) != pytest.approx(true, abs=1e-6)              # found, not given
+    assert sorted(found.depth_mm) == pytest.approx(true, abs=0.5) and found.height_mm_true.notna().all()
+    lo, hi = true[0] - 2.0, true[-1] + 2.0
+    assert main(["profiles", str(small_flame_npz), "--search-range", str(lo), str(hi), "--no-figure",
+                 "--out", out]) == 0
+    assert "the scene's truth" not in capsys.readouterr().out
+    ranged = pd.read_csv(out + ".csv")
+    assert sorted(ranged.depth_mm) == pytest.approx(true, abs=0.5) and ranged.depth_mm.between(lo, hi).all()
+    bare = tmp_path / "bare.npz"
+    np.savez(bare, raw=z["raw"], camera=z["camera"])
+    capsys.readouterr()
+    assert main(["profiles", str(bare), "--depths", "scene", "--no-figure", "--out", out]) == 2
+    assert "stores no flames" in capsys.readouterr().err

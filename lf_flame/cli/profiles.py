@@ -49,10 +49,10 @@ def _profiles_input(a):
         cam = load_camera_file(a.camera)
     cam = cam or PAPER_CAMERA
     given = _given_depths(a)
-    depths = given or _object_depths(objects)
+    depths = given or _scene_depths(a, objects)
     if depths and not given:
         print("planes at the depths of the flames the file stores (" + ", ".join(f"{d:+.2f}" for d in depths)
-              + " mm: the scene's truth, not found; --depth to give others)")
+              + " mm: the scene's truth, not found; --depths auto to find them, --depth to give others)")
     if not depths and a.slope:
         depths = [cam.depth_for_slope(v) for v in a.slope]
     elif not depths and slopes is not None:       # a dataset sample: the paper's planes
@@ -160,6 +160,18 @@ def _object_depths(objects):
     return [float(o["depth_offset_mm"]) for o in objects] if objects else None
 
 
+def _scene_depths(a, objects):
+    """The stored flames' depths where ``profiles`` takes them for its planes (``--depths scene``, the default for a
+    file that stores its flames), else None: ``--depths auto``, or a ``--search-range`` given (a search asked for:
+    it had been ignored in silence on a file that stores its flames)."""
+    choice = getattr(a, "depths", None)
+    if choice == "auto" or (choice is None and getattr(a, "search_range", None)):
+        return None
+    if choice == "scene" and not objects:
+        raise ValueError(f"--depths scene: {a.raw} stores no flames (give --depth, or --depths auto)")
+    return _object_depths(objects)
+
+
 def _decoded_profiles_input(a):
     """:func:`_profiles_input` of decoded views (``VIEWS.h5``, or a raw capture with ``--calibration``):
     the planes of the decoded views' camera (:func:`lf_flame.cli._io.light_field`), solved as ``reconstruct``
@@ -171,7 +183,8 @@ def _decoded_profiles_input(a):
     cam = lf.camera
     flat = structure_warning(lf.views, a.raw)
     objects = None if str(a.raw).endswith(".h5") else _flame_objects(a.raw)
-    depths = _given_depths(a) or ([cam.depth_for_slope(v) for v in a.slope] if a.slope else _object_depths(objects))
+    depths = _given_depths(a) or ([cam.depth_for_slope(v) for v in a.slope] if a.slope else
+                                  _scene_depths(a, objects))
     route = parse_route(a.route)
     if route.kind in ("stored", "learned"):
         raise ValueError(f"--route {a.route} takes the paper camera's raw images or dataset samples, not decoded views")
@@ -436,6 +449,11 @@ def add_parsers(sub) -> None:
                    help="a plane's depth, mm from the focus distance (repeatable; default: the flames' when RAW "
                         "stores them, a dataset sample's the paper's four, else the depths found in the views, as "
                         "'reconstruct --depths auto' finds them)")
+    s.add_argument("--depths", choices=("auto", "scene"), default=None,
+                   help="the planes where no --depth or --slope is given: 'auto' finds them in the views as "
+                        "'reconstruct --depths auto' does (within --search-range), the flames RAW stores still "
+                        "scored beside them; 'scene' the stored flames' depths (the default where RAW stores them, "
+                        "unless --search-range is given)")
     add_camera_args(s)
     s.add_argument("--out", required=True, help="PREFIX: writes PREFIX.csv (one row per plane), PREFIX.axial.csv "
                                                "and PREFIX.png")
