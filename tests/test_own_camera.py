@@ -713,6 +713,19 @@ def test_a_decoded_capture_in_counts_is_solved_as_its_views_in_white_units_are(t
     assert np.linalg.norm(counts - unit) / np.linalg.norm(unit) < 0.05
 
 
+def test_decode_warns_of_a_white_image_given_that_carries_structure(tmp_path, capsys):
+    """``decode --white`` takes a white image in place of the calibration's, unchecked: a flame capture given as its
+    own white image (its views then a 0/1 mask, whose depths came out 7-12 mm off) is warned of; the white image
+    itself is not."""
+    _offset_captures(tmp_path)
+    assert cli.main(["calibrate", str(tmp_path / "white.tif"), "--out", str(tmp_path / "cal.json")]) == 0
+    for white, warned in (("white.tif", False), ("raw.tif", True)):
+        capsys.readouterr()
+        assert cli.main(["decode", str(tmp_path / "raw.tif"), "--calibration", str(tmp_path / "cal.json"), "--white",
+                         str(tmp_path / white), "--out", str(tmp_path / f"{white}.h5")]) == 0
+        assert ("is it the white image?" in capsys.readouterr().out) == warned, white
+
+
 def test_a_microscopes_imaging_range_holds_its_focus():
     """A 60x objective with a 200 mm tube lens as one lens (f = 3.333 mm, the sample 3.389 mm away: within 1.05
     focal lengths): the range searched reaches from halfway to the focal length up to |slope| 3, its focus
@@ -843,3 +856,14 @@ def test_a_capture_in_other_units_than_its_white_image_is_warned_of(tmp_path, ca
         assert warned == (name == "raw.npy"), name
     with pytest.warns(UserWarning, match="same units"):
         read_light_field(tmp_path / "raw.npy.h5", EXAMPLE)
+    # an 8-bit capture beside a 16-bit white image reads 1/257 of it
+    import imageio.v3 as iio
+    import tifffile
+    white16 = np.round(np.clip(tifffile.imread(tmp_path / "white.tif") / 4095.0, 0, 1) * 65535).astype(np.uint16)
+    tifffile.imwrite(tmp_path / "white16.tif", white16)
+    iio.imwrite(tmp_path / "raw8.png", np.round(np.clip(raw, 0, 1) * 255).astype(np.uint8))
+    assert cli.main(["calibrate", str(tmp_path / "white16.tif"), "--out", str(tmp_path / "cal16.json")]) == 0
+    capsys.readouterr()
+    assert cli.main(["decode", str(tmp_path / "raw8.png"), "--calibration", str(tmp_path / "cal16.json"),
+                     "--out", str(tmp_path / "raw8.h5")]) == 0
+    assert "1/257" in capsys.readouterr().out

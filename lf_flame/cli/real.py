@@ -125,6 +125,20 @@ def cmd_decode(a):
         dim = dim_against_white(views)
         if dim:
             print(f"warning: {a.raw}: {dim}")
+    if a.white and white is not None:               # a white image given in place of the calibration's: unchecked
+        from ..real.black_level import view_spread
+        from ..real.decoding import white_samples
+        spread = view_spread(white_samples(cal, white, dark, n_views=views.shape[0], bin_views=k, sensor=sensor))
+        if spread is not None and spread > WHITE_SPREAD:
+            print(f"warning: --white {a.white}: its lenslets' central views vary by {spread:.2g} of their level "
+                  f"across the field (a white image's by little more than its vignetting, a flame's by about 1): is it "
+                  "the white image? The views are divided by it")
+
+
+#: ``decode --white``: a white image whose central views vary across the field by more than this share of their level
+#: (:func:`lf_flame.real.black_level.view_spread`; simulated white images 0.008-0.013, a flame on a dark background
+#: about 1) is warned of: a user's capture given as its own white image had been taken without a word.
+WHITE_SPREAD = 0.5
 
 
 def defects_note(n: int) -> str:

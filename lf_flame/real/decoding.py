@@ -132,16 +132,17 @@ def decode(raw: np.ndarray, calibration: GridCalibration, white: np.ndarray | No
 
 
 #: A monochrome capture whose views decoded with a white image read at most this share of that image's light is
-#: warned of (:func:`dim_against_white`).
-DIM_AGAINST_WHITE = 1e-3
+#: warned of (:func:`dim_against_white`): an 8-bit capture beside a 16-bit white image reads 1/257 of it.
+DIM_AGAINST_WHITE = 1e-2
 
 
 def dim_against_white(views) -> str | None:
     """Where a monochrome capture's views, decoded with a white image (its radiance ratio, :func:`decode`), read at
     most :data:`DIM_AGAINST_WHITE` of that image's light at their brightest: what to say (the files are likely in
-    different units: a [0, 1] array beside a white image in 16-bit counts reads 1/65535 of it, and its planes come
-    out that many times too small; beside a dark frame in counts it reads nothing at all); else None. A flame that
-    dim against its white target is lost in the sensor's noise anyway.
+    different units: a [0, 1] array beside a white image in 16-bit counts reads 1/65535 of it, an 8-bit capture
+    beside a 16-bit white image 1/257, and its planes come out that many times too small; beside a dark frame in
+    counts it reads nothing at all); else None. A flame that dim against its white target is near the sensor's
+    noise anyway.
 
     Parameters
     ----------
@@ -157,7 +158,8 @@ def dim_against_white(views) -> str | None:
         return None
     return (f"its brightest view sample reads {top:.3g} of its white image's light: are the capture and the white "
             "image in the same units? (an array in [0, 1] beside a white image in 16-bit counts reads 1/65535 of it, "
-            "and its planes come out that much too small): give both as the camera saved them")
+            "an 8-bit capture beside a 16-bit white image 1/257, and its planes come out that much too small): give "
+            "both as the camera saved them")
 
 
 def white_samples(calibration: GridCalibration, white: np.ndarray, dark: np.ndarray | None = None, *,
