@@ -665,3 +665,13 @@ def test_profiles_finds_the_planes_of_a_file_that_stores_its_flames_when_asked(s
     capsys.readouterr()
     assert main(["profiles", str(bare), "--depths", "scene", "--no-figure", "--out", out]) == 2
     assert "stores no flames" in capsys.readouterr().err
+
+
+def test_profiles_out_named_as_its_csv_writes_that_csv(small_flame_npz, tmp_path):
+    """``--out PREFIX`` named as one of its files (``p.csv``) writes ``p.csv``, ``p.axial.csv``, not ``p.csv.csv``
+    (resolution's ``--out r.csv`` had)."""
+    from lf_flame.cli import main
+    assert main(["profiles", str(small_flame_npz), "--route", "shift-sum", "--no-figure",
+                 "--out", str(tmp_path / "p.csv")]) == 0
+    assert (tmp_path / "p.csv").is_file() and (tmp_path / "p.axial.csv").is_file()
+    assert not (tmp_path / "p.csv.csv").exists()

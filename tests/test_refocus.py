@@ -349,7 +349,7 @@ def test_cli_refocus_and_slopes(tmp_path, small_camera, capsys):
     assert "p.slopes.csv" in capsys.readouterr().out
     # --out is the calibration mode's: with RAW it is refused (it had been ignored, the files going beside RAW)
     assert main(["slopes", str(tmp_path / "p.npz"), "--out", str(tmp_path / "s.csv")]) == 2
-    assert "belong to the calibration mode" in capsys.readouterr().err
+    assert "--out belongs to the calibration mode" in capsys.readouterr().err
     # a prefix ending in / is a folder: the files go in it, named after the raw image (it had written ./sl.slopes.csv)
     assert main(["slopes", str(tmp_path / "p.npz"), "--roi", "10", "31", "10", "31", "--lo", "-2", "--hi", "2",
                  "--out-prefix", str(tmp_path / "sl") + "/"]) == 0

@@ -298,10 +298,16 @@ def _same(p: Path, q: Path) -> bool:
     return os.path.samefile(p, q) if p.exists() and q.exists() else p.absolute() == q.absolute()
 
 
+#: Suffixes dropped from the ``--out PREFIX`` of a command that writes PREFIX.csv, PREFIX.md, PREFIX.png ...
+#: (``profiles``, ``resolution``): ``--out r.csv`` had written ``r.csv.csv``.
+PREFIX_SUFFIXES = (".csv", ".md", ".png")
+
+
 def check_outputs(a) -> None:
-    """:func:`check_output` on each of a command's outputs (:data:`OUTPUT_OPTIONS` in ``a``), and refuse an output
-    that is one of its inputs, or where its figure would be written (``--out X.png`` of a command that writes the
-    figure beside its HDF5 as ``X.png``), where the input or the result would be overwritten.
+    """:func:`check_output` on each of a command's outputs (:data:`OUTPUT_OPTIONS` in ``a``; an ``--out PREFIX`` named
+    as one of its files loses that suffix, :data:`PREFIX_SUFFIXES`), and refuse an output that is one of its inputs,
+    or where its figure would be written (``--out X.png`` of a command that writes the figure beside its HDF5 as
+    ``X.png``), where the input or the result would be overwritten.
 
     Raises
     ------
@@ -310,6 +316,10 @@ def check_outputs(a) -> None:
         is an existing folder (it had failed only after the work, naming its temporary file).
     """
     figure = getattr(a, "figure", False) and not getattr(a, "out_is_prefix", False)
+    out = getattr(a, "out", None)
+    if getattr(a, "out_is_prefix", False) and isinstance(out, (str, Path)) and \
+            Path(out).suffix.lower() in PREFIX_SUFFIXES:       # a PREFIX named as one of its files: p.csv -> p
+        a.out = str(Path(out).with_suffix(""))
     inputs = _input_paths(a)
     for k in OUTPUT_OPTIONS:
         v = getattr(a, k, None)

@@ -213,8 +213,8 @@ def cmd_slopes(a):
         return _calibrate_slopes(a)
     given = [f"--{k.replace('_', '-')}" for k in ("out", "data_config", "results") if getattr(a, k, None)]
     if given:       # they had been ignored without a word: the files went beside RAW
-        raise ValueError(f"{' and '.join(given)} belong to the calibration mode (no RAW); a light field's curves go "
-                         "to --out-prefix PREFIX (default: beside RAW)")
+        raise ValueError(f"{' and '.join(given)} belong{'s' * (len(given) == 1)} to the calibration mode (no RAW); "
+                         "a light field's curves go to --out-prefix PREFIX (default: beside RAW)")
     import pandas as pd
     from ..learn.evaluation import plot_slope_curves
     from ..refocus.shift_and_sum import aperture_mask

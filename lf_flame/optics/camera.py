@@ -396,7 +396,7 @@ class PlenopticCamera:
         z = float(object_distance_mm)
         if not math.isfinite(z) or z <= self.main_focal_mm:
             raise ValueError(
-                f"object at {z} mm is at or inside the main-lens focal length {self.main_focal_mm} mm: "
+                f"object at {z:.6g} mm is at or inside the main-lens focal length {self.main_focal_mm:g} mm: "
                 "its image is at infinity or virtual")
         return 1.0 / (1.0 / self.main_focal_mm - 1.0 / z)
 
