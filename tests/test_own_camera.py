@@ -867,3 +867,31 @@ def test_a_capture_in_other_units_than_its_white_image_is_warned_of(tmp_path, ca
     assert cli.main(["decode", str(tmp_path / "raw8.png"), "--calibration", str(tmp_path / "cal16.json"),
                      "--out", str(tmp_path / "raw8.h5")]) == 0
     assert "1/257" in capsys.readouterr().out
+
+
+def test_samples_far_below_zero_are_warned_of(tmp_path, capsys):
+    """A block of pixels at -1 (corrupt, or a dark frame brighter than the capture) had decoded into views at -0.5
+    without a word and been taken for three flames by the residual's search: decode and the commands reading the
+    views warn of samples below -0.1 of the level; the capture's own noise does not reach it."""
+    from lf_flame.real.lightfield import from_raw, read_light_field
+    white, raw, _ = _offset_captures(tmp_path)
+    np.save(tmp_path / "white.npy", white)
+    bad = raw.copy()
+    r, c = np.unravel_index(np.argmax(raw), raw.shape)
+    bad[r - 2:r + 3, c - 2:c + 3] = -1.0
+    np.save(tmp_path / "bad.npy", bad)
+    np.save(tmp_path / "raw.npy", raw)
+    assert cli.main(["calibrate", str(tmp_path / "white.npy"), "--out", str(tmp_path / "cal.json")]) == 0
+    for name, warned in (("raw.npy", False), ("bad.npy", True)):
+        capsys.readouterr()
+        assert cli.main(["decode", str(tmp_path / name), "--calibration", str(tmp_path / "cal.json"),
+                         "--out", str(tmp_path / f"{name}.h5")]) == 0
+        assert ("read below -0.1 of its level" in capsys.readouterr().out) == warned, name
+    with pytest.warns(UserWarning, match="read below -0.1"):
+        read_light_field(tmp_path / "bad.npy.h5", EXAMPLE)
+    from lf_flame.optics.camera import PlenopticCamera
+    cam = PlenopticCamera(n_rows=8, n_cols=8)
+    flat = np.full(cam.sensor_shape, 0.5)
+    flat[3, 3] = -0.2
+    with pytest.warns(UserWarning, match="1 samples read below"):
+        from_raw(flat, cam)

@@ -125,6 +125,10 @@ def cmd_decode(a):
         dim = dim_against_white(views)
         if dim:
             print(f"warning: {a.raw}: {dim}")
+    from ..real.black_level import negative_note
+    negative = negative_note(views, str(a.raw))
+    if negative:
+        print(f"warning: {negative}")
     if a.white and white is not None:               # a white image given in place of the calibration's: unchecked
         from ..real.black_level import view_spread
         from ..real.decoding import white_samples

@@ -107,3 +107,37 @@ def view_spread(views) -> float | None:
         return None
     lit = hi > 0
     return float(np.median((hi[lit] - lo[lit]) / hi[lit]))
+
+
+#: Samples below minus this share of a light field's bright level (its 99.9th percentile) are warned of
+#: (:func:`negative_note`): a capture's noise after its dark frame reads a few hundredths of its level below zero at
+#: most; far below are a dark frame brighter than the capture, or corrupt pixels (a user's block of pixels at -1 had
+#: been decoded into views at -0.5, and the residual's search took it for three flames).
+NEGATIVE_SHARE = 0.1
+
+
+def negative_note(views, source: str) -> str | None:
+    """Where a light field's samples (views or a raw image, dark-subtracted) read below minus :data:`NEGATIVE_SHARE`
+    of their 99.9th percentile: one line saying how many and what it means, else None.
+
+    Parameters
+    ----------
+    views : ndarray
+        The samples (any shape).
+    source : str
+        The file, named in the line.
+
+    Returns
+    -------
+    str or None
+    """
+    v = np.asarray(views)
+    if not v.size:
+        return None
+    level = float(np.percentile(v, 99.9))
+    n = int(np.count_nonzero(v < -NEGATIVE_SHARE * level)) if level > 0 else 0
+    if not n:
+        return None
+    return (f"{source}: {n} samples read below -{NEGATIVE_SHARE:g} of its level (down to {float(v.min()):.3g} "
+            f"against {level:.3g}): a dark frame brighter than the capture, or corrupt pixels; no emission explains "
+            "them (the fit treats them as data)")

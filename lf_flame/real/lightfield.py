@@ -251,6 +251,10 @@ def from_raw(raw, camera: PlenopticCamera, source: str = "raw image", saturation
         saturation = found_level(views)
     channels = None if sensor is None else raw_to_views(sensor.channel_map(raw.shape).astype(np.float32),
                                                         n).astype(np.int8)
+    from .black_level import negative_note
+    negative = negative_note(views, source)
+    if negative:
+        warnings.warn(negative, stacklevel=2)
     return LightField(views, camera, source, saturation=saturation, camera_file=camera_file, meta=dict(meta or {}),
                       defective_pixels=n_bad, defects=raw_to_views(flagged, n) > 0.5 if n_bad else None,
                       channels=channels)
@@ -310,6 +314,10 @@ def from_decoded(views, calibration, camera: PlenopticCamera, source: str = "dec
         dim = dim_against_white(v)
         if dim:
             warnings.warn(f"{source}: {dim}", stacklevel=2)
+    from .black_level import negative_note
+    negative = negative_note(v, source)
+    if negative:
+        warnings.warn(negative, stacklevel=2)
     return LightField(v, vcam, source, leave_out=clipped, saturation=None, white_normalised=white_normalised,
                       frame=frame, capture_camera=camera, camera_file=camera_file, meta=dict(meta or {}),
                       channels=None if channels is None else np.asarray(channels, np.int8),
