@@ -21,7 +21,7 @@ import pytest
 from lf_flame.optics.camera import PAPER_CAMERA, PlenopticCamera
 from lf_flame.cli import main
 from lf_flame.simulate.scenes_time import flicker_sequence
-from lf_flame.recordings.sources import SimulatedSource, frame_rate, open_source, write_frames
+from lf_flame.recordings.sources import SimulatedSource, frame_rate, numbered_gaps, open_source, write_frames
 from lf_flame.recordings import job as job_module
 from lf_flame.recordings.flicker import peaks, spectra, unresolved_note
 from lf_flame.recordings.job import process_chunk, simulated_job
@@ -591,6 +591,32 @@ def test_one_bad_frame_is_a_failed_row_and_the_recording_goes_on(small_recording
                  "--depth", "2", "--solver", "lsqr", "--out", str(tmp_path / "z.h5")]) == 2
     err = capsys.readouterr().err
     assert "zero.npy holds no light: its 97200 samples fitted are all 0" in err and "Warning" not in err, err
+
+
+def test_a_folders_missing_or_unreadable_frame_is_a_failed_row_at_its_own_time(small_recording, tmp_path, capsys):
+    """A folder of frames whose file numbers skip one (frame_3 gone) and with one file cut short (frame_6): each is a
+    failed row at its own time and the frames after keep theirs (the missing file had moved every later frame one
+    frame early, and a user's flicker read 20.20 Hz for 19.34; the truncated one had stopped the whole run)."""
+    seq, frames = small_recording
+    (tmp_path / "folder").mkdir()
+    for i, f in enumerate(frames):
+        if i != 3:
+            np.save(tmp_path / "folder" / f"frame_{i:03d}.npy", f)
+    path = tmp_path / "folder" / "frame_006.npy"
+    path.write_bytes(path.read_bytes()[:5000])
+    capsys.readouterr()
+    src, _ = open_source(tmp_path / "folder")
+    assert "skip 1 frame (frames 3," in capsys.readouterr().out and src.n_frames == len(frames)
+    job = simulated_job(seq, SMALL_CAMERA, src, route="shift-sum", chunk=5)[0]
+    run(job, tmp_path / "out", progress=False)
+    table = pd.read_csv(tmp_path / "out" / "frames.csv", keep_default_na=False, na_values=[""])
+    failed = table[table.failure.fillna("") != ""]
+    assert set(failed.frame) == {3, 6} and failed.failure.str.startswith("frame not processed").all(), failed
+    assert "missing from the folder" in failed[failed.frame == 3].failure.iloc[0]
+    ok = table[table.frame == 7]
+    assert ok.time_s.iloc[0] == pytest.approx(0.07) and ok.height_mm.notna().all()
+    assert numbered_gaps(["a1.npy", "a3.npy", "a5.npy"]) == ("a1.npy", "a3.npy", "a5.npy")   # every other frame
+    assert numbered_gaps(["x.npy", "y.npy", "z.npy"]) == ("x.npy", "y.npy", "z.npy")
 
 
 def test_a_uniform_glare_frame_is_a_failed_row_not_spectra_input(small_recording, tmp_path):

@@ -72,11 +72,14 @@ def temperature_recording(a, source, attrs, cal, sensor, where):
                                  calibration_image_path(grid.dark, "dark"))
     fps = source_frame_rate(source, attrs, a.fps)
     depths, found, extra, cache, rows, temps, valids, failures = None, None, {}, {}, [], [], [], []
-    for i, raw in enumerate(tqdm(source.frames(0, source.n_frames), total=source.n_frames, desc="temperature",
-                                 unit="frame", disable=None)):
-        raw = np.asarray(raw, np.float64)
+    from ..recordings.sources import tolerant_frames
+    for i, raw in enumerate(tqdm(tolerant_frames(source, 0, source.n_frames), total=source.n_frames,
+                                 desc="temperature", unit="frame", disable=None)):
         name = f"{src} frame {i}"
         try:
+            if isinstance(raw, Exception):                  # a folder's file that cannot be read: that frame fails
+                raise raw
+            raw = np.asarray(raw, np.float64)
             refuse_dead_site(raw, sensor, name)
             lf = (from_raw(raw, cam, name, camera_file=cam_file, sensor=sensor) if grid is None else
                   decode_capture(raw, cam, grid, sensor, name, images))

@@ -539,7 +539,9 @@ def process_chunk(c: int, job: SequenceJob) -> dict:
     pixels left out of the fit, and ``clipped_share``, its clipped pixels' share of the lit ones) and the seconds
     spent reading (or rendering), refocusing and measuring.
 
-    A frame that holds NaN or inf (a corrupt read, a dropped packet) gets a row per plane with
+    A folder's frame that cannot be read (a truncated file, a missing one:
+    :func:`lf_flame.recordings.sources.tolerant_frames`) gets a row per plane with :data:`UNPROCESSED_FRAME` and
+    why. A frame that holds NaN or inf (a corrupt read, a dropped packet) gets a row per plane with
     :data:`NONFINITE_FRAME` as its failure, and the frames after it go on (an admm chunk's next frame
     continues the solve before it). A frame that cannot be processed otherwise (another sensor size, every sample
     clipped, views without structure: a uniform frame, :func:`lf_flame.real.black_level.view_spread`, a solve that
@@ -565,12 +567,18 @@ def _process_frames(job: SequenceJob, start: int, stop: int) -> dict:
     t = dict(read_s=0.0, refocus_s=0.0, measure_s=0.0)
     rows = []
     state = {}                                   # admm: the solve carried from frame to frame within the chunk
-    raws = job.source.frames(start, stop)
+    from .sources import tolerant_frames
+    raws = tolerant_frames(job.source, start, stop)
     for i in range(start, stop):
         t0 = time.perf_counter()
         raw = next(raws)
         t1 = time.perf_counter()
         t["read_s"] += t1 - t0
+        if isinstance(raw, Exception):           # a file that cannot be read: this frame alone fails
+            state.clear()
+            rows += [dict(frame=i, time_s=i / job.fps, plane=k, depth_mm=d, failure=f"{UNPROCESSED_FRAME}: {raw}")
+                     for k, d in enumerate(job.depths_mm)]
+            continue
         if not np.all(np.isfinite(raw)):
             rows += [dict(frame=i, time_s=i / job.fps, plane=k, depth_mm=d, failure=NONFINITE_FRAME)
                      for k, d in enumerate(job.depths_mm)]

@@ -124,7 +124,7 @@ class H5Source:
 @dataclass(frozen=True)
 class FolderSource:
     """Frames as image files of a folder (:data:`FRAME_SUFFIXES`), in the order of their names' numbers
-    (:func:`frame_order`)."""
+    (:func:`frame_order`); None in ``files`` for a frame whose number the files skip (:func:`numbered_gaps`)."""
 
     files: tuple
 
@@ -133,14 +133,17 @@ class FolderSource:
         return len(self.files)
 
     def raw(self, i: int) -> np.ndarray:
-        return frame_image(self.files[int(i)])
+        f = self.files[int(i)]
+        if f is None:
+            raise ValueError(f"frame {int(i)} is missing from the folder: the numbers of its files skip it")
+        return frame_image(f)
 
     def identity(self) -> dict:
         """The files (absolute paths), each with its size and modification time (a changed frame
-        is another recording)."""
-        stats = [os.stat(p) for p in self.files]
-        return dict(kind="folder", files=[str(Path(p).resolve()) for p in self.files],
-                    stats=[[st.st_size, st.st_mtime] for st in stats])
+        is another recording); None for a missing frame."""
+        stats = [None if p is None else os.stat(p) for p in self.files]
+        return dict(kind="folder", files=[None if p is None else str(Path(p).resolve()) for p in self.files],
+                    stats=[None if st is None else [st.st_size, st.st_mtime] for st in stats])
 
     def frames(self, start: int, stop: int):
         """Frames ``start`` to ``stop`` (exclusive): an iterator of (H, W) float32 images."""
@@ -207,6 +210,45 @@ def _imagej_rate(meta: dict) -> dict:
     return {"fps": 1.0 / (float(interval) * _TIME_UNITS[unit])}
 
 
+def numbered_gaps(files) -> tuple:
+    """A folder's frame files (in :func:`frame_order`) with None where the numbers in their names skip a frame: where
+    every name is the same text about one run of digits (``frame_0007.tif``), the numbers step by their greatest
+    common step and some are missing. Each frame is timed by its place (``i / fps``): a missing file had moved every
+    later frame one frame early (a user's flicker read at 20.20 Hz for 19.34). Other folders as they are.
+
+    Parameters
+    ----------
+    files : sequence of str
+
+    Returns
+    -------
+    tuple of str or None
+    """
+    parts = [re.fullmatch(r"(.*?)(\d+)(\D*)", Path(f).name) for f in files]
+    if len(files) < 3 or not all(parts) or len({(m.group(1), m.group(3)) for m in parts}) != 1:
+        return tuple(files)
+    numbers = [int(m.group(2)) for m in parts]
+    step = math.gcd(*np.diff(numbers).tolist())
+    if step < 1 or len(set(numbers)) != len(numbers):
+        return tuple(files)
+    at = {n: f for n, f in zip(numbers, files)}
+    return tuple(at.get(n) for n in range(numbers[0], numbers[-1] + 1, step))
+
+
+def tolerant_frames(source, start: int, stop: int):
+    """Frames ``start`` to ``stop`` (exclusive) of ``source`` as its ``frames`` gives them, but a folder's frame that
+    cannot be read (a truncated file, a missing one: :func:`numbered_gaps`) comes as the ValueError saying why, in
+    its place, so that a recording goes on past it (one unreadable file had stopped the whole run)."""
+    if not isinstance(source, FolderSource):
+        yield from source.frames(start, stop)
+        return
+    for i in range(int(start), int(stop)):
+        try:
+            yield source.raw(i)
+        except (ValueError, OSError) as e:
+            yield ValueError(str(e))
+
+
 def frame_order(name: str) -> list:
     """The sort key of a frame's file name: its runs of digits as numbers, the rest as text (case folded), so that
     ``frame_2.png`` comes before ``frame_10.png`` whether or not the numbers are padded with zeros."""
@@ -235,7 +277,14 @@ def open_source(path, camera: PlenopticCamera | None = None):
                       if f.suffix.lower() in FRAME_SUFFIXES)
         if not files:
             raise ValueError(f"folder {p} holds no frames ({', '.join(FRAME_SUFFIXES)} files)")
-        return FolderSource(files), {}
+        numbered = numbered_gaps(files)
+        missing = [i for i, f in enumerate(numbered) if f is None]
+        if missing:
+            print(f"warning: folder {p}: the numbers of its files skip {len(missing)} frame"
+                  f"{'s' * (len(missing) != 1)} (frames {', '.join(map(str, missing[:5]))}"
+                  f"{' ...' if len(missing) > 5 else ''}, counted from its first file): each is a failed row at its "
+                  "time, and the frames after it keep theirs")
+        return FolderSource(numbered), {}
     if not p.is_file():
         indexed = re.search(r":\d+$", str(p))
         hint = " (a recording's frames are all measured: give the file, not FILE:INDEX)" if indexed else ""
