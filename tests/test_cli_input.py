@@ -312,7 +312,7 @@ def test_sequence_refuses_planes_outside_the_cameras_range(tmp_path, capsys, mon
         assert main(["sequence", str(rec), *planes, "--out", str(tmp_path / "o")]) == 2
         line = _one_error_line(capsys.readouterr().err)
         assert f"planes at {shown}" in line and "lie outside what this camera can refocus" in line, line
-        assert f"({lo:+.3g} .. {hi:+.3g} mm" in line
+        assert f"({lo:+.4g} .. {hi:+.4g} mm" in line
     assert not (tmp_path / "o").exists()
 
 
@@ -326,7 +326,7 @@ def test_refocus_and_simulate_refuse_planes_no_camera_images(tmp_path, capsys):
     np.save(views, np.ones(PAPER_CAMERA.sensor_shape, np.float32))
     lo, hi = imaging_range_mm(PAPER_CAMERA)
     for planes, shown in ((["--depth", "500", "--depth", "0"], f"planes at +500 mm lie outside what this camera can "
-                           f"refocus ({lo:+.3g} .. {hi:+.3g} mm"), (["--slope", "40"], "planes at slopes +40 lie outside"),
+                           f"refocus ({lo:+.4g} .. {hi:+.4g} mm"), (["--slope", "40"], "planes at slopes +40 lie outside"),
                           (["--depth", "5", "--depth", "0", "--depth", "5"], "planes at +5 mm are given more than once")):
         assert main(["refocus", str(views), *planes, "--out", str(tmp_path / "r.npz")]) == 2
         line = _one_error_line(capsys.readouterr().err)

@@ -182,7 +182,7 @@ def volume_reconstruct(a):
     cam, views = lf.camera, lf.views
     lo, hi = lf.depth_range_mm()
     if not (lo <= a.near and a.far <= hi):
-        raise ValueError(f"--from {a.near:g} --to {a.far:g}: this camera refocuses {lo:+.3g} .. {hi:+.3g} mm from its "
+        raise ValueError(f"--from {a.near:g} --to {a.far:g}: this camera refocuses {lo:+.4g} .. {hi:+.4g} mm from its "
                          "focus distance")
     fitted = _fitted_light_field(lf, getattr(a, "saturation", "file"))
     step = VOLUME_STEP_MM if a.step is None else a.step

@@ -494,6 +494,9 @@ MAX_SEARCH_SLOPE = 3.0
 #: The nearest depth searched is where the object distance is this multiple of the main lens's
 #: focal length (nearer, the image runs off to infinity).
 NEAR_LIMIT = 1.05
+#: The farthest depth a camera refocuses (:func:`imaging_range_mm`) is at most this many times its focus distance
+#: from it, where the slope still changes with depth.
+IMAGING_FAR_FOCUS = 10.0
 
 
 def imaging_range_mm(camera: PlenopticCamera, max_slope: float = MAX_SEARCH_SLOPE) -> tuple[float, float]:
@@ -524,7 +527,7 @@ def imaging_range_mm(camera: PlenopticCamera, max_slope: float = MAX_SEARCH_SLOP
         raise ValueError(f"max_slope must be positive and finite. Received: {max_slope!r}")
     z_f = camera.focus_distance_mm
     near_mm = min(NEAR_LIMIT * camera.main_focal_mm, (camera.main_focal_mm + z_f) / 2) - z_f
-    far_mm = 10.0 * z_f
+    far_mm = IMAGING_FAR_FOCUS * z_f
 
     def slope(d):
         return camera.slope_for_depth(d)
@@ -559,7 +562,7 @@ def search_range_mm(camera: PlenopticCamera, depth_range_mm=None) -> tuple[float
         raise ValueError(f"a depth range is two finite depths, low < high. Received: {depth_range_mm!r}")
     if b <= lo or a >= hi:
         raise ValueError(f"depths {a:+g} .. {b:+g} mm lie outside what this camera can refocus "
-                         f"({lo:+.3g} .. {hi:+.3g} mm from its focus distance)")
+                         f"({lo:+.4g} .. {hi:+.4g} mm from its focus distance)")
     return max(a, lo), min(b, hi)
 
 
@@ -587,5 +590,6 @@ def check_imaging_range(camera: PlenopticCamera, depths_mm) -> None:
     far = [float(d) for d in depths_mm if not lo <= d <= hi]
     if far:
         raise ValueError(f"planes at {', '.join(f'{d:+g}' for d in far)} mm lie outside what this camera can "
-                         f"refocus ({lo:+.3g} .. {hi:+.3g} mm from its focus distance, |slope| <= "
-                         f"{MAX_SEARCH_SLOPE:g} lenslets per view)")
+                         f"refocus ({lo:+.4g} .. {hi:+.4g} mm from its focus distance: |slope| <= "
+                         f"{MAX_SEARCH_SLOPE:g} lenslets per view, and no farther than {IMAGING_FAR_FOCUS:g} times "
+                         "the focus distance)")
