@@ -265,8 +265,13 @@ def test_a_restart_skips_the_chunks_done(small_seq, serial_table, tmp_path):
     # frame exactly once; delete it and run again')
     f = tmp_path / "parts" / "chunk-00002.csv"
     f.write_bytes(f.read_bytes()[: len(f.read_bytes()) // 2])
-    assert run(job, tmp_path, progress=False)["chunks_processed"] == 1
+    done = run(job, tmp_path, progress=False)
+    assert done["chunks_processed"] == 1 and done["frames_per_s"] > 0
     assert (tmp_path / "frames.csv").read_bytes() == serial_table
+    # a rerun that finds every chunk done keeps the timings of the run that processed them (it wrote 0 frames/s)
+    again = run(job, tmp_path, progress=False)
+    assert again["frames_per_s"] == done["frames_per_s"] and again["chunks_processed"] == 1 and "timings" in again
+    assert json.loads((tmp_path / "summary.json").read_text())["frames_per_s"] == done["frames_per_s"]
     other = _job(flicker_sequence(PAPER_CAMERA, np.random.default_rng(6), "overlap", fps=100, duration_s=0.4), chunk=4)
     with pytest.raises(ValueError, match="other settings"):
         run(other, tmp_path, progress=False)

@@ -144,6 +144,11 @@ def _short(v, n: int = 40) -> str:
     return text if len(text) <= n else text[:n - 3] + "..."
 
 
+#: The summary's timings of the chunks a run processed: a rerun that finds every chunk done keeps the last run's (it
+#: had written 0 frames/s over theirs).
+TIMINGS = ("workers", "scheduler", "startup_s", "wall_s", "frames_per_s", "busy_s", "chunks_processed")
+
+
 def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | None = None, nperseg=None,
         truth=None, progress: bool = True) -> dict:
     """Process a recording into ``out``: frames.csv, spectra.csv, peaks.csv, sequence.png
@@ -195,6 +200,10 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
     jf = out / "job.json"
     if jf.exists() and jf.read_text() != ident:
         _start_over_or_refuse(out, jf.read_text(), ident)
+    try:                                             # its timings, for a rerun that finds every chunk done
+        before = json.loads((out / "summary.json").read_text())
+    except (OSError, ValueError):
+        before = {}
     (out / "summary.json").unlink(missing_ok=True)   # not finished until written again
     atomic_write_text(jf, ident)
     def frames_of(c):
@@ -281,6 +290,9 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
                    busy_s=busy, failed_frames={int(k): int(v) for k, v in failed.items()},
                    unprocessed_frames={str(k): v for k, v in lost.items()},
                    provenance=provenance())
+    if not todo and before.get("chunks_processed"):  # nothing done here: the timings of the run that did it
+        summary.update({k: before[k] for k in TIMINGS if k in before},
+                       timings="of the run that processed the chunks (a rerun found them all done)")
     if "n_saturated" in frames:
         from ..real.clipping import CLIPPED_WARN
         per_frame = frames.groupby("frame")[["n_saturated", "clipped_share"]].first()
