@@ -1,4 +1,5 @@
 """Volumes (lf_flame.tomo.volume and 'lf-flame reconstruct --volume'): a dense stack with a prior, end to end."""
+import dataclasses
 import json
 
 import h5py
@@ -38,6 +39,22 @@ def test_the_volumes_resolution_note_names_features_finer_than_the_planes_sample
                          "6.6 mm features > 30 mm apart") and "nan" not in note
 
 
+def test_an_axis_depth_searched_about_an_uncertain_found_depth_is_warned_of(capsys):
+    """On a camera whose found depths are uncertain by more than the axis search's half width (a user's: +-42 mm
+    against 3 mm, the axis 4 mm off among minima that follow the planes' spacing) reconstruct --volume warns that the
+    axis depth is known no better; a well-placed start (or an axis given) is not warned of."""
+    from lf_flame.cli.volume import axis_depth_warning
+    from lf_flame.tomo.axisymmetric import SEARCH_HALF_WIDTH_MM, AxisymmetricVolume
+    axi = AxisymmetricVolume(np.zeros((2, 2)), np.zeros(2), np.zeros(2), np.zeros((1, 2, 2)), 0.1, -3.98, 0.02,
+                             start_uncertainty_mm=42.0)
+    for u, warned in ((42.0, True), (0.3, False), (float("nan"), False)):
+        capsys.readouterr()
+        axis_depth_warning(dataclasses.replace(axi, start_uncertainty_mm=u))
+        err = capsys.readouterr().err
+        assert ("the axis depth is known no better" in err) == warned and (f"+-{u:.2g} mm" in err) == warned
+    assert SEARCH_HALF_WIDTH_MM < 42.0
+
+
 def test_volume_cli_priors_write_the_stack_and_the_axisymmetric_one_wins(volume_raw, tmp_path, capsys):
     capsys.readouterr()
     errs = {}
@@ -45,8 +62,11 @@ def test_volume_cli_priors_write_the_stack_and_the_axisymmetric_one_wins(volume_
         out = tmp_path / f"{prior}.h5"
         assert main(["reconstruct", str(volume_raw), "--volume", "--from", "-2.5", "--to", "2.5", "--step", "0.5",
                      "--prior", prior, "--out", str(out)]) == 0
-        errs[prior], text = _error(capsys)
+        captured = capsys.readouterr()
+        errs[prior] = float(captured.out.split("3-D relative error ")[1].split()[0])
+        text = captured.out
         assert "depth resolution of this stack" in text and "beyond the stack" not in text
+        assert "the axis depth is known no better" not in captured.err      # found within a fraction of a mm
         with h5py.File(out) as f:
             np.testing.assert_allclose(f["depths_mm"][...], np.arange(-2.5, 2.51, 0.5))
             assert f["planes"].shape == (11, 41, 41) and f.attrs["volume"]
@@ -58,6 +78,7 @@ def test_volume_cli_priors_write_the_stack_and_the_axisymmetric_one_wins(volume_
             if prior == "axisymmetric":
                 assert abs(settings["axis_z_mm"]) < 0.5 and abs(settings["axis_x_mm"]) < 0.2   # the sheath's axis: 0, 0
                 assert settings["beyond_field"] is False                     # the sheath stands inside the field
+                assert 0 < settings["start_uncertainty_mm"] < 3.0            # its search's start well placed
             assert len(json.loads(f.attrs["edge_share"])) == 11
             misfit = json.loads(f.attrs["misfit"])       # the stack holds the sheath: no light left unexplained
             assert misfit["misfit"] < 0.05 and misfit["relative_residual"] < 0.1, misfit

@@ -5,6 +5,7 @@ the depths holding emission are found first (:mod:`lf_flame.tomo.depth`).
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
@@ -216,6 +217,21 @@ def volume_reconstruct(a):
           f"{a.prior} ({rec.solver}), solved in {rec.time_s:.1f} s{axis}{score} -> {out}"
           + ("" if fig is None else f", {fig}"))
     print(resolution_note(table, res.conditions[0], float(rec.depths_mm[-1] - rec.depths_mm[0])))
+    if axi is not None:
+        axis_depth_warning(axi)
+
+
+def axis_depth_warning(axi) -> None:
+    """Where the axisymmetric prior searched its axis's depth about a found depth less certain than the search is
+    wide (:attr:`lf_flame.tomo.axisymmetric.AxisymmetricVolume.start_uncertainty_mm`): one warning (stderr) that the
+    axis depth is known no better than that uncertainty."""
+    from ..tomo.axisymmetric import SEARCH_HALF_WIDTH_MM
+    u = axi.start_uncertainty_mm
+    if u > SEARCH_HALF_WIDTH_MM:
+        print(f"warning: the axis's depth {axi.axis_z_mm:+.2f} mm was searched within {SEARCH_HALF_WIDTH_MM:g} mm of "
+              f"the flame's found depth, itself uncertain by +-{u:.2g} mm on this camera: the axis depth is known no "
+              "better than that (the residual's minima there follow the planes' spacing, not the flame)",
+              file=sys.stderr)
 
 
 def _subsamples(text: str):

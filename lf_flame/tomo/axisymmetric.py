@@ -94,6 +94,12 @@ class AxisymmetricVolume:
     beyond_field : bool
         Whether the light from beyond the field was modelled (``solve_axisymmetric``'s
         ``beyond_field``); ``heights_mm`` then span the widened grid.
+    start_uncertainty_mm : float
+        Where the axis depth was searched about the depth found with the most votes: that depth's uncertainty
+        (:class:`~lf_flame.tomo.depth.FoundDepths`' ``uncertainty_mm``, mm); NaN otherwise. Wider than the search's
+        half width (:data:`SEARCH_HALF_WIDTH_MM`), the camera does not place the flame well enough in depth for the
+        search: its residual's minima are then those of the planes' spacing (a user's camera of 30 mm depth
+        resolution: axis 4 mm off, no word).
     """
 
     emission: np.ndarray
@@ -107,6 +113,7 @@ class AxisymmetricVolume:
     time_s: float = float("nan")
     lam: float = float("nan")
     beyond_field: bool = False
+    start_uncertainty_mm: float = float("nan")
 
 
 def _check(views, op, fit):
@@ -223,7 +230,7 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
             rmax = 1.2 * (max(x0 - left, right - x0) if cut else 0.5 * (right - left))   # cut: the far side's
         return RevolveOperator(model, x0, z0, rmax, dr_mm)
 
-    search = []
+    search, start_unc = [], float("nan")
     # on the widened grid the light beyond the field is known through the fills alone: each trial, and the final
     # solve, start from the best trial's e (from zero, 3 fills leave it dark and bias the residual's minimum)
     warm = {}
@@ -234,6 +241,7 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
             if not len(found.depths_mm):
                 raise ValueError("find_depths found no flame in the views: give axis_z_mm or start_z_mm")
             start_z_mm = float(found.depths_mm[np.argmax(found.weight)])     # the flame's: the most votes
+            start_unc = float(found.uncertainty_mm[np.argmax(found.weight)])
 
         def trial(z0):
             rev = revolve_at(z0)
@@ -262,4 +270,4 @@ def solve_axisymmetric(views, op, fit=None, *, axis_x_mm: float | None = None, a
     return AxisymmetricVolume(emission=e.reshape(rev.dims), radii_mm=rev.radii_mm, heights_mm=rev.heights_mm,
                               volume=volume, axis_x_mm=rev.axis_x_mm, axis_z_mm=float(axis_z_mm), residual=float(res),
                               search=search, time_s=time.perf_counter() - t0, lam=float(lam),
-                              beyond_field=bool(beyond_field))
+                              beyond_field=bool(beyond_field), start_uncertainty_mm=start_unc)

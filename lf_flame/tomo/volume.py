@@ -142,7 +142,7 @@ def solve_volume(views, camera, near_mm: float, far_mm: float, step_mm: float, p
         sample = tuple((h / op.dims[1], w / op.dims[2]) for h, w in op.sizes_mm)
         rec = Reconstruction(axi.volume, tuple(float(d) for d in depths), sample, "axisymmetric",
                              dict(prior=prior, axis_x_mm=axi.axis_x_mm, axis_z_mm=axi.axis_z_mm, lam=axi.lam,
-                                  beyond_field=axi.beyond_field,
+                                  beyond_field=axi.beyond_field, start_uncertainty_mm=axi.start_uncertainty_mm,
                                   saturation="mask" if np.ndim(saturation) else saturation, n_saturated=int((~fit).sum()),
                                   search=[list(s) for s in axi.search]),
                              np.array([axi.residual]), axi.time_s)
