@@ -546,3 +546,18 @@ def test_slope_calibration_searches_beyond_the_shapes_analytic_slopes(tmp_path, 
     assert main(args) == 0
     slopes = json.loads((tmp_path / "s.json").read_text())["slopes"]
     assert slopes[0] == pytest.approx(cam.slope_for_depth(20.0), abs=0.1) and slopes[0] > 3.5, slopes
+
+
+def test_simulate_refuses_placing_what_a_scene_draws_itself(tmp_path, capsys):
+    """``simulate --scene depth --depth 50`` had rendered the depth scene with its drawn depths, the --depth ignored
+    in silence; --depth, --x and --y place a point, and --depth and --x a volume's axis: elsewhere refused, naming
+    them. A point at the defaults is still rendered."""
+    from lf_flame.cli import main
+    out = str(tmp_path / "s.npz")
+    for argv, named in ((["--scene", "depth", "--depth", "50"], "--depth places"),
+                        (["--scene", "volume", "--y", "2"], "--y places"),
+                        (["--scene", "flame", "--x", "1", "--depth", "2"], "--depth and --x place")):
+        capsys.readouterr()
+        assert main(["simulate", *argv, "--rays-per-pixel", "1", "--out", out]) == 2
+        assert named in capsys.readouterr().err, argv
+    assert main(["simulate", "--scene", "point", "--rays-per-pixel", "1", "--out", out]) == 0

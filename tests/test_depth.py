@@ -259,12 +259,15 @@ def test_a_camera_focused_metres_away_searches_its_depths(tmp_path, capsys):
 
 def test_planes_given_closer_than_the_merge_depth_are_warned_of(capsys):
     """Planes given 0.001 mm apart (a flame's emission split 50/50 between them, without a word) are warned of,
-    naming both and the camera's merge depth; planes 1 mm or more apart on the paper's camera are not; a plane
-    given twice is still refused."""
+    naming both and the camera's merge depth, and asked whether they were metres where every one lies within 1 mm
+    of focus (a user's 0.091, 0.101, -0.068 had been warned of as close planes alone); planes 1 mm or more apart on
+    the paper's camera are not; a plane given twice is still refused."""
     from lf_flame.cli.planes import check_planes
     check_planes(PAPER_CAMERA, [16.46, 8.15, 8.151, 0.0])
     out = capsys.readouterr().out
-    assert "+8.15 and +8.151 mm lie closer than 1 mm" in out and "split" in out
+    assert "+8.15 and +8.151 mm lie closer than 1 mm" in out and "split" in out and "metres" not in out
+    check_planes(PAPER_CAMERA, [0.02, 0.01, -0.01])                  # +20, +10 and -10 mm given in metres
+    assert "were these given in metres?" in capsys.readouterr().out
     check_planes(PAPER_CAMERA, [20.0, 10.0, 1.0, 0.0, -10.0])
     assert capsys.readouterr().out == ""
     with pytest.raises(ValueError, match="more than once"):

@@ -24,6 +24,14 @@ def cmd_simulate(a):
     from ..simulate import tracer as simulate
     from ..optics.camera import PAPER_CAMERA
     cam = camera_config(a.data_config) if a.data_config else PAPER_CAMERA
+    placed = [f"--{k}" for k in ("depth", "x", "y") if getattr(a, k) is not None]
+    allowed = {"point": ("--depth", "--x", "--y"), "volume": ("--depth", "--x")}.get(a.scene, ())
+    if any(k not in allowed for k in placed):     # they had been ignored in silence
+        raise ValueError(f"{' and '.join(k for k in placed if k not in allowed)} place"
+                         f"{'s' * (sum(k not in allowed for k in placed) == 1)} a point (--depth, --x, --y) or a "
+                         f"volume's axis (--depth, --x), not the {a.scene} scene's objects, which it draws itself "
+                         "(--seed varies them)")
+    a.depth, a.x, a.y = (0.0 if v is None else v for v in (a.depth, a.x, a.y))
     record = dict(kind=a.scene, seed=a.seed, nominal=a.nominal, depth_mm=a.depth, y_mm=a.y, x_mm=a.x)
     if a.depth is not None and not cam.object_distance_mm(a.depth) > 0:
         raise ValueError(f"--depth {a.depth:+g} mm puts the object {cam.object_distance_mm(a.depth):.4g} mm from the "
@@ -394,10 +402,11 @@ def add_parsers(sub) -> None:
     s.add_argument("--bit-depth", type=_bit_depth, help="quantise the raw image to this many bits, 1-32 (default: "
                    "not quantised)")
     s.add_argument("--temperature", type=finite, help="furnace scene: the blackbody's temperature (K)")
-    s.add_argument("--depth", type=finite, default=0.0, help="point and volume scenes: depth offset (mm)")
-    s.add_argument("--y", type=finite, default=0.0, help="point scene: height (mm)")
-    s.add_argument("--x", type=finite, default=0.0, help="point and volume scenes: lateral position (mm, x "
-                   "right; a volume's axis)")
+    s.add_argument("--depth", type=finite, default=None, help="point and volume scenes: depth offset (mm; "
+                   "default 0)")
+    s.add_argument("--y", type=finite, default=None, help="point scene: height (mm; default 0)")
+    s.add_argument("--x", type=finite, default=None, help="point and volume scenes: lateral position (mm, x "
+                   "right; a volume's axis; default 0)")
     s.set_defaults(func=cmd_simulate)
 
     s = sub.add_parser("refocus", help="refocus a raw image (or decoded views) at one or more slopes")

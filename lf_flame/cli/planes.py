@@ -68,9 +68,11 @@ def check_planes(cam, depths) -> None:
     close = [(x, y) for x, y in zip(d, d[1:]) if y - x < merge]
     if close:
         pairs = ", ".join(f"{x:+.4g} and {y:+.4g}" for x, y in close)
+        metres = len(d) > 1 and max(abs(v) for v in d) < 1.0 <= merge
         print(f"warning: planes at {pairs} mm lie closer than {merge:.3g} mm, the depth at which this camera's found "
               "depths merge into one plane: the data barely tell them apart, and a flame's emission splits between "
-              "them (give one plane there)")
+              "them (give one plane there)"
+              + ("; depths are millimetres from the focus distance: were these given in metres?" * metres))
 
 
 def found_planes(lf, views=None, search_range=None):
