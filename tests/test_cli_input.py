@@ -323,7 +323,7 @@ def test_refocus_and_simulate_refuse_planes_no_camera_images(tmp_path, capsys):
     front of the focus distance) is refused naming the depth (it stopped in a ZeroDivisionError)."""
     from lf_flame.optics.camera import PAPER_CAMERA, imaging_range_mm
     views = tmp_path / "raw.npy"                                       # the paper camera's raw image
-    np.save(views, np.ones(PAPER_CAMERA.sensor_shape, np.float32))
+    np.save(views, np.random.default_rng(0).uniform(0.1, 0.5, PAPER_CAMERA.sensor_shape).astype(np.float32))
     lo, hi = imaging_range_mm(PAPER_CAMERA)
     for planes, shown in ((["--depth", "500", "--depth", "0"], f"planes at +500 mm lie outside what this camera can "
                            f"refocus ({lo:+.4g} .. {hi:+.4g} mm"), (["--slope", "40"], "planes at slopes +40 lie outside"),
@@ -561,3 +561,18 @@ def test_simulate_refuses_placing_what_a_scene_draws_itself(tmp_path, capsys):
         assert main(["simulate", *argv, "--rays-per-pixel", "1", "--out", out]) == 2
         assert named in capsys.readouterr().err, argv
     assert main(["simulate", "--scene", "point", "--rays-per-pixel", "1", "--out", out]) == 0
+
+
+def test_slopes_and_refocus_warn_of_an_over_exposed_or_uniform_capture(tmp_path, capsys):
+    """A capture clipped throughout had its slopes reported as a flame filling the field, with only a black level's
+    warning: slopes and refocus warn of the clipped pixels and of views that carry no structure, as decode,
+    reconstruct and profiles do."""
+    from lf_flame.cli import main
+    from lf_flame.optics.camera import PAPER_CAMERA
+    np.save(tmp_path / "sat.npy", np.ones(PAPER_CAMERA.sensor_shape, np.float32))
+    for argv in (["slopes", str(tmp_path / "sat.npy"), "--out-prefix", str(tmp_path / "s")],
+                 ["refocus", str(tmp_path / "sat.npy"), "--depth", "0", "--out", str(tmp_path / "r.npz")]):
+        capsys.readouterr()
+        main(argv)
+        out = capsys.readouterr()
+        assert "of the lit pixels are clipped" in out.out + out.err and "carry no structure" in out.err, argv

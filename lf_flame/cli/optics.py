@@ -126,6 +126,10 @@ def views_and_camera(a):
         from ..real.views_file import load_views
         return load_views(src)[0], None, None, None
     lf = light_field(a)
+    from .profiles import structure_warning
+    from .real import overexposure_warning
+    overexposure_warning(lf.over_exposure())     # as decode and reconstruct warn of it
+    structure_warning(lf.views, src, "the planes and slopes found in it are no flame's")
     return lf.views, lf.camera, lf.lit_views(), lf.frame
 
 

@@ -96,11 +96,12 @@ def _profiles_input(a):
 NO_STRUCTURE_FLAG = "no-structure"
 
 
-def structure_warning(views, source) -> bool:
+def structure_warning(views, source, found: str = f"what is measured on its planes is none (flagged "
+                                                  f"{NO_STRUCTURE_FLAG})") -> bool:
     """Where a light field's views carry no structure (:func:`lf_flame.real.black_level.view_spread` under
     :data:`~lf_flame.real.black_level.FLAT_SPREAD`: a uniform light field, a glare, a blank or washed-out capture),
-    one warning (stderr) that what is measured on its planes is no flame, and True (its measurements are flagged
-    :data:`NO_STRUCTURE_FLAG`); else False."""
+    one warning (stderr) that what is ``found`` in it is no flame (``profiles``: its measurements are flagged
+    :data:`NO_STRUCTURE_FLAG`), and True; else False."""
     import sys
     from ..real.black_level import FLAT_SPREAD, view_spread
     spread = view_spread(views)
@@ -108,8 +109,7 @@ def structure_warning(views, source) -> bool:
         return False
     print(f"warning: {source}'s views carry no structure (each varies by {spread:.2g} of its level across its "
           f"lenslets, under {FLAT_SPREAD:g}): a uniform light field (a glare, a blank or washed-out capture) holds no "
-          f"flame, and what is measured on its planes is none (flagged {NO_STRUCTURE_FLAG}); check the capture and its "
-          "exposure",
+          f"flame, and {found}; check the capture and its exposure",
           file=sys.stderr)
     return True
 
