@@ -3,7 +3,6 @@ diagnostics over time and their flicker spectra (:mod:`lf_flame.recordings`), se
 """
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
