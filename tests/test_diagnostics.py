@@ -540,33 +540,14 @@ def test_on_a_plane_of_emission_the_flame_is_the_region_with_the_most_light_not_
         measure_flame(plane, CAM, obj["depth_offset_mm"], pick="largest")
 
 
-def test_profiles_measures_each_flame_found_apart_on_one_plane(tmp_path):
-    """Two flames side by side at 0 and +0.05 mm (their depths found and merged onto one plane, each in its own
-    columns): profiles gives each its row, measured in its own columns (it measured the plane's sharpest region
-    alone, and the 13 mm flame had no row); the other planes keep one row each."""
-    import pandas as pd
-
-    from lf_flame.cli import main
-    from lf_flame.optics.camera import PAPER_CAMERA
-    from lf_flame.simulate import tracer
-    from lf_flame.simulate.scenes import flame_scene
-    scene = flame_scene(PAPER_CAMERA, np.random.default_rng(0), regime="paper", depths_mm=(20.0, 10.0, 0.05, 0.0))
-    np.savez(tmp_path / "two.npz", raw=tracer.render(PAPER_CAMERA, scene, 4, 0), camera=PAPER_CAMERA.to_json())
-    assert main(["profiles", str(tmp_path / "two.npz"), "--no-figure", "--out", str(tmp_path / "p")]) == 0
-    df = pd.read_csv(tmp_path / "p.csv")
-    shared = df[df.depth_mm.abs() < 1.0].sort_values("centroid_x_mm")
-    assert len(df) == 4 and sorted(shared.flame) == [0, 1], df
-    near = sorted(scene.objects[2:], key=lambda o: o["centre_x_mm"])
-    for (_, row), o in zip(shared.iterrows(), near):
-        assert abs(row.height_mm - o["height_mm"]) < 0.3 and abs(row.centroid_x_mm - o["centre_x_mm"]) < 0.3, df
-    assert (df[df.depth_mm.abs() >= 1.0].flame == 0).all()
-
-
-def test_profiles_measures_each_flame_side_by_side_on_a_plane_given_by_depth(tmp_path):
-    """The same two flames side by side at 0 and +0.05 mm, the planes given by --depth (no depth search to tell the
-    flames apart): the plane of emission is split into its flames' column bands, each measured and paired with its
-    own flame's truth by its place across the field (the plane's brightest flame had been its only row, and a
-    truth read by depth alone had given both rows one flame's height)."""
+@pytest.mark.parametrize("planes", [["--depths", "auto"], ["--depth", "20", "--depth", "10", "--depth", "0.02"]])
+def test_profiles_measures_each_flame_side_by_side_on_one_plane(tmp_path, planes):
+    """Two flames side by side at 0 and +0.05 mm, one plane for both: their depths found (and merged onto one plane,
+    each in its own columns), or the planes given by --depth (no depth search to tell them apart: the plane of
+    emission is split into its flames' column bands). profiles gives each its row, measured in its own columns and
+    paired with its own flame's truth by its place across the field (it measured the plane's sharpest or brightest
+    region alone, the 13 mm flame without a row, and a truth read by depth alone gave both rows one flame's height);
+    the other planes keep one row each."""
     import json
 
     import pandas as pd
@@ -578,8 +559,7 @@ def test_profiles_measures_each_flame_side_by_side_on_a_plane_given_by_depth(tmp
     scene = flame_scene(PAPER_CAMERA, np.random.default_rng(0), regime="paper", depths_mm=(20.0, 10.0, 0.05, 0.0))
     np.savez(tmp_path / "two.npz", raw=tracer.render(PAPER_CAMERA, scene, 4, 0), camera=PAPER_CAMERA.to_json(),
              objects=json.dumps(scene.objects, default=float))
-    argv = ["profiles", str(tmp_path / "two.npz"), "--no-figure", "--out", str(tmp_path / "p")]
-    assert main(argv + ["--depth", "20", "--depth", "10", "--depth", "0.02"]) == 0
+    assert main(["profiles", str(tmp_path / "two.npz"), *planes, "--no-figure", "--out", str(tmp_path / "p")]) == 0
     df = pd.read_csv(tmp_path / "p.csv")
     shared = df[df.depth_mm.abs() < 1.0].sort_values("centroid_x_mm")
     assert len(df) == 4 and sorted(shared.flame) == [0, 1], df
@@ -587,6 +567,7 @@ def test_profiles_measures_each_flame_side_by_side_on_a_plane_given_by_depth(tmp
     for (_, row), o in zip(shared.iterrows(), near):
         assert abs(row.height_mm - o["height_mm"]) < 0.3 and abs(row.centroid_x_mm - o["centre_x_mm"]) < 0.3, df
         assert row.height_mm_true == pytest.approx(o["height_mm"], abs=0.01), df
+    assert (df[df.depth_mm.abs() >= 1.0].flame == 0).all()
 
 
 def test_separate_flame_bands_take_regions_apart_by_columns_that_hold_their_share_of_the_light():
