@@ -129,6 +129,11 @@ def cmd_decode(a):
     negative = negative_note(views, str(a.raw))
     if negative:
         print(f"warning: {negative}")
+    if white is not None:
+        from ..real.decoding import off_grid_note
+        off = off_grid_note(raw, white, dark)
+        if off:
+            print(f"warning: {a.raw}: {off}")
     if a.white and white is not None:               # a white image given in place of the calibration's: unchecked
         from ..real.black_level import view_spread
         from ..real.decoding import white_samples

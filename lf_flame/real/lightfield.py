@@ -557,6 +557,11 @@ def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None, sensor=N
     level = found_level(raw)
     lattice, channels, k, hit, bad = decode_repaired(raw, cal, white, dark, sensor, level, n_views=n_views,
                                                        bin_views=bin_views)
+    if white is not None:
+        from .decoding import off_grid_note
+        off = off_grid_note(raw, white, dark)
+        if off:
+            warnings.warn(f"{src}: {off}", stacklevel=2)
     meta = {} if sensor is None else {"sensor": json.dumps(dict(name=sensor.name, pattern=sensor.pattern,
                                                                 phase=list(sensor.phase)))}
     hexagonal = cal.layout == "hex"
