@@ -574,7 +574,6 @@ def _decode_here(raw, src, cam, cal, n_views, cam_file, bin_views=None, sensor=N
 
 def _read_raw(p: Path):
     """A raw image, the camera stored beside it (or None) and its other records (JSON strings)."""
-    import json
     if not p.is_file():
         raise FileNotFoundError(f"raw image file not found: {p}")
     from ..config import reading
