@@ -624,6 +624,27 @@ def test_a_folders_missing_or_unreadable_frame_is_a_failed_row_at_its_own_time(s
     assert numbered_gaps(["x.npy", "y.npy", "z.npy"]) == ("x.npy", "y.npy", "z.npy")
 
 
+def test_a_frame_written_only_in_part_is_a_failed_row(small_recording, tmp_path):
+    """A frame whose lower half reads 0 (a dropped transfer) had been measured as any other, heights 2-3 mm short
+    without a flag: where the frame before holds light in those rows it is a failed row naming why; a frame black
+    throughout stays a frame (the flame out), and a frame whose bottom rows were dark before is no cut."""
+    from lf_flame.recordings.job import truncated_rows
+    seq, frames = small_recording
+    cut = frames.copy()
+    half = frames.shape[1] // 2
+    cut[5, half:] = 0.0
+    _write_h5(tmp_path / "cut.h5", cut, fps=100.0)
+    src, _ = open_source(tmp_path / "cut.h5")
+    job = simulated_job(seq, SMALL_CAMERA, src, route="shift-sum", chunk=10)[0]
+    run(job, tmp_path / "out", progress=False)
+    table = pd.read_csv(tmp_path / "out" / "frames.csv", keep_default_na=False, na_values=[""])
+    failed = table[table.failure.fillna("") != ""]
+    assert set(failed.frame) == {5} and failed.failure.str.contains("written only in part").all(), failed
+    assert truncated_rows(cut[5], frames[4]) == frames.shape[1] - half
+    assert truncated_rows(np.zeros_like(frames[0]), frames[4]) == 0 and truncated_rows(cut[5], None) == 0
+    assert truncated_rows(cut[5], cut[5]) == 0                      # dark there before too: no cut
+
+
 def test_a_uniform_glare_frame_is_a_failed_row_not_spectra_input(small_recording, tmp_path):
     """A frame set to one value throughout (a glare: 0.46 of full scale) had been measured as flames on three of four
     planes (heights about 5.2 mm flagged merged;cut;no-edge), its intensities in the spectra (plane 2's amplitude 11

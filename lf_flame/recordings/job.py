@@ -540,8 +540,9 @@ def process_chunk(c: int, job: SequenceJob) -> dict:
     spent reading (or rendering), refocusing and measuring.
 
     A folder's frame that cannot be read (a truncated file, a missing one:
-    :func:`lf_flame.recordings.sources.tolerant_frames`) gets a row per plane with :data:`UNPROCESSED_FRAME` and
-    why. A frame that holds NaN or inf (a corrupt read, a dropped packet) gets a row per plane with
+    :func:`lf_flame.recordings.sources.tolerant_frames`), or one written only in part (its last rows 0 where the
+    chunk's frame before holds light, :func:`truncated_rows`), gets a row per plane with :data:`UNPROCESSED_FRAME`
+    and why. A frame that holds NaN or inf (a corrupt read, a dropped packet) gets a row per plane with
     :data:`NONFINITE_FRAME` as its failure, and the frames after it go on (an admm chunk's next frame
     continues the solve before it). A frame that cannot be processed otherwise (another sensor size, every sample
     clipped, views without structure: a uniform frame, :func:`lf_flame.real.black_level.view_spread`, a solve that
@@ -550,6 +551,38 @@ def process_chunk(c: int, job: SequenceJob) -> dict:
     frame solved from scratch); :func:`lf_flame.recordings.runner.run` refuses a recording whose every frame failed.
     """
     return _process_frames(job, c * job.chunk, min((c + 1) * job.chunk, job.source.n_frames))
+
+
+#: A frame whose last rows, at least this share of its height, read 0 where the frame before holds light is a frame
+#: written only in part (:func:`truncated_rows`): a user's frame with its lower half 0 had been measured as any other,
+#: heights 2-3 mm short, no flag.
+TRUNCATED_ROWS = 0.05
+
+
+def truncated_rows(raw: np.ndarray, before: np.ndarray | None) -> int:
+    """How many of a frame's last rows read exactly 0 where the frame ``before`` it holds light (above a tenth of its
+    99.9th percentile), where they are at least :data:`TRUNCATED_ROWS` of its height; else 0 (also for a frame black
+    throughout, without a frame before, or one of another shape).
+
+    Parameters
+    ----------
+    raw, before : ndarray of shape (H, W), or None for ``before``
+
+    Returns
+    -------
+    int
+    """
+    if before is None or np.shape(before) != np.shape(raw) or np.ndim(raw) != 2:
+        return 0
+    zero = ~np.any(np.asarray(raw) != 0, axis=1)
+    if zero.all():                               # a black frame is a frame (the flame out, the shutter shut)
+        return 0
+    n = int(np.argmin(zero[::-1]))               # trailing rows that read 0 throughout
+    if n < max(1, TRUNCATED_ROWS * len(zero)):
+        return 0
+    b = np.asarray(before, np.float64)
+    top = np.percentile(b, 99.9)
+    return n if top > 0 and np.any(b[-n:] > 0.1 * top) else 0
 
 
 #: The failure of every plane of a frame that holds NaN or inf (:func:`process_chunk`).
@@ -567,6 +600,7 @@ def _process_frames(job: SequenceJob, start: int, stop: int) -> dict:
     t = dict(read_s=0.0, refocus_s=0.0, measure_s=0.0)
     rows = []
     state = {}                                   # admm: the solve carried from frame to frame within the chunk
+    previous = None                              # the chunk's frame before (a chunk's first has none here)
     from .sources import tolerant_frames
     raws = tolerant_frames(job.source, start, stop)
     for i in range(start, stop):
@@ -583,7 +617,12 @@ def _process_frames(job: SequenceJob, start: int, stop: int) -> dict:
             rows += [dict(frame=i, time_s=i / job.fps, plane=k, depth_mm=d, failure=NONFINITE_FRAME)
                      for k, d in enumerate(job.depths_mm)]
             continue
+        before, previous = previous, raw
         try:
+            cut = truncated_rows(raw, before)
+            if cut:
+                raise ValueError(f"its last {cut} rows read 0 where the frame before holds light: a frame written only "
+                                 "in part (a dropped transfer)")
             views, clipped = job.frame(raw)
             spread = view_spread(job._square(views))
             if spread is not None and spread < FLAT_SPREAD:
