@@ -132,7 +132,7 @@ def negative_note(views, source: str) -> str | None:
     str or None
     """
     v = np.asarray(views)
-    if not v.size:
+    if not v.size or not float(v.min()) < 0:      # no sample below zero: no percentile taken (every read pays this)
         return None
     level = float(np.percentile(v, 99.9))
     n = int(np.count_nonzero(v < -NEGATIVE_SHARE * level)) if level > 0 else 0
