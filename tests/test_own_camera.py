@@ -621,7 +621,7 @@ def test_profiles_measure_the_flames_of_decoded_views(tmp_path, capsys, monkeypa
     assert np.allclose(again.height_mm, df.height_mm, atol=0.02), (again, df)
     capsys.readouterr()                  # no planes given: the depths found in the views, as reconstruct finds them
     assert run("profiles", tmp_path / "v.h5", "--camera", EXAMPLE, "--out", tmp_path / "found") == 0
-    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.real.readers import read_light_field
     lo, hi = imaging_range_mm(read_light_field(tmp_path / "v.h5", EXAMPLE).camera)     # the decoded views' camera's
     assert f"found 3 depths (searched {lo:+.1f} .. {hi:+.1f} mm" in capsys.readouterr().out
     found = pd.read_csv(tmp_path / "found.csv")
@@ -667,7 +667,7 @@ def test_an_integer_tiff_capture_with_a_dark_frame_is_decoded_on_the_fly_as_deco
     the command line's image reader, which scales integers to [0, 1], made every view dark ("views hold no
     light")."""
     from lf_flame.cli._io import _raw_reader
-    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.real.readers import read_light_field
     from lf_flame.real.views_file import load_views
     _offset_captures(tmp_path)
     assert cli.main(["calibrate", str(tmp_path / "white.tif"), "--dark", str(tmp_path / "dark.tif"),
@@ -819,7 +819,7 @@ def test_a_stopped_down_cameras_depths_are_found_without_its_rim_views():
     (0.009-0.010 here; with every view of the inscribed circle 0.059-0.065, the depths 2.5 mm short of 21 mm)."""
     from lf_flame.cli.planes import found_planes
     from lf_flame.real.calibration import calibrate
-    from lf_flame.real.lightfield import decode_capture
+    from lf_flame.real.readers import decode_capture
     from lf_flame.refocus.shift_and_sum import aperture_mask
     from lf_flame.simulate.scenes_depth import camera_depth_scene
     import tomllib
@@ -844,7 +844,7 @@ def test_a_capture_in_other_units_than_its_white_image_is_warned_of(tmp_path, ca
     that read its views warn that the two files are likely in different units (its planes had come out 65535 times
     too small on a user's 16-bit white image, without a word); the same capture in the white image's units does
     not."""
-    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.real.readers import read_light_field
     _, raw, _ = _offset_captures(tmp_path)
     np.save(tmp_path / "raw.npy", raw)
     assert cli.main(["calibrate", str(tmp_path / "white.tif"), "--out", str(tmp_path / "cal.json")]) == 0
@@ -869,24 +869,33 @@ def test_a_capture_in_other_units_than_its_white_image_is_warned_of(tmp_path, ca
     assert "1/257" in capsys.readouterr().out
 
 
+def _decode_warnings(folder, capsys, white, captures: dict, phrase: str) -> dict:
+    """Each capture (name -> raw image) decoded with the calibration of ``white`` (saved as ``white.npy``,
+    ``cal.json``, the captures under their names, the views as NAME.h5): whether decode printed ``phrase``."""
+    np.save(folder / "white.npy", white)
+    assert cli.main(["calibrate", str(folder / "white.npy"), "--out", str(folder / "cal.json")]) == 0
+    printed = {}
+    for name, raw in captures.items():
+        np.save(folder / name, raw)
+        capsys.readouterr()
+        assert cli.main(["decode", str(folder / name), "--calibration", str(folder / "cal.json"),
+                         "--out", str(folder / f"{name}.h5")]) == 0
+        printed[name] = phrase in capsys.readouterr().out
+    return printed
+
+
 def test_samples_far_below_zero_are_warned_of(tmp_path, capsys):
     """A block of pixels at -1 (corrupt, or a dark frame brighter than the capture) had decoded into views at -0.5
     without a word and been taken for three flames by the residual's search: decode and the commands reading the
     views warn of samples below -0.1 of the level; the capture's own noise does not reach it."""
-    from lf_flame.real.lightfield import from_raw, read_light_field
+    from lf_flame.real.lightfield import from_raw
+    from lf_flame.real.readers import read_light_field
     white, raw, _ = _offset_captures(tmp_path)
-    np.save(tmp_path / "white.npy", white)
     bad = raw.copy()
     r, c = np.unravel_index(np.argmax(raw), raw.shape)
     bad[r - 2:r + 3, c - 2:c + 3] = -1.0
-    np.save(tmp_path / "bad.npy", bad)
-    np.save(tmp_path / "raw.npy", raw)
-    assert cli.main(["calibrate", str(tmp_path / "white.npy"), "--out", str(tmp_path / "cal.json")]) == 0
-    for name, warned in (("raw.npy", False), ("bad.npy", True)):
-        capsys.readouterr()
-        assert cli.main(["decode", str(tmp_path / name), "--calibration", str(tmp_path / "cal.json"),
-                         "--out", str(tmp_path / f"{name}.h5")]) == 0
-        assert ("read below -0.1 of its level" in capsys.readouterr().out) == warned, name
+    assert _decode_warnings(tmp_path, capsys, white, {"raw.npy": raw, "bad.npy": bad},
+                            "read below -0.1 of its level") == {"raw.npy": False, "bad.npy": True}
     with pytest.warns(UserWarning, match="read below -0.1"):
         read_light_field(tmp_path / "bad.npy.h5", EXAMPLE)
     from lf_flame.optics.camera import PlenopticCamera
@@ -902,17 +911,11 @@ def test_a_capture_off_its_white_images_grid_is_warned_of(tmp_path, capsys):
     or transposed on a square sensor: a user's had decoded without a word, its views mixing neighbouring lenslets,
     phantom depths from its slopes) lights pixels where the white image is dark: decode and the commands decoding
     on the fly warn; the capture in place does not (0.1 % of its lit pixels there, the off ones 24-38 %)."""
-    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.real.readers import read_light_field
     white, raw, _ = _offset_captures(tmp_path)
-    np.save(tmp_path / "white.npy", white)
-    np.save(tmp_path / "raw.npy", raw)
     half = int(round(load_camera_file(EXAMPLE).grid_pitch / 2))
-    np.save(tmp_path / "off.npy", np.roll(raw, (half, half), axis=(0, 1)))
-    assert cli.main(["calibrate", str(tmp_path / "white.npy"), "--out", str(tmp_path / "cal.json")]) == 0
-    for name, warned in (("raw.npy", False), ("off.npy", True)):
-        capsys.readouterr()
-        assert cli.main(["decode", str(tmp_path / name), "--calibration", str(tmp_path / "cal.json"),
-                         "--out", str(tmp_path / f"{name}.h5")]) == 0
-        assert ("lie where its white image is dark" in capsys.readouterr().out) == warned, name
+    off = np.roll(raw, (half, half), axis=(0, 1))
+    assert _decode_warnings(tmp_path, capsys, white, {"raw.npy": raw, "off.npy": off},
+                            "lie where its white image is dark") == {"raw.npy": False, "off.npy": True}
     with pytest.warns(UserWarning, match="lie where its white image is dark"):
         read_light_field(tmp_path / "off.npy", EXAMPLE, tmp_path / "cal.json")
