@@ -127,7 +127,7 @@ def run_camera(name, sheet, cache: Path, seeds, rays: int) -> tuple[list, list, 
     from lf_flame.cli._io import _raw_scene, camera_config
     from lf_flame.real.calibration import GridCalibration
     from lf_flame.measure.metrics import own_error
-    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.real.readers import read_light_field
     from lf_flame.simulate import tracer
     from lf_flame.tomo.files import load_found, load_reconstruction
     from lf_flame.tomo.scoring import score_flames

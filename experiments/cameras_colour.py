@@ -166,7 +166,7 @@ def emission_rows(scene_npz: Path, views: Path, cam: Path, noise: str, seed: int
     import h5py
 
     from lf_flame.cli._io import camera_config, colour_scene
-    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.real.readers import read_light_field
     from lf_flame.tomo.files import load_found, load_reconstruction
     from lf_flame.tomo.scoring import score_flames
     rec_file = views.with_name(views.stem + "_rec.h5")
@@ -198,7 +198,7 @@ def offsets_figure(scene_npz: Path, views: Path, cam: Path, depths, path: Path):
 
     from lf_flame.cli.planes import run_reconstruction
     from lf_flame.measure.figures import save_figure
-    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.real.readers import read_light_field
     from lf_flame.temperature.mosaic import monochrome_light_field
     from lf_flame.tomo.truth import bin_planes
     lf = monochrome_light_field(read_light_field(views, cam))
@@ -226,7 +226,7 @@ def main(argv=None):
     import h5py
 
     from lf_flame.optics.camera_file import load_colour_sensor
-    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.real.readers import read_light_field
     from lf_flame.temperature.pyrometry import load_calibration
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", default="results")

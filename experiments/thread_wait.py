@@ -37,7 +37,7 @@ def child(repeats: int) -> None:
     """Solve every light field and print one JSON row per solve."""
     import h5py
 
-    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.real.readers import read_light_field
     from lf_flame.tomo.decoded import fit_data
     from lf_flame.tomo.exact import emission_operator
     from lf_flame.tomo.noise_knobs import admm_subsamples

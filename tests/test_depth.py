@@ -764,7 +764,7 @@ def test_the_misfit_warning_suggests_more_fills_only_while_the_residual_still_fa
     import dataclasses
 
     from lf_flame.cli.fit_notes import misfit_warning
-    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.real.readers import read_light_field
     from lf_flame.refocus.shift_and_sum import views_to_raw
     from lf_flame.tomo.solvers import reconstruct
     np.savez(tmp_path / "planted.npz", raw=views_to_raw(planted[1]), camera=cam.to_json())
@@ -1059,7 +1059,7 @@ def test_flames_side_by_side_two_coarse_slope_steps_apart_are_parted_on_few_view
     smoothed over a bin, had one peak per pair (two depths found, -30 and +49 mm); the votes refined to half a step
     part them: four depths, each within 0.03 lenslets per view of its flame's slope."""
     from lf_flame.cli import main
-    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.real.readers import read_light_field
     toml = tmp_path / "cam8.toml"
     toml.write_text("[main_lens]\nfocal_length_mm = 50.0\nmla_distance_mm = 60.0\n"
                     "[microlens_array]\npitch_um = 79.2\nfocal_length_mm = 1.0\n"

@@ -499,7 +499,7 @@ def test_fills_that_diverge_restart_without_momentum(tmp_path, monkeypatch):
     from pathlib import Path
 
     from lf_flame.cli import main
-    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.real.readers import read_light_field
     from lf_flame.tomo.decoded import fit_data
 
     cam = tmp_path / "colour.toml"

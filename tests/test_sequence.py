@@ -24,7 +24,8 @@ from lf_flame.simulate.scenes_time import flicker_sequence
 from lf_flame.recordings.sources import SimulatedSource, frame_rate, numbered_gaps, open_source, write_frames
 from lf_flame.recordings import job as job_module
 from lf_flame.recordings.flicker import peaks, spectra, unresolved_note
-from lf_flame.recordings.job import process_chunk, simulated_job
+from lf_flame.recordings.chunk import process_chunk
+from lf_flame.recordings.job import simulated_job
 from lf_flame.recordings.runner import run
 
 NOISE = (10_000.0, 5.0, 12)
@@ -628,7 +629,7 @@ def test_a_frame_written_only_in_part_is_a_failed_row(small_recording, tmp_path)
     """A frame whose lower half reads 0 (a dropped transfer) had been measured as any other, heights 2-3 mm short
     without a flag: where the frame before holds light in those rows it is a failed row naming why; a frame black
     throughout stays a frame (the flame out), and a frame whose bottom rows were dark before is no cut."""
-    from lf_flame.recordings.job import truncated_rows
+    from lf_flame.recordings.chunk import truncated_rows
     seq, frames = small_recording
     cut = frames.copy()
     half = frames.shape[1] // 2
@@ -919,7 +920,7 @@ def test_a_colour_recording_is_levelled_as_reconstruct_levels_a_capture(tmp_path
     from lf_flame.cli._io import light_field
     from lf_flame.real.calibration import GridCalibration
     from lf_flame.recordings.job import SequenceJob
-    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.real.readers import read_light_field
     from lf_flame.temperature.mosaic import monochrome_light_field
     cam, d = colour_capture(3, 4, white_rays=4), str(tmp_path)
     whites.clear()                  # calibrate samples the white image for its note of dark lenslets: not a frame's

@@ -527,7 +527,7 @@ def test_a_camera_file_names_its_colour_filter_array(tmp_path):
             load_camera_file(bad)
     # a capture recording another CFA than the camera file names: the file's is used, with a warning naming both
     import warnings as w
-    from lf_flame.real.lightfield import capture_sensor
+    from lf_flame.real.readers import capture_sensor
     record = {"sensor": json.dumps(dict(name="Nikon 5100", pattern="RGGB", phase=[0, 0]))}
     with pytest.warns(UserWarning, match=r"records its colour filter array as RGGB phase \(0, 0\), the camera "
                                          r"file .* names BGGR phase \(1, 0\)"):
@@ -760,7 +760,7 @@ def test_a_colour_captures_emission_is_solved_at_each_samples_own_pixel(tmp_path
     import dataclasses
 
     from lf_flame.cli._io import colour_scene
-    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.real.readers import read_light_field
     from lf_flame.temperature.mosaic import monochrome_light_field
     from lf_flame.tomo.decoded import decoded_plane_truth, fit_data
     from lf_flame.tomo.exact import ExactOperator
@@ -800,7 +800,7 @@ def test_a_raw_colour_capture_decoded_on_the_fly_keeps_its_channels_apart(tmp_pa
     red, green and blue), from the camera file's CFA or the sensor the image stores; reconstruct says how many
     samples it left out of the views' and why (the blue ones among them)."""
     from lf_flame.cli._io import _raw_reader
-    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.real.readers import read_light_field
     cam_file = colour_capture(3, 4)
     decoded = read_light_field(tmp_path / "scene.h5", str(cam_file))
     for camera in (str(cam_file), None):                   # the file's [sensor], else the image's stored record

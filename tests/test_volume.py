@@ -122,7 +122,7 @@ def test_solve_volume_refusals():
 
 def test_the_tv_and_l1_weights_follow_the_noise(volume_raw):
     from lf_flame.cli._io import _raw_reader
-    from lf_flame.real.lightfield import read_light_field
+    from lf_flame.real.readers import read_light_field
     from lf_flame.tomo.defaults import VOLUME_L1, VOLUME_TV
     from lf_flame.tomo.noise_knobs import noise_regime, relative_noise
     lf = read_light_field(volume_raw, raw_reader=_raw_reader)

@@ -364,10 +364,10 @@ def _raw_reader(p):
 
 def light_field(a, path=None, colour: bool = False):
     """The light field of a command's input (``a.raw`` or ``path``) with its ``--camera`` and
-    ``--calibration`` (:func:`lf_flame.real.lightfield.read_light_field`); a colour capture's
+    ``--calibration`` (:func:`lf_flame.real.readers.read_light_field`); a colour capture's
     decoded views as one monochrome light field
     (:func:`lf_flame.temperature.mosaic.monochrome_light_field`) unless ``colour``."""
-    from ..real.lightfield import read_light_field
+    from ..real.readers import read_light_field
     lf = read_light_field(path or a.raw, getattr(a, "camera", None), getattr(a, "calibration", None),
                           views=getattr(a, "views", None), raw_reader=_raw_reader, formats=RAW_FORMATS)
     black_level_warning(lf.unlit_level)

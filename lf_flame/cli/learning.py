@@ -29,7 +29,7 @@ def cmd_dataset(a):
                          "'slopes' of the data config's four depths)") from None
     if "camera" in record:               # the slopes of the camera they were found on (older files record none)
         from ..optics.camera import PlenopticCamera
-        from ..real.lightfield import camera_differences
+        from ..real.readers import camera_differences
         diff = camera_differences(PlenopticCamera.from_dict(record["camera"]), cam)
         if diff:
             raise ValueError(f"{a.slopes} holds the slopes of another camera than {a.data_config}'s ("

@@ -174,8 +174,8 @@ def overexposure_warning(share: float, where: str = "") -> float:
 def colour_sensor(camera, raw):
     """A capture's colour sensor and where it came from: the ``camera`` file's ``[sensor] cfa``, else the sensor
     ``lf-flame simulate`` stored beside the ``raw`` image; (None, "") for a monochrome capture
-    (:func:`lf_flame.real.lightfield.capture_sensor`)."""
-    from ..real.lightfield import capture_sensor
+    (:func:`lf_flame.real.readers.capture_sensor`)."""
+    from ..real.readers import capture_sensor
     from ._io import _raw_meta
     return capture_sensor(camera or None, _raw_meta(raw), str(raw))
 

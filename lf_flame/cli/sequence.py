@@ -59,10 +59,11 @@ def first_frame_depths(source, camera, calibration=None, sensor=None, search_ran
     :func:`lf_flame.cli.planes.found_planes`, :func:`~lf_flame.cli.planes.solve_found`), the frame decoded with
     ``calibration`` where given (``camera`` the real one, ``sensor`` a colour camera's), searched over
     ``search_range`` (``--search-range``; None: what the camera can refocus), with the white image and dark frame
-    ``images`` (:func:`~lf_flame.real.lightfield.decode_capture`'s). A depth the residual's
+    ``images`` (:func:`~lf_flame.real.readers.decode_capture`'s). A depth the residual's
     search saw and did not take is warned of (:func:`~lf_flame.cli.planes.possible_warning`). Returns the depths
     (mm) and the :class:`~lf_flame.tomo.depth.FoundDepths` they are."""
-    from ..real.lightfield import decode_capture, from_raw
+    from ..real.lightfield import from_raw
+    from ..real.readers import decode_capture
     from ..temperature.mosaic import monochrome_light_field
     from .planes import found_planes, possible_warning, solve_found
     raw = np.asarray(next(iter(source.frames(0, 1))), np.float64)
@@ -142,7 +143,7 @@ def cmd_sequence(a):
             from ..config import stored_json
             stored = PlenopticCamera.from_dict(stored_json(attrs["camera"], a.input, "camera"))
             if a.data_config or a.camera:
-                from ..real.lightfield import stored_camera_warning
+                from ..real.readers import stored_camera_warning
                 stored_camera_warning(cam, stored, str(a.input))
             else:
                 cam = stored
@@ -162,7 +163,7 @@ def cmd_sequence(a):
                          "('lf-flame calibrate'), with which each frame is decoded")
     # a colour camera (its camera file's [sensor] cfa, else the recording's record): each frame's channels
     # apart, levelled into one light field
-    from ..real.lightfield import capture_sensor
+    from ..real.readers import capture_sensor
     colour = capture_sensor(a.camera or None, attrs, str(a.input))[0] if a.input else None
     if seq is not None and colour is None and not a.depth and not a.calibration:
         if a.slope and len(a.slope) != len(seq.flames):

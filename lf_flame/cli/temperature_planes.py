@@ -22,7 +22,7 @@ from ._io import _load_raw, _raw_meta, refuse_rgb
 def _sensor(path, a, cal=None):
     """The colour sensor of the image at ``path`` and a phrase saying where it came from: ``--sensor``, ``--cfa`` and
     ``--cfa-phase`` where given, else decoded views' stored sensor, a raw image's camera file's ``[sensor]`` (the CFA
-    its decoding takes: :func:`lf_flame.real.lightfield.capture_sensor`) or stored record, the calibration's, the
+    its decoding takes: :func:`lf_flame.real.readers.capture_sensor`) or stored record, the calibration's, the
     default."""
     from ..optics.colour import DEFAULT_SENSITIVITIES, library_sensor
     meta = _raw_meta(path)

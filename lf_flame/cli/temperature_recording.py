@@ -48,7 +48,8 @@ def temperature_recording(a, source, attrs, cal, sensor, where):
 
     from ..config import atomic_write_text, provenance, removed_on_error
     from ..optics.camera import PAPER_CAMERA, PlenopticCamera
-    from ..real.lightfield import decode_capture, from_raw
+    from ..real.lightfield import from_raw
+    from ..real.readers import decode_capture
     from ..recordings.flicker import peaks, spectra, unresolved_note
     from ..recordings.sources import source_frame_rate
     from .planes import planes_from_args

@@ -8,9 +8,9 @@ grid into its sub-aperture views, with the samples from clipped pixels, once :mo
 the calibration's grid in it, and :mod:`.defects` a sensor's hot and dead pixels, repaired before it decodes;
 :mod:`.views_file` writes and reads those views;
 :mod:`.own_camera` gives the perfect-grid camera of those views (a camera file and the
-calibration checked against each other) and the frame of its planes; :mod:`.lightfield`
+calibration checked against each other) and the frame of its planes; :mod:`.readers`
 reads any light field (a simulated raw image, decoded views, a raw capture decoded on the
-fly) into one value, views with their camera, that every route takes.
+fly) into one value (:mod:`.lightfield`), views with their camera, that every route takes.
 
 Its public names are importable from here (loaded on first use, as scikit-image does).
 """
@@ -19,7 +19,7 @@ import lazy_loader as lazy
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
     submodules=["images", "clipping", "black_level", "lattice", "calibration", "grid_check", "view_grid", "decoding",
-                "defects", "views_file", "own_camera", "lightfield"],
+                "defects", "views_file", "own_camera", "lightfield", "readers"],
     submod_attrs={
         "images": ["load_image", "to_gray", "file_digest", "calibration_image"],
         "clipping": ["PILE_MIN_PIXELS", "PILE_RATIO", "LIT_SHARE", "CLIPPED_WARN", "clipping_pile", "auto_saturation",
@@ -37,8 +37,8 @@ __getattr__, __dir__, __all__ = lazy.attach(
         "views_file": ["save_views", "load_views", "load_clipped", "load_channels", "load_lattice"],
         "own_camera": ["PITCH_WARN", "PITCH_TOLERANCE", "DecodedFrame", "decoded_frame", "views_camera",
                        "nominal_views_camera", "decoded_views_camera"],
-        "lightfield": ["LightField", "from_raw",
-                       "decode_capture",
-                       "from_decoded", "read_light_field", "same_grid", "capture_sensor"],
+        "lightfield": ["LightField", "from_raw", "from_decoded"],
+        "readers": ["RAW_SUFFIXES", "read_light_field", "decode_capture", "capture_sensor", "camera_differences",
+                    "stored_camera_warning", "same_grid"],
     },
 )

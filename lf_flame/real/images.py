@@ -75,7 +75,7 @@ def frame_image(path) -> np.ndarray:
 
 def decoding_images(white, dark) -> tuple:
     """A recording's white image and dark frame (paths or None) read in its frames' units (:func:`frame_image`), as
-    :func:`lf_flame.real.lightfield.decode_capture` takes them: (white, dark), each (H, W) float64 or None."""
+    :func:`lf_flame.real.readers.decode_capture` takes them: (white, dark), each (H, W) float64 or None."""
     return tuple(None if p is None else frame_image(p).astype(np.float64) for p in (white, dark))
 
 

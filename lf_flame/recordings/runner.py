@@ -16,7 +16,8 @@ import numpy as np
 import pandas as pd
 
 from ..config import atomic_write_text, provenance
-from .job import NONFINITE_FRAME, UNPROCESSED_FRAME, SequenceJob, _warm_up, process_chunk
+from .chunk import UNPROCESSED_FRAME, _warm_up, process_chunk
+from .job import NONFINITE_FRAME, SequenceJob
 from .plot import plot_sequence
 from .flicker import SIGNALS, peaks, spectra
 
@@ -53,7 +54,7 @@ def over_exposed_frames(frames: pd.DataFrame) -> list:
 
 def frame_failures(frames: pd.DataFrame) -> dict:
     """The frames that failed as a whole, on every plane (NaN or inf, :data:`~lf_flame.recordings.job.NONFINITE_FRAME`;
-    not processed, :data:`~lf_flame.recordings.job.UNPROCESSED_FRAME`), each with its failure.
+    not processed, :data:`~lf_flame.recordings.chunk.UNPROCESSED_FRAME`), each with its failure.
 
     Parameters
     ----------
@@ -186,7 +187,7 @@ def run(job: SequenceJob, out, *, scheduler: str | None = None, workers: int | N
         ``out`` holds a run with other settings; a recording of fewer than 2 frames (no
         spectrum); ``nperseg`` below 2; a recording none of whose frames could be processed (a frame with NaN or
         inf, of another size, every sample clipped ... is a failed row naming why,
-        :func:`~lf_flame.recordings.job.process_chunk`, unless every frame is: :func:`frame_failures`);
+        :func:`~lf_flame.recordings.chunk.process_chunk`, unless every frame is: :func:`frame_failures`);
         a chunk table that does not hold its frames exactly once.
     """
     out = Path(out)
