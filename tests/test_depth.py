@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lf_flame.optics.camera import PAPER_CAMERA, PlenopticCamera
+from lf_flame.optics.camera import PAPER_CAMERA, PlenopticCamera, imaging_range_mm
 from lf_flame.optics.camera_file import load_camera_file
 from lf_flame.refocus.shift_and_sum import raw_to_views
 from lf_flame.simulate import tracer
@@ -299,8 +299,12 @@ def test_refusals(cam, planted):
         find_depths(np.zeros_like(views), cam)
     with pytest.raises(ValueError, match="depth_range_mm"):
         find_depths(views, cam, depth_range_mm=(5.0, -5.0))
-    with pytest.raises(ValueError, match="cannot image|no real|infinity"):
-        find_depths(views, cam, depth_range_mm=(-200.0, 5.0))
+    near = imaging_range_mm(cam)[0]
+    with pytest.raises(ValueError, match="depth_range_mm: depths -60 .. -30 mm lie outside what this camera can"):
+        find_depths(views, cam, depth_range_mm=(-60.0, -30.0))   # wholly beyond the near end: no depth invented
+    assert near > -30.0
+    clipped = find_depths(views, cam, depth_range_mm=(-200.0, 5.0))  # reaching inside the focal length: clipped
+    assert clipped.depth_range_mm == (near, 5.0)
     with pytest.raises(ValueError, match="threshold"):
         find_depths(views, cam, threshold=1.5)
     with pytest.raises(ValueError, match="PlenopticCamera"):

@@ -205,6 +205,8 @@ def test_bad_input_is_refused(camera):
         ExactOperator(camera, (0.0,), margin=1.01)
     with pytest.raises(ValueError, match="focal length"):
         ExactOperator(camera, (-camera.focus_distance_mm + 1.0,))
+    with pytest.raises(ValueError, match=r"planes at \+0 mm are given more than once"):
+        ExactOperator(camera, (0.0, 0.0, 10.0))          # two identical planes: their emission cannot be shared out
 
 
 # ---- a finer grid than the lenslets (subsamples) ---------------------------------------------

@@ -204,6 +204,8 @@ def test_bad_input_is_refused(tiny_camera, planted):
         reconstruct(views[:, :, :-1], op)
     with pytest.raises(ValueError, match="focal length"):
         EmissionOperator(tiny_camera, (0.0, -tiny_camera.focus_distance_mm + 1.0))
+    with pytest.raises(ValueError, match=r"planes at \+0 mm are given more than once"):
+        EmissionOperator(tiny_camera, (0.0, 0.0))
     with pytest.raises(ValueError, match="perfect lenslet grid"):
         EmissionOperator(PlenopticCamera(n_rows=24, n_cols=16, pixels_per_lenslet=5, grid_rotation_deg=0.5), (0.0,))
     with pytest.raises(ValueError, match="occlusion"):

@@ -109,6 +109,21 @@ def test_sensor_noise_and_bit_depth(small_camera, uniform_scene):
     assert len(np.unique(noisy)) <= 256 and np.allclose(noisy * 255, np.round(noisy * 255), atol=1e-4)
 
 
+@pytest.mark.parametrize("kw, message", [
+    (dict(bit_depth=0), "bit_depth must be a whole number of bits from 1 to 32"),
+    (dict(bit_depth=-3), "bit_depth"), (dict(bit_depth=12.5), "bit_depth"), (dict(bit_depth=True), "bit_depth"),
+    (dict(full_well_e=0.0), "full_well_e must be a finite number of electrons > 0"),
+    (dict(full_well_e=np.inf), "full_well_e"),
+    (dict(full_well_e=1e4, read_noise_e=np.nan), "read_noise_e must be a finite number of electrons >= 0"),
+    (dict(full_well_e=1e4, read_noise_e=-5.0), "read_noise_e"),
+    (dict(read_noise_e=50.0), "read_noise_e=50.0 needs full_well_e")])
+def test_impossible_sensor_settings_are_refused(kw, message):
+    """A sensor that would render NaN (no bits, no full well) or ignore its read noise is refused, naming it."""
+    with pytest.raises(ValueError, match=message):
+        scenes.Effects(**kw)
+    scenes.Effects(full_well_e=np.float32(1e4), read_noise_e=0.0, bit_depth=np.int64(12))   # NumPy numbers are fine
+
+
 def test_layer_behind_camera_rejected(small_camera):
     layer = scenes.Layer(np.ones((2, 2), np.float32), None, -400.0, (0, 0), (1, 1))
     with pytest.raises(ValueError, match="behind the camera"):

@@ -15,7 +15,7 @@ import numpy as np
 from ._io import (COLOUR_SCENES, RAW_FORMATS, _raw_objects, _save_image, _write_stack, add_camera_args,
                   add_search_arg, camera_config, colour_scene, finite, light_field, planes_count, render_sensor,
                   save_npz, simulated_scene)
-from ..simulate.scenes import PAPER_DEPTHS_MM
+from ..simulate.scenes import MAX_BIT_DEPTH, PAPER_DEPTHS_MM
 
 
 
@@ -361,13 +361,13 @@ def _calibrate_slopes(a):
 
 
 def _bit_depth(text: str) -> int:
-    """``--bit-depth``: an integer from 1 to 32."""
+    """``--bit-depth``: an integer from 1 to :data:`~lf_flame.simulate.scenes.MAX_BIT_DEPTH`."""
     try:
         bits = int(text)
     except ValueError:
         bits = 0
-    if not 1 <= bits <= 32:
-        raise argparse.ArgumentTypeError(f"--bit-depth takes an integer from 1 to 32. Received: {text!r}")
+    if not 1 <= bits <= MAX_BIT_DEPTH:
+        raise argparse.ArgumentTypeError(f"--bit-depth takes an integer from 1 to {MAX_BIT_DEPTH}. Received: {text!r}")
     return bits
 
 

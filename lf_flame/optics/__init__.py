@@ -17,7 +17,7 @@ __getattr__, __dir__, __all__ = lazy.attach(
     submod_attrs={
         "camera": ["GRID_LAYOUTS", "MAX_GRID_ROTATION_DEG", "PARAXIAL_LIMIT", "PlenopticCamera",
                  "PAPER_CAMERA", "MAX_SEARCH_SLOPE", "NEAR_LIMIT", "imaging_range_mm", "search_range_mm",
-                   "check_imaging_range"],
+                   "check_imaging_range", "check_planes_once"],
         "camera_file": ["DATASHEET_KEYS", "AGREEMENT", "camera_from_datasheet", "load_camera_file", "decoded_camera"],
         "colour": ["ALPHA_SOOT", "CHANNELS", "CFA_PATTERNS", "ColourSensor", "cfa_channels", "library_sensor",
                  "planck_radiance", "band_integrals", "mosaic"],

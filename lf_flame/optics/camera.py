@@ -566,6 +566,26 @@ def search_range_mm(camera: PlenopticCamera, depth_range_mm=None) -> tuple[float
     return max(a, lo), min(b, hi)
 
 
+def check_planes_once(depths_mm) -> None:
+    """Refuse a plane given twice: two identical planes, whose emission the data cannot share out.
+
+    Parameters
+    ----------
+    depths_mm : sequence of float
+        Plane depths, mm from the focus distance.
+
+    Raises
+    ------
+    ValueError
+        Naming the depths given more than once.
+    """
+    seen = [float(d) for d in depths_mm]
+    twice = sorted({d for d in seen if seen.count(d) > 1})
+    if twice:
+        raise ValueError(f"planes at {', '.join(f'{d:+g}' for d in twice)} mm are given more than once: give each "
+                         "plane once")
+
+
 def check_imaging_range(camera: PlenopticCamera, depths_mm) -> None:
     """Refuse planes the camera cannot refocus: depths outside :func:`imaging_range_mm`; and a plane given twice.
 
@@ -581,11 +601,7 @@ def check_imaging_range(camera: PlenopticCamera, depths_mm) -> None:
         Naming the depths outside the range and the range, or the depth given twice (solved as two identical
         planes, whose emission the data cannot share out).
     """
-    seen = [float(d) for d in depths_mm]
-    twice = sorted({d for d in seen if seen.count(d) > 1})
-    if twice:
-        raise ValueError(f"planes at {', '.join(f'{d:+g}' for d in twice)} mm are given more than once: give each "
-                         "plane once")
+    check_planes_once(depths_mm)
     lo, hi = imaging_range_mm(camera)
     far = [float(d) for d in depths_mm if not lo <= d <= hi]
     if far:

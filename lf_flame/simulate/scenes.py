@@ -60,7 +60,14 @@ class Effects:
         Sensor noise: Poisson shot noise for a full well of ``full_well_e`` electrons at
         radiance 1 and Gaussian read noise of ``read_noise_e`` electrons. None: noise-free.
     bit_depth : int or None
-        Quantise the raw image to this many bits; None keeps float32.
+        Quantise the raw image to this many bits (1 to :data:`MAX_BIT_DEPTH`); None keeps float32.
+
+    Raises
+    ------
+    ValueError
+        A full well that is not finite and positive, a read noise that is not finite and >= 0 or is given
+        without a full well (electrons need the full well to become radiance), a bit depth that is not a whole
+        number from 1 to :data:`MAX_BIT_DEPTH`.
     """
 
     aperture: bool = True
@@ -70,6 +77,29 @@ class Effects:
     full_well_e: float | None = None
     read_noise_e: float | None = None
     bit_depth: int | None = None
+
+    def __post_init__(self):
+        fw, rn, bits = self.full_well_e, self.read_noise_e, self.bit_depth
+        if fw is not None and not (_real(fw) and math.isfinite(fw) and fw > 0):
+            raise ValueError(f"full_well_e must be a finite number of electrons > 0, or None (noise-free). "
+                             f"Received: {fw!r}")
+        if rn is not None and not (_real(rn) and math.isfinite(rn) and rn >= 0):
+            raise ValueError(f"read_noise_e must be a finite number of electrons >= 0, or None. Received: {rn!r}")
+        if rn and fw is None:
+            raise ValueError(f"read_noise_e={rn!r} needs full_well_e (the electrons at radiance 1) to become "
+                             "radiance: give both, or neither for a noise-free sensor")
+        if bits is not None and not (_real(bits) and float(bits).is_integer() and 1 <= bits <= MAX_BIT_DEPTH):
+            raise ValueError(f"bit_depth must be a whole number of bits from 1 to {MAX_BIT_DEPTH}, or None (float32). "
+                             f"Received: {bits!r}")
+
+
+#: The most bits :class:`Effects` quantises to (``--bit-depth``'s range; past 24 a float32 raw image is unchanged).
+MAX_BIT_DEPTH = 32
+
+
+def _real(x) -> bool:
+    """A real number (Python's or NumPy's), not a bool."""
+    return isinstance(x, (int, float, np.integer, np.floating)) and not isinstance(x, (bool, np.bool_))
 
 
 @dataclass(frozen=True)

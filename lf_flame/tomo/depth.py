@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from ..optics.camera import PlenopticCamera, imaging_range_mm
+from ..optics.camera import PlenopticCamera, search_range_mm
 from ..refocus.shift_and_sum import FourierSlice, _check_finite, aperture_mask, lit_views
 
 #: Coarse slope step (lenslets per view step) on 15 views: about 0.33 mm of depth at the paper camera's focal
@@ -338,8 +338,9 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
     camera : PlenopticCamera
         The camera that took them (slope <-> depth).
     depth_range_mm : (float, float) or None
-        Depths searched (mm from the focal plane, positive farther), low < high; None: every depth the camera
-        can refocus (:func:`lf_flame.optics.camera.imaging_range_mm`, -23.0 .. +26.8 mm on the paper's camera).
+        Depths searched (mm from the focal plane, positive farther), low < high, clipped to the depths the camera
+        can refocus (:func:`lf_flame.optics.camera.search_range_mm`); None: all of those
+        (:func:`lf_flame.optics.camera.imaging_range_mm`, -23.0 .. +26.8 mm on the paper's camera).
     slope_step : float or None
         Step of the coarse slope grid (lenslets per view step), > 0; None: :data:`SLOPE_STEP`
         scaled to the views' count (``14 / (N - 1)``).
@@ -373,9 +374,8 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
     ------
     ValueError
         Views of another shape than the camera's, fewer than :data:`MIN_VIEWS` per axis, not finite, or without
-        light; a camera
-        that is not a :class:`PlenopticCamera`; a depth range the camera cannot image; a
-        knob out of its range.
+        light; a camera that is not a :class:`PlenopticCamera`; a depth range not finite, not low < high, or
+        wholly outside the depths the camera can refocus; a knob out of its range.
     """
     t0 = time.perf_counter()
     v = _check_views(views, camera)
@@ -386,9 +386,10 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
     if slope_step is None:
         slope_step = SLOPE_STEP * 14.0 / max(v.shape[0] - 1, 1)
     min_separation_mm, merge_mm = depth_tolerances(camera, v.shape[0], min_separation_mm, merge_mm)
-    lo, hi = (float(d) for d in (imaging_range_mm(camera) if depth_range_mm is None else depth_range_mm))
-    if not (math.isfinite(lo) and math.isfinite(hi) and hi > lo):
-        raise ValueError(f"depth_range_mm must be two finite depths, low < high. Received: {depth_range_mm!r}")
+    try:
+        lo, hi = search_range_mm(camera, depth_range_mm)
+    except ValueError as e:
+        raise ValueError(f"depth_range_mm: {e}") from None
     for name, val, ok in (("slope_step", slope_step, slope_step > 0), ("threshold", threshold, 0 < threshold < 1),
                           ("sigma", sigma, sigma > 0), ("min_pixels", min_pixels, min_pixels >= 1),
                           ("peak_fraction", peak_fraction, 0 < peak_fraction <= 1),

@@ -24,7 +24,7 @@ import math
 import numpy as np
 import scipy.sparse.linalg
 
-from ..optics.camera import PlenopticCamera
+from ..optics.camera import PlenopticCamera, check_planes_once
 from ..refocus.shift_and_sum import _check_finite, raw_to_views, views_to_raw
 from ..simulate import _kernels as _simulate_kernels
 from ..simulate.scenes import FLAME_EFFECTS, Effects, Layer, Scene
@@ -137,8 +137,8 @@ class EmissionOperator(PlanesOperator):
     Raises
     ------
     ValueError
-        A non-perfect lenslet grid, no planes, a plane the camera cannot image, a
-        non-positive grid, occlusion on, bad sampling.
+        A non-perfect lenslet grid, no planes, a plane given twice, a plane at or nearer than the main
+        lens's focal length (the camera cannot image it), a non-positive grid, occlusion on, bad sampling.
 
     Notes
     -----
@@ -162,6 +162,7 @@ class EmissionOperator(PlanesOperator):
         depths = [float(d) for d in np.atleast_1d(np.asarray(depths_mm, dtype=np.float64))]
         if not depths:
             raise ValueError("depths_mm is empty: give at least one plane")
+        check_planes_once(depths)     # two identical planes: the data cannot share their emission out
         gr, gc = (camera.n_rows, camera.n_cols) if grid_shape is None else (int(v) for v in grid_shape)
         if gr < 1 or gc < 1:
             raise ValueError(f"grid_shape must be positive. Received: {grid_shape!r}")

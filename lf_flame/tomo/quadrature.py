@@ -49,7 +49,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..optics.camera import PlenopticCamera
+from ..optics.camera import PlenopticCamera, check_planes_once
 from ..simulate.scenes import FLAME_EFFECTS, Effects, Layer, Scene
 from ..simulate.tracer import _stack_layers, trace_coefficients
 from . import _exact_kernels
@@ -144,6 +144,7 @@ def exact_kernels(camera: PlenopticCamera, depths_mm, *, margin: float = 1.0, ef
     depths = [float(d) for d in np.atleast_1d(np.asarray(depths_mm, dtype=np.float64))]
     if not depths:
         raise ValueError("depths_mm is empty: give at least one plane")
+    check_planes_once(depths)     # two identical planes: the data cannot share their emission out
     R, C, N = camera.n_rows, camera.n_cols, camera.pixels_per_lenslet
     margin = float(margin)
     gr, gc = round(margin * R), round(margin * C)
