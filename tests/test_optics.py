@@ -87,10 +87,22 @@ def test_slope_depth_round_trip(dz):
     (dict(mla_pitch_mm=0.0), "mla_pitch_mm"),
     (dict(focus_distance_mm=150.0), "focal length"),
     (dict(pixels_per_lenslet=0), "pixels_per_lenslet"),
+    (dict(pixels_per_lenslet=True), "pixels_per_lenslet"),
+    (dict(n_rows=np.float64(90.0)), "n_rows must be a positive integer"),
 ])
 def test_impossible_cameras_rejected(kw, match):
     with pytest.raises(ValueError, match=match):
         PlenopticCamera(**kw)
+
+
+def test_a_camera_from_numpy_numbers_is_the_same_camera():
+    """An HDF5 file's attributes read back as NumPy scalars: ``from_dict`` of them gives the camera they came from,
+    its numbers Python's (its JSON the same)."""
+    d = {k: np.asarray(v)[()] for k, v in PAPER_CAMERA.to_dict().items() if v is not None}
+    assert all(type(v).__module__ == "numpy" for k, v in d.items() if k != "grid_layout")
+    cam = PlenopticCamera.from_dict(d)
+    assert cam == PAPER_CAMERA and cam.to_json() == PAPER_CAMERA.to_json()
+    assert type(cam.n_rows) is int and type(cam.main_focal_mm) is float
 
 
 def test_sensor_off_focus_warns():

@@ -129,16 +129,20 @@ class PlenopticCamera:
     sensor_cols: int | None = None
 
     def __post_init__(self):
+        for f in dataclasses.fields(self):      # NumPy numbers (an HDF5 attribute's) as Python's
+            v = getattr(self, f.name)
+            if type(v).__module__ == "numpy" and getattr(v, "ndim", None) == 0:
+                object.__setattr__(self, f.name, v.item())
         for name in ("main_focal_mm", "focus_distance_mm", "mla_pitch_mm", "mla_focal_mm",
                      "mla_sensor_mm", "aperture_mm"):
             v = getattr(self, name)
             if v is None and name in ("mla_sensor_mm", "aperture_mm"):
                 continue
-            if not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
+            if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v) or v <= 0:
                 raise ValueError(f"camera {name} must be a finite positive number (mm). Received: {name}={v!r}")
         for name in ("pixels_per_lenslet", "n_rows", "n_cols"):
             v = getattr(self, name)
-            if not isinstance(v, int) or v < 1:
+            if not isinstance(v, int) or isinstance(v, bool) or v < 1:
                 raise ValueError(f"camera {name} must be a positive integer. Received: {name}={v!r}")
         if self.focus_distance_mm <= self.main_focal_mm:
             raise ValueError(
@@ -175,7 +179,7 @@ class PlenopticCamera:
             raise ValueError(f"camera grid_rotation_deg must be a finite number (degrees). Received: {rot!r}")
         for name in ("sensor_rows", "sensor_cols"):
             v = getattr(self, name)
-            if v is not None and (not isinstance(v, int) or v < 1):
+            if v is not None and (not isinstance(v, int) or isinstance(v, bool) or v < 1):
                 raise ValueError(f"camera {name} must be a positive integer. Received: {name}={v!r}")
         p = self.grid_pitch_px
         if p is None:
