@@ -100,7 +100,8 @@ _OLD_SEED0 = {
 @pytest.mark.parametrize("scene", ["shapes", "flame"])
 def test_varied_matches_the_scenes_before_regimes(small_camera, scene):
     keys, params, sums = _OLD_SEED0[scene]
-    sc = scenes.SCENES[scene](small_camera, np.random.default_rng(0), regime="varied")
+    kw = dict(template_scale=scenes.TEMPLATE_SCALE) if scene == "flame" else {}   # the scale of that code's flames
+    sc = scenes.SCENES[scene](small_camera, np.random.default_rng(0), regime="varied", **kw)
     assert [tuple(o[k] for k in keys) for o in sc.objects] == params
     got = [float(layer.radiance.astype(np.float64).sum()) for layer in sc.layers]
     np.testing.assert_allclose(got, sums, rtol=1e-9)

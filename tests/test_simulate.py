@@ -150,6 +150,19 @@ def test_flame_heights_follow_the_paper(small_camera):
     assert np.allclose(heights.std(axis=0), scenes.FLAME_HEIGHT_SD_MM, atol=0.2)
 
 
+def test_flames_fill_any_cameras_field_as_they_fill_the_papers(small_camera):
+    """The flame scene's default scale follows the camera's field: each flame's height over the field's height at its
+    depth is the paper camera's, on a camera of another field (the small camera's is 0.23 of the paper's)."""
+    from lf_flame.optics.camera import PAPER_CAMERA
+
+    def filled(cam):
+        return [o["height_mm"] / cam.field_of_view_mm(o["depth_offset_mm"])[0]
+                for o in scenes.flame_scene(cam, np.random.default_rng(0), vary=False).objects]
+    assert small_camera.field_of_view_mm(0.0)[0] < 0.5 * PAPER_CAMERA.field_of_view_mm(0.0)[0]
+    np.testing.assert_allclose(filled(small_camera), filled(PAPER_CAMERA), rtol=1e-9)
+    assert max(filled(PAPER_CAMERA)) < 0.9
+
+
 def test_kernel_chain_matches_numpy_abcd_chain_to_1e12(small_camera):
     """The kernel's per-ray chain against explicit RayTransferMatrix products, random rays."""
     from lf_flame.simulate import _kernels as _simulate_kernels

@@ -414,15 +414,15 @@ def camera_template_scale(camera: PlenopticCamera) -> float:
     return TEMPLATE_SCALE * camera.field_of_view_mm(0.0)[0] / PAPER_CAMERA.field_of_view_mm(0.0)[0]
 
 
-def flame_scene(camera: PlenopticCamera, rng: np.random.Generator, *, template_scale: float = TEMPLATE_SCALE,
+def flame_scene(camera: PlenopticCamera, rng: np.random.Generator, *, template_scale: float | None = None,
                 texels_per_lenslet: float = 3.0, vary: bool = True, regime: str = "varied",
                 depths_mm=PAPER_DEPTHS_MM) -> Scene:
     """The paper's flame scene (Fig. 6): four flames, one at each of the four depths.
 
     The paper's 180 × 90-lenslet grid sees only about 23.7 × 11.8 mm at the focal plane
     (SPEC.md), smaller than its 30 mm flames, so templates are scaled by
-    ``template_scale`` (0.64: the tallest flame, mean + 3 sd, fills 90 % of the field at
-    +20 mm) — the paper's optics are kept. Flames stand side by side (farthest left),
+    ``template_scale`` (0.64 on the paper's camera, :data:`TEMPLATE_SCALE`: the tallest flame, mean + 3 sd, fills
+    90 % of the field at +20 mm; another camera's field in proportion) — the paper's optics are kept. Flames stand side by side (farthest left),
     bases near the bottom of the field. Half-width at the base 7 % of the height,
     narrowing as ``sqrt(1 - eta)``. What varies per sample depends on ``regime``:
 
@@ -443,8 +443,9 @@ def flame_scene(camera: PlenopticCamera, rng: np.random.Generator, *, template_s
         The camera whose field the scene fills.
     rng : numpy.random.Generator
         Source of every random draw.
-    template_scale : float
-        Object-space scale of the paper's flame heights (dimensionless).
+    template_scale : float or None
+        Object-space scale of the paper's flame heights (dimensionless); None: :func:`camera_template_scale`, so that
+        the flames fill ``camera``'s field as they fill the paper's (:data:`TEMPLATE_SCALE` on the paper's camera).
     texels_per_lenslet : float
         Texture resolution, texels per lenslet footprint.
     vary : bool
@@ -473,6 +474,8 @@ def flame_scene(camera: PlenopticCamera, rng: np.random.Generator, *, template_s
     if len(depths_mm) != len(FLAME_HEIGHT_MEAN_MM):
         raise ValueError(f"depths_mm must hold {len(FLAME_HEIGHT_MEAN_MM)} depths. Received: {depths_mm}")
     h0, w0 = camera.field_of_view_mm(0.0)
+    if template_scale is None:
+        template_scale = camera_template_scale(camera)
     layers, objects = [], []
     for k, dz in enumerate(depths_mm):
         dz = float(dz)

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..optics.camera import PlenopticCamera
 from ..optics.colour import ALPHA_SOOT, ColourSensor, band_integrals
-from .scenes import (PAPER_DEPTHS_MM, TEMPLATE_SCALE, Scene, _layer_grid, flame_centreline, flame_luminosity,
+from .scenes import (PAPER_DEPTHS_MM, Scene, _layer_grid, flame_centreline, flame_luminosity,
                      flame_scene)
 from .scenes_time import FlameSequence
 
@@ -94,7 +94,7 @@ class ColourFlameScene:
 def colour_flame_scene(camera: PlenopticCamera, sensor: ColourSensor, rng: np.random.Generator | None = None, *,
                        peaks_k=FLAME_PEAK_K, base_k: float = FLAME_BASE_K, alpha: float = ALPHA_SOOT,
                        peak: float = 0.8, depths_mm=PAPER_DEPTHS_MM, texels_per_lenslet: float = 3.0,
-                       regime: str = "paper", template_scale: float = TEMPLATE_SCALE) -> ColourFlameScene:
+                       regime: str = "paper", template_scale: float | None = None) -> ColourFlameScene:
     """The paper's four flames, each with its own temperature field, seen by a colour sensor.
 
     Geometry and soot are those of :func:`lf_flame.simulate.scenes.flame_scene` (``rng``
@@ -117,8 +117,8 @@ def colour_flame_scene(camera: PlenopticCamera, sensor: ColourSensor, rng: np.ra
     texels_per_lenslet : float
     regime : str
         ``"paper"`` (heights only vary) is the one supported with ``rng``.
-    template_scale : float
-        The flames' heights' scale (:func:`~lf_flame.simulate.scenes.flame_scene`).
+    template_scale : float or None
+        The flames' heights' scale (:func:`~lf_flame.simulate.scenes.flame_scene`; None: the camera's field's).
 
     Returns
     -------
