@@ -179,6 +179,12 @@ def test_blackbodies_the_pyrometer_cannot_check_are_refused():
         P.fit_calibration(nikon, [1600.0, 2400.0], same)
     cal = P.fit_calibration(nikon, [1600.0, 2400.0], ratios([1600.0, 2400.0]))
     assert cal.gain_ratio == pytest.approx(1.1) and max(map(abs, cal.fit_residuals_k)) < 1e-6
+    # images inside the range that the fitted gain reads outside it (NaN residuals, which had been written and the
+    # calibration refused only when read as 'malformed')
+    off = ratios([1600.0, 2000.0, 2400.0])
+    off[2] *= 1e-3
+    with pytest.raises(ValueError, match="after the fit the blackbodies at .*2400 K read outside the 1000-3200 K"):
+        P.fit_calibration(nikon, [1600.0, 2000.0, 2400.0], off)
 
 
 def test_temperature_recovered_on_a_planted_plane():

@@ -69,7 +69,7 @@ def test_calibrate_temperature_finds_the_gain_ratio(files, capsys):
     capsys.readouterr()        # one blackbody: fitted, and the check it cannot make said
     assert main(["calibrate-temperature", files["bb"][0], "--temperature", "1600", "--out",
                  str(files["dir"] / "one.json")]) == 0
-    assert "note: blackbodies at one temperature (1600 K)" in capsys.readouterr().out
+    assert "warning: the calibration's blackbodies are at one temperature (1600 K)" in capsys.readouterr().err
 
 
 def test_temperatures_beyond_the_blackbodies_are_said_to_be_extrapolated(files, capsys):
@@ -121,7 +121,11 @@ def test_a_clipped_or_mislabelled_blackbody_is_named(files, tmp_path, capsys):
     wrong = [x for t in (1600, 1800, 2400) for x in ("--temperature", str(t))]
     assert main(["calibrate-temperature", *files["bb"], *wrong, "--out", str(tmp_path / "w.json")]) == 0
     err = capsys.readouterr().err
-    assert "warning: the fit leaves a residual of" in err and "1600, 1800, 2400 K" in err, err
+    assert "warning: the calibration's fit leaves a residual of" in err and "1600, 1800, 2400 K" in err, err
+    # and each time the calibration is read: its temperatures are as far off as its fit
+    assert main(["temperature", files["flame"], "--calibration", str(tmp_path / "w.json"), "--depths", "0",
+                 "--no-figure", "--out", str(tmp_path / "w.h5")]) == 0
+    assert "w.json: the calibration's fit leaves a residual of" in capsys.readouterr().err
     np.save(tmp_path / "cropped.npy", raw[:310, :310])
     assert main(["calibrate-temperature", str(tmp_path / "cropped.npy"), str(tmp_path / "cropped.npy"),
                  "--temperature", "1600", "--temperature", "2400", "--out", str(tmp_path / "n.json")]) == 2

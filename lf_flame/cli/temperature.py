@@ -5,6 +5,7 @@ calibration (``calibrate-temperature``) in :mod:`.temperature_calibration`.
 from __future__ import annotations
 
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +40,9 @@ def cmd_temperature(a):
     sensor, where = _sensor(src, a, cal)
     cal.check_sensor(sensor)
     cal = load_calibration(a.calibration, sensor)      # also refuses a ratio with no unique temperature
+    from .temperature_calibration import calibration_warnings
+    for line in calibration_warnings(cal):
+        print(f"warning: {a.calibration}: {line}", file=sys.stderr)
     if mosaic is not None:
         from ..temperature.mosaic import refuse_dead_site
         refuse_dead_site(mosaic, sensor, src)

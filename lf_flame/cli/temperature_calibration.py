@@ -115,15 +115,27 @@ def cmd_calibrate_temperature(a):
     out = write_calibration(a.out, cal)
     print(f"gain ratio {cal.gain_ratio:.5f}; fit residuals " + ", ".join(f"{x:+.2f}" for x in cal.fit_residuals_k)
           + f" K -> {out}")
+    for line in calibration_warnings(cal):
+        print(f"warning: {line}", file=sys.stderr)
+
+
+def calibration_warnings(cal) -> list:
+    """What a temperature calibration cannot vouch for, as sentences (``calibrate-temperature`` warns of them when it
+    fits, ``temperature`` each time it reads the calibration): blackbodies at one temperature (a ratio that moves
+    against the sensor's, a colour filter array read at the wrong phase or red and blue swapped, cannot be seen, nor a
+    wrong --temperature), a fit residual beyond :data:`RESIDUAL_WARN_K`."""
+    out, temps = [], cal.fit_temperatures_k
     if len(set(temps)) < 2:
-        print(f"note: blackbodies at one temperature ({temps[0]:g} K) fit the gain ratio, but cannot check that the "
-              "ratio moves with temperature as the sensor's does (its colour filter array's pattern and phase, the "
-              "temperatures' order): give two or more temperatures for that check")
+        out.append(f"the calibration's blackbodies are at one temperature ({temps[0]:g} K): they fit the gain ratio, but "
+                   "cannot check that the ratio moves with temperature as the sensor's does (its colour filter array's "
+                   "pattern and phase; a wrong --temperature moves every reading): give two or more temperatures for "
+                   "that check")
     worst = max(abs(x) for x in cal.fit_residuals_k)
     if worst > RESIDUAL_WARN_K:
-        print(f"warning: the fit leaves a residual of {worst:.0f} K: one blackbody's --temperature may be wrong, or "
-              "its image not a blackbody's filling the field (the temperatures given in the images' order: "
-              + ", ".join(f"{t:g}" for t in temps) + " K)", file=sys.stderr)
+        out.append(f"the calibration's fit leaves a residual of {worst:.0f} K: one blackbody's --temperature may be "
+                   "wrong, or its image not a blackbody's filling the field (the temperatures given in the images' "
+                   "order: " + ", ".join(f"{t:g}" for t in temps) + " K)")
+    return out
 
 
 def _check_even(path, r, ratio, channels) -> None:

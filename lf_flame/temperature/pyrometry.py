@@ -215,7 +215,8 @@ def fit_calibration(sensor: ColourSensor, temperatures_k, ratios, channels=("R",
         the channels' gains, a blackbody's ratio of a longer- over a shorter-wavelength band falls
         as it heats): the temperatures given in another order than the images, or the samples of those
         channels not the sensor's (a colour filter array read at the wrong phase, red and blue swapped, or
-        the wrong pattern).
+        the wrong pattern); a fitted image whose ratio then reads outside :data:`T_RANGE_K` (the images do not follow
+        the sensor's model).
     """
     t = np.asarray(temperatures_k, float)
     r = np.asarray(ratios, float)
@@ -248,6 +249,11 @@ def fit_calibration(sensor: ColourSensor, temperatures_k, ratios, channels=("R",
     cal = TemperatureCalibration(sensor.name, sensor.pattern, tuple(int(p) for p in sensor.phase), tuple(channels),
                                  g, tuple(float(x) for x in t), ())
     res = ratio_to_temperature(r, cal, sensor, alpha=0.0) - t
+    if not np.all(np.isfinite(res)):      # a fitted image's ratio outside the table: no temperature reads it back
+        raise ValueError(f"after the fit the blackbodies at {', '.join(f'{v:g} K' for v in t[~np.isfinite(res)])} read "
+                         f"outside the {T_RANGE_K[0]:g}-{T_RANGE_K[1]:g} K the pyrometer reads: these images do not "
+                         f"follow sensor {sensor.name!r}'s model (its sensitivities, the channels' pixels) with the "
+                         f"temperatures given ({', '.join(f'{v:g} K' for v in t)})")
     return TemperatureCalibration(**{**asdict(cal), "fit_residuals_k": tuple(float(x) for x in res)})
 
 
