@@ -16,6 +16,13 @@ PILE_MIN_PIXELS = 8
 #: ... and this many times as many as hold the next value below it (an image that does not clip has few pixels
 #: at its largest value, about as many as at the next).
 PILE_RATIO = 4
+#: ... and stands at least this many of the image's quantisation steps (the least gap between two of its values) above
+#: zero: a dim image of an even field (a blackbody's) quantised to a few counts piles up at its top count too, 10 steps
+#: up (a new user's 12-bit furnace images at 10 counts of 4095 were taken as 79 % clipped and the advice was a shorter
+#: exposure), where a clipping sensor's pile stands hundreds of steps up (8 bits: 255).
+PILE_MIN_STEPS = 32
+#: The quantisation step is read from at most this many of the image's values (evenly strided).
+STEP_SAMPLES = 1_000_000
 
 
 def clipping_pile(raw: np.ndarray) -> float | None:
@@ -35,14 +42,19 @@ def clipping_pile(raw: np.ndarray) -> float | None:
     -------
     float or None
         The image's largest value where at least :data:`PILE_MIN_PIXELS` pixels hold exactly
-        it and :data:`PILE_RATIO` times as many as hold the next value below; None otherwise
-        (no pile, an image of one value, or none above 0).
+        it and :data:`PILE_RATIO` times as many as hold the next value below, at least :data:`PILE_MIN_STEPS`
+        quantisation steps above zero; None otherwise (no pile, an image of one value, none above 0, or a dim
+        image quantised to a few steps).
     """
     from ._clipping_kernels import top_two
-    top, n_top, _, n_next = top_two(np.ravel(np.asarray(raw), order="K"))      # one pass (a view where it can)
-    if n_top < PILE_MIN_PIXELS or top <= 0 or n_next == 0:
+    flat = np.ravel(np.asarray(raw), order="K")
+    top, n_top, _, n_next = top_two(flat)                  # one pass (a view where it can)
+    if n_top < PILE_MIN_PIXELS or top <= 0 or n_next == 0 or n_top < PILE_RATIO * n_next:
         return None
-    return float(top) if n_top >= PILE_RATIO * n_next else None
+    values = np.unique(flat[::max(1, flat.size // STEP_SAMPLES)])
+    values = values[np.isfinite(values)]
+    step = float(np.diff(values).min()) if values.size > 1 else float(top)
+    return float(top) if top >= PILE_MIN_STEPS * step else None
 
 
 def auto_saturation(raw: np.ndarray) -> float:
