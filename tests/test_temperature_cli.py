@@ -196,6 +196,24 @@ def test_temperature_round_trip(files, capsys):
     assert np.isnan(t[0][0:3, :]).all()                   # the dark background
 
 
+def test_a_temperature_whose_every_ratio_is_outside_the_table_is_warned_of(files, tmp_path, capsys):
+    """A calibration whose gain ratio is far from the channels' (another camera's, or the channels misread) leaves
+    every bright pixel without a temperature: warned of, naming the likely causes; the route's settings print as a
+    line, not a Python dict."""
+    capsys.readouterr()
+    assert main(["temperature", files["flame"], "--calibration", files["cal"], "--depths", "0", "--no-figure",
+                 "--out", str(tmp_path / "T.h5")]) == 0
+    out, err = capsys.readouterr()
+    assert "no temperature of the table gives" not in err
+    assert "(admm-cfa-matched: " in out and "{" not in out, out
+    d = json.loads(open(files["cal"]).read())
+    d["gain_ratio"] *= 50.0
+    (tmp_path / "other.json").write_text(json.dumps(d))
+    assert main(["temperature", files["flame"], "--calibration", str(tmp_path / "other.json"), "--depths", "0",
+                 "--no-figure", "--out", str(tmp_path / "T2.h5")]) == 0
+    assert "bright pixels have a R/G ratio no temperature of the table gives" in capsys.readouterr().err
+
+
 def test_temperature_auto_depth_and_refocus_route(files):
     out = files["dir"] / "Tauto.h5"
     assert main(["temperature", files["flame"], "--calibration", files["cal"], "--route", "refocus-cfa",

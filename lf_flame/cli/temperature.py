@@ -106,8 +106,23 @@ def cmd_temperature(a):
     if fig is not None:
         save_figure(temperature_figure(temp, depths, valid, cam), fig)
     print("\n".join(_plane_lines(a, depths, r, cal)))
-    print(f"temperature of {planes_count(len(depths))} ({a.route} {r['chosen']}) in {wall:.1f} s -> {out}"
-          + (f", {fig}" if fig else ""))
+    masked, reported = int(np.sum(r["n_masked"])), int(valid.sum())
+    if masked > reported:
+        print(f"warning: {masked} of the planes' {masked + reported} bright pixels have a {cal.channels[0]}/"
+              f"{cal.channels[1]} ratio no temperature of the table gives: the channels are likely misread (the colour "
+              "filter array's pattern or phase: an image cropped by an odd number of pixels moves the phase) or the "
+              "calibration is another camera's", file=sys.stderr)
+    print(f"temperature of {planes_count(len(depths))} ({a.route}: {settings_text(r['chosen'])}) in {wall:.1f} s -> "
+          f"{out}" + (f", {fig}" if fig else ""))
+
+
+def settings_text(settings: dict) -> str:
+    """A route's settings (nested dicts of names and values) as one line: 'regime noisy, knobs fills 25 lam 0.01'."""
+    def text(v):
+        if isinstance(v, dict):
+            return " ".join(f"{k} {text(x)}" for k, x in v.items())
+        return f"{v:.3g}" if isinstance(v, float) else str(v)
+    return ", ".join(f"{k} {text(v)}" for k, v in settings.items())
 
 
 def add_parsers(sub) -> None:
