@@ -216,8 +216,8 @@ class FlameMeasurement:
         The segmented region (rows, columns of the plane).
     axial_height_mm, axial_intensity : ndarray of shape (n,)
         Axial profile: the plane along the centreline (the region's intensity-weighted
-        centre column in each row, bilinear), against height above the base, from the
-        region's lowest to highest row.
+        centre column in each row, bilinear), against height above the base (mm), in the
+        region's row order: the top row (the tip) first, the heights descending.
     radial : tuple of RadialProfile
         Radial profiles at the requested heights.
     flags : tuple of str

@@ -415,7 +415,7 @@ class PlenopticCamera:
         ``s = -d (1 - d / z_i) / (g N)`` with ``z_i`` the image distance of the plane
         (SPEC.md). A point of that plane appears at lenslet ``x0 + s (u - (N-1)/2)``
         in sub-aperture view ``u``. Sign: the paper's (near planes negative):
-        −1.249, 0, +1.170, +2.280 for dz = −10, 0, +10, +20 mm.
+        −1.249, 0, +1.175, +2.281 for dz = −10, 0, +10, +20 mm on the paper's camera.
         """
         d = self.mla_distance_mm
         zi = self.image_distance_mm(self.object_distance_mm(depth_offset_mm))

@@ -263,7 +263,9 @@ def render_views(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16
     :func:`render`): the area that :func:`lf_flame.real.decoding.decode`
     resamples from the raw image. Each area takes the random ray shifts of the sensor
     pixel it lies on, so for the perfect grid these are the sensor's own pixels:
-    ``raw_to_views(render(...))`` up to float rounding.
+    ``raw_to_views(render(...))`` before the sensor's response (not clipped at 1, no noise), equal
+    to float rounding on all but about one sample in 10,000 (311 of 3.6 M on the paper camera's
+    nominal flames at 16 rays per pixel differ, by up to 3 % of the peak).
 
     Returns
     -------

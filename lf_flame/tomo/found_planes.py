@@ -194,7 +194,9 @@ def find_planes(views, camera: PlenopticCamera, *, solver: str = "admm", saturat
         With the depths found in the residual.
     op : the operator of the planes
     rec : Reconstruction
-        Its ``planes`` (P, s R, s C) on ``found.planes_mm``; ``rec.time_s`` the solve's wall time.
+        Its ``planes`` (P, s R, s C) on ``found.planes_mm`` (``s`` the operator's ``subsamples``:
+        :func:`lf_flame.tomo.truth.bin_planes` gives the lenslet grid's (P, R, C) that
+        :func:`lf_flame.measure.diagnostics.measure_flame` measures); ``rec.time_s`` the solve's wall time.
 
     Raises
     ------
