@@ -288,11 +288,14 @@ def test_slope_search_refuses_what_has_no_focus_and_stays_on_its_grid():
     """Views with no light or a constant image, and a region off the views' grid, are refused (each had returned a
     confident slope, -3.05 for zeros: outside the -3 ... 3 searched); a flame at the grid's end is found on it."""
     n, R, C = 15, 20, 12
-    for views, roi, text in ((np.zeros((n, n, R, C)), (0, R, 0, C), "no focus to find"),
-                             (np.full((n, n, R, C), 0.3), (0, R, 0, C), "no focus to find"),
-                             (np.random.default_rng(0).random((n, n, R, C)), (100, 110, 0, 10), "outside the views")):
-        with pytest.raises(ValueError, match=text):
-            find_sharpest_slope(views, roi)
+    for views, roi, text, grid in ((np.zeros((n, n, R, C)), (0, R, 0, C), "no focus to find", {}),
+                                   (np.full((n, n, R, C), 0.3), (0, R, 0, C), "no focus to find", {}),
+                                   (np.random.default_rng(0).random((n, n, R, C)), (100, 110, 0, 10),
+                                    "outside the views", {}),
+                                   (np.random.default_rng(0).random((n, n, R, C)), (0, R, 0, C),
+                                    r"reach past \+-3 lenslets per view step", dict(lo=-1e3, hi=1e3, coarse_step=10))):
+        with pytest.raises(ValueError, match=text):             # the last had asked for 44 GiB on the paper camera
+            find_sharpest_slope(views, roi, **grid)
     cam = PAPER_CAMERA
     sc = scenes.point_scene(cam, -10.0, size_mm=0.5)
     views = raw_to_views(simulate.render(cam, sc, 4, 0), cam.pixels_per_lenslet)

@@ -47,6 +47,11 @@ class SlopeSearch:
 #: at about 4e-8 of it (Fourier round-off); the paper's flames and shapes (4 rays per pixel) peak at 0.30-1.45 and
 #: stay above 1.4e-3 at every slope.
 FLAT_SHARPNESS = 1e-6
+#: :func:`find_sharpest_slope` searches slopes (lenslets per view step) up to this magnitude on any grid (its default
+#: range's), and further only as far as the outermost views stay within the grid (``max(R, C) / (N - 1)``): beyond,
+#: a slope moves their light past the whole grid (and its Fourier slice's padding grows with it: -1000 .. 1000 asked
+#: for 44 GiB).
+DEFAULT_REACH = 3.0
 #: A region whose sharpness varies by less than this share of its largest over the slopes searched has no focus to
 #: find (:func:`find_sharpest_slope`): light that no slope moves (a hot pixel in the centre view: 0.24 % with the
 #: Fourier slice's round-off, 0 by shift-and-sum, where its peak had fallen at the grid's end, slope +3.0025 or -3.0).
@@ -90,7 +95,9 @@ def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", me
     Raises
     ------
     ValueError
-        Unknown metric or method, an empty ROI or one outside the views' grid, a bad grid, NaN/inf in the
+        Unknown metric or method, an empty ROI or one outside the views' grid, a bad grid (or one reaching
+        past ``max(R, C) / (N - 1)``, where the outermost views shift past the whole grid, and past the default's
+        :data:`DEFAULT_REACH`), NaN/inf in the
         views, a region as sharp at every slope (no light or no structure, or light that no slope moves:
         :data:`FLAT_SHARPNESS`, :data:`FLAT_SPREAD`), or one whose light one view holds (:data:`ONE_VIEW_SHARE`):
         no focus to find.
@@ -109,6 +116,10 @@ def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", me
     views = np.asarray(views)
     _check_finite("views", views)
     n, _, R, C = views.shape
+    limit = max(max(R, C) / max(n - 1, 1), DEFAULT_REACH)
+    if max(abs(lo), abs(hi)) > limit:
+        raise ValueError(f"slopes {lo:+g} .. {hi:+g} reach past +-{limit:.3g} lenslets per view step, where the "
+                         f"outermost views shift past the whole grid ({R} x {C} lenslets, {n} views): search within it")
     if not (0 <= r0 and r1 <= R and 0 <= c0 and c1 <= C):
         raise ValueError(f"region of interest {tuple(roi)} lies outside the views' grid of {R} x {C} lenslets")
     light = np.abs(views[:, :, r0:r1, c0:c1]).sum(axis=(2, 3), dtype=np.float64)
