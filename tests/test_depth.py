@@ -299,6 +299,9 @@ def test_refusals(cam, planted):
         find_depths(np.zeros_like(views), cam)
     with pytest.raises(ValueError, match="depth_range_mm"):
         find_depths(views, cam, depth_range_mm=(5.0, -5.0))
+    stopped = PlenopticCamera(n_rows=60, n_cols=40, aperture_mm=1.0)     # its aperture image under one pixel
+    with pytest.raises(ValueError, match="no view of the camera's 15 x 15 lies inside the main lens's aperture"):
+        find_depths(views, stopped)
     near = imaging_range_mm(cam)[0]
     with pytest.raises(ValueError, match="depth_range_mm: depths -60 .. -30 mm lie outside what this camera can"):
         find_depths(views, cam, depth_range_mm=(-60.0, -30.0))   # wholly beyond the near end: no depth invented

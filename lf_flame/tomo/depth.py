@@ -45,7 +45,7 @@ import numpy as np
 from scipy import ndimage
 
 from ..optics.camera import PlenopticCamera, search_range_mm
-from ..refocus.shift_and_sum import FourierSlice, _check_finite, aperture_mask, lit_views
+from ..refocus.shift_and_sum import LIT_VIEW_SHARE, FourierSlice, _check_finite, aperture_mask, lit_views
 
 #: Coarse slope step (lenslets per view step) on 15 views: about 0.33 mm of depth at the paper camera's focal
 #: plane; on ``N`` views ``SLOPE_STEP * 14 / (N - 1)``, so that the outermost view moves as far per step.
@@ -412,6 +412,11 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
     # focus energy per pixel and slope (band-limited refocusing; step 2, whose contrast step 1 may need)
     if views_mask is None:
         views_mask = lit_views(camera)
+        if not views_mask.any():
+            raise ValueError(f"no view of the camera's {v.shape[0]} x {v.shape[1]} lies inside the main lens's aperture "
+                             f"image (aperture {camera.aperture_diameter_mm:.3g} mm: its image behind each lenslet covers "
+                             f"less than {LIT_VIEW_SHARE:.0%} of even the central view's pixel): check the camera's "
+                             "aperture_mm or f-number")
     views_mask = np.asarray(views_mask, bool)
     if views_mask.shape != v.shape[:2] or not views_mask.any():
         raise ValueError(f"views_mask must be a boolean (N, N) = {v.shape[:2]} array with a view. Received: "
