@@ -95,6 +95,24 @@ def test_impossible_cameras_rejected(kw, match):
         PlenopticCamera(**kw)
 
 
+def test_depths_and_pitches_that_mean_nothing_are_refused_by_name():
+    """A NaN depth, a plane behind the main lens, a pitch under a pixel and a zero slope step each raise a
+    ValueError naming them (they had given 'inside the focal length' for NaN, negative field sizes, 0 or -3 views,
+    a ZeroDivisionError)."""
+    from lf_flame.optics.camera import views_for_pitch
+    from lf_flame.tomo.depth import depth_per_slope
+    with pytest.raises(ValueError, match="finite number of mm"):
+        PAPER_CAMERA.slope_for_depth(np.nan)
+    with pytest.raises(ValueError, match="behind the main lens"):
+        PAPER_CAMERA.field_of_view_mm(-400.0)
+    for bad in (0, -3, np.nan, True):
+        with pytest.raises(ValueError, match="pitch must be a finite number of pixels >= 1"):
+            views_for_pitch(bad)
+    assert views_for_pitch(np.float32(10.57)) == 10
+    with pytest.raises(ValueError, match="step must be a finite slope > 0"):
+        depth_per_slope(PAPER_CAMERA, 0.0)
+
+
 def test_a_camera_from_numpy_numbers_is_the_same_camera():
     """An HDF5 file's attributes read back as NumPy scalars: ``from_dict`` of them gives the camera they came from,
     its numbers Python's (its JSON the same)."""

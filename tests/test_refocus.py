@@ -199,6 +199,16 @@ def test_fourier_slices_of_one_shape_and_slopes_share_their_view_counts_but_not_
     assert not S._SLICE_COUNTS
 
 
+def test_no_slopes_and_no_views_are_refused(smooth_views):
+    from lf_flame.refocus.shift_and_sum import aperture_mask, refocus_views
+    for method in ("shift-sum", "fourier"):        # the Fourier route had failed inside NumPy on an empty array
+        with pytest.raises(ValueError, match="slopes must be a non-empty 1-D sequence"):
+            refocus_views(smooth_views, [], method=method)
+    for n in (-3, 0, 2.5):
+        with pytest.raises(ValueError, match="views per axis, must be a whole number >= 1"):
+            aperture_mask(n)
+
+
 def test_fourier_rejects_bad_input(smooth_views):
     with pytest.raises(ValueError, match="max_slope"):
         FourierSlice(smooth_views, 1.0).stack([1.5])

@@ -124,9 +124,16 @@ def test_impossible_sensor_settings_are_refused(kw, message):
     scenes.Effects(full_well_e=np.float32(1e4), read_noise_e=0.0, bit_depth=np.int64(12))   # NumPy numbers are fine
 
 
+def test_scenes_refuse_a_nan_depth_and_no_texels(small_camera):
+    with pytest.raises(ValueError, match="finite number of mm"):
+        scenes.point_scene(small_camera, np.nan)
+    with pytest.raises(ValueError, match="texels_per_lenslet must be a finite number > 0"):
+        scenes.flame_scene(small_camera, np.random.default_rng(0), texels_per_lenslet=0)
+
+
 def test_layer_behind_camera_rejected(small_camera):
     layer = scenes.Layer(np.ones((2, 2), np.float32), None, -400.0, (0, 0), (1, 1))
-    with pytest.raises(ValueError, match="behind the camera"):
+    with pytest.raises(ValueError, match="behind the (camera|main lens)"):
         simulate.render(small_camera, scenes.Scene("bad", (layer,), scenes.Effects()), 1)
 
 

@@ -49,8 +49,15 @@ PITCH_SNAP_PX = 0.02
 def views_for_pitch(pitch_px: float) -> int:
     """Views per axis a lenslet image ``pitch_px`` pixels wide holds, one pixel apart: ``floor(pitch_px +
     PITCH_SNAP_PX)``, the count decoding takes (:func:`lf_flame.real.view_grid.max_views`) and a camera file's
-    ``pixels_per_lenslet`` (:func:`lf_flame.optics.camera_file.camera_from_datasheet`)."""
-    return int(math.floor(pitch_px + PITCH_SNAP_PX))
+    ``pixels_per_lenslet`` (:func:`lf_flame.optics.camera_file.camera_from_datasheet`). ValueError for a pitch
+    that is not a finite number of at least one pixel."""
+    try:
+        p = float(pitch_px)
+    except (TypeError, ValueError):
+        p = math.nan
+    if isinstance(pitch_px, bool) or not (math.isfinite(p) and p >= 1):
+        raise ValueError(f"a lenslet image's pitch must be a finite number of pixels >= 1. Received: {pitch_px!r}")
+    return int(math.floor(p + PITCH_SNAP_PX))
 
 #: Largest tolerated relative error ``tan θ / θ - 1`` of the paraxial approximation at
 #: the steepest ray (5 %, reached at 0.375 rad); beyond it the camera warns.
@@ -405,8 +412,20 @@ class PlenopticCamera:
         return 1.0 / (1.0 / self.main_focal_mm - 1.0 / z)
 
     def object_distance_mm(self, depth_offset_mm: float) -> float:
-        """Object distance ``z_f + dz`` (mm); ``dz > 0`` is farther from the camera."""
-        return self.focus_distance_mm + float(depth_offset_mm)
+        """Object distance ``z_f + dz`` (mm); ``dz > 0`` is farther from the camera.
+
+        Raises
+        ------
+        ValueError
+            A depth that is not finite, or one at or behind the main lens (``z_f + dz <= 0``).
+        """
+        dz = float(depth_offset_mm)
+        if not math.isfinite(dz):
+            raise ValueError(f"a depth must be a finite number of mm from the focus distance. Received: {dz!r}")
+        if self.focus_distance_mm + dz <= 0:
+            raise ValueError(f"a plane at {dz:+g} mm from the focus distance ({self.focus_distance_mm:g} mm) lies at or "
+                             "behind the main lens")
+        return self.focus_distance_mm + dz
 
     # ---- slope <-> depth (the paper's sign convention) -------------------------
     def slope_for_depth(self, depth_offset_mm: float) -> float:

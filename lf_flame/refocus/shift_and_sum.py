@@ -99,7 +99,15 @@ def aperture_mask(n: int, shape: str = "square") -> np.ndarray:
     Returns
     -------
     mask : ndarray of shape (N, N), bool
+
+    Raises
+    ------
+    ValueError
+        ``n`` not a whole number >= 1, an unknown shape.
     """
+    if isinstance(n, bool) or int(n) != n or n < 1:
+        raise ValueError(f"n, the views per axis, must be a whole number >= 1. Received: {n!r}")
+    n = int(n)
     if shape == "square":
         return np.ones((n, n), bool)
     if shape == "circular":
@@ -456,6 +464,8 @@ def refocus_views(views: np.ndarray, slopes, mask=None, *, method: str = "shift-
         _check_finite("views", views)
     if method == "fourier":
         slopes = np.atleast_1d(np.asarray(slopes, np.float64))
+        if slopes.ndim != 1 or slopes.size == 0:
+            raise ValueError(f"slopes must be a non-empty 1-D sequence. Received shape {slopes.shape}")
         _check_finite("slopes", slopes)
         return FourierSlice(views, max(float(np.max(np.abs(slopes))), 1e-3), mask).stack(slopes)
     return focal_stack(views, slopes, mask, interpolation=interpolation, check_finite=False)

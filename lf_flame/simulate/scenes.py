@@ -160,7 +160,10 @@ def light_outside_field(scene: Scene, camera: PlenopticCamera) -> float:
 
 # ---------------------------------------------------------------------------------
 def _layer_grid(camera: PlenopticCamera, dz: float, texels_per_lenslet: float, margin: float):
-    """Texture grid covering the field at depth ``dz`` (mm), enlarged by ``margin``."""
+    """Texture grid covering the field at depth ``dz`` (mm), enlarged by ``margin``; ValueError for
+    ``texels_per_lenslet`` not finite and > 0."""
+    if not (math.isfinite(texels_per_lenslet) and texels_per_lenslet > 0):
+        raise ValueError(f"texels_per_lenslet must be a finite number > 0. Received: {texels_per_lenslet!r}")
     h, w = camera.field_of_view_mm(dz)
     h, w = h * margin, w * margin
     rows = int(math.ceil(camera.n_rows * margin * texels_per_lenslet))

@@ -112,7 +112,14 @@ def depth_per_slope(camera: PlenopticCamera, step: float) -> float:
     -------
     float
         mm per unit slope (> 0).
+
+    Raises
+    ------
+    ValueError
+        ``step`` not finite and > 0.
     """
+    if not (math.isfinite(step) and step > 0):
+        raise ValueError(f"step must be a finite slope > 0 (lenslets per view step). Received: {step!r}")
     try:
         return abs(camera.depth_for_slope(step) - camera.depth_for_slope(0.0)) / step
     except ValueError:
