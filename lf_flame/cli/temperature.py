@@ -48,6 +48,12 @@ def cmd_temperature(a):
         refuse_dead_site(mosaic, sensor, src)
     print(f"sensor {sensor.name}, {sensor.pattern} phase {sensor.phase} ({where}); calibration "
           f"{cal.channels[0]}/{cal.channels[1]}, gain ratio {cal.gain_ratio:.5f}")
+    from ..temperature.channels import CFA_ROUTES, ROUTE_P90_K
+    if a.route != CFA_ROUTES[0]:
+        (q, qn), (d, dn) = ROUTE_P90_K[a.route], ROUTE_P90_K[CFA_ROUTES[0]]
+        print(f"note: --route {a.route} is quicker and less accurate than the default {CFA_ROUTES[0]}: on the paper "
+              f"camera's flames its worst plane's p90 error is {q} K noise-free and {qn} K at 14 dB, the default's {d} "
+              f"and {dn} K (results/temperature.md): report the default's temperatures", file=sys.stderr)
     if recording is not None:
         return temperature_recording(a, *recording, cal, sensor, where)
     if getattr(a, "fps", None) is not None:

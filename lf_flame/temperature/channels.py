@@ -45,6 +45,11 @@ from .ratio import SMOOTH_SIGMA, filter_ratio, smooth_planes
 
 #: The routes from a colour light field to two channels' emission per plane (the first: the default).
 CFA_ROUTES = ("admm-cfa-matched", "admm-cfa", "admm-cfa-smooth", "refocus-cfa")
+#: Each route's worst plane's p90 temperature error (K) on the paper camera's colour flames, noise-free and at 14 dB
+#: (``results/temperature.md``, ``make temperature``): what ``lf-flame temperature`` quotes when another route than
+#: the default is asked for.
+ROUTE_P90_K = {"admm-cfa-matched": (26, 76), "admm-cfa": (283, 454), "admm-cfa-smooth": (84, 146),
+               "refocus-cfa": (191, 199)}
 #: admm on each channel's samples: converged by 25 fills on the nominal scene (12-300 tried,
 #: ``experiments/temperature.py``); lam and tv as measured there, no sparsity weight.
 CFA_FILLS, CFA_LAM, CFA_TV, CFA_L1 = 25, 0.01, 0.0, 0.0
