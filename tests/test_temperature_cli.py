@@ -716,6 +716,11 @@ def test_a_colour_capture_of_any_grid_decodes_with_its_channels_apart(tmp_path, 
     run("temperature", f"{d}/bb1800.h5", "--camera", cam_file, "--calibration", f"{d}/bb.json", "--depth", 0,
         "--alpha", 0, "--out", f"{d}/t.h5")
     assert "furnace image" not in capsys.readouterr().err
+    # decoded views carry their channel map: a CFA given now cannot move it (it had been printed as the sensor, and
+    # the data read with the stored map all the same)
+    assert main(["temperature", f"{d}/bb1800.h5", "--camera", str(cam_file), "--calibration", f"{d}/bb.json",
+                 "--depth", "0", "--cfa-phase", "1", "0", "--no-figure", "--out", f"{d}/t_phase.h5"]) == 2
+    assert "--cfa and --cfa-phase cannot move the channel map" in capsys.readouterr().err
     # soot's emissivity exponent (the default) on a blackbody: a note, for the raw image and the views decoded from it
     from lf_flame.cli.temperature_planes import furnace_note
     assert furnace_note(f"{d}/bb1800.h5", 1.39) and furnace_note(f"{d}/bb1800.npz", 1.39)

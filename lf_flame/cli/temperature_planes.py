@@ -40,6 +40,12 @@ def _sensor(path, a, cal=None):
             rec, where = dict(name=own.name, pattern=own.pattern, phase=tuple(own.phase)), f"{a.camera} [sensor]"
     given = {k: v for k, v in (("name", a.sensor), ("pattern", a.cfa),
                                ("phase", None if a.cfa_phase is None else tuple(a.cfa_phase))) if v is not None}
+    moved = [k for k in ("pattern", "phase") if decoded and rec and k in given and
+             (given[k] if k == "pattern" else tuple(given[k])) != (rec[k] if k == "pattern" else tuple(rec[k]))]
+    if moved:
+        raise ValueError(f"{path} holds views decoded with their channels apart at CFA {rec['pattern']} phase "
+                         f"{tuple(rec['phase'])}: --cfa and --cfa-phase cannot move the channel map their samples "
+                         "were cut with; decode the raw capture again with the camera file's cfa and cfa_phase")
     if not rec and cal is not None:
         rec = dict(name=cal.sensor_name, pattern=cal.pattern, phase=tuple(cal.phase))
         where = f"{path} records none: the calibration's"
