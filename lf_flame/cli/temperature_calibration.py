@@ -3,6 +3,7 @@ of a blackbody at known temperatures (:mod:`lf_flame.temperature.pyrometry`), wr
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -57,6 +58,9 @@ def cmd_calibrate_temperature(a):
     if a.camera:                                  # the images' camera (a perfect grid's raw images need no decoding)
         from ..optics.camera_file import load_camera_file
         own = load_camera_file(a.camera)
+    missing = [str(p) for p in a.images if not Path(p).is_file()]
+    if missing:                                   # before any image's sensor is read (a missing one's is the default)
+        raise FileNotFoundError(f"blackbody image file not found: {', '.join(missing)}")
     for path, t in zip(a.images, temps):
         refuse_rgb(path)
         raw, cam = (None, None) if str(path).endswith(".h5") else _load_raw(path)
