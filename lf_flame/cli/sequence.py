@@ -187,7 +187,7 @@ def cmd_sequence(a):
             assumed = " (no camera file given, and the recording stores none: the paper's camera was taken; give " \
                 "the frames' --camera cam.toml)" if not (a.data_config or a.camera or "camera" in attrs) else ""
             if assumed and tuple(calibration.sensor_shape) != tuple(cam.sensor_shape):
-                raise ValueError(f"the calibration's images are {calibration.sensor_shape[0]} x "
+                raise ValueError(f"the white-image calibration's images are {calibration.sensor_shape[0]} x "
                                  f"{calibration.sensor_shape[1]} px, the camera's sensor {cam.sensor_shape[0]} x "
                                  f"{cam.sensor_shape[1]} px{assumed}")
             from ..real.own_camera import decoded_views_camera

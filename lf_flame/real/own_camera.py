@@ -210,8 +210,8 @@ def check_calibration(camera: PlenopticCamera, calibration: GridCalibration) -> 
     (H, W), (Hc, Wc) = calibration.sensor_shape, camera.sensor_shape
     if (H, W) != (Hc, Wc):
         if not (H <= Hc and W <= Wc):
-            raise ValueError(f"the calibration's images are {H} x {W} px, larger than the camera's {Hc} x {Wc} px "
-                             "sensor: another camera")
+            raise ValueError(f"the white-image calibration's images are {H} x {W} px, larger than the camera's {Hc} x "
+                             f"{Wc} px sensor: another camera")
         warnings.warn(f"the images are {H} x {W} px of the camera's {Hc} x {Wc} px sensor: taken as its centred "
                       "crop (the optical axis at the image's centre, as the file's offset_px counts it)", UserWarning,
                       stacklevel=3)
