@@ -248,8 +248,11 @@ def cmd_sequence(a):
             shown = ", ".join(map(str, left[:10])) + (", ..." if len(left) > 10 else "")
             print(f"frames over-exposed against the rest ({shown}): their heights and intensities are in frames.csv, "
                   "and the spectra take each plane's mean there")
-    print(f"{s['n_frames']} frames ({s['chunks_processed']} chunks processed, {s['frames_per_s']:.1f} frames/s) "
-          f"-> {a.out}/frames.csv, spectra.csv, peaks.csv, sequence.png, summary.json")
+    n = s["chunks_processed"]
+    done = (f"every chunk done before: {n} chunk{'s' * (n != 1)} processed then, at {s['frames_per_s']:.1f} frames/s"
+            if s.get("timings") else f"{n} chunk{'s' * (n != 1)} processed, {s['frames_per_s']:.1f} frames/s")
+    print(f"{s['n_frames']} frames ({done}) -> {Path(a.out) / 'frames.csv'}, spectra.csv, peaks.csv, sequence.png, "
+          "summary.json")
 
 
 def _sequence_scene_args(s, simulate_only=False):
