@@ -36,6 +36,10 @@ def save_reconstruction(path, rec: Reconstruction, arrays=None, **attrs) -> None
             f["depths_mm"] = np.asarray(rec.depths_mm, np.float64)
             f["sample_mm"] = np.asarray(rec.sample_mm, np.float64)
             f["residuals"] = np.asarray(rec.residuals, np.float64)
+            f["residuals"].attrs["meaning"] = (
+                "the solver's relative residual per iteration (admm: each fill's prediction, made before that fill's "
+                "update, so the last is a step behind the planes written); the written planes' own is the misfit "
+                "attribute's relative_residual, where the command records one")
             f.attrs["solver"] = rec.solver
             f.attrs["settings"] = json.dumps(rec.settings)
             f.attrs["time_s"] = rec.time_s
