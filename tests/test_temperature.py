@@ -323,6 +323,11 @@ def test_matched_route_keeps_a_uniform_ratio_off_focus():
     assert (info["subsamples"], info["sigma"]) == (2, 0.0)
     assert spread["admm-cfa"] > 0.04
     assert spread["admm-cfa-matched"] < spread["admm-cfa"] / 3
+    for bad, text in (((0, 0), "two different channel indices"), ((0, 5), "two different channel indices"),
+                      ((0, 1), "holds no sample of R")):
+        with pytest.raises(ValueError, match=text):          # a ratio of a channel with itself, or of no samples
+            channel_emission("refocus-cfa", views, np.where(chan == 0, 1, chan) if bad == (0, 1) else chan, bad,
+                             slopes=[CAM.slope_for_depth(10.0)])
 
 
 def _smooth_blob():

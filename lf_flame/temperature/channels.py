@@ -328,7 +328,8 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
     Raises
     ------
     ValueError
-        An unknown route, a missing ``op``/``slopes``, a channel mask of another shape, and
+        An unknown route, a missing ``op``/``slopes``, a channel mask of another shape, channels not two
+        different indices of :data:`~lf_flame.optics.colour.CHANNELS` or one the map holds no sample of, and
         the errors of :func:`admm_channel`.
     """
     if route not in CFA_ROUTES:
@@ -336,6 +337,14 @@ def channel_emission(route: str, views: np.ndarray, chan: np.ndarray, channels, 
     chan = np.asarray(chan)
     if chan.shape != views.shape:
         raise ValueError(f"channel map of shape {chan.shape} for views of shape {views.shape}")
+    if len(channels) != 2 or len({int(c) for c in channels}) != 2 or not all(0 <= int(c) < len(CHANNELS)
+                                                                             for c in channels):
+        raise ValueError(f"channels must be two different channel indices of {len(CHANNELS)} (0 R, 1 G, 2 B). "
+                         f"Received: {tuple(channels)!r}")
+    absent = [CHANNELS[int(c)] for c in channels if not np.any(chan == int(c))]
+    if absent:
+        raise ValueError(f"the channel map holds no sample of {', '.join(absent)}: a ratio of channels needs a colour "
+                         "(Bayer) light field's map (lf_flame.temperature.mosaic.channel_views)")
     if route == "refocus-cfa":
         if slopes is None:
             raise ValueError("refocus-cfa needs the planes' slopes")
