@@ -32,3 +32,15 @@ def test_a_tone_on_a_bin_is_found_at_its_frequency_and_amplitude(nperseg):
         assert pk.loc[s, "bin_hz"] == pytest.approx(fps / seg, rel=1e-9)
         assert pk.loc[s, "dominant_hz"] == pytest.approx(hz, rel=0.002)
         assert pk.loc[s, "amplitude"] == pytest.approx(amp, rel=0.01)
+
+
+def test_a_frame_rate_of_zero_and_a_frequency_per_plane_missing_are_refused():
+    """fps 0 had reached SciPy's Welch ('sampling frequency'); true frequencies fewer than the planes an IndexError."""
+    frames = pd.concat([_frames(200, 100.0, {"height_mm": (13.5, 0.8), "integrated_intensity": (7.0, 2.0)})
+                        .assign(plane=k, depth_mm=10.0 * k)
+                        for k in (0, 1)])
+    for fps in (0.0, float("nan")):
+        with pytest.raises(ValueError, match="fps .* must be finite and > 0"):
+            spectra(frames, fps)
+    with pytest.raises(ValueError, match="truth_freqs_hz holds 1 frequencies for 2 planes"):
+        peaks(spectra(frames, 100.0), truth_freqs_hz=[13.5])

@@ -207,6 +207,9 @@ def test_no_slopes_and_no_views_are_refused(smooth_views):
     for n in (-3, 0, 2.5):
         with pytest.raises(ValueError, match="views per axis, must be a whole number >= 1"):
             aperture_mask(n)
+    from lf_flame.refocus.shift_and_sum import views_to_raw
+    with pytest.raises(ValueError, match=r"views must have shape \(N, N, R, C\)"):
+        views_to_raw(smooth_views[0])
 
 
 def test_fourier_rejects_bad_input(smooth_views):

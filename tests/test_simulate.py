@@ -129,6 +129,8 @@ def test_scenes_refuse_a_nan_depth_and_no_texels(small_camera):
         scenes.point_scene(small_camera, np.nan)
     with pytest.raises(ValueError, match="texels_per_lenslet must be a finite number > 0"):
         scenes.flame_scene(small_camera, np.random.default_rng(0), texels_per_lenslet=0)
+    with pytest.raises(ValueError, match="rays_per_pixel and seed must be whole numbers"):
+        simulate.render(small_camera, scenes.point_scene(small_camera, 0.0), 4, None)
 
 
 def test_layer_behind_camera_rejected(small_camera):

@@ -36,9 +36,12 @@ def spectra(frames: pd.DataFrame, fps: float, nperseg: int | None = None, signal
     Raises
     ------
     ValueError
-        A plane with fewer than 2 frames, or ``nperseg`` below 2: no spectrum beyond 0 Hz.
+        A plane with fewer than 2 frames, or ``nperseg`` below 2: no spectrum beyond 0 Hz; ``fps`` not finite
+        and > 0.
     """
     from scipy.signal import welch
+    if not (math.isfinite(fps) and fps > 0):
+        raise ValueError(f"fps (the recording's frames per second) must be finite and > 0. Received: {fps!r}")
     if nperseg is not None and (int(nperseg) != nperseg or nperseg < 2):
         raise ValueError(f"nperseg (Welch segment, frames) must be a whole number >= 2. Received: {nperseg!r}")
     out = []
@@ -80,8 +83,12 @@ def peaks(spec: pd.DataFrame, truth_freqs_hz=None) -> pd.DataFrame:
     ------
     ValueError
         A spectrum of a single bin (fewer than 2 frames); a true frequency more than one
-        bin outside the spectrum (0 to half the frame rate).
+        bin outside the spectrum (0 to half the frame rate); not one true frequency per plane.
     """
+    n_planes = spec.plane.nunique()
+    if truth_freqs_hz is not None and len(truth_freqs_hz) != n_planes:
+        raise ValueError(f"truth_freqs_hz holds {len(truth_freqs_hz)} frequencies for {n_planes} planes: one per plane "
+                         "(plane k holding flame k)")
     rows = []
     for (k, d, s), g in spec.groupby(["plane", "depth_mm", "signal"], sort=False):
         f, p = g.freq_hz.to_numpy(), g.power.to_numpy()

@@ -88,7 +88,10 @@ def raw_to_views(raw: np.ndarray, pixels_per_lenslet: int) -> np.ndarray:
 
 
 def views_to_raw(views: np.ndarray) -> np.ndarray:
-    """Inverse of :func:`raw_to_views`: (N, N, R, C) -> (R * N, C * N)."""
+    """Inverse of :func:`raw_to_views`: (N, N, R, C) -> (R * N, C * N); ValueError for another shape."""
+    views = np.asarray(views)
+    if views.ndim != 4 or views.shape[0] != views.shape[1]:
+        raise ValueError(f"views must have shape (N, N, R, C). Received: {views.shape}")
     U, V, R, C = views.shape
     return np.ascontiguousarray(views.transpose(2, 0, 3, 1).reshape(R * U, C * V))
 

@@ -287,6 +287,10 @@ def render_views(camera: PlenopticCamera, scene: Scene, rays_per_pixel: int = 16
 
 
 def _validate_sampling(rays_per_pixel, seed):
+    if not all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+               for v in (rays_per_pixel, seed)):
+        raise ValueError(f"rays_per_pixel and seed must be whole numbers. Received: rays_per_pixel={rays_per_pixel!r}, "
+                         f"seed={seed!r}")
     if int(rays_per_pixel) != rays_per_pixel or rays_per_pixel < 1:
         raise ValueError(f"rays_per_pixel must be a positive integer. Received: rays_per_pixel={rays_per_pixel!r}")
     if int(seed) != seed or seed < 0:
