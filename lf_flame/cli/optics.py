@@ -33,8 +33,8 @@ def cmd_simulate(a):
                          "(--seed varies them)")
     a.depth, a.x, a.y = (0.0 if v is None else v for v in (a.depth, a.x, a.y))
     record = dict(kind=a.scene, seed=a.seed, nominal=a.nominal, depth_mm=a.depth, y_mm=a.y, x_mm=a.x)
-    if a.depth is not None and not cam.object_distance_mm(a.depth) > 0:
-        raise ValueError(f"--depth {a.depth:+g} mm puts the object {cam.object_distance_mm(a.depth):.4g} mm from the "
+    if a.depth is not None and not cam.focus_distance_mm + a.depth > 0:
+        raise ValueError(f"--depth {a.depth:+g} mm puts the object {cam.focus_distance_mm + a.depth:.4g} mm from the "
                          f"main lens, at or behind it: depths are mm from the focus distance "
                          f"({cam.focus_distance_mm:.4g} mm), more than {-cam.focus_distance_mm:+.4g} mm")
     if a.scene == "furnace" and a.temperature is None:
