@@ -66,7 +66,7 @@ def test_calibrate_temperature_finds_the_gain_ratio(files, capsys):
     # one temperature per image
     assert main(["calibrate-temperature", *files["bb"], "--temperature", "1600", "--out",
                  str(files["dir"] / "x.json")]) == 2
-    capsys.readouterr()       # a missing image is named as such (a missing second decoded one had read as another sensor's)
+    capsys.readouterr()       # a missing image is named (a missing second decoded one had read as another sensor's)
     assert main(["calibrate-temperature", files["bb"][0], str(files["dir"] / "nonexist.h5"), "--temperature", "1600",
                  "--temperature", "2000", "--out", str(files["dir"] / "x.json")]) == 2
     assert "blackbody image file not found" in capsys.readouterr().err

@@ -130,8 +130,8 @@ def calibration_warnings(cal) -> list:
     wrong --temperature), a fit residual beyond :data:`RESIDUAL_WARN_K`."""
     out, temps = [], cal.fit_temperatures_k
     if len(set(temps)) < 2:
-        out.append(f"the calibration's blackbodies are at one temperature ({temps[0]:g} K): they fit the gain ratio, but "
-                   "cannot check that the ratio moves with temperature as the sensor's does (its colour filter array's "
+        out.append(f"the calibration's blackbodies are at one temperature ({temps[0]:g} K): they fit the gain ratio, "
+                   "but cannot check that the ratio moves with temperature as the sensor's does (its colour filter array's "
                    "pattern and phase; a wrong --temperature moves every reading): give two or more temperatures for "
                    "that check")
     worst = max(abs(x) for x in cal.fit_residuals_k)

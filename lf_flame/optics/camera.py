@@ -423,8 +423,8 @@ class PlenopticCamera:
         if not math.isfinite(dz):
             raise ValueError(f"a depth must be a finite number of mm from the focus distance. Received: {dz!r}")
         if self.focus_distance_mm + dz <= 0:
-            raise ValueError(f"a plane at {dz:+g} mm from the focus distance ({self.focus_distance_mm:g} mm) lies at or "
-                             "behind the main lens")
+            raise ValueError(f"a plane at {dz:+g} mm from the focus distance ({self.focus_distance_mm:g} mm) lies "
+                             "at or behind the main lens")
         return self.focus_distance_mm + dz
 
     # ---- slope <-> depth (the paper's sign convention) -------------------------

@@ -425,8 +425,8 @@ def flame_scene(camera: PlenopticCamera, rng: np.random.Generator, *, template_s
     The paper's 180 × 90-lenslet grid sees only about 23.7 × 11.8 mm at the focal plane
     (SPEC.md), smaller than its 30 mm flames, so templates are scaled by
     ``template_scale`` (0.64 on the paper's camera, :data:`TEMPLATE_SCALE`: the tallest flame, mean + 3 sd, fills
-    90 % of the field at +20 mm; another camera's field in proportion) — the paper's optics are kept. Flames stand side by side (farthest left),
-    bases near the bottom of the field. Half-width at the base 7 % of the height,
+    90 % of the field at +20 mm; another camera's field in proportion) — the paper's optics are kept. Flames stand
+    side by side (farthest left), bases near the bottom of the field. Half-width at the base 7 % of the height,
     narrowing as ``sqrt(1 - eta)``. What varies per sample depends on ``regime``:
 
     - ``"paper"``: only the height, as the paper states (Sec. III-B): the flame at

@@ -420,10 +420,10 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
     if views_mask is None:
         views_mask = lit_views(camera)
         if not views_mask.any():
-            raise ValueError(f"no view of the camera's {v.shape[0]} x {v.shape[1]} lies inside the main lens's aperture "
-                             f"image (aperture {camera.aperture_diameter_mm:.3g} mm: its image behind each lenslet covers "
-                             f"less than {LIT_VIEW_SHARE:.0%} of even the central view's pixel): check the camera's "
-                             "aperture_mm or f-number")
+            raise ValueError(f"no view of the camera's {v.shape[0]} x {v.shape[1]} lies inside the main lens's "
+                             f"aperture image (aperture {camera.aperture_diameter_mm:.3g} mm: its image behind each "
+                             f"lenslet covers less than {LIT_VIEW_SHARE:.0%} of even the central view's pixel): check "
+                             "the camera's aperture_mm or f-number")
     views_mask = np.asarray(views_mask, bool)
     if views_mask.shape != v.shape[:2] or not views_mask.any():
         raise ValueError(f"views_mask must be a boolean (N, N) = {v.shape[:2]} array with a view. Received: "

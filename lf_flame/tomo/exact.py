@@ -162,8 +162,8 @@ class ExactOperator(PlanesOperator):
     ------
     ValueError
         A non-perfect lenslet grid, occlusion or crosstalk on, no planes, a plane given twice, a plane
-        at or nearer than the main lens's focal length (the camera cannot image it), a margin that does not give whole samples, an unknown
-        precision, fewer than 1 quadrature node or subsample, or a camera whose chain is not
+        at or nearer than the main lens's focal length (the camera cannot image it), a margin that does not give
+        whole samples, an unknown precision, fewer than 1 quadrature node or subsample, or a camera whose chain is not
         shift-invariant across lenslets (message names the deviation); sample offsets of
         another shape than the views', not finite or more than a view step; fewer than 1 bin.
 
