@@ -131,9 +131,9 @@ def calibration_warnings(cal) -> list:
     out, temps = [], cal.fit_temperatures_k
     if len(set(temps)) < 2:
         out.append(f"the calibration's blackbodies are at one temperature ({temps[0]:g} K): they fit the gain ratio, "
-                   "but cannot check that the ratio moves with temperature as the sensor's does (its colour filter array's "
-                   "pattern and phase; a wrong --temperature moves every reading): give two or more temperatures for "
-                   "that check")
+                   "but cannot check that the ratio moves with temperature as the sensor's does (its colour filter "
+                   "array's pattern and phase; a wrong --temperature moves every reading): give two or more "
+                   "temperatures for that check")
     worst = max(abs(x) for x in cal.fit_residuals_k)
     if worst > RESIDUAL_WARN_K:
         out.append(f"the calibration's fit leaves a residual of {worst:.0f} K: one blackbody's --temperature may be "
