@@ -270,7 +270,7 @@ def cmd_slopes(a):
                 row["depth_mm"] = float("nan")
         if "depth_offset_mm" in o:
             row["true_depth_mm"] = o["depth_offset_mm"]
-            row["analytic_slope"] = round(cam.slope_for_depth(o["depth_offset_mm"]), 4)
+            row["analytic_slope"] = round(cam.slope_for_depth(o["depth_offset_mm"]), 4) + 0.0    # no -0
         rows.append(row)
     df = pd.DataFrame(rows)
     print(df.to_string(index=False))

@@ -266,12 +266,15 @@ def profiles_table(a):
         When the input stores its flames (the truth): the flame standing at each plane's depth, None where none does
         (:func:`plane_flames`).
     table : pandas.DataFrame
-        One row per plane and flame: ``plane``, ``flame`` (0, 1 ... where flames found apart share a plane,
+        On the planes of the stored flames (the default where the input stores them): one row per flame, as
+        :func:`lf_flame.measure.scoring.score_stacks` scores them (``plane``, ``route``, ``sample``, ``slope``,
+        ``depth_mm``, the truth, the measurement's summary, ``failure`` and the ``*_err_mm`` columns; no ``flame``).
+        Else one row per plane and flame: ``plane``, ``flame`` (0, 1 ... where flames found apart share a plane,
         :func:`flame_bands`, or stand apart on a plane of emission given by depth,
         :func:`lf_flame.measure.diagnostics.separate_flame_bands`; ``measurements`` holds each plane's
-        brightest), ``route``, ``depth_mm``, ``slope``, the
-        measurement's summary (mm), and with the truth ``height_mm_true``, ``height_err_mm`` (|measured - true|,
-        mm, each row paired with its own flame: :func:`row_flames`) ...; ``failure``.
+        brightest), ``route``, ``depth_mm``, ``slope``, the measurement's summary (mm and the plane's units), and
+        with the truth ``height_mm_true``, ``height_err_mm`` (|measured - true|, mm, each row paired with its own
+        flame: :func:`row_flames`) ...; ``failure``. ``docs/files.md`` explains every column.
     """
     import pandas as pd
     from ..measure.diagnostics import EmptyPlaneError, flame_truth, measure_flame, separate_flame_bands
@@ -455,7 +458,7 @@ def add_parsers(sub) -> None:
                         "scored beside them; 'scene' the stored flames' depths (the default where RAW stores them, "
                         "unless --search-range is given)")
     add_camera_args(s)
-    s.add_argument("--out", required=True, help="PREFIX: writes PREFIX.csv (one row per plane), PREFIX.axial.csv "
+    s.add_argument("--out", required=True, help="PREFIX: writes PREFIX.csv (one row per plane and flame), PREFIX.axial.csv "
                                                "and PREFIX.png")
     s.set_defaults(out_is_prefix=True)
     add_figure_arg(s, "each plane with its height, widths and profiles marked")

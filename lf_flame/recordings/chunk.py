@@ -27,8 +27,8 @@ def process_chunk(c: int, job: SequenceJob) -> dict:
     -------
     dict with ``rows`` (one dict per frame and plane: frame, time_s, plane, depth_mm,
     :meth:`FlameMeasurement.summary` fields, failure; on ``reconstruct-*`` routes ``n_saturated``, the frame's
-    pixels left out of the fit, and ``clipped_share``, its clipped pixels' share of the lit ones) and the seconds
-    spent reading (or rendering), refocusing and measuring.
+    view samples left out of the fit (clipped; a decoded frame's dark rim too), and ``clipped_share``, its clipped
+    pixels' share of the lit ones) and the seconds spent reading (or rendering), refocusing and measuring.
 
     A folder's frame that cannot be read (a truncated file, a missing one:
     :func:`lf_flame.recordings.sources.tolerant_frames`), or one written only in part (its last rows 0 where the

@@ -17,7 +17,8 @@ def save_reconstruction(path, rec: Reconstruction, arrays=None, **attrs) -> None
     """Write a :class:`Reconstruction` to HDF5, atomically (a temporary file, then renamed).
 
     Datasets ``planes`` (P, rows, cols) float32, ``depths_mm`` (P,), ``sample_mm`` (P, 2)
-    (mm per grid sample: height, width), ``residuals`` (iterations,), and each of ``arrays``
+    (mm per grid sample: height, width), ``residuals`` (the solver's, :class:`~lf_flame.tomo.solvers.Reconstruction`),
+    and each of ``arrays``
     (a dict of name: array, e.g. an axisymmetric flame's ``e(r, y)``) as ``extra/NAME``;
     attributes ``solver``, ``settings`` (JSON), ``time_s``, and ``attrs`` (JSON-encoded when
     not scalar).
@@ -37,9 +38,9 @@ def save_reconstruction(path, rec: Reconstruction, arrays=None, **attrs) -> None
             f["sample_mm"] = np.asarray(rec.sample_mm, np.float64)
             f["residuals"] = np.asarray(rec.residuals, np.float64)
             f["residuals"].attrs["meaning"] = (
-                "the solver's relative residual per iteration (admm: each fill's prediction, made before that fill's "
-                "update, so the last is a step behind the planes written); the written planes' own is the misfit "
-                "attribute's relative_residual, where the command records one")
+                "the last solve's relative residual per iteration (admm: one per fill after the first, at the planes "
+                "that fill predicts from, so the last is a step behind the planes written); the written planes' own is "
+                "the misfit attribute's relative_residual, where the command records one")
             f.attrs["solver"] = rec.solver
             f.attrs["settings"] = json.dumps(rec.settings)
             f.attrs["time_s"] = rec.time_s

@@ -45,7 +45,8 @@ class Reconstruction:
     residuals : ndarray of shape (n,)
         Relative data residual ``||A x - y|| / ||y||`` per iteration (for FISTA at the
         point where the gradient is taken; for the primal-dual solver NaN between its
-        records, :data:`PD_RESIDUAL_EVERY`), saturated pixels left out.
+        records, :data:`PD_RESIDUAL_EVERY`; for admm one per fill after the first, at the planes
+        that fill predicts from), saturated pixels left out.
     time_s : float
         Wall time of the solve (the operator built, the step size found, the iterations).
     """
