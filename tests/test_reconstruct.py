@@ -212,6 +212,10 @@ def test_bad_input_is_refused(tiny_camera, planted):
         EmissionOperator(tiny_camera, (0.0,), effects=scenes.Effects(occlusion=True))
     with pytest.raises(ValueError, match="solver"):
         reconstruct(views, op, "magic")
+    with pytest.raises(ValueError, match="iters must be a whole number"):
+        reconstruct(views, op, "fista", iters=2.5)           # had run 2 iterations
+    with pytest.raises(ValueError, match=r"iters \(admm's fills of the missing data\) must be >= 1"):
+        reconstruct(views, op, "admm", iters=0)              # had named 'fills', a knob the caller never gave
     for solver in ("admm", "fista"):                      # a capture clipped everywhere: no sample to fit
         with pytest.raises(ValueError, match="every one of the views' .* samples is left out of the fit"):
             reconstruct(np.ones_like(views), op, solver, saturation=1.0)

@@ -398,7 +398,11 @@ def _checked_inputs(views, op, solver, iters, damp, tv, saturation):
         solver = EXACT_SOLVER if isinstance(op, ExactOperator) else DEFAULT_SOLVER
     if solver not in SOLVERS:
         raise ValueError(f"solver must be one of {SOLVERS}. Received: {solver!r}")
+    if iters is not None and (isinstance(iters, bool) or not float(iters).is_integer()):
+        raise ValueError(f"iters must be a whole number of iterations. Received: {iters!r}")
     iters = DEFAULT_ITERS[solver] if iters is None else int(iters)
+    if solver == "admm" and iters < 1:
+        raise ValueError(f"iters (admm's fills of the missing data) must be >= 1. Received: {iters}")
     tv = DEFAULT_TV if tv is None else tv
     if iters < 0 or damp < 0 or tv < 0 or not (math.isfinite(damp) and math.isfinite(tv)):
         raise ValueError(f"iters, damp and tv must be finite and >= 0. Received: {iters}, {damp}, {tv}")
