@@ -111,8 +111,9 @@ defects: $(STAMP) ## a sensor's hot and dead pixels: depths found and planes as 
 clipping: $(STAMP) ## a sensor's clipping level in 16-bit files of 12-bit counts: the type's level and the level found -> results/clipping.{csv,md,json,png}
 	$(VENV)/bin/python experiments/clipping.py --out results
 
-# Wall time and peak memory of each training target, from GNU time where the machine has it.
-TIMEV = $(if $(wildcard /usr/bin/time),/usr/bin/time -v -o $(@D)/time_v.txt,)
+# Wall time and peak memory of each training target, from GNU time where the machine has it: each run's report
+# appended (a resumed run's time adds to the first's, not in its place).
+TIMEV = $(if $(wildcard /usr/bin/time),/usr/bin/time -v -a -o $(@D)/time_v.txt,)
 
 $(MODELS)/%/train_info.json: $(DATA)/%.h5 $(ECFG)
 	mkdir -p $(@D)

@@ -337,25 +337,36 @@ def plot_slope_curves(labels, searches, path, metric: str = "tenengrad") -> None
 
 
 def read_gnu_time(path) -> dict:
-    """Wall time (s) and peak resident memory (GiB) from a ``/usr/bin/time -v`` report.
+    """Wall time (s) and peak resident memory (GiB) from the ``/usr/bin/time -v`` reports of a file, one per run
+    (``time -a`` appends each run's: a training target resumed after a kill, or run again with nothing left to
+    train, adds its own run to the first's).
+
+    Returns
+    -------
+    dict
+        ``wall_s``: the runs' wall times summed; ``peak_rss_gib``: the largest run's peak; ``runs``: the reports
+        read (a run killed with its ``time`` wrote none: its time is missing from the sum).
 
     Raises
     ------
     ValueError
-        The file lacks either line (not a GNU time ``-v`` report).
+        The file holds no complete report (not a GNU time ``-v`` report).
     """
-    text = Path(path).read_text()
-    out = {}
-    for line in text.splitlines():
+    runs, cur = [], {}
+    for line in Path(path).read_text().splitlines():
         key, _, val = line.strip().rpartition(": ")
         if key == "Maximum resident set size (kbytes)":
-            out["peak_rss_gib"] = int(val) / 2**20
+            cur["peak_rss_gib"] = int(val) / 2**20
         elif key.startswith("Elapsed (wall clock) time"):
             parts = [float(v) for v in val.split(":")]
-            out["wall_s"] = sum(v * 60 ** k for k, v in enumerate(reversed(parts)))
-    if len(out) != 2:
+            cur["wall_s"] = sum(v * 60 ** k for k, v in enumerate(reversed(parts)))
+        if len(cur) == 2:
+            runs.append(cur)
+            cur = {}
+    if not runs:
         raise ValueError(f"{path} is not a '/usr/bin/time -v' report")
-    return out
+    return dict(wall_s=sum(r["wall_s"] for r in runs), peak_rss_gib=max(r["peak_rss_gib"] for r in runs),
+                runs=len(runs))
 
 
 def provenance_section(results_dir, tables) -> list[str]:
@@ -425,8 +436,10 @@ def write_tables(results_dir, stage_times: dict | None = None, make_targets: dic
         parts += [f"| {k} | {v:.0f} |" for k, v in stage_times.items()] + [""]
     if make_targets:
         parts += ["### Training targets, measured with `/usr/bin/time -v`", "",
-                  "| make target | wall time (min) | peak memory (GiB) |", "|---|---:|---:|"]
-        parts += [f"| {k} | {v['wall_s'] / 60:.1f} | {v['peak_rss_gib']:.2f} |" for k, v in make_targets.items()]
+                  "Every run of the target (resumed after a kill, or run again): wall times summed, the largest peak.",
+                  "", "| make target | runs | wall time (min) | peak memory (GiB) |", "|---|---:|---:|---:|"]
+        parts += [f"| {k} | {v.get('runs', 1)} | {v['wall_s'] / 60:.1f} | {v['peak_rss_gib']:.2f} |"
+                  for k, v in make_targets.items()]
         parts += [""]
     text = "\n".join(parts)
     atomic_write_text(results_dir / "tables.md", text)
