@@ -31,8 +31,15 @@ def test_digest_names_the_content(tmp_path):
         assert f.attrs["digest"] == D.content_digest(f)  # written at generation
     with h5py.File(b, "a") as f:  # one ground-truth value changed
         f["gt"][0, 0, 0, 0] += 0.5
+    with pytest.raises(ValueError, match="was changed since it was written"):   # its digest no longer holds
+        D.LightFieldDataset(b)
+    with h5py.File(b, "a") as f:
         del f.attrs["digest"]  # (a file made before digests: computed on reading)
     assert D.LightFieldDataset(b).digest != da
+    with h5py.File(a, "a") as f:  # a test image's planes reversed: scored against the wrong truth, had it been read
+        f["gt"][int(f["split/test"][0])] = f["gt"][int(f["split/test"][0])][::-1]
+    with pytest.raises(ValueError, match="was changed since it was written"):
+        D.check_dataset(a)
 
 
 def test_features_baselines_and_training_are_rebuilt_for_a_regenerated_dataset(tmp_path, capsys):

@@ -296,7 +296,8 @@ def check_dataset(path, camera: PlenopticCamera | None = None) -> dict:
     ------
     ValueError
         Missing, truncated or corrupt file, missing arrays or attributes (:data:`IDENTITY_ATTRS`), unfinished
-        samples, or a camera different from ``camera``.
+        samples, content that no longer has the digest the file records (:func:`content_digest`: edited or
+        damaged since it was written), or a camera different from ``camera``.
     """
     path = Path(path)
     if not path.is_file():
@@ -317,6 +318,10 @@ def check_dataset(path, camera: PlenopticCamera | None = None) -> dict:
             n = f["raw"].shape[0]
             if f["gt"].shape[0] != n:
                 raise ValueError(f"dataset {path}: {n} raw images but {f['gt'].shape[0]} ground truths")
+            if "digest" in attrs and content_digest(f) != str(attrs["digest"]):   # about 1 s per 400 MB of truth
+                raise ValueError(f"dataset {path} was changed since it was written: its content (settings, splits, "
+                                 "scenes, ground truth) no longer has the digest the file records (an edited or "
+                                 "damaged file): generate it again")
     except OSError as e:
         raise ValueError(f"dataset {path} is truncated or corrupt: {e}") from None
     if camera is not None and attrs.get("camera") != camera.to_json():
