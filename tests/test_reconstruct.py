@@ -177,7 +177,8 @@ def test_lsqr_residual_decreases(planted):
 
 def test_the_truth_is_the_layer_averaged_over_the_grid(small_camera):
     """Against the texture read as the renderer reads it (nearest texel) at 16 x 16 points per cell."""
-    scene = scenes.flame_scene(small_camera, np.random.default_rng(0), regime="paper")
+    scene = scenes.flame_scene(small_camera, np.random.default_rng(0), regime="paper",
+                               template_scale=scenes.TEMPLATE_SCALE)     # the flames the tolerances were set on
     op = EmissionOperator(small_camera, PAPER_DEPTHS, rays_per_pixel=1)
     truth = scene_truth(scene, op)
     for k in (0, 3):

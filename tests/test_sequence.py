@@ -1037,11 +1037,12 @@ def test_a_monochrome_recording_decoded_with_its_white_image_is_solved_in_the_wh
     scaled to [0, 1] clip at 0.0625: the weights had been 16 times too strong); a colour camera's decoded views and
     undecoded frames keep their level."""
     from lf_flame.recordings.job import SequenceJob
-    frame = np.full((40, 40), 0.0625, np.float32)
-    frame[5, 5] = 0.01
+    counts = np.random.default_rng(0).integers(0, 4096, (40, 40))          # 12-bit counts, a quarter clipped
+    counts[:, :10] = 4095
+    frame = (counts / 65535).astype(np.float32)                               # read scaled to [0, 1]: top 0.0625
     args = (None, PAPER_CAMERA, 100.0, (0.0,), (0.0,), (None,), "reconstruct-admm")
     assert SequenceJob(*args, {"pitch_px": 15.0}, "white.npz").unit(frame) == 1.0
     assert SequenceJob(*args, {"pitch_px": 15.0}, "white.npz", sensor=dict(name="Nikon 5100 (NPL)", pattern="RGGB",
-                                                                              phase=[0, 0])).unit(frame) == 0.0625
-    assert SequenceJob(*args).unit(frame) == 0.0625
-    assert SequenceJob(*args, {"pitch_px": 15.0}, None).unit(frame) == 0.0625        # no white image: counts
+                                                                              phase=[0, 0])).unit(frame) == frame.max()
+    assert SequenceJob(*args).unit(frame) == frame.max()                     # 4095 / 65535
+    assert SequenceJob(*args, {"pitch_px": 15.0}, None).unit(frame) == frame.max()    # no white image: counts
