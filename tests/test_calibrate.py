@@ -56,6 +56,10 @@ def test_calibration_recovers_the_rendered_grid(white_case):
     assert cal.residual_rms_px < 0.2
     # every lenslet whose image is whole on the sensor is decoded, and only those
     assert cal.n_rows * cal.n_cols >= 0.7 * cam.n_rows * cam.n_cols
+    # the same grid at any exposure (a white image x1e-9 had been refused as constant against an absolute floor)
+    for scale in (1e-12, 1e12):
+        again = calibrate.calibrate(white * scale)
+        assert abs(again.pitch_px - cal.pitch_px) < 1e-6 * cal.pitch_px and again.n_rows == cal.n_rows
 
 
 def test_decoded_views_match_the_directly_rendered_views(square_lf):

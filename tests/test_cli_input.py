@@ -112,6 +112,15 @@ def test_an_output_that_cannot_be_written_is_refused_before_the_work(tmp_path, c
         locked.chmod(stat.S_IRWXU)
 
 
+def test_an_option_no_file_could_be_named_is_not_taken_for_one():
+    """The inputs named by a command's options are the values that are files; a value no path can be (50 depths in
+    one --depths list, past the 255 characters a file name may hold) is none (it had stopped the command with 'File
+    name too long')."""
+    from lf_flame.cli._io import _input_paths
+    depths = ",".join(f"{-23 + i:.3f}" for i in range(50))
+    assert len(depths) > 255 and _input_paths(types.SimpleNamespace(depths=depths, out="x.h5")) == []
+
+
 def test_an_output_that_would_overwrite_an_input_is_refused_before_the_work(tmp_path, capsys, monkeypatch):
     """--out naming the command's input (a capture, a recording, a white image, a blackbody image), or an HDF5
     output named .png whose figure would be written over it, is refused before the work: each had replaced the

@@ -288,7 +288,11 @@ def _input_paths(a) -> list[Path]:
         for x in v if isinstance(v, (list, tuple)) else [v]:
             if isinstance(x, (str, Path)) and str(x):
                 q = Path(re.sub(r":\d+$", "", str(x)))
-                if q.is_file():
+                try:
+                    is_file = q.is_file()
+                except OSError:                       # a value no path can be (a long --depths list: name too long)
+                    is_file = False
+                if is_file:
                     out.append(q)
     return out
 

@@ -239,7 +239,7 @@ def calibrate(white: np.ndarray, dark: np.ndarray | None = None, *, layout: str 
                 if level > 0:
                     img[a::2, b::2] /= level
     top = np.percentile(img, 99.5)
-    if not top > 0 or np.ptp(img) <= 1e-9 * max(1.0, abs(top)):
+    if not top > 0 or np.ptp(img) <= 1e-9 * abs(top):      # relative: a white image's level is any scale
         raise CalibrationError("not a white image: it is constant (after dark subtraction)")
     if np.mean(img >= img.max()) > 0.25 and np.ptp(img) > 0:
         raise CalibrationError(f"not a white image: {100 * np.mean(img >= img.max()):.0f} % of its pixels sit at "
