@@ -141,7 +141,11 @@ def cmd_tables(a):
                 times[f"training {regime} {scene} (start + {i['epochs_run']} epochs)"] = i["training_wall_time_s"]
             tv = Path(a.model_dir) / regime / scene / "time_v.txt"
             if tv.exists():
-                targets[f"train {regime} {scene}"] = read_gnu_time(tv)
+                try:
+                    targets[f"train {regime} {scene}"] = read_gnu_time(tv)
+                except ValueError:      # a run killed with its timer: no report was written
+                    print(f"note: {tv} holds no complete GNU time report (its runs were killed): the training "
+                          f"target's time and memory of {regime} {scene} are left out")
     print(write_tables(a.results, times, targets))
 
 
