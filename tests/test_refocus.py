@@ -306,7 +306,9 @@ def test_slope_search_refuses_what_has_no_focus_and_stays_on_its_grid():
                                    (np.random.default_rng(0).random((n, n, R, C)), (100, 110, 0, 10),
                                     "outside the views", {}),
                                    (np.random.default_rng(0).random((n, n, R, C)), (0, R, 0, C),
-                                    r"reach past \+-3 lenslets per view step", dict(lo=-1e3, hi=1e3, coarse_step=10))):
+                                    r"reach past \+-3 lenslets per view step", dict(lo=-1e3, hi=1e3, coarse_step=10)),
+                                   (np.random.default_rng(0).random((2, 2, R, C)), (0, R, 0, C),
+                                    "a slope search needs at least 3 views per axis", {})):
         with pytest.raises(ValueError, match=text):             # the last had asked for 44 GiB on the paper camera
             find_sharpest_slope(views, roi, **grid)
     cam = PAPER_CAMERA

@@ -52,6 +52,10 @@ FLAT_SHARPNESS = 1e-6
 #: a slope moves their light past the whole grid (and its Fourier slice's padding grows with it: -1000 .. 1000 asked
 #: for 44 GiB).
 DEFAULT_REACH = 3.0
+#: The fewest views per axis a slope search, and the depth search (:data:`lf_flame.tomo.depth.MIN_VIEWS`), takes:
+#: fewer hold no parallax to tell depths apart (one view none, two the focus curves of a single shift; every flame of
+#: a new user's 2-view camera came back at the searched range's end).
+MIN_SEARCH_VIEWS = 3
 #: A region whose sharpness varies by less than this share of its largest over the slopes searched has no focus to
 #: find (:func:`find_sharpest_slope`): light that no slope moves (a hot pixel in the centre view: 0.24 % with the
 #: Fourier slice's round-off, 0 by shift-and-sum, where its peak had fallen at the grid's end, slope +3.0025 or -3.0).
@@ -95,7 +99,8 @@ def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", me
     Raises
     ------
     ValueError
-        Unknown metric or method, an empty ROI or one outside the views' grid, a bad grid (or one reaching
+        Unknown metric or method, fewer than :data:`MIN_SEARCH_VIEWS` views per axis, an empty ROI or one
+        outside the views' grid, a bad grid (or one reaching
         past ``max(R, C) / (N - 1)``, where the outermost views shift past the whole grid, and past the default's
         :data:`DEFAULT_REACH`), NaN/inf in the
         views, a region as sharp at every slope (no light or no structure, or light that no slope moves:
@@ -116,6 +121,9 @@ def find_sharpest_slope(views: np.ndarray, roi, *, metric: str = "tenengrad", me
     views = np.asarray(views)
     _check_finite("views", views)
     n, _, R, C = views.shape
+    if n < MIN_SEARCH_VIEWS:
+        raise ValueError(f"a slope search needs at least {MIN_SEARCH_VIEWS} views per axis; the light field has {n} x "
+                         f"{n}, too few for a focus to stand out of (give the planes as slopes: refocus --slope)")
     limit = max(max(R, C) / max(n - 1, 1), DEFAULT_REACH)
     if max(abs(lo), abs(hi)) > limit:
         raise ValueError(f"slopes {lo:+g} .. {hi:+g} reach past +-{limit:.3g} lenslets per view step, where the "

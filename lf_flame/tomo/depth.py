@@ -46,6 +46,7 @@ from scipy import ndimage
 
 from ..optics.camera import PlenopticCamera, search_range_mm
 from ..refocus.shift_and_sum import LIT_VIEW_SHARE, FourierSlice, _check_finite, aperture_mask, lit_views
+from ..refocus.slope_search import MIN_SEARCH_VIEWS
 
 #: Coarse slope step (lenslets per view step) on 15 views: about 0.33 mm of depth at the paper camera's focal
 #: plane; on ``N`` views ``SLOPE_STEP * 14 / (N - 1)``, so that the outermost view moves as far per step.
@@ -53,9 +54,8 @@ SLOPE_STEP = 0.04
 #: Vote bins per coarse slope step (:func:`_vote_bins`; the votes' histogram is smoothed over one vote bin): on the
 #: coarse grid alone flames two steps apart in slope had one peak (docs/decisions.md, "Votes at half a slope step").
 VOTE_SUBBINS = 2
-#: Views per axis a depth search needs: fewer hold no parallax to tell depths apart (one view none, two the
-#: focus curves of a single shift).
-MIN_VIEWS = 3
+#: Views per axis a depth search needs (:data:`lf_flame.refocus.slope_search.MIN_SEARCH_VIEWS`).
+MIN_VIEWS = MIN_SEARCH_VIEWS
 #: Found depths closer than this (mm on the paper's camera: :func:`depth_scale` on another) are solved as one plane:
 #: 1.69 lenslets of parallax across the paper camera's aperture at its focal plane.
 MERGE_MM = 1.0
