@@ -213,6 +213,10 @@ def test_bad_input_is_refused(tiny_camera, planted):
         EmissionOperator(tiny_camera, (0.0,), effects=scenes.Effects(occlusion=True))
     with pytest.raises(ValueError, match="solver"):
         reconstruct(views, op, "magic")
+    import types                                              # a decoded light field of one view per lenslet
+    one_view = types.SimpleNamespace(dimsd=(1, 1, 4, 4), dims=(2, 4, 4))
+    with pytest.raises(ValueError, match="one view per lenslet sees no parallax: the light of 2 planes"):
+        reconstruct(np.zeros((1, 1, 4, 4)), one_view, "fista")     # had split its light between them, arbitrarily
     with pytest.raises(ValueError, match="iters must be a whole number"):
         reconstruct(views, op, "fista", iters=2.5)           # had run 2 iterations
     with pytest.raises(ValueError, match=r"iters \(admm's fills of the missing data\) must be >= 1"):

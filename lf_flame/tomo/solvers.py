@@ -329,9 +329,10 @@ def reconstruct(views, op: EmissionOperator, solver: str | None = None, iters: i
     Raises
     ------
     ValueError
-        An unknown solver, negative iterations or weights, views of another camera
-        (shape), NaN or inf in the views, a saturation level that is not positive, a
-        saturation mask that is not boolean of the views' shape, every sample left out of the fit.
+        An unknown solver, negative or fractional iterations (admm: fewer than 1), negative weights, views of another
+        camera (shape), NaN or inf in the views, a saturation level that is not positive, a saturation mask that is
+        not boolean of the views' shape, every sample left out of the fit, several planes on one view per lenslet
+        (no parallax to tell them apart).
     """
     iters_given, tv_given = iters is not None, tv is not None
     solver, iters, tv, y = _checked_inputs(views, op, solver, iters, damp, tv, saturation)
@@ -398,6 +399,10 @@ def _checked_inputs(views, op, solver, iters, damp, tv, saturation):
         solver = EXACT_SOLVER if isinstance(op, ExactOperator) else DEFAULT_SOLVER
     if solver not in SOLVERS:
         raise ValueError(f"solver must be one of {SOLVERS}. Received: {solver!r}")
+    if op.dimsd[0] == 1 and op.dims[0] > 1:
+        raise ValueError(f"one view per lenslet sees no parallax: the light of {op.dims[0]} planes cannot be told "
+                         "apart (any share between them fits the data alike); give one plane, or views of more than "
+                         "one pixel per lenslet")
     if iters is not None and (isinstance(iters, bool) or not float(iters).is_integer()):
         raise ValueError(f"iters must be a whole number of iterations. Received: {iters!r}")
     iters = DEFAULT_ITERS[solver] if iters is None else int(iters)
