@@ -257,6 +257,8 @@ def test_an_interrupted_write_leaves_no_temporary_file(tmp_path, monkeypatch):
      "--heldout", "whole number >= 0"),
     (["reconstruct", "x.npz", "--saturation", "nan", "--out", "r.h5"], "--saturation", "positive level"),
     (["simulate", "--scene", "point", "--x", "inf", "--out", "p.npz"], "--x", "finite number"),
+    (["simulate", "--scene", "flame", "--seed", "-1", "--out", "p.npz"], "--seed", "whole number >= 0"),
+    (["simulate-sequence", "--seed", "-1", "--out", "r.h5"], "--seed", "whole number >= 0"),
     (["sequence", "x.h5", "--depth", "nan", "--out", "o"], "--depth", "finite number"),
     (["temperature", "x.npz", "--calibration", "bb.json", "--alpha", "nan", "--out", "t.h5"], "--alpha",
      "finite number"),

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from ._io import (COLOUR_SCENES, RAW_FORMATS, _raw_objects, _save_image, _write_stack, add_camera_args,
-                  add_search_arg, camera_config, colour_scene, finite, light_field, planes_count, render_sensor,
+                  add_search_arg, camera_config, colour_scene, count, finite, light_field, planes_count, render_sensor,
                   save_npz, simulated_scene)
 from ..simulate.scenes import MAX_BIT_DEPTH, PAPER_DEPTHS_MM
 
@@ -394,7 +394,7 @@ def add_parsers(sub) -> None:
     s.add_argument("--out", required=True, help=".npz (raw, camera, objects, scene[, views]) or .png (the raw "
                    "image in 16 bits, clipped at 1, with the camera, objects and scene in its text); both read by "
                    "the commands that take a raw image")
-    s.add_argument("--seed", type=int, default=0, help="seed of the scene's random variation and of the rays")
+    s.add_argument("--seed", type=count, default=0, help="seed of the scene's random variation and of the rays")
     s.add_argument("--rays-per-pixel", type=int, default=16, help="rays traced per sensor pixel (fewer: faster, "
                    "noisier)")
     s.add_argument("--data-config", "--camera", dest="data_config", help="camera file (the datasheet tables of "

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 from ..tomo.defaults import ADMM_QUIET, ADMM_TV, DEFAULT_TV, SOLVERS
-from ._io import AUTO_LEVEL, _level_or_none, add_search_arg, positive_int, finite
+from ._io import AUTO_LEVEL, _level_or_none, add_search_arg, count, positive_int, finite
 
 #: Sensor noise of ``--noise``: full well (e-), read noise (e-), bits (a 12-bit high-speed camera).
 NOISE = (10_000.0, 5.0, 12)
@@ -268,7 +268,7 @@ def _sequence_scene_args(s, simulate_only=False):
     s.add_argument("--freq", type=finite, action="append", help=pre + "each flame's flicker frequency, Hz, farthest "
                    "first (repeatable; default drawn from 5-20 Hz)")
     s.add_argument("--noise", action="store_true", help=pre + "shot and read noise, 12 bits")
-    s.add_argument("--seed", type=int, default=0, help=pre + "seed of the frequencies, phases and jitter")
+    s.add_argument("--seed", type=count, default=0, help=pre + "seed of the frequencies, phases and jitter")
     s.add_argument("--rays-per-pixel", type=int, default=4, help=pre + "rays traced per sensor pixel")
     s.add_argument("--camera", help="camera file (TOML: the datasheet tables of docs/own_camera.md, or a [camera] "
                    "table; default: " + ("the file's, else the paper's camera); with --calibration, the camera the "
