@@ -201,8 +201,8 @@ def test_gnu_time_report_parsed(tmp_path):
     assert 0.2 <= got["wall_s"] < 30 and 0.045 < got["peak_rss_gib"] < 2  # 50 MiB array held
     assert got["runs"] == 1
     # a second run appended (a target resumed): the times add up, the peak is the larger run's
-    subprocess.run(["/usr/bin/time", "-v", "-a", "-o", str(report), sys.executable, "-c", "import time; time.sleep(0.3)"],
-                   check=True)
+    subprocess.run(["/usr/bin/time", "-v", "-a", "-o", str(report), sys.executable, "-c",
+                    "import time; time.sleep(0.3)"], check=True)
     both = read_gnu_time(report)
     assert both["runs"] == 2 and both["wall_s"] >= got["wall_s"] + 0.3 and both["peak_rss_gib"] == got["peak_rss_gib"]
     (tmp_path / "bad.txt").write_text("Command being timed: x\n")

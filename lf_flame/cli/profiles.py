@@ -458,8 +458,8 @@ def add_parsers(sub) -> None:
                         "scored beside them; 'scene' the stored flames' depths (the default where RAW stores them, "
                         "unless --search-range is given)")
     add_camera_args(s)
-    s.add_argument("--out", required=True, help="PREFIX: writes PREFIX.csv (one row per plane and flame), PREFIX.axial.csv "
-                                               "and PREFIX.png")
+    s.add_argument("--out", required=True, help="PREFIX: writes PREFIX.csv (one row per plane and flame), "
+                                               "PREFIX.axial.csv and PREFIX.png")
     s.set_defaults(out_is_prefix=True)
     add_figure_arg(s, "each plane with its height, widths and profiles marked")
     add_search_arg(s)
