@@ -45,7 +45,8 @@ def side_flames(camera, flames=FLAMES, texels_per_lenslet: float = 3.0):
     """Flames side by side, one per plane, with :func:`lf_flame.simulate.scenes.flame_luminosity`:
     base at 8 % of the field height from the bottom, half-width 12 % of the height at the base
     (the paper's: 7 %), so about eight lenslets wide on a 48-lenslet-tall grid."""
-    from lf_flame.simulate.scenes import FLAME_EFFECTS, Layer, Scene, flame_luminosity
+    from lf_flame.simulate.scenes import FLAME_EFFECTS, flame_luminosity
+    from lf_flame.simulate.layers import Layer, Scene
     layers = []
     for dz, fx, fh, level in flames:
         h, w = (v * 1.2 for v in camera.field_of_view_mm(dz))

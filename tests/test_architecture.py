@@ -162,7 +162,7 @@ def test_the_import_checks_catch_what_they_should():
     """Imports inside functions and relative ones are read; a lazily re-exported name resolves to
     its submodule; the cycle search finds pairs and longer circles, not chains."""
     module = PACKAGE / "simulate" / "scenes_volume.py"
-    assert "lf_flame.simulate.scenes.Scene" in imported_names(module)
+    assert "lf_flame.simulate.layers.Scene" in imported_names(module)
     assert lazy_exports(PACKAGE / "tomo" / "__init__.py")["reconstruct"] == "solvers"
     assert {"lf_flame.temperature.pyrometry"} <= module_graph()["lf_flame.cli.temperature"]   # function-level
     assert import_cycles({"a": {"b"}, "b": {"a"}, "c": {"a"}}) == [["a", "b"]]

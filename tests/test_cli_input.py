@@ -12,7 +12,7 @@ import pytest
 
 import lf_flame.cli as cli
 from lf_flame.cli import main
-from lf_flame.cli._io import check_output
+from lf_flame.cli.options import check_output
 
 
 def _one_error_line(err: str) -> str:
@@ -116,7 +116,7 @@ def test_an_option_no_file_could_be_named_is_not_taken_for_one():
     """The inputs named by a command's options are the values that are files; a value no path can be (50 depths in
     one --depths list, past the 255 characters a file name may hold) is none (it had stopped the command with 'File
     name too long')."""
-    from lf_flame.cli._io import _input_paths
+    from lf_flame.cli.options import _input_paths
     depths = ",".join(f"{-23 + i:.3f}" for i in range(50))
     assert len(depths) > 255 and _input_paths(types.SimpleNamespace(depths=depths, out="x.h5")) == []
 
@@ -312,7 +312,7 @@ def test_sequence_refuses_planes_outside_the_cameras_range(tmp_path, capsys, mon
     the camera's imaging range, before any frame is processed."""
     import lf_flame.recordings.runner as runner
     from lf_flame.optics.camera import PAPER_CAMERA
-    from lf_flame.optics.camera import imaging_range_mm
+    from lf_flame.optics.depth_range import imaging_range_mm
     monkeypatch.setattr(runner, "run", lambda *a, **k: pytest.fail("the run started"))
     rec = tmp_path / "rec.h5"
     with h5py.File(rec, "w") as f:
@@ -332,7 +332,8 @@ def test_refocus_and_simulate_refuse_planes_no_camera_images(tmp_path, capsys):
     them (they were refocused, onto nothing), and so is a plane given twice (reconstruct solved two identical
     planes); ``simulate --depth -1000`` (the object behind the main lens, 1 m in
     front of the focus distance) is refused naming the depth (it stopped in a ZeroDivisionError)."""
-    from lf_flame.optics.camera import PAPER_CAMERA, imaging_range_mm
+    from lf_flame.optics.camera import PAPER_CAMERA
+    from lf_flame.optics.depth_range import imaging_range_mm
     views = tmp_path / "raw.npy"                                       # the paper camera's raw image
     np.save(views, np.random.default_rng(0).uniform(0.1, 0.5, PAPER_CAMERA.sensor_shape).astype(np.float32))
     lo, hi = imaging_range_mm(PAPER_CAMERA)

@@ -5,7 +5,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lf_flame.optics.camera import PAPER_CAMERA, PlenopticCamera, imaging_range_mm
+from lf_flame.optics.camera import PAPER_CAMERA, PlenopticCamera
+from lf_flame.optics.depth_range import imaging_range_mm
 from lf_flame.optics.camera_file import load_camera_file
 from lf_flame.refocus.shift_and_sum import raw_to_views
 from lf_flame.simulate import tracer
@@ -905,7 +906,7 @@ def test_objects_before_a_bright_background_are_searched_apart(cam, planted):
     own region (one region, as brightness alone gives, merges them into one peak)."""
     import dataclasses
 
-    from lf_flame.simulate.scenes import Layer
+    from lf_flame.simulate.layers import Layer
     from lf_flame.tomo import depth
     layers = tuple(dataclasses.replace(L, depth_offset_mm=d) for L, d in zip(planted[0].layers, (3.0, 4.2)))
     rows, cols = layers[0].radiance.shape

@@ -270,7 +270,8 @@ def test_a_finer_grid_resolves_what_the_lenslet_grid_aliases():
     2 x 2 grid, binned back to the lenslets, is nearer the truth than the solve on the lenslet
     grid (measured 0.058 / 0.071 against 0.102 / 0.106 per plane at these settings)."""
     from lf_flame.refocus.shift_and_sum import raw_to_views
-    from lf_flame.simulate.scenes import FLAME_EFFECTS, Layer, Scene, _layer_grid
+    from lf_flame.simulate.scenes import FLAME_EFFECTS, _layer_grid
+    from lf_flame.simulate.layers import Layer, Scene
     from lf_flame.simulate.tracer import render
     from lf_flame.tomo.fourier import solve_admm
     cam = PlenopticCamera(n_rows=32, n_cols=32)

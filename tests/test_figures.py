@@ -127,7 +127,8 @@ def test_a_truth_plane_is_titled_with_the_layers_it_is_nearest_to():
     """``truth_depths``: a plane holding a flame and a sliver of another flame's light (a layer shared linearly
     between it and a far plane) is titled with its own flame's depth; a plane given only slivers takes their
     light-weighted mean; layers between two planes of a dense stack count toward the nearer plane."""
-    from lf_flame.simulate.scenes import FLAME_EFFECTS, Layer, Scene
+    from lf_flame.simulate.scenes import FLAME_EFFECTS
+    from lf_flame.simulate.layers import Layer, Scene
     from lf_flame.tomo.truth import truth_depths
 
     def layer(d, level=1.0):

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from lf_flame import cli
-from lf_flame.optics.camera import PAPER_CAMERA, imaging_range_mm
+from lf_flame.optics.camera import PAPER_CAMERA
+from lf_flame.optics.depth_range import imaging_range_mm
 from lf_flame.optics.camera_file import camera_from_datasheet, decoded_camera, load_camera_file
 from lf_flame.real import decoding, view_grid, views_file
 from lf_flame.real.calibration import GridCalibration
@@ -731,7 +732,7 @@ def test_a_microscopes_imaging_range_holds_its_focus():
     focal lengths): the range searched reaches from halfway to the focal length up to |slope| 3, its focus
     inside (it was one point beyond the focus); a camera focused farther keeps 1.05 focal lengths."""
     from lf_flame.optics.camera_file import camera_from_datasheet
-    from lf_flame.optics.camera import NEAR_LIMIT, imaging_range_mm
+    from lf_flame.optics.depth_range import NEAR_LIMIT, imaging_range_mm
     scope = camera_from_datasheet({"main_lens": {"focal_length_mm": 200 / 60, "mla_distance_mm": 200 + 200 / 60},
                                    "microlens_array": {"pitch_um": 100.0, "focal_length_mm": 2.5},
                                    "sensor": {"pixel_size_um": 6.5, "rows": 436, "cols": 436}})

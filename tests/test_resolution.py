@@ -185,7 +185,7 @@ def test_the_command_maps_another_cameras_geometry(tmp_path, capsys):
     assert camera_stack(PAPER_CAMERA) == (-15.0, 25.0, 0.5, FEATURE_SIZES_MM)      # the paper's own
     other = PlenopticCamera(pixels_per_lenslet=9, n_rows=40, n_cols=30, main_focal_mm=100.0)
     near, far, spacing, features = camera_stack(other)
-    from lf_flame.optics.camera import imaging_range_mm
+    from lf_flame.optics.depth_range import imaging_range_mm
     scale, (lo, hi) = depth_scale(other, 9), imaging_range_mm(other)          # within what the camera refocuses
     assert scale > 2 and near == pytest.approx(max(-15 * scale, lo), rel=0.05)
     assert far == pytest.approx(min(25 * scale, hi), rel=0.05) and lo <= near < far <= hi

@@ -12,7 +12,7 @@ from lf_flame.optics.colour import (DEFAULT_SENSITIVITIES, LAMBDA0_NM, ColourSen
 from lf_flame.refocus.shift_and_sum import raw_to_views
 from lf_flame.simulate import tracer
 from lf_flame.simulate.colour import render_colour
-from lf_flame.simulate.scenes import Effects, Layer, Scene
+from lf_flame.simulate.layers import Effects, Layer, Scene
 from lf_flame.simulate.scenes_temperature import furnace_scene
 from lf_flame.tomo.exact import ExactOperator
 from lf_flame.tomo.solvers import reconstruct

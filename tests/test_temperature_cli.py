@@ -11,7 +11,7 @@ from lf_flame.optics.camera import PlenopticCamera
 from lf_flame.optics.colour import band_integrals, library_sensor
 from lf_flame.refocus.shift_and_sum import raw_to_views
 from lf_flame.simulate.colour import render_colour
-from lf_flame.simulate.scenes import Effects, Layer, Scene
+from lf_flame.simulate.layers import Effects, Layer, Scene
 from lf_flame.simulate.scenes_temperature import furnace_scene
 from lf_flame.temperature.channels import DECODED_KNOBS
 from lf_flame.temperature.mosaic import channel_sum_views, channel_views

@@ -188,7 +188,7 @@ def test_a_volume_moved_sideways_is_drawn_whole_and_cut_by_the_fields_edge(volum
     command prints the share of its light outside the field (the centred sheath's: none)."""
     from lf_flame.cli._io import _raw_scene
     from lf_flame.refocus.shift_and_sum import raw_to_views
-    from lf_flame.simulate.scenes import light_outside_field
+    from lf_flame.simulate.layers import light_outside_field
     (tmp_path / "cam.toml").write_text(CAMERA_TOML)
     moved = tmp_path / "moved.npz"
     capsys.readouterr()

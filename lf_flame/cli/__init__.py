@@ -20,7 +20,7 @@ import warnings
 from pathlib import Path
 
 from . import learning, optics, profiles, real, resolution, sequence, temperature, temperature_calibration, volume
-from ._io import check_outputs
+from .options import check_outputs
 
 # The commands' modules import only NumPy at the top: each command imports the libraries
 # it uses (PyLops, TensorFlow, Dask, Numba, Matplotlib, SciPy ...) when it runs, so
@@ -89,7 +89,7 @@ def _negative_lists(argv: list) -> list:
 def main(argv=None) -> int:
     """Run one ``lf-flame`` command and return its exit status (:data:`EXIT_OK` ...).
 
-    The outputs' folders are checked first (:func:`~lf_flame.cli._io.check_outputs`); bad
+    The outputs' folders are checked first (:func:`~lf_flame.cli.options.check_outputs`); bad
     input (``ValueError``, :data:`PATH_ERRORS`, a command's ``SystemExit("message")``) gives
     :data:`EXIT_BAD_INPUT`, a failure while running (:data:`RUN_ERRORS`) :data:`EXIT_FAILED`,
     Ctrl-C :data:`EXIT_INTERRUPTED`, each with one line on stderr; the writers leave no

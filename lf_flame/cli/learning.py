@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from ..routes import LEARNED_ROUTES
-from ._io import RAW_FORMATS, _load_raw, _write_stack, count, positive_int, finite
+from ._io import RAW_FORMATS, _load_raw, _write_stack
+from .options import count, positive_int, finite
 
 
 def cmd_dataset(a):

@@ -12,10 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import (COLOUR_SCENES, RAW_FORMATS, _raw_objects, _save_image, _write_stack, add_camera_args,
-                  add_search_arg, camera_config, colour_scene, count, finite, light_field, planes_count, render_sensor,
-                  save_npz, simulated_scene)
-from ..simulate.scenes import MAX_BIT_DEPTH, PAPER_DEPTHS_MM
+from ._io import (COLOUR_SCENES, RAW_FORMATS, _raw_objects, _save_image, _write_stack, camera_config, colour_scene,
+                  light_field, planes_count, render_sensor, save_npz, simulated_scene)
+from .options import add_camera_args, add_search_arg, count, finite
+from ..simulate.scenes import PAPER_DEPTHS_MM
+from ..simulate.layers import MAX_BIT_DEPTH
 
 
 
@@ -88,7 +89,7 @@ def cmd_simulate(a):
                  + ", ".join(f"{d:+.2f}" for d in depths) + " mm)")
     cut = ""
     if a.scene not in ("white", "furnace"):                   # those fill the field and more, by design
-        from ..simulate.scenes import light_outside_field
+        from ..simulate.layers import light_outside_field
         share = light_outside_field(sc, cam)
         cut = f"; {100 * share:.1f} % of its light lies outside the field of view" if share >= 0.001 else ""
     print(f"rendered {name} {raw.shape} at {a.rays_per_pixel} rays/pixel in {dt:.2f} s -> {out}{cut}")
@@ -98,9 +99,9 @@ def cmd_simulate(a):
 
 def _render_warnings(cam, sc, raw) -> None:
     """``simulate``'s warnings of a scene the camera cannot show: objects at depths it does not refocus
-    (:func:`lf_flame.optics.camera.imaging_range_mm`), a render with no light on the sensor; and a note of the
+    (:func:`lf_flame.optics.depth_range.imaging_range_mm`), a render with no light on the sensor; and a note of the
     pixels that clip the sensor (at the simulator's level, 1)."""
-    from ..optics.camera import imaging_range_mm
+    from ..optics.depth_range import imaging_range_mm
     lo, hi = imaging_range_mm(cam)
     far = sorted({float(o["depth_offset_mm"]) for o in sc.objects if "depth_offset_mm" in o
                   and not lo <= float(o["depth_offset_mm"]) <= hi})
@@ -146,11 +147,11 @@ def cmd_refocus(a):
     if a.depth:
         if cam is None:
             raise ValueError(f"--depth needs the camera of {a.raw}: give --camera cam.toml (or use --slope)")
-        from ..optics.camera import check_imaging_range
+        from ..optics.depth_range import check_imaging_range
         check_imaging_range(cam, a.depth)            # as every route that takes planes
         slopes = [cam.slope_for_depth(d) for d in a.depth]
     else:
-        from ..optics.camera import MAX_SEARCH_SLOPE
+        from ..optics.depth_range import MAX_SEARCH_SLOPE
         slopes = list(a.slope)
         far = [s for s in slopes if not abs(s) <= MAX_SEARCH_SLOPE]
         if far:
@@ -232,7 +233,7 @@ def cmd_slopes(a):
     from ..refocus.shift_and_sum import aperture_mask
     from ..refocus.slope_search import find_sharpest_slope
     views, cam, lit, frame = views_and_camera(a)
-    from ..optics.camera import MAX_SEARCH_SLOPE, imaging_range_mm
+    from ..optics.depth_range import MAX_SEARCH_SLOPE, imaging_range_mm
     lo, hi = a.lo, a.hi
     far = [f"--{k} {v:g}" for k, v in (("lo", lo), ("hi", hi)) if v is not None and not abs(v) <= MAX_SEARCH_SLOPE]
     if far:       # a wider grid had held every refocused plane at once: 24 GB for -100 ... 100, killed
@@ -361,7 +362,7 @@ def _calibrate_slopes(a):
 
 
 def _bit_depth(text: str) -> int:
-    """``--bit-depth``: an integer from 1 to :data:`~lf_flame.simulate.scenes.MAX_BIT_DEPTH`."""
+    """``--bit-depth``: an integer from 1 to :data:`~lf_flame.simulate.layers.MAX_BIT_DEPTH`."""
     try:
         bits = int(text)
     except ValueError:

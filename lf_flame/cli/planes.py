@@ -57,10 +57,10 @@ def planes_from_args(a, cam, objects=None):
 
 def check_planes(cam, depths) -> None:
     """Planes given to a command: refused outside what ``cam`` refocuses or given twice
-    (:func:`lf_flame.optics.camera.check_imaging_range`); a warning printed where two lie closer than the depth at
+    (:func:`lf_flame.optics.depth_range.check_imaging_range`); a warning printed where two lie closer than the depth at
     which found depths merge into one plane (:func:`lf_flame.tomo.depth.depth_tolerances`: under 1.7 lenslets of
     parallax across the aperture, 1 mm on the paper's camera), whose emission the data barely share out."""
-    from ..optics.camera import check_imaging_range
+    from ..optics.depth_range import check_imaging_range
     from ..tomo.depth import depth_tolerances
     check_imaging_range(cam, depths)
     merge = depth_tolerances(cam, cam.pixels_per_lenslet)[1]
@@ -86,9 +86,9 @@ def found_planes(lf, views=None, search_range=None):
 
 def search_planes(views, camera, search_range=None, views_mask=None):
     """:func:`found_planes` of views (N, N, R, C) of ``camera``, searched over its imaging range clipped to
-    ``search_range`` (:func:`lf_flame.optics.camera.search_range_mm`), over ``views_mask``'s views (None: those
+    ``search_range`` (:func:`lf_flame.optics.depth_range.search_range_mm`), over ``views_mask``'s views (None: those
     inside the aperture's image, :func:`~lf_flame.tomo.depth.find_depths`)."""
-    from ..optics.camera import search_range_mm
+    from ..optics.depth_range import search_range_mm
     from ..tomo.depth import find_depths
     found = find_depths(views, camera, depth_range_mm=search_range_mm(camera, search_range), views_mask=views_mask)
     if not len(found.planes_mm):

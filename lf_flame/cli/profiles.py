@@ -8,7 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import RAW_FORMATS, _load_raw, _raw_objects, add_camera_args, add_figure_arg, add_search_arg, finite
+from ._io import RAW_FORMATS, _load_raw, _raw_objects
+from .options import add_camera_args, add_figure_arg, add_search_arg, finite
 from ..routes import parse_route
 from .learning import _learned_runner
 from ..routes import LEARNED_ROUTES

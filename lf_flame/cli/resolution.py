@@ -6,7 +6,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 from ..tomo.resolution import AXES, CONDITIONS
-from ._io import finite
+from .options import finite
 
 
 def wider_than_field(camera, feature_mm, axis: str) -> str | None:

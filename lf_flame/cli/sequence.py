@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 from ..tomo.defaults import ADMM_QUIET, ADMM_TV, DEFAULT_TV, SOLVERS
-from ._io import AUTO_LEVEL, _level_or_none, add_search_arg, count, positive_int, finite
+from .options import AUTO_LEVEL, _level_or_none, add_search_arg, count, positive_int, finite
 
 #: Sensor noise of ``--noise``: full well (e-), read noise (e-), bits (a 12-bit high-speed camera).
 NOISE = (10_000.0, 5.0, 12)

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import (AUTO_LEVEL, RAW_FORMATS, _level_or_none, add_figure_arg, add_search_arg, fraction, finite,
-                  planes_count)
+from ._io import RAW_FORMATS, planes_count
+from .options import AUTO_LEVEL, _level_or_none, add_figure_arg, add_search_arg, fraction, finite
 from .temperature_planes import (_auto_depths, fit_warnings, _level_record, _plane_lines, furnace_note,
                                  _plane_temperatures, _record, _refuse_monochrome, _sensor, _sensor_args,
                                  temperature_figure)

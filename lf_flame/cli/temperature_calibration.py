@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import RAW_FORMATS, _load_raw, finite, refuse_rgb
+from ._io import RAW_FORMATS, _load_raw, refuse_rgb
+from .options import finite
 from .temperature_planes import _sensor, _sensor_args
 
 

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._io import (AUTO_LEVEL, finite, RAW_FORMATS, _level_or_none, _raw_scene, add_camera_args, add_figure_arg,
-                  add_search_arg, planes_count, positive_int)
+from ._io import RAW_FORMATS, _raw_scene, planes_count
+from .options import AUTO_LEVEL, finite, _level_or_none, add_camera_args, add_figure_arg, add_search_arg, positive_int
 from .fit_notes import (edge_warning, left_out_notes, misfit_warning, resolution_note, resolved_spacing_mm,
                         solve_warnings, stack_end_warning)
 from .planes import (_fitted_light_field, found_planes, found_record, lattice_solve, possible_warning,

@@ -25,7 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..optics.camera import PlenopticCamera, search_range_mm
+from ..optics.camera import PlenopticCamera
+from ..optics.depth_range import search_range_mm
 from .own_camera import DecodedFrame
 
 
@@ -194,7 +195,7 @@ class LightField:
         return lit_views(self.camera, tent=0.0 if self.interpolation is None else 1.0 / self.interpolation[1])
 
     def depth_range_mm(self, depth_range_mm=None) -> tuple[float, float]:
-        """Depths to search, mm from the focus distance (:func:`lf_flame.optics.camera.search_range_mm`)."""
+        """Depths to search, mm from the focus distance (:func:`lf_flame.optics.depth_range.search_range_mm`)."""
         return search_range_mm(self.camera, depth_range_mm)
 
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from ..optics.camera import PlenopticCamera
 from ..optics.colour import ColourSensor, mosaic
-from .scenes import Scene
+from .layers import Scene
 from .tracer import apply_sensor, render
 
 

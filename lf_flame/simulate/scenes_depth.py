@@ -14,7 +14,8 @@ import math
 import numpy as np
 
 from ..optics.camera import PlenopticCamera
-from .scenes import FLAME_EFFECTS, PAPER_DEPTHS_MM, Scene, _flame_layer, _roi, camera_template_scale
+from .scenes import FLAME_EFFECTS, PAPER_DEPTHS_MM, _flame_layer, _roi, camera_template_scale
+from .layers import Scene
 
 #: Depth range (mm from the focal plane) of the paper camera's usable slopes (about -1.9 .. +2.8).
 DEPTH_RANGE_MM = (-15.0, 25.0)

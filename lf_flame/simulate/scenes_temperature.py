@@ -16,8 +16,8 @@ import numpy as np
 
 from ..optics.camera import PlenopticCamera
 from ..optics.colour import ALPHA_SOOT, ColourSensor, band_integrals
-from .scenes import (PAPER_DEPTHS_MM, Scene, _layer_grid, flame_centreline, flame_luminosity,
-                     flame_scene)
+from .scenes import PAPER_DEPTHS_MM, _layer_grid, flame_centreline, flame_luminosity, flame_scene
+from .layers import Scene
 from .scenes_time import FlameSequence
 
 #: Sheath (hottest) temperature of each of the paper's four flames, K, in the order of

@@ -1,6 +1,6 @@
 """Scenes that change in time: flickering flames filmed at a frame rate.
 
-Each frame is a :class:`lf_flame.simulate.scenes.Scene` built by the flame layers of
+Each frame is a :class:`lf_flame.simulate.layers.Scene` built by the flame layers of
 :mod:`lf_flame.simulate.scenes`; this module adds the time: flicker frequencies, amplitudes and
 per-frame jitter, and the recordings' truth. Static scenes stay in :mod:`lf_flame.simulate.scenes`.
 """
@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..optics.camera import PlenopticCamera
-from .scenes import (FLAME_EFFECTS, FLAME_HEIGHT_MEAN_MM, PAPER_DEPTHS_MM, Effects, Scene, _flame_layer,
-                     camera_template_scale)
+from .scenes import FLAME_EFFECTS, FLAME_HEIGHT_MEAN_MM, PAPER_DEPTHS_MM, _flame_layer, camera_template_scale
+from .layers import Effects, Scene
 
 
 @dataclass(frozen=True)

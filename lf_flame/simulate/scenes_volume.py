@@ -14,7 +14,8 @@ import math
 import numpy as np
 
 from ..optics.camera import PlenopticCamera
-from .scenes import FLAME_EFFECTS, Layer, Scene, _layer_grid, _roi
+from .scenes import FLAME_EFFECTS, _layer_grid, _roi
+from .layers import Layer, Scene
 
 
 def sheath_density(r_mm, eta, diameter_mm: float, core: float = 0.0):

@@ -21,7 +21,8 @@ import numpy as np
 
 from ..optics.camera import PlenopticCamera
 from ..optics.colour import ALPHA_SOOT, ColourSensor, band_integrals
-from .scenes import Scene, _layer_grid
+from .scenes import _layer_grid
+from .layers import Scene
 from .scenes_temperature import FLAME_BASE_K, SHEATH_XI, ColourFlameScene, flame_temperature
 from .scenes_volume import axisymmetric_flame_scene, sheath_density
 

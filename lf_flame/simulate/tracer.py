@@ -26,7 +26,7 @@ import numpy as np
 from . import _kernels as _simulate_kernels
 from ..optics.camera import PlenopticCamera
 from ..optics.matrices import RayTransferMatrix, free_space
-from .scenes import Scene
+from .layers import Scene
 
 
 _UNUSED = np.zeros((1, 1))  # the kernel's adjoint buffers, when rendering

@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from ..simulate.scenes import Scene
+from ..simulate.layers import Scene
 from .exact import ExactOperator
 from .truth import depth_shares
 
@@ -147,7 +147,7 @@ def decoded_plane_truth(layer, camera, depth_mm: float, shape, rotation_deg: flo
 
     Parameters
     ----------
-    layer : lf_flame.simulate.scenes.Layer
+    layer : lf_flame.simulate.layers.Layer
     camera : PlenopticCamera
         The decoded views' camera.
     depth_mm : float

@@ -44,7 +44,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from ..optics.camera import PlenopticCamera, search_range_mm
+from ..optics.camera import PlenopticCamera
+from ..optics.depth_range import search_range_mm
 from ..refocus.shift_and_sum import LIT_VIEW_SHARE, FourierSlice, _check_finite, aperture_mask, lit_views
 from ..refocus.slope_search import MIN_SEARCH_VIEWS
 
@@ -346,8 +347,8 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
         The camera that took them (slope <-> depth).
     depth_range_mm : (float, float) or None
         Depths searched (mm from the focal plane, positive farther), low < high, clipped to the depths the camera
-        can refocus (:func:`lf_flame.optics.camera.search_range_mm`); None: all of those
-        (:func:`lf_flame.optics.camera.imaging_range_mm`, -23.0 .. +26.8 mm on the paper's camera).
+        can refocus (:func:`lf_flame.optics.depth_range.search_range_mm`); None: all of those
+        (:func:`lf_flame.optics.depth_range.imaging_range_mm`, -23.0 .. +26.8 mm on the paper's camera).
     slope_step : float or None
         Step of the coarse slope grid (lenslets per view step), > 0; None: :data:`SLOPE_STEP`
         scaled to the views' count (``14 / (N - 1)``).

@@ -43,7 +43,8 @@ import numpy as np
 import scipy.fft
 
 from ..optics.camera import PlenopticCamera
-from ..simulate.scenes import FLAME_EFFECTS, Effects
+from ..simulate.scenes import FLAME_EFFECTS
+from ..simulate.layers import Effects
 from . import _fourier_kernels
 from .operator import PlanesOperator, normalised_adjoint
 from .quadrature import QUADRATURE_NODES, ExactKernels, exact_kernels

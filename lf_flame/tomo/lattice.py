@@ -51,7 +51,8 @@ import math
 
 import numpy as np
 
-from ..simulate.scenes import FLAME_EFFECTS, Effects
+from ..simulate.scenes import FLAME_EFFECTS
+from ..simulate.layers import Effects
 from . import _lattice_kernels
 from .exact import ExactOperator
 from .quadrature import ExactKernels, _phase_kernels, chain_coefficients, sub_view_chain

@@ -24,10 +24,12 @@ import math
 import numpy as np
 import scipy.sparse.linalg
 
-from ..optics.camera import PlenopticCamera, check_planes_once
+from ..optics.camera import PlenopticCamera
+from ..optics.depth_range import check_planes_once
 from ..refocus.shift_and_sum import _check_finite, raw_to_views, views_to_raw
 from ..simulate import _kernels as _simulate_kernels
-from ..simulate.scenes import FLAME_EFFECTS, Effects, Layer, Scene
+from ..simulate.scenes import FLAME_EFFECTS
+from ..simulate.layers import Effects, Layer, Scene
 from ..simulate.tracer import (
     NO_TABLE,
     _stack_layers,

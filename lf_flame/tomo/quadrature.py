@@ -49,8 +49,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..optics.camera import PlenopticCamera, check_planes_once
-from ..simulate.scenes import FLAME_EFFECTS, Effects, Layer, Scene
+from ..optics.camera import PlenopticCamera
+from ..optics.depth_range import check_planes_once
+from ..simulate.scenes import FLAME_EFFECTS
+from ..simulate.layers import Effects, Layer, Scene
 from ..simulate.tracer import _stack_layers, trace_coefficients
 from . import _exact_kernels
 from .operator import plane_grid

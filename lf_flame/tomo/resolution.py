@@ -71,7 +71,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..optics.camera import PAPER_CAMERA, PlenopticCamera
-from ..simulate.scenes import FLAME_EFFECTS, Effects
+from ..simulate.scenes import FLAME_EFFECTS
+from ..simulate.layers import Effects
 
 from .conditioning import _sample_mm, normal_matrix, pair_conditions
 
@@ -105,7 +106,7 @@ def camera_stack(camera: PlenopticCamera) -> tuple:
 
     The stack :data:`DEFAULT_NEAR_MM` to :data:`DEFAULT_FAR_MM` is taken in the paper camera's parallax across
     the aperture (:func:`lf_flame.tomo.depth.depth_scale`, the depth finder's scaling), clipped to what the
-    camera refocuses (:func:`lf_flame.optics.camera.imaging_range_mm`), in 80 steps; the feature sizes
+    camera refocuses (:func:`lf_flame.optics.depth_range.imaging_range_mm`), in 80 steps; the feature sizes
     :data:`FEATURE_SIZES_MM` in lenslet footprints at the focal plane. Each is rounded to two significant
     digits, so the paper's camera gets its own values.
 
@@ -122,7 +123,7 @@ def camera_stack(camera: PlenopticCamera) -> tuple:
         Half a period, mm.
     """
     from ..measure.diagnostics import lenslet_size_mm
-    from ..optics.camera import imaging_range_mm
+    from ..optics.depth_range import imaging_range_mm
     from .depth import depth_scale
     scale = depth_scale(camera, camera.pixels_per_lenslet)
     lo, hi = imaging_range_mm(camera)

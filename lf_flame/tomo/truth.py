@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..simulate.scenes import Layer, Scene
+from ..simulate.layers import Layer, Scene
 from .operator import EmissionOperator
 
 
