@@ -21,8 +21,9 @@ PILE_RATIO = 4
 #: up (a new user's 12-bit furnace images at 10 counts of 4095 were taken as 79 % clipped and the advice was a shorter
 #: exposure), where a clipping sensor's pile stands hundreds of steps up (8 bits: 255).
 PILE_MIN_STEPS = 32
-#: The quantisation step is read from at most this many of the image's values (evenly strided).
-STEP_SAMPLES = 1_000_000
+#: The quantisation step is read from at most this many of the image's values (evenly strided): enough to hold an
+#: image's neighbouring levels, and a few milliseconds where a pile is found (a clipped recording: every frame).
+STEP_SAMPLES = 65_536
 
 
 def clipping_pile(raw: np.ndarray) -> float | None:
