@@ -99,7 +99,8 @@ SCORE_VERSION = "side-by-side"
 #: rows record the depths that search saw and did not take (``FoundDepths.possible``; the route's planes unchanged).
 #: "-camera-range": the depths searched are the camera's imaging range (``imaging_range_mm``), not -15 .. +25 mm.
 #: "-warm": a quiet light field's refinement solves start from the planes of the step before (``refine_planes``).
-ROUTE_VERSION = "near-peel-prominence-refine-unmerged-search-own-planes-quiet-excess-possible-camera-range-warm"
+#: "-parallax-merge": found depths share a plane only within ``MERGE_PARALLAX`` lenslets of parallax (``plane_runs``).
+ROUTE_VERSION = "near-peel-prominence-refine-unmerged-search-own-planes-quiet-excess-possible-camera-range-warm-parallax-merge"
 
 
 def add_noise(raw, snr_db, seed):

@@ -57,9 +57,10 @@ def planes_from_args(a, cam, objects=None):
 
 def check_planes(cam, depths) -> None:
     """Planes given to a command: refused outside what ``cam`` refocuses or given twice
-    (:func:`lf_flame.optics.depth_range.check_imaging_range`); a warning printed where two lie closer than the depth at
-    which found depths merge into one plane (:func:`lf_flame.tomo.depth.depth_tolerances`: under 1.7 lenslets of
-    parallax across the aperture, 1 mm on the paper's camera), whose emission the data barely share out."""
+    (:func:`lf_flame.optics.depth_range.check_imaging_range`); a warning printed where two lie closer than
+    :func:`lf_flame.tomo.depth.depth_tolerances`' merge depth (1.7 lenslets of parallax across the aperture, 1 mm on
+    the paper's camera), whose emission the data barely share out where nothing holds each plane to its own lines of
+    sight (found depths are held so, :func:`lf_flame.tomo.found_planes.near_plane_support`)."""
     from ..optics.depth_range import check_imaging_range
     from ..tomo.depth import depth_tolerances
     check_imaging_range(cam, depths)
@@ -69,9 +70,8 @@ def check_planes(cam, depths) -> None:
     if close:
         pairs = ", ".join(f"{x:+.4g} and {y:+.4g}" for x, y in close)
         metres = len(d) > 1 and max(abs(v) for v in d) < 1.0 <= merge
-        print(f"warning: planes at {pairs} mm lie closer than {merge:.3g} mm, the depth at which this camera's found "
-              "depths merge into one plane: the data barely tell them apart, and a flame's emission splits between "
-              "them (give one plane there)"
+        print(f"warning: planes at {pairs} mm lie closer than {merge:.3g} mm, within which this camera's data barely "
+              "tell planes apart: a flame's emission splits between them (give one plane there)"
               + ("; depths are millimetres from the focus distance: were these given in metres?" * metres))
 
 

@@ -25,8 +25,9 @@ Whole flames are not depth-resolved by the data's normal matrices alone (NOTES.m
    Pacheco et al. 2000) gives a second depth; the uncertainty is the larger of half their
    difference and a tenth of the Tenengrad peak's half width at half maximum in depth (the
    resolution of the fit); ``width_mm`` is that full width.
-5. **Planes.** Found depths closer than ``merge_mm`` are one plane (their vote-weighted
-   mean depth). :func:`lf_flame.tomo.found_planes.find_planes` solves for the emission on those
+5. **Planes.** Found depths closer than ``merge_mm`` whose refocus slopes lie within
+   :data:`MERGE_PARALLAX` lenslets of parallax across the aperture of each other are one plane
+   (their vote-weighted mean depth). :func:`lf_flame.tomo.found_planes.find_planes` solves for the emission on those
    planes, and :mod:`lf_flame.tomo.peel` searches the solve's residual for depths the votes missed.
 
 The depth tolerances (``min_separation_mm``, ``merge_mm``) were chosen in millimetres on the paper's camera
@@ -57,9 +58,16 @@ SLOPE_STEP = 0.04
 VOTE_SUBBINS = 2
 #: Views per axis a depth search needs (:data:`lf_flame.refocus.slope_search.MIN_SEARCH_VIEWS`).
 MIN_VIEWS = MIN_SEARCH_VIEWS
-#: Found depths closer than this (mm on the paper's camera: :func:`depth_scale` on another) are solved as one plane:
-#: 1.69 lenslets of parallax across the paper camera's aperture at its focal plane.
+#: Depths closer than this (mm on the paper's camera: :func:`depth_scale` on another) the data barely tell apart
+#: where nothing holds each plane to its own lines of sight (planes a user gives: the command line warns; flames paired
+#: with planes): 1.69 lenslets of parallax across the paper camera's aperture at its focal plane.
 MERGE_MM = 1.0
+#: Found depths whose planes' parallax across the aperture differs by less than this (lenslets: their refocus slopes'
+#: difference times ``N - 1``) are solved as one plane (:func:`find_depths`, :func:`merge_depths`' ``along``). They
+#: lie in different regions (a region's depths are :data:`MIN_SEPARATION_MM` apart), and planes near in parallax are
+#: held to their own regions where they meet (:func:`lf_flame.tomo.found_planes.near_plane_support`), so a plane of
+#: its own costs a flame less than sharing one at a compromise depth. Chosen on VALIDATION.
+MERGE_PARALLAX = 1.1
 #: Depths of one region closer than this (mm on the paper's camera: :func:`depth_scale` on another) are one peak.
 MIN_SEPARATION_MM = 2.5
 #: Where the central view's bright regions (dilated) cover more than this share of the field, the light field is
@@ -367,8 +375,9 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
         Depths of one region closer than this are one peak (mm), >= 0; None:
         :data:`MIN_SEPARATION_MM` times :func:`depth_tolerance_scale`.
     merge_mm : float or None
-        Found depths closer than this share one plane (mm), >= 0; None: :data:`MERGE_MM` times
-        :func:`depth_tolerance_scale`.
+        Found depths closer than this share one plane (mm), >= 0; None: those closer than :data:`MERGE_MM` (times
+        :func:`depth_tolerance_scale`) whose planes' parallax across the aperture differs by less than
+        :data:`MERGE_PARALLAX` lenslets (:func:`plane_runs`).
     views_mask : ndarray of shape (N, N), bool, or None
         The views refocused; None: those whose pixels lie inside the main lens's aperture image
         (:func:`lf_flame.refocus.shift_and_sum.lit_views`; decoded views take theirs with ``interpolated``: a
@@ -393,7 +402,7 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
                          "--slope)")
     if slope_step is None:
         slope_step = SLOPE_STEP * 14.0 / max(v.shape[0] - 1, 1)
-    min_separation_mm, merge_mm = depth_tolerances(camera, v.shape[0], min_separation_mm, merge_mm)
+    min_separation_mm = depth_tolerances(camera, v.shape[0], min_separation_mm)[0]
     try:
         lo, hi = search_range_mm(camera, depth_range_mm)
     except ValueError as e:
@@ -403,7 +412,7 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
                           ("peak_fraction", peak_fraction, 0 < peak_fraction <= 1),
                           ("vote_floor", vote_floor, 0 <= vote_floor < 1),
                           ("min_separation_mm", min_separation_mm, min_separation_mm >= 0),
-                          ("merge_mm", merge_mm, merge_mm >= 0)):
+                          ("merge_mm", 0.0 if merge_mm is None else merge_mm, merge_mm is None or merge_mm >= 0)):
         if not (math.isfinite(float(val)) and ok):
             raise ValueError(f"{name} is out of range. Received: {val!r}")
     s_lo, s_hi = sorted((camera.slope_for_depth(lo), camera.slope_for_depth(hi)))  # raises where it cannot image
@@ -481,7 +490,7 @@ def find_depths(views, camera: PlenopticCamera, *, depth_range_mm=None, slope_st
                              width=width, weight=float(hist[pf] / total), region=lab, mask=voters, curve=c_ten))
     rows.sort(key=lambda r: r["depth"])
     depths = np.array([r["depth"] for r in rows])
-    planes, plane_of = merge_depths(depths, np.array([r["weight"] for r in rows]), merge_mm)
+    planes, plane_of = plane_runs(camera, n, depths, np.array([r["weight"] for r in rows]), merge_mm)
     R, C = labels.shape
     return FoundDepths(depths_mm=depths, slopes=np.array([r["slope"] for r in rows]),
                        uncertainty_mm=np.array([r["unc"] for r in rows]), width_mm=np.array([r["width"] for r in rows]),
@@ -532,15 +541,49 @@ def _gaussian_taps(sigma: float, truncate: float = 4.0) -> np.ndarray:
     return (phi / phi.sum())[::-1].copy()
 
 
-def merge_depths(depths_mm, weights, merge_mm: float = MERGE_MM):
+def plane_runs(camera: PlenopticCamera, n_views: int, depths_mm, weights, merge_mm: float | None = None):
+    """Planes from found depths (:func:`merge_depths`): within ``merge_mm`` (mm) of each other or, None, both
+    within :data:`MERGE_MM` (times :func:`depth_tolerance_scale`) and within :data:`MERGE_PARALLAX` lenslets of
+    parallax across the aperture (refocus slopes' difference times ``n_views - 1``). On the paper's camera the
+    parallax binds (1.1 lenslets: 0.65 mm at the focal plane, 0.9 mm 20 mm beyond); on cameras that see less
+    parallax per millimetre the millimetres do, as before.
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+    n_views : int
+        Views per axis of the light field searched.
+    depths_mm, weights, merge_mm
+        As :func:`merge_depths` (``merge_mm`` None: as above).
+
+    Returns
+    -------
+    planes_mm, plane_of
+        As :func:`merge_depths`.
+    """
+    if merge_mm is not None:
+        return merge_depths(depths_mm, weights, merge_mm)
+    along = np.array([camera.slope_for_depth(float(d)) for d in np.asarray(depths_mm, np.float64)]) * (n_views - 1)
+    if len(along) > 1 and along[-1] < along[0]:       # a slope that falls with depth: the same parallax apart
+        along = -along
+    return merge_depths(depths_mm, weights, depth_tolerances(camera, n_views)[1], along=along,
+                        merge_along=MERGE_PARALLAX)
+
+
+def merge_depths(depths_mm, weights, merge_mm: float = MERGE_MM, along=None, merge_along: float = 0.0):
     """Planes from found depths: runs of ascending depths each within ``merge_mm`` of the
-    previous one become one plane at their weighted mean depth.
+    previous one (and within ``merge_along`` of it ``along`` a coordinate, where given) become one plane at their
+    weighted mean depth.
 
     Parameters
     ----------
     depths_mm, weights : ndarray of shape (K,)
         Depths (mm, ascending) and positive weights.
     merge_mm : float
+    along : ndarray of shape (K,) or None
+        Each depth's coordinate, ascending with the depths (their parallax in lenslets: :func:`plane_runs`).
+    merge_along : float
+        The largest step ``along`` within a run, where ``along`` is given.
 
     Returns
     -------
@@ -555,9 +598,12 @@ def merge_depths(depths_mm, weights, merge_mm: float = MERGE_MM):
     d, w = np.asarray(depths_mm, np.float64), np.asarray(weights, np.float64)
     if d.shape != w.shape or d.ndim != 1 or not np.all(np.isfinite(d)) or np.any(np.diff(d) < 0):
         raise ValueError(f"depths must be finite, ascending and as many as the weights. Received: {d}, {w}")
+    u = np.zeros_like(d) if along is None else np.asarray(along, np.float64)
+    if u.shape != d.shape or np.any(np.diff(u) < 0):
+        raise ValueError(f"along must ascend with the depths, one per depth. Received: {along}")
     plane_of = np.zeros(len(d), int)
     for k in range(1, len(d)):
-        plane_of[k] = plane_of[k - 1] + (d[k] - d[k - 1] > merge_mm)
+        plane_of[k] = plane_of[k - 1] + (d[k] - d[k - 1] > merge_mm or u[k] - u[k - 1] > merge_along)
     planes = np.array([np.average(d[plane_of == p], weights=np.maximum(w[plane_of == p], 1e-12))
                        for p in range(plane_of.max() + 1 if len(d) else 0)])
     return planes, plane_of

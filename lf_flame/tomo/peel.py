@@ -16,7 +16,7 @@ import numpy as np
 from ..optics.camera import PlenopticCamera
 from ..refocus.shift_and_sum import _check_finite
 from .depth import (FoundDepths, _focus_energy, _grid_depths, _half_width, _peak_fit, depth_tolerances,
-                    merge_depths, searched_depths)
+                    plane_runs, searched_depths)
 
 #: A depth the solve missed (:func:`missed_depths`): the residual views' Tenengrad energy over a region, refocused,
 #: peaks at least ``RESIDUAL_PROMINENCE`` robust standard deviations (1.4826 times the median absolute deviation
@@ -120,7 +120,7 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
         r = gaussian_filter(r, (0, 0, float(smooth), float(smooth)))
     if not np.any(r) or not len(found.depths_mm):
         return None
-    min_separation_mm, merge_mm = depth_tolerances(camera, n, min_separation_mm, merge_mm)
+    min_separation_mm = depth_tolerances(camera, n, min_separation_mm)[0]
     slopes = found.grid_slopes
     ten = _focus_energy(r, slopes, sigma, mask=found.views_mask)                # the views the votes searched
     depth_of = _grid_depths(camera, slopes)      # NaN where the grid runs past what the camera images
@@ -156,7 +156,7 @@ def missed_depths(residual, camera: PlenopticCamera, found: FoundDepths, *, prom
     order = np.argsort(d, kind="stable")
     cat = lambda old, key: np.concatenate([np.asarray(old), np.array([q[key] for q in rows])])[order]
     weight = np.concatenate([found.weight, np.zeros(len(rows))])[order]      # no votes: found in the residual
-    planes, plane_of = merge_depths(d[order], weight, merge_mm)
+    planes, plane_of = plane_runs(camera, n, d[order], weight, merge_mm)
     curves = list(found.curves) + [q["curve"] for q in rows]
     return FoundDepths(depths_mm=d[order], slopes=cat(found.slopes, "slope"), uncertainty_mm=cat(found.uncertainty_mm, "unc"),
                        width_mm=cat(found.width_mm, "width"), weight=weight, region=cat(found.region, "region"),

@@ -160,7 +160,7 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
     residual = Residuals(data, fit) if residual is None else residual
     k_of = {int(p): k for k, p in enumerate(found.plane_of)}          # each refined plane holds one depth
     near, far = searched_depths(camera, found)
-    gap = depth_tolerances(camera, camera.pixels_per_lenslet)[1]      # planes nearer than this are one plane
+    gap = depth_tolerances(camera, camera.pixels_per_lenslet)[1]      # planes the data barely tell apart
     reach = {p: REFINE_REACH * found.uncertainty_mm[k_of[p]] for p in todo}
     lo = {p: max(found.depths_mm[k_of[p]] - reach[p], near) for p in todo}        # near and far: imaged depths
     hi = {p: min(found.depths_mm[k_of[p]] + reach[p], far) for p in todo}
@@ -202,9 +202,9 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
 
 def kept_apart(planes, before, moved, gap_mm: float) -> np.ndarray:
     """The planes of one refinement step (mm, the order of ``before``) with each moved plane that would pass
-    another or come within ``gap_mm`` of it (the distance within which found depths are one plane,
-    :func:`~lf_flame.tomo.depth.depth_tolerances`) left where it was (``before``, ascending and at least
-    ``gap_mm`` apart). On a camera of little parallax per millimetre, a plane's reach spans several millimetres and
+    another or come within ``gap_mm`` of it (the distance within which the data barely tell planes apart,
+    :func:`~lf_flame.tomo.depth.depth_tolerances`) left where it was (``before``, ascending; found depths of
+    different regions may lie nearer than ``gap_mm``, :func:`~lf_flame.tomo.depth.plane_runs`). On a camera of little parallax per millimetre, a plane's reach spans several millimetres and
     Gauss-Newton moved planes one behind another past each other or onto one depth, which the data cannot tell
     apart.
 
