@@ -96,8 +96,8 @@ def main(argv=None) -> int:
                 misfit=float(misfit["misfit"]), **{f"misfit_{MORE_FILLS}_fills": float(misfit_more)},
                 relative_residual=float(misfit["relative_residual"]),
                 noise_share=float(misfit["noise_share"]), reconstruct_wall_s=wall,
-                warnings=" | ".join(line[len("warning: "):].split(":")[0] for line in text.splitlines()
-                                    if line.startswith("warning"))))
+                warnings=" | ".join(line[len("warning: "):].removeprefix(f"{d / lf_file}: ").split(":")[0]
+                                    for line in text.splitlines() if line.startswith("warning"))))
             print(f"{name}: found {rows[-1]['found_depths_um']} um -> planes {rows[-1]['planes_um']} um; misfit "
                   f"{rows[-1]['misfit']:.3f}, edge {rows[-1]['edge_share_max']:.3f}; {wall:.1f} s", flush=True)
     df = pd.DataFrame(rows)
