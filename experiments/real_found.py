@@ -52,14 +52,14 @@ def main(argv=None) -> int:
     import numpy as np
 
     from lf_flame.optics.camera import PlenopticCamera
-    from lf_flame.tomo.depth import MERGE_MM, depth_tolerance_scale
+    from lf_flame.tomo.depth import MERGE_PARALLAX, depth_tolerance_scale
     from lf_flame.config import atomic_write_text, provenance
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--data", type=Path, required=True, help="napari_lf/examples")
     ap.add_argument("--out", type=Path, required=True)
     a = ap.parse_args(argv)
     a.out.mkdir(parents=True, exist_ok=True)
-    rows, t_all = [], time.perf_counter()
+    rows, merge_um, t_all = [], {}, time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         for name, (lf_file, white, dark) in CAPTURES.items():
@@ -88,6 +88,9 @@ def main(argv=None) -> int:
                 raise RuntimeError(f"reconstruct --iters {MORE_FILLS} {name}: {text_more.strip()[-300:]}")
             with h5py.File(tmp / f"{name}_more.h5") as f:
                 misfit_more = json.loads(f.attrs["misfit"])["misfit"]
+            n = views_cam.pixels_per_lenslet      # the depth of MERGE_PARALLAX lenslets of parallax at the focal plane
+            merge_um[name] = 1e3 * abs(views_cam.depth_for_slope(MERGE_PARALLAX / (n - 1))
+                                       - views_cam.depth_for_slope(0.0))
             rows.append(dict(capture=name, tolerance_scale=depth_tolerance_scale(views_cam,
                                                                                  views_cam.pixels_per_lenslet),
                              plane_samples=" x ".join(map(str, shape[1:])), found_depths_um=", ".join(
@@ -110,10 +113,10 @@ def main(argv=None) -> int:
           "found, admm). Depths in micrometres from the focal plane in the camera file's thin-lens model (in air; "
           "the immersion's index is not modelled). No truth: `misfit` is the share of the light field the planes "
           "leave unexplained beyond the noise, `edge_share_max` the largest share of a plane's emission within 2 "
-          "lenslets of the field's edge. Found depths closer than `lf_flame.tomo.depth.MERGE_MM` on the paper camera "
-          f"({MERGE_MM:g} mm) share one plane; on these microscopes, whose parallax changes far faster with depth, "
-          "the depths of the same parallax across the aperture (`depth_tolerance_scale`: "
-          + ", ".join(f"{r['capture']} {1e3 * MERGE_MM * r['tolerance_scale']:.1f} um" for r in rows) + "). "
+          "lenslets of the field's edge. Found depths share one plane within "
+          f"`lf_flame.tomo.depth.MERGE_PARALLAX` ({MERGE_PARALLAX:g}) lenslets of parallax across the aperture: on "
+          "these microscopes, whose parallax changes far faster with depth than the paper camera's, micrometres (at "
+          "the focal plane: " + ", ".join(f"{k} {v:.2g} um" for k, v in merge_um.items()) + "). "
           f"`misfit_{MORE_FILLS}_fills`: the same command with `--iters {MORE_FILLS}` (admm's fills; the default "
           "caps them and stops when the planes settle, knobs chosen on the paper camera's four planes).", "",
           df.drop(columns="warnings").to_markdown(index=False, floatfmt=".3g"), "",
