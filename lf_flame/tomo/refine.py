@@ -204,9 +204,9 @@ def kept_apart(planes, before, moved, gap_mm: float) -> np.ndarray:
     """The planes of one refinement step (mm, the order of ``before``) with each moved plane that would pass
     another or come within ``gap_mm`` of it (the distance within which the data barely tell planes apart,
     :func:`~lf_flame.tomo.depth.depth_tolerances`) left where it was (``before``, ascending; found depths of
-    different regions may lie nearer than ``gap_mm``, :func:`~lf_flame.tomo.depth.plane_runs`). On a camera of little parallax per millimetre, a plane's reach spans several millimetres and
-    Gauss-Newton moved planes one behind another past each other or onto one depth, which the data cannot tell
-    apart.
+    different regions may lie nearer than ``gap_mm``, :func:`~lf_flame.tomo.depth.plane_runs`). On a camera of
+    little parallax per millimetre, a plane's reach spans several millimetres and Gauss-Newton moved planes one
+    behind another past each other or onto one depth, which the data cannot tell apart.
 
     Parameters
     ----------
