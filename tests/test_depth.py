@@ -206,8 +206,8 @@ def test_the_focus_measures_are_scipys_sobel_laplace_and_gaussian_to_the_bit(sha
     edge mirrored without the edge sample or a tap off by one breaks it."""
     from scipy import ndimage
 
-    from lf_flame.tomo._depth_kernels import focus_measures
-    from lf_flame.tomo.depth import _gaussian_taps
+    from lf_flame.tomo._focus_kernels import focus_measures
+    from lf_flame.tomo.focus import _gaussian_taps
     stack = np.random.default_rng(sum(shape)).random(shape) * 1e3
     ten, lap = np.empty_like(stack), np.empty_like(stack)
     focus_measures(stack, _gaussian_taps(sigma), True, ten, lap)
@@ -904,7 +904,7 @@ def test_the_refinement_stays_within_the_depths_the_camera_images(cam, behind):
     slope (which raised 'at or inside the main-lens focal length')."""
     import dataclasses
 
-    from lf_flame.tomo.depth import _grid_depths
+    from lf_flame.tomo.focus import _grid_depths
     from lf_flame.tomo.refine import refine_planes
     from lf_flame.tomo.solvers import fitted_pixels, reconstruct
     _, views = behind
@@ -974,7 +974,7 @@ def test_the_peak_finder_is_scipys():
     """find_peaks gives scipy.signal.find_peaks' peaks (plateaus, ties, ends, distance, height)."""
     from scipy.signal import find_peaks as scipy_find_peaks
 
-    from lf_flame.tomo.depth import find_peaks
+    from lf_flame.tomo.focus import find_peaks
     rng = np.random.default_rng(0)
     plateaus = 0
     for trial in range(400):

@@ -27,9 +27,9 @@ import lazy_loader as lazy
 
 __getattr__, __dir__, __all__ = lazy.attach(
     __name__,
-    submodules=["axis", "axisymmetric", "decoded", "defaults", "depth", "exact", "files", "found_planes", "fourier",
-                "fourier_system", "lattice", "noise_knobs", "operator", "peel", "proximal", "quadrature", "refine",
-                "conditioning", "resolution", "revolve", "scoring", "solvers", "truth", "volume"],
+    submodules=["axis", "axisymmetric", "decoded", "defaults", "depth", "exact", "files", "focus", "found_planes",
+                "fourier", "fourier_system", "lattice", "noise_knobs", "operator", "peel", "proximal", "quadrature",
+                "refine", "conditioning", "resolution", "revolve", "scoring", "solvers", "truth", "volume"],
     submod_attrs={
         "axisymmetric": ["AXI_LAM", "AXI_FILLS", "AXI_INNER", "AxisymmetricVolume", "solve_axisymmetric"],
         "revolve": ["RevolveOperator", "NormalMatrices", "fit_emission", "wide_operator"],

@@ -15,8 +15,8 @@ import numpy as np
 
 from ..optics.camera import PlenopticCamera
 from ..refocus.shift_and_sum import _check_finite
-from .depth import (FoundDepths, _focus_energy, _grid_depths, _half_width, _peak_fit, depth_tolerances,
-                    plane_runs, searched_depths)
+from .depth import FoundDepths, depth_tolerances, plane_runs, searched_depths
+from .focus import _focus_energy, _grid_depths, _half_width, _peak_fit
 
 #: A depth the solve missed (:func:`missed_depths`): the residual views' Tenengrad energy over a region, refocused,
 #: peaks at least ``RESIDUAL_PROMINENCE`` robust standard deviations (1.4826 times the median absolute deviation

@@ -1,11 +1,11 @@
-"""Numba kernels of :mod:`lf_flame.tomo.depth`: the focus measures of a refocused stack.
+"""Numba kernels of :mod:`lf_flame.tomo.focus`: the focus measures of a refocused stack.
 
 Each pass is SciPy's ``ndimage.correlate1d`` with ``mode="reflect"`` (``d c b a | a b c d | d c b a``) as its
 C loop sums (the kernel's centre tap first, then the pairs of taps at ``-j`` and ``+j`` from the farthest in,
 added for a symmetric kernel and subtracted for an antisymmetric one), so that the Tenengrad energy
 ``ndimage.sobel(im, 0) ** 2 + ndimage.sobel(im, 1) ** 2`` and the squared ``ndimage.laplace(im)``, each smoothed
 by ``ndimage.gaussian_filter``, come out the same to the last bit, one thread per image of the stack.
-Arrays and scalars only; :func:`lf_flame.tomo.depth._focus_energy` builds the Gaussian's taps.
+Arrays and scalars only; :func:`lf_flame.tomo.focus._focus_energy` builds the Gaussian's taps.
 """
 import numpy as np
 from numba import njit, prange
