@@ -100,8 +100,9 @@ SCORE_VERSION = "side-by-side"
 #: "-camera-range": the depths searched are the camera's imaging range (``imaging_range_mm``), not -15 .. +25 mm.
 #: "-warm": a quiet light field's refinement solves start from the planes of the step before (``refine_planes``).
 #: "-parallax-merge": found depths share a plane only within ``MERGE_PARALLAX`` lenslets of parallax (``plane_runs``).
+#: "-secant": a quiet light field's refinement steps lengthened by the curvature the step before met (``secant_scale``).
 ROUTE_VERSION = ("near-peel-prominence-refine-unmerged-search-own-planes-quiet-excess-possible-camera-range-warm"
-                 "-parallax-merge")
+                 "-parallax-merge-secant")
 
 
 def add_noise(raw, snr_db, seed):

@@ -870,6 +870,58 @@ def test_refined_depths_of_flames_one_behind_another(cam, behind):
 
 
 
+def test_the_secant_lengthens_a_gauss_newton_step_by_the_curvature_it_met():
+    """Two overlapping peaks whose centres are fitted by variable projection (their heights solved at each pair of
+    centres, as the planes are at each pair of depths): Gauss-Newton's J^T J leaves out that one height absorbs
+    part of the other centre's move, so a step goes only part of the way. The curvature the first step met sets
+    the second step's length: the ratio of J^T J to the projected (Kaufman) curvature along it, and the lengthened
+    second step lands far nearer the true centres than the plain one. A step that met no curvature, or negative,
+    is not lengthened; a tiny one is lengthened at most REFINE_SECANT_MAX times."""
+    from lf_flame.tomo.refine import REFINE_SECANT_MAX, secant_scale
+    t = np.linspace(-6, 6, 400)
+    s_true = np.array([0.0, 2.5])
+    y = np.exp(-(t[:, None] - s_true) ** 2 / 2) @ np.array([1.0, 0.6])
+
+    def state(s):
+        A = np.exp(-(t[:, None] - s) ** 2 / 2)
+        x = np.linalg.lstsq(A, y, rcond=None)[0]
+        J = (x * (t[:, None] - s) * A).T                   # d(A_k x_k)/ds_k
+        return A, y - A @ x, J
+    s0 = s_true + 0.1
+    A, r, J = state(s0)
+    b, JJ = J @ r, J @ J.T
+    ds = np.linalg.solve(JJ, b)
+    _, r1, J1 = state(s0 + ds)
+    b1 = J1 @ r1
+    scale = secant_scale(ds, b, JJ, b1)
+    projected = J @ (np.eye(len(t)) - A @ np.linalg.pinv(A)) @ J.T
+    assert scale == pytest.approx((ds @ JJ @ ds) / (ds @ projected @ ds), rel=0.05) and scale > 1.2
+    step = np.linalg.solve(J1 @ J1.T, b1)
+    plain, lengthened = (np.abs(s0 + ds + k * step - s_true).max() for k in (1.0, scale))
+    assert lengthened < 0.4 * plain, (plain, lengthened)
+    assert secant_scale(ds, b, JJ, b) == 1.0                  # no change of the gradient: no curvature met
+    assert secant_scale(ds, b1, JJ, b) == 1.0                 # the gradient rose along the step: not convex
+    assert secant_scale(ds, b, JJ, b + 1e-6 * (b1 - b)) == REFINE_SECANT_MAX
+
+
+def test_the_route_lengthens_its_refinement_steps_in_a_quiet_light_field_only(cam, behind, monkeypatch):
+    """find_planes' refinement takes the secant's longer steps where the solves converge (a quiet light field), and
+    plain Gauss-Newton steps where noise stops them early (their gradients rough: mixed on validation scenes)."""
+    from lf_flame.tomo import refine
+    from lf_flame.tomo.noise_knobs import noise_regime, relative_noise
+    from lf_flame.tomo.solvers import fitted_pixels
+    _, views = behind
+    noisy = views + np.random.default_rng(0).normal(0, 0.05 * views.max(), views.shape)
+    scales = []
+    real = refine.secant_scale
+    monkeypatch.setattr(refine, "secant_scale", lambda *a: scales.append(real(*a)) or scales[-1])
+    for v, quiet in ((views, True), (noisy, False)):
+        assert (noise_regime(relative_noise(v, fitted_pixels(v, 1.0))) == "quiet") == quiet
+        scales.clear()
+        find_planes(v, cam)
+        assert bool(scales) == quiet, scales
+
+
 def test_a_warm_refinement_step_that_does_not_lower_the_residual_is_solved_cold(cam, behind):
     """A quiet light field's refinement solves each step from the planes before it; where that warm solve does not
     lower the residual (a plane moved millimetres keeps its old depth's fit through the few fills: a colour
