@@ -358,8 +358,8 @@ def main(argv=None):
           "pixels that both report (`body_p90`: those where the truth's light is above "
           f"{BODY_FRACTION:g} of its plane's peak; `signed_median`: the estimate less the truth; "
           "`share_reported`: the truth's pixels that the route reports; `share_without_truth`: the route's pixels "
-          "where the truth has no temperature, not scored: another plane's flame read on this one, at temperatures "
-          "of its own). A yardstick beside "
+          "where the truth has no temperature, not scored: the flames' blurred edges, or another plane's flame read "
+          "on this one at temperatures of its own). A yardstick beside "
           f"the route: `blur_p90`, the truth's two channels each blurred by a Gaussian of {BLUR_LENSLETS:g} lenslet, "
           "scored the same way: what resolving each channel no finer than that on the decoded planes' lenslet grid "
           "costs these flames.", "",
