@@ -230,10 +230,12 @@ def test_temperature_auto_depth_and_refocus_route(files):
     assert np.nanmedian(t[0][5:16, 13:16]) == pytest.approx(HOT, abs=25.0)
 
 
-def test_found_planes_near_each_other_keep_their_own_flames_temperature(files):
+@pytest.mark.parametrize("given", [[], ["--depth", "-0.8", "--depth", "0.8"]], ids=["found", "given"])
+def test_found_planes_near_each_other_keep_their_own_flames_temperature(files, given):
     """Two flames side by side 1.6 mm apart in depth (2.7 lenslets of parallax across the aperture: the data
     barely tell the planes apart): with the depths found, each plane holds its own flame and its temperature,
-    as 'reconstruct' holds such planes (its found_support), not half of each flame at their mean temperature."""
+    as 'reconstruct' holds such planes (its found_support), not half of each flame at their mean temperature; with
+    the planes given (--depth), the same: the depth search's regions put on the nearest given plane."""
     sensor = files["sensor"]
     h, w = CAM.field_of_view_mm(0.0)
     layers, channels = [], []
@@ -244,9 +246,9 @@ def test_found_planes_near_each_other_keep_their_own_flames_temperature(files):
         channels.append((ch * 0.8 / ch.max()).astype(np.float32))
         layers.append(Layer(channels[-1][1], None, depth, (0.0, 0.0), (h, w)))
     raw = render_colour(CAM, Scene("near", tuple(layers), Effects(occlusion=False)), channels, sensor, 16, 3)
-    out = files["dir"] / "Tnear.h5"
+    out = files["dir"] / f"Tnear{len(given)}.h5"
     assert main(["temperature", _save(files["dir"] / "near.npz", raw, sensor), "--calibration", files["cal"],
-                 "--no-figure", "--out", str(out)]) == 0
+                 *given, "--no-figure", "--out", str(out)]) == 0
     with h5py.File(out, "r") as f:
         depths, t, e = f["depths_mm"][:], f["temperature_k"][:], f["emission"][:].sum(axis=0)
         assert json.loads(f.attrs["route_settings"])["support"] == "near planes"

@@ -12,8 +12,8 @@ import numpy as np
 
 from ._io import RAW_FORMATS, planes_count
 from .options import AUTO_LEVEL, _level_or_none, add_figure_arg, add_search_arg, fraction, finite
-from .temperature_planes import (_auto_depths, fit_warnings, _level_record, _plane_lines, furnace_note,
-                                 _plane_temperatures, _record, _refuse_monochrome, _sensor, _sensor_args,
+from .temperature_planes import (_auto_depths, fit_warnings, given_planes_found, _level_record, _plane_lines,
+                                 furnace_note, _plane_temperatures, _record, _refuse_monochrome, _sensor, _sensor_args,
                                  temperature_figure)
 
 
@@ -78,6 +78,7 @@ def cmd_temperature(a):
         depths, found, extra = _auto_depths(a, lf)
     elif a.route != "refocus-cfa":                      # planes given: are they where the flames are?
         extra = fit_warnings(a, lf, depths)
+        found = given_planes_found(a, lf, depths)       # near ones held to the regions of their flames
     r = _plane_temperatures(a, lf, depths, found, cal, sensor)
     cam, temp, valid = lf.camera, r["temp"], r["valid"]
     wall = time.perf_counter() - t0

@@ -11,7 +11,8 @@ import numpy as np
 
 from ..temperature.mosaic import refuse_dead_site, refuse_no_mosaic
 from ._io import planes_count, refuse_rgb
-from .temperature_planes import _auto_depths, _level_record, _plane_temperatures, _record, fit_warnings
+from .temperature_planes import (_auto_depths, _level_record, _plane_temperatures, _record, fit_warnings,
+                                 given_planes_found)
 
 
 def recording_source(src):
@@ -103,6 +104,7 @@ def temperature_recording(a, source, attrs, cal, sensor, where):
                 depths, found, extra = _auto_depths(a, lf)
             elif a.route != "refocus-cfa":              # planes given: are they where the first frame's flames are?
                 extra = fit_warnings(a, lf, depths)
+                found = given_planes_found(a, lf, depths)   # near ones held to the regions of their flames
         if not temps:
             r = _plane_temperatures(a, lf, depths, found, cal, sensor, cache)
         temps.append(r["temp"].astype(np.float32))

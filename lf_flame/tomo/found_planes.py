@@ -5,6 +5,7 @@ refined by the residual, :mod:`lf_flame.tomo.refine`).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -94,12 +95,8 @@ def near_plane_support(found: FoundDepths, camera: PlenopticCamera, parallax: fl
     ValueError
         ``parallax`` negative or not finite; ``dilation`` as :func:`plane_support`.
     """
-    if not (math.isfinite(float(parallax)) and parallax >= 0):
-        raise ValueError(f"parallax must be finite and >= 0 (lenslets). Received: {parallax!r}")
+    near = near_pairs(camera, found.planes_mm, parallax)
     own = plane_support(found, dilation)
-    slopes = np.array([camera.slope_for_depth(float(d)) for d in found.planes_mm])
-    near = np.abs(slopes[:, None] - slopes[None, :]) * (camera.pixels_per_lenslet - 1) < parallax
-    np.fill_diagonal(near, False)
     if not near.any():
         return None
     out = np.ones_like(own)
@@ -108,6 +105,65 @@ def near_plane_support(found: FoundDepths, camera: PlenopticCamera, parallax: fl
             out[p] &= ~own[q]
         out[p] |= own[p]
     return out
+
+
+def near_pairs(camera: PlenopticCamera, depths_mm, parallax: float = NEAR_PARALLAX) -> np.ndarray:
+    """Which planes lie within ``parallax`` lenslets of parallax across the aperture of each other
+    (:func:`near_plane_support`): ``|ds| (N - 1) < parallax``, ``ds`` their slopes' difference (lenslets per view
+    step), ``N`` the views per axis.
+
+    Parameters
+    ----------
+    camera : PlenopticCamera
+    depths_mm : sequence of P float
+        The planes (mm from the focus distance).
+    parallax : float
+        Lenslets, >= 0.
+
+    Returns
+    -------
+    ndarray of bool, shape (P, P), False on the diagonal
+
+    Raises
+    ------
+    ValueError
+        ``parallax`` negative or not finite.
+    """
+    if not (math.isfinite(float(parallax)) and parallax >= 0):
+        raise ValueError(f"parallax must be finite and >= 0 (lenslets). Received: {parallax!r}")
+    slopes = np.array([camera.slope_for_depth(float(d)) for d in depths_mm])
+    near = np.abs(slopes[:, None] - slopes[None, :]) * (camera.pixels_per_lenslet - 1) < parallax
+    np.fill_diagonal(near, False)
+    return near
+
+
+def on_given_planes(found: FoundDepths, depths_mm) -> FoundDepths:
+    """The depths found in a light field put on planes given by the user: each on the nearest given plane
+    (``planes_mm`` the given depths, ``plane_of`` the nearest's index), so that :func:`found_support` holds given
+    planes near each other to the regions where the data put their flames, as it holds found planes. A given plane
+    that no found depth is nearest to holds no region of its own: kept out of its near planes' regions.
+
+    Parameters
+    ----------
+    found : FoundDepths
+        :func:`~lf_flame.tomo.depth.find_depths` of the same light field.
+    depths_mm : sequence of P float
+        The given planes (mm from the focus distance).
+
+    Returns
+    -------
+    FoundDepths
+
+    Raises
+    ------
+    ValueError
+        No given plane.
+    """
+    given = np.asarray(depths_mm, np.float64).ravel()
+    if not given.size:
+        raise ValueError("no given plane to put the found depths on")
+    plane_of = np.abs(np.asarray(found.depths_mm, np.float64)[:, None] - given[None, :]).argmin(axis=1)
+    return dataclasses.replace(found, planes_mm=given, plane_of=plane_of)
 
 
 def found_support(found: FoundDepths, camera: PlenopticCamera, subsamples: int = 1, *, support: bool = False,
