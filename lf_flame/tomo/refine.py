@@ -152,7 +152,7 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
     secant : bool
         Each step after the first lengthened by :func:`secant_scale` (at most :data:`REFINE_SECANT_MAX` times):
         :func:`peel_and_refine` asks it for a quiet light field, whose solves are converged enough for their
-        gradients to measure the curvature (:data:`REFINE_SECANT_MAX`).
+        gradients to measure the curvature.
 
     Returns
     -------
@@ -202,8 +202,8 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
             else:
                 planes[p] = np.clip(camera.depth_for_slope(s_new), lo[p], hi[p])
         planes = kept_apart(planes, found.planes_mm, todo, gap)
-        moved = [abs(camera.slope_for_depth(planes[p]) - camera.slope_for_depth(found.planes_mm[p])) for p in todo]
-        if max(moved) < REFINE_TOL:
+        moved = np.array([camera.slope_for_depth(planes[p]) - camera.slope_for_depth(found.planes_mm[p]) for p in todo])
+        if np.abs(moved).max() < REFINE_TOL:
             break
         shift = (planes - found.planes_mm)[found.plane_of]
         trial = dataclasses.replace(found, planes_mm=planes, depths_mm=found.depths_mm + shift,
@@ -217,8 +217,7 @@ def refine_planes(found: FoundDepths, op, rec, data, fit, camera: PlenopticCamer
             c2 = float(np.vdot(r2, r2))
         if not c2 < cost:
             break
-        last = (np.array([camera.slope_for_depth(planes[p]) - camera.slope_for_depth(found.planes_mm[p])
-                          for p in todo]), b, JJ)
+        last = (moved, b, JJ)
         found, op, rec, r, cost = trial, op2, rec2, r2, c2
     return found, op, rec
 
