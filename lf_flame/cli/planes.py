@@ -105,6 +105,28 @@ def search_planes(views, camera, search_range=None, views_mask=None):
     return [float(d) for d in found.planes_mm], record, found
 
 
+def given_planes_held(lf, depths, search_range=None):
+    """The depth search's regions put on planes the user gave (``--depth``/``--depths``/``--slope``), where two of them
+    lie within :data:`~lf_flame.tomo.found_planes.NEAR_PARALLAX` lenslets of parallax of each other: the
+    :class:`~lf_flame.tomo.depth.FoundDepths` of ``lf`` (:func:`found_planes`), each found depth on the nearest given
+    plane (:func:`lf_flame.tomo.found_planes.on_given_planes`), so that admm holds those planes to their own regions
+    where they meet, as it holds found ones (:func:`run_reconstruction`'s ``found_depths``): else each flame's light
+    splits between them. None where no two given planes are near, or where the search finds no emission (the planes
+    solved free, said so). Chosen for colour captures' temperatures and monochrome ones' emission on validation
+    scenes (``docs/decisions.md``, Finding the planes and Temperature)."""
+    from ..tomo.found_planes import near_pairs, on_given_planes
+    if len(depths) < 2 or not near_pairs(lf.camera, depths).any():
+        return None
+    try:
+        _, _, found = found_planes(lf, search_range=search_range)
+    except ValueError as e:                             # no emission found: the planes solved free
+        print(f"note: the given planes are solved without the depth search's regions ({e})")
+        return None
+    print("the planes given lie within a few lenslets of parallax of each other: each held to the regions of the "
+          "depths found nearest it")
+    return on_given_planes(found, depths)
+
+
 def found_record(found):
     """Each found depth's record for the HDF5: depth, uncertainty, peak width (mm), plane, region, lenslets."""
     return [dict(depth_mm=float(d), uncertainty_mm=float(u), width_mm=float(w), plane_mm=float(found.planes_mm[p]),

@@ -228,29 +228,16 @@ def _blind(lf, slopes, n) -> np.ndarray:
 
 
 def given_planes_found(a, lf, depths):
-    """The depth search's regions put on planes the user gave (``--depth``/``--depths``/``--slope``), where two of them
-    lie within :data:`~lf_flame.tomo.found_planes.NEAR_PARALLAX` lenslets of parallax of each other: the
-    :class:`~lf_flame.tomo.depth.FoundDepths` of the channels levelled into one light field, each found depth on the
-    nearest given plane (:func:`lf_flame.tomo.found_planes.on_given_planes`), so that :func:`_plane_temperatures` holds
-    those planes to their own regions as it holds found ones (else each flame's light splits between them and each
-    reads the other's flame at temperatures of its own). None where no two given planes are near, or where the search
-    finds no emission (the planes solved free, as before). For the admm routes (``refocus-cfa`` solves nothing).
-    Chosen on the example colour camera's validation captures (``experiments/cameras_colour.py --seed0 58100``, the
-    flames' true depths; a ``/tmp`` probe): worst-plane p90 median / worst 82 / 117 -> 72 / 127 K noise-free and
-    104 / 178 -> 82 / 120 K at 14 dB; the pixels reported where the truth has no flame 40 -> 25 % and 42 -> 28 %."""
+    """:func:`lf_flame.cli.planes.given_planes_held` of the colour light field ``lf``'s channels levelled into one
+    (:func:`lf_flame.temperature.mosaic.monochrome_light_field`), so that :func:`_plane_temperatures` holds given planes
+    near each other to their own regions as it holds found ones (else each reads the other's flame at temperatures of
+    its own). For the admm routes (``refocus-cfa`` solves nothing). Chosen on the example colour camera's validation
+    captures (``experiments/cameras_colour.py --seed0 58100``, the flames' true depths; a ``/tmp`` probe): worst-plane
+    p90 median / worst 82 / 117 -> 72 / 127 K noise-free and 104 / 178 -> 82 / 120 K at 14 dB; the pixels reported
+    where the truth has no flame 40 -> 25 % and 42 -> 28 %."""
     from ..temperature.mosaic import monochrome_light_field
-    from ..tomo.found_planes import near_pairs, on_given_planes
-    from .planes import found_planes
-    if len(depths) < 2 or not near_pairs(lf.camera, depths).any():
-        return None
-    try:
-        _, _, found = found_planes(monochrome_light_field(lf), search_range=a.search_range)
-    except ValueError as e:                             # no emission found: the planes solved free
-        print(f"note: the given planes are solved without the depth search's regions ({e})")
-        return None
-    print("the planes given lie within a few lenslets of parallax of each other: each held to the regions of the "
-          "depths found nearest it")
-    return on_given_planes(found, depths)
+    from .planes import given_planes_held
+    return given_planes_held(monochrome_light_field(lf), depths, a.search_range)
 
 
 def _auto_depths(a, lf):

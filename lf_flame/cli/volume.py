@@ -15,8 +15,8 @@ from ._io import RAW_FORMATS, _raw_scene, planes_count
 from .options import AUTO_LEVEL, finite, _level_or_none, add_camera_args, add_figure_arg, add_search_arg, positive_int
 from .fit_notes import (edge_warning, left_out_notes, misfit_warning, resolution_note, resolved_spacing_mm,
                         solve_warnings, stack_end_warning)
-from .planes import (_fitted_light_field, found_planes, found_record, lattice_solve, possible_warning,
-                     reconstruct_input, run_reconstruction, solve_found)
+from .planes import (_fitted_light_field, found_planes, found_record, given_planes_held, lattice_solve,
+                     possible_warning, reconstruct_input, run_reconstruction, solve_found)
 from ..simulate.scenes import PAPER_DEPTHS_MM
 from ..tomo.defaults import (ADMM_KNOBS, ADMM_QUIET, ADMM_SUBSAMPLES, ADMM_TV, DEFAULT_ITERS, DEFAULT_SOLVER,
                               DEFAULT_TV, EXACT_SOLVER, SOLVERS, SUBSAMPLES_MAX_PLANES, VOLUME_L1,
@@ -64,7 +64,7 @@ def cmd_reconstruct(a):
     lf, depths, objects = reconstruct_input(a)
     t_route = time.perf_counter()
     cam, views = lf.camera, lf.views
-    extra, arrays, voters = {}, None, None
+    extra, arrays, voters, held = {}, None, None, None
     if getattr(a, "support", False) and depths != "auto":
         raise ValueError("--support holds each plane to the regions its depth was found in: it goes with the found "
                          "depths (--depths auto, the default), not with planes given")
@@ -82,7 +82,11 @@ def cmd_reconstruct(a):
               rays_per_pixel=a.rays_per_pixel, progress=True, subsamples=getattr(a, "subsamples", None),
               model_dir=getattr(a, "model", None))
     if voters is None:
-        op, rec = run_reconstruction(lf, depths, **kw)
+        if a.rays_per_pixel is None and (a.solver or EXACT_SOLVER) == "admm":
+            held = given_planes_held(lf, depths, a.search_range)   # near ones held to the regions of their flames
+        op, rec = run_reconstruction(lf, depths, found_depths=held, **kw)
+        if held is not None:
+            extra["given_planes_held"] = found_record(held)
     else:
         voters, op, rec = solve_found(lf, voters, support=bool(getattr(a, "support", False)), **kw)
         depths = [float(d) for d in voters.planes_mm]      # after the residual's search and the refinement
@@ -90,7 +94,7 @@ def cmd_reconstruct(a):
         arrays = dict(found_masks=np.asarray(voters.masks, bool), found_regions=voters.labels)
         extra["possible_depths"] = possible_warning(voters)
     fitted = _fitted_light_field(lf, kw["saturation"])
-    rec, lattice = lattice_solve(fitted, op, rec, voters,
+    rec, lattice = lattice_solve(fitted, op, rec, voters if voters is not None else held,
                                  bool(getattr(a, "support", False)))
     if rec.settings.get("support") == "near planes":
         from ..tomo.found_planes import NEAR_PARALLAX
