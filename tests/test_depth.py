@@ -1,4 +1,5 @@
 """Find the planes (lf_flame.tomo.depth), its scenes (lf_flame.simulate.scenes_depth) and score_flames."""
+import dataclasses
 import json
 from pathlib import Path
 
@@ -552,6 +553,73 @@ def test_planes_given_near_each_other_keep_their_light_apart(cam, tmp_path, caps
         df = score_flames(solved, [5.0, 6.3], scene, cam)
         assert df.share_near.min() > 0.999, df
         assert df.rel_err.max() < 0.05, df                        # as free planes (4.2 %): no flame worse
+
+
+def test_planes_without_flames_are_those_far_in_parallax_from_every_found_depth(cam):
+    from lf_flame.tomo.found_planes import planes_without_flames
+    found = _found(cam, [0.0, 6.0], [[0], [1]], np.zeros((cam.n_rows, cam.n_cols), int))
+    per_mm = abs(cam.slope_for_depth(1.0) - cam.slope_for_depth(0.0)) * (cam.pixels_per_lenslet - 1)
+    near = 2.9 / per_mm                                   # 2.9 lenslets of parallax from the flame at 0 mm
+    assert list(planes_without_flames(found, cam, [0.0, -near, 6.0 + 4.0 / per_mm, 3.0])) == [False, False, True,
+                                                                                              3.0 * per_mm >= 3.0]
+    assert list(planes_without_flames(found, cam, [-near], parallax=2.0)) == [True]
+    assert planes_without_flames(dataclasses.replace(found, depths_mm=np.zeros(0)), cam, [0.0]).all()
+    with pytest.raises(ValueError, match="parallax"):
+        planes_without_flames(found, cam, [0.0], parallax=-1.0)
+
+
+def test_a_plane_given_where_no_flame_stands_is_warned_of(cam, planted, tmp_path, capsys):
+    """``reconstruct`` and ``profiles`` with a plane given far from both flames: the depth search finds no flame near
+    it, and both commands say so (the file records it, profiles flags its rows), instead of the edge warning's "the
+    flame is cut" or a flame measured there without a word; planes at the flames give no such warning."""
+    import h5py
+    import pandas as pd
+
+    from lf_flame.cli import main
+    from lf_flame.refocus.shift_and_sum import views_to_raw
+    scene, views = planted
+    true = sorted(float(o["depth_offset_mm"]) for o in scene.objects)
+    lo, hi = imaging_range_mm(cam)
+    empty = max((d for d in np.linspace(lo + 1, hi - 1, 41)), key=lambda d: min(abs(d - t) for t in true))
+    raw = tmp_path / "planted.npz"
+    np.savez(raw, raw=views_to_raw(views), camera=cam.to_json())
+    for planes, without in ((true, []), (true + [empty], [empty])):
+        given = [x for d in planes for x in ("--depth", f"{d:.4f}")]
+        out = tmp_path / f"r{len(planes)}.h5"
+        assert main(["reconstruct", str(raw), *given, "--no-figure", "--out", str(out)]) == 0
+        err = capsys.readouterr().err
+        assert ("finds no flame near the plane at" in err) == bool(without), err
+        assert "the flame is cut by the field of view" not in err
+        with h5py.File(out) as f:
+            assert json.loads(f.attrs["planes_without_flame"]) == pytest.approx(without, abs=1e-3)
+        assert main(["profiles", str(raw), *given, "--no-figure", "--out", str(tmp_path / f"p{len(planes)}")]) == 0
+        df = pd.read_csv(tmp_path / f"p{len(planes)}.csv")
+        flagged = df["flags"].astype(str).str.contains("no-flame-found")
+        assert set(df.depth_mm[flagged].round(3)) == {round(d, 3) for d in without}, df[["depth_mm", "flags"]]
+
+
+def test_a_flame_hidden_behind_others_is_not_taken_for_an_empty_plane(cam, tmp_path, capsys):
+    """Three flames in one column band, whose third the depth search's votes miss (its lenslets vote for the
+    others): given the three true depths, ``reconstruct`` does not warn that no flame stands at the third, as the
+    solve without its plane leaves its light unexplained (the data need it)."""
+    import h5py
+
+    from lf_flame.cli import main
+    from lf_flame.refocus.shift_and_sum import views_to_raw
+    from lf_flame.simulate.scenes_depth import column_scene
+    from lf_flame.tomo.found_planes import planes_without_flames
+    scene = column_scene(cam, np.random.default_rng(4))
+    views = _views(cam, scene, 4)
+    true = sorted(float(o["depth_offset_mm"]) for o in scene.objects)
+    assert planes_without_flames(find_depths(views, cam), cam, true).any()         # the votes miss one
+    raw = tmp_path / "column.npz"
+    np.savez(raw, raw=views_to_raw(views), camera=cam.to_json())
+    out = tmp_path / "column.h5"
+    assert main(["reconstruct", str(raw), *[x for d in true for x in ("--depth", f"{d:.4f}")], "--no-figure",
+                 "--out", str(out)]) == 0
+    assert "finds no flame near" not in capsys.readouterr().err
+    with h5py.File(out) as f:
+        assert json.loads(f.attrs["planes_without_flame"]) == []
 
 
 def test_column_scenes_stand_flames_one_behind_another():

@@ -105,25 +105,42 @@ def search_planes(views, camera, search_range=None, views_mask=None):
     return [float(d) for d in found.planes_mm], record, found
 
 
-def given_planes_held(lf, depths, search_range=None):
-    """The depth search's regions put on planes the user gave (``--depth``/``--depths``/``--slope``), where two of them
-    lie within :data:`~lf_flame.tomo.found_planes.NEAR_PARALLAX` lenslets of parallax of each other: the
-    :class:`~lf_flame.tomo.depth.FoundDepths` of ``lf`` (:func:`found_planes`), each found depth on the nearest given
-    plane (:func:`lf_flame.tomo.found_planes.on_given_planes`), so that admm holds those planes to their own regions
-    where they meet, as it holds found ones (:func:`run_reconstruction`'s ``found_depths``): else each flame's light
-    splits between them. None where no two given planes are near, or where the search finds no emission (the planes
-    solved free, said so). Chosen for colour captures' temperatures and monochrome ones' emission on validation
-    scenes (``docs/decisions.md``, Finding the planes and Temperature)."""
+def given_planes_search(lf, search_range=None):
+    """The depth search of a light field whose planes the user gave (``--depth``/``--depths``/``--slope``), without a
+    word: :func:`lf_flame.tomo.depth.find_depths` over the camera's imaging range clipped to ``search_range``
+    (``--search-range``), over its lit views, or None where it finds no emission (or the views hold no light: the
+    solve then says so). What the given planes are checked against (:func:`given_planes_held`,
+    :func:`lf_flame.cli.fit_notes.no_flame_warning`)."""
+    from ..optics.depth_range import search_range_mm
+    from ..tomo.depth import find_depths
+    if not np.any(np.asarray(lf.views) > 0):
+        return None
+    found = find_depths(lf.views, lf.camera, depth_range_mm=search_range_mm(lf.camera, search_range),
+                        views_mask=lf.lit_views())
+    return found if len(found.planes_mm) else None
+
+
+def given_planes_held(found, camera, depths):
+    """The depth search's regions (``found``, :func:`given_planes_search`) put on planes the user gave, where two of
+    them lie within :data:`~lf_flame.tomo.found_planes.NEAR_PARALLAX` lenslets of parallax of each other: each found
+    depth on the nearest given plane (:func:`lf_flame.tomo.found_planes.on_given_planes`), so that admm holds those
+    planes to their own regions where they meet, as it holds found ones (:func:`run_reconstruction`'s
+    ``found_depths``): else each flame's light splits between them. Said so where it applies; None where no two
+    given planes are near or the search found no emission (the planes solved free). Chosen for colour captures'
+    temperatures and monochrome ones' emission on validation scenes (``docs/decisions.md``, Finding the planes and
+    Temperature)."""
+    held = _held(found, camera, depths)
+    if held is not None:
+        print("the planes given lie within a few lenslets of parallax of each other: each held to the regions of the "
+              "depths found nearest it")
+    return held
+
+
+def _held(found, camera, depths):
+    """:func:`given_planes_held` without a word."""
     from ..tomo.found_planes import near_pairs, on_given_planes
-    if len(depths) < 2 or not near_pairs(lf.camera, depths).any():
+    if found is None or len(depths) < 2 or not near_pairs(camera, depths).any():
         return None
-    try:
-        _, _, found = found_planes(lf, search_range=search_range)
-    except ValueError as e:                             # no emission found: the planes solved free
-        print(f"note: the given planes are solved without the depth search's regions ({e})")
-        return None
-    print("the planes given lie within a few lenslets of parallax of each other: each held to the regions of the "
-          "depths found nearest it")
     return on_given_planes(found, depths)
 
 

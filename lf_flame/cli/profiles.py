@@ -25,8 +25,10 @@ PROFILES_ROUTE = "reconstruct-admm"
 
 
 def _profiles_input(a):
-    """Camera, 4-plane stack, depths, slopes, flame objects (or None) and the found depths (a
-    :class:`~lf_flame.tomo.depth.FoundDepths` where the planes were found, else None) for ``profiles``."""
+    """Camera, 4-plane stack, depths, slopes, flame objects (or None), the found depths (a
+    :class:`~lf_flame.tomo.depth.FoundDepths` where the planes were found, else None), whether the light field is
+    uniform (:func:`structure_warning`) and the depths of the given planes where the depth search finds no flame
+    (:func:`solved_planes`) for ``profiles``."""
     from ..optics.camera import PAPER_CAMERA
     from ..real.lightfield import from_raw
     from ..refocus.shift_and_sum import aperture_mask, refocus
@@ -62,13 +64,12 @@ def _profiles_input(a):
         slopes = [cam.slope_for_depth(d) for d in depths] if depths else None
     route = parse_route(a.route)
     search = getattr(a, "search_range", None)
-    found = None
-    flat = None
+    found, flat, without = None, None, []
     if np.shape(raw) == tuple(cam.sensor_shape) and cam.perfect_grid:
         from ..refocus.shift_and_sum import raw_to_views
         flat = structure_warning(raw_to_views(np.asarray(raw, np.float32), cam.pixels_per_lenslet), a.raw)
     if route.tomographic:
-        depths, stack, found = solved_planes(from_raw(raw, cam, str(a.raw)), depths, route.solver, search)
+        depths, stack, found, without = solved_planes(from_raw(raw, cam, str(a.raw)), depths, route.solver, search)
     elif not depths:
         depths, _, found = found_planes(from_raw(raw, cam, str(a.raw)), search_range=search)
     if a.slope:
@@ -89,12 +90,16 @@ def _profiles_input(a):
         stack = run(raw.astype(np.float32)[None, ..., None])
     elif not route.tomographic:
         stack = refocus(raw, slopes, n, aperture_mask(n, "circular"), **route.options)
-    return cam, np.asarray(stack), depths, list(slopes), objects, found, flat
+    return cam, np.asarray(stack), depths, list(slopes), objects, found, flat, without
 
 
 #: The flag ``profiles`` adds to every plane's measurement of a light field without structure
 #: (:func:`structure_warning`).
 NO_STRUCTURE_FLAG = "no-structure"
+#: The flag of ``profiles``' rows on a plane given (the user's, or the scene's) where the depth search finds no flame
+#: and the data need none (:func:`lf_flame.cli.fit_notes.planes_without_flame`): what is measured there is other
+#: flames' light, defocused.
+NO_FLAME_FLAG = "no-flame-found"
 
 
 def structure_warning(views, source, found: str = f"what is measured on its planes is none (flagged "
@@ -192,40 +197,48 @@ def _decoded_profiles_input(a):
     if depths:
         check_planes(cam, depths)
     search = getattr(a, "search_range", None)
-    found = None
+    found, without = None, []
     if route.tomographic:
-        depths, stack, found = solved_planes(lf, depths, route.solver, search)
+        depths, stack, found, without = solved_planes(lf, depths, route.solver, search)
     elif not depths:
         depths, _, found = found_planes(lf, search_range=search)
     slopes = [cam.slope_for_depth(d) for d in depths]
     if not route.tomographic:
         stack = refocus_views(lf.views, slopes, aperture_mask(cam.pixels_per_lenslet, "circular"), **route.options)
-    return cam, np.asarray(stack), depths, slopes, objects, found, flat
+    return cam, np.asarray(stack), depths, slopes, objects, found, flat, without
 
 
 def solved_planes(lf, depths, solver, search_range=None):
     """Each plane's emission as ``lf-flame reconstruct`` solves it, averaged to the lenslets
     (:func:`lf_flame.tomo.truth.bin_planes`): ``(depths, stack)``, stack (P, rows, cols).
 
-    ``depths`` (mm from the focal plane) given: solved on them (:func:`lf_flame.cli.planes.run_reconstruction`).
+    ``depths`` (mm from the focal plane) given (by the user, or the scene's stored flames'): solved on them
+    (:func:`lf_flame.cli.planes.run_reconstruction`), checked against the depth search as ``reconstruct`` checks them
+    (:func:`lf_flame.cli.planes.given_planes_search`: planes near each other held to the regions of their flames,
+    planes where it finds no flame warned of).
     None or empty: found as ``reconstruct --depths auto`` finds them, within ``search_range`` (mm): the votes, then
     the residual's search and the refinement, near planes held to their regions
     (:func:`lf_flame.cli.planes.solve_found`); the votes' depths alone leave those out. A hexagonal grid's admm
     planes are solved once more on its lattice (:func:`lf_flame.cli.planes.lattice_solve`). Returns
-    ``(depths, stack, found)``, ``found`` the :class:`~lf_flame.tomo.depth.FoundDepths` (None for given depths)."""
+    ``(depths, stack, found, without)``, ``found`` the :class:`~lf_flame.tomo.depth.FoundDepths` (None for given
+    depths), ``without`` the depths of the given planes where the search finds no flame."""
     from ..tomo.truth import bin_planes
-    from .planes import found_planes, lattice_solve, run_reconstruction, solve_found
+    from .planes import found_planes, given_planes_held, given_planes_search, lattice_solve, run_reconstruction, \
+        solve_found
     from .fit_notes import left_out_notes, solve_warnings
-    found = None
+    found = given = held = None
     if depths:
-        op, rec = run_reconstruction(lf, depths, solver)
+        given = given_planes_search(lf, search_range)
+        held = given_planes_held(given, lf.camera, depths)
+        op, rec = run_reconstruction(lf, depths, solver, found_depths=held)
     else:
         found, op, rec = solve_found(lf, found_planes(lf, search_range=search_range)[2], solver=solver)
         depths = [float(d) for d in found.planes_mm]
-    rec, lattice = lattice_solve(lf, op, rec, found)
+    rec, lattice = lattice_solve(lf, op, rec, found if held is None else held)
     print("\n".join(left_out_notes(lf, rec, lattice)))
-    solve_warnings(lf, op, rec, lattice)        # the planes measured are what reconstruct warns of
-    return list(depths), bin_planes(rec.planes, getattr(op, "subsamples", 1)), found
+    record = solve_warnings(lf, op, rec, lattice, found=given)  # the planes measured are what reconstruct warns of
+    return list(depths), bin_planes(rec.planes, getattr(op, "subsamples", 1)), found, \
+        record.get("planes_without_flame", [])
 
 
 def flame_bands(found, plane: int, n_cols: int) -> list:
@@ -282,7 +295,7 @@ def profiles_table(a):
     from ..routes import measure_settings, parse_route
     from ..measure.scoring import score_stacks
     kw = measure_settings(a.route)
-    cam, stack, depths, slopes, objects, found, flat = _profiles_input(a)
+    cam, stack, depths, slopes, objects, found, flat, without = _profiles_input(a)
     truth = plane_flames(cam, depths, objects)
     if objects and not _decoded(a) and truth == list(objects):      # the scene's own planes, in its order
         sample = int(str(a.raw).rsplit(":", 1)[1]) if ".h5:" in str(a.raw) else 0
@@ -317,10 +330,12 @@ def profiles_table(a):
             # |measured - true|, as score_stacks gives it on the simulated camera's route
             df.insert(df.columns.get_loc("height_mm_true") + 1, "height_err_mm", (df.height_mm - df.height_mm_true).abs())
     df.insert(3 + ("flame" in df), "slope", [slopes[k] for k in df.plane])
-    if flat and "flags" in df:                   # a uniform light field: whatever was measured is no flame
-        measured = df["flags"].notna()
-        df.loc[measured, "flags"] = [";".join([f for f in str(v).split(";") if f] + [NO_STRUCTURE_FLAG])
-                                     for v in df["flags"][measured]]
+    for flag, rows in ((NO_STRUCTURE_FLAG, df["flags"].notna() if flat and "flags" in df else None),
+                       (NO_FLAME_FLAG, np.isclose(df.depth_mm.to_numpy(float)[:, None], np.asarray(without)[None]).any(
+                           axis=1) if len(without) and "flags" in df else None)):
+        if rows is not None:   # a uniform light field, or a plane given where no flame stands: no flame measured
+            df.loc[rows, "flags"] = [";".join([f for f in str(v).split(";") if f and f != "nan"] + [flag])
+                                     for v in df["flags"][rows]]
     return cam, stack, depths, ms, truth if objects else None, df
 
 

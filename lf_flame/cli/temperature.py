@@ -77,8 +77,8 @@ def cmd_temperature(a):
     if depths == "auto":                                # reconstruct's planes: the levelled channels' found route
         depths, found, extra = _auto_depths(a, lf)
     elif a.route != "refocus-cfa":                      # planes given: are they where the flames are?
-        extra = fit_warnings(a, lf, depths)
-        found = given_planes_found(a, lf, depths)       # near ones held to the regions of their flames
+        given, found = given_planes_found(a, lf, depths)    # near ones held to the regions of their flames
+        extra = fit_warnings(a, lf, depths, found=found, given=given)
     r = _plane_temperatures(a, lf, depths, found, cal, sensor)
     cam, temp, valid = lf.camera, r["temp"], r["valid"]
     wall = time.perf_counter() - t0

@@ -228,16 +228,19 @@ def _blind(lf, slopes, n) -> np.ndarray:
 
 
 def given_planes_found(a, lf, depths):
-    """:func:`lf_flame.cli.planes.given_planes_held` of the colour light field ``lf``'s channels levelled into one
-    (:func:`lf_flame.temperature.mosaic.monochrome_light_field`), so that :func:`_plane_temperatures` holds given planes
-    near each other to their own regions as it holds found ones (else each reads the other's flame at temperatures of
-    its own). For the admm routes (``refocus-cfa`` solves nothing). Chosen on the example colour camera's validation
-    captures (``experiments/cameras_colour.py --seed0 58100``, the flames' true depths; a ``/tmp`` probe): worst-plane
-    p90 median / worst 82 / 117 -> 72 / 127 K noise-free and 104 / 178 -> 82 / 120 K at 14 dB; the pixels reported
-    where the truth has no flame 40 -> 25 % and 42 -> 28 %."""
+    """The depth search of the colour light field ``lf``'s channels levelled into one
+    (:func:`lf_flame.temperature.mosaic.monochrome_light_field`, :func:`lf_flame.cli.planes.given_planes_search`) for
+    planes the user gave: ``(found, held)``, ``held`` its regions put on given planes near each other
+    (:func:`lf_flame.cli.planes.given_planes_held`), so that :func:`_plane_temperatures` holds them to their own
+    regions as it holds found ones (else each reads the other's flame at temperatures of its own). For the admm routes
+    (``refocus-cfa`` solves nothing). Chosen on the example colour camera's validation captures
+    (``experiments/cameras_colour.py --seed0 58100``, the flames' true depths; a ``/tmp`` probe): worst-plane p90
+    median / worst 82 / 117 -> 72 / 127 K noise-free and 104 / 178 -> 82 / 120 K at 14 dB; the pixels reported where
+    the truth has no flame 40 -> 25 % and 42 -> 28 %."""
     from ..temperature.mosaic import monochrome_light_field
-    from .planes import given_planes_held
-    return given_planes_held(monochrome_light_field(lf), depths, a.search_range)
+    from .planes import given_planes_held, given_planes_search
+    found = given_planes_search(monochrome_light_field(lf), a.search_range)
+    return found, given_planes_held(found, lf.camera, depths)
 
 
 def _auto_depths(a, lf):
@@ -255,30 +258,38 @@ def _auto_depths(a, lf):
     return [float(d) for d in found.planes_mm], found, extra
 
 
-def fit_warnings(a, lf, depths, solved=None, found=None) -> dict:
+def fit_warnings(a, lf, depths, solved=None, found=None, given=None) -> dict:
     """``reconstruct``'s warnings on the colour light field ``lf``'s planes: its channels levelled into one light
-    field and solved there (or ``solved``, the ``(op, rec)`` of that solve), the share of each plane's emission at
+    field and solved there (or ``solved``, the ``(op, rec)`` of that solve; ``found``: the found planes, or the
+    given ones held to the depth search's regions, :func:`given_planes_found`), the share of each plane's emission at
     the field's edge and the misfit (:func:`lf_flame.cli.fit_notes.edge_warning`,
     :func:`~lf_flame.cli.fit_notes.misfit_warning`): planes where no flame stands, a flame missed or cut by the
     field, which the temperatures alone do not show; and the share of its lit pixels that clip
-    (:func:`lf_flame.cli.real.overexposure_warning`, a note below its level). Returns the record's ``edge_share``,
-    ``misfit`` and ``clipped_share``."""
+    (:func:`lf_flame.cli.real.overexposure_warning`, a note below its level); for planes the user gave, those where
+    the depth search (``given``, :func:`given_planes_found`) finds no flame and the data need none
+    (:func:`lf_flame.cli.fit_notes.planes_without_flame`, :func:`~lf_flame.cli.fit_notes.no_flame_warning`). Returns
+    the record's ``edge_share``, ``misfit``, ``clipped_share`` and, with ``given``, ``planes_without_flame``."""
     from ..real.clipping import CLIPPED_WARN
     from ..temperature.mosaic import monochrome_light_field
-    from .fit_notes import edge_warning, misfit_warning
+    from .fit_notes import edge_warning, misfit_warning, no_flame_warning, planes_without_flame
     from .planes import _fitted_light_field, lattice_solve, run_reconstruction
     from .real import overexposure_warning
     mono = monochrome_light_field(lf)
     level = "file" if a.saturation == "auto" else a.saturation         # the light field's own, or the level given
-    op, rec = solved if solved is not None else run_reconstruction(mono, [float(d) for d in depths], saturation=level)
+    op, rec = solved if solved is not None else run_reconstruction(mono, [float(d) for d in depths], saturation=level,
+                                                                   found_depths=found)
     rec, lattice = lattice_solve(_fitted_light_field(mono, level), op, rec, found)
     clipped = overexposure_warning(lf.over_exposure())
     if 0 < clipped <= CLIPPED_WARN:     # under reconstruct's warning, yet a ratio's two channels clip apart
         print(f"note: {100 * clipped:.2g} % of the lit pixels are clipped and left out of the fit: the brightest "
               "emission's temperatures rest on fewer samples there (one channel clips before the other)",
               file=sys.stderr)
-    return dict(edge_share=edge_warning(rec, op), misfit=misfit_warning(mono, op, rec, level, lattice),
-                clipped_share=clipped)
+    out = dict(misfit=misfit_warning(mono, op, rec, level, lattice), clipped_share=clipped)
+    without = None if given is None else planes_without_flame(mono, rec, given, out["misfit"], level)
+    out["edge_share"] = edge_warning(rec, op, skip=without)
+    if given is not None:
+        out["planes_without_flame"] = no_flame_warning(rec.planes, rec.depths_mm, given, without)
+    return out
 
 
 def _plane_lines(a, depths, r, cal=None) -> list:

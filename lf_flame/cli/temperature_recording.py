@@ -103,8 +103,8 @@ def temperature_recording(a, source, attrs, cal, sensor, where):
             if depths == "auto":
                 depths, found, extra = _auto_depths(a, lf)
             elif a.route != "refocus-cfa":              # planes given: are they where the first frame's flames are?
-                extra = fit_warnings(a, lf, depths)
-                found = given_planes_found(a, lf, depths)   # near ones held to the regions of their flames
+                given, found = given_planes_found(a, lf, depths)   # near ones held to the regions of their flames
+                extra = fit_warnings(a, lf, depths, found=found, given=given)
         if not temps:
             r = _plane_temperatures(a, lf, depths, found, cal, sensor, cache)
         temps.append(r["temp"].astype(np.float32))

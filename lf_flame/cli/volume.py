@@ -15,8 +15,8 @@ from ._io import RAW_FORMATS, _raw_scene, planes_count
 from .options import AUTO_LEVEL, finite, _level_or_none, add_camera_args, add_figure_arg, add_search_arg, positive_int
 from .fit_notes import (edge_warning, left_out_notes, misfit_warning, resolution_note, resolved_spacing_mm,
                         solve_warnings, stack_end_warning)
-from .planes import (_fitted_light_field, found_planes, found_record, given_planes_held, lattice_solve,
-                     possible_warning, reconstruct_input, run_reconstruction, solve_found)
+from .planes import (_fitted_light_field, found_planes, found_record, given_planes_held, given_planes_search,
+                     lattice_solve, possible_warning, reconstruct_input, run_reconstruction, solve_found)
 from ..simulate.scenes import PAPER_DEPTHS_MM
 from ..tomo.defaults import (ADMM_KNOBS, ADMM_QUIET, ADMM_SUBSAMPLES, ADMM_TV, DEFAULT_ITERS, DEFAULT_SOLVER,
                               DEFAULT_TV, EXACT_SOLVER, SOLVERS, SUBSAMPLES_MAX_PLANES, VOLUME_L1,
@@ -64,7 +64,7 @@ def cmd_reconstruct(a):
     lf, depths, objects = reconstruct_input(a)
     t_route = time.perf_counter()
     cam, views = lf.camera, lf.views
-    extra, arrays, voters, held = {}, None, None, None
+    extra, arrays, voters, held, given = {}, None, None, None, None
     if getattr(a, "support", False) and depths != "auto":
         raise ValueError("--support holds each plane to the regions its depth was found in: it goes with the found "
                          "depths (--depths auto, the default), not with planes given")
@@ -81,9 +81,10 @@ def cmd_reconstruct(a):
     kw = dict(solver=a.solver, iters=a.iters, damp=a.damp, tv=a.tv, saturation=getattr(a, "saturation", "file"),
               rays_per_pixel=a.rays_per_pixel, progress=True, subsamples=getattr(a, "subsamples", None),
               model_dir=getattr(a, "model", None))
-    if voters is None:
+    if voters is None:                                   # planes given: the depth search tells where the flames are
+        given = given_planes_search(lf, a.search_range)
         if a.rays_per_pixel is None and (a.solver or EXACT_SOLVER) == "admm":
-            held = given_planes_held(lf, depths, a.search_range)   # near ones held to the regions of their flames
+            held = given_planes_held(given, cam, depths)   # near ones held to the regions of their flames
         op, rec = run_reconstruction(lf, depths, found_depths=held, **kw)
         if held is not None:
             extra["given_planes_held"] = found_record(held)
@@ -101,7 +102,7 @@ def cmd_reconstruct(a):
         print(f"planes within {NEAR_PARALLAX:g} lenslets of parallax of each other are held to the regions their "
               "depths were found in, where they meet (the data barely tell such planes apart)")
     print("\n".join(left_out_notes(fitted, rec, lattice)))
-    extra.update(solve_warnings(lf, op, rec, lattice, kw["saturation"], fitted))
+    extra.update(solve_warnings(lf, op, rec, lattice, kw["saturation"], fitted, found=given))
     extra["route_time_s"] = route_s = time.perf_counter() - t_route     # the depth search (if any), every solve
     out = Path(a.out)
     save_reconstruction(out, rec, arrays, source=str(a.raw), camera=cam.to_json(), **extra)

@@ -137,6 +137,40 @@ def near_pairs(camera: PlenopticCamera, depths_mm, parallax: float = NEAR_PARALL
     return near
 
 
+def planes_without_flames(found: FoundDepths, camera: PlenopticCamera, depths_mm,
+                          parallax: float = NEAR_PARALLAX) -> np.ndarray:
+    """Which planes given by the user lie farther than ``parallax`` lenslets of parallax across the aperture (as
+    :func:`near_pairs` measures it) from every depth the depth search found: no flame stands near them, and what
+    their solve puts on them is other flames' light.
+
+    Parameters
+    ----------
+    found : FoundDepths
+        :func:`~lf_flame.tomo.depth.find_depths` of the light field the planes are solved on.
+    camera : PlenopticCamera
+    depths_mm : sequence of P float
+        The given planes (mm from the focus distance).
+    parallax : float
+        Lenslets, >= 0.
+
+    Returns
+    -------
+    ndarray of bool, shape (P,)
+
+    Raises
+    ------
+    ValueError
+        ``parallax`` negative or not finite.
+    """
+    if not (math.isfinite(float(parallax)) and parallax >= 0):
+        raise ValueError(f"parallax must be finite and >= 0 (lenslets). Received: {parallax!r}")
+    given = np.array([camera.slope_for_depth(float(d)) for d in depths_mm])
+    seen = np.array([camera.slope_for_depth(float(d)) for d in found.depths_mm])
+    if not seen.size:
+        return np.ones(len(given), bool)
+    return (np.abs(given[:, None] - seen[None, :]) * (camera.pixels_per_lenslet - 1) >= parallax).all(axis=1)
+
+
 def on_given_planes(found: FoundDepths, depths_mm) -> FoundDepths:
     """The depths found in a light field put on planes given by the user: each on the nearest given plane
     (``planes_mm`` the given depths, ``plane_of`` the nearest's index), so that :func:`found_support` holds given
