@@ -206,7 +206,7 @@ def planes_without_flame(lf, rec, found, misfit, saturation="file") -> np.ndarra
     from ..tomo.defaults import SOLVERS
     from ..tomo.found_planes import planes_without_flames
     from ..tomo.solvers import data_misfit
-    from .planes import _held, run_reconstruction
+    from .planes import given_planes_held, run_reconstruction
     depths = [float(d) for d in rec.depths_mm]
     without = planes_without_flames(found, lf.camera, depths)
     if rec.solver not in SOLVERS or len(depths) < 2:        # nothing to solve again (a learned one, a single plane)
@@ -214,7 +214,7 @@ def planes_without_flame(lf, rec, found, misfit, saturation="file") -> np.ndarra
     for k in np.flatnonzero(without):
         rest = depths[:k] + depths[k + 1:]
         op, again = run_reconstruction(lf, rest, rec.solver, saturation=saturation,
-                                       found_depths=_held(found, lf.camera, rest))
+                                       found_depths=given_planes_held(found, lf.camera, rest))
         data, fit = fit_data(_fitted_light_field(lf, saturation), op)
         r = data_misfit(data, op, again.planes, fit)["relative_residual"]
         without[k] = r ** 2 - misfit["relative_residual"] ** 2 < NO_FLAME_EXPLAINED

@@ -125,19 +125,9 @@ def given_planes_held(found, camera, depths):
     them lie within :data:`~lf_flame.tomo.found_planes.NEAR_PARALLAX` lenslets of parallax of each other: each found
     depth on the nearest given plane (:func:`lf_flame.tomo.found_planes.on_given_planes`), so that admm holds those
     planes to their own regions where they meet, as it holds found ones (:func:`run_reconstruction`'s
-    ``found_depths``): else each flame's light splits between them. Said so where it applies; None where no two
-    given planes are near or the search found no emission (the planes solved free). Chosen for colour captures'
-    temperatures and monochrome ones' emission on validation scenes (``docs/decisions.md``, Finding the planes and
-    Temperature)."""
-    held = _held(found, camera, depths)
-    if held is not None:
-        print("the planes given lie within a few lenslets of parallax of each other: each held to the regions of the "
-              "depths found nearest it")
-    return held
-
-
-def _held(found, camera, depths):
-    """:func:`given_planes_held` without a word."""
+    ``found_depths``): else each flame's light splits between them. None where no two given planes are near or the
+    search found no emission (the planes solved free). Chosen for colour captures' temperatures and monochrome ones'
+    emission on validation scenes (``docs/decisions.md``, Finding the planes and Temperature)."""
     from ..tomo.found_planes import near_pairs, on_given_planes
     if found is None or len(depths) < 2 or not near_pairs(camera, depths).any():
         return None

@@ -240,7 +240,11 @@ def given_planes_found(a, lf, depths):
     from ..temperature.mosaic import monochrome_light_field
     from .planes import given_planes_held, given_planes_search
     found = given_planes_search(monochrome_light_field(lf), a.search_range)
-    return found, given_planes_held(found, lf.camera, depths)
+    held = given_planes_held(found, lf.camera, depths)
+    if held is not None:
+        print("the planes given lie within a few lenslets of parallax of each other: each held to the regions of the "
+              "depths found nearest it")
+    return found, held
 
 
 def _auto_depths(a, lf):

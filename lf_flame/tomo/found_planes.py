@@ -129,12 +129,18 @@ def near_pairs(camera: PlenopticCamera, depths_mm, parallax: float = NEAR_PARALL
     ValueError
         ``parallax`` negative or not finite.
     """
-    if not (math.isfinite(float(parallax)) and parallax >= 0):
-        raise ValueError(f"parallax must be finite and >= 0 (lenslets). Received: {parallax!r}")
-    slopes = np.array([camera.slope_for_depth(float(d)) for d in depths_mm])
-    near = np.abs(slopes[:, None] - slopes[None, :]) * (camera.pixels_per_lenslet - 1) < parallax
+    near = _parallax(camera, depths_mm, depths_mm, parallax) < parallax
     np.fill_diagonal(near, False)
     return near
+
+
+def _parallax(camera: PlenopticCamera, a_mm, b_mm, parallax: float) -> np.ndarray:
+    """``|ds| (N - 1)`` (lenslets) between each depth of ``a_mm`` and each of ``b_mm`` (mm), ``(len(a), len(b))``,
+    after checking the bar ``parallax`` (:func:`near_pairs`)."""
+    if not (math.isfinite(float(parallax)) and parallax >= 0):
+        raise ValueError(f"parallax must be finite and >= 0 (lenslets). Received: {parallax!r}")
+    a, b = ([camera.slope_for_depth(float(d)) for d in x] for x in (a_mm, b_mm))
+    return np.abs(np.subtract.outer(np.asarray(a, float), np.asarray(b, float))) * (camera.pixels_per_lenslet - 1)
 
 
 def planes_without_flames(found: FoundDepths, camera: PlenopticCamera, depths_mm,
@@ -162,13 +168,7 @@ def planes_without_flames(found: FoundDepths, camera: PlenopticCamera, depths_mm
     ValueError
         ``parallax`` negative or not finite.
     """
-    if not (math.isfinite(float(parallax)) and parallax >= 0):
-        raise ValueError(f"parallax must be finite and >= 0 (lenslets). Received: {parallax!r}")
-    given = np.array([camera.slope_for_depth(float(d)) for d in depths_mm])
-    seen = np.array([camera.slope_for_depth(float(d)) for d in found.depths_mm])
-    if not seen.size:
-        return np.ones(len(given), bool)
-    return (np.abs(given[:, None] - seen[None, :]) * (camera.pixels_per_lenslet - 1) >= parallax).all(axis=1)
+    return (_parallax(camera, depths_mm, found.depths_mm, parallax) >= parallax).all(axis=1)
 
 
 def on_given_planes(found: FoundDepths, depths_mm) -> FoundDepths:
