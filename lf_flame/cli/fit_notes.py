@@ -173,8 +173,17 @@ def solve_warnings(lf, op, rec, lattice=None, saturation="file", fitted=None, fo
     left out of the edge's warning). Returns their records: ``clipped_share``, ``edge_share``, ``misfit`` and, with
     ``found``, ``planes_without_flame``."""
     from .real import overexposure_warning
-    out = dict(clipped_share=overexposure_warning((lf if fitted is None else fitted).over_exposure()),
-               misfit=misfit_warning(lf, op, rec, saturation, lattice))
+    clipped = overexposure_warning((lf if fitted is None else fitted).over_exposure())
+    return dict(clipped_share=clipped, **plane_warnings(lf, op, rec, lattice, saturation, found))
+
+
+def plane_warnings(lf, op, rec, lattice=None, saturation="file", found=None) -> dict:
+    """What :func:`solve_warnings` says of the planes themselves, and ``temperature`` of its levelled light field's
+    (:func:`lf_flame.cli.temperature_planes.fit_warnings`): the misfit (:func:`misfit_warning`), emission at the field's
+    edge (:func:`edge_warning`) and, with ``found`` (planes the user gave), the planes without a flame
+    (:func:`planes_without_flame`, :func:`no_flame_warning`; left out of the edge's warning). Returns ``misfit``,
+    ``edge_share`` and, with ``found``, ``planes_without_flame``."""
+    out = dict(misfit=misfit_warning(lf, op, rec, saturation, lattice))
     without = None if found is None else planes_without_flame(lf, rec, found, out["misfit"], saturation)
     out["edge_share"] = edge_warning(rec, op, skip=without)
     if found is not None:
@@ -211,11 +220,12 @@ def planes_without_flame(lf, rec, found, misfit, saturation="file") -> np.ndarra
     without = planes_without_flames(found, lf.camera, depths)
     if rec.solver not in SOLVERS or len(depths) < 2:        # nothing to solve again (a learned one, a single plane)
         return without
+    fitted = _fitted_light_field(lf, saturation) if without.any() else None
     for k in np.flatnonzero(without):
         rest = depths[:k] + depths[k + 1:]
         op, again = run_reconstruction(lf, rest, rec.solver, saturation=saturation,
                                        found_depths=given_planes_held(found, lf.camera, rest))
-        data, fit = fit_data(_fitted_light_field(lf, saturation), op)
+        data, fit = fit_data(fitted, op)
         r = data_misfit(data, op, again.planes, fit)["relative_residual"]
         without[k] = r ** 2 - misfit["relative_residual"] ** 2 < NO_FLAME_EXPLAINED
     return without

@@ -134,6 +134,18 @@ def given_planes_held(found, camera, depths):
     return on_given_planes(found, depths)
 
 
+def solve_given(lf, depths, search_range=None, **kw):
+    """Planes the user gave solved as ``reconstruct`` solves them (:func:`run_reconstruction`, keywords ``kw``),
+    checked against the depth search (:func:`given_planes_search`) and, where admm solves, those near each other held
+    to the regions of their flames (:func:`given_planes_held`). Returns ``(given, held, op, rec)``: the search's
+    :class:`~lf_flame.tomo.depth.FoundDepths` (or None), the held planes' (None where none was held), the operator
+    and the solve."""
+    given = given_planes_search(lf, search_range)
+    held = given_planes_held(given, lf.camera, depths)
+    op, rec = run_reconstruction(lf, depths, found_depths=held, **kw)
+    return given, (held if "support" in rec.settings else None), op, rec   # admm's alone hold (run_reconstruction)
+
+
 def found_record(found):
     """Each found depth's record for the HDF5: depth, uncertainty, peak width (mm), plane, region, lenslets."""
     return [dict(depth_mm=float(d), uncertainty_mm=float(u), width_mm=float(w), plane_mm=float(found.planes_mm[p]),

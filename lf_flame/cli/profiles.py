@@ -223,14 +223,11 @@ def solved_planes(lf, depths, solver, search_range=None):
     ``(depths, stack, found, without)``, ``found`` the :class:`~lf_flame.tomo.depth.FoundDepths` (None for given
     depths), ``without`` the depths of the given planes where the search finds no flame."""
     from ..tomo.truth import bin_planes
-    from .planes import found_planes, given_planes_held, given_planes_search, lattice_solve, run_reconstruction, \
-        solve_found
+    from .planes import found_planes, lattice_solve, solve_found, solve_given
     from .fit_notes import left_out_notes, solve_warnings
     found = given = held = None
     if depths:
-        given = given_planes_search(lf, search_range)
-        held = given_planes_held(given, lf.camera, depths)
-        op, rec = run_reconstruction(lf, depths, solver, found_depths=held)
+        given, held, op, rec = solve_given(lf, depths, search_range, solver=solver)
     else:
         found, op, rec = solve_found(lf, found_planes(lf, search_range=search_range)[2], solver=solver)
         depths = [float(d) for d in found.planes_mm]
@@ -330,13 +327,19 @@ def profiles_table(a):
             # |measured - true|, as score_stacks gives it on the simulated camera's route
             df.insert(df.columns.get_loc("height_mm_true") + 1, "height_err_mm", (df.height_mm - df.height_mm_true).abs())
     df.insert(3 + ("flame" in df), "slope", [slopes[k] for k in df.plane])
-    for flag, rows in ((NO_STRUCTURE_FLAG, df["flags"].notna() if flat and "flags" in df else None),
-                       (NO_FLAME_FLAG, np.isclose(df.depth_mm.to_numpy(float)[:, None], np.asarray(without)[None]).any(
-                           axis=1) if len(without) and "flags" in df else None)):
-        if rows is not None:   # a uniform light field, or a plane given where no flame stands: no flame measured
-            df.loc[rows, "flags"] = [";".join([f for f in str(v).split(";") if f and f != "nan"] + [flag])
-                                     for v in df["flags"][rows]]
+    if "flags" in df:                   # what was measured is no flame: a uniform light field, a plane without flame
+        if flat:
+            _add_flag(df, df["flags"].notna().to_numpy(), NO_STRUCTURE_FLAG)
+        if len(without):
+            _add_flag(df, np.isclose(df.depth_mm.to_numpy(float)[:, None], np.asarray(without)[None]).any(axis=1),
+                      NO_FLAME_FLAG)
     return cam, stack, depths, ms, truth if objects else None, df
+
+
+def _add_flag(df, rows, flag: str) -> None:
+    """Add ``flag`` to the ``flags`` of ``df``'s ``rows`` (bool per row), ``;``-joined after those they hold."""
+    df.loc[rows, "flags"] = [";".join([f for f in str(v).split(";") if f and f != "nan"] + [flag])
+                             for v in df["flags"][rows]]
 
 
 def plane_flames(cam, depths, objects) -> list:

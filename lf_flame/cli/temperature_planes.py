@@ -271,11 +271,11 @@ def fit_warnings(a, lf, depths, solved=None, found=None, given=None) -> dict:
     field, which the temperatures alone do not show; and the share of its lit pixels that clip
     (:func:`lf_flame.cli.real.overexposure_warning`, a note below its level); for planes the user gave, those where
     the depth search (``given``, :func:`given_planes_found`) finds no flame and the data need none
-    (:func:`lf_flame.cli.fit_notes.planes_without_flame`, :func:`~lf_flame.cli.fit_notes.no_flame_warning`). Returns
-    the record's ``edge_share``, ``misfit``, ``clipped_share`` and, with ``given``, ``planes_without_flame``."""
+    (:func:`lf_flame.cli.fit_notes.plane_warnings`). Returns the record's ``edge_share``, ``misfit``,
+    ``clipped_share`` and, with ``given``, ``planes_without_flame``."""
     from ..real.clipping import CLIPPED_WARN
     from ..temperature.mosaic import monochrome_light_field
-    from .fit_notes import edge_warning, misfit_warning, no_flame_warning, planes_without_flame
+    from .fit_notes import plane_warnings
     from .planes import _fitted_light_field, lattice_solve, run_reconstruction
     from .real import overexposure_warning
     mono = monochrome_light_field(lf)
@@ -288,12 +288,7 @@ def fit_warnings(a, lf, depths, solved=None, found=None, given=None) -> dict:
         print(f"note: {100 * clipped:.2g} % of the lit pixels are clipped and left out of the fit: the brightest "
               "emission's temperatures rest on fewer samples there (one channel clips before the other)",
               file=sys.stderr)
-    out = dict(misfit=misfit_warning(mono, op, rec, level, lattice), clipped_share=clipped)
-    without = None if given is None else planes_without_flame(mono, rec, given, out["misfit"], level)
-    out["edge_share"] = edge_warning(rec, op, skip=without)
-    if given is not None:
-        out["planes_without_flame"] = no_flame_warning(rec.planes, rec.depths_mm, given, without)
-    return out
+    return dict(clipped_share=clipped, **plane_warnings(mono, op, rec, lattice, level, given))
 
 
 def _plane_lines(a, depths, r, cal=None) -> list:

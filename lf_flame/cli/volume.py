@@ -15,8 +15,8 @@ from ._io import RAW_FORMATS, _raw_scene, planes_count
 from .options import AUTO_LEVEL, finite, _level_or_none, add_camera_args, add_figure_arg, add_search_arg, positive_int
 from .fit_notes import (edge_warning, left_out_notes, misfit_warning, resolution_note, resolved_spacing_mm,
                         solve_warnings, stack_end_warning)
-from .planes import (_fitted_light_field, found_planes, found_record, given_planes_held, given_planes_search,
-                     lattice_solve, possible_warning, reconstruct_input, run_reconstruction, solve_found)
+from .planes import (_fitted_light_field, found_planes, found_record, lattice_solve, possible_warning,
+                     reconstruct_input, solve_found, solve_given)
 from ..simulate.scenes import PAPER_DEPTHS_MM
 from ..tomo.defaults import (ADMM_KNOBS, ADMM_QUIET, ADMM_SUBSAMPLES, ADMM_TV, DEFAULT_ITERS, DEFAULT_SOLVER,
                               DEFAULT_TV, EXACT_SOLVER, SOLVERS, SUBSAMPLES_MAX_PLANES, VOLUME_L1,
@@ -82,10 +82,7 @@ def cmd_reconstruct(a):
               rays_per_pixel=a.rays_per_pixel, progress=True, subsamples=getattr(a, "subsamples", None),
               model_dir=getattr(a, "model", None))
     if voters is None:                                   # planes given: the depth search tells where the flames are
-        given = given_planes_search(lf, a.search_range)
-        if a.rays_per_pixel is None and (a.solver or EXACT_SOLVER) == "admm":
-            held = given_planes_held(given, cam, depths)   # near ones held to the regions of their flames
-        op, rec = run_reconstruction(lf, depths, found_depths=held, **kw)
+        given, held, op, rec = solve_given(lf, depths, a.search_range, **kw)
         if held is not None:
             extra["given_planes_held"] = found_record(held)
     else:
